@@ -1,0 +1,24 @@
+//! `hvs-shared`: the `no_std`, allocation-free core of hvs-depth.
+//!
+//! Everything that computes lives here, as pure functions over fixed-size arrays, so that the
+//! host CLI (`hvs`) and the Cortex-M4F head controller compute the same bits (`libm`, never
+//! `std` float methods). This crate owns:
+//!
+//! - [`camera`]: the thesis' HVS camera model (eqs. 3.1-3 to 3.1-9), projection with and
+//!   without rounding.
+//! - [`triangulate`]: the traditional depth (eqs. 3.1-16, 3.1-17), the Phi estimate (eq. 4.1-3)
+//!   and the optimal (least reprojection error) triangulation used as the accuracy floor.
+//! - [`mlp`]: fixed-size f32 MLP inference with scaling inside the model.
+//! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
+//! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
+//! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
+#![no_std]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod blob;
+pub mod camera;
+pub mod layout;
+pub mod metrics;
+pub mod mlp;
+pub mod triangulate;
