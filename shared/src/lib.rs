@@ -11,6 +11,7 @@
 //! - [`mlp`]: fixed-size f32 MLP inference with scaling inside the model.
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
+//! - [`presets`]: the thesis' four camera cases and its board protocol.
 //! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
 #![no_std]
 #![forbid(unsafe_code)]
@@ -21,4 +22,5 @@ pub mod camera;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;
+pub mod presets;
 pub mod triangulate;
