@@ -38,11 +38,7 @@ impl Dataset {
     }
     /// Number of rows.
     pub fn len(&self) -> usize {
-        if self.n_inputs == 0 {
-            0
-        } else {
-            self.inputs.len() / self.n_inputs
-        }
+        self.inputs.len().checked_div(self.n_inputs).unwrap_or(0)
     }
     /// Whether there are no rows.
     pub fn is_empty(&self) -> bool {
