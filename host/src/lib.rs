@@ -2,5 +2,19 @@
 //! math comes from `hvs-shared`.
 //!
 //! - [`dataset`]: the in-memory training/evaluation set.
+//! - [`csv_io`]: CSV point sets in (errors name file, line, column) and atomic output.
+//! - [`rigfile`]: camera rigs from `cases.json`-style JSON.
+//! - [`simulate`]: the thesis' board protocol and random volume sets through a rig.
+//! - [`fallback`]: the traditional method's calibration (eq. 4.1-3) fitted on a board set.
+//! - [`infer`]: batch inference, bit-identical to the head's.
+//! - [`evaluate`]: e_ma per depth for several estimators side by side.
+//! - [`model`]: model files on disk (checked reads, atomic writes).
 
+pub mod csv_io;
 pub mod dataset;
+pub mod evaluate;
+pub mod fallback;
+pub mod infer;
+pub mod model;
+pub mod rigfile;
+pub mod simulate;
