@@ -9,7 +9,9 @@
 //! - [`infer`]: batch inference, bit-identical to the head's.
 //! - [`evaluate`]: e_ma per depth for several estimators side by side.
 //! - [`model`]: model files on disk (checked reads, atomic writes).
+//! - [`cmd`]: one module per `hvs` subcommand.
 
+pub mod cmd;
 pub mod csv_io;
 pub mod dataset;
 pub mod evaluate;
