@@ -10,6 +10,8 @@
 //! - [`evaluate`]: e_ma per depth for several estimators side by side.
 //! - [`model`]: model files on disk (checked reads, atomic writes).
 //! - [`cmd`]: one module per `hvs` subcommand.
+//! - [`train`]: fits the f32 MLP to a data set (Levenberg-Marquardt, the thesis' BP, Adam),
+//!   seeded restarts in parallel, and returns the weights blob.
 
 pub mod cmd;
 pub mod csv_io;
@@ -20,3 +22,4 @@ pub mod infer;
 pub mod model;
 pub mod rigfile;
 pub mod simulate;
+pub mod train;
