@@ -22,18 +22,22 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     Simulate(cmd::simulate::Args),
+    Train(cmd::train::Args),
     Predict(cmd::predict::Args),
     Eval(cmd::eval::Args),
     Info(cmd::info::Args),
+    Demo(cmd::demo::Args),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Train(a) => cmd::train::run(a),
         Command::Predict(a) => cmd::predict::run(a),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Info(a) => cmd::info::run(a),
+        Command::Demo(a) => cmd::demo::run(a),
     };
     if let Err(e) = result {
         if is_broken_pipe(&e) {

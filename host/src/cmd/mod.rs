@@ -2,12 +2,12 @@
 //! parses, wires library modules together and does I/O; none holds math. Adding a command
 //! is one module here, one variant of `Command` and one match arm in `main.rs`.
 
-// pub mod demo;
+pub mod demo;
 pub mod eval;
 pub mod info;
 pub mod predict;
 pub mod simulate;
-// pub mod train;
+pub mod train;
 
 use anyhow::{bail, Result};
 use hvs_shared::camera::Rig;
