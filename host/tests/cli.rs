@@ -596,3 +596,44 @@ fn demo_writes_models_data_and_report() {
         "{report}"
     );
 }
+
+#[test]
+fn bad_settings_are_refused_before_anything_is_written() {
+    let dir = TempDir::new().unwrap();
+    let tr = dir.path().join("t.csv");
+    let m = dir.path().join("m.hvsw");
+    ok(&["simulate", "--case", "1", "--set", "train", "-o", s(&tr)]);
+    let base = ["train", "--data", s(&tr), "-o", s(&m)];
+    let run = |extra: &[&str], want: &str| {
+        let args: Vec<&str> = base.iter().chain(extra).copied().collect();
+        fails(&args, want);
+        assert!(!m.exists());
+    };
+    run(&["--hidden", "0"], "--hidden must be 1..=32");
+    run(&["--hidden", "33"], "--hidden must be 1..=32");
+    run(&["--restarts", "0"], "--restarts must be at least 1");
+    run(
+        &["--threshold=-1"],
+        "--threshold must be a positive percentage",
+    );
+    run(
+        &["--learning-rate", "0"],
+        "--learning-rate must be a positive number",
+    );
+    run(&["--threshold", "0.001"], "no restart enrolled");
+    fails(
+        &[
+            "simulate",
+            "--case",
+            "1",
+            "--set",
+            "volume",
+            "--noise-px=-2",
+        ],
+        "--noise-px must be a finite number >= 0",
+    );
+    fails(
+        &["simulate", "--case", "7", "--set", "test"],
+        "--case must be 1-4",
+    );
+}

@@ -67,15 +67,15 @@ pub struct Args {
     /// Seed of the random starts.
     #[arg(long, value_name = "S", default_value_t = 0)]
     seed: u64,
-    /// Back-propagation: learning rate [default: the engine's].
-    #[arg(long, value_name = "ETA")]
-    learning_rate: Option<f64>,
-    /// Back-propagation: stop when the error E falls below E_max [default: the engine's].
-    #[arg(long, value_name = "E")]
-    e_max: Option<f64>,
-    /// Back-propagation: most learning cycles [default: the engine's].
-    #[arg(long, value_name = "N")]
-    max_cycles: Option<usize>,
+    /// Back-propagation (--algo bp): learning rate.
+    #[arg(long, value_name = "ETA", default_value_t = BpParams::default().learning_rate)]
+    learning_rate: f64,
+    /// Back-propagation (--algo bp): stop when a cycle's error E falls below E_max.
+    #[arg(long, value_name = "E", default_value_t = BpParams::default().e_max)]
+    e_max: f64,
+    /// Back-propagation (--algo bp): most learning cycles.
+    #[arg(long, value_name = "N", default_value_t = BpParams::default().max_cycles)]
+    max_cycles: usize,
     /// Half baseline d (cm) stored with the fallback calibration.
     #[arg(long, value_name = "CM", default_value_t = Calibration::BUILT_IN.half_baseline as f64)]
     half_baseline: f64,
@@ -151,8 +151,8 @@ pub fn run(a: Args) -> Result<()> {
     }
     for (name, v) in [
         ("--half-baseline", a.half_baseline),
-        ("--learning-rate", a.learning_rate.unwrap_or(1.0)),
-        ("--e-max", a.e_max.unwrap_or(1.0)),
+        ("--learning-rate", a.learning_rate),
+        ("--e-max", a.e_max),
     ] {
         if !(v.is_finite() && v > 0.0) {
             bail!("{name} must be a positive number, got {v}");
@@ -161,7 +161,6 @@ pub fn run(a: Args) -> Result<()> {
     if !(a.u0.is_finite() && a.v0.is_finite()) {
         bail!("--u0 and --v0 must be finite");
     }
-    let bp_default = BpParams::default();
     let config = TrainConfig {
         hidden: a.hidden,
         outputs: match a.outputs {
@@ -177,9 +176,9 @@ pub fn run(a: Args) -> Result<()> {
         threshold_pct: a.threshold,
         seed: a.seed,
         bp: BpParams {
-            learning_rate: a.learning_rate.unwrap_or(bp_default.learning_rate),
-            e_max: a.e_max.unwrap_or(bp_default.e_max),
-            max_cycles: a.max_cycles.unwrap_or(bp_default.max_cycles),
+            learning_rate: a.learning_rate,
+            e_max: a.e_max,
+            max_cycles: a.max_cycles,
         },
         progress: std::io::stderr().is_terminal(),
     };
