@@ -90,6 +90,14 @@ pub(crate) fn forward(
     }
 }
 
+/// Hidden activations (`n x nh`) and outputs (`n x no`) of every sample at one parameter
+/// vector, row-major.
+#[derive(Debug, Clone)]
+pub(crate) struct Activations {
+    h: Vec<f64>,
+    y: Vec<f64>,
+}
+
 /// Scratch of [`Problem::normal_equations`] for one problem, allocated once per fit.
 #[derive(Debug, Clone)]
 pub(crate) struct NormalWorkspace {
@@ -182,6 +190,34 @@ impl Problem {
         0.5 * cost
     }
 
+    /// Zeroed storage for the forward pass of every sample.
+    pub(crate) fn activations(&self) -> Activations {
+        Activations {
+            h: vec![0.0; self.n * self.shape.nh],
+            y: vec![0.0; self.n * self.shape.no],
+        }
+    }
+
+    /// Forward pass of every sample at `p` into `act`; returns the cost `1/2 sum r^2`.
+    pub(crate) fn evaluate(&self, p: &[f64], act: &mut Activations) -> f64 {
+        let s = &self.shape;
+        let mut cost = 0.0;
+        for ((n, h), y) in act
+            .h
+            .chunks_exact_mut(s.nh)
+            .enumerate()
+            .zip(act.y.chunks_exact_mut(s.no))
+        {
+            forward(s, self.output, p, &self.x[n * s.ni..(n + 1) * s.ni], h, y);
+            for k in 0..s.no {
+                let idx = n * s.no + k;
+                let v = self.c[idx] * (y[k] - self.t[idx]);
+                cost += v * v;
+            }
+        }
+        0.5 * cost
+    }
+
     /// Half the weighted squared error at `p`.
     pub(crate) fn cost(&self, p: &[f64]) -> f64 {
         let mut r = vec![0.0; self.n_res()];
@@ -235,8 +271,9 @@ impl Problem {
     }
 
     /// The Gauss-Newton normal equations without forming the Jacobian: `jtj = J^T J` (full,
-    /// row-major `np x np`) and `jtr = J^T r`; returns the cost `1/2 sum r^2`. `ws` must come
-    /// from [`NormalWorkspace::new`] on this problem.
+    /// row-major `np x np`) and `jtr = J^T r`; returns the cost `1/2 sum r^2`. `act` must hold
+    /// the forward pass at `p` ([`Problem::evaluate`]), `ws` come from
+    /// [`NormalWorkspace::new`] on this problem.
     ///
     /// The Jacobian row of output `k` of sample `n` is `(g_k u_k) (x) x~` on the first layer
     /// (`u_kj = w2_kj h_j (1 - h_j)`, `x~ = (x, 1)`, `g_k = d r / d a2_k`) and `g_k h~` on
@@ -253,6 +290,7 @@ impl Problem {
     pub(crate) fn normal_equations(
         &self,
         p: &[f64],
+        act: &Activations,
         jtj: &mut [f64],
         jtr: &mut [f64],
         ws: &mut NormalWorkspace,
@@ -283,7 +321,8 @@ impl Problem {
         let mut cost = 0.0;
         for n in 0..self.n {
             let x = &self.x[n * s.ni..(n + 1) * s.ni];
-            forward(s, self.output, p, x, &mut ht[..s.nh], y);
+            ht[..s.nh].copy_from_slice(&act.h[n * s.nh..(n + 1) * s.nh]);
+            y.copy_from_slice(&act.y[n * s.no..(n + 1) * s.no]);
             // x~ (x) h~.
             for i in 0..ni1 {
                 let xi = if i < s.ni { x[i] } else { 1.0 };
@@ -539,9 +578,11 @@ pub(crate) mod tests {
             let mut jtj = vec![f64::NAN; np * np];
             let mut jtr = vec![f64::NAN; np];
             let mut ws = NormalWorkspace::new(&prob);
+            let mut act = prob.activations();
+            assert!((cost - prob.evaluate(&p, &mut act)).abs() <= 1e-12 * cost);
             // Twice, to check that the workspace is reset between calls.
             for _ in 0..2 {
-                let c2 = prob.normal_equations(&p, &mut jtj, &mut jtr, &mut ws);
+                let c2 = prob.normal_equations(&p, &act, &mut jtj, &mut jtr, &mut ws);
                 assert!((cost - c2).abs() <= 1e-12 * cost);
                 for a in 0..np {
                     let want: f64 = (0..nr).map(|row| jac[a * nr + row] * r[row]).sum();
