@@ -11,6 +11,7 @@
 //! - [`mlp`]: fixed-size f32 MLP inference with scaling inside the model.
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
+//! - [`protocol`]: head-controller wire protocol (postcard messages in COBS frames).
 //! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
 #![no_std]
 #![forbid(unsafe_code)]
@@ -21,4 +22,5 @@ pub mod camera;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;
+pub mod protocol;
 pub mod triangulate;
