@@ -12,6 +12,8 @@
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
 //! - [`protocol`]: head-controller wire protocol (postcard messages in COBS frames).
+//! - [`presets`]: the thesis' four camera cases and its board protocol.
+//! - [`slots`]: which weight slot boots, which one a new model is written to.
 //! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
 #![no_std]
 #![forbid(unsafe_code)]
@@ -22,5 +24,7 @@ pub mod camera;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;
+pub mod presets;
 pub mod protocol;
+pub mod slots;
 pub mod triangulate;
