@@ -11,6 +11,7 @@
 //! - [`mlp`]: fixed-size f32 MLP inference with scaling inside the model.
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
+//! - [`head`]: the head controller's logic without I/O (boot slot choice, estimates, Info).
 //! - [`protocol`]: head-controller wire protocol (postcard messages in COBS frames).
 //! - [`presets`]: the thesis' four camera cases and its board protocol.
 //! - [`slots`]: which weight slot boots, which one a new model is written to.
@@ -21,6 +22,7 @@
 
 pub mod blob;
 pub mod camera;
+pub mod head;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;

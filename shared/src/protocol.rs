@@ -13,6 +13,9 @@
 //! Floats travel as their IEEE-754 bits (postcard writes `f32` as 4 little-endian bytes), so an
 //! estimate computed on the head arrives bit for bit.
 
+use crate::blob::BlobError;
+pub use crate::layout::Slot;
+pub use crate::triangulate::Calibration;
 use serde::{Deserialize, Serialize};
 
 /// Version of this protocol, reported by [`ResponseBody::Ready`] and [`InfoData`]. Bumped on
@@ -150,22 +153,13 @@ pub struct FirmwareVersion {
     pub patch: u16,
 }
 
-/// A weight slot of the head's flash.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Slot {
-    /// Slot A (flash sector 10).
-    A,
-    /// Slot B (flash sector 11).
-    B,
-}
-
 /// What the head found in one weight slot at boot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum SlotStatus {
     /// No blob: the slot does not start with the blob magic (erased or never written).
     Empty,
-    /// A blob that failed validation (version, topology fields, length or CRC).
-    Invalid,
+    /// A blob that failed validation (version, topology fields, length, CRC, parameters).
+    Invalid(BlobError),
     /// A valid blob with a topology this firmware cannot run.
     UnsupportedTopology {
         /// Inputs of the blob's network.
@@ -202,19 +196,12 @@ pub struct ModelInfo {
     pub outputs: u16,
     /// Seed of the training run.
     pub seed: u64,
-    /// Training error reported by the trainer (mean absolute error, cm).
-    pub train_error: f32,
     /// Hash of the training data set.
     pub train_hash: u64,
-}
-
-/// The traditional-method calibration in use (built-in or from the blob).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct CalibrationInfo {
-    /// Phi = k * f in pixels.
-    pub phi: f32,
-    /// Half the camera baseline d (cm).
-    pub half_baseline: f32,
+    /// Number of training points.
+    pub train_points: u32,
+    /// Training error reported by the trainer (e_ma, percent).
+    pub train_error_pct: f32,
 }
 
 /// Answer to [`RequestBody::Info`].
@@ -236,8 +223,8 @@ pub struct InfoData {
     pub slot_b: SlotStatus,
     /// The running network, `None` in fallback mode.
     pub model: Option<ModelInfo>,
-    /// The calibration of the traditional method used in fallback mode.
-    pub fallback: CalibrationInfo,
+    /// The calibration of the traditional method used in fallback mode (built in).
+    pub fallback: Calibration,
 }
 
 /// Which method produced an estimate.
@@ -261,7 +248,8 @@ pub struct EstimateData {
     /// Method used.
     pub source: Source,
     /// False when the input lies outside the box of inputs seen in training (network), or the
-    /// estimate is outside the calibrated working range (fallback).
+    /// pixels lie outside the image the built-in calibration describes (fallback: `0 <= u <=
+    /// 2 u0`, `0 <= v <= 2 v0`).
     pub in_range: bool,
 }
 
@@ -499,12 +487,15 @@ mod tests {
                 hidden: u16::MAX,
                 outputs: u16::MAX,
                 seed: u64::MAX,
-                train_error: f32::MAX,
                 train_hash: u64::MAX,
+                train_points: u32::MAX,
+                train_error_pct: f32::MAX,
             }),
-            fallback: CalibrationInfo {
-                phi: 284.76,
-                half_baseline: 5.25,
+            fallback: Calibration {
+                phi: f32::MAX,
+                half_baseline: f32::MAX,
+                u0: f32::MAX,
+                v0: f32::MAX,
             },
         }
     }
@@ -554,7 +545,7 @@ mod tests {
         info_fallback.mode = Mode::Fallback;
         info_fallback.model = None;
         info_fallback.slot_a = SlotStatus::Empty;
-        info_fallback.slot_b = SlotStatus::Invalid;
+        info_fallback.slot_b = SlotStatus::Invalid(BlobError::UnsupportedVersion(u16::MAX));
         let bodies = [
             ResponseBody::Ready {
                 protocol: PROTOCOL_VERSION,
