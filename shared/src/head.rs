@@ -46,6 +46,8 @@ pub struct Network {
 }
 
 /// How the head computes depth after boot.
+// No allocator to box the network into; one instance lives for the whole run.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Estimator {
     /// A network from a weight slot.
