@@ -12,8 +12,8 @@ use crate::blob::{self, InputKind, ModelBlob, OutputKind};
 use crate::layout::Slot;
 use crate::mlp::{Mlp, MlpError};
 use crate::protocol::{
-    ErrorCode, EstimateData, FirmwareVersion, InfoData, Mode, ModelInfo, SlotStatus, Source,
-    StereoPoint, PROTOCOL_VERSION,
+    ErrorCode, EstimateData, FirmwareVersion, InfoData, Mode, ModelInfo, Request, RequestBody,
+    Response, ResponseBody, SlotStatus, Source, StereoPoint, PROTOCOL_VERSION,
 };
 use crate::slots::{self, SlotState};
 use crate::triangulate::{self, Calibration};
@@ -170,6 +170,34 @@ impl Boot {
     /// The estimate of `p`, or why there is none.
     pub fn estimate(&self, p: &StereoPoint) -> Result<EstimateData, ErrorCode> {
         self.estimator.estimate(p)
+    }
+}
+
+/// The answer to a request that failed before its id could be read.
+pub fn frame_error(code: ErrorCode) -> Response {
+    Response {
+        id: crate::protocol::UNSOLICITED_ID,
+        body: ResponseBody::Error(code),
+    }
+}
+
+impl Boot {
+    /// Answers `req` (everything but `Bench`, which only the firmware can time, and the
+    /// movement requests, which [`Boot`] alone cannot serve: both answer
+    /// [`ErrorCode::Unsupported`] here).
+    pub fn respond(&self, req: &Request, version: FirmwareVersion) -> Response {
+        let body = match req.body {
+            RequestBody::Ping => ResponseBody::Pong,
+            RequestBody::Info => ResponseBody::Info(self.info(version)),
+            RequestBody::Estimate(p) => match self.estimate(&p) {
+                Ok(e) => ResponseBody::Estimate(e),
+                Err(c) => ResponseBody::Error(c),
+            },
+            RequestBody::Look(_) | RequestBody::Home | RequestBody::Bench { .. } => {
+                ResponseBody::Error(ErrorCode::Unsupported)
+            }
+        };
+        Response { id: req.id, body }
     }
 }
 
