@@ -1,9 +1,9 @@
 //! Clock configuration: 168 MHz from the HSE through the PLL on real boards, the 16 MHz HSI
 //! under QEMU (feature `qemu`: QEMU models no RCC, a PLL request would wait forever).
 
-use stm32f4xx_hal::rcc::{Config, Rcc};
 #[cfg(not(feature = "qemu"))]
 use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc::{Config, Rcc};
 
 /// Control loop rate (Hz): trajectories are ticked and servos commanded at this rate.
 pub const CONTROL_HZ: u32 = 100;

@@ -2,5 +2,11 @@
 //! math comes from `hvs-shared`.
 //!
 //! - [`dataset`]: the in-memory training/evaluation set.
+//! - [`link`]: client of the head protocol over TCP or a serial port.
+//! - [`emulate`]: `hvs emulate`, the firmware in QEMU.
+//! - [`head`]: `hvs head`, requests to a head.
 
 pub mod dataset;
+pub mod emulate;
+pub mod head;
+pub mod link;

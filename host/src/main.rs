@@ -23,12 +23,18 @@ enum Command {
         /// The blob file.
         model: PathBuf,
     },
+    /// Boot the head firmware in QEMU with a model in slot A.
+    Emulate(hvs_host::emulate::EmulateArgs),
+    /// Talk to a head (QEMU over TCP, or a serial port).
+    Head(hvs_host::head::HeadArgs),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info { model } => info(&model),
+        Command::Emulate(a) => hvs_host::emulate::run(&a),
+        Command::Head(a) => hvs_host::head::run(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
