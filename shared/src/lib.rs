@@ -12,13 +12,19 @@
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
 //! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
+//! - [`gaze`]: head axes, joint limits, 0.18° steps, fixation (vergence) and forward kinematics.
+//! - [`trajectory`]: minimum-jerk, rate-limited, quantised setpoints at the control rate.
+//! - [`servo`]: MCDC 3006 S ASCII commands, 50 Hz servo PWM, the `ServoOutput` trait.
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod blob;
 pub mod camera;
+pub mod gaze;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;
+pub mod servo;
+pub mod trajectory;
 pub mod triangulate;
