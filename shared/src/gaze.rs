@@ -37,9 +37,17 @@
 //! posture (conjugate tilt into the plane of baseline and target, each eye pan onto the
 //! target: vergence). If an eye would pass its limit the excess is handed to the neck, then
 //! everything is clamped to the [`JointLimits`].
+//!
+//! # Arithmetic
+//!
+//! Everything is `f32`. `atan2f` and `sqrtf` come from `libm`; sine and cosine are a small
+//! pure-`f32` kernel here ([`sin_cos`]), because `libm`'s `sinf`/`cosf` evaluate in `f64`
+//! (soft-float on the Cortex-M4F) with a large-argument reduction, about 6 KiB of the
+//! firmware's 24 KiB flash budget, while joint angles never leave ±π. Host and MCU still
+//! compute the same bits (IEEE `f32` operations only, no fused multiply-add).
 use core::ops::{Index, IndexMut};
 
-use libm::{atan2f, ceilf, cosf, floorf, hypotf, roundf, sinf};
+use libm::{atan2f, ceilf, floorf, roundf, sqrtf};
 use serde::{Deserialize, Serialize};
 
 /// Positioning resolution of the MCDC 3006 S drives in the thesis' head, degrees.
@@ -298,8 +306,9 @@ pub struct GazeConfig {
     pub neck_share: f32,
     /// Targets nearer than this to the base origin are refused, cm.
     pub min_distance_cm: f32,
-    /// Targets farther than this are pulled in along their direction to this distance, cm
-    /// (vergence is then below 0.001°; keeps the arithmetic far from overflow).
+    /// Targets with a coordinate beyond this are pulled in along their direction until the
+    /// largest coordinate is this, cm (vergence is then below 0.001°; keeps the arithmetic
+    /// far from overflow).
     pub max_distance_cm: f32,
     /// Joint limits; every output of [`fixate`] lies within them.
     pub limits: JointLimits,
@@ -428,17 +437,18 @@ pub fn fixate(cfg: &GazeConfig, target_cm: [f32; 3]) -> Result<Fixation, GazeErr
     if target_cm[2] <= 0.0 {
         return Err(GazeError::BehindHead);
     }
-    let dist = norm(target_cm);
-    // Written so that a NaN minimum refuses everything.
-    let far_enough = dist >= cfg.min_distance_cm;
-    if !far_enough {
-        return Err(GazeError::TooClose);
-    }
-    let p = if dist > cfg.max_distance_cm {
-        scale(target_cm, cfg.max_distance_cm / dist)
+    // Pull far targets in first (keeps every later product far from overflow).
+    let largest = target_cm.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let p = if largest > cfg.max_distance_cm {
+        scale(target_cm, cfg.max_distance_cm / largest)
     } else {
         target_cm
     };
+    // Written so that a NaN minimum refuses everything.
+    let far_enough = norm(p) >= cfg.min_distance_cm;
+    if !far_enough {
+        return Err(GazeError::TooClose);
+    }
     let limits = &cfg.limits;
     let share = if cfg.neck_share > 0.0 {
         cfg.neck_share.min(1.0)
@@ -449,7 +459,7 @@ pub fn fixate(cfg: &GazeConfig, target_cm: [f32; 3]) -> Result<Fixation, GazeErr
     // Neck: a share of the azimuth/elevation seen from the neck centre (pan outer).
     let rel = sub(p, cfg.geometry.neck_centre_cm);
     let azimuth = atan2f(-rel[0], rel[2]) * RAD_TO_DEG;
-    let elevation = atan2f(rel[1], hypotf(rel[0], rel[2])) * RAD_TO_DEG;
+    let elevation = atan2f(rel[1], norm([rel[0], 0.0, rel[2]])) * RAD_TO_DEG;
     let mut neck_pan = limits.clamp_axis(Axis::NeckPan, share * azimuth);
     let mut neck_tilt = limits.clamp_axis(Axis::NeckTilt, share * elevation);
 
@@ -510,7 +520,7 @@ fn eye_angles(geometry: &HeadGeometry, neck_pan: f32, neck_tilt: f32, p: [f32; 3
     // The tilt platform puts the baseline and the target in one plane; r is the target's
     // forward distance within it.
     let tilt = atan2f(q[1], q[2]);
-    let r = hypotf(q[1], q[2]);
+    let r = norm([0.0, q[1], q[2]]);
     let left = atan2f(-(q[0] + d), r);
     let right = atan2f(d - q[0], r);
     [tilt * RAD_TO_DEG, left * RAD_TO_DEG, right * RAD_TO_DEG]
@@ -526,13 +536,13 @@ fn neck_rotation(pan_deg: f32, tilt_deg: f32) -> [[f32; 3]; 3] {
 
 /// Active pan: turns `+Z` towards `-X` for a positive angle (rotation about `-Y`).
 fn rot_pan(a: f32) -> [[f32; 3]; 3] {
-    let (s, c) = (sinf(a), cosf(a));
+    let (s, c) = sin_cos(a);
     [[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]
 }
 
 /// Active tilt: turns `+Z` towards `+Y` (down) for a positive angle (rotation about `-X`).
 fn rot_tilt(b: f32) -> [[f32; 3]; 3] {
-    let (s, c) = (sinf(b), cosf(b));
+    let (s, c) = sin_cos(b);
     [[1.0, 0.0, 0.0], [0.0, c, s], [0.0, -s, c]]
 }
 
@@ -578,14 +588,65 @@ fn scale(a: [f32; 3], k: f32) -> [f32; 3] {
     [a[0] * k, a[1] * k, a[2] * k]
 }
 
+/// Euclidean length (no overflow guard: callers bound their inputs).
 fn norm(a: [f32; 3]) -> f32 {
-    hypotf(hypotf(a[0], a[1]), a[2])
+    sqrtf(dot(a, a))
+}
+
+/// `(sin x, cos x)` for `x` in radians, within 2 ulp of the true values for `|x| <= 2π`
+/// (accurate well beyond; NaN for non-finite `x`). Reduction to `|r| <= π/4` with a
+/// three-part `π/2` (Cody-Waite, Cephes constants), then the minimax polynomials of musl's
+/// `__sindf`/`__cosdf`, evaluated in `f32`.
+pub fn sin_cos(x: f32) -> (f32, f32) {
+    const FRAC_2_PI: f32 = core::f32::consts::FRAC_2_PI;
+    const PIO2_1: f32 = 1.5703125;
+    const PIO2_2: f32 = 4.837_513e-4;
+    const PIO2_3: f32 = 7.549_79e-8;
+    const S1: f32 = -0.166_666_67;
+    const S2: f32 = 0.008_333_329;
+    const S3: f32 = -0.000_198_393_35;
+    const S4: f32 = 2.718_311_5e-6;
+    const C0: f32 = -0.5;
+    const C1: f32 = 0.041_666_623;
+    const C2: f32 = -0.001_388_676_4;
+    const C3: f32 = 2.439_045e-5;
+    let k = roundf(x * FRAC_2_PI);
+    let r = ((x - k * PIO2_1) - k * PIO2_2) - k * PIO2_3;
+    let z = r * r;
+    let s = r + r * z * (S1 + z * (S2 + z * (S3 + z * S4)));
+    let c = 1.0 + z * (C0 + z * (C1 + z * (C2 + z * C3)));
+    match (k as i32) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    extern crate std;
+    use libm::{cosf, sinf};
     use proptest::prelude::*;
+
+    #[test]
+    fn sin_cos_matches_libm() {
+        let mut worst = 0.0f32;
+        for i in -200_000..=200_000 {
+            let x = i as f32 * (2.0 * core::f32::consts::PI / 200_000.0);
+            let (s, c) = sin_cos(x);
+            worst = worst.max((s - sinf(x)).abs()).max((c - cosf(x)).abs());
+        }
+        assert!(worst <= 1.2e-7, "worst {worst}");
+        std::eprintln!("sin_cos worst {worst:e}");
+        assert_eq!(sin_cos(0.0), (0.0, 1.0));
+        let (s, c) = sin_cos(core::f32::consts::FRAC_PI_2);
+        assert!((s - 1.0).abs() < 6e-8 && c.abs() < 1e-7);
+        let (s, c) = sin_cos(-core::f32::consts::PI);
+        assert!(s.abs() < 1e-7 && (c + 1.0).abs() < 6e-8);
+        assert!(sin_cos(f32::NAN).0.is_nan());
+    }
 
     fn close(a: f32, b: f32, tol: f32) -> bool {
         (a - b).abs() <= tol
@@ -828,7 +889,9 @@ mod tests {
                     prop_assert!(cfg.limits.contains(&f.joints), "{:?}", f);
                     prop_assert!(z > 0.0);
                 }
-                Err(GazeError::NonFinite) => prop_assert!(!(x.is_finite() && y.is_finite() && z.is_finite())),
+                Err(GazeError::NonFinite) => {
+                    prop_assert!(!(x.is_finite() && y.is_finite() && z.is_finite()))
+                }
                 Err(GazeError::BehindHead) => prop_assert!(z <= 0.0),
                 Err(GazeError::TooClose) => prop_assert!(norm([x, y, z]) < 10.0),
             }

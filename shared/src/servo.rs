@@ -469,7 +469,8 @@ mod tests {
             let back = (c - zero) as f32 / k;
             let lim = l.axis(axis);
             // The commanded angle is within the limits (to f32 rounding of the division).
-            prop_assert!(back >= lim.min_deg - 1e-4 && back <= lim.max_deg + 1e-4, "{} -> {}", deg, back);
+            let inside = back >= lim.min_deg - 1e-4 && back <= lim.max_deg + 1e-4;
+            prop_assert!(inside, "{} -> {}", deg, back);
             // And it is the nearest count to the clamped angle (one count in when the nearest
             // lies just past a limit).
             let want = l.clamp_axis(axis, deg);
@@ -477,7 +478,8 @@ mod tests {
             prop_assert!((back - want).abs() <= tol / k.abs() + 1e-4, "{} -> {}", want, back);
             // The printed line carries exactly these counts.
             let line = format_mcdc(cfg.0[axis.index()].node, McdcCmd::LoadAbsolute(c));
-            prop_assert_eq!(parse_mcdc(&line), Ok((axis.index() as u8 + 1, McdcCmd::LoadAbsolute(c))));
+            let node = axis.index() as u8 + 1;
+            prop_assert_eq!(parse_mcdc(&line), Ok((node, McdcCmd::LoadAbsolute(c))));
         }
 
         #[test]
@@ -499,7 +501,8 @@ mod tests {
             prop_assert!((us - p as f64).abs() <= half_tick + 1e-9, "{} vs {}", us, p);
             let d_any = duty_for(centre, max_duty, period);
             let us = d_any as f64 * period as f64 / max_duty as f64;
-            prop_assert!(us >= PWM_MIN_US as f64 - half_tick && us <= PWM_MAX_US as f64 + half_tick);
+            let (lo, hi) = (PWM_MIN_US as f64 - half_tick, PWM_MAX_US as f64 + half_tick);
+            prop_assert!(us >= lo && us <= hi);
         }
     }
 }

@@ -475,11 +475,13 @@ mod tests {
         Ticks(u16),
     }
 
+    const SPECIAL: [f32; 5] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30, -1e30];
+
     fn any_angle() -> impl Strategy<Value = f32> {
         prop_oneof![
             4 => -90.0f32..90.0,
             1 => any::<f32>(),
-            1 => prop::sample::select(&[f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30, -1e30][..]),
+            1 => prop::sample::select(&SPECIAL[..]),
         ]
     }
 
@@ -544,7 +546,8 @@ mod tests {
             prop_assert!(!c.is_moving());
             for axis in Axis::ALL {
                 let (lo, hi) = limits.step_range(axis);
-                prop_assert_eq!(c.setpoint_steps()[axis.index()], to_steps(goal[axis]).clamp(lo, hi));
+                let want = to_steps(goal[axis]).clamp(lo, hi);
+                prop_assert_eq!(c.setpoint_steps()[axis.index()], want);
             }
         }
     }
