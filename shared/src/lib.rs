@@ -11,6 +11,8 @@
 //! - [`mlp`]: fixed-size f32 MLP inference with scaling inside the model.
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
+//! - [`presets`]: the thesis' four camera cases and its board protocol.
+//! - [`slots`]: which weight slot boots, which one a new model is written to.
 //! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
 //! - [`gaze`]: head axes, joint limits, 0.18° steps, fixation (vergence) and forward kinematics.
 //! - [`trajectory`]: minimum-jerk, rate-limited, quantised setpoints at the control rate.
@@ -25,6 +27,8 @@ pub mod gaze;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;
+pub mod presets;
 pub mod servo;
+pub mod slots;
 pub mod trajectory;
 pub mod triangulate;

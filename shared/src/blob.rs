@@ -1,0 +1,573 @@
+//! The weights blob: the one model format, on flash and on disk.
+//!
+//! Layout (little endian):
+//!
+//! | bytes | field |
+//! |---|---|
+//! | 0..4 | [`MAGIC`] `b"HVSW"` |
+//! | 4..6 | format [`VERSION`] (u16) |
+//! | 6..10 | payload length `n` (u32), at most [`MAX_PAYLOAD_LEN`] |
+//! | 10..10+n | payload: [`ModelBlob`] in `postcard` |
+//! | 10+n..14+n | CRC-32 (ISO-HDLC, as zlib) of bytes `0..10+n` |
+//!
+//! Bytes after the CRC are ignored (a flash slot is larger than any blob). Decoding works
+//! from a `&[u8]` with no allocation, checks everything before trusting anything, and returns
+//! a distinct [`BlobError`] for each way a blob can be wrong. A blob whose bytes decode has a
+//! consistent topology, finite parameters and non-zero scales.
+
+use crate::mlp::{self, Activation, FlatMlp, Mlp, MlpError};
+use crate::triangulate::Calibration;
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+/// First four bytes of every blob.
+pub const MAGIC: [u8; 4] = *b"HVSW";
+/// The format version this crate writes and reads.
+pub const VERSION: u16 = 1;
+/// Bytes before the payload.
+pub const HEADER_LEN: usize = 10;
+/// Bytes of the trailing CRC.
+pub const CRC_LEN: usize = 4;
+/// Most inputs a model may take (4 pixels + 5 joint angles for posture-aware models, with room).
+pub const MAX_INPUTS: usize = 12;
+/// Most hidden units.
+pub const MAX_HIDDEN: usize = 32;
+/// Most outputs (X, Y, Z).
+pub const MAX_OUTPUTS: usize = 3;
+/// Most parameters of the largest topology.
+pub const MAX_PARAMS: usize = mlp::param_count(MAX_INPUTS, MAX_HIDDEN, MAX_OUTPUTS);
+/// Largest payload accepted.
+pub const MAX_PAYLOAD_LEN: usize = 4096 - HEADER_LEN - CRC_LEN;
+/// Largest blob, header and CRC included: a buffer this big holds any valid blob.
+pub const MAX_BLOB_LEN: usize = HEADER_LEN + MAX_PAYLOAD_LEN + CRC_LEN;
+
+const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// CRC-32 (ISO-HDLC, the zlib/PNG one) of `bytes`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    CRC32.checksum(bytes)
+}
+
+/// Why bytes are not a usable blob.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BlobError {
+    /// The first four bytes are not [`MAGIC`] (e.g. an erased slot).
+    BadMagic,
+    /// A format version this build does not read.
+    UnsupportedVersion(u16),
+    /// Fewer bytes than the header announces.
+    Truncated,
+    /// The payload length is larger than [`MAX_PAYLOAD_LEN`].
+    TooLarge,
+    /// The CRC does not match: the blob was damaged.
+    BadCrc,
+    /// The CRC matches but the payload is not a valid postcard `ModelBlob`.
+    Malformed,
+    /// Sizes in the payload contradict each other, exceed the limits, or differ from the
+    /// topology the caller asked for.
+    TopologyMismatch,
+    /// A parameter is NaN or infinite, or a scale is zero.
+    BadParameter,
+    /// The output buffer is too small to encode into.
+    BufferTooSmall,
+}
+
+impl core::fmt::Display for BlobError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            BlobError::BadMagic => f.write_str("not an hvs weights blob (bad magic)"),
+            BlobError::UnsupportedVersion(v) => write!(
+                f,
+                "unsupported blob format version {v} (this build reads {VERSION})"
+            ),
+            BlobError::Truncated => f.write_str("blob is truncated"),
+            BlobError::TooLarge => f.write_str("blob payload length exceeds the maximum"),
+            BlobError::BadCrc => f.write_str("blob CRC mismatch (damaged)"),
+            BlobError::Malformed => f.write_str("blob payload is malformed"),
+            BlobError::TopologyMismatch => {
+                f.write_str("blob topology is inconsistent or not the one expected")
+            }
+            BlobError::BadParameter => {
+                f.write_str("blob holds a non-finite parameter or a zero scale")
+            }
+            BlobError::BufferTooSmall => f.write_str("output buffer too small"),
+        }
+    }
+}
+
+/// What a model's inputs are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum InputKind {
+    /// `u_l, v_l, u_r, v_r` in pixels (the thesis' net).
+    Stereo,
+    /// `u_l, v_l, u_r, v_r` then the five joint angles in degrees (neck pan, neck tilt,
+    /// eye tilt, left eye pan, right eye pan).
+    StereoJoints,
+}
+
+impl InputKind {
+    /// Number of inputs of this kind.
+    pub const fn len(self) -> usize {
+        match self {
+            InputKind::Stereo => 4,
+            InputKind::StereoJoints => 9,
+        }
+    }
+    /// Never empty; present for API symmetry with `len`.
+    pub const fn is_empty(self) -> bool {
+        false
+    }
+}
+
+/// What a model's outputs are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum OutputKind {
+    /// `X, Y, Z` in cm.
+    Xyz,
+    /// `Z` only, in cm.
+    Z,
+}
+
+impl OutputKind {
+    /// Number of outputs of this kind.
+    pub const fn len(self) -> usize {
+        match self {
+            OutputKind::Xyz => 3,
+            OutputKind::Z => 1,
+        }
+    }
+    /// Never empty; present for API symmetry with `len`.
+    pub const fn is_empty(self) -> bool {
+        false
+    }
+}
+
+/// Network shape. The hidden activation is always the sigmoid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Topology {
+    /// What the inputs are (their count follows).
+    pub inputs: InputKind,
+    /// Hidden units, 1..=[`MAX_HIDDEN`].
+    pub hidden: u8,
+    /// What the outputs are (their count follows).
+    pub outputs: OutputKind,
+    /// Output activation.
+    pub output_activation: Activation,
+}
+
+/// Which training algorithm produced a model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Algorithm {
+    /// Levenberg-Marquardt.
+    Lm,
+    /// The thesis' per-pattern back-propagation.
+    Bp,
+    /// Adam.
+    Adam,
+    /// Anything else (e.g. hand-built in a test).
+    Other,
+}
+
+/// How the model was trained: enough to reproduce it and to judge it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TrainingMeta {
+    /// Seed of the training run.
+    pub seed: u64,
+    /// Hash of the training set (FNV-1a 64 over its rows).
+    pub train_hash: u64,
+    /// Number of training points.
+    pub train_points: u32,
+    /// Training e_ma in percent, computed with this f32 model.
+    pub train_error_pct: f32,
+    /// Algorithm.
+    pub algorithm: Algorithm,
+    /// Restarts tried.
+    pub restarts: u16,
+}
+
+/// A model as stored: the decoded payload of a blob.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelBlob {
+    /// Generation number: among valid slots, the head runs the highest.
+    pub generation: u32,
+    /// Shape.
+    pub topology: Topology,
+    /// Input offsets (one per input).
+    pub in_offset: Vec<f32, MAX_INPUTS>,
+    /// Input scales.
+    pub in_scale: Vec<f32, MAX_INPUTS>,
+    /// Output offsets (one per output).
+    pub out_offset: Vec<f32, MAX_OUTPUTS>,
+    /// Output scales.
+    pub out_scale: Vec<f32, MAX_OUTPUTS>,
+    /// Parameters in the layout documented in [`crate::mlp`].
+    pub params: Vec<f32, MAX_PARAMS>,
+    /// Smallest value of each input seen in training.
+    pub in_min: Vec<f32, MAX_INPUTS>,
+    /// Largest value of each input seen in training.
+    pub in_max: Vec<f32, MAX_INPUTS>,
+    /// Training metadata.
+    pub meta: TrainingMeta,
+    /// The traditional method's calibration fitted on the same data (eq. 4.1-3), if the data
+    /// allowed it.
+    pub fallback: Option<Calibration>,
+}
+
+impl ModelBlob {
+    /// Number of inputs.
+    pub fn n_inputs(&self) -> usize {
+        self.topology.inputs.len()
+    }
+    /// Number of outputs.
+    pub fn n_outputs(&self) -> usize {
+        self.topology.outputs.len()
+    }
+
+    /// Checks sizes against the topology and the limits, and parameter values.
+    pub fn validate(&self) -> Result<(), BlobError> {
+        let (i, o) = (self.n_inputs(), self.n_outputs());
+        let h = self.topology.hidden as usize;
+        if h == 0
+            || h > MAX_HIDDEN
+            || h > mlp::FLAT_MAX_HIDDEN
+            || i > MAX_INPUTS
+            || self.in_offset.len() != i
+            || self.in_scale.len() != i
+            || self.in_min.len() != i
+            || self.in_max.len() != i
+            || self.out_offset.len() != o
+            || self.out_scale.len() != o
+            || self.params.len() != mlp::param_count(i, h, o)
+        {
+            return Err(BlobError::TopologyMismatch);
+        }
+        let finite = |s: &[f32]| s.iter().all(|v| v.is_finite());
+        let nonzero = |s: &[f32]| s.iter().all(|v| *v != 0.0);
+        if !(finite(&self.params)
+            && finite(&self.in_offset)
+            && finite(&self.in_scale)
+            && finite(&self.out_offset)
+            && finite(&self.out_scale)
+            && finite(&self.in_min)
+            && finite(&self.in_max)
+            && nonzero(&self.in_scale)
+            && nonzero(&self.out_scale)
+            && self.meta.train_error_pct.is_finite())
+        {
+            return Err(BlobError::BadParameter);
+        }
+        if let Some(c) = &self.fallback {
+            if !c.is_valid() {
+                return Err(BlobError::BadParameter);
+            }
+        }
+        Ok(())
+    }
+
+    /// A runtime-sized view for [`mlp::infer_flat`].
+    pub fn flat(&self) -> FlatMlp<'_> {
+        FlatMlp {
+            hidden: self.topology.hidden as usize,
+            params: &self.params,
+            output: self.topology.output_activation,
+            in_offset: &self.in_offset,
+            in_scale: &self.in_scale,
+            out_offset: &self.out_offset,
+            out_scale: &self.out_scale,
+        }
+    }
+
+    /// Inference with whatever topology the blob holds; same bits as [`Mlp::infer`].
+    pub fn infer(&self, x: &[f32], out: &mut [f32]) -> Result<(), MlpError> {
+        mlp::infer_flat(&self.flat(), x, out)
+    }
+
+    /// Whether every input lies inside the box seen in training.
+    pub fn in_range(&self, x: &[f32]) -> bool {
+        x.len() == self.in_min.len()
+            && x.iter()
+                .zip(self.in_min.iter().zip(self.in_max.iter()))
+                .all(|(v, (lo, hi))| *v >= *lo && *v <= *hi)
+    }
+
+    /// The model as a fixed-size [`Mlp`], if its topology is exactly `I-H-O`.
+    pub fn to_mlp<const I: usize, const H: usize, const O: usize>(
+        &self,
+    ) -> Result<Mlp<I, H, O>, BlobError> {
+        if self.n_inputs() != I || self.topology.hidden as usize != H || self.n_outputs() != O {
+            return Err(BlobError::TopologyMismatch);
+        }
+        let arr = |s: &[f32]| -> Result<[f32; I], BlobError> {
+            s.try_into().map_err(|_| BlobError::TopologyMismatch)
+        };
+        let arr_o = |s: &[f32]| -> Result<[f32; O], BlobError> {
+            s.try_into().map_err(|_| BlobError::TopologyMismatch)
+        };
+        Mlp::from_params(
+            &self.params,
+            self.topology.output_activation,
+            arr(&self.in_offset)?,
+            arr(&self.in_scale)?,
+            arr_o(&self.out_offset)?,
+            arr_o(&self.out_scale)?,
+        )
+        .map_err(|_| BlobError::TopologyMismatch)
+    }
+
+    /// Writes the blob (header, postcard payload, CRC) into `buf`; returns its length.
+    pub fn encode(&self, buf: &mut [u8]) -> Result<usize, BlobError> {
+        self.validate()?;
+        if buf.len() < HEADER_LEN + CRC_LEN {
+            return Err(BlobError::BufferTooSmall);
+        }
+        let limit = core::cmp::min(buf.len() - CRC_LEN, HEADER_LEN + MAX_PAYLOAD_LEN);
+        let n = postcard::to_slice(self, &mut buf[HEADER_LEN..limit])
+            .map_err(|_| BlobError::BufferTooSmall)?
+            .len();
+        buf[0..4].copy_from_slice(&MAGIC);
+        buf[4..6].copy_from_slice(&VERSION.to_le_bytes());
+        buf[6..10].copy_from_slice(&(n as u32).to_le_bytes());
+        let crc = crc32(&buf[..HEADER_LEN + n]);
+        buf[HEADER_LEN + n..HEADER_LEN + n + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
+        Ok(HEADER_LEN + n + CRC_LEN)
+    }
+}
+
+/// Length of the blob at the start of `bytes` according to its header (header, payload, CRC),
+/// after checking magic, version and the length limit, but not the CRC.
+pub fn framed_len(bytes: &[u8]) -> Result<usize, BlobError> {
+    if bytes.len() < 4 {
+        return Err(if MAGIC.starts_with(bytes) {
+            BlobError::Truncated
+        } else {
+            BlobError::BadMagic
+        });
+    }
+    if bytes[0..4] != MAGIC {
+        return Err(BlobError::BadMagic);
+    }
+    if bytes.len() < HEADER_LEN {
+        return Err(BlobError::Truncated);
+    }
+    let version = u16::from_le_bytes([bytes[4], bytes[5]]);
+    if version != VERSION {
+        return Err(BlobError::UnsupportedVersion(version));
+    }
+    let n = u32::from_le_bytes([bytes[6], bytes[7], bytes[8], bytes[9]]) as usize;
+    if n > MAX_PAYLOAD_LEN {
+        return Err(BlobError::TooLarge);
+    }
+    Ok(HEADER_LEN + n + CRC_LEN)
+}
+
+/// Decodes and validates the blob at the start of `bytes` (trailing bytes are ignored).
+pub fn decode(bytes: &[u8]) -> Result<ModelBlob, BlobError> {
+    let total = framed_len(bytes)?;
+    if bytes.len() < total {
+        return Err(BlobError::Truncated);
+    }
+    let body = total - CRC_LEN;
+    let stored = u32::from_le_bytes([
+        bytes[body],
+        bytes[body + 1],
+        bytes[body + 2],
+        bytes[body + 3],
+    ]);
+    if crc32(&bytes[..body]) != stored {
+        return Err(BlobError::BadCrc);
+    }
+    let (blob, rest): (ModelBlob, &[u8]) =
+        postcard::take_from_bytes(&bytes[HEADER_LEN..body]).map_err(|_| BlobError::Malformed)?;
+    if !rest.is_empty() {
+        return Err(BlobError::Malformed);
+    }
+    blob.validate()?;
+    Ok(blob)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use proptest::prelude::*;
+    use std::vec::Vec as StdVec;
+
+    pub(crate) fn sample(hidden: u8, seed: u32) -> ModelBlob {
+        let mut params = Vec::new();
+        for k in 0..mlp::param_count(4, hidden as usize, 3) {
+            params
+                .push(
+                    ((k as u32).wrapping_mul(2654435761).wrapping_add(seed) % 2000) as f32 / 1000.0
+                        - 1.0,
+                )
+                .unwrap();
+        }
+        ModelBlob {
+            generation: 7,
+            topology: Topology {
+                inputs: InputKind::Stereo,
+                hidden,
+                outputs: OutputKind::Xyz,
+                output_activation: Activation::Linear,
+            },
+            in_offset: Vec::from_slice(&[320.0, 240.0, 300.0, 240.0]).unwrap(),
+            in_scale: Vec::from_slice(&[0.02, 0.05, 0.02, 0.05]).unwrap(),
+            out_offset: Vec::from_slice(&[0.0, 0.0, 115.0]).unwrap(),
+            out_scale: Vec::from_slice(&[3.0, 2.0, 50.0]).unwrap(),
+            params,
+            in_min: Vec::from_slice(&[300.0, 220.0, 280.0, 220.0]).unwrap(),
+            in_max: Vec::from_slice(&[360.0, 260.0, 330.0, 260.0]).unwrap(),
+            meta: TrainingMeta {
+                seed: 42,
+                train_hash: 0xdead_beef,
+                train_points: 72,
+                train_error_pct: 0.8,
+                algorithm: Algorithm::Lm,
+                restarts: 10,
+            },
+            fallback: Some(Calibration {
+                phi: 285.0,
+                half_baseline: 5.25,
+                u0: 320.0,
+                v0: 240.0,
+            }),
+        }
+    }
+
+    fn bytes(b: &ModelBlob) -> StdVec<u8> {
+        let mut buf = [0u8; MAX_BLOB_LEN];
+        let n = b.encode(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn round_trip_and_fixed_size_model() {
+        let b = sample(5, 1);
+        let v = bytes(&b);
+        assert_eq!(&v[0..4], b"HVSW");
+        let d = decode(&v).unwrap();
+        assert_eq!(d, b);
+        // Trailing bytes (rest of a flash slot) are ignored.
+        let mut slot = v.clone();
+        slot.extend_from_slice(&[0xFF; 100]);
+        assert_eq!(decode(&slot).unwrap(), b);
+        let m: Mlp<4, 5, 3> = d.to_mlp().unwrap();
+        let x = [330.0, 235.0, 300.0, 238.0];
+        let mut out = [0.0; 3];
+        d.infer(&x, &mut out).unwrap();
+        assert_eq!(m.infer(&x).unwrap(), out);
+        assert_eq!(
+            d.to_mlp::<4, 6, 3>().unwrap_err(),
+            BlobError::TopologyMismatch
+        );
+        assert!(d.in_range(&x));
+        assert!(!d.in_range(&[10.0, 235.0, 300.0, 238.0]));
+    }
+
+    #[test]
+    fn largest_topology_fits() {
+        let i = InputKind::StereoJoints.len();
+        let mut b = sample(5, 0);
+        b.topology = Topology {
+            inputs: InputKind::StereoJoints,
+            hidden: MAX_HIDDEN as u8,
+            outputs: OutputKind::Xyz,
+            output_activation: Activation::Sigmoid,
+        };
+        b.params = Vec::from_slice(&[0.5; mlp::param_count(9, MAX_HIDDEN, 3)]).unwrap();
+        for v in [
+            &mut b.in_offset,
+            &mut b.in_scale,
+            &mut b.in_min,
+            &mut b.in_max,
+        ] {
+            v.clear();
+            v.extend_from_slice(&[1.0; 9][..i]).unwrap();
+        }
+        let v = bytes(&b);
+        assert!(v.len() <= MAX_BLOB_LEN);
+        assert_eq!(decode(&v).unwrap(), b);
+    }
+
+    #[test]
+    fn distinct_errors() {
+        let v = bytes(&sample(5, 3));
+        let mut m = v.clone();
+        m[0] = b'X';
+        assert_eq!(decode(&m), Err(BlobError::BadMagic));
+        assert_eq!(decode(&[0u8; 64]), Err(BlobError::BadMagic));
+        assert_eq!(decode(&[0xFFu8; 64]), Err(BlobError::BadMagic));
+        let mut m = v.clone();
+        m[4] = 2;
+        assert_eq!(decode(&m), Err(BlobError::UnsupportedVersion(2)));
+        assert_eq!(decode(&v[..v.len() - 1]), Err(BlobError::Truncated));
+        assert_eq!(decode(&v[..2]), Err(BlobError::Truncated));
+        let mut m = v.clone();
+        m[6..10].copy_from_slice(&(MAX_PAYLOAD_LEN as u32 + 1).to_le_bytes());
+        assert_eq!(decode(&m), Err(BlobError::TooLarge));
+        let mut m = v.clone();
+        m[20] ^= 1;
+        assert_eq!(decode(&m), Err(BlobError::BadCrc));
+        // A payload with a valid CRC but inconsistent sizes.
+        let mut b = sample(5, 3);
+        b.topology.hidden = 6;
+        assert_eq!(
+            b.encode(&mut [0u8; MAX_BLOB_LEN]),
+            Err(BlobError::TopologyMismatch)
+        );
+        let mut b = sample(5, 3);
+        b.params[3] = f32::NAN;
+        assert_eq!(
+            b.encode(&mut [0u8; MAX_BLOB_LEN]),
+            Err(BlobError::BadParameter)
+        );
+        // Garbage payload under a correct header and CRC.
+        let mut g = StdVec::from(&v[..HEADER_LEN]);
+        g[6..10].copy_from_slice(&3u32.to_le_bytes());
+        g.extend_from_slice(&[0xFF, 0xFF, 0xFF]);
+        let crc = crc32(&g);
+        g.extend_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&g), Err(BlobError::Malformed));
+        assert_eq!(
+            sample(5, 3).encode(&mut [0u8; 20]),
+            Err(BlobError::BufferTooSmall)
+        );
+    }
+
+    #[test]
+    fn every_single_byte_change_and_truncation_is_rejected() {
+        let v = bytes(&sample(5, 9));
+        for i in 0..v.len() {
+            for delta in 1..=255u8 {
+                let mut m = v.clone();
+                m[i] = m[i].wrapping_add(delta);
+                assert!(decode(&m).is_err(), "byte {i} +{delta} accepted");
+            }
+        }
+        for n in 0..v.len() {
+            assert!(decode(&v[..n]).is_err(), "truncation to {n} accepted");
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn blob_round_trips(hidden in 1u8..=MAX_HIDDEN as u8, seed in any::<u32>(), generation in any::<u32>(), z in any::<bool>()) {
+            let mut b = sample(hidden, seed);
+            b.generation = generation;
+            if z {
+                b.topology.outputs = OutputKind::Z;
+                b.out_offset.truncate(1);
+                b.out_scale.truncate(1);
+                b.params.truncate(mlp::param_count(4, hidden as usize, 1));
+                b.fallback = None;
+            }
+            let v = bytes(&b);
+            prop_assert_eq!(decode(&v).unwrap(), b);
+        }
+
+        #[test]
+        fn random_bytes_never_decode_or_panic(v in proptest::collection::vec(any::<u8>(), 0..300)) {
+            prop_assert!(decode(&v).is_err());
+        }
+    }
+}

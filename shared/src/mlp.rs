@@ -1,0 +1,328 @@
+//! Fixed-size f32 MLP inference: one sigmoid hidden layer, linear or sigmoid outputs.
+//!
+//! The scaling is part of the model: callers pass pixels (and, for posture-aware models,
+//! joint angles) and get centimetres. Inputs are normalised as `(x - in_offset) * in_scale`,
+//! outputs de-normalised as `y * out_scale + out_offset`. Every sum starts from the bias and
+//! adds the products in index order, in plain f32 (no fused multiply-add), with `libm::expf`,
+//! so [`Mlp::infer`] and the runtime-sized [`infer_flat`] give the same bits on the host and on
+//! the Cortex-M4F.
+//!
+//! Parameter layout (also the blob's): for each hidden unit `j`, `w1[j][0..I]` then `b1[j]`;
+//! then for each output `k`, `w2[k][0..H]` then `b2[k]`.
+
+// Index loops keep the summation order explicit: it is part of the bit-exactness contract.
+#![allow(clippy::needless_range_loop)]
+
+use serde::{Deserialize, Serialize};
+
+/// An activation function.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Activation {
+    /// `f(a) = a`.
+    Linear,
+    /// `f(a) = 1 / (1 + e^-a)` (eq. 2.1-2).
+    Sigmoid,
+}
+
+impl Activation {
+    /// Applies the activation in f32 through `libm`.
+    #[inline(always)]
+    pub fn apply(self, a: f32) -> f32 {
+        match self {
+            Activation::Linear => a,
+            Activation::Sigmoid => sigmoid(a),
+        }
+    }
+}
+
+/// The logistic sigmoid in f32, eq. 2.1-2.
+#[inline(always)]
+pub fn sigmoid(a: f32) -> f32 {
+    1.0 / (1.0 + libm::expf(-a))
+}
+
+/// Why an inference was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum MlpError {
+    /// An input is NaN or infinite.
+    NonFiniteInput,
+    /// The result is NaN or infinite (a broken model).
+    NonFiniteOutput,
+    /// Slice lengths do not match the topology.
+    Shape,
+}
+
+impl core::fmt::Display for MlpError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            MlpError::NonFiniteInput => "non-finite input",
+            MlpError::NonFiniteOutput => "non-finite output",
+            MlpError::Shape => "input or output length does not match the model",
+        })
+    }
+}
+
+/// Number of parameters of an `i-h-o` net.
+pub const fn param_count(i: usize, h: usize, o: usize) -> usize {
+    h * (i + 1) + o * (h + 1)
+}
+
+/// A fixed-size MLP `I -> H (sigmoid) -> O`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mlp<const I: usize, const H: usize, const O: usize> {
+    /// Input-to-hidden weights, `w1[j][i]`.
+    pub w1: [[f32; I]; H],
+    /// Hidden biases.
+    pub b1: [f32; H],
+    /// Hidden-to-output weights, `w2[k][j]`.
+    pub w2: [[f32; H]; O],
+    /// Output biases.
+    pub b2: [f32; O],
+    /// Output activation.
+    pub output: Activation,
+    /// Input offsets.
+    pub in_offset: [f32; I],
+    /// Input scales.
+    pub in_scale: [f32; I],
+    /// Output offsets.
+    pub out_offset: [f32; O],
+    /// Output scales.
+    pub out_scale: [f32; O],
+}
+
+impl<const I: usize, const H: usize, const O: usize> Mlp<I, H, O> {
+    /// Builds a model from flat parameters in the documented layout and its scaling.
+    pub fn from_params(
+        params: &[f32],
+        output: Activation,
+        in_offset: [f32; I],
+        in_scale: [f32; I],
+        out_offset: [f32; O],
+        out_scale: [f32; O],
+    ) -> Result<Self, MlpError> {
+        if params.len() != param_count(I, H, O) {
+            return Err(MlpError::Shape);
+        }
+        let mut m = Mlp {
+            w1: [[0.0; I]; H],
+            b1: [0.0; H],
+            w2: [[0.0; H]; O],
+            b2: [0.0; O],
+            output,
+            in_offset,
+            in_scale,
+            out_offset,
+            out_scale,
+        };
+        let mut it = params.iter().copied();
+        for j in 0..H {
+            for w in m.w1[j].iter_mut() {
+                *w = it.next().unwrap_or(0.0);
+            }
+            m.b1[j] = it.next().unwrap_or(0.0);
+        }
+        for k in 0..O {
+            for w in m.w2[k].iter_mut() {
+                *w = it.next().unwrap_or(0.0);
+            }
+            m.b2[k] = it.next().unwrap_or(0.0);
+        }
+        Ok(m)
+    }
+
+    /// Pixels (and joint angles) in, centimetres out. Non-finite input is rejected.
+    #[inline]
+    pub fn infer(&self, x: &[f32; I]) -> Result<[f32; O], MlpError> {
+        let mut xn = [0.0f32; I];
+        for i in 0..I {
+            if !x[i].is_finite() {
+                return Err(MlpError::NonFiniteInput);
+            }
+            xn[i] = (x[i] - self.in_offset[i]) * self.in_scale[i];
+        }
+        let mut h = [0.0f32; H];
+        for j in 0..H {
+            let mut a = self.b1[j];
+            for i in 0..I {
+                a += self.w1[j][i] * xn[i];
+            }
+            h[j] = sigmoid(a);
+        }
+        let mut y = [0.0f32; O];
+        for k in 0..O {
+            let mut a = self.b2[k];
+            for j in 0..H {
+                a += self.w2[k][j] * h[j];
+            }
+            let v = self.output.apply(a) * self.out_scale[k] + self.out_offset[k];
+            if !v.is_finite() {
+                return Err(MlpError::NonFiniteOutput);
+            }
+            y[k] = v;
+        }
+        Ok(y)
+    }
+}
+
+/// Runtime-sized view of a model, used where the topology is only known from a blob.
+#[derive(Debug, Clone, Copy)]
+pub struct FlatMlp<'a> {
+    /// Hidden units.
+    pub hidden: usize,
+    /// Flat parameters (documented layout).
+    pub params: &'a [f32],
+    /// Output activation.
+    pub output: Activation,
+    /// Input offsets (length = number of inputs).
+    pub in_offset: &'a [f32],
+    /// Input scales.
+    pub in_scale: &'a [f32],
+    /// Output offsets (length = number of outputs).
+    pub out_offset: &'a [f32],
+    /// Output scales.
+    pub out_scale: &'a [f32],
+}
+
+/// Largest hidden layer [`infer_flat`] evaluates (scratch space on the stack).
+pub const FLAT_MAX_HIDDEN: usize = 32;
+/// Largest input vector [`infer_flat`] evaluates.
+pub const FLAT_MAX_INPUTS: usize = 16;
+
+/// The same arithmetic as [`Mlp::infer`] over runtime sizes: identical bits for the same model.
+pub fn infer_flat(m: &FlatMlp<'_>, x: &[f32], out: &mut [f32]) -> Result<(), MlpError> {
+    let ni = m.in_offset.len();
+    let no = m.out_offset.len();
+    let h = m.hidden;
+    if x.len() != ni
+        || out.len() != no
+        || m.in_scale.len() != ni
+        || m.out_scale.len() != no
+        || ni > FLAT_MAX_INPUTS
+        || h > FLAT_MAX_HIDDEN
+        || m.params.len() != param_count(ni, h, no)
+    {
+        return Err(MlpError::Shape);
+    }
+    let mut xn = [0.0f32; FLAT_MAX_INPUTS];
+    for i in 0..ni {
+        if !x[i].is_finite() {
+            return Err(MlpError::NonFiniteInput);
+        }
+        xn[i] = (x[i] - m.in_offset[i]) * m.in_scale[i];
+    }
+    let mut hid = [0.0f32; FLAT_MAX_HIDDEN];
+    for j in 0..h {
+        let row = &m.params[j * (ni + 1)..(j + 1) * (ni + 1)];
+        let mut a = row[ni];
+        for i in 0..ni {
+            a += row[i] * xn[i];
+        }
+        hid[j] = sigmoid(a);
+    }
+    let base = h * (ni + 1);
+    for k in 0..no {
+        let row = &m.params[base + k * (h + 1)..base + (k + 1) * (h + 1)];
+        let mut a = row[h];
+        for j in 0..h {
+            a += row[j] * hid[j];
+        }
+        let v = m.output.apply(a) * m.out_scale[k] + m.out_offset[k];
+        if !v.is_finite() {
+            return Err(MlpError::NonFiniteOutput);
+        }
+        out[k] = v;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn tiny() -> Mlp<2, 1, 1> {
+        // h = sigmoid(0 + 1*x0 - 1*x1); y = 2*h + 1, scaled by 10, offset 5.
+        Mlp::from_params(
+            &[1.0, -1.0, 0.0, 2.0, 1.0],
+            Activation::Linear,
+            [0.0, 0.0],
+            [1.0, 1.0],
+            [5.0],
+            [10.0],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn hand_worked_forward_pass() {
+        let m = tiny();
+        // x0 = x1 -> h = 0.5 -> y = 2, out = 25.
+        assert_eq!(m.infer(&[3.0, 3.0]).unwrap(), [25.0]);
+        let y = m.infer(&[1.0, 0.0]).unwrap()[0];
+        let h = 1.0 / (1.0 + (-1.0f64).exp());
+        assert!((y as f64 - (5.0 + 10.0 * (2.0 * h + 1.0))).abs() < 1e-5);
+    }
+
+    #[test]
+    fn sigmoid_output_and_scaling() {
+        let m: Mlp<1, 1, 1> = Mlp::from_params(
+            &[0.0, 0.0, 0.0, 0.0],
+            Activation::Sigmoid,
+            [100.0],
+            [0.5],
+            [1.0],
+            [4.0],
+        )
+        .unwrap();
+        // a2 = 0 -> sigmoid 0.5 -> 0.5 * 4 + 1 = 3.
+        assert_eq!(m.infer(&[7.0]).unwrap(), [3.0]);
+    }
+
+    #[test]
+    fn rejects_non_finite_and_bad_shapes() {
+        let m = tiny();
+        assert_eq!(m.infer(&[f32::NAN, 0.0]), Err(MlpError::NonFiniteInput));
+        assert_eq!(
+            m.infer(&[0.0, f32::INFINITY]),
+            Err(MlpError::NonFiniteInput)
+        );
+        assert!(Mlp::<2, 1, 1>::from_params(
+            &[0.0; 4],
+            Activation::Linear,
+            [0.0; 2],
+            [1.0; 2],
+            [0.0],
+            [1.0]
+        )
+        .is_err());
+        let huge: Mlp<1, 1, 1> = Mlp::from_params(
+            &[0.0, 0.0, f32::MAX, f32::MAX],
+            Activation::Linear,
+            [0.0],
+            [1.0],
+            [0.0],
+            [f32::MAX],
+        )
+        .unwrap();
+        assert_eq!(huge.infer(&[0.0]), Err(MlpError::NonFiniteOutput));
+    }
+
+    proptest! {
+        #[test]
+        fn flat_and_const_give_identical_bits(
+            params in proptest::collection::vec(-3.0f32..3.0, param_count(4, 5, 3)),
+            x in proptest::array::uniform4(0.0f32..640.0),
+            sig in any::<bool>(),
+        ) {
+            let act = if sig { Activation::Sigmoid } else { Activation::Linear };
+            let (io, is) = ([320.0, 240.0, 320.0, 240.0], [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0]);
+            let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
+            let m: Mlp<4, 5, 3> = Mlp::from_params(&params, act, io, is, oo, os).unwrap();
+            let a = m.infer(&x).unwrap();
+            let flat = FlatMlp { hidden: 5, params: &params, output: act, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+            let mut b = [0.0f32; 3];
+            infer_flat(&flat, &x, &mut b).unwrap();
+            prop_assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
+        }
+    }
+}
