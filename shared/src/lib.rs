@@ -16,6 +16,9 @@
 //! - [`presets`]: the thesis' four camera cases and its board protocol.
 //! - [`slots`]: which weight slot boots, which one a new model is written to.
 //! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
+//! - [`gaze`]: head axes, joint limits, 0.18° steps, fixation (vergence) and forward kinematics.
+//! - [`trajectory`]: minimum-jerk, rate-limited, quantised setpoints at the control rate.
+//! - [`servo`]: MCDC 3006 S ASCII commands, 50 Hz servo PWM, the `ServoOutput` trait.
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -23,10 +26,13 @@
 pub mod blob;
 pub mod camera;
 pub mod head;
+pub mod gaze;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;
 pub mod presets;
 pub mod protocol;
+pub mod servo;
 pub mod slots;
+pub mod trajectory;
 pub mod triangulate;
