@@ -5,9 +5,6 @@
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Config, Rcc};
 
-/// Control loop rate (Hz): trajectories are ticked and servos commanded at this rate.
-pub const CONTROL_HZ: u32 = 100;
-
 /// External crystal of the board (Netduino Plus 2 and many STM32F405 boards: 25 MHz; boards
 /// with an 8 MHz crystal change this one line).
 #[cfg(not(feature = "qemu"))]

@@ -21,17 +21,21 @@
 mod bench;
 mod clock;
 mod link;
+mod servo;
 
 use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use hvs_shared::blob::MAX_BLOB_LEN;
-use hvs_shared::head::{self, Boot};
+use hvs_shared::gaze::{GazeConfig, Joints};
+use hvs_shared::head::{self, Head};
 use hvs_shared::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
 use hvs_shared::protocol::{
     self, ErrorCode, FirmwareVersion, FrameAccumulator, ProtocolError, Request, RequestBody,
     Response, ResponseBody, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
 };
+use hvs_shared::servo::ServoOutput;
+use hvs_shared::trajectory::ControllerConfig;
 use stm32f4xx_hal::{pac, prelude::*};
 
 /// This firmware's version (the crate version).
@@ -64,6 +68,14 @@ fn slot_bytes(addr: u32) -> &'static [u8] {
     unsafe { core::slice::from_raw_parts(addr as *const u8, MAX_BLOB_LEN) }
 }
 
+/// Fixation settings of this head (neck/eye split, geometry, joint limits).
+const GAZE: GazeConfig = GazeConfig::DEFAULT;
+/// Trajectory settings (0.7 s neck, 0.2 s eyes, the same joint limits, 100 Hz).
+const CONTROL: ControllerConfig = ControllerConfig {
+    limits: GAZE.limits,
+    ..ControllerConfig::DEFAULT
+};
+
 #[entry]
 fn main() -> ! {
     let dp = pac::Peripherals::take().unwrap_or_else(|| halt());
@@ -71,14 +83,49 @@ fn main() -> ! {
     let mut rcc = dp.RCC.freeze(clock::config());
 
     // Boot decision first: nothing is commanded before it is known what runs.
-    let boot: Boot = head::boot(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
+    let boot = head::boot(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
+    let mut head = Head::new(boot, GAZE, &CONTROL).unwrap_or_else(|_| halt());
 
     let gpioa = dp.GPIOA.split(&mut rcc);
+    #[cfg(not(feature = "pwm"))]
+    let mut servos = {
+        let tx = dp
+            .USART2
+            .tx(gpioa.pa2, servo::MCDC_BAUD.bps(), &mut rcc)
+            .unwrap_or_else(|_| halt());
+        servo::Mcdc::new(tx, servo::MCDC, GAZE.limits)
+    };
+    #[cfg(feature = "pwm")]
+    let (mut c0, mut c1, mut c2, mut c3, mut c4) = {
+        use hvs_shared::servo::PWM_HZ;
+        let gpiob = dp.GPIOB.split(&mut rcc);
+        let (_, (t3c1, t3c2, t3c3, t3c4)) = dp.TIM3.pwm_hz(PWM_HZ.Hz(), &mut rcc);
+        let (_, (t4c1, ..)) = dp.TIM4.pwm_hz(PWM_HZ.Hz(), &mut rcc);
+        let mut c0 = t3c1.with(gpioa.pa6);
+        let mut c1 = t3c2.with(gpioa.pa7);
+        let mut c2 = t3c3.with(gpiob.pb0);
+        let mut c3 = t3c4.with(gpiob.pb1);
+        let mut c4 = t4c1.with(gpiob.pb6);
+        c0.enable();
+        c1.enable();
+        c2.enable();
+        c3.enable();
+        c4.enable();
+        (c0, c1, c2, c3, c4)
+    };
+    #[cfg(feature = "pwm")]
+    let mut servos = servo::Pwm::new(
+        [&mut c0, &mut c1, &mut c2, &mut c3, &mut c4],
+        servo::PWM,
+        GAZE.limits,
+    );
+
     let mut tx = link::init(dp.USART1, gpioa.pa9, gpioa.pa10, &mut rcc);
 
+    let tick_hz = clock::systick_hz(&rcc);
     let mut syst = cp.SYST;
     syst.set_clock_source(SystClkSource::Core);
-    syst.set_reload(clock::systick_hz(&rcc) / clock::CONTROL_HZ - 1);
+    syst.set_reload(tick_hz / CONTROL.control_hz - 1);
     syst.clear_current();
     syst.enable_counter();
     syst.enable_interrupt();
@@ -96,8 +143,21 @@ fn main() -> ! {
     );
 
     let mut acc = FrameAccumulator::<MAX_FRAME_LEN>::new();
-    let tick_hz = clock::systick_hz(&rcc);
+    // The servos are left alone until the first Look or Home: their position at power-up is
+    // unknown, and commanding home unasked could swing the head.
+    let mut armed = false;
+    let mut ticks_done = TICKS.load(Ordering::Relaxed);
     loop {
+        // Control ticks first (every one, so the per-tick rate limit holds on the wire too).
+        let now = TICKS.load(Ordering::Relaxed);
+        while ticks_done != now {
+            ticks_done = ticks_done.wrapping_add(1);
+            let setpoint: Joints = head.tick();
+            if armed {
+                // A transport error loses this tick's commands; the next tick resends.
+                let _ = servos.command(&setpoint);
+            }
+        }
         let Some(byte) = link::pop() else {
             cortex_m::asm::wfi();
             continue;
@@ -106,7 +166,11 @@ fn main() -> ! {
             None => continue,
             Some(Err(_)) => head::frame_error(ErrorCode::Oversize),
             Some(Ok(frame)) => match protocol::decode_request(frame) {
-                Ok(req) => answer(&boot, &req, tick_hz),
+                Ok(req) => {
+                    let r = answer(&mut head, &req, tick_hz);
+                    armed |= matches!(r.body, ResponseBody::Look(_) | ResponseBody::Home);
+                    r
+                }
                 Err(ProtocolError::Oversize) => head::frame_error(ErrorCode::Oversize),
                 Err(_) => head::frame_error(ErrorCode::Malformed),
             },
@@ -115,13 +179,13 @@ fn main() -> ! {
     }
 }
 
-fn answer(boot: &Boot, req: &Request, tick_hz: u32) -> Response {
+fn answer(head: &mut Head, req: &Request, tick_hz: u32) -> Response {
     match req.body {
         RequestBody::Bench { point, count } => Response {
             id: req.id,
-            body: bench::run(boot, &point, count, tick_hz),
+            body: bench::run(&head.boot, &point, count, tick_hz),
         },
-        _ => boot.respond(req, VERSION),
+        _ => head.respond(req, VERSION),
     }
 }
 
@@ -152,7 +216,9 @@ fn halt() -> ! {
 
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
-    // No formatting of the message: it would pull core::fmt into the image. The servos hold
-    // their last setpoint (MCDC position mode; PWM timers run on without the CPU).
+    // No formatting of the message: it would pull core::fmt into the image. MCDC drives get
+    // V0 (stop and hold); PWM timers run on without the CPU (hold the last pulses).
+    cortex_m::interrupt::disable();
+    servo::panic_halt();
     halt()
 }

@@ -156,7 +156,7 @@ pub fn run(args: &HeadArgs) -> Result<()> {
                 ResponseBody::Look(l) => Some(l),
                 _ => None,
             })?;
-            let t = l.target;
+            let t = l.target.0;
             writeln!(
                 out,
                 "target x={} y={} z={} cm ({:?}, in_range={})",
@@ -165,14 +165,13 @@ pub fn run(args: &HeadArgs) -> Result<()> {
             writeln!(
                 out,
                 "joints deg: neck_pan={} neck_tilt={} eye_tilt={} left_eye_pan={} right_eye_pan={}{}",
-                t.neck_pan,
-                t.neck_tilt,
-                t.eye_tilt,
-                t.eye_pan_l,
-                t.eye_pan_r,
+                t[0],
+                t[1],
+                t[2],
+                t[3],
+                t[4],
                 if l.limited { " (limited)" } else { "" }
             )?;
-            writeln!(out, "duration {} ms", l.duration_ms)?;
         }
         HeadCommand::Home => {
             expect(link.request(RequestBody::Home)?, "Home", |b| {
@@ -245,6 +244,7 @@ pub fn error_text(code: ErrorCode) -> &'static str {
         ErrorCode::Malformed => "malformed frame",
         ErrorCode::Oversize => "frame too long",
         ErrorCode::NonFinite => "a coordinate is NaN or infinite",
+        ErrorCode::Unreachable => "the point cannot be fixated (behind the cameras or too close)",
         ErrorCode::NoSolution => {
             "no depth for this point (zero/negative disparity or non-finite result)"
         }

@@ -1,21 +1,24 @@
 //! The head controller's decisions, without I/O: which weight slot boots, how a point becomes
 //! an estimate, and what `Info` reports.
 //!
-//! The firmware hands [`boot`] the raw bytes of both weight slots and keeps the returned
-//! [`Boot`]; every request is then answered by pure functions of it, so the host tests the
-//! exact logic the head runs. A slot is run only if its blob validates *and* its topology is
+//! The firmware hands [`boot`] the raw bytes of both weight slots, wraps the returned [`Boot`]
+//! in a [`Head`] (with the gaze controller) and then only moves bytes: every request is
+//! answered by [`Head::respond`] and every control tick is [`Head::tick`], so the host tests
+//! the exact logic the head runs. A slot is run only if its blob validates *and* its topology is
 //! the one this build runs ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`], stereo pixels in,
 //! XYZ out); anything else counts as not runnable, and with no runnable slot the head falls
 //! back to the traditional method with [`Calibration::BUILT_IN`].
 
 use crate::blob::{self, InputKind, ModelBlob, OutputKind};
+use crate::gaze::{self, Axis, GazeConfig, GazeError, Joints};
 use crate::layout::Slot;
 use crate::mlp::{Mlp, MlpError};
 use crate::protocol::{
-    ErrorCode, EstimateData, FirmwareVersion, InfoData, Mode, ModelInfo, Request, RequestBody,
-    Response, ResponseBody, SlotStatus, Source, StereoPoint, PROTOCOL_VERSION,
+    ErrorCode, EstimateData, FirmwareVersion, InfoData, LookData, Mode, ModelInfo, Request,
+    RequestBody, Response, ResponseBody, SlotStatus, Source, StereoPoint, PROTOCOL_VERSION,
 };
 use crate::slots::{self, SlotState};
+use crate::trajectory::{ConfigError, ControllerConfig, GazeController};
 use crate::triangulate::{self, Calibration};
 
 /// Inputs of the network the head runs: `u_l, v_l, u_r, v_r`.
@@ -182,9 +185,8 @@ pub fn frame_error(code: ErrorCode) -> Response {
 }
 
 impl Boot {
-    /// Answers `req` (everything but `Bench`, which only the firmware can time, and the
-    /// movement requests, which [`Boot`] alone cannot serve: both answer
-    /// [`ErrorCode::Unsupported`] here).
+    /// Answers the requests that need no movement (`Look`, `Home` and `Bench` answer
+    /// [`ErrorCode::Unsupported`] here: see [`Head::respond`]).
     pub fn respond(&self, req: &Request, version: FirmwareVersion) -> Response {
         let body = match req.body {
             RequestBody::Ping => ResponseBody::Pong,
@@ -198,6 +200,79 @@ impl Boot {
             }
         };
         Response { id: req.id, body }
+    }
+}
+
+/// The head: what boot chose, the gaze settings and the setpoint generator.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Head {
+    /// What boot found and runs.
+    pub boot: Boot,
+    /// Fixation settings (neck/eye split, limits).
+    pub gaze: GazeConfig,
+    /// Trajectories of the five axes.
+    pub controller: GazeController,
+}
+
+impl Head {
+    /// A head at rest at home. Fails if the controller settings are unusable.
+    pub fn new(
+        boot: Boot,
+        gaze: GazeConfig,
+        controller: &ControllerConfig,
+    ) -> Result<Head, ConfigError> {
+        Ok(Head {
+            boot,
+            gaze,
+            controller: GazeController::new(controller)?,
+        })
+    }
+
+    /// Answers `req`; `Look` and `Home` start a move. `Bench` is the firmware's (answered
+    /// [`ErrorCode::Unsupported`] here).
+    pub fn respond(&mut self, req: &Request, version: FirmwareVersion) -> Response {
+        let body = match req.body {
+            RequestBody::Look(p) => match self.look(&p) {
+                Ok(l) => ResponseBody::Look(l),
+                Err(c) => ResponseBody::Error(c),
+            },
+            RequestBody::Home => {
+                self.controller.home();
+                ResponseBody::Home
+            }
+            _ => return self.boot.respond(req, version),
+        };
+        Response { id: req.id, body }
+    }
+
+    /// Estimates `p`, fixates the estimate and starts the move there.
+    pub fn look(&mut self, p: &StereoPoint) -> Result<LookData, ErrorCode> {
+        let estimate = self.boot.estimate(p)?;
+        let fix =
+            gaze::fixate(&self.gaze, [estimate.x, estimate.y, estimate.z]).map_err(
+                |e| match e {
+                    GazeError::NonFinite => ErrorCode::NonFinite,
+                    GazeError::BehindHead | GazeError::TooClose => ErrorCode::Unreachable,
+                },
+            )?;
+        self.controller.start(&fix.joints);
+        // Where the setpoints will settle: the goal on the step grid, within the limits.
+        let goal = self.controller.goal();
+        let limits = &self.gaze.limits;
+        let target = Joints(Axis::ALL.map(|axis| {
+            let (lo, hi) = limits.step_range(axis);
+            gaze::from_steps(gaze::to_steps(goal[axis]).clamp(lo, hi))
+        }));
+        Ok(LookData {
+            estimate,
+            target,
+            limited: fix.clamped,
+        })
+    }
+
+    /// One control tick: the next setpoint (degrees) for the servos.
+    pub fn tick(&mut self) -> Joints {
+        self.controller.tick()
     }
 }
 
@@ -445,5 +520,108 @@ mod tests {
         let e = net.estimate(&p).unwrap();
         assert!(!e.in_range);
         assert!(e.x.is_finite() && e.z.is_finite());
+    }
+
+    fn head(boot: Boot) -> Head {
+        Head::new(boot, GazeConfig::DEFAULT, &ControllerConfig::DEFAULT).unwrap()
+    }
+
+    fn req(id: u32, body: RequestBody) -> Request {
+        Request { id, body }
+    }
+
+    const V: FirmwareVersion = FirmwareVersion {
+        major: 1,
+        minor: 2,
+        patch: 3,
+    };
+
+    #[test]
+    fn look_moves_the_setpoints_to_the_announced_target_within_limits() {
+        let mut h = head(boot(&[], &[]));
+        // A point to the left and below, about 1 m away.
+        let p = StereoPoint {
+            u_l: 250.0,
+            v_l: 300.0,
+            u_r: 220.0,
+            v_r: 300.0,
+        };
+        let r = h.respond(&req(7, RequestBody::Look(p)), V);
+        assert_eq!(r.id, 7);
+        let ResponseBody::Look(l) = r.body else {
+            panic!("{r:?}")
+        };
+        assert_eq!(l.estimate, h.boot.estimate(&p).unwrap());
+        let limits = GazeConfig::DEFAULT.limits;
+        assert!(limits.contains(&l.target));
+        // Left of centre: positive pans; below: positive tilts (gaze sign convention).
+        assert!(l.target.0[0] > 0.0 && l.target.0[3] > 0.0 && l.target.0[4] > 0.0);
+        assert!(l.target.0[1] + l.target.0[2] > 0.0);
+        // Vergence: the right eye turns in more than the left.
+        assert!(l.target.0[4] > l.target.0[3]);
+        let mut last = Joints::HOME;
+        let max = h.controller.max_steps_per_tick();
+        for _ in 0..200 {
+            let sp = h.tick();
+            assert!(limits.contains(&sp));
+            for axis in Axis::ALL {
+                let d = gaze::to_steps(sp[axis]) - gaze::to_steps(last[axis]);
+                assert!(d.abs() <= max[axis.index()], "{axis:?} jumped {d} steps");
+            }
+            last = sp;
+        }
+        assert!(!h.controller.is_moving());
+        assert_eq!(last, l.target);
+
+        // Home brings every axis back to 0.
+        let r = h.respond(&req(8, RequestBody::Home), V);
+        assert_eq!(r.body, ResponseBody::Home);
+        for _ in 0..200 {
+            last = h.tick();
+        }
+        assert_eq!(last, Joints::HOME);
+    }
+
+    #[test]
+    fn bad_looks_are_refused_without_moving() {
+        let mut h = head(boot(&[], &[]));
+        let nan = StereoPoint { u_l: f32::NAN, ..P };
+        let behind = StereoPoint {
+            u_r: P.u_l + 1.0,
+            ..P
+        };
+        let too_close = StereoPoint {
+            u_l: 620.0,
+            u_r: 20.0,
+            ..P
+        };
+        for (p, code) in [
+            (nan, ErrorCode::NonFinite),
+            (behind, ErrorCode::NoSolution),
+            (too_close, ErrorCode::Unreachable),
+        ] {
+            let r = h.respond(&req(3, RequestBody::Look(p)), V);
+            assert_eq!(r.body, ResponseBody::Error(code), "{p:?}");
+            assert!(!h.controller.is_moving());
+            assert_eq!(h.tick(), Joints::HOME);
+        }
+    }
+
+    #[test]
+    fn respond_answers_every_request_with_its_id() {
+        let mut h = head(boot(&bytes(&sample(5, 4, 1)), &[]));
+        let info = h.respond(&req(11, RequestBody::Info), V);
+        let ResponseBody::Info(i) = info.body else {
+            panic!("{info:?}")
+        };
+        assert_eq!((info.id, i.firmware, i.generation), (11, V, 4));
+        assert_eq!(
+            h.respond(&req(12, RequestBody::Ping), V).body,
+            ResponseBody::Pong
+        );
+        let e = h.respond(&req(13, RequestBody::Estimate(P)), V);
+        assert_eq!(e.body, ResponseBody::Estimate(h.boot.estimate(&P).unwrap()));
+        let b = h.respond(&req(14, RequestBody::Bench { point: P, count: 1 }), V);
+        assert_eq!(b.body, ResponseBody::Error(ErrorCode::Unsupported));
     }
 }

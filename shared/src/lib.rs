@@ -25,8 +25,8 @@
 
 pub mod blob;
 pub mod camera;
-pub mod head;
 pub mod gaze;
+pub mod head;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;

@@ -14,6 +14,7 @@
 //! estimate computed on the head arrives bit for bit.
 
 use crate::blob::BlobError;
+pub use crate::gaze::Joints;
 pub use crate::layout::Slot;
 pub use crate::triangulate::Calibration;
 use serde::{Deserialize, Serialize};
@@ -134,6 +135,9 @@ pub enum ErrorCode {
     Oversize,
     /// A coordinate of the point was NaN or infinite.
     NonFinite,
+    /// `Look`: the estimate cannot be fixated (behind the cameras or nearer than the minimum
+    /// fixation distance); the head does not move.
+    Unreachable,
     /// The point has no depth estimate (for example zero or negative disparity in fallback
     /// mode, or a network output that is not finite).
     NoSolution,
@@ -253,32 +257,16 @@ pub struct EstimateData {
     pub in_range: bool,
 }
 
-/// Joint angles of the five head axes, in degrees.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Joints {
-    /// Neck pan.
-    pub neck_pan: f32,
-    /// Neck tilt.
-    pub neck_tilt: f32,
-    /// Conjugate eye tilt.
-    pub eye_tilt: f32,
-    /// Left eye pan.
-    pub eye_pan_l: f32,
-    /// Right eye pan.
-    pub eye_pan_r: f32,
-}
-
 /// Answer to [`RequestBody::Look`]: the estimate and the joint targets the head now moves to.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LookData {
     /// The estimate of the point looked at.
     pub estimate: EstimateData,
-    /// Final joint targets (after joint limits and quantisation).
+    /// Joint targets of the move now under way (degrees, [`Axis`](crate::gaze::Axis) order,
+    /// within the joint limits and on the 0.18° grid).
     pub target: Joints,
     /// True when a joint limit changed a target (the head cannot fixate exactly).
     pub limited: bool,
-    /// Duration of the slowest axis' trajectory (ms).
-    pub duration_ms: u32,
 }
 
 /// Answer to [`RequestBody::Bench`].
@@ -532,7 +520,7 @@ mod tests {
         ]
     }
 
-    fn all_responses() -> [Response; 13] {
+    fn all_responses() -> [Response; 14] {
         let est = EstimateData {
             x: -1.5,
             y: f32::MAX,
@@ -556,15 +544,8 @@ mod tests {
             ResponseBody::Estimate(est),
             ResponseBody::Look(LookData {
                 estimate: est,
-                target: Joints {
-                    neck_pan: f32::MAX,
-                    neck_tilt: -f32::MAX,
-                    eye_tilt: 0.18,
-                    eye_pan_l: -0.0,
-                    eye_pan_r: 1e-30,
-                },
+                target: Joints([f32::MAX, -f32::MAX, 0.18, -0.0, 1e-30]),
                 limited: true,
-                duration_ms: u32::MAX,
             }),
             ResponseBody::Home,
             ResponseBody::Bench(BenchData {
@@ -576,6 +557,7 @@ mod tests {
             ResponseBody::Error(ErrorCode::Malformed),
             ResponseBody::Error(ErrorCode::Oversize),
             ResponseBody::Error(ErrorCode::NonFinite),
+            ResponseBody::Error(ErrorCode::Unreachable),
             ResponseBody::Error(ErrorCode::NoSolution),
             ResponseBody::Error(ErrorCode::Unsupported),
         ];
