@@ -60,7 +60,7 @@ pub fn run(boot: &Boot, point: &StereoPoint, count: u32, tick_hz: u32) -> Respon
     });
     let total = time(&|| {
         for _ in 0..count {
-            let _ = black_box(net.mlp.infer(black_box(&x)));
+            let _ = black_box(net.infer(black_box(&x)));
         }
     });
     ResponseBody::Bench(BenchData {

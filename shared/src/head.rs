@@ -48,6 +48,15 @@ pub struct Network {
     pub model: ModelInfo,
 }
 
+impl Network {
+    /// One inference: `[X, Y, Z]` (cm) of `[u_l, v_l, u_r, v_r]`. Not generic, so the firmware's
+    /// `Estimate` and its `Bench` run this one compiled function.
+    #[inline(never)]
+    pub fn infer(&self, x: &[f32; NET_INPUTS]) -> Result<[f32; NET_OUTPUTS], MlpError> {
+        self.mlp.infer(x)
+    }
+}
+
 /// How the head computes depth after boot.
 // No allocator to box the network into; one instance lives for the whole run.
 #[allow(clippy::large_enum_variant)]
@@ -285,7 +294,7 @@ impl Estimator {
         let x = p.to_array();
         match self {
             Estimator::Network(n) => {
-                let [x_cm, y_cm, z_cm] = n.mlp.infer(&x).map_err(|e| match e {
+                let [x_cm, y_cm, z_cm] = n.infer(&x).map_err(|e| match e {
                     MlpError::NonFiniteInput => ErrorCode::NonFinite,
                     MlpError::NonFiniteOutput | MlpError::Shape => ErrorCode::NoSolution,
                 })?;

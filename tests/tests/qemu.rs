@@ -9,13 +9,9 @@
 
 use hvs_host::emulate::{find_firmware, free_port, Emulator, EmulatorConfig, FIRMWARE_BUILD};
 use hvs_host::link::{Endpoint, Link};
-use hvs_shared::blob::{
-    self, Algorithm, BlobError, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta,
-    MAX_BLOB_LEN,
-};
+use hvs_shared::blob::{self, BlobError, ModelBlob, MAX_BLOB_LEN};
 use hvs_shared::gaze::{Axis, GazeConfig, Joints};
 use hvs_shared::head::{self, Head};
-use hvs_shared::mlp::{param_count, Activation};
 use hvs_shared::protocol::{
     self, ErrorCode, Mode, Request, RequestBody, Response, ResponseBody, Slot, SlotStatus, Source,
     StereoPoint, MAX_FRAME_LEN, UNSOLICITED_ID,
@@ -23,7 +19,7 @@ use hvs_shared::protocol::{
 use hvs_shared::servo::{parse_mcdc, McdcCmd, McdcConfig};
 use hvs_shared::trajectory::ControllerConfig;
 use hvs_shared::triangulate::{traditional_xyz, Calibration};
-use hvs_tests::workspace_root;
+use hvs_tests::{sample_model as model, workspace_root};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -98,50 +94,6 @@ fn boot(name: &str, slot_a: Option<&[u8]>, slot_b: Option<&[u8]>) -> Run {
     link.timeout = Duration::from_secs(5);
     link.wait_ready(Duration::from_secs(20)).unwrap();
     Run { emu, link, dir }
-}
-
-/// A valid 4-5-3 blob with seeded weights and the scaling and input box of case I's training
-/// set (the numbers need not be a trained model for bit-for-bit comparisons).
-fn model(generation: u32, seed: u64) -> ModelBlob {
-    let mut s = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut rnd = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    };
-    let mut params = heapless::Vec::new();
-    for _ in 0..param_count(4, 5, 3) {
-        params.push(rnd() * 2.0).unwrap();
-    }
-    let v = |a: &[f32]| heapless::Vec::from_slice(a).unwrap();
-    ModelBlob {
-        generation,
-        topology: Topology {
-            inputs: InputKind::Stereo,
-            hidden: 5,
-            outputs: OutputKind::Xyz,
-            output_activation: Activation::Linear,
-        },
-        in_offset: v(&[343.0, 240.0, 297.0, 240.0]),
-        in_scale: v(&[1.0 / 30.0, 1.0 / 12.0, 1.0 / 30.0, 1.0 / 12.0]),
-        out_offset: heapless::Vec::from_slice(&[0.0, 0.0, 115.0]).unwrap(),
-        out_scale: heapless::Vec::from_slice(&[3.0, 2.0, 50.0]).unwrap(),
-        params,
-        in_min: v(&[325.0, 228.0, 279.0, 228.0]),
-        in_max: v(&[361.0, 252.0, 315.0, 252.0]),
-        meta: TrainingMeta {
-            seed,
-            train_hash: 0x1234_5678_9abc_def0,
-            train_points: 72,
-            train_error_pct: 0.5,
-            algorithm: Algorithm::Lm,
-            restarts: 1,
-        },
-        fallback: Some(Calibration::BUILT_IN),
-    }
 }
 
 fn encode(b: &ModelBlob) -> Vec<u8> {
