@@ -50,7 +50,7 @@ echo "== instructions per inference (QEMU netduinoplus2, -icount shift=0, model 
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
 timeout 120 qemu-system-arm -machine netduinoplus2 -display none -monitor none -nodefaults \
   -icount shift=0,sleep=off \
-  -serial "tcp:127.0.0.1:$port,server=on,wait=on" -serial null \
+  -serial "tcp:127.0.0.1:$port,server=on,wait=on,nodelay=on" -serial null \
   -device "loader,file=$model,addr=0x080C0000,force-raw=on" \
   -kernel "$work/bench.elf" 2>/dev/null &
 qemu_pid=$!

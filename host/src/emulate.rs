@@ -88,7 +88,7 @@ pub fn qemu_args(cfg: &EmulatorConfig) -> Vec<String> {
     .map(|s| s.to_string())
     .collect();
     a.push("-serial".into());
-    a.push(format!("tcp:{},server=on,wait=on", cfg.listen));
+    a.push(format!("tcp:{},server=on,wait=on,nodelay=on", cfg.listen));
     a.push("-serial".into());
     a.push(format!("file:{}", cfg.servo_log.display()));
     for (blob, addr) in [(&cfg.slot_a, SLOT_A_ADDR), (&cfg.slot_b, SLOT_B_ADDR)] {
@@ -274,7 +274,7 @@ mod tests {
             "{a}"
         );
         // USART1 = first -serial = protocol, USART2 = servo log.
-        let i_tcp = a.find("tcp:127.0.0.1:5555,server=on,wait=on").unwrap();
+        let i_tcp = a.find("tcp:127.0.0.1:5555,server=on,wait=on,nodelay=on").unwrap();
         let i_file = a.find("file:s.log").unwrap();
         assert!(i_tcp < i_file);
         assert!(a.ends_with("-kernel fw.elf"));
