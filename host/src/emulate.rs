@@ -274,7 +274,9 @@ mod tests {
             "{a}"
         );
         // USART1 = first -serial = protocol, USART2 = servo log.
-        let i_tcp = a.find("tcp:127.0.0.1:5555,server=on,wait=on,nodelay=on").unwrap();
+        let i_tcp = a
+            .find("tcp:127.0.0.1:5555,server=on,wait=on,nodelay=on")
+            .unwrap();
         let i_file = a.find("file:s.log").unwrap();
         assert!(i_tcp < i_file);
         assert!(a.ends_with("-kernel fw.elf"));

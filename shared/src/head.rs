@@ -633,4 +633,60 @@ mod tests {
         let b = h.respond(&req(14, RequestBody::Bench { point: P, count: 1 }), V);
         assert_eq!(b.body, ResponseBody::Error(ErrorCode::Unsupported));
     }
+
+    fn any_f32() -> impl proptest::strategy::Strategy<Value = f32> {
+        use proptest::prelude::*;
+        prop_oneof![
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(f32::NEG_INFINITY),
+            Just(f32::MAX),
+            Just(-f32::MAX),
+            Just(0.0f32),
+            -1e6f32..1e6f32,
+            0.0f32..640.0,
+            proptest::num::f32::ANY,
+        ]
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Whatever arrives (NaN, infinities, huge and negative values, any order, any
+        /// timing), every setpoint stays within the joint limits and moves at most the per-tick
+        /// step limit, and every request is answered with its id.
+        #[test]
+        fn any_requests_keep_setpoints_within_limits(
+            reqs in proptest::collection::vec(
+                (0u8..4, any_f32(), any_f32(), any_f32(), any_f32(), 0u32..40),
+                1..12,
+            ),
+            network in proptest::bool::ANY,
+        ) {
+            let a = if network { bytes(&sample(5, 1, 5)) } else { StdVec::new() };
+            let mut h = head(boot(&a, &[]));
+            let limits = GazeConfig::DEFAULT.limits;
+            let max = h.controller.max_steps_per_tick();
+            let mut last = h.controller.setpoint_steps();
+            for (k, (kind, u_l, v_l, u_r, v_r, ticks)) in reqs.into_iter().enumerate() {
+                let p = StereoPoint { u_l, v_l, u_r, v_r };
+                let body = match kind {
+                    0 => RequestBody::Look(p),
+                    1 => RequestBody::Estimate(p),
+                    2 => RequestBody::Home,
+                    _ => RequestBody::Info,
+                };
+                let r = h.respond(&req(k as u32 + 1, body), V);
+                proptest::prop_assert_eq!(r.id, k as u32 + 1);
+                for _ in 0..ticks {
+                    let sp = h.tick();
+                    proptest::prop_assert!(limits.contains(&sp), "{:?}", sp);
+                    let steps = h.controller.setpoint_steps();
+                    for i in 0..5 {
+                        proptest::prop_assert!((steps[i] - last[i]).abs() <= max[i]);
+                    }
+                    last = steps;
+                }
+            }
+        }
+    }
 }
