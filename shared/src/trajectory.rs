@@ -205,14 +205,14 @@ impl GazeController {
     }
 
     /// Moves towards `to` from the current setpoint (and its current velocity and
-    /// acceleration). `to` is clamped to the limits; a NaN joint keeps its current setpoint.
+    /// acceleration). `to` is clamped to the limits; a NaN joint keeps its current goal.
     pub fn start(&mut self, to: &Joints) {
         let t = self.ticks as f32 / self.hz;
         for axis in Axis::ALL {
             let i = axis.index();
             let x0 = from_steps(self.steps[i]);
             let goal = if to[axis].is_nan() {
-                x0
+                self.refs[i].goal
             } else {
                 self.limits.clamp_axis(axis, to[axis])
             };
@@ -450,6 +450,17 @@ mod tests {
             c.tick();
         }
         assert_eq!(c.setpoint(), Joints::HOME);
+        // NaN mid-move keeps that axis' goal.
+        c.start(&Joints([20.0, 0.0, 0.0, 0.0, 0.0]));
+        for _ in 0..10 {
+            c.tick();
+        }
+        c.start(&Joints([f32::NAN, 5.0, 0.0, 0.0, 0.0]));
+        assert_eq!(c.goal()[Axis::NeckPan], 20.0);
+        for _ in 0..100 {
+            c.tick();
+        }
+        assert_eq!(c.setpoint()[Axis::NeckPan], quantize(20.0));
     }
 
     #[test]
