@@ -237,12 +237,15 @@ impl GazeController {
         for i in 0..5 {
             let (x, _, _) = self.refs[i].eval(t);
             let want = if x.is_finite() {
-                (roundf(x / crate::gaze::STEP_DEG) as i32).clamp(self.lo[i], self.hi[i])
+                (roundf(x / crate::gaze::STEP_DEG) as i32)
+                    .max(self.lo[i])
+                    .min(self.hi[i])
             } else {
                 self.steps[i]
             };
             let m = self.max_step[i];
-            let delta = want.saturating_sub(self.steps[i]).clamp(-m, m);
+            // max/min rather than `clamp`, which carries a panic path.
+            let delta = want.saturating_sub(self.steps[i]).max(-m).min(m);
             self.steps[i] += delta;
         }
         self.setpoint()
@@ -274,7 +277,8 @@ impl GazeController {
         let t = self.ticks as f32 / self.hz;
         (0..5).any(|i| {
             let goal = (roundf(self.refs[i].goal / crate::gaze::STEP_DEG) as i32)
-                .clamp(self.lo[i], self.hi[i]);
+                .max(self.lo[i])
+                .min(self.hi[i]);
             t < self.refs[i].dur || self.steps[i] != goal
         })
     }
