@@ -185,7 +185,7 @@ pub fn parse_mcdc(line: &[u8]) -> Result<(u8, McdcCmd), McdcParseError> {
     if digits == 0 || digits > 3 {
         return Err(McdcParseError::Node);
     }
-    let (node, rest) = line.split_at(digits);
+    let (node, rest) = line.split_at_checked(digits).ok_or(McdcParseError::Node)?;
     let node = node.iter().fold(0u32, |n, &d| n * 10 + (d - b'0') as u32);
     let node = u8::try_from(node).map_err(|_| McdcParseError::Node)?;
     let no_arg = |cmd: McdcCmd, tail: &[u8]| {

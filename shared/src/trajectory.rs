@@ -205,14 +205,14 @@ impl GazeController {
     }
 
     /// Moves towards `to` from the current setpoint (and its current velocity and
-    /// acceleration). `to` is clamped to the limits; a NaN joint keeps its current setpoint.
+    /// acceleration). `to` is clamped to the limits; a NaN joint keeps its current goal.
     pub fn start(&mut self, to: &Joints) {
         let t = self.ticks as f32 / self.hz;
         for axis in Axis::ALL {
             let i = axis.index();
             let x0 = from_steps(self.steps[i]);
             let goal = if to[axis].is_nan() {
-                x0
+                self.refs[i].goal
             } else {
                 self.limits.clamp_axis(axis, to[axis])
             };
@@ -237,12 +237,15 @@ impl GazeController {
         for i in 0..5 {
             let (x, _, _) = self.refs[i].eval(t);
             let want = if x.is_finite() {
-                (roundf(x / crate::gaze::STEP_DEG) as i32).clamp(self.lo[i], self.hi[i])
+                (roundf(x / crate::gaze::STEP_DEG) as i32)
+                    .max(self.lo[i])
+                    .min(self.hi[i])
             } else {
                 self.steps[i]
             };
             let m = self.max_step[i];
-            let delta = want.saturating_sub(self.steps[i]).clamp(-m, m);
+            // max/min rather than `clamp`, which carries a panic path.
+            let delta = want.saturating_sub(self.steps[i]).max(-m).min(m);
             self.steps[i] += delta;
         }
         self.setpoint()
@@ -274,7 +277,8 @@ impl GazeController {
         let t = self.ticks as f32 / self.hz;
         (0..5).any(|i| {
             let goal = (roundf(self.refs[i].goal / crate::gaze::STEP_DEG) as i32)
-                .clamp(self.lo[i], self.hi[i]);
+                .max(self.lo[i])
+                .min(self.hi[i]);
             t < self.refs[i].dur || self.steps[i] != goal
         })
     }
@@ -450,6 +454,17 @@ mod tests {
             c.tick();
         }
         assert_eq!(c.setpoint(), Joints::HOME);
+        // NaN mid-move keeps that axis' goal.
+        c.start(&Joints([20.0, 0.0, 0.0, 0.0, 0.0]));
+        for _ in 0..10 {
+            c.tick();
+        }
+        c.start(&Joints([f32::NAN, 5.0, 0.0, 0.0, 0.0]));
+        assert_eq!(c.goal()[Axis::NeckPan], 20.0);
+        for _ in 0..100 {
+            c.tick();
+        }
+        assert_eq!(c.setpoint()[Axis::NeckPan], quantize(20.0));
     }
 
     #[test]
