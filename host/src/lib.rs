@@ -2,5 +2,7 @@
 //! math comes from `hvs-shared`.
 //!
 //! - [`dataset`]: the in-memory training/evaluation set.
+//! - [`flash`]: `hvs image` and `hvs flash` (probe-rs).
 
 pub mod dataset;
+pub mod flash;

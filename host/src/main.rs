@@ -23,12 +23,18 @@ enum Command {
         /// The blob file.
         model: PathBuf,
     },
+    /// Write a flashable image (bin or Intel HEX) of a model for one weight slot.
+    Image(hvs_host::flash::ImageArgs),
+    /// Write a model into the head's idle weight slot through a debug probe (probe-rs).
+    Flash(hvs_host::flash::FlashArgs),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info { model } => info(&model),
+        Command::Image(a) => hvs_host::flash::run_image(&a),
+        Command::Flash(a) => hvs_host::flash::run_flash(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
