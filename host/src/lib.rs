@@ -10,3 +10,5 @@ pub mod dataset;
 pub mod emulate;
 pub mod head;
 pub mod link;
+//! - [`flash`]: `hvs image` and `hvs flash` (probe-rs).
+pub mod flash;
