@@ -5,10 +5,10 @@
 //! - [`link`]: client of the head protocol over TCP or a serial port.
 //! - [`emulate`]: `hvs emulate`, the firmware in QEMU.
 //! - [`head`]: `hvs head`, requests to a head.
+//! - [`flash`]: `hvs image` and `hvs flash` (probe-rs).
 
 pub mod dataset;
 pub mod emulate;
+pub mod flash;
 pub mod head;
 pub mod link;
-//! - [`flash`]: `hvs image` and `hvs flash` (probe-rs).
-pub mod flash;
