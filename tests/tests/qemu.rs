@@ -488,3 +488,35 @@ fn look_sequence_commands_follow_the_trajectory_within_limits() {
         }
     }
 }
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn images_written_by_hvs_image_boot_at_the_address_they_name() {
+    use hvs_host::flash::{run_image, ImageArgs, ImageFormat, SlotArg};
+    let dir = std::env::temp_dir().join(format!("hvs-image-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model_path = dir.join("m.hvsw");
+    std::fs::write(&model_path, encode(&model(1, 11))).unwrap();
+    let mut images = Vec::new();
+    for (slot, generation) in [(SlotArg::A, 3), (SlotArg::B, 5)] {
+        let out = dir.join(format!("{slot:?}.bin"));
+        run_image(&ImageArgs {
+            model: model_path.clone(),
+            slot,
+            generation: Some(generation),
+            format: ImageFormat::Bin,
+            output: out.clone(),
+        })
+        .unwrap();
+        images.push(std::fs::read(&out).unwrap());
+    }
+    let mut run = boot("image", Some(&images[0]), Some(&images[1]));
+    let i = info(&mut run);
+    assert_eq!(
+        (i.mode, i.slot, i.generation),
+        (Mode::Network, Some(Slot::B), 5)
+    );
+    assert_eq!(i.slot_a, SlotStatus::Valid { generation: 3 });
+    assert_eq!(i.model.map(|m| m.seed), Some(11));
+    let _ = std::fs::remove_dir_all(&dir);
+}
