@@ -23,12 +23,24 @@ enum Command {
         /// The blob file.
         model: PathBuf,
     },
+    /// Boot the head firmware in QEMU with a model in slot A.
+    Emulate(hvs_host::emulate::EmulateArgs),
+    /// Talk to a head (QEMU over TCP, or a serial port).
+    Head(hvs_host::head::HeadArgs),
+    /// Write a flashable image (bin or Intel HEX) of a model for one weight slot.
+    Image(hvs_host::flash::ImageArgs),
+    /// Write a model into the head's idle weight slot through a debug probe (probe-rs).
+    Flash(hvs_host::flash::FlashArgs),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info { model } => info(&model),
+        Command::Emulate(a) => hvs_host::emulate::run(&a),
+        Command::Head(a) => hvs_host::head::run(&a),
+        Command::Image(a) => hvs_host::flash::run_image(&a),
+        Command::Flash(a) => hvs_host::flash::run_flash(&a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
