@@ -29,6 +29,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| train(black_box(&data), &TrainConfig::default()).unwrap())
     });
     g.sample_size(10);
+    g.measurement_time(Duration::from_secs(30));
     g.bench_function("bp_case4_board72_10restarts", |b| {
         let cfg = TrainConfig {
             algo: Algo::Bp,

@@ -12,13 +12,21 @@
 //! - [`cmd`]: one module per `hvs` subcommand.
 //! - [`train`]: fits the f32 MLP to a data set (Levenberg-Marquardt, the thesis' BP, Adam),
 //!   seeded restarts in parallel, and returns the weights blob.
+//! - [`link`]: client of the head protocol over TCP or a serial port.
+//! - [`emulate`]: `hvs emulate`, the firmware in QEMU.
+//! - [`head`]: `hvs head`, requests to a head.
+//! - [`flash`]: `hvs image` and `hvs flash` (probe-rs).
 
 pub mod cmd;
 pub mod csv_io;
 pub mod dataset;
+pub mod emulate;
 pub mod evaluate;
 pub mod fallback;
+pub mod flash;
+pub mod head;
 pub mod infer;
+pub mod link;
 pub mod model;
 pub mod rigfile;
 pub mod simulate;

@@ -27,6 +27,14 @@ enum Command {
     Eval(cmd::eval::Args),
     Info(cmd::info::Args),
     Demo(cmd::demo::Args),
+    /// Boot the head firmware in QEMU with a model in slot A.
+    Emulate(hvs_host::emulate::EmulateArgs),
+    /// Talk to a head (QEMU over TCP, or a serial port).
+    Head(hvs_host::head::HeadArgs),
+    /// Write a flashable image (bin or Intel HEX) of a model for one weight slot.
+    Image(hvs_host::flash::ImageArgs),
+    /// Write a model into the head's idle weight slot through a debug probe (probe-rs).
+    Flash(hvs_host::flash::FlashArgs),
 }
 
 fn main() {
@@ -38,6 +46,10 @@ fn main() {
         Command::Eval(a) => cmd::eval::run(a),
         Command::Info(a) => cmd::info::run(a),
         Command::Demo(a) => cmd::demo::run(a),
+        Command::Emulate(a) => hvs_host::emulate::run(&a),
+        Command::Head(a) => hvs_host::head::run(&a),
+        Command::Image(a) => hvs_host::flash::run_image(&a),
+        Command::Flash(a) => hvs_host::flash::run_flash(&a),
     };
     if let Err(e) = result {
         if is_broken_pipe(&e) {

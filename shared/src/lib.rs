@@ -11,18 +11,28 @@
 //! - [`mlp`]: fixed-size f32 MLP inference with scaling inside the model.
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
+//! - [`head`]: the head controller's logic without I/O (boot slot choice, estimates, Info).
+//! - [`protocol`]: head-controller wire protocol (postcard messages in COBS frames).
 //! - [`presets`]: the thesis' four camera cases and its board protocol.
 //! - [`slots`]: which weight slot boots, which one a new model is written to.
 //! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
+//! - [`gaze`]: head axes, joint limits, 0.18° steps, fixation (vergence) and forward kinematics.
+//! - [`trajectory`]: minimum-jerk, rate-limited, quantised setpoints at the control rate.
+//! - [`servo`]: MCDC 3006 S ASCII commands, 50 Hz servo PWM, the `ServoOutput` trait.
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod blob;
 pub mod camera;
+pub mod gaze;
+pub mod head;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;
 pub mod presets;
+pub mod protocol;
+pub mod servo;
 pub mod slots;
+pub mod trajectory;
 pub mod triangulate;

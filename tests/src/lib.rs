@@ -1,6 +1,9 @@
 //! `hvs-tests`: cross-crate tests of hvs-depth. The tests live in `tests/tests/`; this library
 //! only holds helpers they share, such as the location of the workspace root.
 
+use hvs_shared::blob::{Algorithm, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta};
+use hvs_shared::mlp::{param_count, Activation};
+use hvs_shared::triangulate::Calibration;
 use std::path::PathBuf;
 
 /// The workspace root (where `memory.x` and `Cargo.toml` live).
@@ -42,5 +45,50 @@ fn parse_int(s: &str) -> Option<u32> {
     match s.strip_prefix("0x") {
         Some(h) => u32::from_str_radix(h, 16).ok(),
         None => s.parse().ok(),
+    }
+}
+
+/// A valid 4-5-3 blob with seeded weights (same seed, same bytes) and the scaling and input box
+/// of case I's training set: not a trained model, but all that bit-for-bit comparisons and the
+/// firmware's instruction count need.
+pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
+    let mut s = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let mut rnd = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    };
+    let mut params = heapless::Vec::new();
+    for _ in 0..param_count(4, 5, 3) {
+        params.push(rnd() * 2.0).unwrap();
+    }
+    let v = |a: &[f32]| heapless::Vec::from_slice(a).unwrap();
+    ModelBlob {
+        generation,
+        topology: Topology {
+            inputs: InputKind::Stereo,
+            hidden: 5,
+            outputs: OutputKind::Xyz,
+            output_activation: Activation::Linear,
+        },
+        in_offset: v(&[343.0, 240.0, 297.0, 240.0]),
+        in_scale: v(&[1.0 / 30.0, 1.0 / 12.0, 1.0 / 30.0, 1.0 / 12.0]),
+        out_offset: heapless::Vec::from_slice(&[0.0, 0.0, 115.0]).unwrap(),
+        out_scale: heapless::Vec::from_slice(&[3.0, 2.0, 50.0]).unwrap(),
+        params,
+        in_min: v(&[325.0, 228.0, 279.0, 228.0]),
+        in_max: v(&[361.0, 252.0, 315.0, 252.0]),
+        meta: TrainingMeta {
+            seed,
+            train_hash: 0x1234_5678_9abc_def0,
+            train_points: 72,
+            train_error_pct: 0.5,
+            algorithm: Algorithm::Lm,
+            restarts: 1,
+        },
+        fallback: Some(Calibration::BUILT_IN),
     }
 }

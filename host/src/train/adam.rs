@@ -62,7 +62,7 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], o: &AdamOptions) -> AdamResult 
     let mut best = p.to_vec();
     let mut best_cost = f64::INFINITY;
     let decay = if o.epochs > 1 {
-        (o.lr_end / o.lr_start).powf(1.0 / (o.epochs - 1) as f64)
+        libm::pow(o.lr_end / o.lr_start, 1.0 / (o.epochs - 1) as f64)
     } else {
         1.0
     };

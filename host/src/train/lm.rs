@@ -6,10 +6,11 @@
 //! the diagonal of `J^T J + alpha I` (Marquardt's scaling, floored so that no direction is
 //! free), and updates `lambda` by Nielsen's rule from the ratio of actual to predicted
 //! reduction. The normal equations come from the analytic Jacobian without forming it
-//! ([`Problem::normal_equations`]); every buffer is allocated once per fit. It stops when `F`
-//! has improved by less than [`LmOptions::rel_tol`] (relative) on [`LmOptions::patience`]
-//! consecutive accepted steps, when `lambda` explodes (no descent direction left), or after
-//! [`LmOptions::max_iter`] trial steps.
+//! ([`Problem::normal_equations`], reusing the forward pass of the accepted trial step);
+//! every buffer is allocated once per fit. It stops when `F` has improved by less than
+//! [`LmOptions::rel_tol`] (relative) on [`LmOptions::patience`] consecutive accepted steps,
+//! when `lambda` explodes (no descent direction left), or after [`LmOptions::max_iter`] trial
+//! steps.
 
 // Index loops mirror the equations (several arrays indexed by the same unit numbers).
 #![allow(clippy::needless_range_loop)]
@@ -60,7 +61,6 @@ fn sum_sq(v: &[f64]) -> f64 {
 /// Minimises the problem's regularised cost from `p` (updated in place).
 pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     let np = p.len();
-    let nr = prob.n_res();
     let alpha = opts.weight_decay;
     let mut ws = NormalWorkspace::new(prob);
     let mut jtj = vec![0.0; np * np];
@@ -70,10 +70,15 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     let mut delta = DVector::<f64>::zeros(np);
     let mut diag = vec![0.0; np];
     let mut trial = vec![0.0; np];
-    let mut r_trial = vec![0.0; nr];
+    let mut act = prob.activations();
+    let mut act_trial = prob.activations();
     let objective = |sse_half: f64, q: &[f64]| sse_half + 0.5 * alpha * sum_sq(q);
 
-    let mut f = objective(prob.normal_equations(p, &mut jtj, &mut jtr, &mut ws), p);
+    prob.evaluate(p, &mut act);
+    let mut f = objective(
+        prob.normal_equations(p, &act, &mut jtj, &mut jtr, &mut ws),
+        p,
+    );
     if !f.is_finite() {
         return LmResult {
             iterations: 0,
@@ -127,12 +132,16 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
         for q in 0..np {
             trial[q] = p[q] + delta[q];
         }
-        let f_new = objective(prob.residuals(&trial, &mut r_trial), &trial);
+        let f_new = objective(prob.evaluate(&trial, &mut act_trial), &trial);
         let rho = if pred > 0.0 { (f - f_new) / pred } else { -1.0 };
         if f_new.is_finite() && rho > 0.0 {
             let improvement = (f - f_new) / f.max(f64::MIN_POSITIVE);
             p.copy_from_slice(&trial);
-            f = objective(prob.normal_equations(p, &mut jtj, &mut jtr, &mut ws), p);
+            std::mem::swap(&mut act, &mut act_trial);
+            f = objective(
+                prob.normal_equations(p, &act, &mut jtj, &mut jtr, &mut ws),
+                p,
+            );
             fresh = true;
             lambda *= f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3));
             lambda = lambda.max(1e-12);

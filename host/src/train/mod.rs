@@ -20,15 +20,15 @@
 //!   model bytes for a given seed do not depend on the number of threads.
 //!
 //! Algorithms ([`Algo`]):
-//! - [`Algo::Lm`] (default): Levenberg-Marquardt ([`lm`]) on the residuals
+//! - [`Algo::Lm`] (default): Levenberg-Marquardt (`lm`) on the residuals
 //!   `(Y^ - Y) / Z` in cm, i.e. relative to the true depth of each point, for every output
 //!   (the figure of merit is the relative depth error, so a centimetre at 65 cm counts 2.5
 //!   times one at 165 cm), plus a weight decay [`WEIGHT_DECAY`]` / 2 * |p|^2`. Without the
 //!   decay the 72-point board nets fit the pixel rounding of the six training depths and
 //!   interpolate badly between them (worst per-depth test e_ma 6-12 % on cases I and III);
 //!   with it the restarts agree with each other and generalise. Linear output layer.
-//! - [`Algo::Adam`]: Adam ([`adam`]) on the same cost, full batch. Linear output layer.
-//! - [`Algo::Bp`]: the thesis' 8-step per-pattern back-propagation ([`bp`]): sigmoid output
+//! - [`Algo::Adam`]: Adam (`adam`) on the same cost, full batch. Linear output layer.
+//! - [`Algo::Bp`]: the thesis' 8-step per-pattern back-propagation (`bp`): sigmoid output
 //!   layer, targets scaled into `[0.1, 0.9]`, unweighted eq. 2.1-5, learning rate, `E_max`
 //!   and a learning-cycle cap.
 

@@ -9,7 +9,6 @@
 #![allow(clippy::needless_range_loop)]
 
 use hvs_shared::mlp::Activation;
-use nalgebra::DMatrix;
 
 /// Sizes of an `ni-nh-no` net and the index of every parameter in the shared layout: for each
 /// hidden unit `j`, `w1[j][0..ni]` then `b1[j]`; then for each output `k`, `w2[k][0..nh]` then
@@ -57,7 +56,7 @@ pub(crate) struct Problem {
 /// The logistic sigmoid in f64 (training only; inference uses the f32 one of `hvs_shared`).
 #[inline(always)]
 pub(crate) fn sigmoid(a: f64) -> f64 {
-    1.0 / (1.0 + (-a).exp())
+    1.0 / (1.0 + libm::exp(-a))
 }
 
 /// Forward pass of one sample: hidden activations into `h`, outputs into `y`.
@@ -91,23 +90,29 @@ pub(crate) fn forward(
     }
 }
 
+/// Hidden activations (`n x nh`) and outputs (`n x no`) of every sample at one parameter
+/// vector, row-major.
+#[derive(Debug, Clone)]
+pub(crate) struct Activations {
+    h: Vec<f64>,
+    y: Vec<f64>,
+}
+
 /// Scratch of [`Problem::normal_equations`] for one problem, allocated once per fit.
 #[derive(Debug, Clone)]
 pub(crate) struct NormalWorkspace {
-    /// Row `n`: the packed upper triangle of `x~ x~^T` (constant over a fit).
-    xpk: DMatrix<f64>,
-    /// Column `n`: the packed upper triangle of `U_n = sum_k (g_k u_k)(g_k u_k)^T`.
-    upk: DMatrix<f64>,
-    /// Column `n`: `g_k^2 u_k` for every output `k`, stacked.
-    a: DMatrix<f64>,
-    /// Row `n`: `x~ (x) h~`.
-    b: DMatrix<f64>,
-    /// `upk * xpk`: the first-layer block, packed.
-    m: DMatrix<f64>,
-    /// `a * b`: the first-layer / second-layer cross blocks.
-    cross: DMatrix<f64>,
+    /// Row `n` (`nx` values): the packed upper triangle of `x~ x~^T` (constant over a fit).
+    xpk: Vec<f64>,
+    /// `nu x nx`, row-major: the packed first-layer block `sum_n U_n (x) X_n`.
+    m: Vec<f64>,
+    /// `(no nh) x (ni1 nh1)`, row-major: the cross blocks.
+    cross: Vec<f64>,
     /// Packed `sum_n g_k^2 h~ h~^T` per output.
     w2w2: Vec<f64>,
+    /// Per sample: packed `U_n`, `g_k^2 u_k` stacked, `x~ (x) h~`.
+    upk: Vec<f64>,
+    a: Vec<f64>,
+    b: Vec<f64>,
     ht: Vec<f64>,
     y: Vec<f64>,
     gu: Vec<f64>,
@@ -120,31 +125,37 @@ impl NormalWorkspace {
         let s = &prob.shape;
         let (ni1, nh1, n) = (s.ni + 1, s.nh + 1, prob.n);
         let (nu, nx) = (s.nh * (s.nh + 1) / 2, ni1 * (ni1 + 1) / 2);
-        let mut xpk = DMatrix::zeros(n, nx);
+        let mut xpk = Vec::with_capacity(n * nx);
         for r in 0..n {
             let x = &prob.x[r * s.ni..(r + 1) * s.ni];
             let xt = |i: usize| if i < s.ni { x[i] } else { 1.0 };
-            let mut q = 0;
             for i in 0..ni1 {
                 for i2 in i..ni1 {
-                    xpk[(r, q)] = xt(i) * xt(i2);
-                    q += 1;
+                    xpk.push(xt(i) * xt(i2));
                 }
             }
         }
         NormalWorkspace {
             xpk,
-            upk: DMatrix::zeros(nu, n),
-            a: DMatrix::zeros(s.no * s.nh, n),
-            b: DMatrix::zeros(n, ni1 * nh1),
-            m: DMatrix::zeros(nu, nx),
-            cross: DMatrix::zeros(s.no * s.nh, ni1 * nh1),
+            m: vec![0.0; nu * nx],
+            cross: vec![0.0; s.no * s.nh * ni1 * nh1],
             w2w2: vec![0.0; s.no * nh1 * (nh1 + 1) / 2],
+            upk: vec![0.0; nu],
+            a: vec![0.0; s.no * s.nh],
+            b: vec![0.0; ni1 * nh1],
             ht: vec![0.0; nh1],
             y: vec![0.0; s.no],
             gu: vec![0.0; s.nh],
             rb: vec![0.0; s.nh],
         }
+    }
+}
+
+/// `dst += a * src`, element by element.
+#[inline(always)]
+fn axpy(dst: &mut [f64], a: f64, src: &[f64]) {
+    for (d, v) in dst.iter_mut().zip(src) {
+        *d += a * v;
     }
 }
 
@@ -173,6 +184,34 @@ impl Problem {
                 let idx = n * s.no + k;
                 let v = self.c[idx] * (y[k] - self.t[idx]);
                 r[idx] = v;
+                cost += v * v;
+            }
+        }
+        0.5 * cost
+    }
+
+    /// Zeroed storage for the forward pass of every sample.
+    pub(crate) fn activations(&self) -> Activations {
+        Activations {
+            h: vec![0.0; self.n * self.shape.nh],
+            y: vec![0.0; self.n * self.shape.no],
+        }
+    }
+
+    /// Forward pass of every sample at `p` into `act`; returns the cost `1/2 sum r^2`.
+    pub(crate) fn evaluate(&self, p: &[f64], act: &mut Activations) -> f64 {
+        let s = &self.shape;
+        let mut cost = 0.0;
+        for ((n, h), y) in act
+            .h
+            .chunks_exact_mut(s.nh)
+            .enumerate()
+            .zip(act.y.chunks_exact_mut(s.no))
+        {
+            forward(s, self.output, p, &self.x[n * s.ni..(n + 1) * s.ni], h, y);
+            for k in 0..s.no {
+                let idx = n * s.no + k;
+                let v = self.c[idx] * (y[k] - self.t[idx]);
                 cost += v * v;
             }
         }
@@ -232,24 +271,26 @@ impl Problem {
     }
 
     /// The Gauss-Newton normal equations without forming the Jacobian: `jtj = J^T J` (full,
-    /// row-major `np x np`) and `jtr = J^T r`; returns the cost `1/2 sum r^2`. `ws` must come
-    /// from [`NormalWorkspace::new`] on this problem.
+    /// row-major `np x np`) and `jtr = J^T r`; returns the cost `1/2 sum r^2`. `act` must hold
+    /// the forward pass at `p` ([`Problem::evaluate`]), `ws` come from
+    /// [`NormalWorkspace::new`] on this problem.
     ///
     /// The Jacobian row of output `k` of sample `n` is `(g_k u_k) (x) x~` on the first layer
     /// (`u_kj = w2_kj h_j (1 - h_j)`, `x~ = (x, 1)`, `g_k = d r / d a2_k`) and `g_k h~` on
     /// output `k`'s second-layer weights (`h~ = (h, 1)`); other outputs' weights get zeros.
     /// So, summing over samples:
     /// - first-layer block: `sum_n U_n (x) X_n` with `U = sum_k g_k^2 u_k u_k^T`,
-    ///   `X = x~ x~^T`, i.e. one matrix product over their packed upper triangles;
-    /// - cross block of output `k`: `sum_n (g_k^2 u_k) (x~ (x) h~)^T`, one matrix product
-    ///   for all outputs;
+    ///   `X = x~ x~^T`, accumulated over their packed upper triangles;
+    /// - cross block of output `k`: `sum_n (g_k^2 u_k) (x~ (x) h~)^T`;
     /// - second-layer block of output `k`: `sum_n g_k^2 h~ h~^T`.
     ///
-    /// The products run through `nalgebra`'s `gemm` (`matrixmultiply` kernels); this is about
-    /// a sixth of the work of `J^T J` on the explicit Jacobian.
+    /// This is about a third of the work of `J^T J` on the explicit Jacobian. Every sum runs
+    /// in a fixed order in plain f64 (no runtime-dispatched kernels), so the result is the
+    /// same on every machine.
     pub(crate) fn normal_equations(
         &self,
         p: &[f64],
+        act: &Activations,
         jtj: &mut [f64],
         jtr: &mut [f64],
         ws: &mut NormalWorkspace,
@@ -258,35 +299,39 @@ impl Problem {
         let (ni1, nh1, np) = (s.ni + 1, s.nh + 1, s.n_params());
         let nx = ni1 * (ni1 + 1) / 2;
         let nw2 = nh1 * (nh1 + 1) / 2;
-        ws.w2w2.iter_mut().for_each(|v| *v = 0.0);
+        let nb = ni1 * nh1;
+        let NormalWorkspace {
+            xpk,
+            m,
+            cross,
+            w2w2,
+            upk,
+            a,
+            b,
+            ht,
+            y,
+            gu,
+            rb,
+        } = ws;
+        m.iter_mut().for_each(|v| *v = 0.0);
+        cross.iter_mut().for_each(|v| *v = 0.0);
+        w2w2.iter_mut().for_each(|v| *v = 0.0);
         jtr.iter_mut().for_each(|v| *v = 0.0);
-        ws.ht[s.nh] = 1.0;
+        ht[s.nh] = 1.0;
         let mut cost = 0.0;
         for n in 0..self.n {
             let x = &self.x[n * s.ni..(n + 1) * s.ni];
-            let NormalWorkspace {
-                upk,
-                a,
-                b,
-                w2w2,
-                ht,
-                y,
-                gu,
-                rb,
-                ..
-            } = ws;
-            forward(s, self.output, p, x, &mut ht[..s.nh], y);
-            // Row n of b: x~ (x) h~.
+            ht[..s.nh].copy_from_slice(&act.h[n * s.nh..(n + 1) * s.nh]);
+            y.copy_from_slice(&act.y[n * s.no..(n + 1) * s.no]);
+            // x~ (x) h~.
             for i in 0..ni1 {
                 let xi = if i < s.ni { x[i] } else { 1.0 };
                 for j2 in 0..nh1 {
-                    b[(n, i * nh1 + j2)] = xi * ht[j2];
+                    b[i * nh1 + j2] = xi * ht[j2];
                 }
             }
-            let mut ucol = upk.column_mut(n);
-            ucol.fill(0.0);
+            upk.iter_mut().for_each(|v| *v = 0.0);
             rb.iter_mut().for_each(|v| *v = 0.0);
-            let mut acol = a.column_mut(n);
             for k in 0..s.no {
                 let row = n * s.no + k;
                 let c = self.c[row];
@@ -299,13 +344,13 @@ impl Problem {
                 let base = s.w2(k, 0);
                 for j in 0..s.nh {
                     gu[j] = g * p[base + j] * ht[j] * (1.0 - ht[j]);
-                    acol[k * s.nh + j] = g * gu[j];
+                    a[k * s.nh + j] = g * gu[j];
                     rb[j] += rk * gu[j];
                 }
                 let mut q = 0;
                 for j in 0..s.nh {
                     for j2 in j..s.nh {
-                        ucol[q] += gu[j] * gu[j2];
+                        upk[q] += gu[j] * gu[j2];
                         q += 1;
                     }
                 }
@@ -329,9 +374,15 @@ impl Problem {
                 }
                 jtr[w + s.ni] += rb[j];
             }
+            // Rank-one updates of the packed first-layer block and of the cross blocks.
+            let xn = &xpk[n * nx..(n + 1) * nx];
+            for (row, u) in m.chunks_exact_mut(nx).zip(upk.iter()) {
+                axpy(row, *u, xn);
+            }
+            for (row, av) in cross.chunks_exact_mut(nb).zip(a.iter()) {
+                axpy(row, *av, b);
+            }
         }
-        ws.m.gemm(1.0, &ws.upk, &ws.xpk, 0.0);
-        ws.cross.gemm(1.0, &ws.a, &ws.b, 0.0);
 
         // Expand into the full matrix.
         let pack = |a: usize, b: usize, dim: usize| {
@@ -343,12 +394,11 @@ impl Problem {
                 let u = pack(j, j2, s.nh);
                 for i in 0..ni1 {
                     for i2 in 0..ni1 {
-                        jtj[s.w1(j, i) * np + s.w1(j2, i2)] = ws.m[(u, pack(i, i2, ni1))];
+                        jtj[s.w1(j, i) * np + s.w1(j2, i2)] = m[u * nx + pack(i, i2, ni1)];
                     }
                 }
             }
         }
-        debug_assert_eq!(nx, ws.m.ncols());
         for k in 0..s.no {
             let base = s.w2(k, 0);
             for k2 in 0..s.no {
@@ -356,7 +406,7 @@ impl Problem {
                 for j2 in 0..nh1 {
                     for j3 in 0..nh1 {
                         jtj[(base + j2) * np + b2 + j3] = if k2 == k {
-                            ws.w2w2[k * nw2 + pack(j2, j3, nh1)]
+                            w2w2[k * nw2 + pack(j2, j3, nh1)]
                         } else {
                             0.0
                         };
@@ -366,7 +416,7 @@ impl Problem {
             for j in 0..s.nh {
                 for i in 0..ni1 {
                     for j2 in 0..nh1 {
-                        let v = ws.cross[(k * s.nh + j, i * nh1 + j2)];
+                        let v = cross[(k * s.nh + j) * nb + i * nh1 + j2];
                         jtj[s.w1(j, i) * np + base + j2] = v;
                         jtj[(base + j2) * np + s.w1(j, i)] = v;
                     }
@@ -528,9 +578,11 @@ pub(crate) mod tests {
             let mut jtj = vec![f64::NAN; np * np];
             let mut jtr = vec![f64::NAN; np];
             let mut ws = NormalWorkspace::new(&prob);
+            let mut act = prob.activations();
+            assert!((cost - prob.evaluate(&p, &mut act)).abs() <= 1e-12 * cost);
             // Twice, to check that the workspace is reset between calls.
             for _ in 0..2 {
-                let c2 = prob.normal_equations(&p, &mut jtj, &mut jtr, &mut ws);
+                let c2 = prob.normal_equations(&p, &act, &mut jtj, &mut jtr, &mut ws);
                 assert!((cost - c2).abs() <= 1e-12 * cost);
                 for a in 0..np {
                     let want: f64 = (0..nr).map(|row| jac[a * nr + row] * r[row]).sum();

@@ -1,0 +1,72 @@
+//! The `Bench` request: times many inferences with SysTick (feature `bench`).
+//!
+//! Under QEMU with `-icount shift=0` one instruction takes 1 ns of virtual time and SysTick
+//! counts at 168 MHz, so `ticks * 1e9 / tick_hz / count` is instructions per inference
+//! (`firmware/measure.sh` does this). The loop runs with interrupts off; an empty loop of the
+//! same shape is timed too and subtracted.
+
+use hvs_shared::head::Boot;
+use hvs_shared::protocol::{ErrorCode, ResponseBody, StereoPoint};
+
+/// Most inferences per request: 2000 4-5-3 inferences stay well inside one SysTick period
+/// (10 ms = 10 M instructions in QEMU), so at most one wrap has to be accounted for.
+#[cfg(feature = "bench")]
+pub const MAX_COUNT: u32 = 2000;
+
+/// Answers `Bench`.
+#[cfg(not(feature = "bench"))]
+pub fn run(_: &Boot, _: &StereoPoint, _: u32, _: u32) -> ResponseBody {
+    ResponseBody::Error(ErrorCode::Unsupported)
+}
+
+/// Answers `Bench`: `count` (capped) network inferences of `point`.
+#[cfg(feature = "bench")]
+pub fn run(boot: &Boot, point: &StereoPoint, count: u32, tick_hz: u32) -> ResponseBody {
+    use core::hint::black_box;
+    use cortex_m::peripheral::SYST;
+    use hvs_shared::head::Estimator;
+    use hvs_shared::protocol::BenchData;
+
+    let Estimator::Network(net) = &boot.estimator else {
+        return ResponseBody::Error(ErrorCode::Unsupported);
+    };
+    if !point.is_finite() {
+        return ResponseBody::Error(ErrorCode::NonFinite);
+    }
+    let count = count.clamp(1, MAX_COUNT);
+    let x = point.to_array();
+    let reload = SYST::get_reload() + 1;
+    // Elapsed ticks of `f`, from the down-counting SysTick and its COUNTFLAG (read-to-clear).
+    let time = |f: &dyn Fn()| -> u32 {
+        cortex_m::interrupt::free(|_| {
+            // SAFETY: reading SYST_CSR only clears COUNTFLAG, which nothing else uses.
+            let csr = || unsafe { (*SYST::PTR).csr.read() };
+            let _ = csr();
+            let t0 = SYST::get_current();
+            f();
+            let t1 = SYST::get_current();
+            let wrapped = csr() & (1 << 16) != 0;
+            if wrapped {
+                t0 + reload - t1
+            } else {
+                t0.wrapping_sub(t1)
+            }
+        })
+    };
+    let overhead = time(&|| {
+        for _ in 0..count {
+            black_box(black_box(&x));
+        }
+    });
+    let total = time(&|| {
+        for _ in 0..count {
+            let _ = black_box(net.infer(black_box(&x)));
+        }
+    });
+    ResponseBody::Bench(BenchData {
+        count,
+        ticks: total.saturating_sub(overhead),
+        overhead_ticks: overhead,
+        tick_hz,
+    })
+}

@@ -1,0 +1,224 @@
+//! `hvs-firmware`: the hvs-depth head controller for an STM32F405 (Cortex-M4F).
+//!
+//! This crate owns only I/O; every decision and every number comes from `hvs-shared`:
+//!
+//! - boot: reads both weight slots straight from flash (`hvs_shared::layout` addresses, at most
+//!   `MAX_BLOB_LEN` bytes each) and hands them to `hvs_shared::head::boot`, which runs the
+//!   valid, runnable slot with the higher generation, or the traditional method;
+//! - USART1 (PA9 TX, PA10 RX, 115200 8N1): the protocol of `hvs_shared::protocol`. Bytes are
+//!   received by interrupt into a ring buffer; frames are decoded and answered in the main loop;
+//!   the head announces itself with `Ready` once it listens;
+//! - a 100 Hz SysTick control tick (see [`servo`]) that advances the gaze trajectory and
+//!   commands the servos through one `ServoOutput` (MCDC 3006 S on USART2, or PWM with the
+//!   `pwm` feature);
+//! - panic: interrupts off, no further servo command (MCDC controllers and PWM timers hold the
+//!   last setpoint), halt.
+//!
+//! Features: `qemu` (16 MHz HSI, SysTick counted at QEMU's fixed 168 MHz), `pwm`, `bench`.
+#![no_std]
+#![no_main]
+
+mod bench;
+mod clock;
+mod link;
+mod servo;
+
+use core::sync::atomic::{AtomicU32, Ordering};
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m_rt::{entry, exception};
+use hvs_shared::blob::MAX_BLOB_LEN;
+use hvs_shared::gaze::{GazeConfig, Joints};
+use hvs_shared::head::{self, Head};
+use hvs_shared::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
+use hvs_shared::protocol::{
+    self, ErrorCode, FirmwareVersion, FrameAccumulator, ProtocolError, Request, RequestBody,
+    Response, ResponseBody, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
+};
+use hvs_shared::servo::ServoOutput;
+use hvs_shared::trajectory::ControllerConfig;
+use stm32f4xx_hal::{pac, prelude::*};
+
+/// This firmware's version (the crate version).
+const VERSION: FirmwareVersion = FirmwareVersion {
+    major: parse_u16(env!("CARGO_PKG_VERSION_MAJOR")),
+    minor: parse_u16(env!("CARGO_PKG_VERSION_MINOR")),
+    patch: parse_u16(env!("CARGO_PKG_VERSION_PATCH")),
+};
+
+const fn parse_u16(s: &str) -> u16 {
+    let b = s.as_bytes();
+    let mut v: u16 = 0;
+    let mut i = 0;
+    while i < b.len() {
+        v = v * 10 + (b[i] - b'0') as u16;
+        i += 1;
+    }
+    v
+}
+
+/// Control ticks since boot, counted by the SysTick exception.
+static TICKS: AtomicU32 = AtomicU32::new(0);
+
+/// The bytes of a weight slot as the CPU sees them in flash.
+fn slot_bytes(addr: u32) -> &'static [u8] {
+    // SAFETY: the slot addresses are inside the STM32F405's 1 MiB flash (memory.x reserves
+    // them; `hvs_shared::layout` tests check they lie within flash), which is always mapped
+    // and readable, never written by this firmware, and `MAX_BLOB_LEN` (4 KiB) is less than
+    // the 128 KiB slot.
+    unsafe { core::slice::from_raw_parts(addr as *const u8, MAX_BLOB_LEN) }
+}
+
+/// Fixation settings of this head (neck/eye split, geometry, joint limits).
+const GAZE: GazeConfig = GazeConfig::DEFAULT;
+/// Trajectory settings (0.7 s neck, 0.2 s eyes, the same joint limits, 100 Hz).
+const CONTROL: ControllerConfig = ControllerConfig {
+    limits: GAZE.limits,
+    ..ControllerConfig::DEFAULT
+};
+
+#[entry]
+fn main() -> ! {
+    let dp = pac::Peripherals::take().unwrap_or_else(|| halt());
+    let cp = cortex_m::Peripherals::take().unwrap_or_else(|| halt());
+    let mut rcc = dp.RCC.freeze(clock::config());
+
+    // Boot decision first: nothing is commanded before it is known what runs.
+    let boot = head::boot(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
+    let mut head = Head::new(boot, GAZE, &CONTROL).unwrap_or_else(|_| halt());
+
+    let gpioa = dp.GPIOA.split(&mut rcc);
+    #[cfg(not(feature = "pwm"))]
+    let mut servos = {
+        let tx = dp
+            .USART2
+            .tx(gpioa.pa2, servo::MCDC_BAUD.bps(), &mut rcc)
+            .unwrap_or_else(|_| halt());
+        servo::Mcdc::new(tx, servo::MCDC, GAZE.limits)
+    };
+    #[cfg(feature = "pwm")]
+    let (mut c0, mut c1, mut c2, mut c3, mut c4) = {
+        use hvs_shared::servo::PWM_HZ;
+        let gpiob = dp.GPIOB.split(&mut rcc);
+        let (_, (t3c1, t3c2, t3c3, t3c4)) = dp.TIM3.pwm_hz(PWM_HZ.Hz(), &mut rcc);
+        let (_, (t4c1, ..)) = dp.TIM4.pwm_hz(PWM_HZ.Hz(), &mut rcc);
+        let mut c0 = t3c1.with(gpioa.pa6);
+        let mut c1 = t3c2.with(gpioa.pa7);
+        let mut c2 = t3c3.with(gpiob.pb0);
+        let mut c3 = t3c4.with(gpiob.pb1);
+        let mut c4 = t4c1.with(gpiob.pb6);
+        c0.enable();
+        c1.enable();
+        c2.enable();
+        c3.enable();
+        c4.enable();
+        (c0, c1, c2, c3, c4)
+    };
+    #[cfg(feature = "pwm")]
+    let mut servos = servo::Pwm::new(
+        [&mut c0, &mut c1, &mut c2, &mut c3, &mut c4],
+        servo::PWM,
+        GAZE.limits,
+    );
+
+    let mut tx = link::init(dp.USART1, gpioa.pa9, gpioa.pa10, &mut rcc);
+
+    let tick_hz = clock::systick_hz(&rcc);
+    let mut syst = cp.SYST;
+    syst.set_clock_source(SystClkSource::Core);
+    syst.set_reload(tick_hz / CONTROL.control_hz - 1);
+    syst.clear_current();
+    syst.enable_counter();
+    syst.enable_interrupt();
+
+    let mut out = [0u8; MAX_FRAME_LEN];
+    send(
+        &mut tx,
+        &mut out,
+        &Response {
+            id: UNSOLICITED_ID,
+            body: ResponseBody::Ready {
+                protocol: PROTOCOL_VERSION,
+            },
+        },
+    );
+
+    let mut acc = FrameAccumulator::<MAX_FRAME_LEN>::new();
+    // The servos are left alone until the first Look or Home: their position at power-up is
+    // unknown, and commanding home unasked could swing the head.
+    let mut armed = false;
+    let mut ticks_done = TICKS.load(Ordering::Relaxed);
+    loop {
+        // Control ticks first (every one, so the per-tick rate limit holds on the wire too).
+        let now = TICKS.load(Ordering::Relaxed);
+        while ticks_done != now {
+            ticks_done = ticks_done.wrapping_add(1);
+            let setpoint: Joints = head.tick();
+            if armed {
+                // A transport error loses this tick's commands; the next tick resends.
+                let _ = servos.command(&setpoint);
+            }
+        }
+        let Some(byte) = link::pop() else {
+            cortex_m::asm::wfi();
+            continue;
+        };
+        let resp = match acc.push(byte) {
+            None => continue,
+            Some(Err(_)) => head::frame_error(ErrorCode::Oversize),
+            Some(Ok(frame)) => match protocol::decode_request(frame) {
+                Ok(req) => {
+                    let r = answer(&mut head, &req, tick_hz);
+                    armed |= matches!(r.body, ResponseBody::Look(_) | ResponseBody::Home);
+                    r
+                }
+                Err(ProtocolError::Oversize) => head::frame_error(ErrorCode::Oversize),
+                Err(_) => head::frame_error(ErrorCode::Malformed),
+            },
+        };
+        send(&mut tx, &mut out, &resp);
+    }
+}
+
+fn answer(head: &mut Head, req: &Request, tick_hz: u32) -> Response {
+    match req.body {
+        RequestBody::Bench { point, count } => Response {
+            id: req.id,
+            body: bench::run(&head.boot, &point, count, tick_hz),
+        },
+        _ => head.respond(req, VERSION),
+    }
+}
+
+fn send(tx: &mut link::Tx, buf: &mut [u8], resp: &Response) {
+    // Every response fits MAX_FRAME_LEN (tested in hvs-shared); if one ever did not, say so.
+    let frame = match protocol::encode_response(resp, buf) {
+        Ok(f) => f,
+        Err(_) => match protocol::encode_response(&head::frame_error(ErrorCode::Malformed), buf) {
+            Ok(f) => f,
+            Err(_) => return,
+        },
+    };
+    link::write_all(tx, frame);
+}
+
+#[exception]
+fn SysTick() {
+    TICKS.fetch_add(1, Ordering::Relaxed);
+}
+
+/// Stops here for good: no interrupt runs again, so no servo is commanded again.
+fn halt() -> ! {
+    cortex_m::interrupt::disable();
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    // No formatting of the message: it would pull core::fmt into the image. MCDC drives get
+    // V0 (stop and hold); PWM timers run on without the CPU (hold the last pulses).
+    cortex_m::interrupt::disable();
+    servo::panic_halt();
+    halt()
+}

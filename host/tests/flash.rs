@@ -1,0 +1,198 @@
+//! `hvs image` and `hvs flash` driven from outside: image addresses, dry run, missing probe.
+
+use assert_cmd::Command;
+use hvs_shared::blob::{
+    self, Algorithm, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_BLOB_LEN,
+};
+use hvs_shared::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
+use hvs_shared::mlp::{param_count, Activation};
+use std::path::Path;
+
+fn model(generation: u32) -> ModelBlob {
+    let n = param_count(4, 5, 3);
+    ModelBlob {
+        generation,
+        topology: Topology {
+            inputs: InputKind::Stereo,
+            hidden: 5,
+            outputs: OutputKind::Xyz,
+            output_activation: Activation::Linear,
+        },
+        in_offset: heapless::Vec::from_slice(&[320.0, 240.0, 300.0, 240.0]).unwrap(),
+        in_scale: heapless::Vec::from_slice(&[0.05; 4]).unwrap(),
+        out_offset: heapless::Vec::from_slice(&[0.0, 0.0, 115.0]).unwrap(),
+        out_scale: heapless::Vec::from_slice(&[3.0, 2.0, 50.0]).unwrap(),
+        params: (0..n).map(|k| (k as f32 * 0.37).sin()).collect(),
+        in_min: heapless::Vec::from_slice(&[0.0; 4]).unwrap(),
+        in_max: heapless::Vec::from_slice(&[640.0, 480.0, 640.0, 480.0]).unwrap(),
+        meta: TrainingMeta {
+            seed: 1,
+            train_hash: 2,
+            train_points: 72,
+            train_error_pct: 1.0,
+            algorithm: Algorithm::Other,
+            restarts: 1,
+        },
+        fallback: None,
+    }
+}
+
+fn write_model(dir: &Path, generation: u32) -> std::path::PathBuf {
+    let mut buf = [0u8; MAX_BLOB_LEN];
+    let n = model(generation).encode(&mut buf).unwrap();
+    let p = dir.join("m.hvsw");
+    std::fs::write(&p, &buf[..n]).unwrap();
+    p
+}
+
+fn hvs() -> Command {
+    Command::cargo_bin("hvs").unwrap()
+}
+
+#[test]
+fn bin_image_is_the_blob_with_the_requested_generation() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = write_model(dir.path(), 1);
+    let out = dir.path().join("a.bin");
+    let o = hvs()
+        .args([
+            "image",
+            "--model",
+            m.to_str().unwrap(),
+            "--slot",
+            "b",
+            "--generation",
+            "9",
+            "--format",
+            "bin",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains(&format!("{SLOT_B_ADDR:#010x}")), "{stdout}");
+    let b = blob::decode(&std::fs::read(&out).unwrap()).unwrap();
+    assert_eq!(b.generation, 9);
+    assert_eq!(b.params, model(1).params);
+}
+
+#[test]
+fn hex_image_sits_at_the_slot_address() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = write_model(dir.path(), 3);
+    for (slot, addr) in [("a", SLOT_A_ADDR), ("b", SLOT_B_ADDR)] {
+        let out = dir.path().join(format!("{slot}.hex"));
+        hvs()
+            .args([
+                "image",
+                "--model",
+                m.to_str().unwrap(),
+                "--slot",
+                slot,
+                "--format",
+                "hex",
+                "-o",
+            ])
+            .arg(&out)
+            .assert()
+            .success();
+        let text = std::fs::read_to_string(&out).unwrap();
+        let mut base = 0u32;
+        let mut first = None;
+        let mut bytes = Vec::new();
+        for r in ihex::Reader::new(&text) {
+            match r.unwrap() {
+                ihex::Record::ExtendedLinearAddress(h) => base = (h as u32) << 16,
+                ihex::Record::Data { offset, value } => {
+                    first.get_or_insert(base + offset as u32);
+                    bytes.extend(value);
+                }
+                _ => {}
+            }
+        }
+        assert_eq!(first, Some(addr));
+        assert_eq!(blob::decode(&bytes).unwrap().generation, 3);
+    }
+}
+
+#[test]
+fn dry_run_prints_the_plan_without_a_probe() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = write_model(dir.path(), 1);
+    let o = hvs()
+        .args([
+            "flash",
+            "--model",
+            m.to_str().unwrap(),
+            "--dry-run",
+            "--slot",
+            "b",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("no probe touched"), "{s}");
+    assert!(s.contains("chip: STM32F405RGTx"), "{s}");
+    assert!(s.contains("slot: B at 0x080e0000 (sector 11)"), "{s}");
+    assert!(
+        s.contains(&format!(
+            "write: {} bytes",
+            std::fs::metadata(&m).unwrap().len()
+        )),
+        "{s}"
+    );
+    let o = hvs()
+        .args(["flash", "--model", m.to_str().unwrap(), "--dry-run"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&o.stdout).contains("slot: auto"));
+}
+
+#[test]
+fn flash_errors_are_one_clear_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = write_model(dir.path(), 1);
+    // No probe is attached on a build machine.
+    let o = hvs()
+        .args(["flash", "--model", m.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("no debug probe"), "{e}");
+    assert!(!e.contains("panicked"), "{e}");
+    assert_eq!(e.trim().lines().count(), 1, "{e}");
+    // Unknown chip, bad probe selector, damaged model.
+    let o = hvs()
+        .args([
+            "flash",
+            "--model",
+            m.to_str().unwrap(),
+            "--chip",
+            "NOPE123",
+            "--dry-run",
+        ])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--chip NOPE123"));
+    let o = hvs()
+        .args(["flash", "--model", m.to_str().unwrap(), "--probe", "zz"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let mut bytes = std::fs::read(&m).unwrap();
+    bytes[20] ^= 0xFF;
+    let bad = dir.path().join("bad.hvsw");
+    std::fs::write(&bad, &bytes).unwrap();
+    let o = hvs()
+        .args(["flash", "--model", bad.to_str().unwrap(), "--dry-run"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("bad.hvsw") && e.contains("CRC"), "{e}");
+}

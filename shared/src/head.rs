@@ -1,0 +1,692 @@
+//! The head controller's decisions, without I/O: which weight slot boots, how a point becomes
+//! an estimate, and what `Info` reports.
+//!
+//! The firmware hands [`boot`] the raw bytes of both weight slots, wraps the returned [`Boot`]
+//! in a [`Head`] (with the gaze controller) and then only moves bytes: every request is
+//! answered by [`Head::respond`] and every control tick is [`Head::tick`], so the host tests
+//! the exact logic the head runs. A slot is run only if its blob validates *and* its topology is
+//! the one this build runs ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`], stereo pixels in,
+//! XYZ out); anything else counts as not runnable, and with no runnable slot the head falls
+//! back to the traditional method with [`Calibration::BUILT_IN`].
+
+use crate::blob::{self, InputKind, ModelBlob, OutputKind};
+use crate::gaze::{self, Axis, GazeConfig, GazeError, Joints};
+use crate::layout::Slot;
+use crate::mlp::{Mlp, MlpError};
+use crate::protocol::{
+    ErrorCode, EstimateData, FirmwareVersion, InfoData, LookData, Mode, ModelInfo, Request,
+    RequestBody, Response, ResponseBody, SlotStatus, Source, StereoPoint, PROTOCOL_VERSION,
+};
+use crate::slots::{self, SlotState};
+use crate::trajectory::{ConfigError, ControllerConfig, GazeController};
+use crate::triangulate::{self, Calibration};
+
+/// Inputs of the network the head runs: `u_l, v_l, u_r, v_r`.
+pub const NET_INPUTS: usize = 4;
+/// Hidden neurons of the network the head runs (the thesis' 4-5-3 network).
+pub const NET_HIDDEN: usize = 5;
+/// Outputs of the network the head runs: `X, Y, Z`.
+pub const NET_OUTPUTS: usize = 3;
+
+/// The network type the head runs.
+pub type HeadMlp = Mlp<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>;
+
+/// A runnable network loaded from a slot, with what `Estimate` and `Info` need of its blob.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Network {
+    /// The weights.
+    pub mlp: HeadMlp,
+    /// Smallest training input, per input.
+    pub in_min: [f32; NET_INPUTS],
+    /// Largest training input, per input.
+    pub in_max: [f32; NET_INPUTS],
+    /// The slot it came from.
+    pub slot: Slot,
+    /// The blob's generation.
+    pub generation: u32,
+    /// Metadata for `Info`.
+    pub model: ModelInfo,
+}
+
+impl Network {
+    /// One inference: `[X, Y, Z]` (cm) of `[u_l, v_l, u_r, v_r]`. Not generic, so the firmware's
+    /// `Estimate` and its `Bench` run this one compiled function.
+    #[inline(never)]
+    pub fn infer(&self, x: &[f32; NET_INPUTS]) -> Result<[f32; NET_OUTPUTS], MlpError> {
+        self.mlp.infer(x)
+    }
+}
+
+/// How the head computes depth after boot.
+// No allocator to box the network into; one instance lives for the whole run.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq)]
+pub enum Estimator {
+    /// A network from a weight slot.
+    Network(Network),
+    /// The traditional method with this calibration.
+    Fallback(Calibration),
+}
+
+/// The result of boot: what each slot held and what runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Boot {
+    /// What slot A held.
+    pub slot_a: SlotStatus,
+    /// What slot B held.
+    pub slot_b: SlotStatus,
+    /// What runs.
+    pub estimator: Estimator,
+}
+
+/// Classifies one slot's bytes and, if the blob is runnable, loads its network.
+pub fn load_slot(slot: Slot, bytes: &[u8]) -> (SlotStatus, Option<Network>) {
+    let blob = match blob::decode(bytes) {
+        Ok(b) => b,
+        Err(blob::BlobError::BadMagic) => return (SlotStatus::Empty, None),
+        Err(e) => return (SlotStatus::Invalid(e), None),
+    };
+    match network_of(slot, &blob) {
+        Some(net) => (
+            SlotStatus::Valid {
+                generation: blob.generation,
+            },
+            Some(net),
+        ),
+        None => (
+            SlotStatus::UnsupportedTopology {
+                inputs: blob.n_inputs() as u16,
+                hidden: u16::from(blob.topology.hidden),
+                outputs: blob.n_outputs() as u16,
+            },
+            None,
+        ),
+    }
+}
+
+fn network_of(slot: Slot, blob: &ModelBlob) -> Option<Network> {
+    if blob.topology.inputs != InputKind::Stereo || blob.topology.outputs != OutputKind::Xyz {
+        return None;
+    }
+    let mlp = blob.to_mlp::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>().ok()?;
+    let in_min: [f32; NET_INPUTS] = blob.in_min.as_slice().try_into().ok()?;
+    let in_max: [f32; NET_INPUTS] = blob.in_max.as_slice().try_into().ok()?;
+    Some(Network {
+        mlp,
+        in_min,
+        in_max,
+        slot,
+        generation: blob.generation,
+        model: ModelInfo {
+            inputs: NET_INPUTS as u16,
+            hidden: NET_HIDDEN as u16,
+            outputs: NET_OUTPUTS as u16,
+            seed: blob.meta.seed,
+            train_hash: blob.meta.train_hash,
+            train_points: blob.meta.train_points,
+            train_error_pct: blob.meta.train_error_pct,
+        },
+    })
+}
+
+/// Boots from the raw bytes of both slots (each at least the blob's framed length; trailing
+/// bytes are ignored). The runnable slot with the higher generation runs (A on a tie, the
+/// rule of [`slots::choose_boot`]); with none, the traditional method with
+/// [`Calibration::BUILT_IN`].
+pub fn boot(slot_a: &[u8], slot_b: &[u8]) -> Boot {
+    let (status_a, net_a) = load_slot(Slot::A, slot_a);
+    let (status_b, net_b) = load_slot(Slot::B, slot_b);
+    let state = |n: &Option<Network>| match n {
+        Some(n) => SlotState::Valid {
+            generation: n.generation,
+        },
+        None => SlotState::Empty,
+    };
+    let estimator = match slots::choose_boot(state(&net_a), state(&net_b)) {
+        Some(Slot::A) => net_a.map(Estimator::Network),
+        Some(Slot::B) => net_b.map(Estimator::Network),
+        None => None,
+    }
+    .unwrap_or(Estimator::Fallback(Calibration::BUILT_IN));
+    Boot {
+        slot_a: status_a,
+        slot_b: status_b,
+        estimator,
+    }
+}
+
+impl Boot {
+    /// The `Info` answer for firmware `version`.
+    pub fn info(&self, version: FirmwareVersion) -> InfoData {
+        let (slot, generation, mode, model) = match &self.estimator {
+            Estimator::Network(n) => (Some(n.slot), n.generation, Mode::Network, Some(n.model)),
+            Estimator::Fallback(_) => (None, 0, Mode::Fallback, None),
+        };
+        let fallback = match &self.estimator {
+            Estimator::Fallback(c) => *c,
+            Estimator::Network(_) => Calibration::BUILT_IN,
+        };
+        InfoData {
+            firmware: version,
+            protocol: PROTOCOL_VERSION,
+            slot,
+            generation,
+            mode,
+            slot_a: self.slot_a,
+            slot_b: self.slot_b,
+            model,
+            fallback,
+        }
+    }
+
+    /// The estimate of `p`, or why there is none.
+    pub fn estimate(&self, p: &StereoPoint) -> Result<EstimateData, ErrorCode> {
+        self.estimator.estimate(p)
+    }
+}
+
+/// The answer to a request that failed before its id could be read.
+pub fn frame_error(code: ErrorCode) -> Response {
+    Response {
+        id: crate::protocol::UNSOLICITED_ID,
+        body: ResponseBody::Error(code),
+    }
+}
+
+impl Boot {
+    /// Answers the requests that need no movement (`Look`, `Home` and `Bench` answer
+    /// [`ErrorCode::Unsupported`] here: see [`Head::respond`]).
+    pub fn respond(&self, req: &Request, version: FirmwareVersion) -> Response {
+        let body = match req.body {
+            RequestBody::Ping => ResponseBody::Pong,
+            RequestBody::Info => ResponseBody::Info(self.info(version)),
+            RequestBody::Estimate(p) => match self.estimate(&p) {
+                Ok(e) => ResponseBody::Estimate(e),
+                Err(c) => ResponseBody::Error(c),
+            },
+            RequestBody::Look(_) | RequestBody::Home | RequestBody::Bench { .. } => {
+                ResponseBody::Error(ErrorCode::Unsupported)
+            }
+        };
+        Response { id: req.id, body }
+    }
+}
+
+/// The head: what boot chose, the gaze settings and the setpoint generator.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Head {
+    /// What boot found and runs.
+    pub boot: Boot,
+    /// Fixation settings (neck/eye split, limits).
+    pub gaze: GazeConfig,
+    /// Trajectories of the five axes.
+    pub controller: GazeController,
+}
+
+impl Head {
+    /// A head at rest at home. Fails if the controller settings are unusable.
+    pub fn new(
+        boot: Boot,
+        gaze: GazeConfig,
+        controller: &ControllerConfig,
+    ) -> Result<Head, ConfigError> {
+        Ok(Head {
+            boot,
+            gaze,
+            controller: GazeController::new(controller)?,
+        })
+    }
+
+    /// Answers `req`; `Look` and `Home` start a move. `Bench` is the firmware's (answered
+    /// [`ErrorCode::Unsupported`] here).
+    pub fn respond(&mut self, req: &Request, version: FirmwareVersion) -> Response {
+        let body = match req.body {
+            RequestBody::Look(p) => match self.look(&p) {
+                Ok(l) => ResponseBody::Look(l),
+                Err(c) => ResponseBody::Error(c),
+            },
+            RequestBody::Home => {
+                self.controller.home();
+                ResponseBody::Home
+            }
+            _ => return self.boot.respond(req, version),
+        };
+        Response { id: req.id, body }
+    }
+
+    /// Estimates `p`, fixates the estimate and starts the move there.
+    pub fn look(&mut self, p: &StereoPoint) -> Result<LookData, ErrorCode> {
+        let estimate = self.boot.estimate(p)?;
+        let fix =
+            gaze::fixate(&self.gaze, [estimate.x, estimate.y, estimate.z]).map_err(
+                |e| match e {
+                    GazeError::NonFinite => ErrorCode::NonFinite,
+                    GazeError::BehindHead | GazeError::TooClose => ErrorCode::Unreachable,
+                },
+            )?;
+        self.controller.start(&fix.joints);
+        // Where the setpoints will settle: the goal on the step grid, within the limits.
+        let goal = self.controller.goal();
+        let limits = &self.gaze.limits;
+        let target = Joints(Axis::ALL.map(|axis| {
+            let (lo, hi) = limits.step_range(axis);
+            gaze::from_steps(gaze::to_steps(goal[axis]).clamp(lo, hi))
+        }));
+        Ok(LookData {
+            estimate,
+            target,
+            limited: fix.clamped,
+        })
+    }
+
+    /// One control tick: the next setpoint (degrees) for the servos.
+    pub fn tick(&mut self) -> Joints {
+        self.controller.tick()
+    }
+}
+
+impl Estimator {
+    /// The estimate of `p`, or why there is none.
+    pub fn estimate(&self, p: &StereoPoint) -> Result<EstimateData, ErrorCode> {
+        if !p.is_finite() {
+            return Err(ErrorCode::NonFinite);
+        }
+        let x = p.to_array();
+        match self {
+            Estimator::Network(n) => {
+                let [x_cm, y_cm, z_cm] = n.infer(&x).map_err(|e| match e {
+                    MlpError::NonFiniteInput => ErrorCode::NonFinite,
+                    MlpError::NonFiniteOutput | MlpError::Shape => ErrorCode::NoSolution,
+                })?;
+                let in_range = x
+                    .iter()
+                    .zip(n.in_min.iter().zip(n.in_max.iter()))
+                    .all(|(v, (lo, hi))| *v >= *lo && *v <= *hi);
+                Ok(EstimateData {
+                    x: x_cm,
+                    y: y_cm,
+                    z: z_cm,
+                    source: Source::Network,
+                    in_range,
+                })
+            }
+            Estimator::Fallback(cal) => {
+                let [x_cm, y_cm, z_cm] =
+                    triangulate::traditional_xyz(cal, &x).map_err(|e| match e {
+                        triangulate::TriError::NonFinite => ErrorCode::NonFinite,
+                        _ => ErrorCode::NoSolution,
+                    })?;
+                let in_image = |u: f32, c: f32| u >= 0.0 && u <= 2.0 * c;
+                let in_range = in_image(p.u_l, cal.u0)
+                    && in_image(p.u_r, cal.u0)
+                    && in_image(p.v_l, cal.v0)
+                    && in_image(p.v_r, cal.v0);
+                Ok(EstimateData {
+                    x: x_cm,
+                    y: y_cm,
+                    z: z_cm,
+                    source: Source::Fallback,
+                    in_range,
+                })
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use super::*;
+    use crate::blob::{Algorithm, BlobError, Topology, TrainingMeta, MAX_BLOB_LEN};
+    use crate::mlp::{param_count, Activation};
+    use heapless::Vec;
+    use std::vec::Vec as StdVec;
+
+    fn sample(hidden: u8, generation: u32, seed: u64) -> ModelBlob {
+        let mut params = Vec::new();
+        for k in 0..param_count(4, hidden as usize, 3) {
+            let r = ((k as u64 * 2_654_435_761 + seed) % 2000) as f32 / 1000.0 - 1.0;
+            params.push(r).unwrap();
+        }
+        ModelBlob {
+            generation,
+            topology: Topology {
+                inputs: InputKind::Stereo,
+                hidden,
+                outputs: OutputKind::Xyz,
+                output_activation: Activation::Linear,
+            },
+            in_offset: Vec::from_slice(&[320.0, 240.0, 300.0, 240.0]).unwrap(),
+            in_scale: Vec::from_slice(&[0.02, 0.05, 0.02, 0.05]).unwrap(),
+            out_offset: Vec::from_slice(&[0.0, 0.0, 115.0]).unwrap(),
+            out_scale: Vec::from_slice(&[3.0, 2.0, 50.0]).unwrap(),
+            params,
+            in_min: Vec::from_slice(&[300.0, 220.0, 280.0, 220.0]).unwrap(),
+            in_max: Vec::from_slice(&[360.0, 260.0, 330.0, 260.0]).unwrap(),
+            meta: TrainingMeta {
+                seed,
+                train_hash: 0xfeed,
+                train_points: 72,
+                train_error_pct: 1.25,
+                algorithm: Algorithm::Lm,
+                restarts: 1,
+            },
+            fallback: None,
+        }
+    }
+
+    fn bytes(b: &ModelBlob) -> StdVec<u8> {
+        let mut buf = std::vec![0u8; MAX_BLOB_LEN];
+        let n = b.encode(&mut buf).unwrap();
+        buf.truncate(n);
+        // Flash after a blob: whatever was there before (here 0x00 as in QEMU).
+        buf.resize(MAX_BLOB_LEN, 0);
+        buf
+    }
+
+    fn corrupt(mut b: StdVec<u8>) -> StdVec<u8> {
+        b[20] ^= 0x10;
+        b
+    }
+
+    const P: StereoPoint = StereoPoint {
+        u_l: 330.0,
+        v_l: 241.0,
+        u_r: 310.0,
+        v_r: 239.0,
+    };
+
+    #[test]
+    fn higher_generation_runs_and_ties_go_to_a() {
+        let a = bytes(&sample(5, 3, 1));
+        let b = bytes(&sample(5, 4, 2));
+        let boot_ab = boot(&a, &b);
+        let Estimator::Network(n) = &boot_ab.estimator else {
+            panic!("fallback")
+        };
+        assert_eq!((n.slot, n.generation, n.model.seed), (Slot::B, 4, 2));
+        let boot_ba = boot(&b, &a);
+        let Estimator::Network(n) = &boot_ba.estimator else {
+            panic!("fallback")
+        };
+        assert_eq!((n.slot, n.generation), (Slot::A, 4));
+        let tie = boot(&bytes(&sample(5, 4, 9)), &b);
+        let Estimator::Network(n) = &tie.estimator else {
+            panic!("fallback")
+        };
+        assert_eq!((n.slot, n.model.seed), (Slot::A, 9));
+    }
+
+    #[test]
+    fn corrupted_slot_is_never_run() {
+        let a = corrupt(bytes(&sample(5, 9, 1)));
+        let b = bytes(&sample(5, 2, 2));
+        let got = boot(&a, &b);
+        assert_eq!(got.slot_a, SlotStatus::Invalid(BlobError::BadCrc));
+        assert_eq!(got.slot_b, SlotStatus::Valid { generation: 2 });
+        let info = got.info(FirmwareVersion {
+            major: 0,
+            minor: 1,
+            patch: 0,
+        });
+        assert_eq!(
+            (info.slot, info.generation, info.mode),
+            (Some(Slot::B), 2, Mode::Network)
+        );
+
+        let both = boot(&a, &corrupt(b));
+        assert_eq!(both.estimator, Estimator::Fallback(Calibration::BUILT_IN));
+        let info = both.info(FirmwareVersion {
+            major: 0,
+            minor: 1,
+            patch: 0,
+        });
+        assert_eq!(
+            (info.slot, info.mode, info.model),
+            (None, Mode::Fallback, None)
+        );
+        // Fallback still answers, with the traditional method's numbers.
+        let e = both.estimate(&P).unwrap();
+        let want = triangulate::traditional_xyz(&Calibration::BUILT_IN, &P.to_array()).unwrap();
+        assert_eq!([e.x, e.y, e.z], want);
+        assert_eq!(e.source, Source::Fallback);
+        assert!(e.in_range);
+    }
+
+    #[test]
+    fn empty_slots_and_unsupported_topology_fall_back() {
+        let empty = std::vec![0xffu8; MAX_BLOB_LEN];
+        let zero = std::vec![0u8; MAX_BLOB_LEN];
+        let got = boot(&empty, &zero);
+        assert_eq!(
+            (got.slot_a, got.slot_b),
+            (SlotStatus::Empty, SlotStatus::Empty)
+        );
+        assert!(matches!(got.estimator, Estimator::Fallback(_)));
+
+        // A valid 4-7-3 blob with a higher generation loses to a runnable 4-5-3 one.
+        let wide = bytes(&sample(7, 50, 1));
+        let got = boot(&wide, &bytes(&sample(5, 1, 2)));
+        assert_eq!(
+            got.slot_a,
+            SlotStatus::UnsupportedTopology {
+                inputs: 4,
+                hidden: 7,
+                outputs: 3
+            }
+        );
+        let Estimator::Network(n) = &got.estimator else {
+            panic!("fallback")
+        };
+        assert_eq!(n.slot, Slot::B);
+        let got = boot(&wide, &empty);
+        assert!(matches!(got.estimator, Estimator::Fallback(_)));
+    }
+
+    #[test]
+    fn network_estimate_matches_blob_inference_bit_for_bit() {
+        let blob = sample(5, 1, 77);
+        let got = boot(&bytes(&blob), &[]);
+        for k in 0..200 {
+            let p = StereoPoint {
+                u_l: 290.0 + k as f32 * 0.37,
+                v_l: 215.0 + k as f32 * 0.21,
+                u_r: 270.0 + k as f32 * 0.33,
+                v_r: 230.0 - k as f32 * 0.05,
+            };
+            let e = got.estimate(&p).unwrap();
+            let mut want = [0.0f32; 3];
+            blob.infer(&p.to_array(), &mut want).unwrap();
+            assert_eq!(
+                [e.x.to_bits(), e.y.to_bits(), e.z.to_bits()],
+                want.map(f32::to_bits)
+            );
+            assert_eq!(e.in_range, blob.in_range(&p.to_array()), "{p:?}");
+            assert_eq!(e.source, Source::Network);
+        }
+    }
+
+    #[test]
+    fn bad_points_are_errors_not_panics() {
+        let net = boot(&bytes(&sample(5, 1, 3)), &[]);
+        let fb = boot(&[], &[]);
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            let p = StereoPoint { v_r: bad, ..P };
+            assert_eq!(net.estimate(&p), Err(ErrorCode::NonFinite));
+            assert_eq!(fb.estimate(&p), Err(ErrorCode::NonFinite));
+        }
+        // Zero and negative disparity have no traditional depth.
+        let p = StereoPoint { u_r: P.u_l, ..P };
+        assert_eq!(fb.estimate(&p), Err(ErrorCode::NoSolution));
+        // Huge inputs: the network still answers (sigmoids saturate), out of range.
+        let p = StereoPoint {
+            u_l: 3e38,
+            v_l: -3e38,
+            u_r: 1e30,
+            v_r: 0.0,
+        };
+        let e = net.estimate(&p).unwrap();
+        assert!(!e.in_range);
+        assert!(e.x.is_finite() && e.z.is_finite());
+    }
+
+    fn head(boot: Boot) -> Head {
+        Head::new(boot, GazeConfig::DEFAULT, &ControllerConfig::DEFAULT).unwrap()
+    }
+
+    fn req(id: u32, body: RequestBody) -> Request {
+        Request { id, body }
+    }
+
+    const V: FirmwareVersion = FirmwareVersion {
+        major: 1,
+        minor: 2,
+        patch: 3,
+    };
+
+    #[test]
+    fn look_moves_the_setpoints_to_the_announced_target_within_limits() {
+        let mut h = head(boot(&[], &[]));
+        // A point to the left and below, about 1 m away.
+        let p = StereoPoint {
+            u_l: 250.0,
+            v_l: 300.0,
+            u_r: 220.0,
+            v_r: 300.0,
+        };
+        let r = h.respond(&req(7, RequestBody::Look(p)), V);
+        assert_eq!(r.id, 7);
+        let ResponseBody::Look(l) = r.body else {
+            panic!("{r:?}")
+        };
+        assert_eq!(l.estimate, h.boot.estimate(&p).unwrap());
+        let limits = GazeConfig::DEFAULT.limits;
+        assert!(limits.contains(&l.target));
+        // Left of centre: positive pans; below: positive tilts (gaze sign convention).
+        assert!(l.target.0[0] > 0.0 && l.target.0[3] > 0.0 && l.target.0[4] > 0.0);
+        assert!(l.target.0[1] + l.target.0[2] > 0.0);
+        // Vergence: the right eye turns in more than the left.
+        assert!(l.target.0[4] > l.target.0[3]);
+        let mut last = Joints::HOME;
+        let max = h.controller.max_steps_per_tick();
+        for _ in 0..200 {
+            let sp = h.tick();
+            assert!(limits.contains(&sp));
+            for axis in Axis::ALL {
+                let d = gaze::to_steps(sp[axis]) - gaze::to_steps(last[axis]);
+                assert!(d.abs() <= max[axis.index()], "{axis:?} jumped {d} steps");
+            }
+            last = sp;
+        }
+        assert!(!h.controller.is_moving());
+        assert_eq!(last, l.target);
+
+        // Home brings every axis back to 0.
+        let r = h.respond(&req(8, RequestBody::Home), V);
+        assert_eq!(r.body, ResponseBody::Home);
+        for _ in 0..200 {
+            last = h.tick();
+        }
+        assert_eq!(last, Joints::HOME);
+    }
+
+    #[test]
+    fn bad_looks_are_refused_without_moving() {
+        let mut h = head(boot(&[], &[]));
+        let nan = StereoPoint { u_l: f32::NAN, ..P };
+        let behind = StereoPoint {
+            u_r: P.u_l + 1.0,
+            ..P
+        };
+        let too_close = StereoPoint {
+            u_l: 620.0,
+            u_r: 20.0,
+            ..P
+        };
+        for (p, code) in [
+            (nan, ErrorCode::NonFinite),
+            (behind, ErrorCode::NoSolution),
+            (too_close, ErrorCode::Unreachable),
+        ] {
+            let r = h.respond(&req(3, RequestBody::Look(p)), V);
+            assert_eq!(r.body, ResponseBody::Error(code), "{p:?}");
+            assert!(!h.controller.is_moving());
+            assert_eq!(h.tick(), Joints::HOME);
+        }
+    }
+
+    #[test]
+    fn respond_answers_every_request_with_its_id() {
+        let mut h = head(boot(&bytes(&sample(5, 4, 1)), &[]));
+        let info = h.respond(&req(11, RequestBody::Info), V);
+        let ResponseBody::Info(i) = info.body else {
+            panic!("{info:?}")
+        };
+        assert_eq!((info.id, i.firmware, i.generation), (11, V, 4));
+        assert_eq!(
+            h.respond(&req(12, RequestBody::Ping), V).body,
+            ResponseBody::Pong
+        );
+        let e = h.respond(&req(13, RequestBody::Estimate(P)), V);
+        assert_eq!(e.body, ResponseBody::Estimate(h.boot.estimate(&P).unwrap()));
+        let b = h.respond(&req(14, RequestBody::Bench { point: P, count: 1 }), V);
+        assert_eq!(b.body, ResponseBody::Error(ErrorCode::Unsupported));
+    }
+
+    fn any_f32() -> impl proptest::strategy::Strategy<Value = f32> {
+        use proptest::prelude::*;
+        prop_oneof![
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(f32::NEG_INFINITY),
+            Just(f32::MAX),
+            Just(-f32::MAX),
+            Just(0.0f32),
+            -1e6f32..1e6f32,
+            0.0f32..640.0,
+            proptest::num::f32::ANY,
+        ]
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Whatever arrives (NaN, infinities, huge and negative values, any order, any
+        /// timing), every setpoint stays within the joint limits and moves at most the per-tick
+        /// step limit, and every request is answered with its id.
+        #[test]
+        fn any_requests_keep_setpoints_within_limits(
+            reqs in proptest::collection::vec(
+                (0u8..4, any_f32(), any_f32(), any_f32(), any_f32(), 0u32..40),
+                1..12,
+            ),
+            network in proptest::bool::ANY,
+        ) {
+            let a = if network { bytes(&sample(5, 1, 5)) } else { StdVec::new() };
+            let mut h = head(boot(&a, &[]));
+            let limits = GazeConfig::DEFAULT.limits;
+            let max = h.controller.max_steps_per_tick();
+            let mut last = h.controller.setpoint_steps();
+            for (k, (kind, u_l, v_l, u_r, v_r, ticks)) in reqs.into_iter().enumerate() {
+                let p = StereoPoint { u_l, v_l, u_r, v_r };
+                let body = match kind {
+                    0 => RequestBody::Look(p),
+                    1 => RequestBody::Estimate(p),
+                    2 => RequestBody::Home,
+                    _ => RequestBody::Info,
+                };
+                let r = h.respond(&req(k as u32 + 1, body), V);
+                proptest::prop_assert_eq!(r.id, k as u32 + 1);
+                for _ in 0..ticks {
+                    let sp = h.tick();
+                    proptest::prop_assert!(limits.contains(&sp), "{:?}", sp);
+                    let steps = h.controller.setpoint_steps();
+                    for i in 0..5 {
+                        proptest::prop_assert!((steps[i] - last[i]).abs() <= max[i]);
+                    }
+                    last = steps;
+                }
+            }
+        }
+    }
+}

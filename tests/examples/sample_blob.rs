@@ -1,0 +1,32 @@
+//! Writes the seeded 4-5-3 sample blob of the QEMU tests to a file (for `firmware/measure.sh`
+//! until a trained model is at hand): `cargo run -p hvs-tests --example sample_blob -- OUT [GENERATION]`.
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let Some(out) = args.next() else {
+        eprintln!("usage: sample_blob OUT [GENERATION]");
+        std::process::exit(2);
+    };
+    let generation = match args.next().map(|g| g.parse::<u32>()) {
+        None => 1,
+        Some(Ok(g)) => g,
+        Some(Err(e)) => {
+            eprintln!("error: GENERATION: {e}");
+            std::process::exit(2);
+        }
+    };
+    let blob = hvs_tests::sample_model(generation, 42);
+    let mut buf = vec![0u8; hvs_shared::blob::MAX_BLOB_LEN];
+    let n = match blob.encode(&mut buf) {
+        Ok(n) => n,
+        Err(e) => {
+            eprintln!("error: encoding the sample blob: {e}");
+            std::process::exit(1);
+        }
+    };
+    let tmp = format!("{out}.tmp");
+    if let Err(e) = std::fs::write(&tmp, &buf[..n]).and_then(|_| std::fs::rename(&tmp, &out)) {
+        eprintln!("error: {out}: {e}");
+        std::process::exit(1);
+    }
+}

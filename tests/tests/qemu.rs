@@ -1,0 +1,522 @@
+//! The head firmware in QEMU (`netduinoplus2`) against the host: bit-for-bit estimates, slot
+//! choice with corrupted slots, fallback, bad frames, and the MCDC commands of a Look sequence.
+//!
+//! These tests need `qemu-system-arm` and the firmware ELF
+//! (`cargo build --profile firmware -p hvs-firmware --target thumbv7em-none-eabihf --features qemu`).
+//! They are `#[ignore]`d in a plain `cargo test` and run by `.ci/run` with
+//! `cargo test -p hvs-tests --test qemu -- --ignored`; when run, a missing QEMU or ELF is a
+//! failure with the command that fixes it, never a skip.
+
+use hvs_host::emulate::{find_firmware, free_port, Emulator, EmulatorConfig, FIRMWARE_BUILD};
+use hvs_host::link::{Endpoint, Link};
+use hvs_shared::blob::{self, BlobError, ModelBlob, MAX_BLOB_LEN};
+use hvs_shared::gaze::{Axis, GazeConfig, Joints};
+use hvs_shared::head::{self, Head};
+use hvs_shared::protocol::{
+    self, ErrorCode, Mode, Request, RequestBody, Response, ResponseBody, Slot, SlotStatus, Source,
+    StereoPoint, MAX_FRAME_LEN, UNSOLICITED_ID,
+};
+use hvs_shared::servo::{parse_mcdc, McdcCmd, McdcConfig};
+use hvs_shared::trajectory::ControllerConfig;
+use hvs_shared::triangulate::{traditional_xyz, Calibration};
+use hvs_tests::{sample_model as model, workspace_root};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// A QEMU run with its files in a fresh temporary directory.
+struct Run {
+    emu: Emulator,
+    link: Link,
+    dir: PathBuf,
+}
+
+impl Run {
+    fn servo_log(&self) -> PathBuf {
+        self.dir.join("servo.log")
+    }
+}
+
+impl Drop for Run {
+    fn drop(&mut self) {
+        self.emu.kill();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+fn require_qemu() {
+    let ok = std::process::Command::new("qemu-system-arm")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    assert!(
+        ok,
+        "qemu-system-arm is not installed: apt-get install -y qemu-system-arm (CI={})",
+        std::env::var("CI").unwrap_or_default()
+    );
+}
+
+fn firmware() -> PathBuf {
+    let fw = find_firmware(None);
+    assert!(
+        fw.is_file(),
+        "{}: firmware ELF missing; build it first: {FIRMWARE_BUILD}",
+        fw.display()
+    );
+    fw
+}
+
+/// Boots the firmware with these slot contents and waits until it answers.
+fn boot(name: &str, slot_a: Option<&[u8]>, slot_b: Option<&[u8]>) -> Run {
+    require_qemu();
+    let dir = std::env::temp_dir().join(format!("hvs-qemu-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |file: &str, bytes: Option<&[u8]>| {
+        bytes.map(|b| {
+            let p = dir.join(file);
+            std::fs::write(&p, b).unwrap();
+            p
+        })
+    };
+    let port = free_port().unwrap();
+    let cfg = EmulatorConfig {
+        firmware: firmware(),
+        slot_a: write("a.bin", slot_a),
+        slot_b: write("b.bin", slot_b),
+        listen: format!("127.0.0.1:{port}"),
+        servo_log: dir.join("servo.log"),
+        qemu: "qemu-system-arm".into(),
+        extra: vec![],
+    };
+    let emu = Emulator::start(&cfg).unwrap();
+    let endpoint: Endpoint = emu.endpoint.parse().unwrap();
+    let mut link = Link::open(&endpoint, Duration::from_secs(10)).unwrap();
+    link.timeout = Duration::from_secs(5);
+    link.wait_ready(Duration::from_secs(20)).unwrap();
+    Run { emu, link, dir }
+}
+
+fn encode(b: &ModelBlob) -> Vec<u8> {
+    let mut buf = vec![0u8; MAX_BLOB_LEN];
+    let n = b.encode(&mut buf).unwrap();
+    buf.truncate(n);
+    buf
+}
+
+/// The blob with one payload bit flipped (its CRC then fails).
+fn corrupted(b: &ModelBlob) -> Vec<u8> {
+    let mut bytes = encode(b);
+    bytes[blob::HEADER_LEN + 7] ^= 0x04;
+    assert_eq!(blob::decode(&bytes), Err(BlobError::BadCrc));
+    bytes
+}
+
+/// A few hundred points: every fixture row of the four thesis cases plus seeded points in and
+/// around the image, some far outside the training box.
+fn points() -> Vec<StereoPoint> {
+    let mut pts = Vec::new();
+    let dir = workspace_root().join("shared/tests/fixtures");
+    for case in 1..=4 {
+        for set in ["train", "test"] {
+            let path = dir.join(format!("case{case}_{set}.csv"));
+            let text = std::fs::read_to_string(&path).unwrap();
+            for line in text.lines().skip(1) {
+                let f: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+                pts.push(StereoPoint {
+                    u_l: f[0] as f32,
+                    v_l: f[1] as f32,
+                    u_r: f[2] as f32,
+                    v_r: f[3] as f32,
+                });
+            }
+        }
+    }
+    let mut s: u32 = 0x9e37_79b9;
+    let mut rnd = |lo: f32, hi: f32| {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        lo + (s as f32 / u32::MAX as f32) * (hi - lo)
+    };
+    for _ in 0..100 {
+        let u_r = rnd(0.0, 600.0);
+        pts.push(StereoPoint {
+            u_l: u_r + rnd(1.0, 120.0),
+            v_l: rnd(0.0, 480.0),
+            u_r,
+            v_r: rnd(0.0, 480.0),
+        });
+    }
+    assert!(pts.len() >= 300, "{}", pts.len());
+    pts
+}
+
+fn info(run: &mut Run) -> protocol::InfoData {
+    match run.link.request(RequestBody::Info).unwrap() {
+        ResponseBody::Info(i) => i,
+        other => panic!("Info answered {other:?}"),
+    }
+}
+
+/// Every point through the head equals the host's answer for the same boot, bit for bit.
+fn assert_estimates_match(run: &mut Run, host: &head::Boot, expect_source: Source) {
+    for p in points() {
+        let got = run.link.request(RequestBody::Estimate(p)).unwrap();
+        match (got, host.estimate(&p)) {
+            (ResponseBody::Estimate(e), Ok(h)) => {
+                assert_eq!(
+                    [e.x.to_bits(), e.y.to_bits(), e.z.to_bits()],
+                    [h.x.to_bits(), h.y.to_bits(), h.z.to_bits()],
+                    "{p:?}: head {e:?} host {h:?}"
+                );
+                assert_eq!((e.source, e.in_range), (h.source, h.in_range), "{p:?}");
+                assert_eq!(e.source, expect_source);
+            }
+            (ResponseBody::Error(c), Err(h)) => assert_eq!(c, h, "{p:?}"),
+            (got, want) => panic!("{p:?}: head {got:?}, host {want:?}"),
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn estimates_equal_host_inference_bit_for_bit() {
+    let m = model(1, 42);
+    let bytes = encode(&m);
+    let mut run = boot("bits", Some(&bytes), None);
+    let i = info(&mut run);
+    assert_eq!(
+        (i.mode, i.slot, i.generation),
+        (Mode::Network, Some(Slot::A), 1)
+    );
+    assert_eq!(i.slot_a, SlotStatus::Valid { generation: 1 });
+    assert_eq!(i.slot_b, SlotStatus::Empty);
+    let model_info = i.model.expect("model metadata");
+    assert_eq!(
+        (model_info.hidden, model_info.seed, model_info.train_hash),
+        (5, 42, 0x1234_5678_9abc_def0)
+    );
+    let host = head::boot(&bytes, &[]);
+    assert_estimates_match(&mut run, &host, Source::Network);
+    // The same numbers as the blob's own inference on the host.
+    let p = StereoPoint {
+        u_l: 340.0,
+        v_l: 240.0,
+        u_r: 295.0,
+        v_r: 240.0,
+    };
+    let mut want = [0f32; 3];
+    m.infer(&p.to_array(), &mut want).unwrap();
+    match run.link.request(RequestBody::Estimate(p)).unwrap() {
+        ResponseBody::Estimate(e) => {
+            assert_eq!([e.x, e.y, e.z].map(f32::to_bits), want.map(f32::to_bits));
+            assert!(e.in_range);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn corrupted_slot_a_boots_valid_slot_b() {
+    let a = corrupted(&model(9, 1));
+    let b = encode(&model(2, 2));
+    let mut run = boot("slot-b", Some(&a), Some(&b));
+    let i = info(&mut run);
+    assert_eq!(
+        (i.mode, i.slot, i.generation),
+        (Mode::Network, Some(Slot::B), 2)
+    );
+    assert_eq!(i.slot_a, SlotStatus::Invalid(BlobError::BadCrc));
+    assert_eq!(i.model.map(|m| m.seed), Some(2));
+    assert_estimates_match(&mut run, &head::boot(&a, &b), Source::Network);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn both_slots_corrupted_fall_back_and_answer() {
+    let a = corrupted(&model(3, 3));
+    let b = corrupted(&model(4, 4));
+    let mut run = boot("fallback", Some(&a), Some(&b));
+    let i = info(&mut run);
+    assert_eq!((i.mode, i.slot, i.model), (Mode::Fallback, None, None));
+    assert_eq!(i.fallback, Calibration::BUILT_IN);
+    let host = head::boot(&a, &b);
+    assert_estimates_match(&mut run, &host, Source::Fallback);
+    let p = StereoPoint {
+        u_l: 335.0,
+        v_l: 240.0,
+        u_r: 289.0,
+        v_r: 240.0,
+    };
+    let want = traditional_xyz(&Calibration::BUILT_IN, &p.to_array()).unwrap();
+    match run.link.request(RequestBody::Estimate(p)).unwrap() {
+        ResponseBody::Estimate(e) => assert_eq!([e.x, e.y, e.z], want),
+        other => panic!("{other:?}"),
+    }
+}
+
+/// Waits for the next frame with the unsolicited id (an error about an unreadable frame).
+fn next_unsolicited(run: &mut Run, within: Duration) -> Option<Response> {
+    let until = Instant::now() + within;
+    while let Some(r) = run.link.recv_until(until).unwrap() {
+        if r.id == UNSOLICITED_ID {
+            return Some(r);
+        }
+    }
+    None
+}
+
+fn ping_answered(run: &mut Run) {
+    assert_eq!(
+        run.link.request(RequestBody::Ping).unwrap(),
+        ResponseBody::Pong
+    );
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn bad_frames_get_errors_and_the_next_frame_is_answered() {
+    let mut run = boot("frames", None, None);
+    let malformed = Some(ResponseBody::Error(ErrorCode::Malformed));
+
+    // Garbage without a zero, longer than any frame, then the terminator: Oversize.
+    let garbage: Vec<u8> = (0..3000u32).map(|i| (i * 7 % 255 + 1) as u8).collect();
+    run.link.send_raw(&garbage).unwrap();
+    run.link.send_raw(&[0]).unwrap();
+    let r = next_unsolicited(&mut run, Duration::from_secs(5));
+    assert_eq!(
+        r.map(|r| r.body),
+        Some(ResponseBody::Error(ErrorCode::Oversize))
+    );
+    ping_answered(&mut run);
+
+    // A truncated request: Malformed.
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let req = Request {
+        id: 77,
+        body: RequestBody::Estimate(StereoPoint {
+            u_l: 340.0,
+            v_l: 240.0,
+            u_r: 300.0,
+            v_r: 240.0,
+        }),
+    };
+    let frame = protocol::encode_request(&req, &mut buf).unwrap().to_vec();
+    run.link.send_raw(&frame[..frame.len() / 2]).unwrap();
+    run.link.send_raw(&[0]).unwrap();
+    let r = next_unsolicited(&mut run, Duration::from_secs(5));
+    assert_eq!(r.map(|r| r.body), malformed);
+    ping_answered(&mut run);
+
+    // Valid COBS, unknown request variant: Malformed.
+    let mut b2 = [0u8; 16];
+    let f = protocol::encode(&(5u32, 99u8), &mut b2).unwrap().to_vec();
+    run.link.send_raw(&f).unwrap();
+    let r = next_unsolicited(&mut run, Duration::from_secs(5));
+    assert_eq!(r.map(|r| r.body), malformed);
+
+    // Seeded random bytes with zeros in them: every reply is an unsolicited error, and the
+    // head still answers afterwards.
+    let mut s: u32 = 12345;
+    let noise: Vec<u8> = (0..2000)
+        .map(|_| {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            if s.is_multiple_of(17) {
+                0
+            } else {
+                s as u8
+            }
+        })
+        .collect();
+    run.link.send_raw(&noise).unwrap();
+    run.link.send_raw(&[0]).unwrap();
+    ping_answered(&mut run);
+    // A truncated frame glued to a valid one: one error, then the valid one is answered.
+    let mut glued = frame[..frame.len() / 2].to_vec();
+    glued.push(0);
+    glued.extend_from_slice(&frame);
+    run.link.send_raw(&glued).unwrap();
+    let until = Instant::now() + Duration::from_secs(5);
+    let mut got_answer = false;
+    while let Some(r) = run.link.recv_until(until).unwrap() {
+        if r.id == 77 {
+            assert!(matches!(r.body, ResponseBody::Estimate(_)), "{r:?}");
+            got_answer = true;
+            break;
+        }
+    }
+    assert!(
+        got_answer,
+        "the valid frame after a truncated one was not answered"
+    );
+    // Unsolicited replies are all errors.
+    assert!(run
+        .link
+        .unsolicited
+        .iter()
+        .all(|r| matches!(r.body, ResponseBody::Error(_) | ResponseBody::Ready { .. })));
+}
+
+/// Per-axis sequences of the `LA` counts in an MCDC log, checking that every line parses, every
+/// `LA` is followed by `M` on the same node, and every node is one of the head's.
+fn mcdc_sequences(log: &Path, cfg: &McdcConfig) -> [Vec<i32>; 5] {
+    let text = std::fs::read(log).unwrap();
+    let mut seqs: [Vec<i32>; 5] = Default::default();
+    let mut pending: Option<u8> = None;
+    for line in text.split(|&b| b == b'\r').filter(|l| !l.is_empty()) {
+        let (node, cmd) = parse_mcdc(line)
+            .unwrap_or_else(|e| panic!("bad MCDC line {:?}: {e:?}", String::from_utf8_lossy(line)));
+        let axis = cfg
+            .0
+            .iter()
+            .position(|a| a.node == node)
+            .unwrap_or_else(|| panic!("unknown node {node}"));
+        match cmd {
+            McdcCmd::LoadAbsolute(c) => {
+                assert_eq!(pending, None, "LA without M before it");
+                seqs[axis].push(c);
+                pending = Some(node);
+            }
+            McdcCmd::Move => {
+                assert_eq!(pending, Some(node), "M without its LA");
+                pending = None;
+            }
+            other => panic!("unexpected command {other:?}"),
+        }
+    }
+    assert_eq!(pending, None);
+    seqs
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn look_sequence_commands_follow_the_trajectory_within_limits() {
+    let mut run = boot("look", None, None);
+    let looks = [
+        StereoPoint {
+            u_l: 250.0,
+            v_l: 300.0,
+            u_r: 220.0,
+            v_r: 300.0,
+        },
+        StereoPoint {
+            u_l: 420.0,
+            v_l: 150.0,
+            u_r: 380.0,
+            v_r: 150.0,
+        },
+        // Far above (pixels beyond the image): past neck plus eye tilt, clamped at the limits.
+        StereoPoint {
+            u_l: 330.0,
+            v_l: -6000.0,
+            u_r: 300.0,
+            v_r: -6000.0,
+        },
+    ];
+    // The host runs the same Head from the same boot.
+    let mut host = Head::new(
+        head::boot(&[], &[]),
+        GazeConfig::DEFAULT,
+        &ControllerConfig::DEFAULT,
+    )
+    .unwrap();
+    let cfg = McdcConfig::DEFAULT;
+    let limits = GazeConfig::DEFAULT.limits;
+    let mut want: [Vec<i32>; 5] = Default::default();
+    let record = |sp: &Joints, want: &mut [Vec<i32>; 5]| {
+        for axis in Axis::ALL {
+            let c = cfg.counts(&limits, axis, sp[axis]);
+            let w = &mut want[axis.index()];
+            if w.last() != Some(&c) {
+                w.push(c);
+            }
+        }
+    };
+    let mut limited = false;
+    for (k, p) in looks.iter().enumerate() {
+        let r = run.link.request(RequestBody::Look(*p)).unwrap();
+        let ResponseBody::Look(l) = r else {
+            panic!("Look {k} answered {r:?}")
+        };
+        let h = host.look(p).unwrap();
+        assert_eq!(l, h, "Look {k}");
+        limited |= l.limited;
+        // Let the move finish (neck 0.7 s; QEMU's SysTick follows the host clock).
+        std::thread::sleep(Duration::from_millis(1500));
+        while host.controller.is_moving() {
+            let sp = host.tick();
+            record(&sp, &mut want);
+        }
+    }
+    assert!(limited, "the last target should hit a joint limit");
+    assert_eq!(
+        run.link.request(RequestBody::Home).unwrap(),
+        ResponseBody::Home
+    );
+    std::thread::sleep(Duration::from_millis(1500));
+    host.controller.home();
+    while host.controller.is_moving() {
+        let sp = host.tick();
+        record(&sp, &mut want);
+    }
+    run.emu.kill();
+    let got = mcdc_sequences(&run.servo_log(), &cfg);
+    for axis in Axis::ALL {
+        let i = axis.index();
+        let (lo, hi) = (
+            cfg.counts(&limits, axis, f32::NEG_INFINITY),
+            cfg.counts(&limits, axis, f32::INFINITY),
+        );
+        assert!(
+            got[i].iter().all(|c| (lo..=hi).contains(c)),
+            "{axis:?} outside [{lo}, {hi}]: {:?}",
+            got[i]
+        );
+        assert_eq!(got[i], want[i], "{axis:?}: servo log vs host trajectory");
+        assert_eq!(got[i].last(), Some(&0), "{axis:?} did not return home");
+        assert!(got[i].len() > 3, "{axis:?} barely moved: {:?}", got[i]);
+    }
+    // And the per-tick rate limit holds between consecutive commands.
+    let max = host.controller.max_steps_per_tick();
+    for axis in Axis::ALL {
+        let i = axis.index();
+        for w in got[i].windows(2) {
+            assert!((w[1] - w[0]).abs() <= max[i], "{axis:?} jumped {w:?}");
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn images_written_by_hvs_image_boot_at_the_address_they_name() {
+    use hvs_host::flash::{run_image, ImageArgs, ImageFormat, SlotArg};
+    let dir = std::env::temp_dir().join(format!("hvs-image-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model_path = dir.join("m.hvsw");
+    std::fs::write(&model_path, encode(&model(1, 11))).unwrap();
+    let mut images = Vec::new();
+    for (slot, generation) in [(SlotArg::A, 3), (SlotArg::B, 5)] {
+        let out = dir.join(format!("{slot:?}.bin"));
+        run_image(&ImageArgs {
+            model: model_path.clone(),
+            slot,
+            generation: Some(generation),
+            format: ImageFormat::Bin,
+            output: out.clone(),
+        })
+        .unwrap();
+        images.push(std::fs::read(&out).unwrap());
+    }
+    let mut run = boot("image", Some(&images[0]), Some(&images[1]));
+    let i = info(&mut run);
+    assert_eq!(
+        (i.mode, i.slot, i.generation),
+        (Mode::Network, Some(Slot::B), 5)
+    );
+    assert_eq!(i.slot_a, SlotStatus::Valid { generation: 3 });
+    assert_eq!(i.model.map(|m| m.seed), Some(11));
+    let _ = std::fs::remove_dir_all(&dir);
+}
