@@ -8,6 +8,8 @@
 //! - [`fallback`]: the traditional method's calibration (eq. 4.1-3) fitted on a board set.
 //! - [`infer`]: batch inference, bit-identical to the head's.
 //! - [`evaluate`]: e_ma per depth for several estimators side by side.
+//! - [`experiment`]: `hvs experiment thesis`, the thesis' chapter-4 experiments with plots
+//!   (`plotters`) and `RESULTS.md`.
 //! - [`model`]: model files on disk (checked reads, atomic writes).
 //! - [`cmd`]: one module per `hvs` subcommand.
 //! - [`train`]: fits the f32 MLP to a data set (Levenberg-Marquardt, the thesis' BP, Adam),
@@ -22,6 +24,7 @@ pub mod csv_io;
 pub mod dataset;
 pub mod emulate;
 pub mod evaluate;
+pub mod experiment;
 pub mod fallback;
 pub mod flash;
 pub mod head;

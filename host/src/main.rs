@@ -27,6 +27,7 @@ enum Command {
     Eval(cmd::eval::Args),
     Info(cmd::info::Args),
     Demo(cmd::demo::Args),
+    Experiment(cmd::experiment::Args),
     /// Boot the head firmware in QEMU with a model in slot A.
     Emulate(hvs_host::emulate::EmulateArgs),
     /// Talk to a head (QEMU over TCP, or a serial port).
@@ -46,6 +47,7 @@ fn main() {
         Command::Eval(a) => cmd::eval::run(a),
         Command::Info(a) => cmd::info::run(a),
         Command::Demo(a) => cmd::demo::run(a),
+        Command::Experiment(a) => cmd::experiment::run(a),
         Command::Emulate(a) => hvs_host::emulate::run(&a),
         Command::Head(a) => hvs_host::head::run(&a),
         Command::Image(a) => hvs_host::flash::run_image(&a),

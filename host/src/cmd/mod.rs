@@ -4,6 +4,7 @@
 
 pub mod demo;
 pub mod eval;
+pub mod experiment;
 pub mod info;
 pub mod predict;
 pub mod simulate;

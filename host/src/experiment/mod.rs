@@ -1,0 +1,876 @@
+//! `hvs experiment thesis`: every experiment of the thesis' chapter 4, regenerated on the
+//! simulated HVS (the four preset rigs of `hvs_shared::presets`), plus three the thesis did
+//! not run. [`run`] computes; [`report::write`] writes one CSV and one plot (SVG and PNG) per
+//! experiment and `RESULTS.md`, which puts the thesis' reported values beside ours.
+//!
+//! | thesis figure | experiment | function |
+//! |---|---|---|
+//! | 4.3, 4.4 | Phi_L and Phi_R by eq. 4.1-3 at Z = 45-105 cm | [`phi`] |
+//! | 4.8-4.11 | traditional-method e_ma vs. depth, cases I-IV | [`traditional`] |
+//! | 4.12, 4.13 | per-depth e_ma of the 4-5-3 net; ten nets with 5 hidden neurons | [`proposed`], [`hidden_sweep`] |
+//! | 4.14, 4.15 | mean e_ma vs. hidden neurons 1-10, one output (Z) vs. three | [`hidden_sweep`] |
+//! | 4.16-4.19 | the proposed net in cases I-IV | [`proposed`] |
+//! | 4.20-4.22 | training on fewer depths | [`fewer_depths`] |
+//! | beyond | back-propagation vs. Levenberg-Marquardt (error, wall time) | [`bp_vs_lm`] |
+//! | beyond | e_ma vs. pixel noise: traditional, network, optimal floor | [`noise`] |
+//!
+//! Conventions, as in the thesis: e_ma is eq. 4.1-5 in percent of the true depth; the test
+//! set is P1, P2 at the 11 test depths (65-165 cm); a net's error is its worst per-depth
+//! e_ma. Every error plot also shows the floor: optimal triangulation with the *true* rig on
+//! the same rounded pixels (`hvs_shared::triangulate::optimal`), which no calibration-free
+//! method can beat on average. "The proposed net" is the default `hvs train` (4-5-3,
+//! Levenberg-Marquardt, 10 restarts, best training e_ma); "a net" of the hidden-neuron sweep is
+//! one training from one seeded random start, like one BP run of the thesis.
+//!
+//! Determinism: every random step takes a seed derived from [`Config::seed`]; the trainer's
+//! result does not depend on the thread count; results are collected in a fixed order. So
+//! the same seed gives the same CSV bytes. Wall times (the BP/LM comparison and the run time)
+//! are the exception and live in their own file and in `RESULTS.md`.
+
+pub mod plot;
+pub mod report;
+
+use crate::dataset::Dataset;
+use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
+use crate::fallback;
+use crate::simulate::{simulate, Sample, SetKind, SimOptions};
+use crate::train::{train, Algo, BpParams, TrainConfig};
+use anyhow::{anyhow, Context, Result};
+use hvs_shared::blob::{InputKind, ModelBlob, OutputKind};
+use hvs_shared::camera::{Rig, HALF_BASELINE_CM};
+use hvs_shared::metrics::EmaAcc;
+use hvs_shared::presets;
+use hvs_shared::triangulate::{phi_estimate, Calibration};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Depths of the Phi experiment (Figs. 4.3, 4.4), cm.
+pub const PHI_DEPTHS: [f64; 7] = [45.0, 55.0, 65.0, 75.0, 85.0, 95.0, 105.0];
+/// Hidden-neuron counts of the sweep (Figs. 4.14, 4.15), as in the thesis.
+pub const HIDDEN: [usize; 10] = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10];
+/// Hidden-neuron counts of the quick run's sweep (5 is Fig. 4.13's).
+pub const HIDDEN_QUICK: [usize; 4] = [1, 3, 5, 8];
+/// The reduced training-depth sets of Figs. 4.20-4.22 (cm).
+pub const FEWER_DEPTHS: [&[f64]; 3] = [
+    &[65.0, 165.0],
+    &[65.0, 115.0, 165.0],
+    &[65.0, 95.0, 135.0, 165.0],
+];
+/// The case the thesis treats as the general one (section 4.2.2): IV.
+pub const GENERAL_CASE: u8 = 4;
+
+/// What to run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Config {
+    /// Seed of every random step.
+    pub seed: u64,
+    /// Reduced run: fewer restarts, nets, noise levels and test points (for tests).
+    pub quick: bool,
+}
+
+impl Config {
+    /// Restarts of the proposed net (the trainer's default, 10; 2 when quick).
+    pub fn restarts(&self) -> usize {
+        if self.quick {
+            2
+        } else {
+            TrainConfig::default().restarts
+        }
+    }
+    /// Nets per hidden-neuron count and output kind (the thesis' ten; 2 when quick).
+    pub fn nets(&self) -> usize {
+        if self.quick {
+            2
+        } else {
+            10
+        }
+    }
+    /// Hidden-neuron counts of the sweep: [`HIDDEN`] ([`HIDDEN_QUICK`] when quick).
+    pub fn hidden(&self) -> &'static [usize] {
+        if self.quick {
+            &HIDDEN_QUICK
+        } else {
+            &HIDDEN
+        }
+    }
+    /// Pixel-noise levels (px): 0 to 1 in steps of 0.1 (0, 0.5, 1 when quick).
+    pub fn noise_levels(&self) -> Vec<f64> {
+        if self.quick {
+            vec![0.0, 0.5, 1.0]
+        } else {
+            (0..=10).map(|k| k as f64 / 10.0).collect()
+        }
+    }
+    /// Independent noise draws averaged per level (3; 1 when quick).
+    pub fn noise_repeats(&self) -> usize {
+        if self.quick {
+            1
+        } else {
+            3
+        }
+    }
+    /// Random test points of the training volume in the noise experiment.
+    pub fn volume_points(&self) -> usize {
+        if self.quick {
+            100
+        } else {
+            500
+        }
+    }
+    /// Back-propagation settings: the trainer's defaults (300 cycles when quick).
+    pub fn bp(&self) -> BpParams {
+        if self.quick {
+            BpParams {
+                max_cycles: 300,
+                ..BpParams::default()
+            }
+        } else {
+            BpParams::default()
+        }
+    }
+    /// The proposed net's training configuration.
+    pub fn proposed(&self) -> TrainConfig {
+        TrainConfig {
+            seed: self.seed,
+            restarts: self.restarts(),
+            progress: false,
+            ..TrainConfig::default()
+        }
+    }
+}
+
+/// Seed of item `(tag, a, b)` of a run with seed `seed` (SplitMix64 finaliser of a mix).
+pub fn derive_seed(seed: u64, tag: u64, a: u64, b: u64) -> u64 {
+    let mut z = seed
+        ^ tag.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ a.wrapping_mul(0xD1B5_4A32_D192_ED03)
+        ^ b.wrapping_mul(0x8CB9_2BA7_2F3D_8DD7);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+const TAG_NET: u64 = 1;
+const TAG_NOISE_TRAIN: u64 = 2;
+const TAG_NOISE_TEST: u64 = 3;
+
+/// Where the run reports progress (a terminal's progress bars, or nothing).
+pub trait Progress: Sync {
+    /// A new stage with `units` steps.
+    fn start(&self, name: &str, units: u64);
+    /// One step of the current stage done.
+    fn inc(&self);
+    /// The current stage is done.
+    fn finish(&self);
+}
+
+/// No progress output.
+pub struct Quiet;
+
+impl Progress for Quiet {
+    fn start(&self, _: &str, _: u64) {}
+    fn inc(&self) {}
+    fn finish(&self) {}
+}
+
+/// `indicatif` bars on stderr, one per stage, left on screen when done.
+pub struct Bars {
+    multi: indicatif::MultiProgress,
+    current: std::sync::Mutex<Option<indicatif::ProgressBar>>,
+}
+
+impl Bars {
+    /// Bars drawn on stderr when `visible` (normally: stderr is a terminal), else hidden.
+    pub fn new(visible: bool) -> Self {
+        let target = if visible {
+            indicatif::ProgressDrawTarget::stderr()
+        } else {
+            indicatif::ProgressDrawTarget::hidden()
+        };
+        Bars {
+            multi: indicatif::MultiProgress::with_draw_target(target),
+            current: std::sync::Mutex::new(None),
+        }
+    }
+}
+
+impl Progress for Bars {
+    fn start(&self, name: &str, units: u64) {
+        let b = self.multi.add(indicatif::ProgressBar::new(units));
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{prefix:<26} {bar:30} {pos:>3}/{len:<3} [{elapsed_precise}]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b.set_prefix(name.to_string());
+        if let Ok(mut c) = self.current.lock() {
+            *c = Some(b);
+        }
+    }
+    fn inc(&self) {
+        if let Ok(c) = self.current.lock() {
+            if let Some(b) = c.as_ref() {
+                b.inc(1);
+            }
+        }
+    }
+    fn finish(&self) {
+        if let Ok(mut c) = self.current.lock() {
+            if let Some(b) = c.take() {
+                b.finish();
+            }
+        }
+    }
+}
+
+/// Per-depth e_ma of some estimators on the thesis' test set (P1, P2 at the test depths).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthCurve {
+    /// Test depths (cm).
+    pub z: Vec<f64>,
+    /// e_ma (%) per depth.
+    pub pct: Vec<f64>,
+    /// e_ma (%) over all test points.
+    pub mean: f64,
+}
+
+impl DepthCurve {
+    /// Largest per-depth e_ma (%).
+    pub fn worst(&self) -> f64 {
+        self.pct.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+    }
+    /// Smallest per-depth e_ma (%).
+    pub fn best(&self) -> f64 {
+        self.pct.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Per-depth curves of `z_hat` estimators against the truth of `test`.
+fn curves(test: &Dataset, z_hat: Vec<Vec<f64>>) -> Vec<DepthCurve> {
+    let methods: Vec<Method> = z_hat
+        .into_iter()
+        .enumerate()
+        .map(|(k, z)| Method {
+            name: k.to_string(),
+            z,
+        })
+        .collect();
+    let ev = evaluate(test, &methods);
+    (0..methods.len())
+        .map(|m| DepthCurve {
+            z: ev.depths.iter().map(|d| d.z_min).collect(),
+            pct: ev.depths.iter().map(|d| d.methods[m].e_ma_pct).collect(),
+            mean: ev.methods[m].mean.e_ma_pct,
+        })
+        .collect()
+}
+
+fn dataset(samples: &[Sample]) -> Dataset {
+    let mut d = Dataset::new(InputKind::Stereo);
+    for s in samples {
+        d.push(&s.px, Some(s.xyz));
+    }
+    d
+}
+
+fn rig(case: u8) -> Result<Rig> {
+    presets::case(case).ok_or_else(|| anyhow!("no case {case}"))
+}
+
+/// The thesis protocol of a case: training boards (72 points) and test points (22).
+pub fn protocol(case: u8) -> Result<(Dataset, Dataset)> {
+    let r = rig(case)?;
+    let opt = SimOptions::default();
+    Ok((
+        dataset(&simulate(&r, SetKind::Train, &opt)?),
+        dataset(&simulate(&r, SetKind::Test, &opt)?),
+    ))
+}
+
+fn net_z(blob: &ModelBlob, data: &Dataset) -> Result<Vec<f64>> {
+    model_depths(blob, data).map_err(|e| anyhow!("the model cannot run on the set: {e:?}"))
+}
+
+// ---------------------------------------------------------------------------------------
+// Figs. 4.3, 4.4
+
+/// One depth of the Phi experiment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PhiRow {
+    /// Case (1 or 2: the parallel rigs, where eq. 4.1-1 holds).
+    pub case: u8,
+    /// Board depth (cm).
+    pub z: f64,
+    /// Phi_L by eq. 4.1-3 over the 12 points symmetric about the right image's centre line (px).
+    pub phi_l: f64,
+    /// Phi_R by eq. 4.1-4 over the 12 points symmetric about the left image's centre line (px).
+    pub phi_r: f64,
+    /// The rig's true Phi_L (px).
+    pub true_l: f64,
+    /// The rig's true Phi_R (px).
+    pub true_r: f64,
+}
+
+/// The 12 board points (X -3, -1, 1, 3 and Y -2, 0, 2 cm around `centre_x`) at depth `z`.
+fn board_about(centre_x: f64, z: f64) -> [[f64; 3]; 12] {
+    presets::board_points(z).map(|[x, y, z]| [centre_x + x, y, z])
+}
+
+/// Figs. 4.3, 4.4: Phi_L and Phi_R of the parallel rigs (cases I and II) estimated by
+/// eq. 4.1-3 from rounded pixels at Z = 45-105 cm. For Phi_L the 12 points are symmetric
+/// about the right camera's optic axis (X_s = +d), so the `X_R (Phi_L - Phi_R)` terms of
+/// eq. 4.1-2 cancel; for Phi_R about the left one (X_s = -d).
+pub fn phi() -> Result<Vec<PhiRow>> {
+    let mut rows = Vec::new();
+    for case in [1u8, 2] {
+        let r = rig(case)?;
+        let d = r.half_baseline;
+        for z in PHI_DEPTHS {
+            let est = |centre: f64| -> Result<f64> {
+                let mut pairs = Vec::new();
+                for p in board_about(centre, z) {
+                    let px = r
+                        .project_rounded(&p)
+                        .map_err(|e| anyhow!("case {case}: point {p:?} has no image: {e:?}"))?;
+                    pairs.push((px[0], px[2]));
+                }
+                phi_estimate(&pairs, z, d).map_err(|e| anyhow!("case {case}, Z = {z} cm: {e}"))
+            };
+            rows.push(PhiRow {
+                case,
+                z,
+                phi_l: est(d)?,
+                phi_r: est(-d)?,
+                true_l: r.phi_u_left,
+                true_r: r.phi_u_right,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+// ---------------------------------------------------------------------------------------
+// Figs. 4.8-4.11 and 4.12, 4.16-4.19
+
+/// The traditional method and the floor on one case's test set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraditionalCase {
+    /// Case 1-4.
+    pub case: u8,
+    /// Eq. 3.1-17 with the thesis' single Phi ([`Calibration::BUILT_IN`]).
+    pub traditional: DepthCurve,
+    /// Optimal triangulation with the true rig.
+    pub optimal: DepthCurve,
+}
+
+/// Figs. 4.8-4.11: eq. 3.1-17 with one Phi for both cameras, calibrated once by eq. 4.1-3 on
+/// case I's board at 65 cm (284.76 px), on each case's test points, as in the thesis.
+pub fn traditional() -> Result<Vec<TraditionalCase>> {
+    (1..=4u8)
+        .map(|case| {
+            let (_, test) = protocol(case)?;
+            let mut c = curves(
+                &test,
+                vec![
+                    traditional_depths(&Calibration::BUILT_IN, &test),
+                    optimal_depths(&rig(case)?, &test),
+                ],
+            );
+            let optimal = c.pop().expect("two curves");
+            let traditional = c.pop().expect("two curves");
+            Ok(TraditionalCase {
+                case,
+                traditional,
+                optimal,
+            })
+        })
+        .collect()
+}
+
+/// The proposed net on one case.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProposedCase {
+    /// Case 1-4.
+    pub case: u8,
+    /// Training e_ma (%) of the exported f32 model.
+    pub train_pct: f64,
+    /// The net on the test set.
+    pub net: DepthCurve,
+    /// Optimal triangulation with the true rig on the same pixels.
+    pub optimal: DepthCurve,
+}
+
+/// Figs. 4.12 (case IV) and 4.16-4.19: the proposed net (default `hvs train`) trained on the
+/// 72 board points of each case, tested on its 22 test points.
+pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCase>> {
+    let tc = cfg.proposed();
+    (1..=4u8)
+        .map(|case| {
+            let (train_set, test) = protocol(case)?;
+            let out = train(&train_set, &tc).with_context(|| format!("case {case}"))?;
+            let mut c = curves(
+                &test,
+                vec![net_z(&out.blob, &test)?, optimal_depths(&rig(case)?, &test)],
+            );
+            progress.inc();
+            let optimal = c.pop().expect("two curves");
+            let net = c.pop().expect("two curves");
+            Ok(ProposedCase {
+                case,
+                train_pct: out.train_error_pct,
+                net,
+                optimal,
+            })
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// Figs. 4.13-4.15
+
+/// One net of the hidden-neuron sweep (case IV).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NetRow {
+    /// One output (Z) or three (X, Y, Z).
+    pub outputs: OutputKind,
+    /// Hidden neurons.
+    pub hidden: usize,
+    /// Net number (0-based) among those of the same shape.
+    pub index: usize,
+    /// Its training seed (one restart).
+    pub seed: u64,
+    /// Training e_ma (%).
+    pub train_pct: f64,
+    /// Test e_ma over all 22 points (%).
+    pub test_mean_pct: f64,
+    /// Worst per-depth test e_ma (%): the net's error in the thesis' sense.
+    pub test_worst_pct: f64,
+}
+
+/// Figs. 4.13-4.15: for 1-10 hidden neurons ([`Config::hidden`]) and one or three outputs, [`Config::nets`] nets,
+/// each trained from one seeded random start on case IV's boards (as each of the thesis' nets
+/// is one BP run). The nets with 5 hidden neurons and three outputs are Fig. 4.13's.
+pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>> {
+    let (train_set, test) = protocol(GENERAL_CASE)?;
+    let mut jobs = Vec::new();
+    for outputs in [OutputKind::Z, OutputKind::Xyz] {
+        for &hidden in cfg.hidden() {
+            for index in 0..cfg.nets() {
+                jobs.push((outputs, hidden, index));
+            }
+        }
+    }
+    jobs.into_par_iter()
+        .map(|(outputs, hidden, index)| {
+            let seed = derive_seed(cfg.seed, TAG_NET, hidden as u64, index as u64);
+            let tc = TrainConfig {
+                hidden,
+                outputs,
+                restarts: 1,
+                seed,
+                progress: false,
+                ..TrainConfig::default()
+            };
+            let out = train(&train_set, &tc)
+                .with_context(|| format!("{hidden} hidden, {outputs:?}, net {index}"))?;
+            let c = curves(&test, vec![net_z(&out.blob, &test)?]);
+            progress.inc();
+            Ok(NetRow {
+                outputs,
+                hidden,
+                index,
+                seed,
+                train_pct: out.train_error_pct,
+                test_mean_pct: c[0].mean,
+                test_worst_pct: c[0].worst(),
+            })
+        })
+        .collect()
+}
+
+/// The hidden-neuron counts present in `rows`, ascending.
+pub fn hidden_counts(rows: &[NetRow]) -> Vec<usize> {
+    let mut h: Vec<usize> = rows.iter().map(|r| r.hidden).collect();
+    h.sort_unstable();
+    h.dedup();
+    h
+}
+
+/// Mean of the nets' worst per-depth e_ma for each hidden-neuron count: the thesis'
+/// `e_ma_Hn` (Figs. 4.14, 4.15), in the order of [`hidden_counts`].
+pub fn e_ma_hn(rows: &[NetRow], outputs: OutputKind) -> Vec<f64> {
+    per_hidden(rows, outputs, |r| r.test_worst_pct)
+}
+
+/// Mean of the nets' e_ma over all test points for each hidden-neuron count, in the order of
+/// [`hidden_counts`]: a second view of Figs. 4.14, 4.15 that the worst depth does not
+/// dominate.
+pub fn mean_e_ma_hn(rows: &[NetRow], outputs: OutputKind) -> Vec<f64> {
+    per_hidden(rows, outputs, |r| r.test_mean_pct)
+}
+
+fn per_hidden(rows: &[NetRow], outputs: OutputKind, f: impl Fn(&NetRow) -> f64) -> Vec<f64> {
+    hidden_counts(rows)
+        .iter()
+        .map(|&h| {
+            let v: Vec<f64> = rows
+                .iter()
+                .filter(|r| r.outputs == outputs && r.hidden == h)
+                .map(&f)
+                .collect();
+            v.iter().sum::<f64>() / v.len() as f64
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// Figs. 4.20-4.22
+
+/// The proposed net trained on a subset of the training depths (case IV).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FewerDepths {
+    /// Training depths (cm).
+    pub depths: Vec<f64>,
+    /// Training points.
+    pub points: usize,
+    /// Training e_ma (%) of the proposed net (LM).
+    pub train_pct: f64,
+    /// The proposed net on the full test set.
+    pub net: DepthCurve,
+    /// Training e_ma (%) of the same net trained by the thesis' back-propagation.
+    pub bp_train_pct: f64,
+    /// The back-propagation net on the full test set.
+    pub bp: DepthCurve,
+}
+
+/// Figs. 4.20-4.22: the proposed net trained on case IV's boards at only 2, 3 or 4 depths
+/// (12 points each), tested on all 22 test points; and the same net trained by the thesis'
+/// back-propagation ([`Config::bp`]), to tell the algorithm's share from the data's.
+pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDepths>> {
+    let r = rig(GENERAL_CASE)?;
+    let (_, test) = protocol(GENERAL_CASE)?;
+    let tc = cfg.proposed();
+    FEWER_DEPTHS
+        .iter()
+        .map(|depths| {
+            let mut samples = Vec::new();
+            for &z in depths.iter() {
+                for p in presets::board_points(z) {
+                    let px = r
+                        .project_rounded(&p)
+                        .map_err(|e| anyhow!("point {p:?} has no image: {e:?}"))?;
+                    samples.push(Sample { px, xyz: p });
+                }
+            }
+            let set = dataset(&samples);
+            let out = train(&set, &tc).with_context(|| format!("training depths {depths:?}"))?;
+            progress.inc();
+            let bp_tc = TrainConfig {
+                algo: Algo::Bp,
+                bp: cfg.bp(),
+                ..tc.clone()
+            };
+            let bp = train(&set, &bp_tc)
+                .with_context(|| format!("training depths {depths:?}, back-propagation"))?;
+            progress.inc();
+            let mut c = curves(
+                &test,
+                vec![net_z(&out.blob, &test)?, net_z(&bp.blob, &test)?],
+            );
+            let bp_curve = c.pop().expect("two curves");
+            Ok(FewerDepths {
+                depths: depths.to_vec(),
+                points: set.len(),
+                train_pct: out.train_error_pct,
+                net: c.pop().expect("two curves"),
+                bp_train_pct: bp.train_error_pct,
+                bp: bp_curve,
+            })
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// Beyond the thesis
+
+/// One algorithm on one case's protocol.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlgoRow {
+    /// Case 1-4.
+    pub case: u8,
+    /// Training algorithm.
+    pub algo: Algo,
+    /// Training e_ma (%).
+    pub train_pct: f64,
+    /// Test e_ma over all points (%).
+    pub test_mean_pct: f64,
+    /// Worst per-depth test e_ma (%).
+    pub test_worst_pct: f64,
+    /// Wall time of the training (s); not deterministic.
+    pub wall_s: f64,
+}
+
+/// Back-propagation (the thesis' algorithm, the trainer's defaults) vs. Levenberg-Marquardt
+/// (the default), same net, restarts and seed, on each case's protocol. The trainings run one
+/// after the other (restarts in parallel inside each), so the wall times compare.
+pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
+    let mut rows = Vec::new();
+    for case in 1..=4u8 {
+        let (train_set, test) = protocol(case)?;
+        for algo in [Algo::Lm, Algo::Bp] {
+            let tc = TrainConfig {
+                algo,
+                bp: cfg.bp(),
+                ..cfg.proposed()
+            };
+            let t = Instant::now();
+            let out = train(&train_set, &tc).with_context(|| format!("case {case}, {algo:?}"))?;
+            let wall_s = t.elapsed().as_secs_f64();
+            let c = curves(&test, vec![net_z(&out.blob, &test)?]);
+            progress.inc();
+            rows.push(AlgoRow {
+                case,
+                algo,
+                train_pct: out.train_error_pct,
+                test_mean_pct: c[0].mean,
+                test_worst_pct: c[0].worst(),
+                wall_s,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// One noise level of one case (means over [`Config::noise_repeats`] draws).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseRow {
+    /// Case 1-4.
+    pub case: u8,
+    /// Standard deviation of the Gaussian pixel noise added before rounding (px).
+    pub sigma: f64,
+    /// Noise draws averaged.
+    pub repeats: usize,
+    /// Traditional method, Phi refitted by eq. 4.1-3 on the same noisy boards (%), over the
+    /// test points it has an estimate for.
+    pub traditional_pct: f64,
+    /// Test points without a traditional estimate (zero disparity), % of all.
+    pub traditional_missing_pct: f64,
+    /// Proposed net trained on the noisy boards (%).
+    pub network_pct: f64,
+    /// Optimal triangulation with the true rig on the noisy pixels (%).
+    pub optimal_pct: f64,
+}
+
+/// e_ma vs. pixel noise: the boards and [`Config::volume_points`] random test points of the
+/// training volume get Gaussian noise of the same sigma before rounding; the proposed net and
+/// the traditional method's Phi (eq. 4.1-3, nearest board) are fitted on the noisy boards; the
+/// floor triangulates the noisy test pixels with the true rig. Mean e_ma over the test points.
+pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
+    let levels = cfg.noise_levels();
+    let mut jobs = Vec::new();
+    for case in 1..=4u8 {
+        for (k, &sigma) in levels.iter().enumerate() {
+            jobs.push((case, k, sigma));
+        }
+    }
+    let tc = cfg.proposed();
+    jobs.into_par_iter()
+        .map(|(case, k, sigma)| {
+            let r = rig(case)?;
+            let mut sums = [0.0; 3];
+            let mut missing = 0usize;
+            let mut points = 0usize;
+            for rep in 0..cfg.noise_repeats() {
+                let item = (case as u64) << 32 | (k as u64) << 16 | rep as u64;
+                let sim = |kind, points, tag| {
+                    simulate(
+                        &r,
+                        kind,
+                        &SimOptions {
+                            points,
+                            noise_px: sigma,
+                            seed: derive_seed(cfg.seed, tag, item, 0),
+                        },
+                    )
+                };
+                let boards = dataset(&sim(SetKind::Train, 0, TAG_NOISE_TRAIN)?);
+                let test = dataset(&sim(SetKind::Volume, cfg.volume_points(), TAG_NOISE_TEST)?);
+                let out = train(&boards, &tc)
+                    .with_context(|| format!("case {case}, noise {sigma} px"))?;
+                let trad = match fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0) {
+                    Some(f) => traditional_depths(&f.calibration, &test),
+                    None => vec![f64::NAN; test.len()],
+                };
+                // The traditional method over the points it answers for (the others are
+                // counted): one zero disparity would make its mean infinite.
+                let mut acc = EmaAcc::default();
+                for (zh, t) in trad.iter().zip(&test.targets) {
+                    if zh.is_finite() {
+                        acc.add(t[2], *zh);
+                    } else {
+                        missing += 1;
+                    }
+                }
+                points += test.len();
+                let c = curves(
+                    &test,
+                    vec![net_z(&out.blob, &test)?, optimal_depths(&r, &test)],
+                );
+                sums[0] += acc.e_ma_pct();
+                sums[1] += c[0].mean;
+                sums[2] += c[1].mean;
+            }
+            progress.inc();
+            let n = cfg.noise_repeats() as f64;
+            Ok(NoiseRow {
+                case,
+                sigma,
+                repeats: cfg.noise_repeats(),
+                traditional_pct: sums[0] / n,
+                traditional_missing_pct: missing as f64 / points as f64 * 100.0,
+                network_pct: sums[1] / n,
+                optimal_pct: sums[2] / n,
+            })
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------
+
+/// Everything [`run`] measured.
+#[derive(Debug, Clone)]
+pub struct Thesis {
+    /// The configuration.
+    pub config: Config,
+    /// Figs. 4.3, 4.4.
+    pub phi: Vec<PhiRow>,
+    /// Figs. 4.8-4.11.
+    pub traditional: Vec<TraditionalCase>,
+    /// Figs. 4.12, 4.16-4.19.
+    pub proposed: Vec<ProposedCase>,
+    /// Figs. 4.13-4.15.
+    pub sweep: Vec<NetRow>,
+    /// Figs. 4.20-4.22.
+    pub fewer: Vec<FewerDepths>,
+    /// BP vs. LM.
+    pub algos: Vec<AlgoRow>,
+    /// Noise.
+    pub noise: Vec<NoiseRow>,
+    /// Wall time of each stage (s), in run order; not deterministic.
+    pub stage_s: Vec<(&'static str, f64)>,
+    /// Worker threads used.
+    pub threads: usize,
+}
+
+/// Runs every experiment.
+pub fn run(cfg: &Config, progress: &dyn Progress) -> Result<Thesis> {
+    let mut stage_s = Vec::new();
+    let stage = |name: &'static str, units: u64| {
+        progress.start(name, units);
+        let t = Instant::now();
+        move |stage_s: &mut Vec<(&'static str, f64)>| {
+            progress.finish();
+            stage_s.push((name, t.elapsed().as_secs_f64()));
+        }
+    };
+    let done = stage("Figs. 4.3-4.11", 2);
+    let phi = phi()?;
+    progress.inc();
+    let traditional = traditional()?;
+    progress.inc();
+    done(&mut stage_s);
+    let done = stage("Figs. 4.12, 4.16-4.19", 4);
+    let proposed = proposed(cfg, progress)?;
+    done(&mut stage_s);
+    let done = stage(
+        "Figs. 4.13-4.15",
+        (2 * cfg.hidden().len() * cfg.nets()) as u64,
+    );
+    let sweep = hidden_sweep(cfg, progress)?;
+    done(&mut stage_s);
+    let done = stage("Figs. 4.20-4.22", 2 * FEWER_DEPTHS.len() as u64);
+    let fewer = fewer_depths(cfg, progress)?;
+    done(&mut stage_s);
+    let done = stage("BP vs. LM", 8);
+    let algos = bp_vs_lm(cfg, progress)?;
+    done(&mut stage_s);
+    let done = stage("pixel noise", 4 * cfg.noise_levels().len() as u64);
+    let noise = noise(cfg, progress)?;
+    done(&mut stage_s);
+    Ok(Thesis {
+        config: *cfg,
+        phi,
+        traditional,
+        proposed,
+        sweep,
+        fewer,
+        algos,
+        noise,
+        stage_s,
+        threads: rayon::current_num_threads(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn derived_seeds_differ_per_item_and_per_run() {
+        let mut seen = std::collections::HashSet::new();
+        for seed in 0..3 {
+            for tag in 1..4 {
+                for a in 0..10 {
+                    for b in 0..10 {
+                        assert!(seen.insert(derive_seed(seed, tag, a, b)));
+                    }
+                }
+            }
+        }
+        assert_eq!(derive_seed(5, 1, 2, 3), derive_seed(5, 1, 2, 3));
+    }
+
+    #[test]
+    fn phi_points_are_symmetric_about_each_camera() {
+        let b = board_about(HALF_BASELINE_CM, 95.0);
+        let sum_xr: f64 = b.iter().map(|p| p[0] - HALF_BASELINE_CM).sum();
+        assert_eq!(sum_xr, 0.0);
+        assert!(b.iter().all(|p| p[2] == 95.0));
+        // On an ideal parallel rig without rounding, eq. 4.1-3 is exact.
+        let rig = Rig::parallel(300.0);
+        let pairs: Vec<(f64, f64)> = b
+            .iter()
+            .map(|p| {
+                let px = rig.project(p).unwrap();
+                (px[0], px[2])
+            })
+            .collect();
+        let phi = phi_estimate(&pairs, 95.0, HALF_BASELINE_CM).unwrap();
+        assert!((phi - 300.0).abs() < 1e-9, "{phi}");
+    }
+
+    #[test]
+    fn per_hidden_means_follow_the_rows() {
+        let row = |outputs, hidden, worst, mean| NetRow {
+            outputs,
+            hidden,
+            index: 0,
+            seed: 0,
+            train_pct: 1.0,
+            test_mean_pct: mean,
+            test_worst_pct: worst,
+        };
+        let rows = [
+            row(OutputKind::Z, 3, 4.0, 1.0),
+            row(OutputKind::Z, 3, 6.0, 2.0),
+            row(OutputKind::Z, 1, 8.0, 3.0),
+            row(OutputKind::Xyz, 1, 2.0, 1.0),
+            row(OutputKind::Xyz, 3, 3.0, 1.5),
+        ];
+        assert_eq!(hidden_counts(&rows), vec![1, 3]);
+        assert_eq!(e_ma_hn(&rows, OutputKind::Z), vec![8.0, 5.0]);
+        assert_eq!(mean_e_ma_hn(&rows, OutputKind::Z), vec![3.0, 1.5]);
+        assert_eq!(e_ma_hn(&rows, OutputKind::Xyz), vec![2.0, 3.0]);
+    }
+}
