@@ -190,12 +190,14 @@ fn quick_run_invariants_files_and_determinism() {
         seed: 0,
         quick: true,
     };
-    // The command (same seed, another directory) runs while the library run below does.
+    // The command (same seed, another directory, one worker thread) runs while the library
+    // run below does (all threads): equal CSVs also show the thread count does not matter.
     let cli_dir = tempfile::tempdir().unwrap();
     let out = cli_dir.path().join("results");
     let child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
         .args(["experiment", "thesis", "--quick", "--seed", "0", "-o"])
         .arg(&out)
+        .env("RAYON_NUM_THREADS", "1")
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()

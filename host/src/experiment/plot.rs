@@ -177,6 +177,8 @@ pub fn png(fig: &Figure) -> Result<Vec<u8>> {
         let mut enc = png::Encoder::new(&mut bytes, w, h);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(png::Compression::Best);
+        enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
         let mut wr = enc.write_header()?;
         wr.write_image_data(&rgb)?;
         wr.finish()?;
@@ -290,6 +292,7 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> D
             .x_label_formatter(&|v| x_tick(*v, p.integer_x))
             .y_label_formatter(&|v| tick_label(*v))
             .light_line_style(RGBColor(235, 235, 235))
+            .max_light_lines(2)
             .draw()?;
         for s in &p.series {
             let pts: Vec<(f64, f64)> = s
@@ -313,6 +316,7 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> D
             .x_label_formatter(&|v| x_tick(*v, p.integer_x))
             .y_label_formatter(&|v| tick_label(*v))
             .light_line_style(RGBColor(235, 235, 235))
+            .max_light_lines(2)
             .draw()?;
         for s in &p.series {
             let pts: Vec<(f64, f64)> = s

@@ -383,6 +383,13 @@ fn net_case4_files(o: &mut Out, t: &Thesis) -> Result<()> {
                         Style::Dashed,
                         FLOOR_COLOR,
                     ),
+                    Series::new(
+                        "floor: mean e_ma of optimal triangulation",
+                        &[0.5, x.len() as f64 + 0.5],
+                        &[p.optimal.mean, p.optimal.mean],
+                        Style::Dashed,
+                        6,
+                    ),
                 ],
                 legend: Legend::UpperLeft,
                 integer_x: true,
