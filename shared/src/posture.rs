@@ -339,6 +339,131 @@ pub fn joints_from_gaze(
     ])
 }
 
+/// A box of postures in gaze terms (degrees): neck pan and tilt, conjugate eye tilt, version
+/// and vergence (see [`joints_from_gaze`]). Postures drawn from it are quantised to the
+/// drives' [`crate::gaze::STEP_DEG`] grid, the only angles the head's setpoints take.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PostureRange {
+    /// Neck pan `[min, max]`.
+    pub neck_pan: [f32; 2],
+    /// Neck tilt `[min, max]`.
+    pub neck_tilt: [f32; 2],
+    /// Conjugate eye tilt `[min, max]`.
+    pub eye_tilt: [f32; 2],
+    /// Version (mean eye pan) `[min, max]`.
+    pub version: [f32; 2],
+    /// Vergence (right minus left eye pan) `[min, max]`.
+    pub vergence: [f32; 2],
+}
+
+impl PostureRange {
+    /// The working range of the posture-aware model: neck pan +-30, neck tilt +-20, eye tilt
+    /// +-15, version +-15 and vergence 0-10 degrees (fixation from 60 cm to infinity with the
+    /// thesis' 10.5 cm baseline), gaze up to 45 degrees sideways and 35 up or down. Inside
+    /// [`crate::gaze::JointLimits::DEFAULT`].
+    pub const WORKING: PostureRange = PostureRange {
+        neck_pan: [-30.0, 30.0],
+        neck_tilt: [-20.0, 20.0],
+        eye_tilt: [-15.0, 15.0],
+        version: [-15.0, 15.0],
+        vergence: [0.0, 10.0],
+    };
+
+    /// Only the home posture.
+    pub const HOME: PostureRange = PostureRange {
+        neck_pan: [0.0; 2],
+        neck_tilt: [0.0; 2],
+        eye_tilt: [0.0; 2],
+        version: [0.0; 2],
+        vergence: [0.0; 2],
+    };
+
+    /// The five `[min, max]` intervals in the order neck pan, neck tilt, eye tilt, version,
+    /// vergence.
+    pub fn intervals(&self) -> [[f32; 2]; 5] {
+        [
+            self.neck_pan,
+            self.neck_tilt,
+            self.eye_tilt,
+            self.version,
+            self.vergence,
+        ]
+    }
+
+    /// Whether every interval is finite with `min <= max`.
+    pub fn is_valid(&self) -> bool {
+        self.intervals()
+            .iter()
+            .all(|[lo, hi]| lo.is_finite() && hi.is_finite() && lo <= hi)
+    }
+
+    /// The posture at fractions `t` (each in `[0, 1]`, clamped) of the five intervals,
+    /// quantised to whole drive steps.
+    pub fn at(&self, t: [f64; 5]) -> Joints {
+        let iv = self.intervals();
+        let g: [f32; 5] = core::array::from_fn(|k| {
+            let f = if t[k].is_nan() {
+                0.0
+            } else {
+                t[k].clamp(0.0, 1.0)
+            };
+            let [lo, hi] = iv[k];
+            (f64::from(lo) + (f64::from(hi) - f64::from(lo)) * f) as f32
+        });
+        let j = joints_from_gaze(g[0], g[1], g[2], g[3], g[4]);
+        Joints(j.0.map(crate::gaze::quantize))
+    }
+
+    /// Grid posture number `index` of a grid with `levels[k]` evenly spaced values on
+    /// interval `k` (1 level: the interval's middle), the last interval varying fastest;
+    /// `None` past the last one ([`grid_len`]).
+    pub fn grid(&self, levels: [u8; 5], index: usize) -> Option<Joints> {
+        if index >= grid_len(levels) {
+            return None;
+        }
+        let mut rest = index;
+        let mut t = [0.0; 5];
+        for k in (0..5).rev() {
+            let n = usize::from(levels[k]);
+            let i = rest % n;
+            rest /= n;
+            t[k] = if n == 1 {
+                0.5
+            } else {
+                i as f64 / (n - 1) as f64
+            };
+        }
+        Some(self.at(t))
+    }
+
+    /// The gaze terms `[neck pan, neck tilt, eye tilt, version, vergence]` of `j`.
+    pub fn gaze_terms(j: &Joints) -> [f32; 5] {
+        let (l, r) = (j[Axis::LeftEyePan], j[Axis::RightEyePan]);
+        [
+            j[Axis::NeckPan],
+            j[Axis::NeckTilt],
+            j[Axis::EyeTilt],
+            0.5 * (l + r),
+            r - l,
+        ]
+    }
+
+    /// Whether `j`'s gaze terms lie in the box (with `slack` degrees to spare for the step
+    /// quantisation).
+    pub fn contains(&self, j: &Joints, slack: f32) -> bool {
+        let g = Self::gaze_terms(j);
+        self.intervals()
+            .iter()
+            .zip(g)
+            .all(|([lo, hi], v)| v >= lo - slack && v <= hi + slack)
+    }
+}
+
+/// Number of postures of a grid with these levels (0 if any is 0).
+pub fn grid_len(levels: [u8; 5]) -> usize {
+    levels.iter().map(|&n| usize::from(n)).product()
+}
+
 /// The cyclopean gaze frame of a posture: origin half way between the eye centres (of a head
 /// with its neck centre at `neck_centre_cm` and half baseline `half_baseline`), axes turned by
 /// `Pan(neck) Tilt(neck) Tilt(eye) Pan(version)`. Boards placed in this frame sit in front of
@@ -579,6 +704,7 @@ mod tests {
     use crate::gaze::{self, Eye, HeadGeometry};
     use crate::presets;
     use proptest::prelude::*;
+    use std::vec::Vec;
 
     fn close(a: f64, b: f64, tol: f64) -> bool {
         (a - b).abs() <= tol
@@ -877,5 +1003,62 @@ mod tests {
         for (k, want) in [320.0, 240.0, 320.0, 240.0].into_iter().enumerate() {
             assert!(close(px[k], want, 1e-4), "{px:?}");
         }
+    }
+
+    #[test]
+    fn posture_grid_and_box() {
+        let w = PostureRange::WORKING;
+        assert!(w.is_valid());
+        let levels = [3, 3, 3, 3, 4];
+        assert_eq!(grid_len(levels), 324);
+        let all: Vec<Joints> = (0..324).map(|i| w.grid(levels, i).unwrap()).collect();
+        assert_eq!(w.grid(levels, 324), None);
+        // First: every interval at its low end; last: every one at its high end.
+        let q = crate::gaze::quantize;
+        assert_eq!(
+            all[0],
+            Joints([q(-30.0), q(-20.0), q(-15.0), q(-15.0), q(-15.0)])
+        );
+        assert_eq!(
+            all[323],
+            Joints([q(30.0), q(20.0), q(15.0), q(10.0), q(20.0)])
+        );
+        assert_eq!(
+            all[0].0.map(|v| (v / 0.18).round()),
+            [-167.0, -111.0, -83.0, -83.0, -83.0]
+        );
+        // Vergence varies fastest, on its 4 levels 0, 3.33, 6.67, 10 (quantised).
+        let verg: Vec<f32> = all[..4]
+            .iter()
+            .map(|j| PostureRange::gaze_terms(j)[4])
+            .collect();
+        for (v, want) in verg.iter().zip([0.0f32, 3.33, 6.67, 10.0]) {
+            assert!((v - want).abs() <= 0.18, "{verg:?}");
+        }
+        // Every grid posture: whole steps, inside the box and the joint limits, all distinct.
+        for j in &all {
+            for v in j.0 {
+                assert!((v / 0.18 - libm::roundf(v / 0.18)).abs() < 1e-3, "{j:?}");
+            }
+            assert!(w.contains(j, 0.18), "{j:?}");
+            assert!(crate::gaze::JointLimits::DEFAULT.contains(j));
+        }
+        for a in 0..all.len() {
+            for b in a + 1..all.len() {
+                assert_ne!(all[a], all[b]);
+            }
+        }
+        // One level sits in the middle; the home range gives home.
+        assert_eq!(
+            w.grid([1; 5], 0),
+            Some(Joints([0.0, 0.0, 0.0, q(-2.5), q(2.5)]))
+        );
+        assert_eq!(PostureRange::HOME.at([0.3; 5]), Joints::HOME);
+        assert!(!PostureRange {
+            vergence: [2.0, 1.0],
+            ..w
+        }
+        .is_valid());
+        assert!(!w.contains(&Joints([40.0, 0.0, 0.0, 0.0, 0.0]), 0.18));
     }
 }
