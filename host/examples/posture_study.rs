@@ -9,6 +9,7 @@
 //!
 //! Options: `--case N` (1-4, default 3), `--seed S`, `--hidden H` (default 16), `--restarts R`,
 //! `--sweep` (also train 5, 8, 12, 24, 32 hidden neurons and the regular lattice of postures),
+//! `--lattice` (also train the chosen size on the regular lattice of postures),
 //! `--quick` (a 2-level training grid and fewer test points: a smoke run), `--out DIR`.
 
 use anyhow::{bail, Context, Result};
@@ -40,6 +41,7 @@ fn main() -> Result<()> {
                 cfg.sweep = vec![5, 8, 12, 16, 24, 32];
                 cfg.lattice = true;
             }
+            "--lattice" => cfg.lattice = true,
             "--quick" => {
                 cfg.train_levels = [2, 2, 2, 2, 2];
                 cfg.hidden = cfg.hidden.min(10);
