@@ -57,6 +57,37 @@ pub struct Network {
 }
 
 impl Network {
+    /// The network of a decoded (hence validated) blob loaded from `slot`, or `None` if the
+    /// head cannot supply its inputs or use its outputs (see the module documentation).
+    pub fn new(slot: Slot, blob: ModelBlob) -> Option<Network> {
+        let suppliable = matches!(
+            blob.topology.inputs,
+            InputKind::Stereo | InputKind::StereoJoints
+        );
+        if !suppliable || blob.topology.outputs != OutputKind::Xyz {
+            return None;
+        }
+        let model = ModelInfo {
+            inputs: blob.n_inputs() as u16,
+            hidden: u16::from(blob.topology.hidden),
+            outputs: blob.n_outputs() as u16,
+            seed: blob.meta.seed,
+            train_hash: blob.meta.train_hash,
+            train_points: blob.meta.train_points,
+            train_error_pct: blob.meta.train_error_pct,
+        };
+        let fast = blob.topology.inputs == InputKind::Stereo
+            && usize::from(blob.topology.hidden) == NET_HIDDEN
+            && blob.n_outputs() == NET_OUTPUTS;
+        Some(Network {
+            generation: blob.generation,
+            blob,
+            fast,
+            slot,
+            model,
+        })
+    }
+
     /// The network's inputs for pixels `px` seen at posture `joints`: the pixels, then (for
     /// posture-aware nets) the joint angles. Returns the buffer and the number of inputs used.
     fn inputs(&self, px: &[f32; NET_INPUTS], joints: &Joints) -> ([f32; JOINTS_NET_INPUTS], usize) {
@@ -125,7 +156,7 @@ pub fn load_slot(slot: Slot, bytes: &[u8]) -> (SlotStatus, Option<Network>) {
         u16::from(blob.topology.hidden),
         blob.n_outputs() as u16,
     );
-    match network_of(slot, blob) {
+    match Network::new(slot, blob) {
         Some(net) => (
             SlotStatus::Valid {
                 generation: net.generation,
@@ -141,37 +172,6 @@ pub fn load_slot(slot: Slot, bytes: &[u8]) -> (SlotStatus, Option<Network>) {
             None,
         ),
     }
-}
-
-/// The network of a decoded (hence validated) blob, if the head can supply its inputs and use
-/// its outputs.
-fn network_of(slot: Slot, blob: ModelBlob) -> Option<Network> {
-    let suppliable = matches!(
-        blob.topology.inputs,
-        InputKind::Stereo | InputKind::StereoJoints
-    );
-    if !suppliable || blob.topology.outputs != OutputKind::Xyz {
-        return None;
-    }
-    let model = ModelInfo {
-        inputs: blob.n_inputs() as u16,
-        hidden: u16::from(blob.topology.hidden),
-        outputs: blob.n_outputs() as u16,
-        seed: blob.meta.seed,
-        train_hash: blob.meta.train_hash,
-        train_points: blob.meta.train_points,
-        train_error_pct: blob.meta.train_error_pct,
-    };
-    let fast = blob.topology.inputs == InputKind::Stereo
-        && usize::from(blob.topology.hidden) == NET_HIDDEN
-        && blob.n_outputs() == NET_OUTPUTS;
-    Some(Network {
-        generation: blob.generation,
-        blob,
-        fast,
-        slot,
-        model,
-    })
 }
 
 /// Boots from the raw bytes of both slots (each at least the blob's framed length; trailing
