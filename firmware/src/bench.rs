@@ -24,6 +24,7 @@ pub fn run(_: &Boot, _: &StereoPoint, _: u32, _: u32) -> ResponseBody {
 pub fn run(boot: &Boot, point: &StereoPoint, count: u32, tick_hz: u32) -> ResponseBody {
     use core::hint::black_box;
     use cortex_m::peripheral::SYST;
+    use hvs_shared::gaze::Joints;
     use hvs_shared::head::Estimator;
     use hvs_shared::protocol::BenchData;
 
@@ -60,7 +61,7 @@ pub fn run(boot: &Boot, point: &StereoPoint, count: u32, tick_hz: u32) -> Respon
     });
     let total = time(&|| {
         for _ in 0..count {
-            let _ = black_box(net.infer(black_box(&x)));
+            let _ = black_box(net.infer(black_box(&x), black_box(&Joints::HOME)));
         }
     });
     ResponseBody::Bench(BenchData {

@@ -5,6 +5,10 @@
 //! - [`csv_io`]: CSV point sets in (errors name file, line, column) and atomic output.
 //! - [`rigfile`]: camera rigs from `cases.json`-style JSON.
 //! - [`simulate`]: the thesis' board protocol and random volume sets through a rig.
+//! - [`posture`]: the same sets seen at many head postures (and through distorting lenses),
+//!   with the five joint columns, for posture-aware models.
+//! - [`posture_study`]: the fixed-posture net at other postures, the posture-aware net per
+//!   posture band against the floor, and lens distortion (net, DLT, floor), as rows.
 //! - [`fallback`]: the traditional method's calibration (eq. 4.1-3) fitted on a board set.
 //! - [`infer`]: batch inference, bit-identical to the head's.
 //! - [`evaluate`]: e_ma per depth for several estimators side by side.
@@ -31,6 +35,8 @@ pub mod head;
 pub mod infer;
 pub mod link;
 pub mod model;
+pub mod posture;
+pub mod posture_study;
 pub mod rigfile;
 pub mod simulate;
 pub mod train;

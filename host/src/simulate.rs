@@ -162,7 +162,7 @@ pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample
 
 /// Rounds a coordinate to the 1e-4 cm the CSV holds, so that the written ground truth is
 /// exactly the point that was projected (`k / 1e4` is the double nearest the decimal).
-fn to_written_precision(v: f64) -> f64 {
+pub(crate) fn to_written_precision(v: f64) -> f64 {
     let k = (v * 1e4).round();
     k / 1e4 + 0.0
 }

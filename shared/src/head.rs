@@ -4,15 +4,22 @@
 //! The firmware hands [`boot`] the raw bytes of both weight slots, wraps the returned [`Boot`]
 //! in a [`Head`] (with the gaze controller) and then only moves bytes: every request is
 //! answered by [`Head::respond`] and every control tick is [`Head::tick`], so the host tests
-//! the exact logic the head runs. A slot is run only if its blob validates *and* its topology is
-//! the one this build runs ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`], stereo pixels in,
-//! XYZ out); anything else counts as not runnable, and with no runnable slot the head falls
-//! back to the traditional method with [`Calibration::BUILT_IN`].
+//! the exact logic the head runs.
+//!
+//! A slot is run only if its blob validates *and* the head can supply its inputs and use its
+//! outputs: inputs [`InputKind::Stereo`] (the four pixels) or [`InputKind::StereoJoints`]
+//! (the four pixels, then the head's own five joint angles in degrees: the gaze controller's
+//! current setpoints, see [`Head::joints`]), outputs [`OutputKind::Xyz`] (`Look` needs all
+//! three), any hidden count the blob allows. The thesis' 4-5-3 net runs on the fixed-size
+//! [`Mlp`] ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`]); every other runnable topology on
+//! the runtime-sized [`crate::mlp::infer_flat`] over the blob (the same bits as the blob's own
+//! [`ModelBlob::infer`]). Anything else counts as not runnable, and with no runnable slot the
+//! head falls back to the traditional method with [`Calibration::BUILT_IN`].
 
 use crate::blob::{self, InputKind, ModelBlob, OutputKind};
 use crate::gaze::{self, Axis, GazeConfig, GazeError, Joints};
 use crate::layout::Slot;
-use crate::mlp::{Mlp, MlpError};
+use crate::mlp::{self, Mlp, MlpError};
 use crate::protocol::{
     ErrorCode, EstimateData, FirmwareVersion, InfoData, LookData, Mode, ModelInfo, Request,
     RequestBody, Response, ResponseBody, SlotStatus, Source, StereoPoint, PROTOCOL_VERSION,
@@ -21,25 +28,26 @@ use crate::slots::{self, SlotState};
 use crate::trajectory::{ConfigError, ControllerConfig, GazeController};
 use crate::triangulate::{self, Calibration};
 
-/// Inputs of the network the head runs: `u_l, v_l, u_r, v_r`.
+/// Inputs of the thesis' network: `u_l, v_l, u_r, v_r`.
 pub const NET_INPUTS: usize = 4;
-/// Hidden neurons of the network the head runs (the thesis' 4-5-3 network).
+/// Hidden neurons of the thesis' 4-5-3 network (the fixed-size fast path).
 pub const NET_HIDDEN: usize = 5;
-/// Outputs of the network the head runs: `X, Y, Z`.
+/// Outputs of every network the head runs: `X, Y, Z`.
 pub const NET_OUTPUTS: usize = 3;
+/// Inputs of a posture-aware network: the four pixels, then the five joint angles.
+pub const JOINTS_NET_INPUTS: usize = 9;
 
-/// The network type the head runs.
+/// The thesis' network as a fixed-size [`Mlp`] (the same arithmetic as the head's fast path).
 pub type HeadMlp = Mlp<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>;
 
 /// A runnable network loaded from a slot, with what `Estimate` and `Info` need of its blob.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Network {
-    /// The weights.
-    pub mlp: HeadMlp,
-    /// Smallest training input, per input.
-    pub in_min: [f32; NET_INPUTS],
-    /// Largest training input, per input.
-    pub in_max: [f32; NET_INPUTS],
+    /// The decoded blob: weights, scaling and training box.
+    pub blob: ModelBlob,
+    /// Whether the blob is the thesis' 4-5-3 net (pixels in, XYZ out), run on the fixed-size
+    /// fast path [`crate::mlp::infer_fixed`].
+    pub fast: bool,
     /// The slot it came from.
     pub slot: Slot,
     /// The blob's generation.
@@ -49,11 +57,68 @@ pub struct Network {
 }
 
 impl Network {
-    /// One inference: `[X, Y, Z]` (cm) of `[u_l, v_l, u_r, v_r]`. Not generic, so the firmware's
-    /// `Estimate` and its `Bench` run this one compiled function.
+    /// The network of a decoded (hence validated) blob loaded from `slot`, or `None` if the
+    /// head cannot supply its inputs or use its outputs (see the module documentation).
+    pub fn new(slot: Slot, blob: ModelBlob) -> Option<Network> {
+        let suppliable = matches!(
+            blob.topology.inputs,
+            InputKind::Stereo | InputKind::StereoJoints
+        );
+        if !suppliable || blob.topology.outputs != OutputKind::Xyz {
+            return None;
+        }
+        let model = ModelInfo {
+            inputs: blob.n_inputs() as u16,
+            hidden: u16::from(blob.topology.hidden),
+            outputs: blob.n_outputs() as u16,
+            seed: blob.meta.seed,
+            train_hash: blob.meta.train_hash,
+            train_points: blob.meta.train_points,
+            train_error_pct: blob.meta.train_error_pct,
+        };
+        let fast = blob.topology.inputs == InputKind::Stereo
+            && usize::from(blob.topology.hidden) == NET_HIDDEN
+            && blob.n_outputs() == NET_OUTPUTS;
+        Some(Network {
+            generation: blob.generation,
+            blob,
+            fast,
+            slot,
+            model,
+        })
+    }
+
+    /// The network's inputs for pixels `px` seen at posture `joints`: the pixels, then (for
+    /// posture-aware nets) the joint angles. Returns the buffer and the number of inputs used.
+    fn inputs(&self, px: &[f32; NET_INPUTS], joints: &Joints) -> ([f32; JOINTS_NET_INPUTS], usize) {
+        let mut x = [0.0f32; JOINTS_NET_INPUTS];
+        x[..NET_INPUTS].copy_from_slice(px);
+        x[NET_INPUTS..].copy_from_slice(&joints.0);
+        (x, self.blob.n_inputs().min(JOINTS_NET_INPUTS))
+    }
+
+    /// One inference: `[X, Y, Z]` (cm) of `[u_l, v_l, u_r, v_r]` seen at posture `joints`
+    /// (used by posture-aware nets only). Not generic, so the firmware's `Estimate` and its
+    /// `Bench` run this one compiled function.
     #[inline(never)]
-    pub fn infer(&self, x: &[f32; NET_INPUTS]) -> Result<[f32; NET_OUTPUTS], MlpError> {
-        self.mlp.infer(x)
+    pub fn infer(
+        &self,
+        px: &[f32; NET_INPUTS],
+        joints: &Joints,
+    ) -> Result<[f32; NET_OUTPUTS], MlpError> {
+        if self.fast {
+            return mlp::infer_fixed::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(&self.blob.flat(), px);
+        }
+        let (x, n) = self.inputs(px, joints);
+        let mut y = [0.0f32; NET_OUTPUTS];
+        self.blob.infer(&x[..n], &mut y)?;
+        Ok(y)
+    }
+
+    /// Whether the inputs lie inside the box seen in training.
+    pub fn in_range(&self, px: &[f32; NET_INPUTS], joints: &Joints) -> bool {
+        let (x, n) = self.inputs(px, joints);
+        self.blob.in_range(&x[..n])
     }
 }
 
@@ -86,47 +151,27 @@ pub fn load_slot(slot: Slot, bytes: &[u8]) -> (SlotStatus, Option<Network>) {
         Err(blob::BlobError::BadMagic) => return (SlotStatus::Empty, None),
         Err(e) => return (SlotStatus::Invalid(e), None),
     };
-    match network_of(slot, &blob) {
+    let (inputs, hidden, outputs) = (
+        blob.n_inputs() as u16,
+        u16::from(blob.topology.hidden),
+        blob.n_outputs() as u16,
+    );
+    match Network::new(slot, blob) {
         Some(net) => (
             SlotStatus::Valid {
-                generation: blob.generation,
+                generation: net.generation,
             },
             Some(net),
         ),
         None => (
             SlotStatus::UnsupportedTopology {
-                inputs: blob.n_inputs() as u16,
-                hidden: u16::from(blob.topology.hidden),
-                outputs: blob.n_outputs() as u16,
+                inputs,
+                hidden,
+                outputs,
             },
             None,
         ),
     }
-}
-
-fn network_of(slot: Slot, blob: &ModelBlob) -> Option<Network> {
-    if blob.topology.inputs != InputKind::Stereo || blob.topology.outputs != OutputKind::Xyz {
-        return None;
-    }
-    let mlp = blob.to_mlp::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>().ok()?;
-    let in_min: [f32; NET_INPUTS] = blob.in_min.as_slice().try_into().ok()?;
-    let in_max: [f32; NET_INPUTS] = blob.in_max.as_slice().try_into().ok()?;
-    Some(Network {
-        mlp,
-        in_min,
-        in_max,
-        slot,
-        generation: blob.generation,
-        model: ModelInfo {
-            inputs: NET_INPUTS as u16,
-            hidden: NET_HIDDEN as u16,
-            outputs: NET_OUTPUTS as u16,
-            seed: blob.meta.seed,
-            train_hash: blob.meta.train_hash,
-            train_points: blob.meta.train_points,
-            train_error_pct: blob.meta.train_error_pct,
-        },
-    })
 }
 
 /// Boots from the raw bytes of both slots (each at least the blob's framed length; trailing
@@ -179,9 +224,10 @@ impl Boot {
         }
     }
 
-    /// The estimate of `p`, or why there is none.
+    /// The estimate of `p` with the head at home (as it is after boot, before any `Look`),
+    /// or why there is none.
     pub fn estimate(&self, p: &StereoPoint) -> Result<EstimateData, ErrorCode> {
-        self.estimator.estimate(p)
+        self.estimator.estimate(p, &Joints::HOME)
     }
 }
 
@@ -194,8 +240,8 @@ pub fn frame_error(code: ErrorCode) -> Response {
 }
 
 impl Boot {
-    /// Answers the requests that need no movement (`Look`, `Home` and `Bench` answer
-    /// [`ErrorCode::Unsupported`] here: see [`Head::respond`]).
+    /// Answers the requests that need no movement, with the head at home (`Look`, `Home` and
+    /// `Bench` answer [`ErrorCode::Unsupported`] here: see [`Head::respond`]).
     pub fn respond(&self, req: &Request, version: FirmwareVersion) -> Response {
         let body = match req.body {
             RequestBody::Ping => ResponseBody::Pong,
@@ -249,14 +295,29 @@ impl Head {
                 self.controller.home();
                 ResponseBody::Home
             }
+            RequestBody::Estimate(p) => match self.estimate(&p) {
+                Ok(e) => ResponseBody::Estimate(e),
+                Err(c) => ResponseBody::Error(c),
+            },
             _ => return self.boot.respond(req, version),
         };
         Response { id: req.id, body }
     }
 
-    /// Estimates `p`, fixates the estimate and starts the move there.
+    /// The posture the head reports to posture-aware networks: the gaze controller's current
+    /// setpoints (whole drive steps, within the joint limits), degrees.
+    pub fn joints(&self) -> Joints {
+        self.controller.setpoint()
+    }
+
+    /// The estimate of `p`, seen at the current posture ([`Head::joints`]).
+    pub fn estimate(&self, p: &StereoPoint) -> Result<EstimateData, ErrorCode> {
+        self.boot.estimator.estimate(p, &self.joints())
+    }
+
+    /// Estimates `p` (at the current posture), fixates the estimate and starts the move there.
     pub fn look(&mut self, p: &StereoPoint) -> Result<LookData, ErrorCode> {
-        let estimate = self.boot.estimate(p)?;
+        let estimate = self.estimate(p)?;
         let fix =
             gaze::fixate(&self.gaze, [estimate.x, estimate.y, estimate.z]).map_err(
                 |e| match e {
@@ -286,22 +347,20 @@ impl Head {
 }
 
 impl Estimator {
-    /// The estimate of `p`, or why there is none.
-    pub fn estimate(&self, p: &StereoPoint) -> Result<EstimateData, ErrorCode> {
+    /// The estimate of `p` seen at posture `joints` (which only posture-aware networks use),
+    /// or why there is none.
+    pub fn estimate(&self, p: &StereoPoint, joints: &Joints) -> Result<EstimateData, ErrorCode> {
         if !p.is_finite() {
             return Err(ErrorCode::NonFinite);
         }
         let x = p.to_array();
         match self {
             Estimator::Network(n) => {
-                let [x_cm, y_cm, z_cm] = n.infer(&x).map_err(|e| match e {
+                let [x_cm, y_cm, z_cm] = n.infer(&x, joints).map_err(|e| match e {
                     MlpError::NonFiniteInput => ErrorCode::NonFinite,
                     MlpError::NonFiniteOutput | MlpError::Shape => ErrorCode::NoSolution,
                 })?;
-                let in_range = x
-                    .iter()
-                    .zip(n.in_min.iter().zip(n.in_max.iter()))
-                    .all(|(v, (lo, hi))| *v >= *lo && *v <= *hi);
+                let in_range = n.in_range(&x, joints);
                 Ok(EstimateData {
                     x: x_cm,
                     y: y_cm,
@@ -342,6 +401,25 @@ mod tests {
     use crate::mlp::{param_count, Activation};
     use heapless::Vec;
     use std::vec::Vec as StdVec;
+
+    /// A posture-aware 9-`hidden`-3 blob: the 4-input sample's pixel scaling, joint inputs
+    /// scaled by 1/30 per degree, training box +-30 degrees.
+    fn sample_joints(hidden: u8, generation: u32, seed: u64) -> ModelBlob {
+        let mut b = sample(hidden, generation, seed);
+        b.topology.inputs = InputKind::StereoJoints;
+        b.params.clear();
+        for k in 0..param_count(9, hidden as usize, 3) {
+            let r = ((k as u64 * 2_654_435_761 + seed) % 2000) as f32 / 1000.0 - 1.0;
+            b.params.push(r).unwrap();
+        }
+        for _ in 0..5 {
+            b.in_offset.push(0.0).unwrap();
+            b.in_scale.push(1.0 / 30.0).unwrap();
+            b.in_min.push(-30.0).unwrap();
+            b.in_max.push(30.0).unwrap();
+        }
+        b
+    }
 
     fn sample(hidden: u8, generation: u32, seed: u64) -> ModelBlob {
         let mut params = Vec::new();
@@ -465,23 +543,96 @@ mod tests {
         );
         assert!(matches!(got.estimator, Estimator::Fallback(_)));
 
-        // A valid 4-7-3 blob with a higher generation loses to a runnable 4-5-3 one.
-        let wide = bytes(&sample(7, 50, 1));
-        let got = boot(&wide, &bytes(&sample(5, 1, 2)));
+        // A valid blob with Z-only outputs (the head cannot Look with it) and a higher
+        // generation loses to a runnable 4-5-3 one.
+        let mut z_only = sample(5, 50, 1);
+        z_only.topology.outputs = OutputKind::Z;
+        z_only.out_offset.truncate(1);
+        z_only.out_scale.truncate(1);
+        z_only.params.truncate(param_count(4, 5, 1));
+        let z_only = bytes(&z_only);
+        let got = boot(&z_only, &bytes(&sample(5, 1, 2)));
         assert_eq!(
             got.slot_a,
             SlotStatus::UnsupportedTopology {
                 inputs: 4,
-                hidden: 7,
-                outputs: 3
+                hidden: 5,
+                outputs: 1
             }
         );
         let Estimator::Network(n) = &got.estimator else {
             panic!("fallback")
         };
         assert_eq!(n.slot, Slot::B);
-        let got = boot(&wide, &empty);
+        let got = boot(&z_only, &empty);
         assert!(matches!(got.estimator, Estimator::Fallback(_)));
+    }
+
+    fn network(b: &Boot) -> &Network {
+        match &b.estimator {
+            Estimator::Network(n) => n,
+            Estimator::Fallback(_) => panic!("fallback"),
+        }
+    }
+
+    #[test]
+    fn thesis_net_runs_on_the_fast_path_and_other_topologies_on_the_flat_one() {
+        let got = boot(&bytes(&sample(5, 1, 1)), &[]);
+        assert!(network(&got).fast);
+        // A 4-7-3 and a 9-12-3 blob run too, through the blob's own inference.
+        for (blob, inputs) in [(sample(7, 1, 4), 4), (sample_joints(12, 1, 5), 9)] {
+            let got = boot(&bytes(&blob), &[]);
+            assert_eq!(got.slot_a, SlotStatus::Valid { generation: 1 });
+            let n = network(&got);
+            assert!(!n.fast);
+            assert_eq!(
+                (n.model.inputs, n.model.hidden, n.model.outputs),
+                (inputs, u16::from(blob.topology.hidden), 3)
+            );
+            let e = got.estimate(&P).unwrap();
+            let mut x = std::vec::Vec::from(P.to_array());
+            x.extend_from_slice(&Joints::HOME.0[..inputs as usize - 4]);
+            let mut want = [0.0f32; 3];
+            blob.infer(&x, &mut want).unwrap();
+            assert_eq!([e.x, e.y, e.z].map(f32::to_bits), want.map(f32::to_bits));
+            assert_eq!(e.in_range, blob.in_range(&x));
+        }
+    }
+
+    #[test]
+    fn posture_aware_net_is_fed_the_current_setpoints() {
+        let blob = sample_joints(9, 3, 11);
+        let mut h = head(boot(&bytes(&blob), &[]));
+        let infer = |joints: &Joints| {
+            let mut x = std::vec::Vec::from(P.to_array());
+            x.extend_from_slice(&joints.0);
+            let mut y = [0.0f32; 3];
+            blob.infer(&x, &mut y).unwrap();
+            (y, blob.in_range(&x))
+        };
+        let at_home = h.estimate(&P).unwrap();
+        assert_eq!(h.joints(), Joints::HOME);
+        assert_eq!([at_home.x, at_home.y, at_home.z], infer(&Joints::HOME).0);
+        // Look: the estimate comes from the posture before the move...
+        let look = h.look(&P).unwrap();
+        assert_eq!(look.estimate, at_home);
+        // ...and once the head has moved, Estimate feeds the new setpoints.
+        for _ in 0..200 {
+            h.tick();
+        }
+        assert!(!h.controller.is_moving());
+        assert_eq!(h.joints(), look.target);
+        assert_ne!(look.target, Joints::HOME);
+        let r = h.respond(&req(5, RequestBody::Estimate(P)), V);
+        let ResponseBody::Estimate(e) = r.body else {
+            panic!("{r:?}")
+        };
+        let (want, in_range) = infer(&look.target);
+        assert_eq!([e.x, e.y, e.z].map(f32::to_bits), want.map(f32::to_bits));
+        assert_eq!(e.in_range, in_range);
+        assert_ne!([e.x, e.y, e.z], [at_home.x, at_home.y, at_home.z]);
+        // Boot alone (no gaze controller) answers as at home.
+        assert_eq!(h.boot.estimate(&P).unwrap(), at_home);
     }
 
     #[test]
@@ -660,9 +811,13 @@ mod tests {
                 (0u8..4, any_f32(), any_f32(), any_f32(), any_f32(), 0u32..40),
                 1..12,
             ),
-            network in proptest::bool::ANY,
+            network in 0u8..3,
         ) {
-            let a = if network { bytes(&sample(5, 1, 5)) } else { StdVec::new() };
+            let a = match network {
+                0 => StdVec::new(),
+                1 => bytes(&sample(5, 1, 5)),
+                _ => bytes(&sample_joints(8, 1, 5)),
+            };
             let mut h = head(boot(&a, &[]));
             let limits = GazeConfig::DEFAULT.limits;
             let max = h.controller.max_steps_per_tick();

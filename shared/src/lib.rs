@@ -13,6 +13,8 @@
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
 //! - [`head`]: the head controller's logic without I/O (boot slot choice, estimates, Info).
 //! - [`protocol`]: head-controller wire protocol (postcard messages in COBS frames).
+//! - [`posture`]: the simulator's head postures (the thesis rig on the five-axis head), radial
+//!   lens distortion, and optimal triangulation over two arbitrary cameras.
 //! - [`presets`]: the thesis' four camera cases and its board protocol.
 //! - [`slots`]: which weight slot boots, which one a new model is written to.
 //! - [`metrics`]: e_ma (eq. 4.1-5) and its percentage form.
@@ -30,6 +32,7 @@ pub mod head;
 pub mod layout;
 pub mod metrics;
 pub mod mlp;
+pub mod posture;
 pub mod presets;
 pub mod protocol;
 pub mod servo;

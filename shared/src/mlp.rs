@@ -235,6 +235,58 @@ pub fn infer_flat(m: &FlatMlp<'_>, x: &[f32], out: &mut [f32]) -> Result<(), Mlp
     Ok(())
 }
 
+/// [`infer_flat`] for a model known to be `I-H-O` at compile time: the arithmetic of
+/// [`Mlp::infer`] (identical bits) read straight from the runtime-sized view, with fixed loop
+/// bounds the compiler can unroll. Used by the head's fast path for the thesis' 4-5-3 net.
+#[inline]
+pub fn infer_fixed<const I: usize, const H: usize, const O: usize>(
+    m: &FlatMlp<'_>,
+    x: &[f32; I],
+) -> Result<[f32; O], MlpError> {
+    let p = m.params;
+    let sized = |s: &[f32], n: usize| s.len() == n;
+    if m.hidden != H
+        || !sized(p, param_count(I, H, O))
+        || !sized(m.in_offset, I)
+        || !sized(m.in_scale, I)
+        || !sized(m.out_offset, O)
+        || !sized(m.out_scale, O)
+    {
+        return Err(MlpError::Shape);
+    }
+    let mut xn = [0.0f32; I];
+    for i in 0..I {
+        if !x[i].is_finite() {
+            return Err(MlpError::NonFiniteInput);
+        }
+        xn[i] = (x[i] - m.in_offset[i]) * m.in_scale[i];
+    }
+    let mut h = [0.0f32; H];
+    for j in 0..H {
+        let row = j * (I + 1);
+        let mut a = p[row + I];
+        for i in 0..I {
+            a += p[row + i] * xn[i];
+        }
+        h[j] = sigmoid(a);
+    }
+    let base = H * (I + 1);
+    let mut y = [0.0f32; O];
+    for k in 0..O {
+        let row = base + k * (H + 1);
+        let mut a = p[row + H];
+        for j in 0..H {
+            a += p[row + j] * h[j];
+        }
+        let v = m.output.apply(a) * m.out_scale[k] + m.out_offset[k];
+        if !v.is_finite() {
+            return Err(MlpError::NonFiniteOutput);
+        }
+        y[k] = v;
+    }
+    Ok(y)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -323,6 +375,9 @@ mod tests {
             let mut b = [0.0f32; 3];
             infer_flat(&flat, &x, &mut b).unwrap();
             prop_assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
+            let c = infer_fixed::<4, 5, 3>(&flat, &x).unwrap();
+            prop_assert_eq!(a.map(f32::to_bits), c.map(f32::to_bits));
+            prop_assert_eq!(infer_fixed::<4, 6, 3>(&flat, &x), Err(MlpError::Shape));
         }
     }
 }

@@ -520,3 +520,142 @@ fn images_written_by_hvs_image_boot_at_the_address_they_name() {
     assert_eq!(i.model.map(|m| m.seed), Some(11));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A posture-aware 9-input model through the firmware: boot runs it, `Look` moves the eyes,
+/// and the next estimate (of another point, seen from the new posture) is fed the head's new
+/// setpoints: it equals the host's inference with the same joints bit for bit, differs from
+/// what the home posture would give, and is right.
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
+    use hvs_host::posture::{self as sets, PostureOptions, Sampling};
+    use hvs_host::simulate::{SetKind, SimOptions};
+    use hvs_host::train::{train, TrainConfig};
+    use hvs_shared::blob::InputKind;
+    use hvs_shared::posture::{HeadRig, PostureRange};
+
+    // Case III on the head. A net for the neighbourhood of the postures this test visits
+    // (small, so that it trains in seconds in a debug build): the board protocol at 16 random
+    // postures of a narrow range and at home.
+    let head_rig = HeadRig::new(hvs_shared::presets::CASE_3);
+    let range = PostureRange {
+        neck_pan: [-8.0, 2.0],
+        neck_tilt: [-5.0, 2.0],
+        eye_tilt: [-5.0, 2.0],
+        version: [-8.0, 2.0],
+        vergence: [0.0, 9.0],
+    };
+    let mut postures = sets::postures(
+        &PostureOptions {
+            sampling: Sampling::Random,
+            count: 16,
+            range,
+            ..PostureOptions::default()
+        },
+        3,
+    )
+    .unwrap();
+    postures.push(Joints::HOME);
+    let samples =
+        sets::simulate(&head_rig, SetKind::Train, &postures, &SimOptions::default()).unwrap();
+    let cfg = TrainConfig {
+        hidden: 8,
+        restarts: 2,
+        seed: 5,
+        ..TrainConfig::default()
+    };
+    let mut m = train(&sets::dataset(&samples), &cfg).unwrap().blob;
+    m.generation = 4;
+    assert_eq!(m.topology.inputs, InputKind::StereoJoints);
+    let bytes = encode(&m);
+
+    let mut run = boot("posture", Some(&bytes), None);
+    let i = info(&mut run);
+    assert_eq!(
+        (i.mode, i.slot, i.generation),
+        (Mode::Network, Some(Slot::A), 4)
+    );
+    let mi = i.model.expect("model metadata");
+    assert_eq!((mi.inputs, mi.hidden, mi.outputs), (9, 8, 3));
+
+    // The host runs the same head from the same boot.
+    let mut host = Head::new(
+        head::boot(&bytes, &[]),
+        GazeConfig::DEFAULT,
+        &ControllerConfig::DEFAULT,
+    )
+    .unwrap();
+    let seen = |j: &Joints, p: &[f64; 3]| {
+        let px = head_rig.project_rounded(j, p).unwrap();
+        StereoPoint {
+            u_l: px[0] as f32,
+            v_l: px[1] as f32,
+            u_r: px[2] as f32,
+            v_r: px[3] as f32,
+        }
+    };
+    let infer = |j: &Joints, p: &StereoPoint| {
+        let mut x = p.to_array().to_vec();
+        x.extend_from_slice(&j.0);
+        let mut y = [0.0f32; 3];
+        m.infer(&x, &mut y).unwrap();
+        y
+    };
+    let bits = |e: &protocol::EstimateData| [e.x, e.y, e.z].map(f32::to_bits);
+
+    // Look at a point left of and above the straight-ahead direction, 90 cm away.
+    let target = [-6.0, -3.0, 90.0];
+    let p0 = seen(&Joints::HOME, &target);
+    let ResponseBody::Look(l) = run.link.request(RequestBody::Look(p0)).unwrap() else {
+        panic!("Look refused")
+    };
+    assert_eq!(l, host.look(&p0).unwrap());
+    assert_eq!(
+        bits(&l.estimate),
+        infer(&Joints::HOME, &p0).map(f32::to_bits)
+    );
+    let moved = l.target;
+    assert!(GazeConfig::DEFAULT.limits.contains(&moved));
+    // The eyes verge on the target (about 6.7 degrees) and turn left and up.
+    let verg = moved[Axis::RightEyePan] - moved[Axis::LeftEyePan];
+    assert!((5.5..8.0).contains(&verg), "{moved:?}");
+    assert!(moved[Axis::NeckPan] > 0.0 && moved[Axis::LeftEyePan] + moved[Axis::RightEyePan] > 0.0);
+    assert!(
+        moved[Axis::NeckTilt] + moved[Axis::EyeTilt] < 0.0,
+        "{moved:?}"
+    );
+    // Let the move finish (neck 0.7 s).
+    std::thread::sleep(Duration::from_millis(1500));
+    while host.controller.is_moving() {
+        host.tick();
+    }
+    assert_eq!(host.joints(), moved);
+
+    // Points seen from the new posture: the head feeds its setpoints to the net.
+    for p in [[-6.0, -3.0, 90.0], [-4.0, -1.0, 120.0], [-8.5, -4.0, 75.0]] {
+        let px = seen(&moved, &p);
+        let ResponseBody::Estimate(e) = run.link.request(RequestBody::Estimate(px)).unwrap() else {
+            panic!("Estimate refused")
+        };
+        assert_eq!(bits(&e), infer(&moved, &px).map(f32::to_bits), "{p:?}");
+        assert_eq!(Ok(e), host.estimate(&px));
+        assert_eq!(e.source, Source::Network);
+        // The same pixels read at home would put the point elsewhere.
+        let at_home = infer(&Joints::HOME, &px);
+        assert!(
+            (at_home[2] - e.z).abs() > 5.0,
+            "{p:?}: {at_home:?} vs {e:?}"
+        );
+        // And the estimate is right: depth within 5 % (floor about 1.3 %), 3-D within 5 cm.
+        let err = ((e.x as f64 - p[0]).powi(2)
+            + (e.y as f64 - p[1]).powi(2)
+            + (e.z as f64 - p[2]).powi(2))
+        .sqrt();
+        eprintln!(
+            "posture {:?}: true {p:?}, head ({}, {}, {}), error {err:.2} cm; read at home z = {}",
+            moved.0, e.x, e.y, e.z, at_home[2]
+        );
+        assert!((e.z as f64 - p[2]).abs() < 0.05 * p[2], "{p:?}: {e:?}");
+        assert!(err < 5.0, "{p:?}: {e:?} ({err} cm)");
+    }
+}

@@ -2,8 +2,10 @@
 
 use crate::cmd::RigArgs;
 use crate::csv_io::write_output;
+use crate::posture::{self, postures, PostureOptions, Sampling};
 use crate::simulate::{simulate, write_csv, SetKind, SimOptions};
 use anyhow::{anyhow, bail, Context, Result};
+use hvs_shared::posture::{Distortion, HeadRig};
 use std::path::PathBuf;
 
 /// Arguments of `hvs simulate`.
@@ -15,7 +17,18 @@ use std::path::PathBuf;
     --set test: the test points P1, P2 (X = -+1.75 cm) at Z = 65..165 cm, step 10 (22 rows).\n\
     --set volume: --points uniform random points in the box the training boards span\n\
     (X -3..3, Y -2..2, Z 65..165 cm), kept only when both images see them.\n\n\
-    Output columns: u_l,v_l,u_r,v_r,x,y,z (pixels rounded as a camera reports them; cm)."
+    Output columns: u_l,v_l,u_r,v_r,x,y,z (pixels rounded as a camera reports them; cm).\n\n\
+    --postures grid|lattice|random: the rig on the five-axis head, the set repeated at many\n\
+    postures of the working range (neck pan +-30, neck tilt +-20, eye tilt +-15, version +-15,\n\
+    vergence 0..10 degrees; quantised to the drives' 0.18 degree steps), the points placed in\n\
+    front of where the head looks, their x,y,z in the head frame (the body-fixed stereo frame\n\
+    of the home posture). grid: one random posture in every cell of a --posture-levels grid;\n\
+    lattice: the regular grid itself; random: --posture-count postures. volume sets put point\n\
+    k at posture k mod n. Extra columns: neck_pan,neck_tilt,eye_tilt,left_eye_pan,\n\
+    right_eye_pan (degrees).\n\n\
+    --distortion K1[,K2]: radial lens distortion of both cameras, 1 + K1 r^2 + K2 r^4 with r\n\
+    the distance from the principal point in units of half the image width (K1 < 0: barrel),\n\
+    applied before rounding."
 )]
 pub struct Args {
     #[command(flatten)]
@@ -35,7 +48,29 @@ pub struct Args {
     /// Output CSV (written atomically); stdout if absent.
     #[arg(short = 'o', long, value_name = "FILE.csv")]
     output: Option<PathBuf>,
+    /// Repeat the set at many head postures (adds the five joint columns).
+    #[arg(long, value_enum, value_name = "HOW")]
+    postures: Option<Sampling>,
+    /// Grid levels of neck pan, neck tilt, eye tilt, version, vergence (grid, lattice)
+    /// [default: 3,3,3,3,4].
+    #[arg(long, value_name = "A,B,C,D,E", value_delimiter = ',')]
+    posture_levels: Option<Vec<u8>>,
+    /// Number of random postures (random) [default: 100].
+    #[arg(long, value_name = "N")]
+    posture_count: Option<usize>,
+    /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
+    #[arg(
+        long,
+        value_name = "K1[,K2]",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    distortion: Option<Vec<f64>>,
 }
+
+/// Seed of the posture draws: `--seed` mixed with a constant, so that postures and pixel
+/// noise do not share one random stream.
+pub const POSTURE_SEED_MIX: u64 = 0x706f_7374_7572_6573;
 
 /// Runs `hvs simulate`.
 pub fn run(a: Args) -> Result<()> {
@@ -51,8 +86,65 @@ pub fn run(a: Args) -> Result<()> {
         noise_px: a.noise_px,
         seed: a.seed,
     };
+    if a.postures.is_some() || a.distortion.is_some() {
+        return run_postures(&a, rig, &opt);
+    }
+    if a.posture_levels.is_some() || a.posture_count.is_some() {
+        bail!("--posture-levels and --posture-count need --postures");
+    }
     let samples = simulate(&rig, a.set, &opt).with_context(|| a.rig.label())?;
     write_output(a.output.as_deref(), |w| {
         write_csv(w, &samples).context("cannot write the CSV")
+    })
+}
+
+/// `hvs simulate` with `--postures` and/or `--distortion`.
+fn run_postures(a: &Args, rig: hvs_shared::camera::Rig, opt: &SimOptions) -> Result<()> {
+    let distortion = match a.distortion.as_deref() {
+        None => Distortion::NONE,
+        Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
+        Some([k1, k2]) => Distortion { k1: *k1, k2: *k2 },
+        Some(v) => bail!("--distortion takes K1 or K1,K2, got {} values", v.len()),
+    };
+    if !distortion.is_finite() {
+        bail!("--distortion coefficients must be finite numbers");
+    }
+    let head = HeadRig::new(rig).with_distortion(distortion);
+    let joints = match a.postures {
+        None => {
+            if a.posture_levels.is_some() || a.posture_count.is_some() {
+                bail!("--posture-levels and --posture-count need --postures");
+            }
+            vec![hvs_shared::gaze::Joints::HOME]
+        }
+        Some(sampling) => {
+            let mut p = PostureOptions {
+                sampling,
+                ..PostureOptions::default()
+            };
+            if let Some(l) = &a.posture_levels {
+                if sampling == Sampling::Random {
+                    bail!("--posture-levels applies to --postures grid or lattice");
+                }
+                p.levels = l.as_slice().try_into().map_err(|_| {
+                    anyhow!(
+                        "--posture-levels takes five counts (neck pan, neck tilt, eye tilt, version, vergence), got {}",
+                        l.len()
+                    )
+                })?;
+            }
+            if let Some(n) = a.posture_count {
+                if sampling != Sampling::Random {
+                    bail!("--posture-count applies to --postures random");
+                }
+                p.count = n;
+            }
+            postures(&p, a.seed ^ POSTURE_SEED_MIX)?
+        }
+    };
+    let samples = posture::simulate(&head, a.set, &joints, opt).with_context(|| a.rig.label())?;
+    let with_joints = a.postures.is_some();
+    write_output(a.output.as_deref(), |w| {
+        posture::write_csv(w, &samples, with_joints).context("cannot write the CSV")
     })
 }

@@ -1,0 +1,228 @@
+//! `hvs simulate --postures/--distortion` driven from outside: columns, sizes, determinism,
+//! a posture-aware model trained and evaluated through the CLI, and the bad-flag errors.
+
+use assert_cmd::Command;
+use predicates::prelude::*;
+use tempfile::TempDir;
+
+fn hvs() -> Command {
+    Command::cargo_bin("hvs").expect("the hvs binary is built")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = hvs()
+        .args(args)
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    String::from_utf8(out).expect("utf-8 stdout")
+}
+
+fn fails(args: &[&str], want: &str) {
+    hvs()
+        .args(args)
+        .assert()
+        .code(1)
+        .stdout(predicate::str::is_empty())
+        .stderr(predicate::str::contains(want));
+}
+
+#[test]
+fn posture_sets_have_joint_columns_and_are_seeded() {
+    let grid = ok(&[
+        "simulate",
+        "--case",
+        "3",
+        "--set",
+        "test",
+        "--postures",
+        "grid",
+        "--seed",
+        "5",
+    ]);
+    let mut lines = grid.lines();
+    assert_eq!(
+        lines.next(),
+        Some("u_l,v_l,u_r,v_r,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan,x,y,z")
+    );
+    // 3*3*3*3*4 postures, 22 test points at each.
+    assert_eq!(lines.count(), 324 * 22);
+    assert_eq!(
+        grid,
+        ok(&[
+            "simulate",
+            "--case",
+            "3",
+            "--set",
+            "test",
+            "--postures",
+            "grid",
+            "--seed",
+            "5"
+        ])
+    );
+    assert_ne!(
+        grid,
+        ok(&[
+            "simulate",
+            "--case",
+            "3",
+            "--set",
+            "test",
+            "--postures",
+            "grid",
+            "--seed",
+            "6"
+        ])
+    );
+    let random = ok(&[
+        "simulate",
+        "--case",
+        "1",
+        "--set",
+        "volume",
+        "--points",
+        "50",
+        "--postures",
+        "random",
+        "--posture-count",
+        "7",
+    ]);
+    assert_eq!(random.lines().count(), 51);
+    let lattice = ok(&[
+        "simulate",
+        "--case",
+        "2",
+        "--set",
+        "train",
+        "--postures",
+        "lattice",
+        "--posture-levels",
+        "2,1,1,1,2",
+    ]);
+    assert_eq!(lattice.lines().count(), 1 + 4 * 72);
+    // Distortion alone keeps the thesis columns; zero distortion is the thesis set.
+    let plain = ok(&["simulate", "--case", "4", "--set", "train"]);
+    assert_eq!(
+        ok(&[
+            "simulate",
+            "--case",
+            "4",
+            "--set",
+            "train",
+            "--distortion",
+            "0"
+        ]),
+        plain
+    );
+    let bent = ok(&[
+        "simulate",
+        "--case",
+        "4",
+        "--set",
+        "train",
+        "--distortion",
+        "-0.5,0.1",
+    ]);
+    assert!(bent.starts_with("u_l,v_l,u_r,v_r,x,y,z\n"));
+    assert_ne!(bent, plain);
+}
+
+#[test]
+fn bad_posture_flags_are_refused() {
+    let base = ["simulate", "--case", "1", "--set", "train"];
+    let with = |extra: &[&'static str]| -> Vec<&'static str> {
+        base.iter().copied().chain(extra.iter().copied()).collect()
+    };
+    fails(&with(&["--posture-count", "3"]), "need --postures");
+    fails(
+        &with(&["--postures", "grid", "--posture-levels", "3,3"]),
+        "five counts",
+    );
+    fails(
+        &with(&["--postures", "grid", "--posture-levels", "3,0,3,3,3"]),
+        "at least 1",
+    );
+    fails(
+        &with(&["--postures", "random", "--posture-levels", "3,3,3,3,3"]),
+        "grid or lattice",
+    );
+    fails(
+        &with(&["--postures", "grid", "--posture-count", "4"]),
+        "random",
+    );
+    fails(&with(&["--distortion", "1,2,3"]), "K1 or K1,K2");
+    fails(&with(&["--distortion", "nan"]), "finite");
+}
+
+#[test]
+fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
+    let dir = TempDir::new().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    // A coarse grid (2 cells per axis, 32 postures), so the test stays quick.
+    ok(&[
+        "simulate",
+        "--case",
+        "1",
+        "--set",
+        "train",
+        "--postures",
+        "grid",
+        "--posture-levels",
+        "2,2,2,2,2",
+        "-o",
+        &p("train.csv"),
+    ]);
+    ok(&[
+        "simulate",
+        "--case",
+        "1",
+        "--set",
+        "test",
+        "--postures",
+        "random",
+        "--posture-count",
+        "20",
+        "-o",
+        &p("test.csv"),
+    ]);
+    ok(&[
+        "train",
+        "--data",
+        &p("train.csv"),
+        "-o",
+        &p("m.hvsw"),
+        "--hidden",
+        "8",
+        "--restarts",
+        "2",
+    ]);
+    let info = ok(&["info", &p("m.hvsw")]);
+    assert!(info.contains("9-8-3"), "{info}");
+    let json = ok(&[
+        "eval",
+        "--model",
+        &p("m.hvsw"),
+        "--data",
+        &p("test.csv"),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let net = &v["evaluation"]["methods"][0];
+    assert_eq!(net["name"], "network");
+    let e = net["mean"]["e_ma_pct"].as_f64().unwrap();
+    eprintln!("posture-aware 9-8-3 on 20 random postures: mean e_ma {e} %");
+    // The optimal triangulation floor of these points is about 1.3 %.
+    assert!(e < 2.5, "mean e_ma {e} %");
+    // predict reads the joint columns of a posture-aware model.
+    let pred = ok(&[
+        "predict",
+        "--model",
+        &p("m.hvsw"),
+        "--points",
+        &p("test.csv"),
+    ]);
+    assert_eq!(pred.lines().count(), 1 + 20 * 22);
+}
