@@ -1,8 +1,9 @@
 //! `hvs-tests`: cross-crate tests of hvs-depth. The tests live in `tests/tests/`; this library
 //! only holds helpers they share: the location of the workspace root, a seeded sample model,
-//! and [`sim::SimHead`], the firmware loop on the host for the robustness tests and the fuzz
-//! targets.
+//! [`sim::SimHead`] (the firmware loop on the host for the robustness tests and the fuzz
+//! targets) and the fuzz targets' checks ([`fuzz`]), replayed by the normal test suite.
 
+pub mod fuzz;
 pub mod sim;
 
 use hvs_shared::blob::{Algorithm, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta};
