@@ -1,0 +1,132 @@
+//! Inference speed on the host (`cargo bench -p hvs-shared --bench inference`): the head's
+//! 4-5-3 network (`Mlp<4,5,3>::infer`) on one point and on a batch of 10^6 points (target:
+//! at least 10 M points/s per core), the head's non-generic `Network::infer`, the
+//! runtime-sized `infer_flat` a blob of any topology runs, and the traditional method the
+//! head falls back to. Weights and points are seeded: every run measures the same work.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use hvs_shared::head::{Network, NET_HIDDEN, NET_INPUTS, NET_OUTPUTS};
+use hvs_shared::layout::Slot;
+use hvs_shared::mlp::{infer_flat, param_count, Activation, FlatMlp, Mlp};
+use hvs_shared::protocol::ModelInfo;
+use hvs_shared::triangulate::{traditional_xyz, Calibration};
+use std::hint::black_box;
+
+/// Batch size of the throughput benchmark.
+const BATCH: usize = 1_000_000;
+
+/// Seeded uniform numbers in [-1, 1) (64-bit LCG, top 24 bits).
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> f32 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    }
+}
+
+const IN_OFFSET: [f32; 4] = [343.0, 240.0, 297.0, 240.0];
+const IN_SCALE: [f32; 4] = [1.0 / 30.0, 1.0 / 12.0, 1.0 / 30.0, 1.0 / 12.0];
+const OUT_OFFSET: [f32; 3] = [0.0, 0.0, 115.0];
+const OUT_SCALE: [f32; 3] = [3.0, 2.0, 50.0];
+
+fn params(seed: u64) -> Vec<f32> {
+    let mut r = Lcg(seed);
+    (0..param_count(NET_INPUTS, NET_HIDDEN, NET_OUTPUTS))
+        .map(|_| 2.0 * r.next())
+        .collect()
+}
+
+fn model(p: &[f32]) -> Mlp<4, 5, 3> {
+    Mlp::from_params(
+        p,
+        Activation::Linear,
+        IN_OFFSET,
+        IN_SCALE,
+        OUT_OFFSET,
+        OUT_SCALE,
+    )
+    .expect("4-5-3 parameter count")
+}
+
+/// Points spread over the training box of case I (about ±30 px around the offsets).
+fn points(n: usize, seed: u64) -> Vec<[f32; 4]> {
+    let mut r = Lcg(seed);
+    (0..n)
+        .map(|_| {
+            let du = 18.0 * r.next();
+            let dv = 12.0 * r.next();
+            let disp = 46.0 + 10.0 * r.next();
+            [343.0 + du, 240.0 + dv, 343.0 + du - disp, 240.0 + dv]
+        })
+        .collect()
+}
+
+fn inference(c: &mut Criterion) {
+    let p = params(42);
+    let m = model(&p);
+    let x = points(1, 7)[0];
+
+    let mut g = c.benchmark_group("one_point");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("Mlp<4,5,3>::infer", |b| b.iter(|| m.infer(black_box(&x))));
+    let net = Network {
+        mlp: m,
+        in_min: [0.0; 4],
+        in_max: [640.0; 4],
+        slot: Slot::A,
+        generation: 1,
+        model: ModelInfo {
+            inputs: 4,
+            hidden: 5,
+            outputs: 3,
+            seed: 42,
+            train_hash: 0,
+            train_points: 0,
+            train_error_pct: 0.0,
+        },
+    };
+    g.bench_function("head Network::infer", |b| {
+        b.iter(|| net.infer(black_box(&x)))
+    });
+    let flat = FlatMlp {
+        hidden: 5,
+        params: &p,
+        output: Activation::Linear,
+        in_offset: &IN_OFFSET,
+        in_scale: &IN_SCALE,
+        out_offset: &OUT_OFFSET,
+        out_scale: &OUT_SCALE,
+    };
+    g.bench_function("infer_flat 4-5-3", |b| {
+        let mut y = [0.0f32; 3];
+        b.iter(|| infer_flat(&flat, black_box(&x), &mut y).map(|_| y))
+    });
+    g.bench_function("traditional_xyz (fallback)", |b| {
+        b.iter(|| traditional_xyz(&Calibration::BUILT_IN, black_box(&x)))
+    });
+    g.finish();
+
+    let xs = points(BATCH, 11);
+    let mut ys = vec![[0.0f32; 3]; BATCH];
+    let mut g = c.benchmark_group("batch_1e6");
+    g.sample_size(20);
+    g.throughput(Throughput::Elements(BATCH as u64));
+    g.bench_function("Mlp<4,5,3>::infer, one core", |b| {
+        b.iter(|| {
+            for (x, y) in black_box(&xs).iter().zip(ys.iter_mut()) {
+                if let Ok(v) = m.infer(x) {
+                    *y = v;
+                }
+            }
+            black_box(&ys);
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, inference);
+criterion_main!(benches);
