@@ -1,8 +1,14 @@
-//! Inference speed on the host (`cargo bench -p hvs-shared --bench inference`): the head's
-//! 4-5-3 network (`Mlp<4,5,3>::infer`) on one point and on a batch of 10^6 points (target:
-//! at least 10 M points/s per core), the head's non-generic `Network::infer`, the
-//! runtime-sized `infer_flat` a blob of any topology runs, and the traditional method the
-//! head falls back to. Weights and points are seeded: every run measures the same work.
+//! Inference speed on the host (`cargo bench -p hvs-shared --bench inference`):
+//!
+//! - `one_point/mlp_4_5_3`: the head's 4-5-3 network, `Mlp<4,5,3>::infer`, one point;
+//! - `one_point/head_network_infer`: the head's non-generic `Network::infer` (what the
+//!   firmware's `Estimate` runs);
+//! - `one_point/infer_flat_4_5_3`: the runtime-sized `infer_flat` a blob of any topology runs;
+//! - `one_point/fallback_traditional_xyz`: the traditional method the head falls back to;
+//! - `batch_1e6/mlp_4_5_3_one_core`: 10^6 points through `Mlp<4,5,3>::infer` on one core
+//!   (target: at least 10 M points/s).
+//!
+//! Weights and points are seeded: every run measures the same work.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use hvs_shared::head::{Network, NET_HIDDEN, NET_INPUTS, NET_OUTPUTS};
@@ -72,7 +78,7 @@ fn inference(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("one_point");
     g.throughput(Throughput::Elements(1));
-    g.bench_function("Mlp<4,5,3>::infer", |b| b.iter(|| m.infer(black_box(&x))));
+    g.bench_function("mlp_4_5_3", |b| b.iter(|| m.infer(black_box(&x))));
     let net = Network {
         mlp: m,
         in_min: [0.0; 4],
@@ -89,7 +95,7 @@ fn inference(c: &mut Criterion) {
             train_error_pct: 0.0,
         },
     };
-    g.bench_function("head Network::infer", |b| {
+    g.bench_function("head_network_infer", |b| {
         b.iter(|| net.infer(black_box(&x)))
     });
     let flat = FlatMlp {
@@ -101,11 +107,11 @@ fn inference(c: &mut Criterion) {
         out_offset: &OUT_OFFSET,
         out_scale: &OUT_SCALE,
     };
-    g.bench_function("infer_flat 4-5-3", |b| {
+    g.bench_function("infer_flat_4_5_3", |b| {
         let mut y = [0.0f32; 3];
         b.iter(|| infer_flat(&flat, black_box(&x), &mut y).map(|_| y))
     });
-    g.bench_function("traditional_xyz (fallback)", |b| {
+    g.bench_function("fallback_traditional_xyz", |b| {
         b.iter(|| traditional_xyz(&Calibration::BUILT_IN, black_box(&x)))
     });
     g.finish();
@@ -115,7 +121,7 @@ fn inference(c: &mut Criterion) {
     let mut g = c.benchmark_group("batch_1e6");
     g.sample_size(20);
     g.throughput(Throughput::Elements(BATCH as u64));
-    g.bench_function("Mlp<4,5,3>::infer, one core", |b| {
+    g.bench_function("mlp_4_5_3_one_core", |b| {
         b.iter(|| {
             for (x, y) in black_box(&xs).iter().zip(ys.iter_mut()) {
                 if let Ok(v) = m.infer(x) {
