@@ -29,7 +29,7 @@ if [ "$part" != --firmware ]; then
   # Host benches (batch predict, training, sweep) exist once hvs-host has a benches/ directory.
   if [ -d host/benches ]; then benches+=(-p hvs-host); fi
   cargo bench --locked "${benches[@]}" -- --noplot 2>&1 | grep -E '^[a-z_0-9]+/|time:|thrpt:' || true
-  echo "== summary (median; throughput in points/s where the benchmark sets it)"
+  echo "== summary (criterion point estimates; points/s where the benchmark sets a throughput; *_cpu_time groups count thread CPU time)"
   python3 - "$target_dir/criterion" <<'PY'
 import json, os, sys
 root = sys.argv[1]
@@ -38,7 +38,8 @@ for dirpath, dirs, files in os.walk(root):
     if os.path.basename(dirpath) == "new" and "estimates.json" in files:
         est = json.load(open(os.path.join(dirpath, "estimates.json")))
         bench = json.load(open(os.path.join(dirpath, "benchmark.json")))
-        ns = est["median"]["point_estimate"]
+        # The estimate criterion prints in the middle of `time:` (slope, or mean).
+        ns = (est.get("slope") or est["mean"])["point_estimate"]
         tp = bench.get("throughput") or {}
         elems = tp.get("Elements") or tp.get("elements")
         rate = f"{elems / ns * 1e9 / 1e6:10.2f} M/s" if elems else ""
