@@ -1,15 +1,18 @@
 //! `hvs`: the host side of hvs-depth. Commands parse arguments and do I/O; all math is in
-//! `hvs-shared`.
+//! `hvs-shared`. Each subcommand lives in `hvs_host::cmd::<name>` with its own clap `Args`
+//! and `run`; adding one is a variant here and a match arm below.
 
-use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use std::path::PathBuf;
+use hvs_host::cmd;
 
 #[derive(Parser)]
 #[command(
     name = "hvs",
     version,
-    about = "Calibration-free stereo depth for a humanoid vision system"
+    about = "Calibration-free stereo depth for a humanoid vision system",
+    long_about = "Calibration-free stereo depth for a humanoid vision system.\n\n\
+    Start with `hvs demo`: it simulates the thesis' four camera cases, trains the 4-5-3 \
+    net on each and compares it with the traditional method."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -18,11 +21,12 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Show what is in a weights blob: topology, metadata, CRC state.
-    Info {
-        /// The blob file.
-        model: PathBuf,
-    },
+    Simulate(cmd::simulate::Args),
+    Train(cmd::train::Args),
+    Predict(cmd::predict::Args),
+    Eval(cmd::eval::Args),
+    Info(cmd::info::Args),
+    Demo(cmd::demo::Args),
     /// Boot the head firmware in QEMU with a model in slot A.
     Emulate(hvs_host::emulate::EmulateArgs),
     /// Talk to a head (QEMU over TCP, or a serial port).
@@ -36,27 +40,31 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Info { model } => info(&model),
+        Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Train(a) => cmd::train::run(a),
+        Command::Predict(a) => cmd::predict::run(a),
+        Command::Eval(a) => cmd::eval::run(a),
+        Command::Info(a) => cmd::info::run(a),
+        Command::Demo(a) => cmd::demo::run(a),
         Command::Emulate(a) => hvs_host::emulate::run(&a),
         Command::Head(a) => hvs_host::head::run(&a),
         Command::Image(a) => hvs_host::flash::run_image(&a),
         Command::Flash(a) => hvs_host::flash::run_flash(&a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        if is_broken_pipe(&e) {
+            // The reader went away (e.g. `hvs predict ... | head`): stop quietly, as `cat` does.
+            std::process::exit(141);
+        }
+        let msg = format!("{e:#}").replace('\n', " ");
+        eprintln!("error: {msg}");
         std::process::exit(1);
     }
 }
 
-fn info(path: &PathBuf) -> Result<()> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let blob =
-        hvs_shared::blob::decode(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    println!("file: {}", path.display());
-    println!("crc: ok");
-    println!("generation: {}", blob.generation);
-    println!("topology: {:?}", blob.topology);
-    println!("meta: {:?}", blob.meta);
-    println!("fallback: {:?}", blob.fallback);
-    Ok(())
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }

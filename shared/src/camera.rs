@@ -239,6 +239,36 @@ impl Rig {
         finite4([l[0], l[1], r[0], r[1]])
     }
 
+    /// Rounded `[u_l, v_l, u_r, v_r]` of a camera that sees the pixel coordinates disturbed by
+    /// `noise` (px, added before the rounding): `u = round(Phi_u X/Z + n_u) + u0`. With zero
+    /// noise this is exactly [`Rig::project_rounded`].
+    pub fn project_rounded_noisy(
+        &self,
+        p: &Vec3,
+        noise: &[f64; 4],
+    ) -> Result<StereoPixels, CameraError> {
+        Self::check(p)?;
+        if !noise.iter().all(|n| n.is_finite()) {
+            return Err(CameraError::NonFinite);
+        }
+        let mut out = [0.0; 4];
+        for (k, (cam, behind)) in [
+            (self.left(), CameraError::BehindLeft),
+            (self.right(), CameraError::BehindRight),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let c = cam.to_camera(p);
+            if c[2].is_nan() || c[2] <= 0.0 {
+                return Err(*behind);
+            }
+            out[2 * k] = libm::round(cam.phi_u * c[0] / c[2] + noise[2 * k]) + cam.u0;
+            out[2 * k + 1] = libm::round(cam.phi_v * c[1] / c[2] + noise[2 * k + 1]) + cam.v0;
+        }
+        finite4(out)
+    }
+
     /// Whether both projections of `px` fall inside the image.
     pub fn in_image(&self, px: &StereoPixels) -> bool {
         let (w, h) = (self.width as f64, self.height as f64);
@@ -311,6 +341,50 @@ mod tests {
         let r = rig.project_rounded(&[-2.75, -2.5, 100.0]).unwrap();
         assert_eq!(r[0], 323.0);
         assert_eq!(r[1], 237.0); // -2.5 rounds to -3
+    }
+
+    #[test]
+    fn noisy_projection_is_exact_without_noise_and_shifts_with_it() {
+        for n in 1..=4 {
+            let rig = crate::presets::case(n).unwrap();
+            for p in [[-3.0, -2.0, 65.0], [1.75, 0.0, 165.0], [2.9, 1.3, 97.3]] {
+                assert_eq!(
+                    rig.project_rounded_noisy(&p, &[0.0; 4]),
+                    rig.project_rounded(&p)
+                );
+            }
+        }
+        // Parallel rig, Phi X / Z = 15.75 on the left: +0.3 px of noise rounds to 16, -0.3 to 15.
+        let rig = Rig::parallel(300.0);
+        let p = [0.0, 0.0, 100.0];
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[0.3, 0.0, 0.0, 0.0])
+                .unwrap()[0],
+            336.0
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[-0.3, 0.0, 0.0, 0.0])
+                .unwrap()[0],
+            335.0
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[0.0, -0.6, 0.0, 0.0])
+                .unwrap()[1],
+            239.0
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[0.0, 0.0, 0.0, 1.6])
+                .unwrap()[3],
+            242.0
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[f64::NAN, 0.0, 0.0, 0.0]),
+            Err(CameraError::NonFinite)
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&[0.0, 0.0, -1.0], &[0.0; 4]),
+            Err(CameraError::BehindLeft)
+        );
     }
 
     #[test]

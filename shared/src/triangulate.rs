@@ -88,6 +88,25 @@ pub fn traditional_depth(
     Ok(phi * 2.0 * half_baseline / u_sd)
 }
 
+/// Eq. 3.1-17 evaluated as printed, whatever the sign of the disparity: a negative disparity
+/// gives a negative depth. This is how the thesis plots the traditional method's error
+/// (Figs. 4.8-4.11); the head's fallback ([`traditional_xyz`]) refuses such pixels instead.
+pub fn traditional_depth_signed(
+    phi: f64,
+    half_baseline: f64,
+    u_l: f64,
+    u_r: f64,
+) -> Result<f64, TriError> {
+    if !(phi.is_finite() && half_baseline.is_finite() && u_l.is_finite() && u_r.is_finite()) {
+        return Err(TriError::NonFinite);
+    }
+    let u_sd = u_l - u_r;
+    if u_sd == 0.0 {
+        return Err(TriError::NonPositiveDisparity);
+    }
+    Ok(phi * 2.0 * half_baseline / u_sd)
+}
+
 /// Eq. 3.1-16: `Z = (Phi_L X_L - Phi_R X_R) / u_sd`, with `X_L`, `X_R` the point's X in the
 /// left and right camera frames.
 pub fn general_depth(
@@ -266,6 +285,26 @@ mod tests {
         );
         assert_eq!(
             traditional_depth(f64::NAN, 5.25, 310.0, 300.0),
+            Err(TriError::NonFinite)
+        );
+    }
+
+    #[test]
+    fn signed_traditional_keeps_negative_disparities() {
+        assert_eq!(
+            traditional_depth_signed(300.0, 5.25, 335.75, 304.25),
+            Ok(100.0)
+        );
+        assert_eq!(
+            traditional_depth_signed(300.0, 5.25, 304.25, 335.75),
+            Ok(-100.0)
+        );
+        assert_eq!(
+            traditional_depth_signed(300.0, 5.25, 300.0, 300.0),
+            Err(TriError::NonPositiveDisparity)
+        );
+        assert_eq!(
+            traditional_depth_signed(300.0, f64::INFINITY, 310.0, 300.0),
             Err(TriError::NonFinite)
         );
     }

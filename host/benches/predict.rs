@@ -1,0 +1,67 @@
+//! Throughput of `hvs predict`'s inference (CSV parsing excluded): a batch of 1e6 points
+//! through a 4-5-3 net trained on case IV, on one core (the per-core figure the goal is
+//! stated in: at least 10 M points/s) and on all cores, plus the runtime-sized path for
+//! comparison.
+//!
+//! `cargo bench -p hvs-host --bench predict`
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use hvs_host::dataset::Dataset;
+use hvs_host::infer::Predictor;
+use hvs_host::simulate::{simulate, SetKind, SimOptions};
+use hvs_shared::blob::{InputKind, ModelBlob};
+use hvs_shared::presets;
+use std::hint::black_box;
+
+const N: usize = 1_000_000;
+
+fn model() -> ModelBlob {
+    let mut d = Dataset::new(InputKind::Stereo);
+    for s in simulate(&presets::CASE_4, SetKind::Train, &SimOptions::default()).unwrap() {
+        d.push(&s.px, Some(s.xyz));
+    }
+    hvs_host::train::train(&d, &Default::default())
+        .unwrap()
+        .blob
+}
+
+fn points() -> Vec<f32> {
+    let opt = SimOptions {
+        points: N,
+        noise_px: 0.0,
+        seed: 1,
+    };
+    simulate(&presets::CASE_4, SetKind::Volume, &opt)
+        .unwrap()
+        .iter()
+        .flat_map(|s| s.px.map(|v| v as f32))
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let blob = model();
+    let x = points();
+    let mut y = vec![0.0f32; N * 3];
+    let p = Predictor::new(&blob);
+    assert!(p.is_fixed());
+    let mut g = c.benchmark_group("predict 4-5-3");
+    g.throughput(Throughput::Elements(N as u64));
+    g.sample_size(20);
+    g.bench_function("1e6 points, one core (Mlp<4,5,3>)", |b| {
+        b.iter(|| p.run_serial(black_box(&x), &mut y).unwrap())
+    });
+    g.bench_function("1e6 points, all cores (rayon)", |b| {
+        b.iter(|| p.run(black_box(&x), &mut y).unwrap())
+    });
+    g.bench_function("1e6 points, one core (runtime-sized infer_flat)", |b| {
+        b.iter(|| {
+            for (xi, yi) in x.chunks_exact(4).zip(y.chunks_exact_mut(3)) {
+                blob.infer(black_box(xi), yi).unwrap();
+            }
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

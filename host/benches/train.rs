@@ -1,0 +1,44 @@
+//! Criterion benchmark of the default training (4-5-3, 10 restarts, Levenberg-Marquardt) on
+//! the thesis' case-IV board set (72 points): `cargo bench -p hvs-host --bench train`.
+//! The goal is under 0.1 s wall on the project's 2-core machine.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use hvs_host::dataset::Dataset;
+use hvs_host::train::{train, Algo, TrainConfig};
+use hvs_shared::blob::InputKind;
+use hvs_shared::presets;
+use std::hint::black_box;
+use std::time::Duration;
+
+fn board_set() -> Dataset {
+    let rig = presets::CASE_4;
+    let mut d = Dataset::new(InputKind::Stereo);
+    for z in presets::TRAIN_DEPTHS {
+        for p in presets::board_points(z) {
+            d.push(&rig.project_rounded(&p).unwrap(), Some(p));
+        }
+    }
+    d
+}
+
+fn bench(c: &mut Criterion) {
+    let data = board_set();
+    let mut g = c.benchmark_group("train");
+    g.measurement_time(Duration::from_secs(10));
+    g.bench_function("default_lm_case4_board72", |b| {
+        b.iter(|| train(black_box(&data), &TrainConfig::default()).unwrap())
+    });
+    g.sample_size(10);
+    g.measurement_time(Duration::from_secs(30));
+    g.bench_function("bp_case4_board72_10restarts", |b| {
+        let cfg = TrainConfig {
+            algo: Algo::Bp,
+            ..TrainConfig::default()
+        };
+        b.iter(|| train(black_box(&data), &cfg).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,71 @@
+//! `hvs info`: what is in a weights blob, and whether it is intact.
+
+use crate::model::{self, input_names, output_names};
+use anyhow::Result;
+use hvs_shared::blob::VERSION;
+use std::path::PathBuf;
+
+/// Arguments of `hvs info`.
+#[derive(Debug, clap::Args)]
+#[command(
+    about = "Show what is in a weights blob: topology, metadata, fallback, CRC state",
+    long_about = "Show what is in a weights blob: topology, training metadata, fallback \
+    calibration, generation, training input box, size and CRC state. A damaged file is \
+    reported with the check that failed (magic, version, length, CRC, payload, topology, \
+    parameters) and a non-zero exit code."
+)]
+pub struct Args {
+    /// The blob file.
+    #[arg(value_name = "MODEL")]
+    model: PathBuf,
+}
+
+/// Runs `hvs info`.
+pub fn run(a: Args) -> Result<()> {
+    let f = model::load(&a.model)?;
+    let b = &f.blob;
+    println!("file:        {}", a.model.display());
+    let trailing = f.file_len - f.blob_len;
+    println!(
+        "size:        {} bytes (HVSW v{VERSION}, payload {} bytes{})",
+        f.file_len,
+        f.blob_len - hvs_shared::blob::HEADER_LEN - hvs_shared::blob::CRC_LEN,
+        if trailing > 0 {
+            format!(", {trailing} trailing bytes ignored")
+        } else {
+            String::new()
+        }
+    );
+    println!("crc:         ok ({:#010x}); all checks passed", f.crc);
+    println!("generation:  {}", b.generation);
+    println!(
+        "topology:    {} ({} -> {} sigmoid hidden -> {}, {:?} output), {} parameters",
+        model::shape(b),
+        input_names(b.topology.inputs).join(","),
+        b.topology.hidden,
+        output_names(b.topology.outputs).join(","),
+        b.topology.output_activation,
+        b.params.len()
+    );
+    let m = &b.meta;
+    println!(
+        "training:    {:?}, seed {}, {} restarts, {} points (set hash {:#018x}), train e_ma {} %",
+        m.algorithm, m.seed, m.restarts, m.train_points, m.train_hash, m.train_error_pct
+    );
+    println!("input box:");
+    for (k, name) in input_names(b.topology.inputs).iter().enumerate() {
+        println!(
+            "  {name:>13}  {} .. {}",
+            b.in_min.get(k).copied().unwrap_or(f32::NAN),
+            b.in_max.get(k).copied().unwrap_or(f32::NAN)
+        );
+    }
+    match &b.fallback {
+        Some(c) => println!(
+            "fallback:    traditional method, Phi = {} px, d = {} cm, principal point ({}, {})",
+            c.phi, c.half_baseline, c.u0, c.v0
+        ),
+        None => println!("fallback:    none (a head would use its built-in calibration)"),
+    }
+    Ok(())
+}

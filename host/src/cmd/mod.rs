@@ -1,0 +1,50 @@
+//! One module per `hvs` subcommand. Each has a clap `Args` struct and a `run(args)` that
+//! parses, wires library modules together and does I/O; none holds math. Adding a command
+//! is one module here, one variant of `Command` and one match arm in `main.rs`.
+
+pub mod demo;
+pub mod eval;
+pub mod info;
+pub mod predict;
+pub mod simulate;
+pub mod train;
+
+use anyhow::{bail, Result};
+use hvs_shared::camera::Rig;
+use std::path::PathBuf;
+
+/// Choice of a camera rig: a built-in thesis case or a rig file.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RigArgs {
+    /// Thesis case 1-4 (the presets of cases.json); with --rig, the case of a
+    /// cases.json-like file.
+    #[arg(long, value_name = "N")]
+    pub case: Option<u8>,
+    /// Rig JSON file: one rig object or a cases.json-like file (see README).
+    #[arg(long, value_name = "FILE.json")]
+    pub rig: Option<PathBuf>,
+}
+
+impl RigArgs {
+    /// The chosen rig, `None` if neither option is given.
+    pub fn rig(&self) -> Result<Option<Rig>> {
+        match (&self.rig, self.case) {
+            (Some(path), case) => Ok(Some(crate::rigfile::load(path, case)?)),
+            (None, Some(n)) => match hvs_shared::presets::case(n) {
+                Some(r) => Ok(Some(r)),
+                None => bail!("--case must be 1-4, got {n}"),
+            },
+            (None, None) => Ok(None),
+        }
+    }
+
+    /// A short name of the choice for messages.
+    pub fn label(&self) -> String {
+        match (&self.rig, self.case) {
+            (Some(p), Some(n)) => format!("{} case {n}", p.display()),
+            (Some(p), None) => p.display().to_string(),
+            (None, Some(n)) => format!("case {n}"),
+            (None, None) => "no rig".to_string(),
+        }
+    }
+}

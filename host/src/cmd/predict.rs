@@ -1,0 +1,91 @@
+//! `hvs predict`: run a model over a CSV of matched pixels.
+
+use crate::csv_io::{read_set, write_output, Table};
+use crate::infer::{to_f32, PointError, Predictor};
+use crate::model::{self, input_names};
+use anyhow::{anyhow, Context, Result};
+use hvs_shared::blob::{ModelBlob, OutputKind};
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Arguments of `hvs predict`.
+#[derive(Debug, clap::Args)]
+#[command(
+    about = "Estimate X, Y, Z of matched pixels with a trained model",
+    long_about = "Estimate X, Y, Z of matched pixels with a trained model.\n\n\
+    Reads u_l,v_l,u_r,v_r (and the five joint columns for a posture-aware model) by name;\n\
+    writes u_l,v_l,u_r,v_r,x,y,z, one row per input row: the inputs as the f32 the model\n\
+    saw, then its estimates, printed so that they parse back to the same f32 bits\n\
+    (the head's computation, hvs-shared inference). A Z-only model leaves x and y empty."
+)]
+pub struct Args {
+    /// The model (weights blob).
+    #[arg(long, value_name = "MODEL")]
+    model: PathBuf,
+    /// CSV with the pixel columns.
+    #[arg(long, value_name = "FILE.csv")]
+    points: PathBuf,
+    /// Output CSV (written atomically); stdout if absent.
+    #[arg(short = 'o', long, value_name = "FILE.csv")]
+    output: Option<PathBuf>,
+}
+
+/// Runs `hvs predict`.
+pub fn run(a: Args) -> Result<()> {
+    let m = model::load(&a.model)?;
+    let blob = &m.blob;
+    let table = read_set(&a.points, blob.topology.inputs.into(), false)?;
+    let (x, y) = infer_table(blob, &table)?;
+    let outside = x
+        .chunks_exact(blob.n_inputs())
+        .filter(|p| !blob.in_range(p))
+        .count();
+    if outside > 0 {
+        eprintln!(
+            "note: {outside} of {} points lie outside the input box the model was trained on; their estimates are extrapolations",
+            table.data.len()
+        );
+    }
+    write_output(a.output.as_deref(), |w| {
+        write_rows(w, blob, &x, &y).context("cannot write the CSV")
+    })
+}
+
+/// Runs the model on every row of `table`: the f32 inputs and the outputs, row-major.
+/// Errors name the file, line and (for range errors) the column.
+pub fn infer_table(blob: &ModelBlob, table: &Table) -> Result<(Vec<f32>, Vec<f32>)> {
+    let ni = blob.n_inputs();
+    let names = input_names(blob.topology.inputs);
+    let x = to_f32(&table.data.inputs, ni).map_err(|(r, c)| {
+        anyhow!(
+            "{}: column \"{}\": {} does not fit the f32 the model computes in",
+            table.at(r),
+            names.get(c).copied().unwrap_or("?"),
+            table.data.inputs[r * ni + c]
+        )
+    })?;
+    let p = Predictor::new(blob);
+    let y = p.predict(&x).map_err(|PointError { index, error }| {
+        anyhow!(
+            "{}: the model cannot estimate this point: {error}",
+            table.at(index)
+        )
+    })?;
+    Ok((x, y))
+}
+
+fn write_rows(w: &mut dyn Write, blob: &ModelBlob, x: &[f32], y: &[f32]) -> std::io::Result<()> {
+    let names = input_names(blob.topology.inputs);
+    writeln!(w, "{},x,y,z", names.join(","))?;
+    let (ni, no) = (blob.n_inputs(), blob.n_outputs());
+    for (xi, yi) in x.chunks_exact(ni).zip(y.chunks_exact(no)) {
+        for v in xi {
+            write!(w, "{v},")?;
+        }
+        match blob.topology.outputs {
+            OutputKind::Xyz => writeln!(w, "{},{},{}", yi[0], yi[1], yi[2])?,
+            OutputKind::Z => writeln!(w, ",,{}", yi[0])?,
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,227 @@
+//! `hvs train`: fit a net on a CSV training set, add the traditional-method fallback, write
+//! the weights blob.
+
+use crate::csv_io::{read_set, Inputs};
+use crate::fallback::{self, FallbackFit};
+use crate::model;
+use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
+use anyhow::{bail, Context, Result};
+use hvs_shared::blob::{ModelBlob, OutputKind, MAX_HIDDEN};
+use hvs_shared::triangulate::Calibration;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+/// Training algorithm (command-line form).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum AlgoArg {
+    /// Levenberg-Marquardt (the default: fastest and most accurate here).
+    Lm,
+    /// The thesis' per-pattern back-propagation (learning rate, E_max, learning cycles).
+    Bp,
+    /// Adam.
+    Adam,
+}
+
+/// Outputs of the net (command-line form).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OutputsArg {
+    /// X, Y, Z (the thesis' choice).
+    Xyz,
+    /// Z only.
+    Z,
+}
+
+/// Arguments of `hvs train`.
+#[derive(Debug, clap::Args)]
+#[command(
+    about = "Train a depth net on a CSV of matched pixels and true positions",
+    long_about = "Train a depth net on a CSV of matched pixels and true positions \
+    (u_l,v_l,u_r,v_r,x,y,z; with the five joint columns, a posture-aware 9-input net). \
+    Restarts run from seeded random starts; the best by training e_ma is kept, restarts above \
+    --threshold are not enrolled (as in the thesis). The same seed gives the same bytes. \
+    The blob also holds the traditional method's calibration (Phi by eq. 4.1-3) fitted on \
+    the nearest board of the data that is symmetric about X = 0, if there is one."
+)]
+pub struct Args {
+    /// Training CSV.
+    #[arg(long, value_name = "FILE.csv")]
+    data: PathBuf,
+    /// Model file to write (atomically).
+    #[arg(short = 'o', long, value_name = "MODEL")]
+    output: PathBuf,
+    /// Hidden units.
+    #[arg(long, value_name = "H", default_value_t = 5)]
+    hidden: usize,
+    /// Outputs of the net.
+    #[arg(long, value_enum, default_value_t = OutputsArg::Xyz)]
+    outputs: OutputsArg,
+    /// Training algorithm.
+    #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]
+    algo: AlgoArg,
+    /// Restarts from random starts.
+    #[arg(long, value_name = "R", default_value_t = 10)]
+    restarts: usize,
+    /// Enrol only restarts whose training e_ma is at most T percent.
+    #[arg(long, value_name = "T")]
+    threshold: Option<f64>,
+    /// Seed of the random starts.
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    seed: u64,
+    /// Back-propagation (--algo bp): learning rate.
+    #[arg(long, value_name = "ETA", default_value_t = BpParams::default().learning_rate)]
+    learning_rate: f64,
+    /// Back-propagation (--algo bp): stop when a cycle's error E falls below E_max.
+    #[arg(long, value_name = "E", default_value_t = BpParams::default().e_max)]
+    e_max: f64,
+    /// Back-propagation (--algo bp): most learning cycles.
+    #[arg(long, value_name = "N", default_value_t = BpParams::default().max_cycles)]
+    max_cycles: usize,
+    /// Half baseline d (cm) stored with the fallback calibration.
+    #[arg(long, value_name = "CM", default_value_t = Calibration::BUILT_IN.half_baseline as f64)]
+    half_baseline: f64,
+    /// Principal point u0 (px) stored with the fallback calibration.
+    #[arg(long, value_name = "PX", default_value_t = Calibration::BUILT_IN.u0 as f64)]
+    u0: f64,
+    /// Principal point v0 (px) stored with the fallback calibration.
+    #[arg(long, value_name = "PX", default_value_t = Calibration::BUILT_IN.v0 as f64)]
+    v0: f64,
+}
+
+/// Everything needed to train, independent of the command line (the demo uses it too).
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Engine configuration.
+    pub config: TrainConfig,
+    /// Half baseline and principal point for the fallback.
+    pub half_baseline: f64,
+    /// Principal point u0 (px).
+    pub u0: f64,
+    /// Principal point v0 (px).
+    pub v0: f64,
+}
+
+impl Default for Plan {
+    fn default() -> Self {
+        Plan {
+            config: TrainConfig::default(),
+            half_baseline: Calibration::BUILT_IN.half_baseline as f64,
+            u0: Calibration::BUILT_IN.u0 as f64,
+            v0: Calibration::BUILT_IN.v0 as f64,
+        }
+    }
+}
+
+/// A trained model ready to write, with how it came about.
+#[derive(Debug, Clone)]
+pub struct Trained {
+    /// The blob (generation 1, fallback set when fitted).
+    pub blob: ModelBlob,
+    /// The engine's report.
+    pub outcome: TrainOutcome,
+    /// The fallback fit, if the data allowed one.
+    pub fallback: Option<FallbackFit>,
+}
+
+/// Trains on `data` and completes the blob: fallback calibration and generation 1.
+pub fn train_model(data: &crate::dataset::Dataset, plan: &Plan) -> Result<Trained> {
+    let outcome = train::train(data, &plan.config)?;
+    let fit = fallback::fit(data, plan.half_baseline, plan.u0, plan.v0);
+    let mut blob = outcome.blob.clone();
+    blob.fallback = fit.map(|f| f.calibration);
+    blob.generation = 1;
+    Ok(Trained {
+        blob,
+        outcome,
+        fallback: fit,
+    })
+}
+
+/// Runs `hvs train`.
+pub fn run(a: Args) -> Result<()> {
+    if a.hidden == 0 || a.hidden > MAX_HIDDEN {
+        bail!("--hidden must be 1..={MAX_HIDDEN}, got {}", a.hidden);
+    }
+    if a.restarts == 0 {
+        bail!("--restarts must be at least 1");
+    }
+    if let Some(t) = a.threshold {
+        if !(t.is_finite() && t > 0.0) {
+            bail!("--threshold must be a positive percentage, got {t}");
+        }
+    }
+    for (name, v) in [
+        ("--half-baseline", a.half_baseline),
+        ("--learning-rate", a.learning_rate),
+        ("--e-max", a.e_max),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("{name} must be a positive number, got {v}");
+        }
+    }
+    if !(a.u0.is_finite() && a.v0.is_finite()) {
+        bail!("--u0 and --v0 must be finite");
+    }
+    let config = TrainConfig {
+        hidden: a.hidden,
+        outputs: match a.outputs {
+            OutputsArg::Xyz => OutputKind::Xyz,
+            OutputsArg::Z => OutputKind::Z,
+        },
+        algo: match a.algo {
+            AlgoArg::Lm => Algo::Lm,
+            AlgoArg::Bp => Algo::Bp,
+            AlgoArg::Adam => Algo::Adam,
+        },
+        restarts: a.restarts,
+        threshold_pct: a.threshold,
+        seed: a.seed,
+        bp: BpParams {
+            learning_rate: a.learning_rate,
+            e_max: a.e_max,
+            max_cycles: a.max_cycles,
+        },
+        progress: std::io::stderr().is_terminal(),
+    };
+    let table = read_set(&a.data, Inputs::Auto, true)?;
+    let plan = Plan {
+        config,
+        half_baseline: a.half_baseline,
+        u0: a.u0,
+        v0: a.v0,
+    };
+    let t = train_model(&table.data, &plan)
+        .with_context(|| format!("{}: training failed", a.data.display()))?;
+    let n = model::save(&a.output, &t.blob)?;
+    print_summary(&a.data, &a.output, n, &t, a.algo);
+    Ok(())
+}
+
+fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained, algo: AlgoArg) {
+    let o = &t.outcome;
+    let enrolled = o.restarts.iter().filter(|r| r.enrolled).count();
+    println!(
+        "trained {} ({:?}) on {} points of {} in {:.3} s",
+        model::shape(&t.blob),
+        algo,
+        t.blob.meta.train_points,
+        data.display(),
+        o.elapsed.as_secs_f64()
+    );
+    println!(
+        "training e_ma {:.4} % (f32 model), best of {} restarts, {enrolled} enrolled",
+        o.train_error_pct,
+        o.restarts.len()
+    );
+    match &t.fallback {
+        Some(f) => println!(
+            "fallback: Phi = {:.4} px (eq. 4.1-3, {} symmetric points at Z = {} cm)",
+            f.phi, f.points, f.depth
+        ),
+        None => println!("fallback: none (no board symmetric about X = 0 in the data)"),
+    }
+    println!(
+        "wrote {} ({bytes} bytes, generation {})",
+        out.display(),
+        t.blob.generation
+    );
+}

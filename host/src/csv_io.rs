@@ -1,0 +1,448 @@
+//! CSV in and out: reading point sets with errors that name file, line and column, and
+//! writing any output atomically (a temporary file in the target directory, renamed into
+//! place only when complete) or to stdout.
+//!
+//! Input format: a header row, then one row per point. Columns are found by name in any
+//! order (`u_l,v_l,u_r,v_r`; `x,y,z` where ground truth is needed; the five joint-angle
+//! columns of [`crate::dataset::JOINT_COLUMNS`] for posture-aware sets); other columns are
+//! ignored. Surrounding spaces are trimmed; blank lines are skipped.
+
+use crate::dataset::{Dataset, JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
+use anyhow::{anyhow, bail, Context, Result};
+use hvs_shared::blob::InputKind;
+use std::io::{BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Which input columns to read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Inputs {
+    /// The four pixel columns only (joint columns, if any, are ignored).
+    Stereo,
+    /// The four pixel columns and the five joint columns, all required.
+    StereoJoints,
+    /// The five joint columns too when the header has all of them (a header with only some
+    /// of them is an error).
+    Auto,
+}
+
+impl From<InputKind> for Inputs {
+    fn from(k: InputKind) -> Self {
+        match k {
+            InputKind::Stereo => Inputs::Stereo,
+            InputKind::StereoJoints => Inputs::StereoJoints,
+        }
+    }
+}
+
+/// A point set read from a file, with the line number of every row for later messages.
+#[derive(Debug, Clone)]
+pub struct Table {
+    /// The file, as given.
+    pub path: PathBuf,
+    /// The rows.
+    pub data: Dataset,
+    /// 1-based line number of each row in the file.
+    pub lines: Vec<u64>,
+}
+
+impl Table {
+    /// `file:line` of row `i`, for messages.
+    pub fn at(&self, i: usize) -> String {
+        match self.lines.get(i) {
+            Some(l) => format!("{}:{l}", self.path.display()),
+            None => self.path.display().to_string(),
+        }
+    }
+}
+
+/// Reads a point set from `path`. With `targets`, the `x,y,z` columns are required.
+pub fn read_set(path: &Path, inputs: Inputs, targets: bool) -> Result<Table> {
+    let file =
+        std::fs::File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    read_set_from(path, file, inputs, targets)
+}
+
+/// Reads a point set from any reader; `name` is used in messages.
+pub fn read_set_from<R: Read>(
+    name: &Path,
+    mut reader: R,
+    inputs: Inputs,
+    targets: bool,
+) -> Result<Table> {
+    let file = name.display().to_string();
+    let mut bytes = Vec::new();
+    reader
+        .read_to_end(&mut bytes)
+        .with_context(|| format!("{file}: cannot read"))?;
+    let mut lines_of = LineCounter::new(&bytes);
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(bytes.as_slice());
+    let header = rdr.byte_headers().map_err(|e| csv_error(&file, e))?.clone();
+    if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
+        bail!("{file}: empty file (expected a header row naming the columns u_l,v_l,u_r,v_r)");
+    }
+    let hl = lines_of.line_at(header.position().map_or(0, |p| p.byte()));
+    let names: Vec<String> = header
+        .iter()
+        .map(|h| String::from_utf8_lossy(h).into_owned())
+        .collect();
+    for (i, n) in names.iter().enumerate() {
+        if !n.is_empty() && names[..i].contains(n) {
+            bail!("{file}:{hl}: column \"{n}\" appears twice in the header");
+        }
+    }
+    let find = |c: &str| names.iter().position(|n| n == c);
+    let require = |c: &str| {
+        find(c).ok_or_else(|| {
+            anyhow!(
+                "{file}:{hl}: missing column \"{c}\" (the header has: {})",
+                names.join(",")
+            )
+        })
+    };
+    let with_joints = match inputs {
+        Inputs::Stereo => false,
+        Inputs::StereoJoints => true,
+        Inputs::Auto => {
+            let present: Vec<&str> = JOINT_COLUMNS
+                .iter()
+                .copied()
+                .filter(|c| find(c).is_some())
+                .collect();
+            if !present.is_empty() && present.len() < JOINT_COLUMNS.len() {
+                let missing = JOINT_COLUMNS
+                    .iter()
+                    .find(|c| !present.contains(c))
+                    .copied()
+                    .unwrap_or_default();
+                bail!(
+                    "{file}:{hl}: missing column \"{missing}\" (a posture-aware set needs all of {})",
+                    JOINT_COLUMNS.join(",")
+                );
+            }
+            !present.is_empty()
+        }
+    };
+    let mut in_cols: Vec<(usize, &str)> = Vec::new();
+    for c in PIXEL_COLUMNS {
+        in_cols.push((require(c)?, c));
+    }
+    if with_joints {
+        for c in JOINT_COLUMNS {
+            in_cols.push((require(c)?, c));
+        }
+    }
+    let mut tgt_cols: Vec<(usize, &str)> = Vec::new();
+    if targets {
+        for c in TARGET_COLUMNS {
+            tgt_cols.push((require(c)?, c));
+        }
+    }
+    let kind = if with_joints {
+        InputKind::StereoJoints
+    } else {
+        InputKind::Stereo
+    };
+    let mut data = Dataset::new(kind);
+    let mut lines = Vec::new();
+    let mut rec = csv::ByteRecord::new();
+    let mut row = vec![0.0f64; in_cols.len()];
+    loop {
+        match rdr.read_byte_record(&mut rec) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => return Err(csv_error(&file, e)),
+        }
+        let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
+        if rec.len() != header.len() {
+            bail!(
+                "{file}:{line}: row has {} fields, the header has {}",
+                rec.len(),
+                header.len()
+            );
+        }
+        for (slot, (col, cname)) in row.iter_mut().zip(&in_cols) {
+            *slot = number(&file, line, cname, &rec[*col])?;
+        }
+        let target = if targets {
+            let mut t = [0.0; 3];
+            for (slot, (col, cname)) in t.iter_mut().zip(&tgt_cols) {
+                *slot = number(&file, line, cname, &rec[*col])?;
+            }
+            Some(t)
+        } else {
+            None
+        };
+        data.push(&row, target);
+        lines.push(line);
+    }
+    if data.is_empty() {
+        bail!("{file}: no data rows after the header");
+    }
+    Ok(Table {
+        path: name.to_path_buf(),
+        data,
+        lines,
+    })
+}
+
+/// 1-based line numbers of records from their byte offsets. The csv crate's own line count
+/// is off after blank lines and CRLF endings, and its record offsets may point at the previous
+/// line's terminator, so terminators are skipped first. Offsets must not decrease.
+struct LineCounter<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    line: u64,
+}
+
+impl<'a> LineCounter<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        LineCounter {
+            bytes,
+            pos: 0,
+            line: 1,
+        }
+    }
+
+    fn line_at(&mut self, offset: u64) -> u64 {
+        let mut start = (offset as usize).min(self.bytes.len());
+        while start < self.bytes.len() && matches!(self.bytes[start], b'\r' | b'\n') {
+            start += 1;
+        }
+        if start > self.pos {
+            self.line += self.bytes[self.pos..start]
+                .iter()
+                .filter(|b| **b == b'\n')
+                .count() as u64;
+            self.pos = start;
+        }
+        self.line
+    }
+}
+
+fn number(file: &str, line: u64, column: &str, field: &[u8]) -> Result<f64> {
+    let text = std::str::from_utf8(field)
+        .map_err(|_| anyhow!("{file}:{line}: column \"{column}\" is not valid UTF-8"))?;
+    if text.is_empty() {
+        bail!("{file}:{line}: column \"{column}\" is empty");
+    }
+    let v: f64 = text
+        .parse()
+        .map_err(|_| anyhow!("{file}:{line}: column \"{column}\": \"{text}\" is not a number"))?;
+    if !v.is_finite() {
+        bail!("{file}:{line}: column \"{column}\": \"{text}\" is not a finite number");
+    }
+    Ok(v)
+}
+
+fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {
+    let line = e.position().map(|p| p.line());
+    let what = match e.kind() {
+        csv::ErrorKind::Io(io) => format!("cannot read: {io}"),
+        csv::ErrorKind::Utf8 { .. } => "not valid UTF-8".to_string(),
+        csv::ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => format!("row has {len} fields, the header has {expected_len}"),
+        _ => e.to_string(),
+    };
+    match line {
+        Some(l) => anyhow!("{file}:{l}: {what}"),
+        None => anyhow!("{file}: {what}"),
+    }
+}
+
+/// Writes to `path` atomically: everything goes to a temporary file in the same directory,
+/// which replaces `path` only after `body` succeeded and the data reached the disk. On any
+/// error the temporary file is removed and `path` is untouched.
+pub fn write_atomically<F>(path: &Path, body: F) -> Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> Result<()>,
+{
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let fname = path
+        .file_name()
+        .ok_or_else(|| anyhow!("{}: not a file name", path.display()))?;
+    let tmp = tempfile::Builder::new()
+        .prefix(&format!(".{}.", fname.to_string_lossy()))
+        .suffix(".tmp")
+        .tempfile_in(&dir)
+        .with_context(|| {
+            format!(
+                "{}: cannot create a file in {}",
+                path.display(),
+                dir.display()
+            )
+        })?;
+    let mut w = BufWriter::new(tmp);
+    body(&mut w)?;
+    let tmp = w
+        .into_inner()
+        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error()))?;
+    tmp.as_file()
+        .sync_all()
+        .with_context(|| format!("{}: cannot write", path.display()))?;
+    tmp.persist(path)
+        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))?;
+    Ok(())
+}
+
+/// Writes to `path` atomically ([`write_atomically`]), or to stdout when `path` is `None`.
+pub fn write_output<F>(path: Option<&Path>, body: F) -> Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> Result<()>,
+{
+    match path {
+        Some(p) => write_atomically(p, body),
+        None => {
+            let stdout = std::io::stdout();
+            let mut w = BufWriter::new(stdout.lock());
+            body(&mut w)?;
+            w.flush().context("stdout")?;
+            Ok(())
+        }
+    }
+}
+
+/// Writes bytes to `path` atomically.
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomically(path, |w| {
+        w.write_all(bytes)
+            .with_context(|| format!("{}: cannot write", path.display()))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(text: &str, inputs: Inputs, targets: bool) -> Result<Table> {
+        read_set_from(Path::new("d.csv"), text.as_bytes(), inputs, targets)
+    }
+
+    fn err(text: &str, targets: bool) -> String {
+        format!("{:#}", read(text, Inputs::Auto, targets).unwrap_err())
+    }
+
+    #[test]
+    fn columns_by_name_in_any_order_extra_ignored() {
+        let t = read(
+            "z, note ,v_r,u_r,x,v_l,u_l,y\r\n65,a,231,284,-3,231,330,-2\r\n\r\n\n85,b,1,2,3,4,5,6\n",
+            Inputs::Auto,
+            true,
+        )
+        .unwrap();
+        assert_eq!(t.data.n_inputs, 4);
+        assert_eq!(t.data.row(0), &[330.0, 231.0, 284.0, 231.0]);
+        assert_eq!(t.data.targets[0], [-3.0, -2.0, 65.0]);
+        assert_eq!(t.data.row(1), &[5.0, 4.0, 2.0, 1.0]);
+        assert_eq!(t.data.targets[1], [3.0, 6.0, 85.0]);
+        assert_eq!(t.lines, vec![2, 5]);
+        assert_eq!(t.at(1), "d.csv:5");
+    }
+
+    #[test]
+    fn joint_columns_make_a_nine_input_set() {
+        let h = "u_l,v_l,u_r,v_r,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan\n";
+        let t = read(&format!("{h}1,2,3,4,5,6,7,8,9\n"), Inputs::Auto, false).unwrap();
+        assert_eq!(t.data.n_inputs, 9);
+        assert_eq!(t.data.row(0)[8], 9.0);
+        let t = read(&format!("{h}1,2,3,4,5,6,7,8,9\n"), Inputs::Stereo, false).unwrap();
+        assert_eq!(t.data.n_inputs, 4);
+        let e = format!(
+            "{:#}",
+            read("u_l,v_l,u_r,v_r,neck_pan\n1,2,3,4,5\n", Inputs::Auto, false).unwrap_err()
+        );
+        assert!(e.contains("missing column \"neck_tilt\""), "{e}");
+        let e = format!(
+            "{:#}",
+            read("u_l,v_l,u_r,v_r\n1,2,3,4\n", Inputs::StereoJoints, false).unwrap_err()
+        );
+        assert!(e.contains("missing column \"neck_pan\""), "{e}");
+    }
+
+    #[test]
+    fn every_bad_input_names_file_line_and_column() {
+        let h = "u_l,v_l,u_r,v_r,x,y,z\n";
+        let ok = "1,2,3,4,5,6,7\n";
+        assert_eq!(
+            err(&format!("{h}{ok}{ok}1,2,3,abc,5,6,7\n"), true),
+            "d.csv:4: column \"v_r\": \"abc\" is not a number"
+        );
+        // Line numbers stay right after blank lines, CRLF endings and quoted fields.
+        assert_eq!(
+            err(
+                &format!(
+                    "{}\r\n\r\n{}\r\n\"1\",2,3,4,5,6,7\r\n\r\n1,2,3,4,5,x,7\r\n",
+                    h.trim(),
+                    ok.trim()
+                ),
+                true
+            ),
+            "d.csv:6: column \"y\": \"x\" is not a number"
+        );
+        assert_eq!(
+            err(&format!("{h}{ok}1,NaN,3,4,5,6,7\n"), true),
+            "d.csv:3: column \"v_l\": \"NaN\" is not a finite number"
+        );
+        assert_eq!(
+            err(&format!("{h}1,2,3,4,5,6,-inf\n"), true),
+            "d.csv:2: column \"z\": \"-inf\" is not a finite number"
+        );
+        assert_eq!(
+            err(&format!("{h}1,2,3,4,5,6,1e999\n"), true),
+            "d.csv:2: column \"z\": \"1e999\" is not a finite number"
+        );
+        assert_eq!(
+            err(&format!("{h}{ok}1,2,3,4,5,6\n"), true),
+            "d.csv:3: row has 6 fields, the header has 7"
+        );
+        assert_eq!(
+            err(&format!("{h}1,2,,4,5,6,7\n"), true),
+            "d.csv:2: column \"u_r\" is empty"
+        );
+        assert_eq!(
+            err("u_l,v_l,u_r,x,y,z\n1,2,3,5,6,7\n", true),
+            "d.csv:1: missing column \"v_r\" (the header has: u_l,v_l,u_r,x,y,z)"
+        );
+        assert_eq!(
+            err("u_l,v_l,u_r,v_r\n1,2,3,4\n", true),
+            "d.csv:1: missing column \"x\" (the header has: u_l,v_l,u_r,v_r)"
+        );
+        assert!(err("", false).starts_with("d.csv: empty file"));
+        assert!(err("\n\n", false).starts_with("d.csv: empty file"));
+        assert_eq!(err(h, true), "d.csv: no data rows after the header");
+        assert_eq!(
+            err("u_l,v_l,u_r,v_r,u_l\n1,2,3,4,5\n", false),
+            "d.csv:1: column \"u_l\" appears twice in the header"
+        );
+        // Ground truth is not needed for inputs-only reads, so a bad `z` does not matter there.
+        assert!(read(&format!("{h}1,2,3,4,5,6,oops\n"), Inputs::Stereo, false).is_ok());
+        assert_eq!(
+            err("\n\nu_l,v_l,u_r\n1,2,3\n", false),
+            "d.csv:3: missing column \"v_r\" (the header has: u_l,v_l,u_r)"
+        );
+    }
+
+    #[test]
+    fn atomic_write_leaves_nothing_on_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("out.csv");
+        std::fs::write(&p, "old").unwrap();
+        let r = write_atomically(&p, |w| {
+            w.write_all(b"half")?;
+            bail!("boom")
+        });
+        assert!(r.is_err());
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        write_atomically(&p, |w| Ok(w.write_all(b"new")?)).unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+}

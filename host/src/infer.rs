@@ -1,0 +1,264 @@
+//! Batch inference of a weights blob over many points, bit-identical to
+//! `hvs_shared::blob::ModelBlob::infer` (the head's computation).
+//!
+//! Common topologies (4 or 9 inputs, 1-10 hidden units, 1 or 3 outputs) run through the
+//! fixed-size `hvs_shared::mlp::Mlp<I, H, O>`, whose loops the compiler unrolls; anything
+//! else through the runtime-sized `infer_flat`. Both give the same bits (a property test in
+//! `hvs-shared`). Large batches are split into chunks run in parallel with `rayon`; the
+//! result does not depend on the thread count.
+
+use hvs_shared::blob::ModelBlob;
+use hvs_shared::mlp::{Mlp, MlpError};
+use rayon::prelude::*;
+
+/// Points per parallel chunk.
+const CHUNK: usize = 16 * 1024;
+
+/// A failed point: its index and why.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PointError {
+    /// Index of the point (row) in the batch.
+    pub index: usize,
+    /// The reason.
+    pub error: MlpError,
+}
+
+/// A batch kernel: inputs, outputs -> the first failing row and why.
+type BatchFn = dyn Fn(&[f32], &mut [f32]) -> Result<(), (usize, MlpError)> + Send + Sync;
+
+enum Kernel {
+    Flat,
+    Fixed(Box<BatchFn>),
+}
+
+/// A model ready to run on batches of points.
+pub struct Predictor<'a> {
+    blob: &'a ModelBlob,
+    kernel: Kernel,
+}
+
+fn fixed<const I: usize, const H: usize, const O: usize>(blob: &ModelBlob) -> Option<Kernel> {
+    let m: Mlp<I, H, O> = blob.to_mlp().ok()?;
+    Some(Kernel::Fixed(Box::new(
+        move |x: &[f32], out: &mut [f32]| {
+            for (r, (xi, oi)) in x.chunks_exact(I).zip(out.chunks_exact_mut(O)).enumerate() {
+                let xa: &[f32; I] = xi.try_into().map_err(|_| (r, MlpError::Shape))?;
+                let y = m.infer(xa).map_err(|e| (r, e))?;
+                oi.copy_from_slice(&y);
+            }
+            Ok(())
+        },
+    )))
+}
+
+macro_rules! dispatch_h {
+    ($blob:expr, $i:expr, $h:expr, $o:expr; $I:literal, $O:literal; $($H:literal)*) => {{
+        let mut k = None;
+        $( if $i == $I && $h == $H && $o == $O { k = fixed::<$I, $H, $O>($blob); } )*
+        k
+    }};
+}
+
+/// The fixed-size kernel for `I-H-O` nets with `I` in {4, 9}, `H` in 1..=10, `O` in {1, 3}.
+fn fixed_kernel(blob: &ModelBlob) -> Option<Kernel> {
+    let (i, h, o) = (
+        blob.n_inputs(),
+        blob.topology.hidden as usize,
+        blob.n_outputs(),
+    );
+    match (i, o) {
+        (4, 3) => dispatch_h!(blob, i, h, o; 4, 3; 1 2 3 4 5 6 7 8 9 10),
+        (4, 1) => dispatch_h!(blob, i, h, o; 4, 1; 1 2 3 4 5 6 7 8 9 10),
+        (9, 3) => dispatch_h!(blob, i, h, o; 9, 3; 1 2 3 4 5 6 7 8 9 10),
+        (9, 1) => dispatch_h!(blob, i, h, o; 9, 1; 1 2 3 4 5 6 7 8 9 10),
+        _ => None,
+    }
+}
+
+impl<'a> Predictor<'a> {
+    /// Prepares `blob` (already validated by `decode`).
+    pub fn new(blob: &'a ModelBlob) -> Self {
+        let kernel = fixed_kernel(blob).unwrap_or(Kernel::Flat);
+        Predictor { blob, kernel }
+    }
+
+    /// Whether the fixed-size fast path is used.
+    pub fn is_fixed(&self) -> bool {
+        matches!(self.kernel, Kernel::Fixed(_))
+    }
+
+    /// Inputs per point.
+    pub fn n_inputs(&self) -> usize {
+        self.blob.n_inputs()
+    }
+
+    /// Outputs per point.
+    pub fn n_outputs(&self) -> usize {
+        self.blob.n_outputs()
+    }
+
+    /// Runs `inputs` (row-major, `n_inputs` per point) into `out` (`n_outputs` per point) on
+    /// the current thread. Stops at the first failing point.
+    pub fn run_serial(&self, inputs: &[f32], out: &mut [f32]) -> Result<(), PointError> {
+        let (ni, no) = (self.n_inputs(), self.n_outputs());
+        if inputs.len() % ni != 0 || out.len() != inputs.len() / ni * no {
+            return Err(PointError {
+                index: 0,
+                error: MlpError::Shape,
+            });
+        }
+        match &self.kernel {
+            Kernel::Fixed(f) => {
+                f(inputs, out).map_err(|(index, error)| PointError { index, error })
+            }
+            Kernel::Flat => {
+                for (r, (xi, oi)) in inputs
+                    .chunks_exact(ni)
+                    .zip(out.chunks_exact_mut(no))
+                    .enumerate()
+                {
+                    self.blob
+                        .infer(xi, oi)
+                        .map_err(|error| PointError { index: r, error })?;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// As [`Predictor::run_serial`], in parallel chunks; the error reported is the one of the
+    /// first failing point.
+    pub fn run(&self, inputs: &[f32], out: &mut [f32]) -> Result<(), PointError> {
+        let (ni, no) = (self.n_inputs(), self.n_outputs());
+        if inputs.len() % ni != 0 || out.len() != inputs.len() / ni * no {
+            return Err(PointError {
+                index: 0,
+                error: MlpError::Shape,
+            });
+        }
+        let errors: Vec<PointError> = inputs
+            .par_chunks(CHUNK * ni)
+            .zip(out.par_chunks_mut(CHUNK * no))
+            .enumerate()
+            .filter_map(|(c, (x, o))| {
+                self.run_serial(x, o).err().map(|e| PointError {
+                    index: c * CHUNK + e.index,
+                    error: e.error,
+                })
+            })
+            .collect();
+        match errors.into_iter().min_by_key(|e| e.index) {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// Allocating form of [`Predictor::run`].
+    pub fn predict(&self, inputs: &[f32]) -> Result<Vec<f32>, PointError> {
+        let mut out = vec![0.0f32; inputs.len() / self.n_inputs().max(1) * self.n_outputs()];
+        self.run(inputs, &mut out)?;
+        Ok(out)
+    }
+}
+
+/// The inputs of a data set as the f32 the model sees; `Err((row, column))` names the first
+/// value outside the f32 range.
+pub fn to_f32(inputs: &[f64], n_inputs: usize) -> Result<Vec<f32>, (usize, usize)> {
+    let out: Vec<f32> = inputs.iter().map(|v| *v as f32).collect();
+    let n = n_inputs.max(1);
+    match out.iter().position(|v| !v.is_finite()) {
+        Some(k) => Err((k / n, k % n)),
+        None => Ok(out),
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use hvs_shared::blob::{Algorithm, InputKind, OutputKind, Topology, TrainingMeta};
+    use hvs_shared::mlp::{param_count, Activation};
+
+    /// A deterministic hand-made blob of any 4-input topology.
+    pub(crate) fn blob(hidden: u8, outputs: OutputKind, inputs: InputKind) -> ModelBlob {
+        fn v<const N: usize>(s: &[f32]) -> heapless::Vec<f32, N> {
+            heapless::Vec::from_slice(s).unwrap()
+        }
+        let (ni, no) = (inputs.len(), outputs.len());
+        let n = param_count(ni, hidden as usize, no);
+        let params = (0..n)
+            .map(|k| ((k as u32).wrapping_mul(2_654_435_761) % 2000) as f32 / 1000.0 - 1.0)
+            .collect::<Vec<_>>();
+        let inputs_off: Vec<f32> = (0..ni).map(|k| if k < 4 { 300.0 } else { 0.0 }).collect();
+        let inputs_scale: Vec<f32> = (0..ni).map(|k| if k < 4 { 0.02 } else { 0.1 }).collect();
+        ModelBlob {
+            generation: 1,
+            topology: Topology {
+                inputs,
+                hidden,
+                outputs,
+                output_activation: Activation::Linear,
+            },
+            in_offset: v(&inputs_off),
+            in_scale: v(&inputs_scale),
+            out_offset: v(&[0.0, 0.0, 115.0][3 - no..]),
+            out_scale: v(&[3.0, 2.0, 50.0][3 - no..]),
+            params: v(&params),
+            in_min: v(&vec![0.0; ni]),
+            in_max: v(&vec![640.0; ni]),
+            meta: TrainingMeta {
+                seed: 0,
+                train_hash: 0,
+                train_points: 72,
+                train_error_pct: 1.0,
+                algorithm: Algorithm::Other,
+                restarts: 1,
+            },
+            fallback: None,
+        }
+    }
+
+    #[test]
+    fn every_path_gives_the_bits_of_the_shared_inference() {
+        let cases = [
+            (5, OutputKind::Xyz, InputKind::Stereo, true),
+            (5, OutputKind::Z, InputKind::Stereo, true),
+            (7, OutputKind::Xyz, InputKind::StereoJoints, true),
+            (17, OutputKind::Xyz, InputKind::Stereo, false),
+        ];
+        for (h, o, i, fixed) in cases {
+            let b = blob(h, o, i);
+            let p = Predictor::new(&b);
+            assert_eq!(p.is_fixed(), fixed);
+            let ni = i.len();
+            let n = 40_000; // more than two chunks
+            let x: Vec<f32> = (0..n * ni)
+                .map(|k| 200.0 + ((k * 7919) % 24_000) as f32 / 100.0)
+                .collect();
+            let y = p.predict(&x).unwrap();
+            let mut serial = vec![0.0; y.len()];
+            p.run_serial(&x, &mut serial).unwrap();
+            for r in 0..n {
+                let mut want = [0.0f32; 3];
+                b.infer(&x[r * ni..(r + 1) * ni], &mut want[..o.len()])
+                    .unwrap();
+                for k in 0..o.len() {
+                    assert_eq!(y[r * o.len() + k].to_bits(), want[k].to_bits());
+                    assert_eq!(serial[r * o.len() + k].to_bits(), want[k].to_bits());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn first_failing_point_is_reported() {
+        let b = blob(5, OutputKind::Xyz, InputKind::Stereo);
+        let p = Predictor::new(&b);
+        let mut x = vec![320.0f32; 4 * 50_000];
+        x[4 * 45_000 + 2] = f32::NAN;
+        x[4 * 20_000 + 1] = f32::INFINITY;
+        let e = p.predict(&x).unwrap_err();
+        assert_eq!(e.index, 20_000);
+        assert_eq!(e.error, MlpError::NonFiniteInput);
+        assert_eq!(to_f32(&[1.0, 2.0, 4.0, 1e300], 2), Err((1, 1)));
+    }
+}

@@ -1,0 +1,277 @@
+//! Simulated point sets: the thesis' board protocol and random points of the training
+//! volume, projected through a rig with `hvs_shared::camera` (optionally with seeded Gaussian
+//! pixel noise before the rounding), and their CSV form.
+
+use anyhow::{bail, Result};
+use hvs_shared::camera::{Rig, StereoPixels, Vec3};
+use hvs_shared::presets;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use std::io::Write;
+
+/// Which set to produce.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SetKind {
+    /// The 12 board points at each training depth (65..165 cm, step 20): 72 points.
+    Train,
+    /// The two test points P1, P2 at each test depth (65..165 cm, step 10): 22 points.
+    Test,
+    /// Uniform random points in the box the training boards span.
+    Volume,
+}
+
+/// One simulated point: its pixels and its true position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// `[u_l, v_l, u_r, v_r]` (px).
+    pub px: StereoPixels,
+    /// `[x, y, z]` (cm).
+    pub xyz: Vec3,
+}
+
+/// Options of a simulation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimOptions {
+    /// Points of a volume set.
+    pub points: usize,
+    /// Standard deviation of the Gaussian pixel noise added before rounding (px); 0 = none.
+    pub noise_px: f64,
+    /// Seed of every random draw.
+    pub seed: u64,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            points: 500,
+            noise_px: 0.0,
+            seed: 0,
+        }
+    }
+}
+
+/// The box spanned by the training boards: `(min, max)` of X, Y, Z in cm.
+pub fn training_volume() -> (Vec3, Vec3) {
+    let (x, y, z) = (
+        &presets::TRAIN_BOARD_X,
+        &presets::TRAIN_BOARD_Y,
+        &presets::TRAIN_DEPTHS,
+    );
+    let lo = |s: &[f64]| s.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = |s: &[f64]| s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    ([lo(x), lo(y), lo(z)], [hi(x), hi(y), hi(z)])
+}
+
+/// The true positions of a board set, in the order of the thesis' data files.
+pub fn board_points(kind: SetKind) -> Vec<Vec3> {
+    match kind {
+        SetKind::Train => presets::TRAIN_DEPTHS
+            .iter()
+            .flat_map(|&z| presets::board_points(z))
+            .collect(),
+        SetKind::Test => presets::TEST_DEPTHS
+            .iter()
+            .flat_map(|&z| presets::TEST_POINTS_XY.map(|[x, y]| [x, y, z]))
+            .collect(),
+        SetKind::Volume => Vec::new(),
+    }
+}
+
+/// Simulates a set through `rig`. Every random draw comes from one ChaCha8 stream seeded
+/// with `opt.seed`, so the same arguments give the same bytes.
+pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample>> {
+    if !(opt.noise_px.is_finite() && opt.noise_px >= 0.0) {
+        bail!(
+            "--noise-px must be a finite number >= 0, got {}",
+            opt.noise_px
+        );
+    }
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(opt.seed);
+    let noise = |rng: &mut rand::rngs::ChaCha8Rng| -> [f64; 4] {
+        if opt.noise_px == 0.0 {
+            return [0.0; 4];
+        }
+        core::array::from_fn(|_| {
+            let n: f64 = StandardNormal.sample(rng);
+            n * opt.noise_px
+        })
+    };
+    let project = |p: &Vec3, n: &[f64; 4]| {
+        if opt.noise_px == 0.0 {
+            rig.project_rounded(p)
+        } else {
+            rig.project_rounded_noisy(p, n)
+        }
+    };
+    match kind {
+        SetKind::Train | SetKind::Test => {
+            let mut out = Vec::new();
+            for p in board_points(kind) {
+                let n = noise(&mut rng);
+                let px = match project(&p, &n) {
+                    Ok(px) => px,
+                    Err(e) => bail!(
+                        "board point ({}, {}, {}) cm has no image: {e}",
+                        p[0],
+                        p[1],
+                        p[2]
+                    ),
+                };
+                if !rig.in_image(&px) {
+                    bail!(
+                        "board point ({}, {}, {}) cm falls outside the {}x{} image (u_l={}, v_l={}, u_r={}, v_r={})",
+                        p[0], p[1], p[2], rig.width, rig.height, px[0], px[1], px[2], px[3]
+                    );
+                }
+                out.push(Sample { px, xyz: p });
+            }
+            Ok(out)
+        }
+        SetKind::Volume => {
+            if opt.points == 0 {
+                bail!("--points must be at least 1");
+            }
+            let (lo, hi) = training_volume();
+            let max_tries = opt.points.saturating_mul(1000).max(10_000);
+            let mut out = Vec::with_capacity(opt.points);
+            let mut tries = 0usize;
+            while out.len() < opt.points {
+                if tries == max_tries {
+                    bail!(
+                        "only {} of {} random points fell inside both images after {tries} draws; the rig does not see the training volume",
+                        out.len(),
+                        opt.points
+                    );
+                }
+                tries += 1;
+                let p: Vec3 = core::array::from_fn(|k| {
+                    let u: f64 = rng.random();
+                    to_written_precision(lo[k] + (hi[k] - lo[k]) * u)
+                });
+                let n = noise(&mut rng);
+                if let Ok(px) = project(&p, &n) {
+                    if rig.in_image(&px) {
+                        out.push(Sample { px, xyz: p });
+                    }
+                }
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// Rounds a coordinate to the 1e-4 cm the CSV holds, so that the written ground truth is
+/// exactly the point that was projected (`k / 1e4` is the double nearest the decimal).
+fn to_written_precision(v: f64) -> f64 {
+    let k = (v * 1e4).round();
+    k / 1e4 + 0.0
+}
+
+/// Writes samples as CSV: header `u_l,v_l,u_r,v_r,x,y,z`, pixels as integers (they are
+/// rounded), positions with four decimals, as in the thesis' data files.
+pub fn write_csv(w: &mut dyn Write, samples: &[Sample]) -> std::io::Result<()> {
+    writeln!(w, "u_l,v_l,u_r,v_r,x,y,z")?;
+    for s in samples {
+        let [x, y, z] = s.xyz.map(|v| v + 0.0);
+        writeln!(
+            w,
+            "{},{},{},{},{x:.4},{y:.4},{z:.4}",
+            s.px[0], s.px[1], s.px[2], s.px[3]
+        )?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn protocol_sizes_and_volume_box() {
+        assert_eq!(board_points(SetKind::Train).len(), 72);
+        assert_eq!(board_points(SetKind::Test).len(), 22);
+        assert_eq!(training_volume(), ([-3.0, -2.0, 65.0], [3.0, 2.0, 165.0]));
+    }
+
+    #[test]
+    fn volume_is_seeded_inside_the_box_and_consistent() {
+        let rig = presets::CASE_4;
+        let opt = SimOptions {
+            points: 300,
+            ..Default::default()
+        };
+        let a = simulate(&rig, SetKind::Volume, &opt).unwrap();
+        assert_eq!(a, simulate(&rig, SetKind::Volume, &opt).unwrap());
+        let b = simulate(&rig, SetKind::Volume, &SimOptions { seed: 1, ..opt }).unwrap();
+        assert_ne!(a, b);
+        let (lo, hi) = training_volume();
+        for s in &a {
+            for k in 0..3 {
+                assert!(s.xyz[k] >= lo[k] && s.xyz[k] <= hi[k]);
+            }
+            // The written position is the projected one.
+            assert_eq!(rig.project_rounded(&s.xyz).unwrap(), s.px);
+            let text = format!("{:.4}", s.xyz[0]);
+            assert_eq!(text.parse::<f64>().unwrap(), s.xyz[0]);
+        }
+    }
+
+    #[test]
+    fn noise_moves_pixels_and_is_seeded() {
+        let rig = presets::CASE_1;
+        let clean = simulate(&rig, SetKind::Train, &SimOptions::default()).unwrap();
+        let opt = SimOptions {
+            noise_px: 1.0,
+            seed: 3,
+            ..Default::default()
+        };
+        let noisy = simulate(&rig, SetKind::Train, &opt).unwrap();
+        assert_eq!(noisy, simulate(&rig, SetKind::Train, &opt).unwrap());
+        let moved = clean
+            .iter()
+            .zip(&noisy)
+            .filter(|(a, b)| a.px != b.px)
+            .count();
+        // With sigma = 1 px almost every one of 72 points moves in at least one coordinate.
+        assert!(moved > 50, "{moved}");
+        let max_shift = clean
+            .iter()
+            .zip(&noisy)
+            .flat_map(|(a, b)| (0..4).map(move |k| (a.px[k] - b.px[k]).abs()))
+            .fold(0.0, f64::max);
+        assert!(max_shift <= 6.0, "{max_shift}");
+        assert!(simulate(
+            &rig,
+            SetKind::Train,
+            &SimOptions {
+                noise_px: -1.0,
+                ..opt
+            }
+        )
+        .is_err());
+    }
+
+    #[test]
+    fn a_rig_that_misses_the_board_is_an_error() {
+        let mut rig = presets::CASE_1;
+        rig.alpha_left = 1.2;
+        let e = simulate(&rig, SetKind::Train, &SimOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("falls outside"), "{e}");
+        let e = simulate(&rig, SetKind::Volume, &SimOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("does not see"), "{e}");
+    }
+
+    #[test]
+    fn csv_form() {
+        let s = [Sample {
+            px: [330.0, 231.0, 284.0, 231.0],
+            xyz: [-3.0, -0.0, 65.0],
+        }];
+        let mut out = Vec::new();
+        write_csv(&mut out, &s).unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "u_l,v_l,u_r,v_r,x,y,z\n330,231,284,231,-3.0000,0.0000,65.0000\n"
+        );
+    }
+}

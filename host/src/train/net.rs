@@ -1,0 +1,663 @@
+//! The f64 training-side view of the MLP of `hvs_shared::mlp`: same parameter layout, same
+//! shape (sigmoid hidden layer, linear or sigmoid outputs), in normalised units.
+//!
+//! A [`Problem`] holds the normalised inputs and targets and, per output value, the weight of
+//! its residual. The least-squares algorithms (LM, Adam) minimise
+//! `1/2 sum_nk (c_nk (y_nk - t_nk))^2`; back-propagation uses its own eq. 2.1-5.
+
+// Index loops mirror the equations (several arrays indexed by the same unit numbers).
+#![allow(clippy::needless_range_loop)]
+
+use hvs_shared::mlp::Activation;
+
+/// Sizes of an `ni-nh-no` net and the index of every parameter in the shared layout: for each
+/// hidden unit `j`, `w1[j][0..ni]` then `b1[j]`; then for each output `k`, `w2[k][0..nh]` then
+/// `b2[k]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Shape {
+    pub ni: usize,
+    pub nh: usize,
+    pub no: usize,
+}
+
+impl Shape {
+    /// Number of parameters.
+    pub(crate) fn n_params(&self) -> usize {
+        hvs_shared::mlp::param_count(self.ni, self.nh, self.no)
+    }
+    /// Index of `w1[j][i]` (`i == ni` is the bias `b1[j]`).
+    #[inline(always)]
+    pub(crate) fn w1(&self, j: usize, i: usize) -> usize {
+        j * (self.ni + 1) + i
+    }
+    /// Index of `w2[k][j]` (`j == nh` is the bias `b2[k]`).
+    #[inline(always)]
+    pub(crate) fn w2(&self, k: usize, j: usize) -> usize {
+        self.nh * (self.ni + 1) + k * (self.nh + 1) + j
+    }
+}
+
+/// A training problem in normalised units.
+#[derive(Debug, Clone)]
+pub(crate) struct Problem {
+    pub shape: Shape,
+    /// Output activation.
+    pub output: Activation,
+    /// Number of samples.
+    pub n: usize,
+    /// `n * ni` normalised inputs, row-major.
+    pub x: Vec<f64>,
+    /// `n * no` normalised targets, row-major.
+    pub t: Vec<f64>,
+    /// `n * no` residual weights.
+    pub c: Vec<f64>,
+}
+
+/// The logistic sigmoid in f64 (training only; inference uses the f32 one of `hvs_shared`).
+#[inline(always)]
+pub(crate) fn sigmoid(a: f64) -> f64 {
+    1.0 / (1.0 + libm::exp(-a))
+}
+
+/// Forward pass of one sample: hidden activations into `h`, outputs into `y`.
+#[inline]
+pub(crate) fn forward(
+    s: &Shape,
+    output: Activation,
+    p: &[f64],
+    x: &[f64],
+    h: &mut [f64],
+    y: &mut [f64],
+) {
+    for (j, hj) in h.iter_mut().enumerate().take(s.nh) {
+        let row = &p[s.w1(j, 0)..s.w1(j, 0) + s.ni + 1];
+        let mut a = row[s.ni];
+        for (w, xi) in row[..s.ni].iter().zip(x) {
+            a += w * xi;
+        }
+        *hj = sigmoid(a);
+    }
+    for (k, yk) in y.iter_mut().enumerate().take(s.no) {
+        let row = &p[s.w2(k, 0)..s.w2(k, 0) + s.nh + 1];
+        let mut a = row[s.nh];
+        for (w, hj) in row[..s.nh].iter().zip(h.iter()) {
+            a += w * hj;
+        }
+        *yk = match output {
+            Activation::Linear => a,
+            Activation::Sigmoid => sigmoid(a),
+        };
+    }
+}
+
+/// Hidden activations (`n x nh`) and outputs (`n x no`) of every sample at one parameter
+/// vector, row-major.
+#[derive(Debug, Clone)]
+pub(crate) struct Activations {
+    h: Vec<f64>,
+    y: Vec<f64>,
+}
+
+/// Scratch of [`Problem::normal_equations`] for one problem, allocated once per fit.
+#[derive(Debug, Clone)]
+pub(crate) struct NormalWorkspace {
+    /// Row `n` (`nx` values): the packed upper triangle of `x~ x~^T` (constant over a fit).
+    xpk: Vec<f64>,
+    /// `nu x nx`, row-major: the packed first-layer block `sum_n U_n (x) X_n`.
+    m: Vec<f64>,
+    /// `(no nh) x (ni1 nh1)`, row-major: the cross blocks.
+    cross: Vec<f64>,
+    /// Packed `sum_n g_k^2 h~ h~^T` per output.
+    w2w2: Vec<f64>,
+    /// Per sample: packed `U_n`, `g_k^2 u_k` stacked, `x~ (x) h~`.
+    upk: Vec<f64>,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    ht: Vec<f64>,
+    y: Vec<f64>,
+    gu: Vec<f64>,
+    rb: Vec<f64>,
+}
+
+impl NormalWorkspace {
+    /// Scratch for `prob`.
+    pub(crate) fn new(prob: &Problem) -> Self {
+        let s = &prob.shape;
+        let (ni1, nh1, n) = (s.ni + 1, s.nh + 1, prob.n);
+        let (nu, nx) = (s.nh * (s.nh + 1) / 2, ni1 * (ni1 + 1) / 2);
+        let mut xpk = Vec::with_capacity(n * nx);
+        for r in 0..n {
+            let x = &prob.x[r * s.ni..(r + 1) * s.ni];
+            let xt = |i: usize| if i < s.ni { x[i] } else { 1.0 };
+            for i in 0..ni1 {
+                for i2 in i..ni1 {
+                    xpk.push(xt(i) * xt(i2));
+                }
+            }
+        }
+        NormalWorkspace {
+            xpk,
+            m: vec![0.0; nu * nx],
+            cross: vec![0.0; s.no * s.nh * ni1 * nh1],
+            w2w2: vec![0.0; s.no * nh1 * (nh1 + 1) / 2],
+            upk: vec![0.0; nu],
+            a: vec![0.0; s.no * s.nh],
+            b: vec![0.0; ni1 * nh1],
+            ht: vec![0.0; nh1],
+            y: vec![0.0; s.no],
+            gu: vec![0.0; s.nh],
+            rb: vec![0.0; s.nh],
+        }
+    }
+}
+
+/// `dst += a * src`, element by element.
+#[inline(always)]
+fn axpy(dst: &mut [f64], a: f64, src: &[f64]) {
+    for (d, v) in dst.iter_mut().zip(src) {
+        *d += a * v;
+    }
+}
+
+impl Problem {
+    /// Number of residuals.
+    pub(crate) fn n_res(&self) -> usize {
+        self.n * self.shape.no
+    }
+
+    /// Weighted residuals `c (y - t)` into `r` (length `n * no`); returns half their squared sum.
+    pub(crate) fn residuals(&self, p: &[f64], r: &mut [f64]) -> f64 {
+        let s = &self.shape;
+        let mut h = vec![0.0; s.nh];
+        let mut y = vec![0.0; s.no];
+        let mut cost = 0.0;
+        for n in 0..self.n {
+            forward(
+                s,
+                self.output,
+                p,
+                &self.x[n * s.ni..(n + 1) * s.ni],
+                &mut h,
+                &mut y,
+            );
+            for k in 0..s.no {
+                let idx = n * s.no + k;
+                let v = self.c[idx] * (y[k] - self.t[idx]);
+                r[idx] = v;
+                cost += v * v;
+            }
+        }
+        0.5 * cost
+    }
+
+    /// Zeroed storage for the forward pass of every sample.
+    pub(crate) fn activations(&self) -> Activations {
+        Activations {
+            h: vec![0.0; self.n * self.shape.nh],
+            y: vec![0.0; self.n * self.shape.no],
+        }
+    }
+
+    /// Forward pass of every sample at `p` into `act`; returns the cost `1/2 sum r^2`.
+    pub(crate) fn evaluate(&self, p: &[f64], act: &mut Activations) -> f64 {
+        let s = &self.shape;
+        let mut cost = 0.0;
+        for ((n, h), y) in act
+            .h
+            .chunks_exact_mut(s.nh)
+            .enumerate()
+            .zip(act.y.chunks_exact_mut(s.no))
+        {
+            forward(s, self.output, p, &self.x[n * s.ni..(n + 1) * s.ni], h, y);
+            for k in 0..s.no {
+                let idx = n * s.no + k;
+                let v = self.c[idx] * (y[k] - self.t[idx]);
+                cost += v * v;
+            }
+        }
+        0.5 * cost
+    }
+
+    /// Half the weighted squared error at `p`.
+    pub(crate) fn cost(&self, p: &[f64]) -> f64 {
+        let mut r = vec![0.0; self.n_res()];
+        self.residuals(p, &mut r)
+    }
+
+    #[cfg(test)]
+    /// Residuals into `r` and their Jacobian into `jac`, column-major `n_res x n_params`
+    /// (`jac[q * n_res + row]` is `d r_row / d p_q`, row `n * no + k`). Returns the cost.
+    /// `jac` must be zero wherever an output does not depend on a parameter (the entries for
+    /// the other outputs' `w2`); this function only writes the structurally non-zero entries,
+    /// so callers zero it once.
+    pub(crate) fn jacobian(&self, p: &[f64], r: &mut [f64], jac: &mut [f64]) -> f64 {
+        let s = &self.shape;
+        let nr = self.n_res();
+        let mut h = vec![0.0; s.nh];
+        let mut dh = vec![0.0; s.nh];
+        let mut y = vec![0.0; s.no];
+        let mut cost = 0.0;
+        for n in 0..self.n {
+            let x = &self.x[n * s.ni..(n + 1) * s.ni];
+            forward(s, self.output, p, x, &mut h, &mut y);
+            for j in 0..s.nh {
+                dh[j] = h[j] * (1.0 - h[j]);
+            }
+            for k in 0..s.no {
+                let row = n * s.no + k;
+                let c = self.c[row];
+                let v = c * (y[k] - self.t[row]);
+                r[row] = v;
+                cost += v * v;
+                // d r / d a2 (pre-activation of output k).
+                let g = match self.output {
+                    Activation::Linear => c,
+                    Activation::Sigmoid => c * y[k] * (1.0 - y[k]),
+                };
+                for j in 0..s.nh {
+                    jac[s.w2(k, j) * nr + row] = g * h[j];
+                }
+                jac[s.w2(k, s.nh) * nr + row] = g;
+                for j in 0..s.nh {
+                    let gj = g * p[s.w2(k, j)] * dh[j];
+                    for (i, xi) in x.iter().enumerate() {
+                        jac[s.w1(j, i) * nr + row] = gj * xi;
+                    }
+                    jac[s.w1(j, s.ni) * nr + row] = gj;
+                }
+            }
+        }
+        0.5 * cost
+    }
+
+    /// The Gauss-Newton normal equations without forming the Jacobian: `jtj = J^T J` (full,
+    /// row-major `np x np`) and `jtr = J^T r`; returns the cost `1/2 sum r^2`. `act` must hold
+    /// the forward pass at `p` ([`Problem::evaluate`]), `ws` come from
+    /// [`NormalWorkspace::new`] on this problem.
+    ///
+    /// The Jacobian row of output `k` of sample `n` is `(g_k u_k) (x) x~` on the first layer
+    /// (`u_kj = w2_kj h_j (1 - h_j)`, `x~ = (x, 1)`, `g_k = d r / d a2_k`) and `g_k h~` on
+    /// output `k`'s second-layer weights (`h~ = (h, 1)`); other outputs' weights get zeros.
+    /// So, summing over samples:
+    /// - first-layer block: `sum_n U_n (x) X_n` with `U = sum_k g_k^2 u_k u_k^T`,
+    ///   `X = x~ x~^T`, accumulated over their packed upper triangles;
+    /// - cross block of output `k`: `sum_n (g_k^2 u_k) (x~ (x) h~)^T`;
+    /// - second-layer block of output `k`: `sum_n g_k^2 h~ h~^T`.
+    ///
+    /// This is about a third of the work of `J^T J` on the explicit Jacobian. Every sum runs
+    /// in a fixed order in plain f64 (no runtime-dispatched kernels), so the result is the
+    /// same on every machine.
+    pub(crate) fn normal_equations(
+        &self,
+        p: &[f64],
+        act: &Activations,
+        jtj: &mut [f64],
+        jtr: &mut [f64],
+        ws: &mut NormalWorkspace,
+    ) -> f64 {
+        let s = &self.shape;
+        let (ni1, nh1, np) = (s.ni + 1, s.nh + 1, s.n_params());
+        let nx = ni1 * (ni1 + 1) / 2;
+        let nw2 = nh1 * (nh1 + 1) / 2;
+        let nb = ni1 * nh1;
+        let NormalWorkspace {
+            xpk,
+            m,
+            cross,
+            w2w2,
+            upk,
+            a,
+            b,
+            ht,
+            y,
+            gu,
+            rb,
+        } = ws;
+        m.iter_mut().for_each(|v| *v = 0.0);
+        cross.iter_mut().for_each(|v| *v = 0.0);
+        w2w2.iter_mut().for_each(|v| *v = 0.0);
+        jtr.iter_mut().for_each(|v| *v = 0.0);
+        ht[s.nh] = 1.0;
+        let mut cost = 0.0;
+        for n in 0..self.n {
+            let x = &self.x[n * s.ni..(n + 1) * s.ni];
+            ht[..s.nh].copy_from_slice(&act.h[n * s.nh..(n + 1) * s.nh]);
+            y.copy_from_slice(&act.y[n * s.no..(n + 1) * s.no]);
+            // x~ (x) h~.
+            for i in 0..ni1 {
+                let xi = if i < s.ni { x[i] } else { 1.0 };
+                for j2 in 0..nh1 {
+                    b[i * nh1 + j2] = xi * ht[j2];
+                }
+            }
+            upk.iter_mut().for_each(|v| *v = 0.0);
+            rb.iter_mut().for_each(|v| *v = 0.0);
+            for k in 0..s.no {
+                let row = n * s.no + k;
+                let c = self.c[row];
+                let rk = c * (y[k] - self.t[row]);
+                cost += rk * rk;
+                let g = match self.output {
+                    Activation::Linear => c,
+                    Activation::Sigmoid => c * y[k] * (1.0 - y[k]),
+                };
+                let base = s.w2(k, 0);
+                for j in 0..s.nh {
+                    gu[j] = g * p[base + j] * ht[j] * (1.0 - ht[j]);
+                    a[k * s.nh + j] = g * gu[j];
+                    rb[j] += rk * gu[j];
+                }
+                let mut q = 0;
+                for j in 0..s.nh {
+                    for j2 in j..s.nh {
+                        upk[q] += gu[j] * gu[j2];
+                        q += 1;
+                    }
+                }
+                // Second layer of output k: g h~.
+                let w2 = &mut w2w2[k * nw2..(k + 1) * nw2];
+                let mut q = 0;
+                for j2 in 0..nh1 {
+                    jtr[base + j2] += rk * g * ht[j2];
+                    let gg = g * g * ht[j2];
+                    for j3 in j2..nh1 {
+                        w2[q] += gg * ht[j3];
+                        q += 1;
+                    }
+                }
+            }
+            // First-layer gradient: sum_k r_k g_k u_kj x~_i.
+            for j in 0..s.nh {
+                let w = s.w1(j, 0);
+                for i in 0..s.ni {
+                    jtr[w + i] += rb[j] * x[i];
+                }
+                jtr[w + s.ni] += rb[j];
+            }
+            // Rank-one updates of the packed first-layer block and of the cross blocks.
+            let xn = &xpk[n * nx..(n + 1) * nx];
+            for (row, u) in m.chunks_exact_mut(nx).zip(upk.iter()) {
+                axpy(row, *u, xn);
+            }
+            for (row, av) in cross.chunks_exact_mut(nb).zip(a.iter()) {
+                axpy(row, *av, b);
+            }
+        }
+
+        // Expand into the full matrix.
+        let pack = |a: usize, b: usize, dim: usize| {
+            let (a, b) = if a <= b { (a, b) } else { (b, a) };
+            a * dim - a * (a + 1) / 2 + b
+        };
+        for j in 0..s.nh {
+            for j2 in 0..s.nh {
+                let u = pack(j, j2, s.nh);
+                for i in 0..ni1 {
+                    for i2 in 0..ni1 {
+                        jtj[s.w1(j, i) * np + s.w1(j2, i2)] = m[u * nx + pack(i, i2, ni1)];
+                    }
+                }
+            }
+        }
+        for k in 0..s.no {
+            let base = s.w2(k, 0);
+            for k2 in 0..s.no {
+                let b2 = s.w2(k2, 0);
+                for j2 in 0..nh1 {
+                    for j3 in 0..nh1 {
+                        jtj[(base + j2) * np + b2 + j3] = if k2 == k {
+                            w2w2[k * nw2 + pack(j2, j3, nh1)]
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+            }
+            for j in 0..s.nh {
+                for i in 0..ni1 {
+                    for j2 in 0..nh1 {
+                        let v = cross[(k * s.nh + j) * nb + i * nh1 + j2];
+                        jtj[s.w1(j, i) * np + base + j2] = v;
+                        jtj[(base + j2) * np + s.w1(j, i)] = v;
+                    }
+                }
+            }
+        }
+        0.5 * cost
+    }
+
+    /// Gradient of the cost into `grad` by back-propagation; returns the cost.
+    pub(crate) fn gradient(&self, p: &[f64], grad: &mut [f64]) -> f64 {
+        let s = &self.shape;
+        let mut h = vec![0.0; s.nh];
+        let mut y = vec![0.0; s.no];
+        let mut dhid = vec![0.0; s.nh];
+        grad.iter_mut().for_each(|g| *g = 0.0);
+        let mut cost = 0.0;
+        for n in 0..self.n {
+            let x = &self.x[n * s.ni..(n + 1) * s.ni];
+            forward(s, self.output, p, x, &mut h, &mut y);
+            dhid.iter_mut().for_each(|d| *d = 0.0);
+            for k in 0..s.no {
+                let row = n * s.no + k;
+                let c = self.c[row];
+                let v = c * (y[k] - self.t[row]);
+                cost += v * v;
+                let g = v * match self.output {
+                    Activation::Linear => c,
+                    Activation::Sigmoid => c * y[k] * (1.0 - y[k]),
+                };
+                for j in 0..s.nh {
+                    grad[s.w2(k, j)] += g * h[j];
+                    dhid[j] += g * p[s.w2(k, j)];
+                }
+                grad[s.w2(k, s.nh)] += g;
+            }
+            for j in 0..s.nh {
+                let gj = dhid[j] * h[j] * (1.0 - h[j]);
+                for (i, xi) in x.iter().enumerate() {
+                    grad[s.w1(j, i)] += gj * xi;
+                }
+                grad[s.w1(j, s.ni)] += gj;
+            }
+        }
+        0.5 * cost
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::train::rng::SplitMix64;
+
+    /// A random problem of the given shape with smooth targets.
+    pub(crate) fn random_problem(shape: Shape, output: Activation, n: usize, seed: u64) -> Problem {
+        let mut g = SplitMix64::new(seed);
+        let x: Vec<f64> = (0..n * shape.ni).map(|_| g.uniform(-1.0, 1.0)).collect();
+        let mut t = Vec::new();
+        for row in x.chunks(shape.ni) {
+            for k in 0..shape.no {
+                let v: f64 = row
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| v * (i + k + 1) as f64)
+                    .sum();
+                t.push(match output {
+                    Activation::Linear => (0.7 * v).sin(),
+                    Activation::Sigmoid => 0.5 + 0.4 * (0.7 * v).sin(),
+                });
+            }
+        }
+        let c = (0..n * shape.no).map(|_| g.uniform(0.5, 2.0)).collect();
+        Problem {
+            shape,
+            output,
+            n,
+            x,
+            t,
+            c,
+        }
+    }
+
+    pub(crate) fn random_params(shape: &Shape, seed: u64) -> Vec<f64> {
+        let mut g = SplitMix64::new(seed);
+        (0..shape.n_params())
+            .map(|_| g.uniform(-1.5, 1.5))
+            .collect()
+    }
+
+    #[test]
+    fn layout_matches_shared_mlp() {
+        // A 2-2-1 net built through hvs_shared from the same flat parameters gives the same
+        // outputs as this module's forward pass (to f32 precision).
+        let shape = Shape {
+            ni: 2,
+            nh: 2,
+            no: 1,
+        };
+        let p = [0.3, -0.7, 0.1, 1.2, 0.4, -0.5, 0.8, -1.1, 0.25];
+        let pf: Vec<f32> = p.iter().map(|v| *v as f32).collect();
+        for act in [Activation::Linear, Activation::Sigmoid] {
+            let m = hvs_shared::mlp::Mlp::<2, 2, 1>::from_params(
+                &pf,
+                act,
+                [0.0; 2],
+                [1.0; 2],
+                [0.0],
+                [1.0],
+            )
+            .unwrap();
+            let x = [0.6, -0.2];
+            let (mut h, mut y) = ([0.0; 2], [0.0; 1]);
+            forward(&shape, act, &p, &x, &mut h, &mut y);
+            let yf = m.infer(&[0.6, -0.2]).unwrap()[0] as f64;
+            assert!((y[0] - yf).abs() < 1e-6, "{act:?}: {} vs {yf}", y[0]);
+            // And by hand for the linear case.
+            if act == Activation::Linear {
+                let h0 = sigmoid(0.1 + 0.3 * 0.6 - 0.7 * -0.2);
+                let h1 = sigmoid(-0.5 + 1.2 * 0.6 + 0.4 * -0.2);
+                assert!((y[0] - (0.25 + 0.8 * h0 - 1.1 * h1)).abs() < 1e-15);
+            }
+        }
+    }
+
+    #[test]
+    fn structured_normal_equations_equal_the_explicit_ones() {
+        for (shape, act) in [
+            (
+                Shape {
+                    ni: 4,
+                    nh: 5,
+                    no: 3,
+                },
+                Activation::Linear,
+            ),
+            (
+                Shape {
+                    ni: 9,
+                    nh: 3,
+                    no: 1,
+                },
+                Activation::Sigmoid,
+            ),
+            (
+                Shape {
+                    ni: 2,
+                    nh: 1,
+                    no: 2,
+                },
+                Activation::Linear,
+            ),
+        ] {
+            let prob = random_problem(shape, act, 13, 4);
+            let p = random_params(&shape, 8);
+            let (nr, np) = (prob.n_res(), shape.n_params());
+            let mut r = vec![0.0; nr];
+            let mut jac = vec![0.0; nr * np];
+            let cost = prob.jacobian(&p, &mut r, &mut jac);
+            let mut jtj = vec![f64::NAN; np * np];
+            let mut jtr = vec![f64::NAN; np];
+            let mut ws = NormalWorkspace::new(&prob);
+            let mut act = prob.activations();
+            assert!((cost - prob.evaluate(&p, &mut act)).abs() <= 1e-12 * cost);
+            // Twice, to check that the workspace is reset between calls.
+            for _ in 0..2 {
+                let c2 = prob.normal_equations(&p, &act, &mut jtj, &mut jtr, &mut ws);
+                assert!((cost - c2).abs() <= 1e-12 * cost);
+                for a in 0..np {
+                    let want: f64 = (0..nr).map(|row| jac[a * nr + row] * r[row]).sum();
+                    assert!((jtr[a] - want).abs() <= 1e-12 * (1.0 + want.abs()));
+                    for b in 0..np {
+                        let want: f64 = (0..nr)
+                            .map(|row| jac[a * nr + row] * jac[b * nr + row])
+                            .sum();
+                        let got = jtj[a * np + b];
+                        assert!(
+                            (got - want).abs() <= 1e-12 * (1.0 + want.abs()),
+                            "{shape:?} JtJ[{a}][{b}] = {got}, explicit {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn jacobian_and_gradient_match_finite_differences() {
+        for (shape, act) in [
+            (
+                Shape {
+                    ni: 4,
+                    nh: 5,
+                    no: 3,
+                },
+                Activation::Linear,
+            ),
+            (
+                Shape {
+                    ni: 3,
+                    nh: 4,
+                    no: 1,
+                },
+                Activation::Sigmoid,
+            ),
+        ] {
+            let prob = random_problem(shape, act, 9, 11);
+            let p = random_params(&shape, 5);
+            let (nr, np) = (prob.n_res(), shape.n_params());
+            let mut r = vec![0.0; nr];
+            let mut jac = vec![0.0; nr * np];
+            let cost = prob.jacobian(&p, &mut r, &mut jac);
+            assert!((cost - prob.cost(&p)).abs() < 1e-12);
+            let mut grad = vec![0.0; np];
+            let cost_g = prob.gradient(&p, &mut grad);
+            assert!((cost - cost_g).abs() < 1e-12);
+            let eps = 1e-6;
+            let (mut rp, mut rm) = (vec![0.0; nr], vec![0.0; nr]);
+            for q in 0..np {
+                let mut pp = p.clone();
+                pp[q] += eps;
+                let cp = prob.residuals(&pp, &mut rp);
+                pp[q] -= 2.0 * eps;
+                let cm = prob.residuals(&pp, &mut rm);
+                for row in 0..nr {
+                    let fd = (rp[row] - rm[row]) / (2.0 * eps);
+                    let an = jac[q * nr + row];
+                    assert!(
+                        (fd - an).abs() < 1e-7 * (1.0 + fd.abs()),
+                        "{act:?} d r{row} / d p{q}: analytic {an}, numeric {fd}"
+                    );
+                }
+                let fd = (cp - cm) / (2.0 * eps);
+                assert!(
+                    (fd - grad[q]).abs() < 1e-6 * (1.0 + fd.abs()),
+                    "{act:?} dE/dp{q}: analytic {}, numeric {fd}",
+                    grad[q]
+                );
+                // J^T r is the gradient too.
+                let jtr: f64 = (0..nr).map(|row| jac[q * nr + row] * r[row]).sum();
+                assert!((jtr - grad[q]).abs() < 1e-10 * (1.0 + jtr.abs()));
+            }
+        }
+    }
+}
