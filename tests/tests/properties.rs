@@ -78,7 +78,8 @@ enum Event {
     Garbage(Vec<u8>),
     /// The first `cut` bytes of a request frame, then `0x00`.
     Truncated(RequestBody, usize),
-    /// `len` non-zero bytes, longer than any frame, then `0x00`.
+    /// `len` non-zero bytes, more than the receive buffer holds (`MAX_FRAME_LEN` bytes before
+    /// the sentinel), then `0x00`.
     Oversize(usize),
     /// Control ticks.
     Ticks(u32),
@@ -89,7 +90,7 @@ fn any_event() -> impl Strategy<Value = Event> {
         4 => any_body().prop_map(Event::Request),
         1 => proptest::collection::vec(any::<u8>(), 0..200).prop_map(Event::Garbage),
         1 => (any_body(), 0usize..30).prop_map(|(b, c)| Event::Truncated(b, c)),
-        1 => (MAX_FRAME_LEN..700).prop_map(Event::Oversize),
+        1 => (MAX_FRAME_LEN + 1..700).prop_map(Event::Oversize),
         3 => (0u32..120).prop_map(Event::Ticks),
     ]
 }
