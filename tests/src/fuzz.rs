@@ -4,11 +4,14 @@
 //! corpus through the same functions in a normal `cargo test`. Each panics on a failure.
 
 use crate::sim::SimHead;
+use hvs_host::csv_io::{self, Inputs};
+use hvs_host::dataset::{JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
 use hvs_shared::blob::{self, HEADER_LEN, MAGIC, MAX_BLOB_LEN, VERSION};
 use hvs_shared::protocol::{
     self, FrameAccumulator, ProtocolError, Request, RequestBody, Response, StereoPoint,
     MAX_FRAME_LEN,
 };
+use std::path::Path;
 use std::sync::OnceLock;
 
 /// `blob_decode`: any bytes into the weights-blob decoder. It must return, never panic;
@@ -208,6 +211,104 @@ fn run_head_stream(data: &[u8]) -> Result<(), crate::sim::Violation> {
     head.still_answers(u32::MAX)
 }
 
+/// `csv_read`: any bytes as a CSV point file, read by the host's reader
+/// (`hvs_host::csv_io::read_set_from`) in four modes (pixels; pixels with targets; pixels,
+/// joints and targets; auto-detected joints). It must return, never panic. An error names the
+/// file first (`fuzz.csv`), and a line number in it lies within the input. A table it returns
+/// has at least one row, the promised columns (4 or 9 inputs; targets iff asked), only finite
+/// numbers, one line number per row, increasing, on non-blank lines of the input; written back
+/// as plain CSV and read again it gives the same numbers, bit for bit.
+pub fn csv_read(data: &[u8]) {
+    let name = Path::new("fuzz.csv");
+    let n_lines = data.iter().filter(|&&b| b == b'\n').count() as u64 + 1;
+    let text_lines: Vec<&[u8]> = data.split(|&b| b == b'\n').collect();
+    for (inputs, targets) in [
+        (Inputs::Stereo, false),
+        (Inputs::Stereo, true),
+        (Inputs::StereoJoints, true),
+        (Inputs::Auto, false),
+    ] {
+        let t = match csv_io::read_set_from(name, data, inputs, targets) {
+            Ok(t) => t,
+            Err(e) => {
+                let msg = format!("{e:#}");
+                let rest = msg
+                    .strip_prefix("fuzz.csv")
+                    .unwrap_or_else(|| panic!("error does not name the file: {msg}"));
+                if let Some(after) = rest.strip_prefix(':') {
+                    let digits: String = after.chars().take_while(char::is_ascii_digit).collect();
+                    if let Ok(line) = digits.parse::<u64>() {
+                        assert!(
+                            (1..=n_lines).contains(&line),
+                            "line {line} of {n_lines} in: {msg}"
+                        );
+                    }
+                }
+                continue;
+            }
+        };
+        let d = &t.data;
+        assert!(!d.is_empty(), "{inputs:?}: a table without rows");
+        let n = d.len();
+        match inputs {
+            Inputs::Stereo => assert_eq!(d.n_inputs, 4),
+            Inputs::StereoJoints => assert_eq!(d.n_inputs, 9),
+            Inputs::Auto => assert!(d.n_inputs == 4 || d.n_inputs == 9),
+        }
+        assert_eq!(d.inputs.len(), n * d.n_inputs);
+        assert_eq!(d.has_targets(), targets);
+        assert!(targets || d.targets.is_empty());
+        assert!(d.inputs.iter().all(|v| v.is_finite()));
+        assert!(d.targets.iter().flatten().all(|v| v.is_finite()));
+        assert_eq!(t.lines.len(), n);
+        for (i, w) in t.lines.windows(2).enumerate() {
+            assert!(
+                w[0] < w[1],
+                "rows {i} and {} on lines {} and {}",
+                i + 1,
+                w[0],
+                w[1]
+            );
+        }
+        for &l in &t.lines {
+            assert!((2..=n_lines).contains(&l), "row on line {l} of {n_lines}");
+            let text = text_lines[(l - 1) as usize];
+            assert!(
+                text.iter().any(|b| !b.is_ascii_whitespace()),
+                "row on blank line {l}"
+            );
+            assert!(t.at(0).starts_with("fuzz.csv:"));
+        }
+        // Round trip through plain CSV.
+        let mut cols: Vec<&str> = PIXEL_COLUMNS.to_vec();
+        if d.n_inputs == 9 {
+            cols.extend(JOINT_COLUMNS);
+        }
+        if targets {
+            cols.extend(TARGET_COLUMNS);
+        }
+        let mut out = cols.join(",");
+        out.push('\n');
+        for i in 0..n {
+            let mut row: Vec<String> = d.row(i).iter().map(|v| format!("{v:?}")).collect();
+            if targets {
+                row.extend(d.targets[i].iter().map(|v| format!("{v:?}")));
+            }
+            out.push_str(&row.join(","));
+            out.push('\n');
+        }
+        let again = csv_io::read_set_from(name, out.as_bytes(), inputs, targets)
+            .unwrap_or_else(|e| panic!("{inputs:?}: own output unreadable: {e:#}\n{out}"));
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&again.data.inputs), bits(&d.inputs), "{inputs:?}");
+        assert_eq!(
+            bits(&again.data.targets.concat()),
+            bits(&d.targets.concat()),
+            "{inputs:?}"
+        );
+    }
+}
+
 fn frame(req: &Request) -> Vec<u8> {
     let mut buf = [0u8; MAX_FRAME_LEN];
     protocol::encode_request(req, &mut buf)
@@ -303,5 +404,27 @@ pub fn seeds() -> Vec<Seed> {
         }
     }
     out.push(("head_stream", "network_structured", structured));
+
+    // csv_read: a pixel set with targets, a posture-aware set, and one with quirks the reader
+    // accepts (CRLF, spaces, blank lines, extra and reordered columns).
+    out.push((
+        "csv_read",
+        "pixels_targets",
+        b"u_l,v_l,u_r,v_r,x,y,z\n343.5,240,297.25,240,0,0,110\n330,231.5,310,249,-3.5,2,65\n"
+            .to_vec(),
+    ));
+    out.push((
+        "csv_read",
+        "joints",
+        b"u_l,v_l,u_r,v_r,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan,x,y,z\n\
+          340,236,300,236,1.5,-2,0,3.25,4,1,2,100\n"
+            .to_vec(),
+    ));
+    out.push((
+        "csv_read",
+        "quirks",
+        b"z , note, v_r,u_r ,v_l,u_l,y,x\r\n\r\n 110,a,240,297,240,343,0,0\r\n\n120,\"b,c\",241,296,241,344,1,1\r\n"
+            .to_vec(),
+    ));
     out
 }

@@ -2,8 +2,10 @@
 //! and every input kept in `tests/fuzz-regressions/<target>/` (crashes the fuzzer found,
 //! fixed since) goes through the same function the target runs.
 
+use hvs_host::csv_io::{self, Inputs};
 use hvs_shared::blob::{self, CRC_LEN, HEADER_LEN};
 use hvs_tests::{fuzz, workspace_root};
+use std::path::Path;
 
 fn kept(target: &str) -> Vec<(String, Vec<u8>)> {
     let dir = workspace_root()
@@ -52,6 +54,19 @@ fn frame_decode_inputs() {
 #[test]
 fn head_stream_inputs() {
     assert!(replay("head_stream", fuzz::head_stream) >= 4);
+}
+
+#[test]
+fn csv_read_inputs() {
+    assert!(replay("csv_read", fuzz::csv_read) >= 3);
+    // The seeds are files the reader accepts (so the checks on tables run).
+    for (t, name, bytes) in fuzz::seeds() {
+        if t == "csv_read" {
+            let r = csv_io::read_set_from(Path::new(name), bytes.as_slice(), Inputs::Auto, true);
+            let table = r.unwrap_or_else(|e| panic!("seed {name}: {e:#}"));
+            assert!(!table.data.is_empty());
+        }
+    }
 }
 
 /// Found by `blob_decode`: postcard accepts an overlong (non-canonical) varint, so one
