@@ -216,12 +216,13 @@ fn run_head_stream(data: &[u8]) -> Result<(), crate::sim::Violation> {
 /// joints and targets; auto-detected joints). It must return, never panic. An error names the
 /// file first (`fuzz.csv`), and a line number in it lies within the input. A table it returns
 /// has at least one row, the promised columns (4 or 9 inputs; targets iff asked), only finite
-/// numbers, one line number per row, increasing, on non-blank lines of the input; written back
-/// as plain CSV and read again it gives the same numbers, bit for bit.
+/// numbers, one line number per row, increasing, on non-blank lines of the input (lines end at
+/// `\n`, `\r\n` or a lone `\r`, as in the csv crate); written back as plain CSV and read again
+/// it gives the same numbers, bit for bit.
 pub fn csv_read(data: &[u8]) {
     let name = Path::new("fuzz.csv");
-    let n_lines = data.iter().filter(|&&b| b == b'\n').count() as u64 + 1;
-    let text_lines: Vec<&[u8]> = data.split(|&b| b == b'\n').collect();
+    let text_lines = lines_of(data);
+    let n_lines = text_lines.len() as u64;
     for (inputs, targets) in [
         (Inputs::Stereo, false),
         (Inputs::Stereo, true),
@@ -307,6 +308,33 @@ pub fn csv_read(data: &[u8]) {
             "{inputs:?}"
         );
     }
+}
+
+/// The lines of `data` as a text editor shows them: a line ends at `\n`, `\r\n` or a lone
+/// `\r` (the csv crate accepts all three as record terminators).
+fn lines_of(data: &[u8]) -> Vec<&[u8]> {
+    let mut out = Vec::new();
+    let mut start = 0;
+    let mut i = 0;
+    while i < data.len() {
+        match data[i] {
+            b'\n' => {
+                out.push(&data[start..i]);
+                start = i + 1;
+            }
+            b'\r' => {
+                out.push(&data[start..i]);
+                if data.get(i + 1) == Some(&b'\n') {
+                    i += 1;
+                }
+                start = i + 1;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    out.push(&data[start..]);
+    out
 }
 
 fn frame(req: &Request) -> Vec<u8> {
