@@ -25,10 +25,12 @@ fi
 if [ "$part" != --firmware ]; then
   target_dir=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')
   echo "== host benchmarks (criterion; full output in $target_dir/criterion)"
-  benches=(-p hvs-shared --bench inference)
-  # Host benches (batch predict, training, sweep) exist once hvs-host has a benches/ directory.
-  if [ -d host/benches ]; then benches+=(-p hvs-host); fi
-  cargo bench --locked "${benches[@]}" -- --noplot 2>&1 | grep -E '^[a-z_0-9]+/|time:|thrpt:' || true
+  filter() { grep -vE '^(Benchmarking|Found [0-9]+ outliers|  *[0-9]+ \([0-9.]+%\) (high|low)|$)|change:|No change|Performance has|Change within' || true; }
+  cargo bench --locked -p hvs-shared --bench inference -- --noplot 2>&1 | filter
+  # Host: batch predict (`hvs predict`'s path), training with the defaults, the hidden sweep.
+  host_benches=()
+  for f in host/benches/*.rs; do host_benches+=(--bench "$(basename "$f" .rs)"); done
+  cargo bench --locked -p hvs-host "${host_benches[@]}" -- --noplot 2>&1 | filter
   echo "== summary (criterion point estimates; points/s where the benchmark sets a throughput; *_cpu_time groups count thread CPU time)"
   python3 - "$target_dir/criterion" <<'PY'
 import json, os, sys
