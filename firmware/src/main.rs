@@ -31,8 +31,8 @@ use hvs_shared::gaze::{GazeConfig, Joints};
 use hvs_shared::head::{self, Head};
 use hvs_shared::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
 use hvs_shared::protocol::{
-    self, ErrorCode, FirmwareVersion, FrameAccumulator, ProtocolError, Request, RequestBody,
-    Response, ResponseBody, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
+    self, ErrorCode, FirmwareVersion, FrameAccumulator, Request, RequestBody, Response,
+    ResponseBody, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
 };
 use hvs_shared::servo::ServoOutput;
 use hvs_shared::trajectory::ControllerConfig;
@@ -164,15 +164,13 @@ fn main() -> ! {
         };
         let resp = match acc.push(byte) {
             None => continue,
-            Some(Err(_)) => head::frame_error(ErrorCode::Oversize),
-            Some(Ok(frame)) => match protocol::decode_request(frame) {
+            Some(frame) => match head::read_frame(frame) {
                 Ok(req) => {
                     let r = answer(&mut head, &req, tick_hz);
                     armed |= matches!(r.body, ResponseBody::Look(_) | ResponseBody::Home);
                     r
                 }
-                Err(ProtocolError::Oversize) => head::frame_error(ErrorCode::Oversize),
-                Err(_) => head::frame_error(ErrorCode::Malformed),
+                Err(error) => error,
             },
         };
         send(&mut tx, &mut out, &resp);

@@ -21,8 +21,9 @@ use crate::gaze::{self, Axis, GazeConfig, GazeError, Joints};
 use crate::layout::Slot;
 use crate::mlp::{self, Mlp, MlpError};
 use crate::protocol::{
-    ErrorCode, EstimateData, FirmwareVersion, InfoData, LookData, Mode, ModelInfo, Request,
-    RequestBody, Response, ResponseBody, SlotStatus, Source, StereoPoint, PROTOCOL_VERSION,
+    self, ErrorCode, EstimateData, FirmwareVersion, InfoData, LookData, Mode, ModelInfo,
+    ProtocolError, Request, RequestBody, Response, ResponseBody, SlotStatus, Source, StereoPoint,
+    PROTOCOL_VERSION,
 };
 use crate::slots::{self, SlotState};
 use crate::trajectory::{ConfigError, ControllerConfig, GazeController};
@@ -236,6 +237,21 @@ pub fn frame_error(code: ErrorCode) -> Response {
     Response {
         id: crate::protocol::UNSOLICITED_ID,
         body: ResponseBody::Error(code),
+    }
+}
+
+/// What the head does with one result of [`FrameAccumulator::push`]: the request in the frame,
+/// or the response to send at once (with [`UNSOLICITED_ID`](crate::protocol::UNSOLICITED_ID)):
+/// [`ErrorCode::Oversize`] for a frame longer than the accumulator's buffer,
+/// [`ErrorCode::Malformed`] for anything that is not exactly one request (bad COBS, unknown
+/// variant, truncated, trailing bytes).
+///
+/// [`FrameAccumulator::push`]: crate::protocol::FrameAccumulator::push
+pub fn read_frame(frame: Result<&mut [u8], ProtocolError>) -> Result<Request, Response> {
+    match frame.and_then(protocol::decode_request) {
+        Ok(req) => Ok(req),
+        Err(ProtocolError::Oversize) => Err(frame_error(ErrorCode::Oversize)),
+        Err(_) => Err(frame_error(ErrorCode::Malformed)),
     }
 }
 
@@ -783,6 +799,26 @@ mod tests {
         assert_eq!(e.body, ResponseBody::Estimate(h.boot.estimate(&P).unwrap()));
         let b = h.respond(&req(14, RequestBody::Bench { point: P, count: 1 }), V);
         assert_eq!(b.body, ResponseBody::Error(ErrorCode::Unsupported));
+    }
+
+    #[test]
+    fn read_frame_maps_frame_errors_to_unsolicited_replies() {
+        let malformed = Err(frame_error(ErrorCode::Malformed));
+        assert_eq!(
+            read_frame(Err(protocol::ProtocolError::Oversize)),
+            Err(frame_error(ErrorCode::Oversize))
+        );
+        assert_eq!(read_frame(Ok(&mut [0x03, 0x07])), malformed);
+        assert_eq!(read_frame(Ok(&mut [])), malformed);
+        let want = req(5, RequestBody::Look(P));
+        let mut buf = [0u8; protocol::MAX_FRAME_LEN];
+        let n = protocol::encode_request(&want, &mut buf).unwrap().len();
+        // As the accumulator hands it out: without the sentinel.
+        assert_eq!(read_frame(Ok(&mut buf[..n - 1])), Ok(want));
+        assert_eq!(
+            frame_error(ErrorCode::Malformed).id,
+            protocol::UNSOLICITED_ID
+        );
     }
 
     fn any_f32() -> impl proptest::strategy::Strategy<Value = f32> {

@@ -1,5 +1,10 @@
 //! `hvs-tests`: cross-crate tests of hvs-depth. The tests live in `tests/tests/`; this library
-//! only holds helpers they share, such as the location of the workspace root.
+//! only holds helpers they share: the location of the workspace root, a seeded sample model,
+//! [`sim::SimHead`] (the firmware loop on the host for the robustness tests and the fuzz
+//! targets) and the fuzz targets' checks ([`fuzz`]), replayed by the normal test suite.
+
+pub mod fuzz;
+pub mod sim;
 
 use hvs_shared::blob::{Algorithm, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta};
 use hvs_shared::mlp::{param_count, Activation};
@@ -91,4 +96,12 @@ pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
         },
         fallback: Some(Calibration::BUILT_IN),
     }
+}
+
+/// The bytes of `blob` as written into a weight slot (no trailing erased bytes).
+pub fn blob_bytes(blob: &ModelBlob) -> Vec<u8> {
+    let mut buf = vec![0u8; hvs_shared::blob::MAX_BLOB_LEN];
+    let n = blob.encode(&mut buf).expect("a valid blob encodes");
+    buf.truncate(n);
+    buf
 }

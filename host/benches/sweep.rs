@@ -1,0 +1,48 @@
+//! Criterion benchmark of the thesis' hidden-neuron sweep: 4-H-3 nets for H = 1..=10, ten
+//! restarts (nets) each, Levenberg-Marquardt with the default settings, on the case-IV board
+//! set (72 points), restarts in parallel on all cores as `hvs train` runs them:
+//! `cargo bench -p hvs-host --bench sweep`.
+
+use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
+use hvs_host::dataset::Dataset;
+use hvs_host::train::{train, TrainConfig};
+use hvs_shared::blob::InputKind;
+use hvs_shared::presets;
+use std::hint::black_box;
+use std::time::Duration;
+
+fn board_set() -> Dataset {
+    let rig = presets::CASE_4;
+    let mut d = Dataset::new(InputKind::Stereo);
+    for z in presets::TRAIN_DEPTHS {
+        for p in presets::board_points(z) {
+            d.push(&rig.project_rounded(&p).unwrap(), Some(p));
+        }
+    }
+    d
+}
+
+fn bench(c: &mut Criterion) {
+    let data = board_set();
+    let mut g = c.benchmark_group("sweep");
+    // One sweep takes a fraction of a second to seconds: ten samples of one sweep each.
+    g.sampling_mode(SamplingMode::Flat);
+    g.sample_size(10);
+    g.measurement_time(Duration::from_secs(10));
+    g.bench_function("hidden_1_to_10_x10_nets_case4_board72", |b| {
+        b.iter(|| {
+            for hidden in 1..=10 {
+                let cfg = TrainConfig {
+                    hidden,
+                    restarts: 10,
+                    ..TrainConfig::default()
+                };
+                black_box(train(black_box(&data), &cfg).unwrap());
+            }
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
