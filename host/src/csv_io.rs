@@ -213,9 +213,12 @@ impl<'a> LineCounter<'a> {
             start += 1;
         }
         if start > self.pos {
-            self.line += self.bytes[self.pos..start]
-                .iter()
-                .filter(|b| **b == b'\n')
+            // A line ends at "\n", "\r\n" or a lone "\r" (the csv crate accepts all three).
+            let bytes = self.bytes;
+            self.line += (self.pos..start)
+                .filter(|&i| {
+                    bytes[i] == b'\n' || (bytes[i] == b'\r' && bytes.get(i + 1) != Some(&b'\n'))
+                })
                 .count() as u64;
             self.pos = start;
         }

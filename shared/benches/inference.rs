@@ -16,10 +16,8 @@
 use cpu_time::ThreadTime;
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use hvs_shared::head::{Network, NET_HIDDEN, NET_INPUTS, NET_OUTPUTS};
-use hvs_shared::layout::Slot;
+use hvs_shared::head::{NET_HIDDEN, NET_INPUTS, NET_OUTPUTS};
 use hvs_shared::mlp::{infer_flat, param_count, Activation, FlatMlp, Mlp};
-use hvs_shared::protocol::ModelInfo;
 use hvs_shared::triangulate::{traditional_xyz, Calibration};
 use std::hint::black_box;
 use std::time::Duration;
@@ -85,25 +83,6 @@ fn inference(c: &mut Criterion) {
     let mut g = c.benchmark_group("one_point");
     g.throughput(Throughput::Elements(1));
     g.bench_function("mlp_4_5_3", |b| b.iter(|| m.infer(black_box(&x))));
-    let net = Network {
-        mlp: m,
-        in_min: [0.0; 4],
-        in_max: [640.0; 4],
-        slot: Slot::A,
-        generation: 1,
-        model: ModelInfo {
-            inputs: 4,
-            hidden: 5,
-            outputs: 3,
-            seed: 42,
-            train_hash: 0,
-            train_points: 0,
-            train_error_pct: 0.0,
-        },
-    };
-    g.bench_function("head_network_infer", |b| {
-        b.iter(|| net.infer(black_box(&x)))
-    });
     let flat = FlatMlp {
         hidden: 5,
         params: &p,
