@@ -40,7 +40,7 @@
 
 use crate::camera::{mat_vec, Camera, CameraError, Mat3, Rig, StereoPixels, Vec3};
 use crate::gaze::{Axis, Joints};
-use crate::triangulate::TriError;
+use crate::triangulate::{solve3, TriError};
 use serde::{Deserialize, Serialize};
 
 const DEG: f64 = core::f64::consts::PI / 180.0;
@@ -672,28 +672,6 @@ fn sub(a: Vec3, b: Vec3) -> Vec3 {
 
 fn dot(a: Vec3, b: Vec3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// Solves a 3x3 system by Cramer's rule.
-fn solve3(a: &[[f64; 3]; 3], b: &[f64; 3]) -> Option<[f64; 3]> {
-    let det = |m: &[[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    };
-    let d = det(a);
-    if !d.is_finite() || d.abs() <= 1e-300 {
-        return None;
-    }
-    let mut out = [0.0; 3];
-    for (k, o) in out.iter_mut().enumerate() {
-        let mut m = *a;
-        for r in 0..3 {
-            m[r][k] = b[r];
-        }
-        *o = det(&m) / d;
-    }
-    Some(out)
 }
 
 #[cfg(test)]

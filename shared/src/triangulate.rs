@@ -245,8 +245,8 @@ pub fn optimal(rig: &Rig, px: &[f64; 4]) -> Result<Vec3, TriError> {
     }
 }
 
-/// Solves a 3x3 system by Cramer's rule.
-fn solve3(a: &[[f64; 3]; 3], b: &[f64; 3]) -> Option<[f64; 3]> {
+/// Solves a 3x3 system by Cramer's rule (`None` when it is singular or not finite).
+pub(crate) fn solve3(a: &[[f64; 3]; 3], b: &[f64; 3]) -> Option<[f64; 3]> {
     let det = |m: &[[f64; 3]; 3]| {
         m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
             - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
