@@ -10,6 +10,7 @@ use crate::model;
 use anyhow::Result;
 use hvs_shared::triangulate::Calibration;
 use serde::Serialize;
+use std::io::Write;
 use std::path::PathBuf;
 
 /// Arguments of `hvs eval`.
@@ -79,6 +80,7 @@ pub fn run(a: Args) -> Result<()> {
         });
     }
     let ev = evaluate(&table.data, &methods);
+    let mut o = std::io::stdout().lock();
     if a.json {
         let r = Report {
             model: a.model.display().to_string(),
@@ -88,36 +90,44 @@ pub fn run(a: Args) -> Result<()> {
             floor_rig: floor.map(|_| a.floor.label()),
             evaluation: ev,
         };
-        println!("{}", serde_json::to_string_pretty(&r)?);
+        writeln!(o, "{}", serde_json::to_string_pretty(&r)?)?;
+        o.flush()?;
         return Ok(());
     }
-    println!(
+    writeln!(
+        o,
         "model {} ({}), data {} ({} points)",
         a.model.display(),
         model::shape(blob),
         a.data.display(),
         ev.points
-    );
+    )?;
     match &blob.fallback {
-        Some(c) => println!(
+        Some(c) => writeln!(
+            o,
             "traditional: eq. 3.1-17 with the model's fallback Phi = {} px, 2d = {} cm",
             c.phi,
             2.0 * c.half_baseline
         ),
-        None => println!("traditional: none (the model holds no fallback calibration)"),
-    }
+        None => writeln!(
+            o,
+            "traditional: none (the model holds no fallback calibration)"
+        ),
+    }?;
     if floor.is_some() {
-        println!(
+        writeln!(
+            o,
             "optimal: least-reprojection-error triangulation with the true rig ({})",
             a.floor.label()
-        );
+        )?;
     }
-    println!();
-    print!("{}", text_table(&ev));
+    writeln!(o)?;
+    write!(o, "{}", text_table(&ev))?;
     for s in &ev.methods {
         if s.missing > 0 {
-            println!("{}: no estimate for {} points (zero disparity or failure), counted as infinite error", s.name, s.missing);
+            writeln!(o, "{}: no estimate for {} points (zero disparity or failure), counted as infinite error", s.name, s.missing)?;
         }
     }
+    o.flush()?;
     Ok(())
 }

@@ -3,6 +3,7 @@
 use crate::model::{self, input_names, output_names};
 use anyhow::Result;
 use hvs_shared::blob::VERSION;
+use std::io::Write;
 use std::path::PathBuf;
 
 /// Arguments of `hvs info`.
@@ -24,9 +25,11 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let f = model::load(&a.model)?;
     let b = &f.blob;
-    println!("file:        {}", a.model.display());
+    let mut o = std::io::stdout().lock();
+    writeln!(o, "file:        {}", a.model.display())?;
     let trailing = f.file_len - f.blob_len;
-    println!(
+    writeln!(
+        o,
         "size:        {} bytes (HVSW v{VERSION}, payload {} bytes{})",
         f.file_len,
         f.blob_len - hvs_shared::blob::HEADER_LEN - hvs_shared::blob::CRC_LEN,
@@ -35,10 +38,11 @@ pub fn run(a: Args) -> Result<()> {
         } else {
             String::new()
         }
-    );
-    println!("crc:         ok ({:#010x}); all checks passed", f.crc);
-    println!("generation:  {}", b.generation);
-    println!(
+    )?;
+    writeln!(o, "crc:         ok ({:#010x}); all checks passed", f.crc)?;
+    writeln!(o, "generation:  {}", b.generation)?;
+    writeln!(
+        o,
         "topology:    {} ({} -> {} sigmoid hidden -> {}, {:?} output), {} parameters",
         model::shape(b),
         input_names(b.topology.inputs).join(","),
@@ -46,26 +50,33 @@ pub fn run(a: Args) -> Result<()> {
         output_names(b.topology.outputs).join(","),
         b.topology.output_activation,
         b.params.len()
-    );
+    )?;
     let m = &b.meta;
-    println!(
+    writeln!(
+        o,
         "training:    {:?}, seed {}, {} restarts, {} points (set hash {:#018x}), train e_ma {} %",
         m.algorithm, m.seed, m.restarts, m.train_points, m.train_hash, m.train_error_pct
-    );
-    println!("input box:");
+    )?;
+    writeln!(o, "input box:")?;
     for (k, name) in input_names(b.topology.inputs).iter().enumerate() {
-        println!(
+        writeln!(
+            o,
             "  {name:>13}  {} .. {}",
             b.in_min.get(k).copied().unwrap_or(f32::NAN),
             b.in_max.get(k).copied().unwrap_or(f32::NAN)
-        );
+        )?;
     }
     match &b.fallback {
-        Some(c) => println!(
+        Some(c) => writeln!(
+            o,
             "fallback:    traditional method, Phi = {} px, d = {} cm, principal point ({}, {})",
             c.phi, c.half_baseline, c.u0, c.v0
         ),
-        None => println!("fallback:    none (a head would use its built-in calibration)"),
-    }
+        None => writeln!(
+            o,
+            "fallback:    none (a head would use its built-in calibration)"
+        ),
+    }?;
+    o.flush()?;
     Ok(())
 }

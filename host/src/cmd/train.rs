@@ -8,7 +8,7 @@ use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
 use anyhow::{bail, Context, Result};
 use hvs_shared::blob::{ModelBlob, OutputKind, MAX_HIDDEN};
 use hvs_shared::triangulate::Calibration;
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 
 /// Training algorithm (command-line form).
@@ -192,36 +192,45 @@ pub fn run(a: Args) -> Result<()> {
     let t = train_model(&table.data, &plan)
         .with_context(|| format!("{}: training failed", a.data.display()))?;
     let n = model::save(&a.output, &t.blob)?;
-    print_summary(&a.data, &a.output, n, &t, a.algo);
-    Ok(())
+    print_summary(&a.data, &a.output, n, &t, a.algo)
 }
 
-fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained, algo: AlgoArg) {
-    let o = &t.outcome;
-    let enrolled = o.restarts.iter().filter(|r| r.enrolled).count();
-    println!(
+fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained, algo: AlgoArg) -> Result<()> {
+    let mut o = std::io::stdout().lock();
+    let oc = &t.outcome;
+    let enrolled = oc.restarts.iter().filter(|r| r.enrolled).count();
+    writeln!(
+        o,
         "trained {} ({:?}) on {} points of {} in {:.3} s",
         model::shape(&t.blob),
         algo,
         t.blob.meta.train_points,
         data.display(),
-        o.elapsed.as_secs_f64()
-    );
-    println!(
+        oc.elapsed.as_secs_f64()
+    )?;
+    writeln!(
+        o,
         "training e_ma {:.4} % (f32 model), best of {} restarts, {enrolled} enrolled",
-        o.train_error_pct,
-        o.restarts.len()
-    );
+        oc.train_error_pct,
+        oc.restarts.len()
+    )?;
     match &t.fallback {
-        Some(f) => println!(
+        Some(f) => writeln!(
+            o,
             "fallback: Phi = {:.4} px (eq. 4.1-3, {} symmetric points at Z = {} cm)",
             f.phi, f.points, f.depth
         ),
-        None => println!("fallback: none (no board symmetric about X = 0 in the data)"),
-    }
-    println!(
+        None => writeln!(
+            o,
+            "fallback: none (no board symmetric about X = 0 in the data)"
+        ),
+    }?;
+    writeln!(
+        o,
         "wrote {} ({bytes} bytes, generation {})",
         out.display(),
         t.blob.generation
-    );
+    )?;
+    o.flush()?;
+    Ok(())
 }
