@@ -19,7 +19,9 @@
 //! Every posture is quantised to the drives' 0.18 degree steps, as the head's setpoints are.
 
 use crate::dataset::{Dataset, JOINT_COLUMNS};
-use crate::simulate::{board_points, to_written_precision, training_volume, SetKind, SimOptions};
+use crate::simulate::{
+    board_points, check_points, to_written_precision, training_volume, SetKind, SimOptions,
+};
 use anyhow::{bail, Result};
 use hvs_shared::blob::InputKind;
 use hvs_shared::camera::{StereoPixels, Vec3};
@@ -92,6 +94,9 @@ impl PostureSample {
     }
 }
 
+/// Most postures one set may have (grid cells or random postures).
+pub const MAX_POSTURES: usize = 100_000;
+
 /// The postures of `opt`, drawn from a ChaCha8 stream seeded with `seed` (the lattice uses
 /// none).
 pub fn postures(opt: &PostureOptions, seed: u64) -> Result<Vec<Joints>> {
@@ -105,8 +110,8 @@ pub fn postures(opt: &PostureOptions, seed: u64) -> Result<Vec<Joints>> {
             if n == 0 {
                 bail!("--posture-levels must all be at least 1");
             }
-            if n > 100_000 {
-                bail!("--posture-levels give {n} postures; at most 100000");
+            if n > MAX_POSTURES {
+                bail!("--posture-levels give {n} postures; at most {MAX_POSTURES}");
             }
             let mut out = Vec::with_capacity(n);
             for index in 0..n {
@@ -134,8 +139,11 @@ pub fn postures(opt: &PostureOptions, seed: u64) -> Result<Vec<Joints>> {
             Ok(out)
         }
         Sampling::Random => {
-            if opt.count == 0 {
-                bail!("--posture-count must be at least 1");
+            if opt.count == 0 || opt.count > MAX_POSTURES {
+                bail!(
+                    "--posture-count must be 1 to {MAX_POSTURES}, got {}",
+                    opt.count
+                );
             }
             Ok((0..opt.count)
                 .map(|_| opt.range.at(core::array::from_fn(|_| rng.random())))
@@ -211,9 +219,7 @@ pub fn simulate(
             }
         }
         SetKind::Volume => {
-            if opt.points == 0 {
-                bail!("--points must be at least 1");
-            }
+            check_points(opt.points)?;
             let (lo, hi) = training_volume();
             let max_tries = opt.points.saturating_mul(1000).max(10_000);
             let mut tries = 0usize;

@@ -62,6 +62,21 @@ pub fn training_volume() -> (Vec3, Vec3) {
     ([lo(x), lo(y), lo(z)], [hi(x), hi(y), hi(z)])
 }
 
+/// Most points one `--set volume` run writes (about 450 MB of CSV): a larger request is an
+/// error, not an allocation failure. Runs with other seeds give more.
+pub const MAX_POINTS: usize = 10_000_000;
+
+/// Checks a `--points` request: 1 to [`MAX_POINTS`].
+pub fn check_points(n: usize) -> Result<()> {
+    if n == 0 {
+        bail!("--points must be at least 1");
+    }
+    if n > MAX_POINTS {
+        bail!("--points must be at most {MAX_POINTS} per file, got {n} (use several --seed values for more)");
+    }
+    Ok(())
+}
+
 /// The true positions of a board set, in the order of the thesis' data files.
 pub fn board_points(kind: SetKind) -> Vec<Vec3> {
     match kind {
@@ -128,9 +143,7 @@ pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample
             Ok(out)
         }
         SetKind::Volume => {
-            if opt.points == 0 {
-                bail!("--points must be at least 1");
-            }
+            check_points(opt.points)?;
             let (lo, hi) = training_volume();
             let max_tries = opt.points.saturating_mul(1000).max(10_000);
             let mut out = Vec::with_capacity(opt.points);
