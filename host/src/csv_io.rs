@@ -172,6 +172,12 @@ pub fn read_set_from<R: Read>(
             for (slot, (col, cname)) in t.iter_mut().zip(&tgt_cols) {
                 *slot = number(&file, line, cname, &rec[*col])?;
             }
+            if t[2] <= 0.0 {
+                bail!(
+                    "{file}:{line}: column \"z\": {} cm is not a depth in front of the head (must be > 0)",
+                    t[2]
+                );
+            }
             Some(t)
         } else {
             None
@@ -271,17 +277,19 @@ where
     let fname = path
         .file_name()
         .ok_or_else(|| anyhow!("{}: not a file name", path.display()))?;
-    let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{}.", fname.to_string_lossy()))
-        .suffix(".tmp")
-        .tempfile_in(&dir)
-        .with_context(|| {
-            format!(
-                "{}: cannot create a file in {}",
-                path.display(),
-                dir.display()
-            )
-        })?;
+    let prefix = format!(".{}.", fname.to_string_lossy());
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".tmp");
+    // Created like any new file (0666 less the umask), not tempfile's private 0600.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let tmp = builder.tempfile_in(&dir).with_context(|| {
+        format!(
+            "{}: cannot create a file in {}",
+            path.display(),
+            dir.display()
+        )
+    })?;
     let mut w = BufWriter::new(tmp);
     body(&mut w)?;
     let tmp = w
@@ -447,5 +455,18 @@ mod tests {
         write_atomically(&p, |w| Ok(w.write_all(b"new")?)).unwrap();
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "new");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn atomic_write_gives_the_mode_of_a_plainly_created_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain.csv");
+        std::fs::File::create(&plain).unwrap();
+        let p = dir.path().join("atomic.csv");
+        write_atomically(&p, |w| Ok(w.write_all(b"x")?)).unwrap();
+        let mode = |q: &Path| std::fs::metadata(q).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&p), mode(&plain));
     }
 }

@@ -480,6 +480,18 @@ fn bad_inputs_are_clear_errors_and_leave_no_output() {
         &["eval", "--model", s(&model), "--data", s(&no_truth)],
         "no_truth.csv:1: missing column \"x\"",
     );
+    // A depth at or behind the head is not ground truth; predict does not read z.
+    let behind = d.join("behind.csv");
+    std::fs::write(&behind, format!("{h}{row}330,231,284,231,0,0,-65\n")).unwrap();
+    let want = "behind.csv:3: column \"z\": -65 cm is not a depth in front of the head";
+    fails(&["eval", "--model", s(&model), "--data", s(&behind)], want);
+    let behind_model = d.join("behind.hvsw");
+    fails(
+        &["train", "--data", s(&behind), "-o", s(&behind_model)],
+        want,
+    );
+    assert!(!behind_model.exists());
+    ok(&["predict", "--model", s(&model), "--points", s(&behind)]);
 
     // A missing file.
     let missing = d.join("nope.csv");
