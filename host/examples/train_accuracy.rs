@@ -10,6 +10,8 @@
 //!   test on `--volume-test` other ones (seed 2000 + case): mean e_ma (%) of the net next to
 //!   the floor, the optimal triangulation with the true rig on the same rounded pixels, and
 //!   their ratio;
+//! - the board-trained net of the protocol on the same volume test points, and its ratio to
+//!   the floor (how far 72 board points generalise over the volume);
 //! - the wall time of the default training (4-5-3, 10 restarts, LM) on the 72 case-IV board
 //!   points (median of `--repeats` runs).
 //!
@@ -213,7 +215,7 @@ fn main() -> anyhow::Result<()> {
         args.volume_test
     );
     println!(
-        "case | protocol: train e_ma % | worst depth: net % | optimal tri. % | volume: net e_ma % | floor % | ratio | train s"
+        "case | protocol: train e_ma % | worst depth: net % | optimal tri. % | volume: net e_ma % | floor % | ratio | train s | board net on vol. % | ratio"
     );
     for n in cases {
         let rig = presets::case(n).ok_or_else(|| anyhow::anyhow!("no case {n}"))?;
@@ -228,21 +230,25 @@ fn main() -> anyhow::Result<()> {
         let t0 = Instant::now();
         let vout = train(&vtr, &cfg)?;
         let vtime = t0.elapsed().as_secs_f64();
-        let (mut vnet, mut floor) = (EmaAcc::default(), EmaAcc::default());
+        let (mut vnet, mut floor, mut bnet) =
+            (EmaAcc::default(), EmaAcc::default(), EmaAcc::default());
         for r in 0..vte.len() {
             let z = vte.targets[r][2];
             vnet.add(z, z_hat(&vout.blob, vte.row(r)));
+            bnet.add(z, z_hat(&out.blob, vte.row(r)));
             floor.add(z, optimal_z(&rig, vte.row(r)));
         }
         println!(
-            "{n:>4} | {:>22.4} | {:>18.4} | {:>14.4} | {:>18.4} | {:>7.4} | {:>5.3} | {:>7.3}",
+            "{n:>4} | {:>22.4} | {:>18.4} | {:>14.4} | {:>18.4} | {:>7.4} | {:>5.3} | {:>7.3} | {:>16.4} | {:>5.3}",
             out.train_error_pct,
             worst(&net),
             worst(&tri),
             vnet.e_ma_pct(),
             floor.e_ma_pct(),
             vnet.e_ma_pct() / floor.e_ma_pct(),
-            vtime
+            vtime,
+            bnet.e_ma_pct(),
+            bnet.e_ma_pct() / floor.e_ma_pct()
         );
         if args.per_depth {
             let cells: Vec<String> = net
