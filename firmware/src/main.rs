@@ -11,8 +11,8 @@
 //! - a 100 Hz SysTick control tick (see [`servo`]) that advances the gaze trajectory and
 //!   commands the servos through one `ServoOutput` (MCDC 3006 S on USART2, or PWM with the
 //!   `pwm` feature);
-//! - panic: interrupts off, no further servo command (MCDC controllers and PWM timers hold the
-//!   last setpoint), halt.
+//! - panic and HardFault: interrupts off, `V0` (stop and hold) to every MCDC drive (PWM timers
+//!   hold the last pulses), halt.
 //!
 //! Features: `qemu` (16 MHz HSI, SysTick counted at QEMU's fixed 168 MHz), `pwm`, `bench`.
 #![no_std]
@@ -216,6 +216,15 @@ fn halt() -> ! {
 fn panic(_: &core::panic::PanicInfo) -> ! {
     // No formatting of the message: it would pull core::fmt into the image. MCDC drives get
     // V0 (stop and hold); PWM timers run on without the CPU (hold the last pulses).
+    cortex_m::interrupt::disable();
+    servo::panic_halt();
+    halt()
+}
+
+/// A fault (bus, memory management, usage escalated to HardFault) ends like a panic: the MCDC
+/// drives get `V0`, then the core halts, instead of the default handler's silent spin.
+#[exception]
+unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
     cortex_m::interrupt::disable();
     servo::panic_halt();
     halt()
