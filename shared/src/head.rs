@@ -145,23 +145,24 @@ pub struct Boot {
     pub estimator: Estimator,
 }
 
-/// Classifies one slot's bytes and, if the blob is runnable, loads its network.
-pub fn load_slot(slot: Slot, bytes: &[u8]) -> (SlotStatus, Option<Network>) {
+/// Classifies one slot's bytes: what `Info` reports, what the boot choice sees and, if the
+/// blob is runnable ([`Network::new`]), its network.
+fn classify(slot: Slot, bytes: &[u8]) -> (SlotStatus, SlotState, Option<Network>) {
     let blob = match blob::decode(bytes) {
         Ok(b) => b,
-        Err(blob::BlobError::BadMagic) => return (SlotStatus::Empty, None),
-        Err(e) => return (SlotStatus::Invalid(e), None),
+        Err(blob::BlobError::BadMagic) => return (SlotStatus::Empty, SlotState::Empty, None),
+        Err(e) => return (SlotStatus::Invalid(e), SlotState::Invalid(e), None),
     };
-    let (inputs, hidden, outputs) = (
+    let (generation, inputs, hidden, outputs) = (
+        blob.generation,
         blob.n_inputs() as u16,
         u16::from(blob.topology.hidden),
         blob.n_outputs() as u16,
     );
     match Network::new(slot, blob) {
         Some(net) => (
-            SlotStatus::Valid {
-                generation: net.generation,
-            },
+            SlotStatus::Valid { generation },
+            SlotState::Valid { generation },
             Some(net),
         ),
         None => (
@@ -170,25 +171,34 @@ pub fn load_slot(slot: Slot, bytes: &[u8]) -> (SlotStatus, Option<Network>) {
                 hidden,
                 outputs,
             },
+            SlotState::Unrunnable { generation },
             None,
         ),
     }
 }
 
+/// Classifies one slot's bytes and, if the blob is runnable, loads its network.
+pub fn load_slot(slot: Slot, bytes: &[u8]) -> (SlotStatus, Option<Network>) {
+    let (status, _, net) = classify(slot, bytes);
+    (status, net)
+}
+
+/// What one slot's raw bytes count as in the boot choice: [`SlotState::Valid`] only if the blob
+/// validates *and* the head can run it ([`Network::new`]). [`boot`] chooses with exactly these
+/// states and [`slots::choose_boot`]; `hvs flash` plans its write with them (through
+/// [`SlotState::of`]), so the host's "running slot" is the one the head runs.
+pub fn slot_state(bytes: &[u8]) -> SlotState {
+    classify(Slot::A, bytes).1
+}
+
 /// Boots from the raw bytes of both slots (each at least the blob's framed length; trailing
 /// bytes are ignored). The runnable slot with the higher generation runs (A on a tie, the
-/// rule of [`slots::choose_boot`]); with none, the traditional method with
+/// rule of [`slots::choose_boot`] over [`slot_state`]); with none, the traditional method with
 /// [`Calibration::BUILT_IN`].
 pub fn boot(slot_a: &[u8], slot_b: &[u8]) -> Boot {
-    let (status_a, net_a) = load_slot(Slot::A, slot_a);
-    let (status_b, net_b) = load_slot(Slot::B, slot_b);
-    let state = |n: &Option<Network>| match n {
-        Some(n) => SlotState::Valid {
-            generation: n.generation,
-        },
-        None => SlotState::Empty,
-    };
-    let estimator = match slots::choose_boot(state(&net_a), state(&net_b)) {
+    let (status_a, state_a, net_a) = classify(Slot::A, slot_a);
+    let (status_b, state_b, net_b) = classify(Slot::B, slot_b);
+    let estimator = match slots::choose_boot(state_a, state_b) {
         Some(Slot::A) => net_a.map(Estimator::Network),
         Some(Slot::B) => net_b.map(Estimator::Network),
         None => None,
@@ -582,6 +592,51 @@ mod tests {
         assert_eq!(n.slot, Slot::B);
         let got = boot(&z_only, &empty);
         assert!(matches!(got.estimator, Estimator::Fallback(_)));
+    }
+
+    /// A valid blob with Z-only outputs: the head does not run it.
+    fn z_only(generation: u32) -> StdVec<u8> {
+        let mut z = sample(5, generation, 1);
+        z.topology.outputs = OutputKind::Z;
+        z.out_offset.truncate(1);
+        z.out_scale.truncate(1);
+        z.params.truncate(param_count(4, 5, 1));
+        bytes(&z)
+    }
+
+    #[test]
+    fn the_host_plan_sees_the_slot_boot_runs() {
+        use crate::slots::{plan_write, SlotRequest};
+        // A: Z-only at generation 9, B: runnable at 7. The head runs B, so `hvs flash`'s
+        // plan (on the same bytes) must leave B alone and write A.
+        let (a, b) = (z_only(9), bytes(&sample(5, 7, 2)));
+        assert_eq!(SlotState::of(&a), SlotState::Unrunnable { generation: 9 });
+        assert_eq!(network(&boot(&a, &b)).slot, Slot::B);
+        let p = plan_write(SlotState::of(&a), SlotState::of(&b), SlotRequest::Auto).unwrap();
+        assert_eq!(
+            (p.slot, p.generation, p.running),
+            (Slot::A, 8, Some(Slot::B))
+        );
+        // Every combination: the plan's running slot is the one boot runs, and it never
+        // targets it.
+        let contents = [
+            StdVec::new(),
+            std::vec![0xffu8; MAX_BLOB_LEN],
+            corrupt(bytes(&sample(5, 4, 3))),
+            z_only(9),
+            z_only(2),
+            bytes(&sample(5, 1, 4)),
+            bytes(&sample(7, 7, 5)),
+            bytes(&sample_joints(9, 3, 6)),
+        ];
+        for a in &contents {
+            for b in &contents {
+                let booted = boot(a, b).info(V).slot;
+                let p = plan_write(SlotState::of(a), SlotState::of(b), SlotRequest::Auto).unwrap();
+                assert_eq!(p.running, booted);
+                assert_ne!(Some(p.slot), booted);
+            }
+        }
     }
 
     fn network(b: &Boot) -> &Network {

@@ -2,11 +2,13 @@
 //!
 //! The head keeps two slots (A and B, see [`crate::layout`]). At boot it runs the valid slot
 //! with the higher generation (A on a tie); with none valid it falls back to the traditional
-//! method. A new model is written into the slot that is *not* running, with the next
-//! generation number, so a write cut off half-way leaves the running model untouched. These
-//! are the pure rules shared by the firmware (boot) and `hvs flash` (plan).
+//! method. "Valid" means what the head runs: the blob decodes *and* the head can run it
+//! ([`crate::head::Network::new`]); [`SlotState::of`] is that classification, the one
+//! [`crate::head::boot`] uses. A new model is written into the slot that is *not* running,
+//! with the next generation number, so a write cut off half-way leaves the running model
+//! untouched. These are the pure rules shared by the firmware (boot) and `hvs flash` (plan).
 
-use crate::blob::{self, BlobError};
+use crate::blob::BlobError;
 use crate::layout::Slot;
 
 /// What a slot holds.
@@ -16,25 +18,25 @@ pub enum SlotState {
     Empty,
     /// A blob was there but it is damaged or unreadable.
     Invalid(BlobError),
-    /// A valid blob of this generation.
+    /// A valid blob of this generation that the head can run.
     Valid {
+        /// Its generation number.
+        generation: u32,
+    },
+    /// A blob that decodes but that the head cannot run (e.g. Z-only outputs): never booted.
+    Unrunnable {
         /// Its generation number.
         generation: u32,
     },
 }
 
 impl SlotState {
-    /// Classifies the raw bytes of a slot.
+    /// Classifies the raw bytes of a slot exactly as the head's boot does
+    /// ([`crate::head::slot_state`]).
     pub fn of(bytes: &[u8]) -> SlotState {
-        match blob::decode(bytes) {
-            Ok(b) => SlotState::Valid {
-                generation: b.generation,
-            },
-            Err(BlobError::BadMagic) => SlotState::Empty,
-            Err(e) => SlotState::Invalid(e),
-        }
+        crate::head::slot_state(bytes)
     }
-    /// The generation if valid.
+    /// The generation if valid (runnable).
     pub fn generation(self) -> Option<u32> {
         match self {
             SlotState::Valid { generation } => Some(generation),
@@ -67,7 +69,7 @@ pub enum SlotRequest {
 pub struct WritePlan {
     /// Slot to erase and write.
     pub slot: Slot,
-    /// Generation to stamp into the new blob (higher than any valid one).
+    /// Generation to stamp into the new blob (higher than any valid, i.e. runnable, one).
     pub generation: u32,
     /// The slot running now, which the write leaves intact (if any).
     pub running: Option<Slot>,
@@ -76,7 +78,7 @@ pub struct WritePlan {
 /// Why no write can be planned.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PlanError {
-    /// The requested slot holds the only valid model: overwriting it could leave the head
+    /// The requested slot holds the only model the head runs: overwriting it could leave the head
     /// without one if the write is cut off.
     WouldOverwriteOnlyModel(Slot),
     /// A generation of `u32::MAX` is already in use.
@@ -89,7 +91,7 @@ impl core::fmt::Display for PlanError {
             PlanError::WouldOverwriteOnlyModel(s) => {
                 write!(
                     f,
-                    "slot {s:?} holds the only valid model; write the other slot (--slot auto)"
+                    "slot {s:?} holds the only model the head can run; write the other slot (--slot auto)"
                 )
             }
             PlanError::GenerationExhausted => f.write_str("generation numbers exhausted"),
@@ -134,13 +136,15 @@ mod tests {
 
     const E: SlotState = SlotState::Empty;
     const I: SlotState = SlotState::Invalid(BlobError::BadCrc);
+    /// A Z-only (unrunnable) blob of a high generation.
+    const U: SlotState = SlotState::Unrunnable { generation: 9 };
     const fn v(g: u32) -> SlotState {
         SlotState::Valid { generation: g }
     }
 
     #[test]
     fn boot_choice_for_every_combination() {
-        let states = [E, I, v(1), v(2)];
+        let states = [E, I, U, v(1), v(2)];
         for a in states {
             for b in states {
                 let got = choose_boot(a, b);
@@ -162,7 +166,7 @@ mod tests {
 
     #[test]
     fn auto_writes_the_slot_not_running_with_the_next_generation() {
-        let states = [E, I, v(1), v(5)];
+        let states = [E, I, U, v(1), v(5)];
         for a in states {
             for b in states {
                 let p = plan_write(a, b, SlotRequest::Auto).unwrap();
@@ -184,6 +188,32 @@ mod tests {
             }
         }
         assert_eq!(plan_write(E, E, SlotRequest::Auto).unwrap().slot, Slot::A);
+    }
+
+    #[test]
+    fn an_unrunnable_blob_of_a_higher_generation_is_not_the_running_slot() {
+        // A: Z-only at generation 9, B: runnable at 7. The head runs B, so auto writes A,
+        // with generation 8 (above the running one), and an explicit B is refused.
+        let b = v(7);
+        assert_eq!(choose_boot(U, b), Some(Slot::B));
+        let p = plan_write(U, b, SlotRequest::Auto).unwrap();
+        assert_eq!(
+            (p.slot, p.generation, p.running),
+            (Slot::A, 8, Some(Slot::B))
+        );
+        assert_eq!(
+            plan_write(U, b, SlotRequest::Exactly(Slot::B)),
+            Err(PlanError::WouldOverwriteOnlyModel(Slot::B))
+        );
+        assert_eq!(
+            plan_write(U, b, SlotRequest::Exactly(Slot::A))
+                .unwrap()
+                .slot,
+            Slot::A
+        );
+        // Nothing runnable: A, generation 1.
+        let p = plan_write(U, U, SlotRequest::Auto).unwrap();
+        assert_eq!((p.slot, p.generation, p.running), (Slot::A, 1, None));
     }
 
     #[test]
