@@ -3,14 +3,17 @@
 //! `image` writes a flashable file (raw binary or Intel HEX) for other flashers; `flash` uses
 //! the `probe-rs` library to read both slots through a debug probe, write the model into the
 //! slot that is not running with the next generation number (the rules of
-//! [`hvs_shared::slots`]), verify it by reading it back, and reset the head. Only the target
-//! slot's sector is erased: a write cut off half-way leaves the running model in place.
+//! [`hvs_shared::slots`], over the slot states the head's own boot sees:
+//! [`hvs_shared::head::slot_state`]), verify it by reading it back, and reset the head. Only
+//! the target slot's sector is erased: a write cut off half-way leaves the running model in
+//! place. Both refuse a model the head would not run ([`hvs_shared::head::Network::new`]).
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
-use hvs_shared::blob::{self, ModelBlob, MAX_BLOB_LEN};
+use hvs_shared::blob::{self, InputKind, ModelBlob, OutputKind, MAX_BLOB_LEN};
+use hvs_shared::head::Network;
 use hvs_shared::layout::{Slot, SLOT_LEN};
-use hvs_shared::slots::{plan_write, SlotRequest, SlotState};
+use hvs_shared::slots::{plan_write, SlotRequest, SlotState, WritePlan};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -98,12 +101,37 @@ pub struct FlashArgs {
     pub no_reset: bool,
 }
 
-/// Reads and validates a blob file; errors name the file.
+/// Reads and validates a blob file and checks that the head would run it
+/// ([`check_runnable`]); errors name the file.
 pub fn read_model(path: &Path) -> Result<(ModelBlob, Vec<u8>)> {
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let blob = blob::decode(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let len = blob::framed_len(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    check_runnable(path, &blob)?;
     Ok((blob, bytes[..len].to_vec()))
+}
+
+/// Errors unless the head would run `blob` (the firmware's rule, [`Network::new`]): a slot
+/// holding anything else is reported by `Info` but never booted, so flashing it is useless.
+pub fn check_runnable(path: &Path, blob: &ModelBlob) -> Result<()> {
+    if Network::new(Slot::A, blob.clone()).is_some() {
+        return Ok(());
+    }
+    let inputs = match blob.topology.inputs {
+        InputKind::Stereo => "the 4 pixels",
+        InputKind::StereoJoints => "the 4 pixels and 5 joint angles",
+    };
+    let outputs = match blob.topology.outputs {
+        OutputKind::Xyz => "X, Y, Z",
+        OutputKind::Z => "Z only",
+    };
+    bail!(
+        "{}: the head would not run this {}-{}-{} model (inputs {inputs}, outputs {outputs}; it runs X, Y, Z outputs from the 4 pixels, or from them and the 5 joint angles), so flashing it would change nothing",
+        path.display(),
+        blob.n_inputs(),
+        blob.topology.hidden,
+        blob.n_outputs()
+    )
 }
 
 /// The blob re-encoded with a new generation number.
@@ -220,49 +248,145 @@ pub fn run_flash(args: &FlashArgs) -> Result<()> {
     if args.dry_run {
         print!(
             "{}",
-            dry_run_plan(&args.model, &blob, bytes.len(), &args.chip, args.slot)
+            dry_run_plan(&args.model, &blob, bytes.len(), &args.chip, args.slot)?
         );
         return Ok(());
     }
     flash_with_probe(args, &blob, req)
 }
 
-/// The text `--dry-run` prints: no probe is touched, so the running slot is not known yet.
+/// The plan for slots holding `a` and `b` (raw bytes read from the head): the head's own
+/// boot classification ([`SlotState::of`], i.e. [`hvs_shared::head::slot_state`]) fed to
+/// [`plan_write`], so the slot it calls running is the one the head runs.
+pub fn plan_for_slots(a: &[u8], b: &[u8], req: SlotRequest) -> Result<WritePlan> {
+    plan_write(SlotState::of(a), SlotState::of(b), req).map_err(|e| anyhow!("{e}"))
+}
+
+/// The exact size of `blob` written with each generation, as `(first, last, bytes)` ranges
+/// covering `1..=u32::MAX` (the generation is a varint in the payload, so the size grows with
+/// it). Each range is found by bisection on the real encoder's output.
+pub fn sizes_by_generation(blob: &ModelBlob) -> Result<Vec<(u32, u32, usize)>> {
+    let size = |g: u32| with_generation(blob, g).map(|b| b.len());
+    let mut out = Vec::new();
+    let mut lo = 1u32;
+    loop {
+        let s = size(lo)?;
+        // Largest generation with size s (sizes never shrink as the generation grows).
+        let (mut ok, mut bad) = (lo, None::<u32>);
+        if size(u32::MAX)? == s {
+            ok = u32::MAX;
+        } else {
+            let mut hi = u32::MAX;
+            while hi - ok > 1 {
+                let mid = ok + (hi - ok) / 2;
+                if size(mid)? == s {
+                    ok = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            bad = Some(hi);
+        }
+        out.push((lo, ok, s));
+        match bad {
+            Some(next) => lo = next,
+            None => return Ok(out),
+        }
+    }
+}
+
+/// The size of `blob` written with generation `g`, from [`sizes_by_generation`]'s ranges.
+fn size_for(sizes: &[(u32, u32, usize)], g: u32) -> usize {
+    sizes
+        .iter()
+        .find(|(lo, hi, _)| (*lo..=*hi).contains(&g))
+        .map_or(0, |r| r.2)
+}
+
+/// The text `--dry-run` prints. No probe is touched, so what the slots hold is not known:
+/// for `--slot auto` it gives the plan for each possible running slot (A, B, none), for
+/// `--slot a|b` the one plan, each with the written slot, its address, the generation and the
+/// exact size of the re-encoded blob.
 pub fn dry_run_plan(
     model: &Path,
     blob: &ModelBlob,
-    size: usize,
+    file_size: usize,
     chip: &str,
     slot: SlotChoice,
-) -> String {
+) -> Result<String> {
+    let sizes = sizes_by_generation(blob)?;
     let t = &blob.topology;
-    let (slot_line, gen_line) = match slot {
-        SlotChoice::Auto => (
-            format!(
-                "slot: auto = the slot not running (A at {:#010x} if none is valid, else the other of A {:#010x} / B {:#010x})",
-                Slot::A.addr(),
-                Slot::A.addr(),
-                Slot::B.addr()
-            ),
-            "generation: 1 + the highest valid generation read from the head (1 if none)".to_string(),
-        ),
-        SlotChoice::A | SlotChoice::B => {
-            let s = if slot == SlotChoice::A { Slot::A } else { Slot::B };
-            (
-                format!("slot: {s:?} at {:#010x} (sector {})", s.addr(), s.sector()),
-                "generation: 1 + the highest valid generation read from the head (1 if none)".to_string(),
-            )
-        }
-    };
-    format!(
-        "dry run: nothing written, no probe touched\nmodel: {} ({} bytes, CRC ok, {}-{}-{}, generation in file {})\nchip: {chip}\n{slot_line}\nerase: that slot's 128 KiB sector only\nwrite: {size} bytes, then read back and check the CRC\n{gen_line}\n",
+    let mut o = format!(
+        "dry run: nothing written, no probe touched\nmodel: {} ({file_size} bytes, CRC ok, {}-{}-{}, the head runs it, generation in file {})\nchip: {chip}\n",
         model.display(),
-        size,
         t.inputs.len(),
         t.hidden,
         t.outputs.len(),
         blob.generation
-    )
+    );
+    let at = |s: Slot| format!("{s:?} at {:#010x} (sector {})", s.addr(), s.sector());
+    // With a model running (G >= 1) the written generation G+1 is at least 2: the size for
+    // the range holding 2, the one every realistic G+1 falls in (the others are listed below).
+    let (_, hi2, n2) = sizes
+        .iter()
+        .copied()
+        .find(|(lo, hi, _)| (*lo..=*hi).contains(&2))
+        .unwrap_or((1, u32::MAX, 0));
+    let g_plus_1 = format!("generation G+1, {n2} bytes if G+1 <= {hi2}");
+    match slot {
+        SlotChoice::Auto => {
+            o += "slot: auto, the slot the head is not running (known only once the probe has read both slots):\n";
+            o += &format!(
+                "  if A runs (generation G): write slot {}, {g_plus_1}\n",
+                at(Slot::B)
+            );
+            o += &format!(
+                "  if B runs (generation G): write slot {}, {g_plus_1}\n",
+                at(Slot::A)
+            );
+            o += &format!(
+                "  if neither runs a model: write slot {}, generation 1, {} bytes\n",
+                at(Slot::A),
+                size_for(&sizes, 1)
+            );
+        }
+        SlotChoice::A | SlotChoice::B => {
+            let s = if slot == SlotChoice::A {
+                Slot::A
+            } else {
+                Slot::B
+            };
+            o += &format!("slot: {}\n", at(s));
+            o += &format!(
+                "  write generation G+1 if the head runs a model (generation G), {n2} bytes if G+1 <= {hi2}; generation 1, {} bytes if it runs none\n",
+                size_for(&sizes, 1)
+            );
+            o += &format!(
+                "  refused if slot {s:?} holds the only model the head runs (use --slot auto)\n"
+            );
+        }
+    }
+    o += "generation rule: 1 + the highest generation among the slots the head can run (G), read through the probe; 1 if it runs none. The head then boots the written slot.\n";
+    let ranges: Vec<String> = sizes
+        .iter()
+        .map(|(lo, hi, n)| format!("{n} bytes for {lo}..={hi}"))
+        .collect();
+    o += &format!("size by generation written: {}\n", ranges.join(", "));
+    o += "erase: the written slot's 128 KiB sector only; the running slot stays intact\n";
+    o += "verify: read the slot back and check the CRC and the generation, then reset the head\n";
+    Ok(o)
+}
+
+/// One slot's state as `hvs flash` reports it.
+fn describe(s: SlotState) -> String {
+    match s {
+        SlotState::Empty => "empty".into(),
+        SlotState::Invalid(e) => format!("invalid ({e})"),
+        SlotState::Valid { generation } => format!("runnable model, generation {generation}"),
+        SlotState::Unrunnable { generation } => {
+            format!("model the head does not run, generation {generation}")
+        }
+    }
 }
 
 fn parse_selector(s: &str) -> Result<probe_rs::probe::DebugProbeSelector> {
@@ -310,10 +434,16 @@ fn flash_with_probe(args: &FlashArgs, blob: &ModelBlob, req: SlotRequest) -> Res
     let mut session = probe
         .attach(args.chip.as_str(), probe_rs::Permissions::default())
         .with_context(|| format!("cannot attach to {}", args.chip))?;
-    let a = SlotState::of(&read_slot(&mut session, Slot::A)?);
-    let b = SlotState::of(&read_slot(&mut session, Slot::B)?);
-    println!("slot A: {a:?}\nslot B: {b:?}");
-    let plan = plan_write(a, b, req).map_err(|e| anyhow!("{e}"))?;
+    let (a, b) = (
+        read_slot(&mut session, Slot::A)?,
+        read_slot(&mut session, Slot::B)?,
+    );
+    println!(
+        "slot A: {}\nslot B: {}",
+        describe(SlotState::of(&a)),
+        describe(SlotState::of(&b))
+    );
+    let plan = plan_for_slots(&a, &b, req)?;
     let bytes = with_generation(blob, plan.generation)?;
     println!(
         "writing {} bytes to slot {:?} at {:#010x}, generation {} (running: {:?})",
@@ -388,6 +518,97 @@ mod tests {
         let data = vec![0xAB; 64];
         let hex = intel_hex(0x0800_FFF8, &data).unwrap();
         assert!(hex.contains(":020000040801F1"));
+    }
+
+    use hvs_shared::head;
+
+    const V: hvs_shared::protocol::FirmwareVersion = hvs_shared::protocol::FirmwareVersion {
+        major: 0,
+        minor: 1,
+        patch: 0,
+    };
+
+    fn model(generation: u32, outputs: OutputKind) -> ModelBlob {
+        use hvs_shared::blob::{Algorithm, Topology, TrainingMeta};
+        use hvs_shared::mlp::{param_count, Activation};
+        let n_out = outputs.len();
+        ModelBlob {
+            generation,
+            topology: Topology {
+                inputs: InputKind::Stereo,
+                hidden: 5,
+                outputs,
+                output_activation: Activation::Linear,
+            },
+            in_offset: heapless::Vec::from_slice(&[320.0, 240.0, 300.0, 240.0]).unwrap(),
+            in_scale: heapless::Vec::from_slice(&[0.05; 4]).unwrap(),
+            out_offset: heapless::Vec::from_slice(&[0.0, 0.0, 115.0][3 - n_out..]).unwrap(),
+            out_scale: heapless::Vec::from_slice(&[3.0, 2.0, 50.0][3 - n_out..]).unwrap(),
+            params: (0..param_count(4, 5, n_out))
+                .map(|k| (k as f32 * 0.37).sin())
+                .collect(),
+            in_min: heapless::Vec::from_slice(&[0.0; 4]).unwrap(),
+            in_max: heapless::Vec::from_slice(&[640.0, 480.0, 640.0, 480.0]).unwrap(),
+            meta: TrainingMeta {
+                seed: 1,
+                train_hash: 2,
+                train_points: 72,
+                train_error_pct: 1.0,
+                algorithm: Algorithm::Other,
+                restarts: 1,
+            },
+            fallback: None,
+        }
+    }
+
+    #[test]
+    fn the_plan_never_overwrites_the_slot_the_head_runs() {
+        // A: a valid Z-only blob at generation 9 (the head does not run it), B: a runnable
+        // 4-5-3 at generation 7. The head boots B; the plan must write A, above 7.
+        let a = with_generation(&model(0, OutputKind::Z), 9).unwrap();
+        let b = with_generation(&model(0, OutputKind::Xyz), 7).unwrap();
+        let booted = head::boot(&a, &b).info(V).slot;
+        assert_eq!(booted, Some(Slot::B));
+        let p = plan_for_slots(&a, &b, SlotRequest::Auto).unwrap();
+        assert_eq!(
+            (p.slot, p.generation, p.running),
+            (Slot::A, 8, Some(Slot::B))
+        );
+        // Explicitly writing B would destroy the only model the head runs.
+        let e = plan_for_slots(&a, &b, SlotRequest::Exactly(Slot::B)).unwrap_err();
+        assert!(e.to_string().contains("only model the head can run"), "{e}");
+        // After the write, the new model is what boots.
+        let new = with_generation(&model(0, OutputKind::Xyz), p.generation).unwrap();
+        assert_eq!(head::boot(&new, &b).info(V).slot, Some(Slot::A));
+    }
+
+    #[test]
+    fn a_model_the_head_would_not_run_is_refused() {
+        let e = check_runnable(Path::new("z.hvsw"), &model(1, OutputKind::Z)).unwrap_err();
+        let e = e.to_string();
+        assert!(e.starts_with("z.hvsw: the head would not run"), "{e}");
+        assert!(e.contains("4-5-1") && e.contains("Z only"), "{e}");
+        assert_eq!(e.lines().count(), 1);
+        check_runnable(Path::new("m.hvsw"), &model(1, OutputKind::Xyz)).unwrap();
+    }
+
+    #[test]
+    fn sizes_by_generation_are_the_encoded_sizes() {
+        let m = model(1, OutputKind::Xyz);
+        let sizes = sizes_by_generation(&m).unwrap();
+        assert_eq!(sizes.first().map(|r| r.0), Some(1));
+        assert_eq!(sizes.last().map(|r| r.1), Some(u32::MAX));
+        for w in sizes.windows(2) {
+            assert_eq!(w[0].1 + 1, w[1].0);
+            assert!(w[0].2 < w[1].2);
+        }
+        for &(lo, hi, n) in &sizes {
+            for g in [lo, hi, lo + (hi - lo) / 2] {
+                assert_eq!(with_generation(&m, g).unwrap().len(), n, "generation {g}");
+            }
+        }
+        // postcard's varint: 7 bits per byte.
+        assert_eq!((sizes[0].1, sizes[1].1), (127, 16383));
     }
 
     #[test]

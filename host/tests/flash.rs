@@ -117,10 +117,13 @@ fn hex_image_sits_at_the_slot_address() {
     }
 }
 
-#[test]
-fn dry_run_prints_the_plan_without_a_probe() {
-    let dir = tempfile::tempdir().unwrap();
-    let m = write_model(dir.path(), 1);
+/// The exact length of `model(generation)` encoded.
+fn encoded_len(generation: u32) -> usize {
+    let mut buf = [0u8; MAX_BLOB_LEN];
+    model(generation).encode(&mut buf).unwrap()
+}
+
+fn dry_run(m: &Path, slot: &str) -> String {
     let o = hvs()
         .args([
             "flash",
@@ -128,27 +131,95 @@ fn dry_run_prints_the_plan_without_a_probe() {
             m.to_str().unwrap(),
             "--dry-run",
             "--slot",
-            "b",
+            slot,
         ])
         .output()
         .unwrap();
-    assert!(o.status.success());
-    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8(o.stdout).unwrap()
+}
+
+#[test]
+fn dry_run_prints_the_plan_without_a_probe() {
+    let dir = tempfile::tempdir().unwrap();
+    // Generation 200 in the file (a 2-byte varint): the blob written is re-encoded with the
+    // generation the plan chooses, one byte shorter below 128.
+    let m = write_model(dir.path(), 200);
+    let file_len = std::fs::metadata(&m).unwrap().len() as usize;
+    let (n1, n2) = (encoded_len(1), encoded_len(128));
+    assert_eq!((file_len, n2), (n1 + 1, n1 + 1));
+
+    let s = dry_run(&m, "b");
     assert!(s.contains("no probe touched"), "{s}");
     assert!(s.contains("chip: STM32F405RGTx"), "{s}");
-    assert!(s.contains("slot: B at 0x080e0000 (sector 11)"), "{s}");
+    assert!(
+        s.contains(&format!("({file_len} bytes, CRC ok, 4-5-3")),
+        "{s}"
+    );
+    assert!(s.contains("slot: B at 0x080e0000 (sector 11)\n"), "{s}");
     assert!(
         s.contains(&format!(
-            "write: {} bytes",
-            std::fs::metadata(&m).unwrap().len()
+            "write generation G+1 if the head runs a model (generation G), {n1} bytes if G+1 <= 127; generation 1, {n1} bytes if it runs none"
         )),
         "{s}"
     );
-    let o = hvs()
-        .args(["flash", "--model", m.to_str().unwrap(), "--dry-run"])
-        .output()
-        .unwrap();
-    assert!(String::from_utf8_lossy(&o.stdout).contains("slot: auto"));
+    assert!(
+        s.contains("refused if slot B holds the only model the head runs"),
+        "{s}"
+    );
+    assert!(!s.contains("slot A at"), "{s}");
+
+    let s = dry_run(&m, "auto");
+    for want in [
+        format!("if A runs (generation G): write slot B at 0x080e0000 (sector 11), generation G+1, {n1} bytes if G+1 <= 127"),
+        format!("if B runs (generation G): write slot A at 0x080c0000 (sector 10), generation G+1, {n1} bytes if G+1 <= 127"),
+        format!("if neither runs a model: write slot A at 0x080c0000 (sector 10), generation 1, {n1} bytes"),
+        "generation rule: 1 + the highest generation among the slots the head can run (G), read through the probe; 1 if it runs none.".to_string(),
+        format!("size by generation written: {n1} bytes for 1..=127, {n2} bytes for 128..=16383, "),
+    ] {
+        assert!(s.contains(&want), "missing {want:?} in\n{s}");
+    }
+}
+
+#[test]
+fn a_model_the_head_would_not_run_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut z = model(1);
+    z.topology.outputs = OutputKind::Z;
+    z.out_offset.truncate(1);
+    z.out_scale.truncate(1);
+    z.params.truncate(param_count(4, 5, 1));
+    let mut buf = [0u8; MAX_BLOB_LEN];
+    let n = z.encode(&mut buf).unwrap();
+    let p = dir.path().join("z.hvsw");
+    std::fs::write(&p, &buf[..n]).unwrap();
+    let out = dir.path().join("z.bin");
+    for args in [
+        vec!["flash", "--model", p.to_str().unwrap(), "--dry-run"],
+        vec!["flash", "--model", p.to_str().unwrap()],
+        vec![
+            "image",
+            "--model",
+            p.to_str().unwrap(),
+            "--slot",
+            "a",
+            "--format",
+            "bin",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+    ] {
+        let o = hvs().args(&args).output().unwrap();
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            e.contains("z.hvsw: the head would not run this 4-5-1 model"),
+            "{e}"
+        );
+        assert_eq!(e.trim().lines().count(), 1, "{e}");
+        assert!(o.stdout.is_empty(), "{args:?}");
+    }
+    assert!(!out.exists());
 }
 
 #[test]
