@@ -66,6 +66,27 @@ pub struct EmulatorConfig {
     pub extra: Vec<String>,
 }
 
+/// Makes the child get SIGKILL when this process dies, however it dies (SIGTERM, SIGKILL,
+/// a crash): `Drop` alone only covers a normal exit, and an orphaned QEMU would keep the TCP
+/// port and the servo log.
+#[cfg(target_os = "linux")]
+fn die_with_parent(cmd: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: the closure runs in the forked child before exec and only makes the
+    // async-signal-safe prctl(2) call; it touches no memory of the parent.
+    unsafe {
+        cmd.pre_exec(|| {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) == -1 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn die_with_parent(_: &mut Command) {}
+
 /// A running QEMU; killed on drop.
 pub struct Emulator {
     child: Child,
@@ -130,18 +151,18 @@ impl Emulator {
                 }
             }
         }
-        let child = Command::new(&cfg.qemu)
-            .args(qemu_args(cfg))
+        let mut cmd = Command::new(&cfg.qemu);
+        cmd.args(qemu_args(cfg))
             .stdin(Stdio::null())
             .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .with_context(|| {
-                format!(
-                    "cannot run {:?} (install it: apt-get install qemu-system-arm)",
-                    cfg.qemu
-                )
-            })?;
+            .stderr(Stdio::piped());
+        die_with_parent(&mut cmd);
+        let child = cmd.spawn().with_context(|| {
+            format!(
+                "cannot run {:?} (install it: apt-get install qemu-system-arm)",
+                cfg.qemu
+            )
+        })?;
         let mut emu = Emulator {
             child,
             endpoint: format!("tcp:{}", cfg.listen),
