@@ -1,0 +1,141 @@
+//! The user's path through the emulated head, command by command: `hvs simulate` -> `hvs train`
+//! -> `hvs predict` on the host, and `hvs emulate` + `hvs head ... estimate` against the
+//! firmware in QEMU; the two CSVs must agree bit for bit, and `hvs head info` must name the
+//! trained model.
+//!
+//! Needs `qemu-system-arm` and the QEMU firmware build
+//! (`cargo build --profile firmware -p hvs-firmware --target thumbv7em-none-eabihf --features qemu`);
+//! `#[ignore]`d in a plain `cargo test`, run by `.ci/run` with
+//! `cargo test -p hvs-host --test qemu_cli -- --ignored`. When run, a missing QEMU or ELF is a
+//! failure with the command that fixes it, never a skip.
+
+use hvs_host::emulate::{find_firmware, free_port, FIRMWARE_BUILD};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use tempfile::TempDir;
+
+fn hvs() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_hvs"))
+}
+
+/// Runs `hvs args`, asserts success, returns stdout.
+fn run(args: &[&str]) -> String {
+    let out = hvs().args(args).output().expect("hvs runs");
+    assert!(
+        out.status.success(),
+        "hvs {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("utf-8 stdout")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// `hvs emulate`, killed when dropped.
+struct Emulate(Child);
+
+impl Drop for Emulate {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The CSV rows of `text`, the first `cols` fields of each.
+fn fields(text: &str, cols: usize) -> Vec<Vec<String>> {
+    text.lines()
+        .filter(|l| !l.is_empty())
+        .map(|l| l.split(',').take(cols).map(str::to_string).collect())
+        .collect()
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
+    let fw = find_firmware(None);
+    assert!(
+        fw.exists(),
+        "no firmware ELF at {}: build it with `{FIRMWARE_BUILD}`",
+        fw.display()
+    );
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (train, pts, model) = (d.join("train.csv"), d.join("pts.csv"), d.join("m.hvsw"));
+    run(&["simulate", "--case", "4", "--set", "train", "-o", s(&train)]);
+    run(&[
+        "simulate",
+        "--case",
+        "4",
+        "--set",
+        "volume",
+        "--points",
+        "300",
+        "--noise-px",
+        "0.4",
+        "--seed",
+        "11",
+        "-o",
+        s(&pts),
+    ]);
+    run(&["train", "--data", s(&train), "-o", s(&model), "--seed", "3"]);
+    let predicted = run(&["predict", "--model", s(&model), "--points", s(&pts)]);
+
+    let port = free_port().expect("a free port");
+    let listen = format!("127.0.0.1:{port}");
+    let _emu = Emulate(
+        hvs()
+            .args(["emulate", "--model", s(&model), "--listen", &listen])
+            .args(["--servo-log", s(&d.join("servo.log")), "--timeout", "120"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("hvs emulate starts"),
+    );
+    // QEMU opens the port shortly after it starts; retry until it answers.
+    let connect = format!("tcp:{listen}");
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let info = loop {
+        let out = hvs()
+            .args(["head", "--connect", &connect, "info"])
+            .output()
+            .expect("hvs head runs");
+        if out.status.success() {
+            break String::from_utf8(out.stdout).expect("utf-8 stdout");
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the emulated head never answered: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    assert!(info.contains("slot A"), "{info}");
+    assert!(info.contains("seed 3"), "{info}");
+
+    let estimated = run(&[
+        "head",
+        "--connect",
+        &connect,
+        "estimate",
+        "--points",
+        s(&pts),
+    ]);
+    let (host, head) = (fields(&predicted, 7), fields(&estimated, 7));
+    assert_eq!(head[0], ["u_l", "v_l", "u_r", "v_r", "x", "y", "z"]);
+    assert_eq!(host.len(), 301);
+    assert_eq!(head.len(), host.len());
+    for (i, (h, e)) in host.iter().zip(&head).enumerate() {
+        let bits = |r: &[String]| -> Vec<u32> {
+            r.iter()
+                .map(|v| v.parse::<f32>().expect("a number").to_bits())
+                .collect()
+        };
+        if i == 0 {
+            continue;
+        }
+        assert_eq!(bits(e), bits(h), "row {i}: head {e:?}, host {h:?}");
+    }
+}
