@@ -1,5 +1,6 @@
 //! The head firmware in QEMU (`netduinoplus2`) against the host: bit-for-bit estimates, slot
-//! choice with corrupted slots, fallback, bad frames, and the MCDC commands of a Look sequence.
+//! choice with corrupted slots, fallback, bad frames, the MCDC commands of a Look sequence, and
+//! `hvs image` images (raw binary and Intel HEX) booting at the addresses they name.
 //!
 //! These tests need `qemu-system-arm` and the firmware ELF
 //! (`cargo build --profile firmware -p hvs-firmware --target thumbv7em-none-eabihf --features qemu`).
@@ -67,6 +68,11 @@ fn firmware() -> PathBuf {
 
 /// Boots the firmware with these slot contents and waits until it answers.
 fn boot(name: &str, slot_a: Option<&[u8]>, slot_b: Option<&[u8]>) -> Run {
+    boot_with(name, slot_a, slot_b, vec![])
+}
+
+/// [`boot`] with extra QEMU arguments (e.g. more `-device loader` images).
+fn boot_with(name: &str, slot_a: Option<&[u8]>, slot_b: Option<&[u8]>, extra: Vec<String>) -> Run {
     require_qemu();
     let dir = std::env::temp_dir().join(format!("hvs-qemu-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -86,7 +92,7 @@ fn boot(name: &str, slot_a: Option<&[u8]>, slot_b: Option<&[u8]>) -> Run {
         listen: format!("127.0.0.1:{port}"),
         servo_log: dir.join("servo.log"),
         qemu: "qemu-system-arm".into(),
-        extra: vec![],
+        extra,
     };
     let emu = Emulator::start(&cfg).unwrap();
     let endpoint: Endpoint = emu.endpoint.parse().unwrap();
@@ -518,6 +524,36 @@ fn images_written_by_hvs_image_boot_at_the_address_they_name() {
     );
     assert_eq!(i.slot_a, SlotStatus::Valid { generation: 3 });
     assert_eq!(i.model.map(|m| m.seed), Some(11));
+    drop(run);
+
+    // Intel HEX images carry their own addresses: QEMU's generic loader without `addr` loads
+    // a .hex file at the addresses of its records. A (generation 7) now beats B (6).
+    let mut loaders = Vec::new();
+    for (slot, generation) in [(SlotArg::A, 7), (SlotArg::B, 6)] {
+        let out = dir.join(format!("{slot:?}.hex"));
+        run_image(&ImageArgs {
+            model: model_path.clone(),
+            slot,
+            generation: Some(generation),
+            format: ImageFormat::Hex,
+            output: out.clone(),
+        })
+        .unwrap();
+        assert!(std::fs::read_to_string(&out)
+            .unwrap()
+            .starts_with(":02000004080"));
+        loaders.push("-device".to_string());
+        loaders.push(format!("loader,file={}", out.display()));
+    }
+    let mut run = boot_with("image-hex", None, None, loaders);
+    let i = info(&mut run);
+    assert_eq!(
+        (i.mode, i.slot, i.generation),
+        (Mode::Network, Some(Slot::A), 7)
+    );
+    assert_eq!(i.slot_b, SlotStatus::Valid { generation: 6 });
+    assert_eq!(i.model.map(|m| m.seed), Some(11));
+    drop(run);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
