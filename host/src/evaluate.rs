@@ -13,9 +13,11 @@
 
 use crate::dataset::Dataset;
 use crate::infer::{PointError, Predictor};
-use hvs_shared::blob::ModelBlob;
+use hvs_shared::blob::{InputKind, ModelBlob};
 use hvs_shared::camera::Rig;
+use hvs_shared::gaze::Joints;
 use hvs_shared::metrics::EmaAcc;
+use hvs_shared::posture::HeadRig;
 use hvs_shared::triangulate::{optimal, traditional_depth_signed, Calibration};
 use serde::Serialize;
 
@@ -209,11 +211,27 @@ pub fn traditional_depths(cal: &Calibration, data: &Dataset) -> Vec<f64> {
 
 /// Optimal triangulation with the true rig (least reprojection error): the accuracy floor on
 /// rounded pixels. NaN where it fails.
+///
+/// On a posture-aware set (nine inputs: the pixels, then the joint angles of
+/// [`crate::dataset::JOINT_COLUMNS`] in degrees) each row is triangulated with the rig's
+/// cameras at that row's posture (`hvs_shared::posture::HeadRig::new(rig)`: the simulator's
+/// head, neck axes through the baseline centre, no lens distortion), so the depth is in the
+/// head frame like the set's ground truth. A set's lens distortion is not in the file and is
+/// not modelled here.
 pub fn optimal_depths(rig: &Rig, data: &Dataset) -> Vec<f64> {
+    let head = HeadRig::new(*rig);
+    let posed = data.input_kind() == Some(InputKind::StereoJoints);
     (0..data.len())
         .map(|i| {
             let r = data.row(i);
-            optimal(rig, &[r[0], r[1], r[2], r[3]]).map_or(f64::NAN, |p| p[2])
+            let px = [r[0], r[1], r[2], r[3]];
+            let p = if posed {
+                let joints = Joints([r[4], r[5], r[6], r[7], r[8]].map(|v| v as f32));
+                head.optimal(&joints, &px)
+            } else {
+                optimal(rig, &px)
+            };
+            p.map_or(f64::NAN, |p| p[2])
         })
         .collect()
 }
@@ -276,7 +294,6 @@ pub fn text_table(ev: &Evaluation) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hvs_shared::blob::InputKind;
 
     fn set(points: &[(f64, f64)]) -> Dataset {
         // (u_l - u_r, z): pixels chosen so that Phi 2d / u_sd is easy.
@@ -346,5 +363,61 @@ mod tests {
         assert_eq!(ev.depths[0].z_min, 65.0);
         assert_eq!(ev.depths[BINS - 1].z_max, 164.5);
         assert_eq!(ev.methods[0].worst_depth_pct, 0.0);
+    }
+
+    #[test]
+    fn the_floor_of_a_posture_set_uses_the_cameras_at_each_rows_posture() {
+        use crate::posture::{dataset, simulate};
+        use crate::simulate::{SetKind, SimOptions};
+        use hvs_shared::posture::joints_from_gaze;
+        let rig = hvs_shared::presets::CASE_3;
+        let head = HeadRig::new(rig);
+        // Home, verged 10 degrees, and a turned, tilted, verged posture.
+        let postures = [
+            Joints::HOME,
+            joints_from_gaze(0.0, 0.0, 0.0, 0.0, 10.0),
+            joints_from_gaze(25.0, -15.0, 10.0, -12.0, 6.0),
+        ];
+        let samples = simulate(&head, SetKind::Test, &postures, &SimOptions::default()).unwrap();
+        let data = dataset(&samples);
+        assert_eq!(data.input_kind(), Some(InputKind::StereoJoints));
+        let z = optimal_depths(&rig, &data);
+        assert_eq!(z.len(), 3 * 22);
+        for (s, zh) in samples.iter().zip(&z) {
+            let want = head.optimal(&s.joints, &s.px).unwrap()[2];
+            assert_eq!(*zh, want, "{:?}", s.joints);
+            // The floor: rounding only, a few percent at most.
+            assert!(
+                (zh - s.xyz[2]).abs() / s.xyz[2] < 0.05,
+                "{zh} vs {:?}",
+                s.xyz
+            );
+        }
+        let ev = evaluate(
+            &data,
+            &[Method {
+                name: "optimal".into(),
+                z,
+            }],
+        );
+        assert_eq!(ev.methods[0].missing, 0);
+        assert!(ev.methods[0].mean.e_ma_pct < 2.0, "{:?}", ev.methods[0]);
+        // The pixels alone, triangulated with the home rig, are far off at the other postures:
+        // what the floor used to be.
+        let mut home_only = Dataset::new(InputKind::Stereo);
+        for s in &samples {
+            home_only.push(&s.px, Some(s.xyz));
+        }
+        let zh = optimal_depths(&rig, &home_only);
+        // At home both are the same least-squares point (two solvers, rounding apart).
+        for (a, b) in zh[..22].iter().zip(&optimal_depths(&rig, &data)[..22]) {
+            assert!((a - b).abs() < 1e-6 * a, "{a} {b}");
+        }
+        let off = samples[22..]
+            .iter()
+            .zip(&zh[22..])
+            .filter(|(s, z)| ((**z - s.xyz[2]) / s.xyz[2]).abs() >= 0.2 || z.is_nan())
+            .count();
+        assert!(off > 30, "{off} of 44");
     }
 }

@@ -1,0 +1,102 @@
+//! `hvs eval --case N` on a posture set (the five joint columns): the optimal-triangulation
+//! floor uses the cameras at each row's posture, so it has an estimate for every point and
+//! stays at the rounding floor (it used to triangulate with the home-posture rig, and most
+//! points of verged or turned postures came out "no estimate").
+
+use assert_cmd::Command;
+use tempfile::TempDir;
+
+fn ok(args: &[&str]) -> String {
+    let out = Command::cargo_bin("hvs")
+        .expect("the hvs binary is built")
+        .args(args)
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    String::from_utf8(out).expect("utf-8 stdout")
+}
+
+#[test]
+fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
+    let dir = TempDir::new().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    // Any posture-aware model will do: the floor does not depend on it. Two postures and
+    // two hidden neurons keep the training short.
+    ok(&[
+        "simulate",
+        "--case",
+        "3",
+        "--set",
+        "train",
+        "--postures",
+        "grid",
+        "--posture-levels",
+        "1,1,1,1,2",
+        "-o",
+        &p("train.csv"),
+    ]);
+    ok(&[
+        "train",
+        "--data",
+        &p("train.csv"),
+        "-o",
+        &p("m.hvsw"),
+        "--hidden",
+        "2",
+        "--restarts",
+        "1",
+    ]);
+    ok(&[
+        "simulate",
+        "--case",
+        "3",
+        "--set",
+        "test",
+        "--postures",
+        "random",
+        "--posture-count",
+        "12",
+        "--seed",
+        "3",
+        "-o",
+        &p("test.csv"),
+    ]);
+    let json = ok(&[
+        "eval",
+        "--model",
+        &p("m.hvsw"),
+        "--data",
+        &p("test.csv"),
+        "--case",
+        "3",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let methods = v["evaluation"]["methods"].as_array().unwrap();
+    let floor = methods
+        .iter()
+        .find(|m| m["name"] == "optimal")
+        .expect("an optimal method with --case");
+    assert_eq!(v["evaluation"]["points"], 12 * 22);
+    assert_eq!(floor["missing"], 0, "{floor}");
+    let e = floor["mean"]["e_ma_pct"].as_f64().unwrap();
+    // Case III's rounding floor on the test points is about 1.3-1.5 %.
+    assert!(e > 0.5 && e < 2.5, "floor mean e_ma {e} %");
+    let worst = floor["worst_depth_pct"].as_f64().unwrap();
+    assert!(worst < 5.0, "floor worst depth {worst} %");
+
+    // The table says the same, without "no estimate".
+    let text = ok(&[
+        "eval",
+        "--model",
+        &p("m.hvsw"),
+        "--data",
+        &p("test.csv"),
+        "--case",
+        "3",
+    ]);
+    assert!(text.contains("optimal"), "{text}");
+    assert!(!text.contains("optimal: no estimate"), "{text}");
+}
