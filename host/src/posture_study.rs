@@ -985,7 +985,8 @@ pub fn markdown(r: &Report, command: &str) -> String {
 }
 
 /// The report's tables as CSV files: `fixed.csv`, `bands.csv`, `hidden.csv`,
-/// `distortion.csv` (the caller writes them atomically).
+/// `distortion.csv`, and the wall times in `timing.csv` (so that the four tables depend on the
+/// configuration only: same seed, same bytes). The caller writes them atomically.
 pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
     let e = |x: &Errors| {
         format!(
@@ -1023,23 +1024,30 @@ pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
         );
     }
     let mut hidden = format!(
-        "postures,hidden,params,train_pct,{},{},worst_band_ratio,seconds\n",
+        "postures,hidden,params,train_pct,{},{},worst_band_ratio\n",
         eh("test"),
         eh("floor")
     );
+    let mut timing = "what,postures,hidden,seconds\n".to_string();
+    for (k, part) in ["(a) fixed posture", "(b) posture-aware", "(c) lens"]
+        .iter()
+        .enumerate()
+    {
+        let _ = writeln!(timing, "{part},,,{}", r.seconds[k]);
+    }
     for h in &r.aware.sweep {
         let _ = writeln!(
             hidden,
-            "{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{}",
             h.postures,
             h.hidden,
             h.params,
             h.train_pct,
             e(&h.test),
             e(&h.floor),
-            h.worst_band_ratio,
-            h.seconds
+            h.worst_band_ratio
         );
+        let _ = writeln!(timing, "training,{},{},{}", h.postures, h.hidden, h.seconds);
     }
     let mut dist = "k1,max_shift_px,method,points,z_pct,d3_pct,max_z_pct,failed\n".to_string();
     for d in &r.distortion {
@@ -1054,6 +1062,7 @@ pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
         ("bands.csv", bands),
         ("hidden.csv", hidden),
         ("distortion.csv", dist),
+        ("timing.csv", timing),
     ]
 }
 
@@ -1174,6 +1183,8 @@ mod tests {
         let tables = csv_tables(&r);
         assert_eq!(tables[0].1.lines().count(), 1 + r.fixed.len());
         assert_eq!(tables[3].1.lines().count(), 1 + 2 * 3);
+        assert_eq!(tables[4].0, "timing.csv");
+        assert_eq!(tables[4].1.lines().count(), 1 + 3);
     }
 
     /// Any 9-input blob (a barely trained one) for the writers and the band bookkeeping.
