@@ -249,7 +249,8 @@ fn ranges(p: &Panel) -> ((f64, f64), (f64, f64)) {
 
 fn tick_label(v: f64) -> String {
     let a = v.abs();
-    if v == 0.0 {
+    // Ticks computed as sums of steps come out as 1e-17 or so where they mean zero.
+    if a < 1e-9 {
         "0".to_string()
     } else if !(0.01..1000.0).contains(&a) {
         format!("{v:.0e}")
@@ -454,5 +455,6 @@ mod tests {
         assert_eq!(tick_label(1.55), "1.55");
         assert_eq!(tick_label(4.0), "4");
         assert_eq!(tick_label(0.25), "0.25");
+        assert_eq!(tick_label(-5.551115123125783e-17), "0");
     }
 }
