@@ -1,10 +1,13 @@
 //! Criterion benchmark of the thesis' hidden-neuron sweep: 4-H-3 nets for H = 1..=10, ten
 //! restarts (nets) each, Levenberg-Marquardt with the default settings, on the case-IV board
-//! set (72 points), restarts in parallel on all cores as `hvs train` runs them:
+//! set (72 points), restarts in parallel on all cores as `hvs train` runs them; and the
+//! experiments' own sweep (`hvs_host::experiment::hidden_sweep`, Figs. 4.13-4.15: one and three
+//! outputs, H = 1..=10, ten single-start nets each, 200 nets, evaluated on the test points):
 //! `cargo bench -p hvs-host --bench sweep`.
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use hvs_host::dataset::Dataset;
+use hvs_host::experiment::{self, Quiet};
 use hvs_host::train::{train, TrainConfig};
 use hvs_shared::blob::InputKind;
 use hvs_shared::presets;
@@ -40,6 +43,13 @@ fn bench(c: &mut Criterion) {
                 black_box(train(black_box(&data), &cfg).unwrap());
             }
         })
+    });
+    g.bench_function("experiment_hidden_sweep_z_and_xyz_200_nets", |b| {
+        let cfg = experiment::Config {
+            seed: 0,
+            quick: false,
+        };
+        b.iter(|| black_box(experiment::hidden_sweep(&cfg, &Quiet).unwrap()))
     });
     g.finish();
 }
