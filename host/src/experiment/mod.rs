@@ -28,6 +28,7 @@
 //! are the exception and live in their own file and in `RESULTS.md`.
 
 pub mod plot;
+pub mod posture;
 pub mod report;
 
 use crate::dataset::Dataset;
