@@ -142,6 +142,10 @@ pub const STEMS: [&str; 9] = [
     "noise",
 ];
 
+/// Where `hvs experiment posture` writes its report, relative to the thesis' directory (its
+/// default output is `docs/results/posture`); `RESULTS.md` links it when it is there.
+pub const POSTURE_REPORT: &str = "posture/POSTURE.md";
+
 /// Writes every CSV, plot and `RESULTS.md` into `dir` (which must exist); `total_s` is the
 /// run's wall time. Returns the names of the files written.
 pub fn write(dir: &Path, t: &Thesis, total_s: f64) -> Result<Vec<String>> {
@@ -157,7 +161,8 @@ pub fn write(dir: &Path, t: &Thesis, total_s: f64) -> Result<Vec<String>> {
     fewer_files(&mut o, t)?;
     algo_files(&mut o, t)?;
     noise_files(&mut o, t)?;
-    let md = results_md(t, total_s);
+    let posture = dir.join(POSTURE_REPORT).is_file();
+    let md = results_md(t, total_s, posture);
     write_bytes(&dir.join("RESULTS.md"), md.as_bytes())?;
     o.written.push("RESULTS.md".to_string());
     Ok(o.written)
@@ -811,7 +816,7 @@ fn files_line(stem: &str) -> String {
     format!("[CSV]({stem}.csv) · [SVG]({stem}.svg) · [PNG]({stem}.png)")
 }
 
-fn results_md(t: &Thesis, total_s: f64) -> String {
+fn results_md(t: &Thesis, total_s: f64, posture: bool) -> String {
     let mut s = String::new();
     let cfg = &t.config;
     let _ = writeln!(
@@ -863,9 +868,22 @@ fn results_md(t: &Thesis, total_s: f64) -> String {
     proposed_md(&mut s, t);
     fewer_md(&mut s, t);
     let _ = writeln!(s, "## Beyond the thesis\n");
+    if posture {
+        let _ = writeln!(s, "{}\n", posture_link());
+    }
     algo_md(&mut s, t);
     noise_md(&mut s, t);
     s
+}
+
+/// The paragraph of `RESULTS.md` that points to the posture study.
+pub fn posture_link() -> String {
+    format!(
+        "**Depth while the eyes move** (issue 8): the thesis' 4-5-3 net at verged and turned \
+         head postures, a posture-aware net per posture band against the floor at the same \
+         posture, the hidden neurons it needs, and lens distortion, in \
+         [{POSTURE_REPORT}]({POSTURE_REPORT}) (`hvs experiment posture`)."
+    )
 }
 
 fn summary_table(s: &mut String, t: &Thesis) {
