@@ -99,4 +99,45 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
     ]);
     assert!(text.contains("optimal"), "{text}");
     assert!(!text.contains("optimal: no estimate"), "{text}");
+
+    // A 4-input (fixed-posture) model on the same posture set: the net sees only the pixels,
+    // the floor still triangulates at each row's posture, with the same numbers as above.
+    ok(&[
+        "simulate",
+        "--case",
+        "3",
+        "--set",
+        "train",
+        "-o",
+        &p("home.csv"),
+    ]);
+    ok(&[
+        "train",
+        "--data",
+        &p("home.csv"),
+        "-o",
+        &p("home.hvsw"),
+        "--restarts",
+        "1",
+    ]);
+    let json = ok(&[
+        "eval",
+        "--model",
+        &p("home.hvsw"),
+        "--data",
+        &p("test.csv"),
+        "--case",
+        "3",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let home_floor = v["evaluation"]["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["name"] == "optimal")
+        .expect("an optimal method with --case")
+        .clone();
+    assert_eq!(home_floor["missing"], 0, "{home_floor}");
+    assert_eq!(home_floor["mean"], floor["mean"]);
 }

@@ -2,12 +2,13 @@
 //! fallback calibration, per ground-truth depth.
 
 use crate::cmd::RigArgs;
-use crate::csv_io::read_set;
+use crate::csv_io::{read_set, Inputs};
 use crate::evaluate::{
     evaluate, optimal_depths, text_table, traditional_depths, Evaluation, Method,
 };
 use crate::model;
 use anyhow::Result;
+use hvs_shared::blob::InputKind;
 use hvs_shared::triangulate::Calibration;
 use serde::Serialize;
 use std::io::Write;
@@ -74,9 +75,18 @@ pub fn run(a: Args) -> Result<()> {
     }
     let floor = a.floor.rig()?;
     if let Some(rig) = &floor {
+        // The floor triangulates at each row's posture when the file has the joint columns,
+        // also for a 4-input model (which sees only the pixels).
+        let posed;
+        let floor_data = if table.data.input_kind() == Some(InputKind::Stereo) {
+            posed = read_set(&a.data, Inputs::Auto, true)?;
+            &posed.data
+        } else {
+            &table.data
+        };
         methods.push(Method {
             name: "optimal".into(),
-            z: optimal_depths(rig, &table.data),
+            z: optimal_depths(rig, floor_data),
         });
     }
     let ev = evaluate(&table.data, &methods);
