@@ -2,14 +2,18 @@
 //! `hvs_shared::blob::ModelBlob::infer` (the head's computation).
 //!
 //! Common topologies (4 or 9 inputs, 1-10 hidden units, 1 or 3 outputs) run through the
-//! fixed-size `hvs_shared::mlp::Mlp<I, H, O>`, whose loops the compiler unrolls; anything
-//! else through the runtime-sized `infer_flat`. Both give the same bits (a property test in
-//! `hvs-shared`). Large batches are split into chunks run in parallel with `rayon`; the
-//! result does not depend on the thread count.
+//! fixed-size `hvs_shared::mlp::Mlp<I, H, O>` evaluated `lanes::LANES` points at a time by
+//! the auto-vectorised, bit-identical kernel in `lanes` (including a lane-wise
+//! `libm::expf`); anything else through the runtime-sized `infer_flat`. Both give the same
+//! bits (a property test in `hvs-shared`, and the tests here and in `lanes`). Large batches
+//! are split into chunks run in parallel with `rayon`; the result does not depend on the
+//! thread count.
 
 use hvs_shared::blob::ModelBlob;
 use hvs_shared::mlp::{Mlp, MlpError};
 use rayon::prelude::*;
+
+mod lanes;
 
 /// Points per parallel chunk.
 const CHUNK: usize = 16 * 1024;
@@ -40,14 +44,7 @@ pub struct Predictor<'a> {
 fn fixed<const I: usize, const H: usize, const O: usize>(blob: &ModelBlob) -> Option<Kernel> {
     let m: Mlp<I, H, O> = blob.to_mlp().ok()?;
     Some(Kernel::Fixed(Box::new(
-        move |x: &[f32], out: &mut [f32]| {
-            for (r, (xi, oi)) in x.chunks_exact(I).zip(out.chunks_exact_mut(O)).enumerate() {
-                let xa: &[f32; I] = xi.try_into().map_err(|_| (r, MlpError::Shape))?;
-                let y = m.infer(xa).map_err(|e| (r, e))?;
-                oi.copy_from_slice(&y);
-            }
-            Ok(())
-        },
+        move |x: &[f32], out: &mut [f32]| lanes::run(&m, x, out),
     )))
 }
 
