@@ -14,7 +14,6 @@ use hvs_shared::blob::{self, InputKind, ModelBlob, OutputKind, MAX_BLOB_LEN};
 use hvs_shared::head::Network;
 use hvs_shared::layout::{Slot, SLOT_LEN};
 use hvs_shared::slots::{plan_write, SlotRequest, SlotState, WritePlan};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The head controller's chip.
@@ -174,20 +173,12 @@ pub fn intel_hex(addr: u32, bytes: &[u8]) -> Result<String> {
         .map_err(|e| anyhow!("cannot write Intel HEX: {e}"))
 }
 
-/// Writes `data` to `path` atomically (temporary file in the same directory, then rename).
+/// Writes `data` to `path` atomically ([`crate::csv_io::write_atomically`]).
 pub fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .with_context(|| format!("{}: cannot create", path.display()))?;
-    tmp.write_all(data)
-        .with_context(|| format!("{}: cannot write", path.display()))?;
-    tmp.as_file().sync_all().ok();
-    tmp.persist(path)
-        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))?;
-    Ok(())
+    crate::csv_io::write_atomically(path, |w| {
+        w.write_all(data)
+            .with_context(|| format!("{}: cannot write", path.display()))
+    })
 }
 
 /// `hvs image`.

@@ -13,7 +13,7 @@
 //! - [`infer`]: batch inference, bit-identical to the head's.
 //! - [`evaluate`]: e_ma per depth for several estimators side by side.
 //! - [`experiment`]: `hvs experiment thesis`, the thesis' chapter-4 experiments with plots
-//!   (`plotters`) and `RESULTS.md`.
+//!   (`plotters`) and `RESULTS.md`; `hvs experiment posture`, the posture study's report.
 //! - [`model`]: model files on disk (checked reads, atomic writes).
 //! - [`cmd`]: one module per `hvs` subcommand.
 //! - [`train`]: fits the f32 MLP to a data set (Levenberg-Marquardt, the thesis' BP, Adam),
