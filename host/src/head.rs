@@ -55,12 +55,16 @@ pub enum HeadCommand {
     /// Estimate a point and move the head to fixate it.
     Look {
         /// Left image column (px).
+        #[arg(allow_negative_numbers = true)]
         u_l: f32,
         /// Left image row (px).
+        #[arg(allow_negative_numbers = true)]
         v_l: f32,
         /// Right image column (px).
+        #[arg(allow_negative_numbers = true)]
         u_r: f32,
         /// Right image row (px).
+        #[arg(allow_negative_numbers = true)]
         v_r: f32,
     },
     /// Move every axis to its home position.

@@ -40,7 +40,12 @@ pub struct Args {
     #[arg(long, value_name = "N")]
     points: Option<usize>,
     /// Standard deviation of Gaussian pixel noise added before rounding (px).
-    #[arg(long, value_name = "S", default_value_t = 0.0)]
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     noise_px: f64,
     /// Seed of the random points and the noise.
     #[arg(long, value_name = "S", default_value_t = 0)]
