@@ -283,11 +283,21 @@ where
     // Created like any new file (0666 less the umask), not tempfile's private 0600.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let tmp = builder.tempfile_in(&dir).with_context(|| {
-        format!(
-            "{}: cannot create a file in {}",
+    if !dir.is_dir() {
+        bail!(
+            "{}: the directory {} does not exist",
             path.display(),
             dir.display()
+        );
+    }
+    // The error names the output and its directory, not the temporary file's random name
+    // (tempfile's message would).
+    let tmp = builder.tempfile_in(&dir).map_err(|e| {
+        anyhow!(
+            "{}: cannot create a file in {}: {}",
+            path.display(),
+            dir.display(),
+            std::io::Error::from(e.kind())
         )
     })?;
     let mut w = BufWriter::new(tmp);

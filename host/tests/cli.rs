@@ -563,7 +563,7 @@ fn bad_inputs_are_clear_errors_and_leave_no_output() {
     let nodir = d.join("no/such/dir/out.csv");
     fails(
         &["simulate", "--case", "1", "--set", "test", "-o", s(&nodir)],
-        "cannot create a file",
+        "no/such/dir/out.csv: the directory",
     );
     // Bad rig files name the field.
     let rig = d.join("rig.json");
