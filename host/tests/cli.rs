@@ -1,56 +1,18 @@
 //! The `hvs` binary driven from outside, as a user would: the thesis protocol end to end,
 //! bit-exact prediction, every bad-input class, determinism, and the demo.
 
-use assert_cmd::Command;
+mod common;
+use common::{fails, hvs, ok, s};
+
 use hvs_shared::blob::{self, ModelBlob};
-use predicates::prelude::*;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use tempfile::TempDir;
-
-fn hvs() -> Command {
-    Command::cargo_bin("hvs").expect("the hvs binary is built")
-}
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/tests/fixtures")
         .join(name)
-}
-
-/// Runs `hvs` with `args` and asserts success; returns stdout.
-fn ok(args: &[&str]) -> String {
-    let out = hvs()
-        .args(args)
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    String::from_utf8(out).expect("utf-8 stdout")
-}
-
-/// Runs `hvs` with `args`, asserts exit code 1, an empty stdout and a one-line stderr
-/// `error: <message>` that contains `want`; returns the message.
-fn fails(args: &[&str], want: &str) -> String {
-    let out = hvs()
-        .args(args)
-        .assert()
-        .code(1)
-        .stdout(predicate::str::is_empty())
-        .get_output()
-        .stderr
-        .clone();
-    let err = String::from_utf8(out).expect("utf-8 stderr");
-    assert_eq!(err.lines().count(), 1, "one line expected: {err}");
-    assert!(err.starts_with("error: "), "{err}");
-    assert!(err.contains(want), "expected {want:?} in {err:?}");
-    assert!(!err.contains("panicked"), "{err}");
-    err
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
 }
 
 /// Simulates case `n`'s train and test sets and trains the default net (with `restarts`)

@@ -3,20 +3,10 @@
 //! stays at the rounding floor (it used to triangulate with the home-posture rig, and most
 //! points of verged or turned postures came out "no estimate").
 
-use assert_cmd::Command;
-use tempfile::TempDir;
+mod common;
+use common::ok;
 
-fn ok(args: &[&str]) -> String {
-    let out = Command::cargo_bin("hvs")
-        .expect("the hvs binary is built")
-        .args(args)
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    String::from_utf8(out).expect("utf-8 stdout")
-}
+use tempfile::TempDir;
 
 #[test]
 fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {

@@ -1,33 +1,10 @@
 //! `hvs simulate --postures/--distortion` driven from outside: columns, sizes, determinism,
 //! a posture-aware model trained and evaluated through the CLI, and the bad-flag errors.
 
-use assert_cmd::Command;
-use predicates::prelude::*;
+mod common;
+use common::{fails, ok};
+
 use tempfile::TempDir;
-
-fn hvs() -> Command {
-    Command::cargo_bin("hvs").expect("the hvs binary is built")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = hvs()
-        .args(args)
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    String::from_utf8(out).expect("utf-8 stdout")
-}
-
-fn fails(args: &[&str], want: &str) {
-    hvs()
-        .args(args)
-        .assert()
-        .code(1)
-        .stdout(predicate::str::is_empty())
-        .stderr(predicate::str::contains(want));
-}
 
 #[test]
 fn posture_sets_have_joint_columns_and_are_seeded() {
