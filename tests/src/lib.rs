@@ -98,6 +98,45 @@ pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
     }
 }
 
+/// A valid posture-aware 9-8-3 blob (the four pixels and the five joint angles in degrees) with
+/// seeded weights, built like [`sample_model`]: the larger blob for the fault-injection tests.
+pub fn sample_posture_model(generation: u32, seed: u64) -> ModelBlob {
+    let base = sample_model(generation, seed);
+    let mut s = seed ^ 0x9e37_79b9_7f4a_7c15;
+    let mut rnd = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    };
+    let mut params = heapless::Vec::new();
+    for _ in 0..param_count(9, 8, 3) {
+        params.push(rnd() * 2.0).unwrap();
+    }
+    let extend = |px: &[f32], joints: [f32; 5]| {
+        let mut v: heapless::Vec<f32, { hvs_shared::blob::MAX_INPUTS }> =
+            heapless::Vec::from_slice(px).unwrap();
+        v.extend_from_slice(&joints).unwrap();
+        v
+    };
+    ModelBlob {
+        topology: Topology {
+            inputs: InputKind::StereoJoints,
+            hidden: 8,
+            ..base.topology
+        },
+        in_offset: extend(&base.in_offset, [0.0; 5]),
+        in_scale: extend(
+            &base.in_scale,
+            [1.0 / 30.0, 1.0 / 20.0, 1.0 / 15.0, 1.0 / 20.0, 1.0 / 20.0],
+        ),
+        params,
+        in_min: extend(&base.in_min, [-30.0, -20.0, -15.0, -20.0, -20.0]),
+        in_max: extend(&base.in_max, [30.0, 20.0, 15.0, 20.0, 20.0]),
+        ..base
+    }
+}
+
 /// The bytes of `blob` as written into a weight slot (no trailing erased bytes).
 pub fn blob_bytes(blob: &ModelBlob) -> Vec<u8> {
     let mut buf = vec![0u8; hvs_shared::blob::MAX_BLOB_LEN];

@@ -20,8 +20,8 @@ use hvs_shared::layout::Slot;
 use hvs_shared::protocol::{Mode, SlotStatus, Source, StereoPoint};
 use hvs_shared::slots::{plan_write, SlotRequest, SlotState};
 use hvs_shared::triangulate::{traditional_xyz, Calibration};
-use hvs_tests::sample_model;
 use hvs_tests::sim::VERSION;
+use hvs_tests::{sample_model, sample_posture_model};
 
 /// What should run: a model (its decoded blob and slot) or the fallback.
 #[derive(Debug, Clone, PartialEq)]
@@ -84,15 +84,19 @@ fn check_runs(boot: &Boot, want: &Expect, what: &str) {
             assert_eq!(info.model.map(|m| m.seed), Some(blob.meta.seed), "{what}");
             for p in POINTS {
                 let e = boot.estimate(&p).unwrap();
+                // A posture-aware model gets the home posture's joint angles (all zero) after
+                // the pixels, as `Boot::estimate` feeds it.
+                let mut x = p.to_array().to_vec();
+                x.resize(blob.n_inputs(), 0.0);
                 let mut y = [0f32; 3];
-                blob.infer(&p.to_array(), &mut y).unwrap();
+                blob.infer(&x, &mut y).unwrap();
                 assert_eq!(
                     [e.x, e.y, e.z].map(f32::to_bits),
                     y.map(f32::to_bits),
                     "{what}: estimate of {p:?}"
                 );
                 assert_eq!(e.source, Source::Network);
-                assert_eq!(e.in_range, blob.in_range(&p.to_array()), "{what}");
+                assert_eq!(e.in_range, blob.in_range(&x), "{what}");
             }
         }
         (Expect::Fallback, Estimator::Fallback(cal)) => {
@@ -156,9 +160,13 @@ fn boot_slots(a: &[u8], b: &[u8]) -> Boot {
 
 #[test]
 fn write_cut_off_at_every_byte_boots_the_old_or_the_new_model() {
-    let new_model = sample_model(1, 99);
     let mut boots = 0usize;
-    for (name, a, b) in before_states() {
+    // A 4-5-3 model, then the larger posture-aware 9-8-3 one, written over each state.
+    let news = [sample_model(1, 99), sample_posture_model(1, 98)];
+    for (name, a, b, new_model) in before_states()
+        .into_iter()
+        .flat_map(|(n, a, b)| news.iter().map(move |m| (n, a.clone(), b.clone(), m)))
+    {
         let written_before: Vec<Vec<u8>> = [&a, &b]
             .into_iter()
             .filter(|s| blob::decode(s).is_ok())
@@ -173,7 +181,7 @@ fn write_cut_off_at_every_byte_boots_the_old_or_the_new_model() {
         if let Expect::Model(_, running) = &before {
             assert_ne!(plan.slot, *running, "{name}");
         }
-        let new = with_generation(&new_model, plan.generation).unwrap();
+        let new = with_generation(new_model, plan.generation).unwrap();
         let mut written = written_before.clone();
         written.push(new.clone());
         let place = |target: Vec<u8>| match plan.slot {
@@ -243,9 +251,9 @@ fn write_cut_off_at_every_byte_boots_the_old_or_the_new_model() {
             &format!("{name}: complete write"),
         );
     }
-    // Six states x (erase offsets + 3 x write offsets).
+    // Six states x two new models x (erase offsets + 3 x write offsets).
     eprintln!("write cut-off: {boots} boots checked");
-    assert!(boots > 6 * 3 * 300, "only {boots} boots");
+    assert!(boots > 6 * 3 * (300 + 600), "only {boots} boots");
 }
 
 /// Boots `damaged` in `slot` with `other` in the other slot and checks the damaged blob is
@@ -270,7 +278,16 @@ fn check_damaged(damaged: &[u8], slot: Slot, other: &[u8], intact_blobs: &[Vec<u
 /// The stored blob under test and the other slot's contents: (name, stored, slot, other).
 fn flip_scenarios() -> Vec<(&'static str, Vec<u8>, Slot, Vec<u8>)> {
     let m = |generation: u32, seed: u64| hvs_tests::blob_bytes(&sample_model(generation, seed));
+    let pm =
+        |generation: u32, seed: u64| hvs_tests::blob_bytes(&sample_posture_model(generation, seed));
     vec![
+        ("posture-aware A alone", pm(5, 27), Slot::A, vec![]),
+        (
+            "posture-aware B gen 6, A gen 2",
+            pm(6, 28),
+            Slot::B,
+            m(2, 29),
+        ),
         ("A alone", m(5, 21), Slot::A, vec![]),
         ("A gen 5, B gen 4", m(5, 21), Slot::A, m(4, 22)),
         ("B gen 9, A gen 3", m(9, 23), Slot::B, m(3, 24)),
