@@ -57,19 +57,11 @@ fn parse_int(s: &str) -> Option<u32> {
 /// of case I's training set: not a trained model, but all that bit-for-bit comparisons and the
 /// firmware's instruction count need.
 pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
-    let mut s = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut rnd = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    };
-    let mut params = heapless::Vec::new();
-    for _ in 0..param_count(4, 5, 3) {
-        params.push(rnd() * 2.0).unwrap();
-    }
+    let params = seeded_params(
+        seed.wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407),
+        param_count(4, 5, 3),
+    );
     let v = |a: &[f32]| heapless::Vec::from_slice(a).unwrap();
     ModelBlob {
         generation,
@@ -102,17 +94,7 @@ pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
 /// seeded weights, built like [`sample_model`]: the larger blob for the fault-injection tests.
 pub fn sample_posture_model(generation: u32, seed: u64) -> ModelBlob {
     let base = sample_model(generation, seed);
-    let mut s = seed ^ 0x9e37_79b9_7f4a_7c15;
-    let mut rnd = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    };
-    let mut params = heapless::Vec::new();
-    for _ in 0..param_count(9, 8, 3) {
-        params.push(rnd() * 2.0).unwrap();
-    }
+    let params = seeded_params(seed ^ 0x9e37_79b9_7f4a_7c15, param_count(9, 8, 3));
     let extend = |px: &[f32], joints: [f32; 5]| {
         let mut v: heapless::Vec<f32, { hvs_shared::blob::MAX_INPUTS }> =
             heapless::Vec::from_slice(px).unwrap();
@@ -135,6 +117,19 @@ pub fn sample_posture_model(generation: u32, seed: u64) -> ModelBlob {
         in_max: extend(&base.in_max, [30.0, 20.0, 15.0, 20.0, 20.0]),
         ..base
     }
+}
+
+/// `n` parameters in [-2, 2) from a linear congruential generator started at `state`.
+fn seeded_params(mut state: u64, n: usize) -> heapless::Vec<f32, { hvs_shared::blob::MAX_PARAMS }> {
+    let mut params = heapless::Vec::new();
+    for _ in 0..n {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let r = ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0;
+        params.push(r * 2.0).unwrap();
+    }
+    params
 }
 
 /// The bytes of `blob` as written into a weight slot (no trailing erased bytes).
