@@ -2,6 +2,9 @@
 //! experiment, the files written, and determinism (the library run and the CLI run with the
 //! same seed write the same CSV bytes).
 
+mod common;
+use common::{read, spawn_quick_experiment, wait_ok};
+
 use assert_cmd::Command;
 use hvs_host::experiment::{
     e_ma_hn, hidden_counts, report, run, Config, Quiet, Thesis, FEWER_DEPTHS, PHI_DEPTHS,
@@ -9,7 +12,6 @@ use hvs_host::experiment::{
 use hvs_host::train::Algo;
 use hvs_shared::blob::OutputKind;
 use hvs_shared::presets::TEST_DEPTHS;
-use std::path::Path;
 
 fn check_invariants(t: &Thesis) {
     let cfg = t.config;
@@ -180,10 +182,6 @@ fn check_invariants(t: &Thesis) {
     assert!(c4.traditional_pct > 100.0);
 }
 
-fn read(p: &Path) -> Vec<u8> {
-    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
-}
-
 #[test]
 fn quick_run_invariants_files_and_determinism() {
     let cfg = Config {
@@ -194,14 +192,7 @@ fn quick_run_invariants_files_and_determinism() {
     // run below does (all threads): equal CSVs also show the thread count does not matter.
     let cli_dir = tempfile::tempdir().unwrap();
     let out = cli_dir.path().join("results");
-    let child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
-        .args(["experiment", "thesis", "--quick", "--seed", "0", "-o"])
-        .arg(&out)
-        .env("RAYON_NUM_THREADS", "1")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_quick_experiment("thesis", 0, &out);
 
     let t = run(&cfg, &Quiet).unwrap();
     check_invariants(&t);
@@ -209,13 +200,7 @@ fn quick_run_invariants_files_and_determinism() {
     let written = report::write(lib_dir.path(), &t, 0.0).unwrap();
     assert_eq!(written.len(), 3 * report::STEMS.len() + 2);
 
-    let output = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
-    assert!(
-        output.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    let (stdout, _) = wait_ok(child);
     assert!(stdout.contains("RESULTS.md"), "{stdout}");
 
     for stem in report::STEMS {

@@ -2,12 +2,14 @@
 //! part, the files written, and determinism (the library run and the CLI run on one thread
 //! with the same seed write the same CSV bytes).
 
+mod common;
+use common::{read, spawn_quick_experiment, wait_ok};
+
 use assert_cmd::Command;
 use hvs_host::dataset::JOINT_COLUMNS;
 use hvs_host::experiment::posture::{self, PostureConfig, PostureRun, HIDDEN_SWEEP_QUICK, STEMS};
 use hvs_host::experiment::Quiet;
 use hvs_host::posture_study::fixed_postures;
-use std::path::Path;
 
 fn check_invariants(run: &PostureRun) {
     let r = &run.report;
@@ -116,10 +118,6 @@ fn check_invariants(run: &PostureRun) {
     assert_eq!((d5.floor.failed, d5.dlt.failed), (0, 0));
 }
 
-fn read(p: &Path) -> Vec<u8> {
-    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
-}
-
 /// The rows of a CSV (header first), parsed with the quotes the labels need.
 fn csv_rows(text: &str) -> Vec<Vec<String>> {
     let mut rdr = csv::ReaderBuilder::new()
@@ -139,14 +137,7 @@ fn quick_run_invariants_files_and_determinism() {
     // The command (same seed, one worker thread) runs while the library run does.
     let cli_dir = tempfile::tempdir().unwrap();
     let out = cli_dir.path().join("posture");
-    let child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
-        .args(["experiment", "posture", "--quick", "--seed", "1", "-o"])
-        .arg(&out)
-        .env("RAYON_NUM_THREADS", "1")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_quick_experiment("posture", 1, &out);
 
     let run = posture::run(&cfg, &Quiet).unwrap();
     check_invariants(&run);
@@ -154,16 +145,10 @@ fn quick_run_invariants_files_and_determinism() {
     let written = posture::write(lib_dir.path(), &run, 0.0).unwrap();
     assert_eq!(written.len(), 3 * STEMS.len() + 2);
 
-    let output = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
-    assert!(
-        output.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    let (stdout, stderr) = wait_ok(child);
     assert!(stdout.contains("POSTURE.md"), "{stdout}");
     // Not a terminal: no progress bars.
-    assert!(output.stderr.is_empty(), "{:?}", output.stderr);
+    assert!(stderr.is_empty(), "{stderr:?}");
 
     let r = &run.report;
     let headers = [

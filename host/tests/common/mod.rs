@@ -5,6 +5,7 @@
 use assert_cmd::Command;
 use predicates::prelude::*;
 use std::path::Path;
+use std::process::Child;
 
 /// The built `hvs` binary.
 pub fn hvs() -> Command {
@@ -45,4 +46,41 @@ pub fn fails(args: &[&str], want: &str) -> String {
 /// `p` as a `&str` argument.
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
+}
+
+/// The bytes of `p`, or a panic naming it.
+pub fn read(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// Starts `hvs experiment <kind> --quick --seed <seed> -o <out>` on one worker thread, so a
+/// test can run the library on all threads meanwhile and compare the bytes.
+pub fn spawn_quick_experiment(kind: &str, seed: u64, out: &Path) -> Child {
+    std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
+        .args([
+            "experiment",
+            kind,
+            "--quick",
+            "--seed",
+            &seed.to_string(),
+            "-o",
+        ])
+        .arg(out)
+        .env("RAYON_NUM_THREADS", "1")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("hvs experiment starts")
+}
+
+/// Waits for `child`, asserts success, returns (stdout, stderr).
+pub fn wait_ok(child: Child) -> (String, Vec<u8>) {
+    let output = child.wait_with_output().expect("the command ran");
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    assert!(
+        output.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    (stdout, output.stderr)
 }
