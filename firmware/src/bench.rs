@@ -5,8 +5,8 @@
 //! (`firmware/measure.sh` does this). The loop runs with interrupts off; an empty loop of the
 //! same shape is timed too and subtracted.
 
-use hvs_shared::head::Boot;
-use hvs_shared::protocol::{ErrorCode, ResponseBody, StereoPoint};
+use hvs_shared::runtime::head::Boot;
+use hvs_shared::runtime::protocol::{ErrorCode, ResponseBody, StereoPoint};
 
 /// Most inferences per request: 2000 4-5-3 inferences stay well inside one SysTick period
 /// (10 ms = 10 M instructions in QEMU), so at most one wrap has to be accounted for.
@@ -24,9 +24,9 @@ pub fn run(_: &Boot, _: &StereoPoint, _: u32, _: u32) -> ResponseBody {
 pub fn run(boot: &Boot, point: &StereoPoint, count: u32, tick_hz: u32) -> ResponseBody {
     use core::hint::black_box;
     use cortex_m::peripheral::SYST;
-    use hvs_shared::gaze::Joints;
-    use hvs_shared::head::Estimator;
-    use hvs_shared::protocol::BenchData;
+    use hvs_shared::runtime::gaze::Joints;
+    use hvs_shared::runtime::head::Estimator;
+    use hvs_shared::runtime::protocol::BenchData;
 
     let Estimator::Network(net) = &boot.estimator else {
         return ResponseBody::Error(ErrorCode::Unsupported);

@@ -4,7 +4,7 @@
 use core::cell::RefCell;
 use cortex_m::interrupt::Mutex;
 use heapless::Deque;
-use hvs_shared::protocol::BAUD_RATE;
+use hvs_shared::runtime::protocol::BAUD_RATE;
 use stm32f4xx_hal::{
     gpio::{PA10, PA9},
     interrupt, nb, pac,

@@ -2,10 +2,10 @@
 //!
 //! This crate owns only I/O; every decision and every number comes from `hvs-shared`:
 //!
-//! - boot: reads both weight slots straight from flash (`hvs_shared::layout` addresses, at most
-//!   `MAX_BLOB_LEN` bytes each) and hands them to `hvs_shared::head::boot`, which runs the
+//! - boot: reads both weight slots straight from flash (`hvs_shared::runtime::layout` addresses, at most
+//!   `MAX_BLOB_LEN` bytes each) and hands them to `hvs_shared::runtime::head::boot`, which runs the
 //!   valid, runnable slot with the higher generation, or the traditional method;
-//! - USART1 (PA9 TX, PA10 RX, 115200 8N1): the protocol of `hvs_shared::protocol`. Bytes are
+//! - USART1 (PA9 TX, PA10 RX, 115200 8N1): the protocol of `hvs_shared::runtime::protocol`. Bytes are
 //!   received by interrupt into a ring buffer; frames are decoded and answered in the main loop;
 //!   the head announces itself with `Ready` once it listens;
 //! - a 100 Hz SysTick control tick (see [`servo`]) that advances the gaze trajectory and
@@ -26,16 +26,16 @@ mod servo;
 use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
-use hvs_shared::blob::MAX_BLOB_LEN;
-use hvs_shared::gaze::{GazeConfig, Joints};
-use hvs_shared::head::{self, Head};
-use hvs_shared::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
-use hvs_shared::protocol::{
+use hvs_shared::runtime::blob::MAX_BLOB_LEN;
+use hvs_shared::runtime::gaze::{GazeConfig, Joints};
+use hvs_shared::runtime::head::{self, Head};
+use hvs_shared::runtime::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
+use hvs_shared::runtime::protocol::{
     self, ErrorCode, FirmwareVersion, FrameAccumulator, Request, RequestBody, Response,
     ResponseBody, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
 };
-use hvs_shared::servo::ServoOutput;
-use hvs_shared::trajectory::ControllerConfig;
+use hvs_shared::runtime::servo::ServoOutput;
+use hvs_shared::runtime::trajectory::ControllerConfig;
 use stm32f4xx_hal::{pac, prelude::*};
 
 /// This firmware's version (the crate version).
@@ -62,7 +62,7 @@ static TICKS: AtomicU32 = AtomicU32::new(0);
 /// The bytes of a weight slot as the CPU sees them in flash.
 fn slot_bytes(addr: u32) -> &'static [u8] {
     // SAFETY: the slot addresses are inside the STM32F405's 1 MiB flash (memory.x reserves
-    // them; `hvs_shared::layout` tests check they lie within flash), which is always mapped
+    // them; `hvs_shared::runtime::layout` tests check they lie within flash), which is always mapped
     // and readable, never written by this firmware, and `MAX_BLOB_LEN` (4 KiB) is less than
     // the 128 KiB slot.
     unsafe { core::slice::from_raw_parts(addr as *const u8, MAX_BLOB_LEN) }
@@ -97,7 +97,7 @@ fn main() -> ! {
     };
     #[cfg(feature = "pwm")]
     let (mut c0, mut c1, mut c2, mut c3, mut c4) = {
-        use hvs_shared::servo::PWM_HZ;
+        use hvs_shared::runtime::servo::PWM_HZ;
         let gpiob = dp.GPIOB.split(&mut rcc);
         let (_, (t3c1, t3c2, t3c3, t3c4)) = dp.TIM3.pwm_hz(PWM_HZ.Hz(), &mut rcc);
         let (_, (t4c1, ..)) = dp.TIM4.pwm_hz(PWM_HZ.Hz(), &mut rcc);

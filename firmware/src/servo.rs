@@ -1,4 +1,4 @@
-//! The two `ServoOutput` implementations (conversions and clamping are `hvs_shared::servo`'s):
+//! The two `ServoOutput` implementations (conversions and clamping are `hvs_shared::runtime::servo`'s):
 //!
 //! - [`Mcdc`]: Faulhaber MCDC 3006 S drives on USART2 (PA2 TX, [`MCDC_BAUD`] 8N1), one node per
 //!   axis: `<node>LA<counts>\r<node>M\r` for each axis whose counts changed since the last
@@ -9,16 +9,18 @@
 //! Every angle goes through `McdcConfig::counts` / `PwmConfig::pulse_us`, which clamp to the
 //! joint limits whatever the setpoint is.
 
-use hvs_shared::gaze::{Axis, JointLimits, Joints};
-use hvs_shared::servo::ServoOutput;
+use hvs_shared::runtime::gaze::{Axis, JointLimits, Joints};
+use hvs_shared::runtime::servo::ServoOutput;
 
 /// The MCDC drives of this head (nodes, counts per degree, zero offsets).
 #[cfg(not(feature = "pwm"))]
-pub const MCDC: hvs_shared::servo::McdcConfig = hvs_shared::servo::McdcConfig::DEFAULT;
+pub const MCDC: hvs_shared::runtime::servo::McdcConfig =
+    hvs_shared::runtime::servo::McdcConfig::DEFAULT;
 
 /// The hobby servos of this head (centre pulses, microseconds per degree).
 #[cfg(feature = "pwm")]
-pub const PWM: hvs_shared::servo::PwmConfig = hvs_shared::servo::PwmConfig::DEFAULT;
+pub const PWM: hvs_shared::runtime::servo::PwmConfig =
+    hvs_shared::runtime::servo::PwmConfig::DEFAULT;
 
 /// Baud rate of the MCDC line. The drives ship at 9600; 115200 (`BAUD115200`, `EEPSAV` once
 /// per drive) leaves room for five axes at 100 Hz.
@@ -29,7 +31,7 @@ pub const MCDC_BAUD: u32 = 115_200;
 #[cfg(not(feature = "pwm"))]
 pub struct Mcdc<W: embedded_io::Write> {
     tx: W,
-    cfg: hvs_shared::servo::McdcConfig,
+    cfg: hvs_shared::runtime::servo::McdcConfig,
     limits: JointLimits,
     last: [Option<i32>; 5],
 }
@@ -37,7 +39,7 @@ pub struct Mcdc<W: embedded_io::Write> {
 #[cfg(not(feature = "pwm"))]
 impl<W: embedded_io::Write> Mcdc<W> {
     /// Drives on `tx`; nothing is sent until the first command.
-    pub fn new(tx: W, cfg: hvs_shared::servo::McdcConfig, limits: JointLimits) -> Self {
+    pub fn new(tx: W, cfg: hvs_shared::runtime::servo::McdcConfig, limits: JointLimits) -> Self {
         Mcdc {
             tx,
             cfg,
@@ -52,7 +54,7 @@ impl<W: embedded_io::Write> ServoOutput for Mcdc<W> {
     type Error = W::Error;
 
     fn command(&mut self, joints: &Joints) -> Result<(), W::Error> {
-        use hvs_shared::servo::{format_mcdc, McdcCmd};
+        use hvs_shared::runtime::servo::{format_mcdc, McdcCmd};
         for axis in Axis::ALL {
             let i = axis.index();
             let counts = self.cfg.counts(&self.limits, axis, joints[axis]);
@@ -80,16 +82,16 @@ impl<W: embedded_io::Write> ServoOutput for Mcdc<W> {
 #[cfg(feature = "pwm")]
 pub struct Pwm<'a, E: embedded_hal::pwm::Error> {
     channels: [&'a mut dyn embedded_hal::pwm::SetDutyCycle<Error = E>; 5],
-    cfg: hvs_shared::servo::PwmConfig,
+    cfg: hvs_shared::runtime::servo::PwmConfig,
     limits: JointLimits,
 }
 
 #[cfg(feature = "pwm")]
 impl<'a, E: embedded_hal::pwm::Error> Pwm<'a, E> {
-    /// Servos on `channels`, each a timer channel running at `hvs_shared::servo::PWM_HZ`.
+    /// Servos on `channels`, each a timer channel running at `hvs_shared::runtime::servo::PWM_HZ`.
     pub fn new(
         channels: [&'a mut dyn embedded_hal::pwm::SetDutyCycle<Error = E>; 5],
-        cfg: hvs_shared::servo::PwmConfig,
+        cfg: hvs_shared::runtime::servo::PwmConfig,
         limits: JointLimits,
     ) -> Self {
         Pwm {
@@ -105,7 +107,7 @@ impl<E: embedded_hal::pwm::Error> ServoOutput for Pwm<'_, E> {
     type Error = E;
 
     fn command(&mut self, joints: &Joints) -> Result<(), E> {
-        use hvs_shared::servo::{duty_for, PWM_PERIOD_US};
+        use hvs_shared::runtime::servo::{duty_for, PWM_PERIOD_US};
         for axis in Axis::ALL {
             let ch = &mut self.channels[axis.index()];
             let pulse = self.cfg.pulse_us(&self.limits, axis, joints[axis]);

@@ -9,8 +9,8 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use hvs_host::dataset::Dataset;
 use hvs_host::infer::Predictor;
 use hvs_host::simulate::{simulate, SetKind, SimOptions};
-use hvs_shared::blob::{InputKind, ModelBlob};
-use hvs_shared::presets;
+use hvs_shared::runtime::blob::{InputKind, ModelBlob};
+use hvs_shared::sim::presets;
 use std::hint::black_box;
 
 const N: usize = 1_000_000;

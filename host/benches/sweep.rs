@@ -9,8 +9,8 @@ use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use hvs_host::dataset::Dataset;
 use hvs_host::experiment::{self, Quiet};
 use hvs_host::train::{train, TrainConfig};
-use hvs_shared::blob::InputKind;
-use hvs_shared::presets;
+use hvs_shared::runtime::blob::InputKind;
+use hvs_shared::sim::presets;
 use std::hint::black_box;
 use std::time::Duration;
 

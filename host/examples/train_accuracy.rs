@@ -22,10 +22,10 @@
 use clap::Parser;
 use hvs_host::dataset::Dataset;
 use hvs_host::train::{train, Algo, TrainConfig};
-use hvs_shared::blob::{InputKind, ModelBlob, OutputKind};
-use hvs_shared::camera::Rig;
-use hvs_shared::metrics::EmaAcc;
-use hvs_shared::{presets, triangulate};
+use hvs_shared::runtime::blob::{InputKind, ModelBlob, OutputKind};
+use hvs_shared::sim::camera::Rig;
+use hvs_shared::sim::metrics::EmaAcc;
+use hvs_shared::sim::{presets, triangulate};
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -132,7 +132,7 @@ fn z_hat(blob: &ModelBlob, x: &[f64]) -> f64 {
 
 fn optimal_z(rig: &Rig, x: &[f64]) -> f64 {
     let px: [f64; 4] = x.try_into().expect("four pixel inputs");
-    triangulate::optimal(rig, &px).map_or(f64::INFINITY, |p| p[2])
+    triangulate::optimal_rig(rig, &px).map_or(f64::INFINITY, |p| p[2])
 }
 
 /// Per test depth: e_ma (%) of `estimate` over the test points at that depth.

@@ -9,7 +9,7 @@
 
 use crate::dataset::{Dataset, JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
 use anyhow::{anyhow, bail, Context, Result};
-use hvs_shared::blob::InputKind;
+use hvs_shared::runtime::blob::InputKind;
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 

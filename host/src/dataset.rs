@@ -1,7 +1,7 @@
 //! The in-memory data set that every command passes around: inputs (pixels, and for
 //! posture-aware sets the five joint angles) with optional ground-truth positions.
 
-use hvs_shared::blob::InputKind;
+use hvs_shared::runtime::blob::InputKind;
 
 /// Names of the four pixel columns, in input order.
 pub const PIXEL_COLUMNS: [&str; 4] = ["u_l", "v_l", "u_r", "v_r"];

@@ -8,7 +8,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use hvs_shared::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
+use hvs_shared::runtime::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};

@@ -13,12 +13,13 @@
 
 use crate::dataset::Dataset;
 use crate::infer::{PointError, Predictor};
-use hvs_shared::blob::{InputKind, ModelBlob};
-use hvs_shared::camera::Rig;
-use hvs_shared::gaze::Joints;
-use hvs_shared::metrics::EmaAcc;
-use hvs_shared::posture::HeadRig;
-use hvs_shared::triangulate::{optimal, traditional_depth_signed, Calibration};
+use hvs_shared::runtime::blob::{InputKind, ModelBlob};
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::runtime::traditional::{traditional_depth_signed, Calibration};
+use hvs_shared::sim::camera::Rig;
+use hvs_shared::sim::metrics::EmaAcc;
+use hvs_shared::sim::posture::HeadRig;
+use hvs_shared::sim::triangulate::optimal_rig as optimal;
 use serde::Serialize;
 
 /// Most distinct depths reported one by one.
@@ -214,7 +215,7 @@ pub fn traditional_depths(cal: &Calibration, data: &Dataset) -> Vec<f64> {
 ///
 /// On a posture-aware set (nine inputs: the pixels, then the joint angles of
 /// [`crate::dataset::JOINT_COLUMNS`] in degrees) each row is triangulated with the rig's
-/// cameras at that row's posture (`hvs_shared::posture::HeadRig::new(rig)`: the simulator's
+/// cameras at that row's posture (`hvs_shared::sim::posture::HeadRig::new(rig)`: the simulator's
 /// head, neck axes through the baseline centre, no lens distortion), so the depth is in the
 /// head frame like the set's ground truth. A set's lens distortion is not in the file and is
 /// not modelled here.
@@ -369,8 +370,8 @@ mod tests {
     fn the_floor_of_a_posture_set_uses_the_cameras_at_each_rows_posture() {
         use crate::posture::{dataset, simulate};
         use crate::simulate::{SetKind, SimOptions};
-        use hvs_shared::posture::joints_from_gaze;
-        let rig = hvs_shared::presets::CASE_3;
+        use hvs_shared::sim::posture::joints_from_gaze;
+        let rig = hvs_shared::sim::presets::CASE_3;
         let head = HeadRig::new(rig);
         // Home, verged 10 degrees, and a turned, tilted, verged posture.
         let postures = [

@@ -9,10 +9,10 @@
 //! centre line is used: the rounding error of `u_sd Z` grows with `Z`, so the nearest board
 //! gives the best estimate (on case I's training board at 65 cm this is the `phi_px` of
 //! `cases.json`). In posture-aware sets only rows at the home posture (all joint angles 0)
-//! count. No such group: no fallback. The arithmetic is `hvs_shared::triangulate::phi_estimate`.
+//! count. No such group: no fallback. The arithmetic is `hvs_shared::runtime::traditional::phi_estimate`.
 
 use crate::dataset::Dataset;
-use hvs_shared::triangulate::{phi_estimate, Calibration};
+use hvs_shared::runtime::traditional::{phi_estimate, Calibration};
 use std::collections::{BTreeMap, HashMap};
 
 /// A fitted fallback and where it came from.
@@ -97,10 +97,10 @@ pub fn fit(data: &Dataset, half_baseline: f64, u0: f64, v0: f64) -> Option<Fallb
 mod tests {
     use super::*;
     use crate::simulate::{simulate, SetKind, SimOptions};
-    use hvs_shared::blob::InputKind;
-    use hvs_shared::presets;
+    use hvs_shared::runtime::blob::InputKind;
+    use hvs_shared::sim::presets;
 
-    fn set(rig: &hvs_shared::camera::Rig, kind: SetKind) -> Dataset {
+    fn set(rig: &hvs_shared::sim::camera::Rig, kind: SetKind) -> Dataset {
         let mut d = Dataset::new(InputKind::Stereo);
         for s in simulate(rig, kind, &SimOptions::default()).unwrap() {
             d.push(&s.px, Some(s.xyz));

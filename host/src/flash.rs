@@ -3,17 +3,17 @@
 //! `image` writes a flashable file (raw binary or Intel HEX) for other flashers; `flash` uses
 //! the `probe-rs` library to read both slots through a debug probe, write the model into the
 //! slot that is not running with the next generation number (the rules of
-//! [`hvs_shared::slots`], over the slot states the head's own boot sees:
-//! [`hvs_shared::head::slot_state`]), verify it by reading it back, and reset the head. Only
+//! [`hvs_shared::runtime::slots`], over the slot states the head's own boot sees:
+//! [`hvs_shared::runtime::head::slot_state`]), verify it by reading it back, and reset the head. Only
 //! the target slot's sector is erased: a write cut off half-way leaves the running model in
-//! place. Both refuse a model the head would not run ([`hvs_shared::head::Network::new`]).
+//! place. Both refuse a model the head would not run ([`hvs_shared::runtime::head::Network::new`]).
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
-use hvs_shared::blob::{self, InputKind, ModelBlob, OutputKind, MAX_BLOB_LEN};
-use hvs_shared::head::Network;
-use hvs_shared::layout::{Slot, SLOT_LEN};
-use hvs_shared::slots::{plan_write, SlotRequest, SlotState, WritePlan};
+use hvs_shared::runtime::blob::{self, InputKind, ModelBlob, OutputKind, MAX_BLOB_LEN};
+use hvs_shared::runtime::head::Network;
+use hvs_shared::runtime::layout::{Slot, SLOT_LEN};
+use hvs_shared::runtime::slots::{plan_write, SlotRequest, SlotState, WritePlan};
 use std::path::{Path, PathBuf};
 
 /// The head controller's chip.
@@ -247,10 +247,15 @@ pub fn run_flash(args: &FlashArgs) -> Result<()> {
 }
 
 /// The plan for slots holding `a` and `b` (raw bytes read from the head): the head's own
-/// boot classification ([`SlotState::of`], i.e. [`hvs_shared::head::slot_state`]) fed to
+/// boot classification ([`hvs_shared::runtime::head::slot_state`]) fed to
 /// [`plan_write`], so the slot it calls running is the one the head runs.
 pub fn plan_for_slots(a: &[u8], b: &[u8], req: SlotRequest) -> Result<WritePlan> {
-    plan_write(SlotState::of(a), SlotState::of(b), req).map_err(|e| anyhow!("{e}"))
+    plan_write(
+        hvs_shared::runtime::head::slot_state(a),
+        hvs_shared::runtime::head::slot_state(b),
+        req,
+    )
+    .map_err(|e| anyhow!("{e}"))
 }
 
 /// The exact size of `blob` written with each generation, as `(first, last, bytes)` ranges
@@ -431,8 +436,8 @@ fn flash_with_probe(args: &FlashArgs, blob: &ModelBlob, req: SlotRequest) -> Res
     );
     println!(
         "slot A: {}\nslot B: {}",
-        describe(SlotState::of(&a)),
-        describe(SlotState::of(&b))
+        describe(hvs_shared::runtime::head::slot_state(&a)),
+        describe(hvs_shared::runtime::head::slot_state(&b))
     );
     let plan = plan_for_slots(&a, &b, req)?;
     let bytes = with_generation(blob, plan.generation)?;
@@ -454,7 +459,7 @@ fn flash_with_probe(args: &FlashArgs, blob: &ModelBlob, req: SlotRequest) -> Res
         .commit(&mut session, opts)
         .context("flash write failed; the running slot was not touched")?;
     let back = read_slot(&mut session, plan.slot)?;
-    match SlotState::of(&back) {
+    match hvs_shared::runtime::head::slot_state(&back) {
         SlotState::Valid { generation } if generation == plan.generation => {}
         other => bail!(
             "read-back of slot {:?} is {other:?}; the previous model still boots",
@@ -511,17 +516,18 @@ mod tests {
         assert!(hex.contains(":020000040801F1"));
     }
 
-    use hvs_shared::head;
+    use hvs_shared::runtime::head;
 
-    const V: hvs_shared::protocol::FirmwareVersion = hvs_shared::protocol::FirmwareVersion {
-        major: 0,
-        minor: 1,
-        patch: 0,
-    };
+    const V: hvs_shared::runtime::protocol::FirmwareVersion =
+        hvs_shared::runtime::protocol::FirmwareVersion {
+            major: 0,
+            minor: 1,
+            patch: 0,
+        };
 
     fn model(generation: u32, outputs: OutputKind) -> ModelBlob {
-        use hvs_shared::blob::{Algorithm, Topology, TrainingMeta};
-        use hvs_shared::mlp::{param_count, Activation};
+        use hvs_shared::runtime::blob::{Algorithm, Topology, TrainingMeta};
+        use hvs_shared::runtime::mlp::{param_count, Activation};
         let n_out = outputs.len();
         ModelBlob {
             generation,

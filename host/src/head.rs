@@ -7,7 +7,7 @@
 use crate::link::{Endpoint, Link};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
-use hvs_shared::protocol::{
+use hvs_shared::runtime::protocol::{
     ErrorCode, EstimateData, InfoData, Mode, RequestBody, ResponseBody, SlotStatus, Source,
     StereoPoint,
 };
@@ -25,7 +25,7 @@ pub struct HeadArgs {
     #[arg(long)]
     pub port: Option<String>,
     /// Serial baud rate.
-    #[arg(long, default_value_t = hvs_shared::protocol::BAUD_RATE)]
+    #[arg(long, default_value_t = hvs_shared::runtime::protocol::BAUD_RATE)]
     pub baud: u32,
     /// Milliseconds to wait for each response (and for the head to come up).
     #[arg(long, default_value_t = 3000)]

@@ -1,16 +1,16 @@
 //! Batch inference of a weights blob over many points, bit-identical to
-//! `hvs_shared::blob::ModelBlob::infer` (the head's computation).
+//! `hvs_shared::runtime::blob::ModelBlob::infer` (the head's computation).
 //!
 //! Common topologies (4 or 9 inputs, 1-10 hidden units, 1 or 3 outputs) run through the
-//! fixed-size `hvs_shared::mlp::Mlp<I, H, O>` evaluated `lanes::LANES` points at a time by
+//! fixed-size `hvs_shared::runtime::mlp::Mlp<I, H, O>` evaluated `lanes::LANES` points at a time by
 //! the auto-vectorised, bit-identical kernel in `lanes` (including a lane-wise
 //! `libm::expf`); anything else through the runtime-sized `infer_flat`. Both give the same
 //! bits (a property test in `hvs-shared`, and the tests here and in `lanes`). Large batches
 //! are split into chunks run in parallel with `rayon`; the result does not depend on the
 //! thread count.
 
-use hvs_shared::blob::ModelBlob;
-use hvs_shared::mlp::{Mlp, MlpError};
+use hvs_shared::runtime::blob::ModelBlob;
+use hvs_shared::runtime::mlp::{Mlp, MlpError};
 use rayon::prelude::*;
 
 mod lanes;
@@ -172,8 +172,8 @@ pub fn to_f32(inputs: &[f64], n_inputs: usize) -> Result<Vec<f32>, (usize, usize
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use hvs_shared::blob::{Algorithm, InputKind, OutputKind, Topology, TrainingMeta};
-    use hvs_shared::mlp::{param_count, Activation};
+    use hvs_shared::runtime::blob::{Algorithm, InputKind, OutputKind, Topology, TrainingMeta};
+    use hvs_shared::runtime::mlp::{param_count, Activation};
 
     /// A deterministic hand-made blob of any 4-input topology.
     pub(crate) fn blob(hidden: u8, outputs: OutputKind, inputs: InputKind) -> ModelBlob {

@@ -1,4 +1,4 @@
-//! Client side of the head protocol (`hvs_shared::protocol`) over TCP (QEMU) or a serial port.
+//! Client side of the head protocol (`hvs_shared::runtime::protocol`) over TCP (QEMU) or a serial port.
 //!
 //! [`Link`] numbers requests, sends them as COBS frames, and waits for the response with the
 //! same id under a timeout; frames the head sends on its own (`Ready`, errors about frames it
@@ -6,7 +6,7 @@
 //! head answers, since bytes sent before the firmware enables its USART are lost.
 
 use anyhow::{anyhow, bail, Context, Result};
-use hvs_shared::protocol::{
+use hvs_shared::runtime::protocol::{
     self, FrameAccumulator, Request, RequestBody, Response, ResponseBody, MAX_FRAME_LEN,
     UNSOLICITED_ID,
 };
@@ -246,7 +246,7 @@ impl Link {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hvs_shared::protocol::StereoPoint;
+    use hvs_shared::runtime::protocol::StereoPoint;
     use std::net::TcpListener;
 
     #[test]

@@ -1,9 +1,11 @@
-//! Model files on disk: the `hvs_shared::blob` format read with a precise account of what is
+//! Model files on disk: the `hvs_shared::runtime::blob` format read with a precise account of what is
 //! wrong with a damaged file, and written atomically.
 
 use crate::csv_io::write_bytes;
 use anyhow::{anyhow, Context, Result};
-use hvs_shared::blob::{self, BlobError, InputKind, ModelBlob, OutputKind, CRC_LEN, MAX_BLOB_LEN};
+use hvs_shared::runtime::blob::{
+    self, BlobError, InputKind, ModelBlob, OutputKind, CRC_LEN, MAX_BLOB_LEN,
+};
 use std::path::Path;
 
 /// A blob file as found on disk.

@@ -1,10 +1,10 @@
 //! Posture-aware point sets: the sets of [`crate::simulate`] (the thesis' board protocol, its
 //! test points, random points of the training volume) seen by the thesis rig on the five-axis
-//! head at many postures ([`hvs_shared::posture`]), optionally through distorting lenses, with
+//! head at many postures ([`hvs_shared::sim::posture`]), optionally through distorting lenses, with
 //! the five joint angles as extra columns.
 //!
 //! At each posture the points are placed in the posture's cyclopean gaze frame
-//! ([`hvs_shared::posture::gaze_frame`]): the board sits in front of wherever the head looks,
+//! ([`hvs_shared::sim::posture::gaze_frame`]): the board sits in front of wherever the head looks,
 //! at the thesis' distances from the eyes, and its ground truth is written in the head frame
 //! (the body-fixed stereo frame of the home posture), which is what a posture-aware model
 //! outputs and what the head's `Look` fixates.
@@ -23,10 +23,10 @@ use crate::simulate::{
     board_points, check_points, to_written_precision, training_volume, SetKind, SimOptions,
 };
 use anyhow::{bail, Result};
-use hvs_shared::blob::InputKind;
-use hvs_shared::camera::{StereoPixels, Vec3};
-use hvs_shared::gaze::Joints;
-use hvs_shared::posture::{gaze_frame, grid_len, to_head, HeadRig, PostureRange};
+use hvs_shared::runtime::blob::InputKind;
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::sim::camera::{StereoPixels, Vec3};
+use hvs_shared::sim::posture::{gaze_frame, grid_len, to_head, HeadRig, PostureRange};
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::io::Write;
@@ -295,8 +295,8 @@ pub fn write_csv(
 mod tests {
     use super::*;
     use crate::csv_io::{read_set_from, Inputs};
-    use hvs_shared::posture::Distortion;
-    use hvs_shared::presets;
+    use hvs_shared::sim::camera::Distortion;
+    use hvs_shared::sim::presets;
     use std::path::Path;
 
     #[test]

@@ -25,12 +25,13 @@ use crate::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::simulate::{SetKind, SimOptions};
 use crate::train::{train, TrainConfig};
 use anyhow::{bail, Context, Result};
-use hvs_shared::blob::{InputKind, ModelBlob};
-use hvs_shared::camera::{Rig, Vec3};
-use hvs_shared::gaze::Joints;
-use hvs_shared::metrics::EmaAcc;
-use hvs_shared::posture::{joints_from_gaze, Distortion, HeadRig, PostureRange};
-use hvs_shared::presets;
+use hvs_shared::runtime::blob::{InputKind, ModelBlob};
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::sim::camera::Distortion;
+use hvs_shared::sim::camera::{Rig, Vec3};
+use hvs_shared::sim::metrics::EmaAcc;
+use hvs_shared::sim::posture::{joints_from_gaze, HeadRig, PostureRange};
+use hvs_shared::sim::presets;
 use nalgebra::{DMatrix, Matrix3, Matrix3x4, Matrix4, Vector3, Vector4};
 use rand::{RngExt, SeedableRng};
 use std::fmt::Write as _;
@@ -174,7 +175,7 @@ pub struct FixedRow {
 
 /// The postures of [`fixed_posture_study`]: home, vergence, version, neck pan, tilts.
 pub fn fixed_postures() -> Vec<(String, Joints)> {
-    let q = hvs_shared::gaze::quantize;
+    let q = hvs_shared::runtime::gaze::quantize;
     let mut v = vec![("home".to_string(), Joints::HOME)];
     for (verg, dist) in [(2.5f32, 240), (5.0, 120), (10.0, 60)] {
         v.push((
@@ -1074,13 +1075,13 @@ mod tests {
     fn dlt_recovers_a_projective_camera_and_triangulates_exactly() {
         let rig = presets::CASE_4;
         let head = HeadRig::new(rig);
-        let j = hvs_shared::posture::joints_from_gaze(10.0, -5.0, 3.0, 4.0, 6.0);
+        let j = hvs_shared::sim::posture::joints_from_gaze(10.0, -5.0, 3.0, 4.0, 6.0);
         let [l, r] = head.cameras(&j);
         let mut pts = Vec::new();
         for z in [60.0, 90.0, 130.0] {
             for p in wide_board(&rig, z, 4, 3) {
-                pts.push(hvs_shared::posture::to_head(
-                    &hvs_shared::posture::gaze_frame(&j, [0.0; 3], rig.half_baseline),
+                pts.push(hvs_shared::sim::posture::to_head(
+                    &hvs_shared::sim::posture::gaze_frame(&j, [0.0; 3], rig.half_baseline),
                     &p,
                 ));
             }

@@ -16,7 +16,8 @@
 //! optional field would otherwise be silently replaced by its default).
 
 use anyhow::{anyhow, bail, Context, Result};
-use hvs_shared::camera::{Rig, HALF_BASELINE_CM};
+use hvs_shared::runtime::gaze::HALF_BASELINE_CM;
+use hvs_shared::sim::camera::Rig;
 use serde_json::{Map, Value};
 use std::path::Path;
 
@@ -186,7 +187,7 @@ fn rig_from(obj: &Map<String, Value>) -> Result<Rig> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hvs_shared::presets;
+    use hvs_shared::sim::presets;
 
     const CASES: &str = include_str!("../../shared/tests/fixtures/cases.json");
 

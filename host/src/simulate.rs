@@ -1,10 +1,10 @@
 //! Simulated point sets: the thesis' board protocol and random points of the training
-//! volume, projected through a rig with `hvs_shared::camera` (optionally with seeded Gaussian
+//! volume, projected through a rig with `hvs_shared::sim::camera` (optionally with seeded Gaussian
 //! pixel noise before the rounding), and their CSV form.
 
 use anyhow::{bail, Result};
-use hvs_shared::camera::{Rig, StereoPixels, Vec3};
-use hvs_shared::presets;
+use hvs_shared::sim::camera::{Rig, StereoPixels, Vec3};
+use hvs_shared::sim::presets;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::io::Write;

@@ -4,7 +4,7 @@
 mod common;
 use common::{fails, hvs, ok, s};
 
-use hvs_shared::blob::{self, ModelBlob};
+use hvs_shared::runtime::blob::{self, ModelBlob};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use tempfile::TempDir;
@@ -300,7 +300,7 @@ fn train_stores_the_thesis_calibration_as_fallback() {
     assert_eq!(blob.generation, 1);
     assert_eq!(
         blob.fallback,
-        Some(hvs_shared::triangulate::Calibration::BUILT_IN),
+        Some(hvs_shared::runtime::traditional::Calibration::BUILT_IN),
         "Phi of case I's 65 cm board, as cases.json"
     );
     let info = ok(&["info", s(&m)]);

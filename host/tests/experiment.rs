@@ -10,8 +10,8 @@ use hvs_host::experiment::{
     e_ma_hn, hidden_counts, report, run, Config, Quiet, Thesis, FEWER_DEPTHS, PHI_DEPTHS,
 };
 use hvs_host::train::Algo;
-use hvs_shared::blob::OutputKind;
-use hvs_shared::presets::TEST_DEPTHS;
+use hvs_shared::runtime::blob::OutputKind;
+use hvs_shared::sim::presets::TEST_DEPTHS;
 
 fn check_invariants(t: &Thesis) {
     let cfg = t.config;

@@ -1,11 +1,11 @@
 //! `hvs image` and `hvs flash` driven from outside: image addresses, dry run, missing probe.
 
 use assert_cmd::Command;
-use hvs_shared::blob::{
+use hvs_shared::runtime::blob::{
     self, Algorithm, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_BLOB_LEN,
 };
-use hvs_shared::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
-use hvs_shared::mlp::{param_count, Activation};
+use hvs_shared::runtime::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
+use hvs_shared::runtime::mlp::{param_count, Activation};
 use std::path::Path;
 
 fn model(generation: u32) -> ModelBlob {

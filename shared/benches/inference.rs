@@ -16,9 +16,9 @@
 use cpu_time::ThreadTime;
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use hvs_shared::head::{NET_HIDDEN, NET_INPUTS, NET_OUTPUTS};
-use hvs_shared::mlp::{infer_flat, param_count, Activation, FlatMlp, Mlp};
-use hvs_shared::triangulate::{traditional_xyz, Calibration};
+use hvs_shared::runtime::head::{NET_HIDDEN, NET_INPUTS, NET_OUTPUTS};
+use hvs_shared::runtime::mlp::{infer_flat, param_count, Activation, FlatMlp, Mlp};
+use hvs_shared::runtime::traditional::{traditional_xyz, Calibration};
 use std::hint::black_box;
 use std::time::Duration;
 

@@ -1,7 +1,8 @@
 //! Cross-check against an independent implementation of the thesis' camera model: the four
 //! presets of `cases.json` and the data sets generated from them must be reproduced exactly.
 
-use hvs_shared::{camera::Rig, presets, triangulate};
+use hvs_shared::runtime::traditional as triangulate;
+use hvs_shared::sim::{camera::Rig, presets};
 use serde_json::Value;
 use std::path::PathBuf;
 

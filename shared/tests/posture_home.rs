@@ -2,9 +2,9 @@
 //! pixels of every fixture row of the four cases, through `posture::HeadRig` at
 //! `Joints::HOME`, equal the file's and `Rig::project_rounded`'s.
 
-use hvs_shared::gaze::Joints;
-use hvs_shared::posture::HeadRig;
-use hvs_shared::presets;
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::sim::posture::HeadRig;
+use hvs_shared::sim::presets;
 use std::path::PathBuf;
 
 #[test]

@@ -16,7 +16,7 @@ fn main() {
         }
     };
     let blob = hvs_tests::sample_model(generation, 42);
-    let mut buf = vec![0u8; hvs_shared::blob::MAX_BLOB_LEN];
+    let mut buf = vec![0u8; hvs_shared::runtime::blob::MAX_BLOB_LEN];
     let n = match blob.encode(&mut buf) {
         Ok(n) => n,
         Err(e) => {

@@ -6,8 +6,8 @@
 use crate::sim::SimHead;
 use hvs_host::csv_io::{self, Inputs};
 use hvs_host::dataset::{JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
-use hvs_shared::blob::{self, HEADER_LEN, MAGIC, MAX_BLOB_LEN, VERSION};
-use hvs_shared::protocol::{
+use hvs_shared::runtime::blob::{self, HEADER_LEN, MAGIC, MAX_BLOB_LEN, VERSION};
+use hvs_shared::runtime::protocol::{
     self, FrameAccumulator, ProtocolError, Request, RequestBody, Response, StereoPoint,
     MAX_FRAME_LEN,
 };

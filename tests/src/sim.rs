@@ -10,14 +10,14 @@
 //! command anything beyond the limits. The property tests (`tests/tests/properties.rs`), the
 //! fault-injection tests and the `head_stream` fuzz target all drive this one harness.
 
-use hvs_shared::gaze::{self, Axis, GazeConfig, JointLimits, Joints};
-use hvs_shared::head::{self, Boot, Head};
-use hvs_shared::protocol::{
+use hvs_shared::runtime::gaze::{self, Axis, GazeConfig, JointLimits, Joints};
+use hvs_shared::runtime::head::{self, Boot, Head};
+use hvs_shared::runtime::protocol::{
     self, ErrorCode, FirmwareVersion, FrameAccumulator, Request, RequestBody, Response,
     ResponseBody, MAX_FRAME_LEN, UNSOLICITED_ID,
 };
-use hvs_shared::servo::{parse_mcdc, McdcCmd, McdcConfig, PwmConfig};
-use hvs_shared::trajectory::{ConfigError, ControllerConfig};
+use hvs_shared::runtime::servo::{parse_mcdc, McdcCmd, McdcConfig, PwmConfig};
+use hvs_shared::runtime::trajectory::{ConfigError, ControllerConfig};
 
 /// Firmware version the simulated head reports.
 pub const VERSION: FirmwareVersion = FirmwareVersion {

@@ -1,8 +1,8 @@
 //! Fault injection on the weight slots, through the boot logic the firmware runs
-//! (`hvs_shared::head::boot` on the raw bytes of both slots):
+//! (`hvs_shared::runtime::head::boot` on the raw bytes of both slots):
 //!
 //! - a model write cut off at every byte offset, as `hvs flash` does it (slot and generation
-//!   from `hvs_shared::slots::plan_write`, bytes from `hvs_host::flash::with_generation`), with
+//!   from `hvs_shared::runtime::slots::plan_write`, bytes from `hvs_host::flash::with_generation`), with
 //!   the rest of the slot erased (0xFF), zero (as QEMU's loader leaves it) or a half-programmed
 //!   byte; and an erase cut off at every byte offset;
 //! - every single-bit flip of a stored blob, seeded random 2- and 3-bit flips and every 32-bit
@@ -14,12 +14,12 @@
 //! estimates must equal, bit for bit, those of the model it claims to run.
 
 use hvs_host::flash::with_generation;
-use hvs_shared::blob::{self, ModelBlob, MAX_BLOB_LEN};
-use hvs_shared::head::{self, Boot, Estimator};
-use hvs_shared::layout::Slot;
-use hvs_shared::protocol::{Mode, SlotStatus, Source, StereoPoint};
-use hvs_shared::slots::{plan_write, SlotRequest, SlotState};
-use hvs_shared::triangulate::{traditional_xyz, Calibration};
+use hvs_shared::runtime::blob::{self, ModelBlob, MAX_BLOB_LEN};
+use hvs_shared::runtime::head::{self, Boot, Estimator};
+use hvs_shared::runtime::layout::Slot;
+use hvs_shared::runtime::protocol::{Mode, SlotStatus, Source, StereoPoint};
+use hvs_shared::runtime::slots::{plan_write, SlotRequest, SlotState};
+use hvs_shared::runtime::traditional::{traditional_xyz, Calibration};
 use hvs_tests::sim::VERSION;
 use hvs_tests::{sample_model, sample_posture_model};
 
@@ -176,7 +176,12 @@ fn write_cut_off_at_every_byte_boots_the_old_or_the_new_model() {
         let before = expected(&sa, &sb, &written_before);
         check_runs(&boot_slots(&sa, &sb), &before, name);
 
-        let plan = plan_write(SlotState::of(&sa), SlotState::of(&sb), SlotRequest::Auto).unwrap();
+        let plan = plan_write(
+            hvs_shared::runtime::head::slot_state(&sa),
+            hvs_shared::runtime::head::slot_state(&sb),
+            SlotRequest::Auto,
+        )
+        .unwrap();
         // The plan never targets the running slot.
         if let Expect::Model(_, running) = &before {
             assert_ne!(plan.slot, *running, "{name}");

@@ -3,7 +3,7 @@
 //! fixed since) goes through the same function the target runs.
 
 use hvs_host::csv_io::{self, Inputs};
-use hvs_shared::blob::{self, CRC_LEN, HEADER_LEN};
+use hvs_shared::runtime::blob::{self, CRC_LEN, HEADER_LEN};
 use hvs_tests::{fuzz, workspace_root};
 use std::path::Path;
 

@@ -1,5 +1,5 @@
-//! memory.x and hvs_shared::layout state the same flash layout.
-use hvs_shared::layout::*;
+//! memory.x and hvs_shared::runtime::layout state the same flash layout.
+use hvs_shared::runtime::layout::*;
 use hvs_tests::{memory_region, workspace_root};
 
 #[test]

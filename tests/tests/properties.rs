@@ -8,14 +8,14 @@
 //! receive path (`hvs_tests::sim::SimHead`: `FrameAccumulator`, `head::read_frame`), check the
 //! servo wire formats too, and vary the gaze, controller and drive settings.
 
-use hvs_shared::gaze::{self, AxisLimits, GazeConfig, HeadGeometry, JointLimits, Joints};
-use hvs_shared::head;
-use hvs_shared::protocol::{
+use hvs_shared::runtime::gaze::{self, AxisLimits, GazeConfig, HeadGeometry, JointLimits, Joints};
+use hvs_shared::runtime::head;
+use hvs_shared::runtime::protocol::{
     self, ErrorCode, Request, RequestBody, Response, ResponseBody, StereoPoint, MAX_FRAME_LEN,
     UNSOLICITED_ID,
 };
-use hvs_shared::servo::{McdcAxis, McdcConfig};
-use hvs_shared::trajectory::ControllerConfig;
+use hvs_shared::runtime::servo::{McdcAxis, McdcConfig};
+use hvs_shared::runtime::trajectory::ControllerConfig;
 use hvs_tests::sim::SimHead;
 use proptest::prelude::*;
 
@@ -125,7 +125,7 @@ fn answer_fits(body: &RequestBody, resp: &ResponseBody, limits: &JointLimits) ->
 
 fn model_slot() -> Vec<u8> {
     let mut b = hvs_tests::blob_bytes(&hvs_tests::sample_model(2, 42));
-    b.resize(hvs_shared::blob::MAX_BLOB_LEN, 0xFF);
+    b.resize(hvs_shared::runtime::blob::MAX_BLOB_LEN, 0xFF);
     b
 }
 
@@ -244,7 +244,7 @@ proptest! {
     fn any_settings_keep_setpoints_within_their_limits(
         limits in any_limits(),
         neck_share in any_f32(),
-        half_baseline in prop_oneof![Just(hvs_shared::camera::HALF_BASELINE_CM as f32), any_f32()],
+        half_baseline in prop_oneof![Just(hvs_shared::runtime::gaze::HALF_BASELINE_CM as f32), any_f32()],
         neck_centre in [-20.0f32..20.0, -20.0f32..20.0, -20.0f32..20.0],
         min_distance in prop_oneof![Just(10.0f32), any_f32()],
         max_distance in prop_oneof![Just(100_000.0f32), any_f32()],

@@ -10,16 +10,16 @@
 
 use hvs_host::emulate::{find_firmware, free_port, Emulator, EmulatorConfig, FIRMWARE_BUILD};
 use hvs_host::link::{Endpoint, Link};
-use hvs_shared::blob::{self, BlobError, ModelBlob, MAX_BLOB_LEN};
-use hvs_shared::gaze::{Axis, GazeConfig, Joints};
-use hvs_shared::head::{self, Head};
-use hvs_shared::protocol::{
+use hvs_shared::runtime::blob::{self, BlobError, ModelBlob, MAX_BLOB_LEN};
+use hvs_shared::runtime::gaze::{Axis, GazeConfig, Joints};
+use hvs_shared::runtime::head::{self, Head};
+use hvs_shared::runtime::protocol::{
     self, ErrorCode, Mode, Request, RequestBody, Response, ResponseBody, Slot, SlotStatus, Source,
     StereoPoint, MAX_FRAME_LEN, UNSOLICITED_ID,
 };
-use hvs_shared::servo::{parse_mcdc, McdcCmd, McdcConfig};
-use hvs_shared::trajectory::ControllerConfig;
-use hvs_shared::triangulate::{traditional_xyz, Calibration};
+use hvs_shared::runtime::servo::{parse_mcdc, McdcCmd, McdcConfig};
+use hvs_shared::runtime::traditional::{traditional_xyz, Calibration};
+use hvs_shared::runtime::trajectory::ControllerConfig;
 use hvs_tests::{sample_model as model, workspace_root};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -567,13 +567,13 @@ fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
     use hvs_host::posture::{self as sets, PostureOptions, Sampling};
     use hvs_host::simulate::{SetKind, SimOptions};
     use hvs_host::train::{train, TrainConfig};
-    use hvs_shared::blob::InputKind;
-    use hvs_shared::posture::{HeadRig, PostureRange};
+    use hvs_shared::runtime::blob::InputKind;
+    use hvs_shared::sim::posture::{HeadRig, PostureRange};
 
     // Case III on the head. A net for the neighbourhood of the postures this test visits
     // (small, so that it trains in seconds in a debug build): the board protocol at 16 random
     // postures of a narrow range and at home.
-    let head_rig = HeadRig::new(hvs_shared::presets::CASE_3);
+    let head_rig = HeadRig::new(hvs_shared::sim::presets::CASE_3);
     let range = PostureRange {
         neck_pan: [-8.0, 2.0],
         neck_tilt: [-5.0, 2.0],

@@ -12,9 +12,9 @@ use crate::model;
 use crate::simulate::{simulate, write_csv, Sample, SetKind, SimOptions};
 use crate::train::TrainConfig;
 use anyhow::{anyhow, Context, Result};
-use hvs_shared::blob::InputKind;
-use hvs_shared::presets::{self, LABELS, THESIS_TRADITIONAL_PCT};
-use hvs_shared::triangulate::Calibration;
+use hvs_shared::runtime::blob::InputKind;
+use hvs_shared::runtime::traditional::Calibration;
+use hvs_shared::sim::presets::{self, LABELS, THESIS_TRADITIONAL_PCT};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -137,7 +137,7 @@ pub fn run_case(n: u8, dir: &Path, seed: u64, restarts: usize) -> Result<CaseRes
         .with_context(|| format!("case {n}: training on the volume set failed"))?;
     model::save(&dir.join(format!("case{n}_volume.hvsw")), &tv.blob)?;
 
-    let net = |b: &hvs_shared::blob::ModelBlob, d: &Dataset| {
+    let net = |b: &hvs_shared::runtime::blob::ModelBlob, d: &Dataset| {
         model_depths(b, d).map_err(|e| anyhow!("case {n}: the model failed: {e:?}"))
     };
     let mut test_methods = vec![

@@ -8,8 +8,8 @@ use crate::evaluate::{
 };
 use crate::model;
 use anyhow::Result;
-use hvs_shared::blob::InputKind;
-use hvs_shared::triangulate::Calibration;
+use hvs_shared::runtime::blob::InputKind;
+use hvs_shared::runtime::traditional::Calibration;
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;

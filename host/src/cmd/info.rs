@@ -2,7 +2,7 @@
 
 use crate::model::{self, input_names, output_names};
 use anyhow::Result;
-use hvs_shared::blob::VERSION;
+use hvs_shared::runtime::blob::VERSION;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -32,7 +32,7 @@ pub fn run(a: Args) -> Result<()> {
         o,
         "size:        {} bytes (HVSW v{VERSION}, payload {} bytes{})",
         f.file_len,
-        f.blob_len - hvs_shared::blob::HEADER_LEN - hvs_shared::blob::CRC_LEN,
+        f.blob_len - hvs_shared::runtime::blob::HEADER_LEN - hvs_shared::runtime::blob::CRC_LEN,
         if trailing > 0 {
             format!(", {trailing} trailing bytes ignored")
         } else {

@@ -11,7 +11,7 @@ pub mod simulate;
 pub mod train;
 
 use anyhow::{bail, Result};
-use hvs_shared::camera::Rig;
+use hvs_shared::sim::camera::Rig;
 use std::path::PathBuf;
 
 /// Choice of a camera rig: a built-in thesis case or a rig file.
@@ -31,7 +31,7 @@ impl RigArgs {
     pub fn rig(&self) -> Result<Option<Rig>> {
         match (&self.rig, self.case) {
             (Some(path), case) => Ok(Some(crate::rigfile::load(path, case)?)),
-            (None, Some(n)) => match hvs_shared::presets::case(n) {
+            (None, Some(n)) => match hvs_shared::sim::presets::case(n) {
                 Some(r) => Ok(Some(r)),
                 None => bail!("--case must be 1-4, got {n}"),
             },

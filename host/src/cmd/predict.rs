@@ -4,7 +4,7 @@ use crate::csv_io::{read_set, write_output, Table};
 use crate::infer::{to_f32, PointError, Predictor};
 use crate::model::{self, input_names};
 use anyhow::{anyhow, Context, Result};
-use hvs_shared::blob::{ModelBlob, OutputKind};
+use hvs_shared::runtime::blob::{ModelBlob, OutputKind};
 use std::io::Write;
 use std::path::PathBuf;
 

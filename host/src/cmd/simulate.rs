@@ -5,7 +5,8 @@ use crate::csv_io::write_output;
 use crate::posture::{self, postures, PostureOptions, Sampling};
 use crate::simulate::{simulate, write_csv, SetKind, SimOptions};
 use anyhow::{anyhow, bail, Context, Result};
-use hvs_shared::posture::{Distortion, HeadRig};
+use hvs_shared::sim::camera::Distortion;
+use hvs_shared::sim::posture::HeadRig;
 use std::path::PathBuf;
 
 /// Arguments of `hvs simulate`.
@@ -104,7 +105,7 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 /// `hvs simulate` with `--postures` and/or `--distortion`.
-fn run_postures(a: &Args, rig: hvs_shared::camera::Rig, opt: &SimOptions) -> Result<()> {
+fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -> Result<()> {
     let distortion = match a.distortion.as_deref() {
         None => Distortion::NONE,
         Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
@@ -120,7 +121,7 @@ fn run_postures(a: &Args, rig: hvs_shared::camera::Rig, opt: &SimOptions) -> Res
             if a.posture_levels.is_some() || a.posture_count.is_some() {
                 bail!("--posture-levels and --posture-count need --postures");
             }
-            vec![hvs_shared::gaze::Joints::HOME]
+            vec![hvs_shared::runtime::gaze::Joints::HOME]
         }
         Some(sampling) => {
             let mut p = PostureOptions {

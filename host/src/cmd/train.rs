@@ -6,8 +6,8 @@ use crate::fallback::{self, FallbackFit};
 use crate::model;
 use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
 use anyhow::{bail, Context, Result};
-use hvs_shared::blob::{ModelBlob, OutputKind, MAX_HIDDEN};
-use hvs_shared::triangulate::Calibration;
+use hvs_shared::runtime::blob::{ModelBlob, OutputKind, MAX_HIDDEN};
+use hvs_shared::runtime::traditional::Calibration;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 

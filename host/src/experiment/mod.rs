@@ -1,5 +1,5 @@
 //! `hvs experiment thesis`: every experiment of the thesis' chapter 4, regenerated on the
-//! simulated HVS (the four preset rigs of `hvs_shared::presets`), plus three the thesis did
+//! simulated HVS (the four preset rigs of `hvs_shared::sim::presets`), plus three the thesis did
 //! not run. [`run`] computes; [`report::write`] writes one CSV and one plot (SVG and PNG) per
 //! experiment and `RESULTS.md`, which puts the thesis' reported values beside ours.
 //!
@@ -17,7 +17,7 @@
 //! Conventions, as in the thesis: e_ma is eq. 4.1-5 in percent of the true depth; the test
 //! set is P1, P2 at the 11 test depths (65-165 cm); a net's error is its worst per-depth
 //! e_ma. Every error plot also shows the floor: optimal triangulation with the *true* rig on
-//! the same rounded pixels (`hvs_shared::triangulate::optimal`), which no calibration-free
+//! the same rounded pixels (`hvs_shared::sim::triangulate::optimal_rig`), which no calibration-free
 //! method can beat on average. "The proposed net" is the default `hvs train` (4-5-3,
 //! Levenberg-Marquardt, 10 restarts, best training e_ma); "a net" of the hidden-neuron sweep is
 //! one training from one seeded random start, like one BP run of the thesis.
@@ -37,11 +37,12 @@ use crate::fallback;
 use crate::simulate::{simulate, Sample, SetKind, SimOptions};
 use crate::train::{train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
-use hvs_shared::blob::{InputKind, ModelBlob, OutputKind};
-use hvs_shared::camera::{Rig, HALF_BASELINE_CM};
-use hvs_shared::metrics::EmaAcc;
-use hvs_shared::presets;
-use hvs_shared::triangulate::{phi_estimate, Calibration};
+use hvs_shared::runtime::blob::{InputKind, ModelBlob, OutputKind};
+use hvs_shared::runtime::gaze::HALF_BASELINE_CM;
+use hvs_shared::runtime::traditional::{phi_estimate, Calibration};
+use hvs_shared::sim::camera::Rig;
+use hvs_shared::sim::metrics::EmaAcc;
+use hvs_shared::sim::presets;
 use rayon::prelude::*;
 use std::time::Instant;
 

@@ -26,7 +26,7 @@ use crate::posture_study::{
     DistortionRow, Errors, FixedRow, HiddenRow, PostureAware, Report, StudyConfig,
 };
 use anyhow::{anyhow, Context, Result};
-use hvs_shared::posture::PostureRange;
+use hvs_shared::sim::posture::PostureRange;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;

@@ -13,9 +13,9 @@ use super::{
 use crate::csv_io::write_bytes;
 use crate::train::Algo;
 use anyhow::{Context, Result};
-use hvs_shared::blob::OutputKind;
-use hvs_shared::presets::{LABELS, THESIS_TRADITIONAL_PCT};
-use hvs_shared::triangulate::Calibration;
+use hvs_shared::runtime::blob::OutputKind;
+use hvs_shared::runtime::traditional::Calibration;
+use hvs_shared::sim::presets::{LABELS, THESIS_TRADITIONAL_PCT};
 use std::fmt::Write as _;
 use std::path::Path;
 

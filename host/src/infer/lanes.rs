@@ -1,4 +1,4 @@
-//! Lane-wise (several points at once) form of `hvs_shared::mlp::Mlp::infer`, bit-identical
+//! Lane-wise (several points at once) form of `hvs_shared::runtime::mlp::Mlp::infer`, bit-identical
 //! to it, written so that LLVM auto-vectorises it: no `unsafe`, no target features, plain
 //! f32 arithmetic (Rust never contracts to FMA) in exactly the order of the scalar code.
 //!
@@ -18,7 +18,7 @@
 // Index loops keep the summation order explicit: it is part of the bit-exactness contract.
 #![allow(clippy::needless_range_loop)]
 
-use hvs_shared::mlp::{Activation, Mlp, MlpError};
+use hvs_shared::runtime::mlp::{Activation, Mlp, MlpError};
 
 /// Points evaluated together.
 pub(crate) const LANES: usize = 16;
@@ -121,7 +121,7 @@ pub(crate) fn expf_lanes(x: &V) -> V {
     out
 }
 
-/// `hvs_shared::mlp::sigmoid` on every lane: `1 / (1 + expf(-a))`.
+/// `hvs_shared::runtime::mlp::sigmoid` on every lane: `1 / (1 + expf(-a))`.
 #[inline(always)]
 pub(crate) fn sigmoid_lanes(a: &V) -> V {
     let mut na = [0.0f32; LANES];
@@ -228,8 +228,8 @@ mod tests {
     use super::*;
     use crate::infer::tests::blob;
     use crate::infer::{PointError, Predictor};
-    use hvs_shared::blob::{InputKind, ModelBlob, OutputKind};
-    use hvs_shared::mlp::param_count;
+    use hvs_shared::runtime::blob::{InputKind, ModelBlob, OutputKind};
+    use hvs_shared::runtime::mlp::param_count;
     use rand::{RngExt, SeedableRng};
 
     /// Compares [`expf_lanes`] with `libm::expf` on `bits`, [`LANES`] consecutive patterns

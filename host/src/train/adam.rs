@@ -109,7 +109,7 @@ mod tests {
     use super::*;
     use crate::train::net::tests::{random_params, random_problem};
     use crate::train::net::Shape;
-    use hvs_shared::mlp::Activation;
+    use hvs_shared::runtime::mlp::Activation;
 
     #[test]
     fn lowers_the_cost() {

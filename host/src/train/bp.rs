@@ -147,7 +147,7 @@ mod tests {
     use super::*;
     use crate::train::net::tests::{random_params, random_problem};
     use crate::train::net::Shape;
-    use hvs_shared::mlp::Activation;
+    use hvs_shared::runtime::mlp::Activation;
 
     fn sig(a: f64) -> f64 {
         1.0 / (1.0 + (-a).exp())

@@ -1,4 +1,4 @@
-//! Training: fits the f32 MLP of `hvs_shared::mlp` to a [`Dataset`] and returns the
+//! Training: fits the f32 MLP of `hvs_shared::runtime::mlp` to a [`Dataset`] and returns the
 //! [`ModelBlob`] the head runs.
 //!
 //! - Scaling comes from the data and is stored in the blob: each input is centred on the
@@ -12,7 +12,7 @@
 //!   the trained f64 net and the exported f32 one differ only by parameter rounding and
 //!   arithmetic precision.
 //! - Every restart is exported to f32 and judged by its training e_ma in percent
-//!   (`mean(|Z - Z^| / Z) * 100`, `hvs_shared::metrics`) computed with `ModelBlob::infer`,
+//!   (`mean(|Z - Z^| / Z) * 100`, `hvs_shared::sim::metrics`) computed with `ModelBlob::infer`,
 //!   i.e. exactly what the head computes. Restarts above the threshold are not enrolled (as
 //!   in the thesis); the best enrolled one (lowest e_ma, then lowest index) is returned.
 //! - Restarts run in parallel on the rayon pool. Restart `i` draws its initial weights from
@@ -40,11 +40,11 @@ mod rng;
 
 use crate::dataset::Dataset;
 use anyhow::{bail, Result};
-use hvs_shared::blob::{
+use hvs_shared::runtime::blob::{
     Algorithm, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_HIDDEN, MAX_INPUTS,
 };
-use hvs_shared::metrics::EmaAcc;
-use hvs_shared::mlp::Activation;
+use hvs_shared::runtime::mlp::Activation;
+use hvs_shared::sim::metrics::EmaAcc;
 use net::{Problem, Shape};
 use rayon::prelude::*;
 use rng::SplitMix64;
@@ -363,10 +363,10 @@ fn check(data: &Dataset, cfg: &TrainConfig) -> Result<()> {
             data.n_inputs
         );
     }
-    if cfg.hidden == 0 || cfg.hidden > MAX_HIDDEN.min(hvs_shared::mlp::FLAT_MAX_HIDDEN) {
+    if cfg.hidden == 0 || cfg.hidden > MAX_HIDDEN.min(hvs_shared::runtime::mlp::FLAT_MAX_HIDDEN) {
         bail!(
             "hidden units must be 1..={}, got {}",
-            MAX_HIDDEN.min(hvs_shared::mlp::FLAT_MAX_HIDDEN),
+            MAX_HIDDEN.min(hvs_shared::runtime::mlp::FLAT_MAX_HIDDEN),
             cfg.hidden
         );
     }
@@ -497,10 +497,10 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hvs_shared::blob::InputKind;
-    use hvs_shared::{presets, triangulate};
+    use hvs_shared::runtime::blob::InputKind;
+    use hvs_shared::sim::{presets, triangulate};
 
-    fn set(rig: &hvs_shared::camera::Rig, points: &[[f64; 3]]) -> Dataset {
+    fn set(rig: &hvs_shared::sim::camera::Rig, points: &[[f64; 3]]) -> Dataset {
         let mut d = Dataset::new(InputKind::Stereo);
         for p in points {
             d.push(&rig.project_rounded(p).unwrap(), Some(*p));
@@ -548,7 +548,7 @@ mod tests {
     }
 
     fn encode(blob: &ModelBlob) -> Vec<u8> {
-        let mut buf = [0u8; hvs_shared::blob::MAX_BLOB_LEN];
+        let mut buf = [0u8; hvs_shared::runtime::blob::MAX_BLOB_LEN];
         let n = blob.encode(&mut buf).unwrap();
         buf[..n].to_vec()
     }
@@ -564,7 +564,7 @@ mod tests {
             let net = worst_per_depth(&test_set, |x| net_z(&out.blob, x));
             let rig = presets::case(n).unwrap();
             let floor = worst_per_depth(&test_set, |x| {
-                triangulate::optimal(&rig, &x.try_into().unwrap()).unwrap()[2]
+                triangulate::optimal_rig(&rig, &x.try_into().unwrap()).unwrap()[2]
             });
             if n <= 2 {
                 assert!(net < 4.0, "case {n}: worst per-depth {net} %");
@@ -628,7 +628,7 @@ mod tests {
             .any(|r| r.train_error_pct == out.train_error_pct));
         // And it round-trips through the blob format.
         assert_eq!(
-            hvs_shared::blob::decode(&encode(b)).unwrap(),
+            hvs_shared::runtime::blob::decode(&encode(b)).unwrap(),
             *b,
             "blob round trip"
         );

@@ -1,4 +1,4 @@
-//! The f64 training-side view of the MLP of `hvs_shared::mlp`: same parameter layout, same
+//! The f64 training-side view of the MLP of `hvs_shared::runtime::mlp`: same parameter layout, same
 //! shape (sigmoid hidden layer, linear or sigmoid outputs), in normalised units.
 //!
 //! A [`Problem`] holds the normalised inputs and targets and, per output value, the weight of
@@ -8,7 +8,7 @@
 // Index loops mirror the equations (several arrays indexed by the same unit numbers).
 #![allow(clippy::needless_range_loop)]
 
-use hvs_shared::mlp::Activation;
+use hvs_shared::runtime::mlp::Activation;
 
 /// Sizes of an `ni-nh-no` net and the index of every parameter in the shared layout: for each
 /// hidden unit `j`, `w1[j][0..ni]` then `b1[j]`; then for each output `k`, `w2[k][0..nh]` then
@@ -23,7 +23,7 @@ pub(crate) struct Shape {
 impl Shape {
     /// Number of parameters.
     pub(crate) fn n_params(&self) -> usize {
-        hvs_shared::mlp::param_count(self.ni, self.nh, self.no)
+        hvs_shared::runtime::mlp::param_count(self.ni, self.nh, self.no)
     }
     /// Index of `w1[j][i]` (`i == ni` is the bias `b1[j]`).
     #[inline(always)]
@@ -518,7 +518,7 @@ pub(crate) mod tests {
         let p = [0.3, -0.7, 0.1, 1.2, 0.4, -0.5, 0.8, -1.1, 0.25];
         let pf: Vec<f32> = p.iter().map(|v| *v as f32).collect();
         for act in [Activation::Linear, Activation::Sigmoid] {
-            let m = hvs_shared::mlp::Mlp::<2, 2, 1>::from_params(
+            let m = hvs_shared::runtime::mlp::Mlp::<2, 2, 1>::from_params(
                 &pf,
                 act,
                 [0.0; 2],

@@ -4,7 +4,8 @@
 //! `shared/tests/fixtures/`, and a test checks these constants against it): rigs that
 //! reproduce the traditional-method error ranges of the thesis' Figs. 4.8-4.11.
 
-use crate::camera::{Rig, HALF_BASELINE_CM};
+use crate::runtime::gaze::HALF_BASELINE_CM;
+use crate::sim::camera::Rig;
 
 const ONE_HALF_DEG: f64 = 0.008_726_646_259_971_648;
 
@@ -96,4 +97,54 @@ pub fn board_points(z: f64) -> [[f64; 3]; 12] {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::camera::CameraError;
+
+    #[test]
+    fn noisy_projection_is_exact_without_noise_and_shifts_with_it() {
+        for n in 1..=4 {
+            let rig = case(n).unwrap();
+            for p in [[-3.0, -2.0, 65.0], [1.75, 0.0, 165.0], [2.9, 1.3, 97.3]] {
+                assert_eq!(
+                    rig.project_rounded_noisy(&p, &[0.0; 4]),
+                    rig.project_rounded(&p)
+                );
+            }
+        }
+        // Parallel rig, Phi X / Z = 15.75 on the left: +0.3 px of noise rounds to 16, -0.3 to 15.
+        let rig = Rig::parallel(300.0);
+        let p = [0.0, 0.0, 100.0];
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[0.3, 0.0, 0.0, 0.0])
+                .unwrap()[0],
+            336.0
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[-0.3, 0.0, 0.0, 0.0])
+                .unwrap()[0],
+            335.0
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[0.0, -0.6, 0.0, 0.0])
+                .unwrap()[1],
+            239.0
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[0.0, 0.0, 0.0, 1.6])
+                .unwrap()[3],
+            242.0
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&p, &[f64::NAN, 0.0, 0.0, 0.0]),
+            Err(CameraError::NonFinite)
+        );
+        assert_eq!(
+            rig.project_rounded_noisy(&[0.0, 0.0, -1.0], &[0.0; 4]),
+            Err(CameraError::BehindLeft)
+        );
+    }
 }

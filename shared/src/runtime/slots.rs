@@ -1,15 +1,16 @@
 //! Which weight slot to run, and which to write next.
 //!
-//! The head keeps two slots (A and B, see [`crate::layout`]). At boot it runs the valid slot
+//! The head keeps two slots (A and B, see [`crate::runtime::layout`]). At boot it runs the valid slot
 //! with the higher generation (A on a tie); with none valid it falls back to the traditional
-//! method. "Valid" means what the head runs: the blob decodes *and* the head can run it
-//! ([`crate::head::Network::new`]); [`SlotState::of`] is that classification, the one
-//! [`crate::head::boot`] uses. A new model is written into the slot that is *not* running,
+//! method. "Valid" means what the head runs: the blob decodes *and* the head can run it; the
+//! head's module classifies raw bytes into a [`SlotState`] (its `slot_state`), and its boot and
+//! `hvs flash` both decide with the rules here. This module depends on no other of the crate's
+//! logic (only the blob's error type and the slot names), so the rules stay pure. A new model is written into the slot that is *not* running,
 //! with the next generation number, so a write cut off half-way leaves the running model
 //! untouched. These are the pure rules shared by the firmware (boot) and `hvs flash` (plan).
 
-use crate::blob::BlobError;
-use crate::layout::Slot;
+use crate::runtime::blob::BlobError;
+use crate::runtime::layout::Slot;
 
 /// What a slot holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -31,11 +32,6 @@ pub enum SlotState {
 }
 
 impl SlotState {
-    /// Classifies the raw bytes of a slot exactly as the head's boot does
-    /// ([`crate::head::slot_state`]).
-    pub fn of(bytes: &[u8]) -> SlotState {
-        crate::head::slot_state(bytes)
-    }
     /// The generation if valid (runnable).
     pub fn generation(self) -> Option<u32> {
         match self {
@@ -233,16 +229,6 @@ mod tests {
         assert_eq!(
             plan_write(v(u32::MAX), E, SlotRequest::Auto),
             Err(PlanError::GenerationExhausted)
-        );
-    }
-
-    #[test]
-    fn classifies_raw_slot_bytes() {
-        assert_eq!(SlotState::of(&[0xFF; 64]), SlotState::Empty);
-        assert_eq!(SlotState::of(&[0x00; 64]), SlotState::Empty);
-        assert_eq!(
-            SlotState::of(b"HVSW\x01\x00\x10\x00\x00\x00"),
-            SlotState::Invalid(BlobError::Truncated)
         );
     }
 }

@@ -3,9 +3,9 @@
 //! # Frames and chain
 //!
 //! The **head frame** is the thesis' stereo frame at the home posture, fixed to the body (the
-//! base frame of [`crate::gaze`]): origin at the middle of the baseline, `X` right, `Y` down,
+//! base frame of [`crate::runtime::gaze`]): origin at the middle of the baseline, `X` right, `Y` down,
 //! `Z` forward, cm. A [`HeadRig`] places the two cameras of a thesis [`Rig`] on the head's
-//! mechanism, with the kinematic chain of [`crate::gaze`] in `f64`:
+//! mechanism, with the kinematic chain of [`crate::runtime::gaze`] in `f64`:
 //!
 //! 1. neck pan, then neck tilt, about the neck centre [`HeadRig::neck_centre_cm`]: the whole
 //!    head moves, both eye centres with it;
@@ -19,7 +19,7 @@
 //! `p_cam = Omega_case A^T (p - c)` with `A = Pan(neck) Tilt(neck) Tilt(eye) Pan(eye pan)` the
 //! eye's active rotation in the head frame and `c` its centre. At the home posture `A = I` and
 //! `c = (-+d, 0, 0)`: exactly the thesis rig ([`Rig::left`], [`Rig::right`]), bit for bit.
-//! Signs are those of [`crate::gaze`]: a positive pan turns the optic axis towards `-X`, a
+//! Signs are those of [`crate::runtime::gaze`]: a positive pan turns the optic axis towards `-X`, a
 //! positive tilt towards `+Y` (down).
 //!
 //! # Lenses
@@ -38,153 +38,14 @@
 //!
 //! Everything is `f64` (this is ground truth, not what the head computes) through `libm`.
 
-use crate::camera::{mat_vec, Camera, CameraError, Mat3, Rig, StereoPixels, Vec3};
-use crate::gaze::{Axis, Joints};
-use crate::triangulate::{solve3, TriError};
+use crate::runtime::gaze::{Axis, Joints};
+use crate::runtime::traditional::TriError;
+use crate::sim::camera::{finite4, mat_vec, CameraError, Mat3, Rig, StereoPixels, Vec3};
+use crate::sim::camera::{Distortion, LensCamera};
+use crate::sim::triangulate::optimal;
 use serde::{Deserialize, Serialize};
 
 const DEG: f64 = core::f64::consts::PI / 180.0;
-
-/// Radial lens distortion `1 + k1 r^2 + k2 r^4`, `r` in units of the image half-width.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct Distortion {
-    /// `k1` (negative: barrel).
-    pub k1: f64,
-    /// `k2`.
-    pub k2: f64,
-}
-
-impl Distortion {
-    /// A perfect pinhole lens.
-    pub const NONE: Distortion = Distortion { k1: 0.0, k2: 0.0 };
-
-    /// True when both coefficients are zero (then projections are exactly the pinhole's).
-    pub fn is_none(&self) -> bool {
-        self.k1 == 0.0 && self.k2 == 0.0
-    }
-
-    /// Whether both coefficients are finite.
-    pub fn is_finite(&self) -> bool {
-        self.k1.is_finite() && self.k2.is_finite()
-    }
-
-    /// The radial factor `1 + k1 s + k2 s^2` at `s = r^2`.
-    pub fn factor(&self, r2: f64) -> f64 {
-        1.0 + self.k1 * r2 + self.k2 * r2 * r2
-    }
-
-    /// Distorted pixel offset (from the principal point) of the ideal offset `o`.
-    pub fn apply(&self, o: [f64; 2], half_width: f64) -> [f64; 2] {
-        if self.is_none() {
-            return o;
-        }
-        let r2 = (o[0] * o[0] + o[1] * o[1]) / (half_width * half_width);
-        let f = self.factor(r2);
-        [o[0] * f, o[1] * f]
-    }
-
-    /// The ideal offset that the lens shows at offset `d` (Newton on the radius), or `None`
-    /// where the distortion folds over (`d` lies beyond the largest radius the lens shows) or
-    /// the iteration does not settle.
-    pub fn undo(&self, d: [f64; 2], half_width: f64) -> Option<[f64; 2]> {
-        if self.is_none() {
-            return Some(d);
-        }
-        let rd = libm::sqrt(d[0] * d[0] + d[1] * d[1]) / half_width;
-        if rd == 0.0 {
-            return Some(d);
-        }
-        // Solve g(r) = r (1 + k1 r^2 + k2 r^4) - rd = 0 from r = rd.
-        let mut r = rd;
-        for _ in 0..50 {
-            let r2 = r * r;
-            let g = r * self.factor(r2) - rd;
-            let dg = 1.0 + 3.0 * self.k1 * r2 + 5.0 * self.k2 * r2 * r2;
-            if dg.is_nan() || dg <= 0.0 {
-                return None;
-            }
-            let step = g / dg;
-            r -= step;
-            if r.is_nan() || r <= 0.0 {
-                return None;
-            }
-            if libm::fabs(step) <= 1e-15 * r {
-                let s = r / rd;
-                return Some([d[0] * s, d[1] * s]);
-            }
-        }
-        None
-    }
-}
-
-/// A pinhole camera behind a radially distorting lens.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LensCamera {
-    /// Pose and intrinsics.
-    pub camera: Camera,
-    /// The lens.
-    pub distortion: Distortion,
-    /// Half the image width (px): the distortion's unit radius.
-    pub half_width: f64,
-}
-
-impl LensCamera {
-    /// A camera without lens distortion.
-    pub fn pinhole(camera: Camera, half_width: f64) -> LensCamera {
-        LensCamera {
-            camera,
-            distortion: Distortion::NONE,
-            half_width,
-        }
-    }
-
-    /// Pixel offset from the principal point the lens shows for camera-frame point `c`, or
-    /// `None` at or behind the image plane.
-    fn offset(&self, c: &Vec3) -> Option<[f64; 2]> {
-        if c[2].is_nan() || c[2] <= 0.0 {
-            return None;
-        }
-        let o = [
-            self.camera.phi_u * c[0] / c[2],
-            self.camera.phi_v * c[1] / c[2],
-        ];
-        Some(self.distortion.apply(o, self.half_width))
-    }
-
-    /// Unrounded image coordinates (lens included), or `None` at or behind the camera.
-    pub fn project(&self, p: &Vec3) -> Option<[f64; 2]> {
-        let o = self.offset(&self.camera.to_camera(p))?;
-        Some([o[0] + self.camera.u0, o[1] + self.camera.v0])
-    }
-
-    /// What the camera reports: `round(offset + noise) + u0` (and `v`). With no distortion and
-    /// no noise this is exactly [`Camera::project_rounded`].
-    pub fn project_rounded_noisy(&self, p: &Vec3, noise: [f64; 2]) -> Option<[f64; 2]> {
-        let o = self.offset(&self.camera.to_camera(p))?;
-        if noise == [0.0, 0.0] {
-            return Some([
-                libm::round(o[0]) + self.camera.u0,
-                libm::round(o[1]) + self.camera.v0,
-            ]);
-        }
-        Some([
-            libm::round(o[0] + noise[0]) + self.camera.u0,
-            libm::round(o[1] + noise[1]) + self.camera.v0,
-        ])
-    }
-
-    /// The viewing ray of an observed pixel (lens undone): origin and unit direction, or `None`
-    /// where the lens cannot be undone.
-    pub fn ray(&self, u: f64, v: f64) -> Option<(Vec3, Vec3)> {
-        let o = self
-            .distortion
-            .undo([u - self.camera.u0, v - self.camera.v0], self.half_width)?;
-        Some(
-            self.camera
-                .ray(o[0] + self.camera.u0, o[1] + self.camera.v0),
-        )
-    }
-}
 
 /// The active rotation of the eye `pan_deg` belongs to, in the head frame:
 /// `Pan(neck) Tilt(neck) Tilt(eye) Pan(eye)`.
@@ -231,7 +92,7 @@ pub struct HeadRig {
 }
 
 impl HeadRig {
-    /// `rig` with the neck axes through the baseline centre (as [`crate::gaze::HeadGeometry::DEFAULT`])
+    /// `rig` with the neck axes through the baseline centre (as [`crate::runtime::gaze::HeadGeometry::DEFAULT`])
     /// and pinhole lenses.
     pub fn new(rig: Rig) -> HeadRig {
         HeadRig {
@@ -341,7 +202,7 @@ pub fn joints_from_gaze(
 
 /// A box of postures in gaze terms (degrees): neck pan and tilt, conjugate eye tilt, version
 /// and vergence (see [`joints_from_gaze`]). Postures drawn from it are quantised to the
-/// drives' [`crate::gaze::STEP_DEG`] grid, the only angles the head's setpoints take.
+/// drives' [`crate::runtime::gaze::STEP_DEG`] grid, the only angles the head's setpoints take.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PostureRange {
     /// Neck pan `[min, max]`.
@@ -360,7 +221,7 @@ impl PostureRange {
     /// The working range of the posture-aware model: neck pan +-30, neck tilt +-20, eye tilt
     /// +-15, version +-15 and vergence 0-10 degrees (fixation from 60 cm to infinity with the
     /// thesis' 10.5 cm baseline), gaze up to 45 degrees sideways and 35 up or down. Inside
-    /// [`crate::gaze::JointLimits::DEFAULT`].
+    /// [`crate::runtime::gaze::JointLimits::DEFAULT`].
     pub const WORKING: PostureRange = PostureRange {
         neck_pan: [-30.0, 30.0],
         neck_tilt: [-20.0, 20.0],
@@ -411,7 +272,7 @@ impl PostureRange {
             (f64::from(lo) + (f64::from(hi) - f64::from(lo)) * f) as f32
         });
         let j = joints_from_gaze(g[0], g[1], g[2], g[3], g[4]);
-        Joints(j.0.map(crate::gaze::quantize))
+        Joints(j.0.map(crate::runtime::gaze::quantize))
     }
 
     /// Grid posture number `index` of a grid with `levels[k]` evenly spaced values on
@@ -492,142 +353,9 @@ pub fn to_head(frame: &(Vec3, Mat3), q: &Vec3) -> Vec3 {
     [frame.0[0] + m[0], frame.0[1] + m[1], frame.0[2] + m[2]]
 }
 
-/// Midpoint of the shortest segment between the viewing rays of the pixels (lenses undone).
-pub fn midpoint(cams: &[LensCamera; 2], px: &StereoPixels) -> Result<Vec3, TriError> {
-    if !px.iter().all(|v| v.is_finite()) {
-        return Err(TriError::NonFinite);
-    }
-    let (o1, d1) = cams[0].ray(px[0], px[1]).ok_or(TriError::Degenerate)?;
-    let (o2, d2) = cams[1].ray(px[2], px[3]).ok_or(TriError::Degenerate)?;
-    let w = sub(o1, o2);
-    let (a, b, c) = (dot(d1, d1), dot(d1, d2), dot(d2, d2));
-    let (d, e) = (dot(d1, w), dot(d2, w));
-    let den = a * c - b * b;
-    if den.is_nan() || den.abs() <= 1e-15 {
-        return Err(TriError::Degenerate);
-    }
-    let s = (b * e - c * d) / den;
-    let t = (a * e - b * d) / den;
-    Ok([
-        0.5 * (o1[0] + s * d1[0] + o2[0] + t * d2[0]),
-        0.5 * (o1[1] + s * d1[1] + o2[1] + t * d2[1]),
-        0.5 * (o1[2] + s * d1[2] + o2[2] + t * d2[2]),
-    ])
-}
-
-/// Squared reprojection error of `p` and, if `jac` is given, the normal equations
-/// `J^T J`, `J^T r` of the four residuals (lens included).
-fn reprojection(
-    cams: &[LensCamera; 2],
-    px: &StereoPixels,
-    p: &Vec3,
-    mut jac: Option<(&mut [[f64; 3]; 3], &mut [f64; 3])>,
-) -> Option<f64> {
-    let mut sse = 0.0;
-    for (k, lc) in cams.iter().enumerate() {
-        let cam = &lc.camera;
-        let c = cam.to_camera(p);
-        if c[2].is_nan() || c[2] <= 1e-9 {
-            return None;
-        }
-        let iz = 1.0 / c[2];
-        let o = [cam.phi_u * c[0] * iz, cam.phi_v * c[1] * iz];
-        // d o / d p (2x3).
-        let r = &cam.rotation;
-        let mut jo = [[0.0; 3]; 2];
-        for (row, (phi, ci)) in [(cam.phi_u, 0usize), (cam.phi_v, 1usize)]
-            .into_iter()
-            .enumerate()
-        {
-            for m in 0..3 {
-                jo[row][m] = phi * (r[ci][m] * c[2] - c[ci] * r[2][m]) * iz * iz;
-            }
-        }
-        let hw2 = lc.half_width * lc.half_width;
-        let s = (o[0] * o[0] + o[1] * o[1]) / hw2;
-        let f = lc.distortion.factor(s);
-        let df = lc.distortion.k1 + 2.0 * lc.distortion.k2 * s;
-        let d = [o[0] * f, o[1] * f];
-        let res = [d[0] + cam.u0 - px[2 * k], d[1] + cam.v0 - px[2 * k + 1]];
-        sse += res[0] * res[0] + res[1] * res[1];
-        if let Some((jtj, jtr)) = jac.as_mut() {
-            // d d / d o = f I + (2 f' / hw^2) o o^T.
-            let g = 2.0 * df / hw2;
-            let dd = [
-                [f + g * o[0] * o[0], g * o[0] * o[1]],
-                [g * o[1] * o[0], f + g * o[1] * o[1]],
-            ];
-            for row in 0..2 {
-                let mut j = [0.0; 3];
-                for (m, jm) in j.iter_mut().enumerate() {
-                    *jm = dd[row][0] * jo[0][m] + dd[row][1] * jo[1][m];
-                }
-                for a in 0..3 {
-                    jtr[a] += j[a] * res[row];
-                    for b in 0..3 {
-                        jtj[a][b] += j[a] * j[b];
-                    }
-                }
-            }
-        }
-    }
-    sse.is_finite().then_some(sse)
-}
-
-/// Optimal triangulation over two arbitrary cameras: the point minimising the squared
-/// reprojection error of the four observed pixel coordinates through the true cameras and
-/// lenses (damped Gauss-Newton from [`midpoint`]). With pinhole lenses and a thesis rig at
-/// home it is [`crate::triangulate::optimal`].
-pub fn optimal(cams: &[LensCamera; 2], px: &StereoPixels) -> Result<Vec3, TriError> {
-    let mut p = midpoint(cams, px)?;
-    let mut cost = reprojection(cams, px, &p, None).ok_or(TriError::Degenerate)?;
-    let mut lambda = 0.0;
-    for _ in 0..100 {
-        let mut jtj = [[0.0f64; 3]; 3];
-        let mut jtr = [0.0f64; 3];
-        reprojection(cams, px, &p, Some((&mut jtj, &mut jtr))).ok_or(TriError::Degenerate)?;
-        let mut accepted = false;
-        let mut dp = [0.0; 3];
-        for _ in 0..30 {
-            let mut a = jtj;
-            for (q, row) in a.iter_mut().enumerate() {
-                row[q] += lambda * jtj[q][q];
-            }
-            dp = solve3(&a, &[-jtr[0], -jtr[1], -jtr[2]]).ok_or(TriError::Degenerate)?;
-            let trial = [p[0] + dp[0], p[1] + dp[1], p[2] + dp[2]];
-            match reprojection(cams, px, &trial, None) {
-                Some(c) if c <= cost => {
-                    p = trial;
-                    cost = c;
-                    lambda *= 0.1;
-                    accepted = true;
-                    break;
-                }
-                _ => lambda = if lambda == 0.0 { 1e-6 } else { lambda * 10.0 },
-            }
-        }
-        if !accepted || dp.iter().map(|v| v * v).sum::<f64>() < 1e-24 {
-            break;
-        }
-    }
-    if p.iter().all(|v| v.is_finite()) {
-        Ok(p)
-    } else {
-        Err(TriError::Degenerate)
-    }
-}
-
 fn check(p: &Vec3) -> Result<(), CameraError> {
     if p.iter().all(|c| c.is_finite()) {
         Ok(())
-    } else {
-        Err(CameraError::NonFinite)
-    }
-}
-
-fn finite4(px: StereoPixels) -> Result<StereoPixels, CameraError> {
-    if px.iter().all(|c| c.is_finite()) {
-        Ok(px)
     } else {
         Err(CameraError::NonFinite)
     }
@@ -670,17 +398,13 @@ fn sub(a: Vec3, b: Vec3) -> Vec3 {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-fn dot(a: Vec3, b: Vec3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 #[cfg(test)]
 mod tests {
     extern crate std;
     use super::*;
-    use crate::camera::omega;
-    use crate::gaze::{self, Eye, HeadGeometry};
-    use crate::presets;
+    use crate::runtime::gaze::{self, Eye, HeadGeometry};
+    use crate::sim::camera::omega;
+    use crate::sim::presets;
     use proptest::prelude::*;
     use std::vec::Vec;
 
@@ -887,7 +611,7 @@ mod tests {
             for z in presets::TEST_DEPTHS {
                 for [x, y] in presets::TEST_POINTS_XY {
                     let px = rig.project_rounded(&[x, y, z]).unwrap();
-                    let a = crate::triangulate::optimal(&rig, &px).unwrap();
+                    let a = crate::sim::triangulate::optimal_rig(&rig, &px).unwrap();
                     let b = optimal(&cams, &px).unwrap();
                     for k in 0..3 {
                         assert!(close(a[k], b[k], 1e-9 * z), "case {n}: {a:?} {b:?}");
@@ -992,7 +716,7 @@ mod tests {
         let all: Vec<Joints> = (0..324).map(|i| w.grid(levels, i).unwrap()).collect();
         assert_eq!(w.grid(levels, 324), None);
         // First: every interval at its low end; last: every one at its high end.
-        let q = crate::gaze::quantize;
+        let q = crate::runtime::gaze::quantize;
         assert_eq!(
             all[0],
             Joints([q(-30.0), q(-20.0), q(-15.0), q(-15.0), q(-15.0)])
@@ -1019,7 +743,7 @@ mod tests {
                 assert!((v / 0.18 - libm::roundf(v / 0.18)).abs() < 1e-3, "{j:?}");
             }
             assert!(w.contains(j, 0.18), "{j:?}");
-            assert!(crate::gaze::JointLimits::DEFAULT.contains(j));
+            assert!(crate::runtime::gaze::JointLimits::DEFAULT.contains(j));
         }
         for a in 0..all.len() {
             for b in a + 1..all.len() {

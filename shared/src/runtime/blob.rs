@@ -15,8 +15,8 @@
 //! a distinct [`BlobError`] for each way a blob can be wrong. A blob whose bytes decode has a
 //! consistent topology, finite parameters and non-zero scales.
 
-use crate::mlp::{self, Activation, FlatMlp, Mlp, MlpError};
-use crate::triangulate::Calibration;
+use crate::runtime::mlp::{self, Activation, FlatMlp, Mlp, MlpError};
+use crate::runtime::traditional::Calibration;
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
@@ -202,7 +202,7 @@ pub struct ModelBlob {
     pub out_offset: Vec<f32, MAX_OUTPUTS>,
     /// Output scales.
     pub out_scale: Vec<f32, MAX_OUTPUTS>,
-    /// Parameters in the layout documented in [`crate::mlp`].
+    /// Parameters in the layout documented in [`crate::runtime::mlp`].
     pub params: Vec<f32, MAX_PARAMS>,
     /// Smallest value of each input seen in training.
     pub in_min: Vec<f32, MAX_INPUTS>,

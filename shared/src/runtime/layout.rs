@@ -62,6 +62,6 @@ mod tests {
         assert_eq!(FLASH_BASE + CODE_LEN, SLOT_A_ADDR);
         assert_eq!(SLOT_A_ADDR + SLOT_LEN, SLOT_B_ADDR);
         assert_eq!(SLOT_B_ADDR + SLOT_LEN, FLASH_BASE + 1024 * 1024);
-        assert!(crate::blob::MAX_BLOB_LEN as u32 <= SLOT_LEN);
+        assert!(crate::runtime::blob::MAX_BLOB_LEN as u32 <= SLOT_LEN);
     }
 }

@@ -13,7 +13,7 @@
 //! counts stay within the joint limits and the pulse within 1000-2000 µs.
 use libm::{ceilf, floorf, roundf};
 
-use crate::gaze::{Axis, JointLimits, Joints, STEP_DEG};
+use crate::runtime::gaze::{Axis, JointLimits, Joints, STEP_DEG};
 
 /// Where a setpoint goes: a set of drives for the five axes. The firmware implements it for
 /// the MCDC USART writer and for PWM channels; implementations convert with

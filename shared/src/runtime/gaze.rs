@@ -17,11 +17,11 @@
 //!    (the head's `X` axis through both eye centres).
 //! 4. **Left / right eye pan** about each eye's own vertical axis (tilted with the platform)
 //!    through its centre. The eye centres sit at `(-d, 0, 0)` and `(+d, 0, 0)` in the head,
-//!    `d` = [`crate::camera::HALF_BASELINE_CM`].
+//!    `d` = [`HALF_BASELINE_CM`].
 //!
 //! With the neck at 0, the camera rotation is exactly the thesis' `Ω(α, β, 0)` of eq. 3.1-3
 //! (tilt outer, pan inner), `p_cam = Ω (p_s - d_{L,R})` (eqs. 3.1-4, 3.1-7), the same
-//! convention as [`crate::camera`] (`omega`, `Camera::rotation`): an [`EyePose`] converts
+//! convention as the simulator's camera model (`sim::camera`: `omega`, `Camera::rotation`): an [`EyePose`] converts
 //! to a `camera::Camera` by widening to `f64`.
 //!
 //! # Sign convention (the thesis' `Ω`)
@@ -59,6 +59,10 @@ pub const STEP_DEG: f32 = 0.18;
 const HANDOVER_MARGIN_DEG: f32 = 0.5;
 const RAD_TO_DEG: f32 = 180.0 / core::f32::consts::PI;
 const DEG_TO_RAD: f32 = core::f32::consts::PI / 180.0;
+
+/// Half the baseline `d` of the head (cm): each eye's centre is `d` from the baseline's middle
+/// (10.5 cm between the cameras). The one definition: the simulator's rigs use it too.
+pub const HALF_BASELINE_CM: f64 = 5.25;
 
 /// The five axes of the head, in the order of [`Joints`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -285,7 +289,7 @@ pub struct HeadGeometry {
 impl HeadGeometry {
     /// Thesis baseline, neck axes through the baseline centre.
     pub const DEFAULT: HeadGeometry = HeadGeometry {
-        half_baseline_cm: crate::camera::HALF_BASELINE_CM as f32,
+        half_baseline_cm: HALF_BASELINE_CM as f32,
         neck_centre_cm: [0.0; 3],
     };
 }
@@ -726,64 +730,6 @@ mod tests {
         let cam = pose.to_camera(p);
         let xl = (p[0] + 5.25) * omega[0][0] + p[1] * omega[0][1] + p[2] * omega[0][2];
         assert!(close(cam[0], xl, 1e-4));
-    }
-
-    fn camera_at(pose: &EyePose) -> crate::camera::Camera {
-        crate::camera::Camera {
-            center: pose.centre.map(f64::from),
-            rotation: pose.rot.map(|r| r.map(f64::from)),
-            phi_u: 285.836,
-            phi_v: 285.836,
-            u0: 320.0,
-            v0: 240.0,
-        }
-    }
-
-    #[test]
-    fn pose_agrees_with_the_camera_module() {
-        for (pan, tilt) in [(0.0f32, 0.0f32), (12.0, -7.0), (-30.0, 25.0)] {
-            let j = Joints([0.0, 0.0, tilt, pan, -pan]);
-            let l = eye_pose(&HeadGeometry::DEFAULT, &j, Eye::Left);
-            let r = eye_pose(&HeadGeometry::DEFAULT, &j, Eye::Right);
-            let (a, b) = (f64::from(pan).to_radians(), f64::from(tilt).to_radians());
-            let wl = crate::camera::omega(a, b, 0.0);
-            let wr = crate::camera::omega(-a, b, 0.0);
-            for (got, want) in l.rot.iter().flatten().zip(wl.iter().flatten()) {
-                assert!((f64::from(*got) - want).abs() < 1e-6);
-            }
-            for (got, want) in r.rot.iter().flatten().zip(wr.iter().flatten()) {
-                assert!((f64::from(*got) - want).abs() < 1e-6);
-            }
-            assert_eq!(r.centre, [5.25, 0.0, 0.0]);
-        }
-    }
-
-    #[test]
-    fn fixated_target_images_at_both_principal_points() {
-        let g = HeadGeometry {
-            neck_centre_cm: [0.0, 7.0, -5.0],
-            ..HeadGeometry::DEFAULT
-        };
-        let cfg = GazeConfig {
-            geometry: g,
-            ..GazeConfig::DEFAULT
-        };
-        for t in [
-            [-20.0f32, 10.0, 90.0],
-            [35.0, -25.0, 60.0],
-            [3.0, 2.0, 400.0],
-        ] {
-            let f = fixate(&cfg, t).unwrap();
-            assert!(!f.clamped);
-            let p = t.map(f64::from);
-            for eye in [Eye::Left, Eye::Right] {
-                let uv = camera_at(&eye_pose(&g, &f.joints, eye))
-                    .project(&p)
-                    .unwrap();
-                assert!((uv[0] - 320.0).abs() < 2e-3, "{eye:?} {t:?} {uv:?}");
-                assert!((uv[1] - 240.0).abs() < 2e-3, "{eye:?} {t:?} {uv:?}");
-            }
-        }
     }
 
     #[test]

@@ -10,13 +10,15 @@
 //! mid-motion bends the path instead of stopping it dead.
 //!
 //! Every setpoint [`GazeController::tick`] returns is, whatever came before:
-//! a whole number of 0.18° steps ([`crate::gaze::STEP_DEG`]), within the joint limits
-//! ([`crate::gaze::JointLimits::step_range`]), and at most
-//! [`crate::gaze::max_steps_per_tick`] steps from the previous setpoint. These hold by
+//! a whole number of 0.18° steps ([`crate::runtime::gaze::STEP_DEG`]), within the joint limits
+//! ([`crate::runtime::gaze::JointLimits::step_range`]), and at most
+//! [`crate::runtime::gaze::max_steps_per_tick`] steps from the previous setpoint. These hold by
 //! construction (integer steps, clamped, then rate-limited) and are property-tested.
 use libm::roundf;
 
-use crate::gaze::{from_steps, max_steps_per_tick, Axis, JointLimits, Joints, LimitsError};
+use crate::runtime::gaze::{
+    from_steps, max_steps_per_tick, Axis, JointLimits, Joints, LimitsError,
+};
 
 /// Control rate of the head controller, Hz (one setpoint per tick).
 pub const CONTROL_HZ: u32 = 100;
@@ -237,7 +239,7 @@ impl GazeController {
         for i in 0..5 {
             let (x, _, _) = self.refs[i].eval(t);
             let want = if x.is_finite() {
-                (roundf(x / crate::gaze::STEP_DEG) as i32)
+                (roundf(x / crate::runtime::gaze::STEP_DEG) as i32)
                     .max(self.lo[i])
                     .min(self.hi[i])
             } else {
@@ -276,7 +278,7 @@ impl GazeController {
     pub fn is_moving(&self) -> bool {
         let t = self.ticks as f32 / self.hz;
         (0..5).any(|i| {
-            let goal = (roundf(self.refs[i].goal / crate::gaze::STEP_DEG) as i32)
+            let goal = (roundf(self.refs[i].goal / crate::runtime::gaze::STEP_DEG) as i32)
                 .max(self.lo[i])
                 .min(self.hi[i]);
             t < self.refs[i].dur || self.steps[i] != goal
@@ -287,7 +289,7 @@ impl GazeController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gaze::{quantize, to_steps, AxisLimits, STEP_DEG};
+    use crate::runtime::gaze::{quantize, to_steps, AxisLimits, STEP_DEG};
     use proptest::prelude::*;
 
     fn ctl() -> GazeController {

@@ -13,10 +13,10 @@
 //! Floats travel as their IEEE-754 bits (postcard writes `f32` as 4 little-endian bytes), so an
 //! estimate computed on the head arrives bit for bit.
 
-use crate::blob::BlobError;
-pub use crate::gaze::Joints;
-pub use crate::layout::Slot;
-pub use crate::triangulate::Calibration;
+use crate::runtime::blob::BlobError;
+pub use crate::runtime::gaze::Joints;
+pub use crate::runtime::layout::Slot;
+pub use crate::runtime::traditional::Calibration;
 use serde::{Deserialize, Serialize};
 
 /// Version of this protocol, reported by [`ResponseBody::Ready`] and [`InfoData`]. Bumped on
@@ -262,7 +262,7 @@ pub struct EstimateData {
 pub struct LookData {
     /// The estimate of the point looked at.
     pub estimate: EstimateData,
-    /// Joint targets of the move now under way (degrees, [`Axis`](crate::gaze::Axis) order,
+    /// Joint targets of the move now under way (degrees, [`Axis`](crate::runtime::gaze::Axis) order,
     /// within the joint limits and on the 0.18° grid).
     pub target: Joints,
     /// True when a joint limit changed a target (the head cannot fixate exactly).

@@ -12,22 +12,22 @@
 //! current setpoints, see [`Head::joints`]), outputs [`OutputKind::Xyz`] (`Look` needs all
 //! three), any hidden count the blob allows. The thesis' 4-5-3 net runs on the fixed-size
 //! [`Mlp`] ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`]); every other runnable topology on
-//! the runtime-sized [`crate::mlp::infer_flat`] over the blob (the same bits as the blob's own
+//! the runtime-sized [`crate::runtime::mlp::infer_flat`] over the blob (the same bits as the blob's own
 //! [`ModelBlob::infer`]). Anything else counts as not runnable, and with no runnable slot the
 //! head falls back to the traditional method with [`Calibration::BUILT_IN`].
 
-use crate::blob::{self, InputKind, ModelBlob, OutputKind};
-use crate::gaze::{self, Axis, GazeConfig, GazeError, Joints};
-use crate::layout::Slot;
-use crate::mlp::{self, Mlp, MlpError};
-use crate::protocol::{
+use crate::runtime::blob::{self, InputKind, ModelBlob, OutputKind};
+use crate::runtime::gaze::{self, Axis, GazeConfig, GazeError, Joints};
+use crate::runtime::layout::Slot;
+use crate::runtime::mlp::{self, Mlp, MlpError};
+use crate::runtime::protocol::{
     self, ErrorCode, EstimateData, FirmwareVersion, InfoData, LookData, Mode, ModelInfo,
     ProtocolError, Request, RequestBody, Response, ResponseBody, SlotStatus, Source, StereoPoint,
     PROTOCOL_VERSION,
 };
-use crate::slots::{self, SlotState};
-use crate::trajectory::{ConfigError, ControllerConfig, GazeController};
-use crate::triangulate::{self, Calibration};
+use crate::runtime::slots::{self, SlotState};
+use crate::runtime::traditional::{self, Calibration};
+use crate::runtime::trajectory::{ConfigError, ControllerConfig, GazeController};
 
 /// Inputs of the thesis' network: `u_l, v_l, u_r, v_r`.
 pub const NET_INPUTS: usize = 4;
@@ -47,7 +47,7 @@ pub struct Network {
     /// The decoded blob: weights, scaling and training box.
     pub blob: ModelBlob,
     /// Whether the blob is the thesis' 4-5-3 net (pixels in, XYZ out), run on the fixed-size
-    /// fast path [`crate::mlp::infer_fixed`].
+    /// fast path [`crate::runtime::mlp::infer_fixed`].
     pub fast: bool,
     /// The slot it came from.
     pub slot: Slot,
@@ -245,18 +245,18 @@ impl Boot {
 /// The answer to a request that failed before its id could be read.
 pub fn frame_error(code: ErrorCode) -> Response {
     Response {
-        id: crate::protocol::UNSOLICITED_ID,
+        id: crate::runtime::protocol::UNSOLICITED_ID,
         body: ResponseBody::Error(code),
     }
 }
 
 /// What the head does with one result of [`FrameAccumulator::push`]: the request in the frame,
-/// or the response to send at once (with [`UNSOLICITED_ID`](crate::protocol::UNSOLICITED_ID)):
+/// or the response to send at once (with [`UNSOLICITED_ID`](crate::runtime::protocol::UNSOLICITED_ID)):
 /// [`ErrorCode::Oversize`] for a frame longer than the accumulator's buffer,
 /// [`ErrorCode::Malformed`] for anything that is not exactly one request (bad COBS, unknown
 /// variant, truncated, trailing bytes).
 ///
-/// [`FrameAccumulator::push`]: crate::protocol::FrameAccumulator::push
+/// [`FrameAccumulator::push`]: crate::runtime::protocol::FrameAccumulator::push
 pub fn read_frame(frame: Result<&mut [u8], ProtocolError>) -> Result<Request, Response> {
     match frame.and_then(protocol::decode_request) {
         Ok(req) => Ok(req),
@@ -397,8 +397,8 @@ impl Estimator {
             }
             Estimator::Fallback(cal) => {
                 let [x_cm, y_cm, z_cm] =
-                    triangulate::traditional_xyz(cal, &x).map_err(|e| match e {
-                        triangulate::TriError::NonFinite => ErrorCode::NonFinite,
+                    traditional::traditional_xyz(cal, &x).map_err(|e| match e {
+                        traditional::TriError::NonFinite => ErrorCode::NonFinite,
                         _ => ErrorCode::NoSolution,
                     })?;
                 let in_image = |u: f32, c: f32| u >= 0.0 && u <= 2.0 * c;
@@ -423,8 +423,8 @@ mod tests {
     extern crate std;
 
     use super::*;
-    use crate::blob::{Algorithm, BlobError, Topology, TrainingMeta, MAX_BLOB_LEN};
-    use crate::mlp::{param_count, Activation};
+    use crate::runtime::blob::{Algorithm, BlobError, Topology, TrainingMeta, MAX_BLOB_LEN};
+    use crate::runtime::mlp::{param_count, Activation};
     use heapless::Vec;
     use std::vec::Vec as StdVec;
 
@@ -552,7 +552,7 @@ mod tests {
         );
         // Fallback still answers, with the traditional method's numbers.
         let e = both.estimate(&P).unwrap();
-        let want = triangulate::traditional_xyz(&Calibration::BUILT_IN, &P.to_array()).unwrap();
+        let want = traditional::traditional_xyz(&Calibration::BUILT_IN, &P.to_array()).unwrap();
         assert_eq!([e.x, e.y, e.z], want);
         assert_eq!(e.source, Source::Fallback);
         assert!(e.in_range);
@@ -606,13 +606,13 @@ mod tests {
 
     #[test]
     fn the_host_plan_sees_the_slot_boot_runs() {
-        use crate::slots::{plan_write, SlotRequest};
+        use crate::runtime::slots::{plan_write, SlotRequest};
         // A: Z-only at generation 9, B: runnable at 7. The head runs B, so `hvs flash`'s
         // plan (on the same bytes) must leave B alone and write A.
         let (a, b) = (z_only(9), bytes(&sample(5, 7, 2)));
-        assert_eq!(SlotState::of(&a), SlotState::Unrunnable { generation: 9 });
+        assert_eq!(slot_state(&a), SlotState::Unrunnable { generation: 9 });
         assert_eq!(network(&boot(&a, &b)).slot, Slot::B);
-        let p = plan_write(SlotState::of(&a), SlotState::of(&b), SlotRequest::Auto).unwrap();
+        let p = plan_write(slot_state(&a), slot_state(&b), SlotRequest::Auto).unwrap();
         assert_eq!(
             (p.slot, p.generation, p.running),
             (Slot::A, 8, Some(Slot::B))
@@ -632,7 +632,7 @@ mod tests {
         for a in &contents {
             for b in &contents {
                 let booted = boot(a, b).info(V).slot;
-                let p = plan_write(SlotState::of(a), SlotState::of(b), SlotRequest::Auto).unwrap();
+                let p = plan_write(slot_state(a), slot_state(b), SlotRequest::Auto).unwrap();
                 assert_eq!(p.running, booted);
                 assert_ne!(Some(p.slot), booted);
             }
@@ -934,5 +934,15 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn classifies_raw_slot_bytes() {
+        assert_eq!(slot_state(&[0xFF; 64]), SlotState::Empty);
+        assert_eq!(slot_state(&[0x00; 64]), SlotState::Empty);
+        assert_eq!(
+            slot_state(b"HVSW\x01\x00\x10\x00\x00\x00"),
+            SlotState::Invalid(crate::runtime::blob::BlobError::Truncated)
+        );
     }
 }

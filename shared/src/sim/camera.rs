@@ -8,15 +8,13 @@
 //! away from zero. Lengths are centimetres, angles radians, `Phi = k f` in pixels.
 //! Everything here is `f64`: the camera model is the simulator's ground truth.
 
+use crate::runtime::gaze::HALF_BASELINE_CM;
 use serde::{Deserialize, Serialize};
 
 /// A 3-D point or vector.
 pub type Vec3 = [f64; 3];
 /// A 3x3 matrix, rows first.
 pub type Mat3 = [[f64; 3]; 3];
-
-/// The half baseline `d` of the thesis' HVS (2d = 10.5 cm).
-pub const HALF_BASELINE_CM: f64 = 5.25;
 
 /// Why a point has no image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -283,11 +281,152 @@ impl Rig {
     }
 }
 
-fn finite4(px: StereoPixels) -> Result<StereoPixels, CameraError> {
+pub(crate) fn finite4(px: StereoPixels) -> Result<StereoPixels, CameraError> {
     if px.iter().all(|c| c.is_finite()) {
         Ok(px)
     } else {
         Err(CameraError::NonFinite)
+    }
+}
+
+/// Radial lens distortion `1 + k1 r^2 + k2 r^4`, `r` in units of the image half-width.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Distortion {
+    /// `k1` (negative: barrel).
+    pub k1: f64,
+    /// `k2`.
+    pub k2: f64,
+}
+
+impl Distortion {
+    /// A perfect pinhole lens.
+    pub const NONE: Distortion = Distortion { k1: 0.0, k2: 0.0 };
+
+    /// True when both coefficients are zero (then projections are exactly the pinhole's).
+    pub fn is_none(&self) -> bool {
+        self.k1 == 0.0 && self.k2 == 0.0
+    }
+
+    /// Whether both coefficients are finite.
+    pub fn is_finite(&self) -> bool {
+        self.k1.is_finite() && self.k2.is_finite()
+    }
+
+    /// The radial factor `1 + k1 s + k2 s^2` at `s = r^2`.
+    pub fn factor(&self, r2: f64) -> f64 {
+        1.0 + self.k1 * r2 + self.k2 * r2 * r2
+    }
+
+    /// Distorted pixel offset (from the principal point) of the ideal offset `o`.
+    pub fn apply(&self, o: [f64; 2], half_width: f64) -> [f64; 2] {
+        if self.is_none() {
+            return o;
+        }
+        let r2 = (o[0] * o[0] + o[1] * o[1]) / (half_width * half_width);
+        let f = self.factor(r2);
+        [o[0] * f, o[1] * f]
+    }
+
+    /// The ideal offset that the lens shows at offset `d` (Newton on the radius), or `None`
+    /// where the distortion folds over (`d` lies beyond the largest radius the lens shows) or
+    /// the iteration does not settle.
+    pub fn undo(&self, d: [f64; 2], half_width: f64) -> Option<[f64; 2]> {
+        if self.is_none() {
+            return Some(d);
+        }
+        let rd = libm::sqrt(d[0] * d[0] + d[1] * d[1]) / half_width;
+        if rd == 0.0 {
+            return Some(d);
+        }
+        // Solve g(r) = r (1 + k1 r^2 + k2 r^4) - rd = 0 from r = rd.
+        let mut r = rd;
+        for _ in 0..50 {
+            let r2 = r * r;
+            let g = r * self.factor(r2) - rd;
+            let dg = 1.0 + 3.0 * self.k1 * r2 + 5.0 * self.k2 * r2 * r2;
+            if dg.is_nan() || dg <= 0.0 {
+                return None;
+            }
+            let step = g / dg;
+            r -= step;
+            if r.is_nan() || r <= 0.0 {
+                return None;
+            }
+            if libm::fabs(step) <= 1e-15 * r {
+                let s = r / rd;
+                return Some([d[0] * s, d[1] * s]);
+            }
+        }
+        None
+    }
+}
+
+/// A pinhole camera behind a radially distorting lens.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LensCamera {
+    /// Pose and intrinsics.
+    pub camera: Camera,
+    /// The lens.
+    pub distortion: Distortion,
+    /// Half the image width (px): the distortion's unit radius.
+    pub half_width: f64,
+}
+
+impl LensCamera {
+    /// A camera without lens distortion.
+    pub fn pinhole(camera: Camera, half_width: f64) -> LensCamera {
+        LensCamera {
+            camera,
+            distortion: Distortion::NONE,
+            half_width,
+        }
+    }
+
+    /// Pixel offset from the principal point the lens shows for camera-frame point `c`, or
+    /// `None` at or behind the image plane.
+    fn offset(&self, c: &Vec3) -> Option<[f64; 2]> {
+        if c[2].is_nan() || c[2] <= 0.0 {
+            return None;
+        }
+        let o = [
+            self.camera.phi_u * c[0] / c[2],
+            self.camera.phi_v * c[1] / c[2],
+        ];
+        Some(self.distortion.apply(o, self.half_width))
+    }
+
+    /// Unrounded image coordinates (lens included), or `None` at or behind the camera.
+    pub fn project(&self, p: &Vec3) -> Option<[f64; 2]> {
+        let o = self.offset(&self.camera.to_camera(p))?;
+        Some([o[0] + self.camera.u0, o[1] + self.camera.v0])
+    }
+
+    /// What the camera reports: `round(offset + noise) + u0` (and `v`). With no distortion and
+    /// no noise this is exactly [`Camera::project_rounded`].
+    pub fn project_rounded_noisy(&self, p: &Vec3, noise: [f64; 2]) -> Option<[f64; 2]> {
+        let o = self.offset(&self.camera.to_camera(p))?;
+        if noise == [0.0, 0.0] {
+            return Some([
+                libm::round(o[0]) + self.camera.u0,
+                libm::round(o[1]) + self.camera.v0,
+            ]);
+        }
+        Some([
+            libm::round(o[0] + noise[0]) + self.camera.u0,
+            libm::round(o[1] + noise[1]) + self.camera.v0,
+        ])
+    }
+
+    /// The viewing ray of an observed pixel (lens undone): origin and unit direction, or `None`
+    /// where the lens cannot be undone.
+    pub fn ray(&self, u: f64, v: f64) -> Option<(Vec3, Vec3)> {
+        let o = self
+            .distortion
+            .undo([u - self.camera.u0, v - self.camera.v0], self.half_width)?;
+        Some(
+            self.camera
+                .ray(o[0] + self.camera.u0, o[1] + self.camera.v0),
+        )
     }
 }
 
@@ -341,50 +480,6 @@ mod tests {
         let r = rig.project_rounded(&[-2.75, -2.5, 100.0]).unwrap();
         assert_eq!(r[0], 323.0);
         assert_eq!(r[1], 237.0); // -2.5 rounds to -3
-    }
-
-    #[test]
-    fn noisy_projection_is_exact_without_noise_and_shifts_with_it() {
-        for n in 1..=4 {
-            let rig = crate::presets::case(n).unwrap();
-            for p in [[-3.0, -2.0, 65.0], [1.75, 0.0, 165.0], [2.9, 1.3, 97.3]] {
-                assert_eq!(
-                    rig.project_rounded_noisy(&p, &[0.0; 4]),
-                    rig.project_rounded(&p)
-                );
-            }
-        }
-        // Parallel rig, Phi X / Z = 15.75 on the left: +0.3 px of noise rounds to 16, -0.3 to 15.
-        let rig = Rig::parallel(300.0);
-        let p = [0.0, 0.0, 100.0];
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[0.3, 0.0, 0.0, 0.0])
-                .unwrap()[0],
-            336.0
-        );
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[-0.3, 0.0, 0.0, 0.0])
-                .unwrap()[0],
-            335.0
-        );
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[0.0, -0.6, 0.0, 0.0])
-                .unwrap()[1],
-            239.0
-        );
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[0.0, 0.0, 0.0, 1.6])
-                .unwrap()[3],
-            242.0
-        );
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[f64::NAN, 0.0, 0.0, 0.0]),
-            Err(CameraError::NonFinite)
-        );
-        assert_eq!(
-            rig.project_rounded_noisy(&[0.0, 0.0, -1.0], &[0.0; 4]),
-            Err(CameraError::BehindLeft)
-        );
     }
 
     #[test]

@@ -1,0 +1,17 @@
+//! What the head runs: everything here is on the firmware's path, `no_std`, allocation-free,
+//! `f32` through `libm` where the host must compute the same bits.
+//!
+//! Nothing here depends on [`crate::sim`]; the dependencies inside run one way:
+//! `mlp` <- `blob` <- `head`; `gaze` <- `trajectory`, `servo`, `head`; `slots` and `layout` are
+//! pure rules that `head` (boot) and the host (`hvs flash`) share.
+
+pub mod blob;
+pub mod gaze;
+pub mod head;
+pub mod layout;
+pub mod mlp;
+pub mod protocol;
+pub mod servo;
+pub mod slots;
+pub mod traditional;
+pub mod trajectory;

@@ -1,0 +1,191 @@
+//! Sample models for the tests of every crate (feature `test-support`): one constructor, so no
+//! test writes a `ModelBlob { .. }` literal of its own.
+//!
+//! The weights are seeded (same spec, same bytes), not trained: enough for round trips,
+//! bit-for-bit comparisons, slot rules and instruction counts. The scaling and the training
+//! input box are those of case I's training set (pixels) and of the posture working range
+//! (joints, degrees).
+
+use crate::runtime::blob::{
+    Algorithm, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_INPUTS, MAX_OUTPUTS,
+    MAX_PARAMS,
+};
+use crate::runtime::mlp::{param_count, Activation};
+use crate::runtime::traditional::Calibration;
+use heapless::Vec;
+
+/// What a sample model looks like.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SampleSpec {
+    /// Inputs (4 pixels, or 4 pixels and 5 joints).
+    pub inputs: InputKind,
+    /// Hidden neurons.
+    pub hidden: u8,
+    /// Outputs.
+    pub outputs: OutputKind,
+    /// Blob generation.
+    pub generation: u32,
+    /// Seed of the weights (and `meta.seed`).
+    pub seed: u64,
+    /// Weights are drawn uniformly in `[-amplitude, amplitude)`.
+    pub amplitude: f32,
+    /// The traditional method's calibration carried as the fallback.
+    pub fallback: Option<Calibration>,
+}
+
+impl SampleSpec {
+    /// A 4-5-3 X, Y, Z net, generation 1, seed 0, weights in [-1, 1), no fallback.
+    pub const THESIS: SampleSpec = SampleSpec {
+        inputs: InputKind::Stereo,
+        hidden: 5,
+        outputs: OutputKind::Xyz,
+        generation: 1,
+        seed: 0,
+        amplitude: 1.0,
+        fallback: None,
+    };
+
+    /// This spec with `hidden` neurons.
+    pub const fn hidden(self, hidden: u8) -> SampleSpec {
+        SampleSpec { hidden, ..self }
+    }
+    /// This spec with these inputs.
+    pub const fn inputs(self, inputs: InputKind) -> SampleSpec {
+        SampleSpec { inputs, ..self }
+    }
+    /// This spec with these outputs.
+    pub const fn outputs(self, outputs: OutputKind) -> SampleSpec {
+        SampleSpec { outputs, ..self }
+    }
+    /// This spec at `generation`.
+    pub const fn generation(self, generation: u32) -> SampleSpec {
+        SampleSpec { generation, ..self }
+    }
+    /// This spec with weights from `seed`.
+    pub const fn seed(self, seed: u64) -> SampleSpec {
+        SampleSpec { seed, ..self }
+    }
+    /// The model.
+    pub fn build(self) -> ModelBlob {
+        sample(self)
+    }
+}
+
+const PX_OFFSET: [f32; 4] = [343.0, 240.0, 297.0, 240.0];
+const PX_SCALE: [f32; 4] = [1.0 / 30.0, 1.0 / 12.0, 1.0 / 30.0, 1.0 / 12.0];
+const PX_MIN: [f32; 4] = [325.0, 228.0, 279.0, 228.0];
+const PX_MAX: [f32; 4] = [361.0, 252.0, 315.0, 252.0];
+const JOINT_SCALE: [f32; 5] = [1.0 / 30.0, 1.0 / 20.0, 1.0 / 15.0, 1.0 / 20.0, 1.0 / 20.0];
+const JOINT_MIN: [f32; 5] = [-30.0, -20.0, -15.0, -20.0, -20.0];
+const XYZ_OFFSET: [f32; 3] = [0.0, 0.0, 115.0];
+const XYZ_SCALE: [f32; 3] = [3.0, 2.0, 50.0];
+
+/// The sample model of `spec`.
+pub fn sample(spec: SampleSpec) -> ModelBlob {
+    let (ni, no) = (spec.inputs.len(), spec.outputs.len());
+    let joints = ni > 4;
+    let mut state = if joints {
+        spec.seed ^ 0x9e37_79b9_7f4a_7c15
+    } else {
+        spec.seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407)
+    };
+    let mut params: Vec<f32, MAX_PARAMS> = Vec::new();
+    for _ in 0..param_count(ni, spec.hidden as usize, no) {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let r = ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0;
+        params
+            .push(r * spec.amplitude)
+            .expect("a sample topology fits the blob");
+    }
+    let with_joints = |px: [f32; 4], j: [f32; 5]| -> Vec<f32, MAX_INPUTS> {
+        let mut v = Vec::from_slice(&px).expect("4 <= MAX_INPUTS");
+        if joints {
+            v.extend_from_slice(&j).expect("9 <= MAX_INPUTS");
+        }
+        v
+    };
+    let out = |all: [f32; 3]| -> Vec<f32, MAX_OUTPUTS> {
+        Vec::from_slice(&all[3 - no..]).expect("outputs <= 3")
+    };
+    ModelBlob {
+        generation: spec.generation,
+        topology: Topology {
+            inputs: spec.inputs,
+            hidden: spec.hidden,
+            outputs: spec.outputs,
+            output_activation: Activation::Linear,
+        },
+        in_offset: with_joints(PX_OFFSET, [0.0; 5]),
+        in_scale: with_joints(PX_SCALE, JOINT_SCALE),
+        out_offset: out(XYZ_OFFSET),
+        out_scale: out(XYZ_SCALE),
+        params,
+        in_min: with_joints(PX_MIN, JOINT_MIN),
+        in_max: with_joints(PX_MAX, JOINT_MIN.map(|v| -v)),
+        meta: TrainingMeta {
+            seed: spec.seed,
+            train_hash: 0x1234_5678_9abc_def0,
+            train_points: 72,
+            train_error_pct: 0.5,
+            algorithm: Algorithm::Lm,
+            restarts: 1,
+        },
+        fallback: spec.fallback,
+    }
+}
+
+/// A valid 4-5-3 blob with seeded weights in [-2, 2) and the built-in fallback: the model of the
+/// fuzz seeds, the fault-injection tests and the firmware's instruction count.
+pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
+    sample(SampleSpec {
+        generation,
+        seed,
+        amplitude: 2.0,
+        fallback: Some(Calibration::BUILT_IN),
+        ..SampleSpec::THESIS
+    })
+}
+
+/// A valid posture-aware 9-8-3 blob (four pixels, five joint angles in degrees), built like
+/// [`sample_model`]: the larger blob of the fault-injection tests.
+pub fn sample_posture_model(generation: u32, seed: u64) -> ModelBlob {
+    sample(SampleSpec {
+        inputs: InputKind::StereoJoints,
+        hidden: 8,
+        ..SampleSpec {
+            generation,
+            seed,
+            amplitude: 2.0,
+            fallback: Some(Calibration::BUILT_IN),
+            ..SampleSpec::THESIS
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_are_valid_and_seeded() {
+        for spec in [
+            SampleSpec::THESIS,
+            SampleSpec::THESIS.hidden(10).outputs(OutputKind::Z),
+            SampleSpec::THESIS
+                .inputs(InputKind::StereoJoints)
+                .hidden(16),
+        ] {
+            let b = sample(spec);
+            assert_eq!(b.n_inputs(), spec.inputs.len());
+            let mut buf = [0u8; crate::runtime::blob::MAX_BLOB_LEN];
+            let n = b.encode(&mut buf).unwrap();
+            assert_eq!(crate::runtime::blob::decode(&buf[..n]).unwrap(), b);
+            assert_eq!(sample(spec), b);
+            assert_ne!(sample(spec.seed(1)).params, b.params);
+        }
+    }
+}
