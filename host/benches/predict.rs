@@ -6,9 +6,9 @@
 //! `cargo bench -p hvs-host --bench predict`
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use hvs_host::dataset::Dataset;
+use hvs_host::data::dataset::Dataset;
 use hvs_host::infer::Predictor;
-use hvs_host::simulate::{simulate, SetKind, SimOptions};
+use hvs_host::sim::sets::{simulate, SetKind, SimOptions};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob};
 use hvs_shared::sim::presets;
 use std::hint::black_box;

@@ -1,13 +1,13 @@
 //! Criterion benchmark of the thesis' hidden-neuron sweep: 4-H-3 nets for H = 1..=10, ten
 //! restarts (nets) each, Levenberg-Marquardt with the default settings, on the case-IV board
 //! set (72 points), restarts in parallel on all cores as `hvs train` runs them; and the
-//! experiments' own sweep (`hvs_host::experiment::hidden_sweep`, Figs. 4.13-4.15: one and three
+//! experiments' own sweep (`hvs_host::study::thesis::hidden_sweep`, Figs. 4.13-4.15: one and three
 //! outputs, H = 1..=10, ten single-start nets each, 200 nets, evaluated on the test points):
 //! `cargo bench -p hvs-host --bench sweep`.
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
-use hvs_host::dataset::Dataset;
-use hvs_host::experiment::{self, Quiet};
+use hvs_host::data::dataset::Dataset;
+use hvs_host::study::thesis::{self as experiment, Quiet};
 use hvs_host::train::{train, TrainConfig};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::sim::presets;

@@ -3,7 +3,7 @@
 //! The goal is under 0.1 s wall on the project's 2-core machine.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use hvs_host::dataset::Dataset;
+use hvs_host::data::dataset::Dataset;
 use hvs_host::train::{train, Algo, TrainConfig};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::sim::presets;

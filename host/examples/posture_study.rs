@@ -1,4 +1,4 @@
-//! The posture study of `hvs_host::posture_study`, printed as the markdown section of the
+//! The posture study of `hvs_host::study::posture`, printed as the markdown section of the
 //! experiments report (and, with `--out DIR`, its tables as CSV files).
 //!
 //! ```sh
@@ -13,7 +13,7 @@
 //! `--quick` (a 2-level training grid and fewer test points: a smoke run), `--out DIR`.
 
 use anyhow::{bail, Context, Result};
-use hvs_host::posture_study::{csv_tables, markdown, run, StudyConfig};
+use hvs_host::study::posture::{csv_tables, markdown, run, StudyConfig};
 use std::path::PathBuf;
 
 fn main() -> Result<()> {
@@ -67,12 +67,12 @@ fn main() -> Result<()> {
             .with_context(|| format!("{}: cannot create", dir.display()))?;
         for (name, text) in csv_tables(&report) {
             let path = dir.join(name);
-            hvs_host::csv_io::write_output(Some(&path), |w| {
+            hvs_host::data::csv::write_output(Some(&path), |w| {
                 w.write_all(text.as_bytes()).context("cannot write")
             })?;
         }
         let md = dir.join("posture.md");
-        hvs_host::csv_io::write_output(Some(&md), |w| {
+        hvs_host::data::csv::write_output(Some(&md), |w| {
             w.write_all(markdown(&report, &command).as_bytes())
                 .context("cannot write")
         })?;

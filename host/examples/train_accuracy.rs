@@ -20,13 +20,15 @@
 //! training configuration (`--help`).
 
 use clap::Parser;
-use hvs_host::dataset::Dataset;
+use hvs_host::data::dataset::Dataset;
 use hvs_host::train::{train, Algo, TrainConfig};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob, OutputKind};
 use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::metrics::EmaAcc;
 use hvs_shared::sim::{presets, triangulate};
 use std::time::Instant;
+
+use hvs_host::cli::train::AlgoArg;
 
 #[derive(Parser)]
 struct Args {
@@ -37,8 +39,8 @@ struct Args {
     #[arg(long)]
     z_only: bool,
     /// Algorithm.
-    #[arg(long, value_enum, default_value_t = Algo::Lm)]
-    algo: Algo,
+    #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]
+    algo: AlgoArg,
     /// Restarts.
     #[arg(long, default_value_t = 10)]
     restarts: usize,
@@ -164,7 +166,11 @@ fn main() -> anyhow::Result<()> {
         } else {
             OutputKind::Xyz
         },
-        algo: args.algo,
+        algo: match args.algo {
+            AlgoArg::Lm => Algo::Lm,
+            AlgoArg::Bp => Algo::Bp,
+            AlgoArg::Adam => Algo::Adam,
+        },
         restarts: args.restarts,
         seed: args.seed,
         ..TrainConfig::default()

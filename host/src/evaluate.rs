@@ -11,7 +11,7 @@
 //! The estimators themselves come from `hvs-shared` (see [`model_depths`],
 //! [`traditional_depths`], [`optimal_depths`]).
 
-use crate::dataset::Dataset;
+use crate::data::dataset::Dataset;
 use crate::infer::{PointError, Predictor};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob};
 use hvs_shared::runtime::gaze::Joints;
@@ -214,7 +214,7 @@ pub fn traditional_depths(cal: &Calibration, data: &Dataset) -> Vec<f64> {
 /// rounded pixels. NaN where it fails.
 ///
 /// On a posture-aware set (nine inputs: the pixels, then the joint angles of
-/// [`crate::dataset::JOINT_COLUMNS`] in degrees) each row is triangulated with the rig's
+/// [`crate::data::dataset::JOINT_COLUMNS`] in degrees) each row is triangulated with the rig's
 /// cameras at that row's posture (`hvs_shared::sim::posture::HeadRig::new(rig)`: the simulator's
 /// head, neck axes through the baseline centre, no lens distortion), so the depth is in the
 /// head frame like the set's ground truth. A set's lens distortion is not in the file and is
@@ -368,8 +368,8 @@ mod tests {
 
     #[test]
     fn the_floor_of_a_posture_set_uses_the_cameras_at_each_rows_posture() {
-        use crate::posture::{dataset, simulate};
-        use crate::simulate::{SetKind, SimOptions};
+        use crate::sim::posture::{dataset, simulate};
+        use crate::sim::sets::{SetKind, SimOptions};
         use hvs_shared::sim::posture::joints_from_gaze;
         let rig = hvs_shared::sim::presets::CASE_3;
         let head = HeadRig::new(rig);

@@ -1,9 +1,9 @@
 //! `hvs`: the host side of hvs-depth. Commands parse arguments and do I/O; all math is in
-//! `hvs-shared`. Each subcommand lives in `hvs_host::cmd::<name>` with its own clap `Args`
+//! `hvs-shared`. Each subcommand lives in `hvs_host::cli::<name>` with its own clap `Args`
 //! and `run`; adding one is a variant here and a match arm below.
 
 use clap::{Parser, Subcommand};
-use hvs_host::cmd;
+use hvs_host::cli as cmd;
 
 #[derive(Parser)]
 #[command(
@@ -29,13 +29,13 @@ enum Command {
     Demo(cmd::demo::Args),
     Experiment(cmd::experiment::Args),
     /// Boot the head firmware in QEMU with a model in slot A.
-    Emulate(hvs_host::emulate::EmulateArgs),
+    Emulate(cmd::emulate::Args),
     /// Talk to a head (QEMU over TCP, or a serial port).
-    Head(hvs_host::head::HeadArgs),
+    Head(cmd::head::Args),
     /// Write a flashable image (bin or Intel HEX) of a model for one weight slot.
-    Image(hvs_host::flash::ImageArgs),
+    Image(cmd::image::Args),
     /// Write a model into the head's idle weight slot through a debug probe (probe-rs).
-    Flash(hvs_host::flash::FlashArgs),
+    Flash(cmd::flash::Args),
 }
 
 fn main() {
@@ -48,10 +48,10 @@ fn main() {
         Command::Info(a) => cmd::info::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Experiment(a) => cmd::experiment::run(a),
-        Command::Emulate(a) => hvs_host::emulate::run(&a),
-        Command::Head(a) => hvs_host::head::run(&a),
-        Command::Image(a) => hvs_host::flash::run_image(&a),
-        Command::Flash(a) => hvs_host::flash::run_flash(&a),
+        Command::Emulate(a) => cmd::emulate::run(&a),
+        Command::Head(a) => cmd::head::run(&a),
+        Command::Image(a) => cmd::image::run(&a),
+        Command::Flash(a) => cmd::flash::run(&a),
     };
     if let Err(e) = result {
         if is_broken_pipe(&e) {

@@ -6,7 +6,7 @@ mod common;
 use common::{read, spawn_quick_experiment, wait_ok};
 
 use assert_cmd::Command;
-use hvs_host::experiment::{
+use hvs_host::study::thesis::{
     e_ma_hn, hidden_counts, report, run, Config, Quiet, Thesis, FEWER_DEPTHS, PHI_DEPTHS,
 };
 use hvs_host::train::Algo;

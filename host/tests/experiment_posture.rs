@@ -6,10 +6,12 @@ mod common;
 use common::{read, spawn_quick_experiment, wait_ok};
 
 use assert_cmd::Command;
-use hvs_host::dataset::JOINT_COLUMNS;
-use hvs_host::experiment::posture::{self, PostureConfig, PostureRun, HIDDEN_SWEEP_QUICK, STEMS};
-use hvs_host::experiment::Quiet;
-use hvs_host::posture_study::fixed_postures;
+use hvs_host::data::dataset::JOINT_COLUMNS;
+use hvs_host::study::posture::fixed_postures;
+use hvs_host::study::posture::report::{
+    self as posture, PostureConfig, PostureRun, HIDDEN_SWEEP_QUICK, STEMS,
+};
+use hvs_host::study::thesis::Quiet;
 
 fn check_invariants(run: &PostureRun) {
     let r = &run.report;

@@ -9,7 +9,7 @@
 //! `cargo test -p hvs-host --test qemu_cli -- --ignored`. When run, a missing QEMU or ELF is a
 //! failure with the command that fixes it, never a skip.
 
-use hvs_host::emulate::{find_firmware, free_port, FIRMWARE_BUILD};
+use hvs_host::device::qemu::{find_firmware, free_port, FIRMWARE_BUILD};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};

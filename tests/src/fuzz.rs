@@ -4,8 +4,8 @@
 //! corpus through the same functions in a normal `cargo test`. Each panics on a failure.
 
 use crate::sim::SimHead;
-use hvs_host::csv_io::{self, Inputs};
-use hvs_host::dataset::{JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
+use hvs_host::data::csv::{self as csv_io, Inputs};
+use hvs_host::data::dataset::{JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
 use hvs_shared::runtime::blob::{self, HEADER_LEN, MAGIC, MAX_BLOB_LEN, VERSION};
 use hvs_shared::runtime::protocol::{
     self, FrameAccumulator, ProtocolError, Request, RequestBody, Response, StereoPoint,
@@ -212,7 +212,7 @@ fn run_head_stream(data: &[u8]) -> Result<(), crate::sim::Violation> {
 }
 
 /// `csv_read`: any bytes as a CSV point file, read by the host's reader
-/// (`hvs_host::csv_io::read_set_from`) in four modes (pixels; pixels with targets; pixels,
+/// (`hvs_host::data::csv::read_set_from`) in four modes (pixels; pixels with targets; pixels,
 /// joints and targets; auto-detected joints). It must return, never panic. An error names the
 /// file first (`fuzz.csv`), and a line number in it lies within the input. A table it returns
 /// has at least one row, the promised columns (4 or 9 inputs; targets iff asked), only finite

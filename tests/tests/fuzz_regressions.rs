@@ -2,7 +2,7 @@
 //! and every input kept in `tests/fuzz-regressions/<target>/` (crashes the fuzzer found,
 //! fixed since) goes through the same function the target runs.
 
-use hvs_host::csv_io::{self, Inputs};
+use hvs_host::data::csv::{self as csv_io, Inputs};
 use hvs_shared::runtime::blob::{self, CRC_LEN, HEADER_LEN};
 use hvs_tests::{fuzz, workspace_root};
 use std::path::Path;

@@ -8,8 +8,8 @@
 //! `cargo test -p hvs-tests --test qemu -- --ignored`; when run, a missing QEMU or ELF is a
 //! failure with the command that fixes it, never a skip.
 
-use hvs_host::emulate::{find_firmware, free_port, Emulator, EmulatorConfig, FIRMWARE_BUILD};
-use hvs_host::link::{Endpoint, Link};
+use hvs_host::device::link::{Endpoint, Link};
+use hvs_host::device::qemu::{find_firmware, free_port, Emulator, EmulatorConfig, FIRMWARE_BUILD};
 use hvs_shared::runtime::blob::{self, BlobError, ModelBlob, MAX_BLOB_LEN};
 use hvs_shared::runtime::gaze::{Axis, GazeConfig, Joints};
 use hvs_shared::runtime::head::{self, Head};
@@ -498,7 +498,9 @@ fn look_sequence_commands_follow_the_trajectory_within_limits() {
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn images_written_by_hvs_image_boot_at_the_address_they_name() {
-    use hvs_host::flash::{run_image, ImageArgs, ImageFormat, SlotArg};
+    use hvs_host::cli::image::{
+        run as run_image, Args as ImageArgs, FormatArg as ImageFormat, SlotArg,
+    };
     let dir = std::env::temp_dir().join(format!("hvs-image-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let model_path = dir.join("m.hvsw");
@@ -564,8 +566,8 @@ fn images_written_by_hvs_image_boot_at_the_address_they_name() {
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
-    use hvs_host::posture::{self as sets, PostureOptions, Sampling};
-    use hvs_host::simulate::{SetKind, SimOptions};
+    use hvs_host::sim::posture::{self as sets, PostureOptions, Sampling};
+    use hvs_host::sim::sets::{SetKind, SimOptions};
     use hvs_host::train::{train, TrainConfig};
     use hvs_shared::runtime::blob::InputKind;
     use hvs_shared::sim::posture::{HeadRig, PostureRange};

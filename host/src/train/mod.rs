@@ -34,11 +34,12 @@
 
 mod adam;
 mod bp;
+pub mod fallback;
 mod lm;
 mod net;
 mod rng;
 
-use crate::dataset::Dataset;
+use crate::data::dataset::Dataset;
 use anyhow::{bail, Result};
 use hvs_shared::runtime::blob::{
     Algorithm, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_HIDDEN, MAX_INPUTS,
@@ -68,7 +69,7 @@ const LM_OPTIONS: lm::LmOptions = lm::LmOptions {
 };
 
 /// Training algorithm.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Algo {
     /// Levenberg-Marquardt on the relative depth error (fast and accurate; the default).
     #[default]

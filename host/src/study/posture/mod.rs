@@ -20,9 +20,11 @@
 //! the report section and CSV tables. Every random step takes the study's seed; the same
 //! [`StudyConfig`] gives the same numbers.
 
-use crate::dataset::Dataset;
-use crate::posture::{self, PostureOptions, PostureSample, Sampling};
-use crate::simulate::{SetKind, SimOptions};
+pub mod report;
+
+use crate::data::dataset::Dataset;
+use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
+use crate::sim::sets::{SetKind, SimOptions};
 use crate::train::{train, TrainConfig};
 use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob};
@@ -998,7 +1000,7 @@ pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
     let eh = |p: &str| format!("{p}_points,{p}_z_pct,{p}_d3_pct,{p}_max_z_pct,{p}_failed");
     let mut fixed = format!(
         "posture,{},{},{}\n",
-        crate::dataset::JOINT_COLUMNS.join(","),
+        crate::data::dataset::JOINT_COLUMNS.join(","),
         eh("net"),
         eh("floor")
     );

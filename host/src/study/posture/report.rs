@@ -1,4 +1,4 @@
-//! `hvs experiment posture`: the posture study of issue 8 ([`crate::posture_study`]) as one
+//! `hvs experiment posture`: the posture study of issue 8 ([`crate::study::posture`]) as one
 //! command, written like the thesis experiments: a CSV and a plot (SVG and PNG) per part and
 //! `POSTURE.md` with our numbers, the goal and one sentence per plot.
 //!
@@ -14,17 +14,17 @@
 //! they run side by side on the rayon pool (longest first), each one call of the library
 //! (`posture_aware_study` with one hidden count and no sweep, the chosen count with the
 //! lattice-trained net; `distortion_study`); every training takes the study's seed, so the
-//! numbers are those of one sequential [`crate::posture_study::run`] with the same sweep,
+//! numbers are those of one sequential [`crate::study::posture::run`] with the same sweep,
 //! whatever the thread count. Wall times are the exception and go to `timing.csv` and
 //! `POSTURE.md` only.
 
-use super::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
-use super::Progress;
-use crate::csv_io::write_bytes;
-use crate::posture_study::{
+use super::{
     csv_tables, distortion_study, fixed_posture_study, markdown, posture_aware_study, BandRow,
     DistortionRow, Errors, FixedRow, HiddenRow, PostureAware, Report, StudyConfig,
 };
+use crate::data::csv::write_bytes;
+use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
+use crate::study::thesis::Progress;
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::sim::posture::PostureRange;
 use rayon::prelude::*;
@@ -98,7 +98,7 @@ impl PostureConfig {
 pub struct PostureRun {
     /// The configuration.
     pub config: PostureConfig,
-    /// The study's results, as [`crate::posture_study::run`] returns them (its `seconds`:
+    /// The study's results, as [`crate::study::posture::run`] returns them (its `seconds`:
     /// part (a); the sum of the posture-aware trainings' wall times, which overlap; the lens
     /// study's wall time).
     pub report: Report,
@@ -380,7 +380,7 @@ fn fixed_figure(r: &Report) -> Figure {
     Figure {
         title: format!(
             "The thesis' 4-5-3 net, trained at the home posture, at other postures (case {}, {} random points each)",
-            crate::experiment::report::ROMAN[usize::from(r.config.case.clamp(1, 4)) - 1],
+            crate::study::thesis::report::ROMAN[usize::from(r.config.case.clamp(1, 4)) - 1],
             r.config.fixed_points
         ),
         panels: vec![
@@ -747,7 +747,7 @@ fn posture_md(run: &PostureRun, total_s: f64) -> String {
          the 3-D error in % of the distance. The **floor** is optimal triangulation with the \
          true cameras at the same posture on the same rounded pixels.\n",
         run.threads,
-        super::report::ROMAN[usize::from(c.case.clamp(1, 4)) - 1],
+        crate::study::thesis::report::ROMAN[usize::from(c.case.clamp(1, 4)) - 1],
     );
     let sweep: Vec<String> = grid_sweep(r).iter().map(|h| h.hidden.to_string()).collect();
     if run.config.quick {

@@ -10,7 +10,7 @@ use rand_distr::{Distribution, StandardNormal};
 use std::io::Write;
 
 /// Which set to produce.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SetKind {
     /// The 12 board points at each training depth (65..165 cm, step 20): 72 points.
     Train,

@@ -5,12 +5,12 @@
 //! has no estimate), so equal results give equal bytes; the only file with wall times is
 //! `bp_vs_lm_timing.csv` (and the run time stated in `RESULTS.md`).
 
-use super::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use super::{
     e_ma_hn, hidden_counts, mean_e_ma_hn, DepthCurve, Thesis, FEWER_DEPTHS, GENERAL_CASE,
     PHI_DEPTHS,
 };
-use crate::csv_io::write_bytes;
+use crate::data::csv::write_bytes;
+use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use crate::train::Algo;
 use anyhow::{Context, Result};
 use hvs_shared::runtime::blob::OutputKind;

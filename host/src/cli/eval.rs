@@ -1,12 +1,12 @@
 //! `hvs eval`: depth error of a model, and of the traditional method with the model's
 //! fallback calibration, per ground-truth depth.
 
-use crate::cmd::RigArgs;
-use crate::csv_io::{read_set, Inputs};
+use crate::cli::RigArgs;
+use crate::data::csv::{read_set, Inputs};
+use crate::data::model;
 use crate::evaluate::{
     evaluate, optimal_depths, text_table, traditional_depths, Evaluation, Method,
 };
-use crate::model;
 use anyhow::Result;
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::traditional::Calibration;
@@ -61,7 +61,7 @@ pub fn run(a: Args) -> Result<()> {
     let m = model::load(&a.model)?;
     let blob = &m.blob;
     let table = read_set(&a.data, blob.topology.inputs.into(), true)?;
-    let (_, y) = crate::cmd::predict::infer_table(blob, &table)?;
+    let (_, y) = crate::cli::predict::infer_table(blob, &table)?;
     let no = blob.n_outputs();
     let mut methods = vec![Method {
         name: "network".into(),

@@ -1,6 +1,6 @@
 //! `hvs info`: what is in a weights blob, and whether it is intact.
 
-use crate::model::{self, input_names, output_names};
+use crate::data::model::{self, input_names, output_names};
 use anyhow::Result;
 use hvs_shared::runtime::blob::VERSION;
 use std::io::Write;

@@ -4,12 +4,13 @@
 //!
 //! Input format: a header row, then one row per point. Columns are found by name in any
 //! order (`u_l,v_l,u_r,v_r`; `x,y,z` where ground truth is needed; the five joint-angle
-//! columns of [`crate::dataset::JOINT_COLUMNS`] for posture-aware sets); other columns are
+//! columns of [`crate::data::dataset::JOINT_COLUMNS`] for posture-aware sets); other columns are
 //! ignored. Surrounding spaces are trimmed; blank lines are skipped.
 
-use crate::dataset::{Dataset, JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
+use crate::data::dataset::{Dataset, JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::InputKind;
+use hvs_shared::runtime::protocol::StereoPoint;
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
@@ -60,6 +61,27 @@ pub fn read_set(path: &Path, inputs: Inputs, targets: bool) -> Result<Table> {
     let file =
         std::fs::File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
     read_set_from(path, file, inputs, targets)
+}
+
+/// The `u_l,v_l,u_r,v_r` columns of a CSV (by header name, other columns ignored) as the
+/// head's [`StereoPoint`]s, each with its 1-based line number: the same reader (and the same
+/// errors) as `hvs predict`, values rounded to f32 as host inference does.
+pub fn read_stereo_points(path: &Path) -> Result<Vec<(usize, StereoPoint)>> {
+    let t = read_set(path, Inputs::Stereo, false)?;
+    Ok((0..t.data.len())
+        .map(|i| {
+            let r = t.data.row(i);
+            (
+                t.lines[i] as usize,
+                StereoPoint {
+                    u_l: r[0] as f32,
+                    v_l: r[1] as f32,
+                    u_r: r[2] as f32,
+                    v_r: r[3] as f32,
+                },
+            )
+        })
+        .collect())
 }
 
 /// Reads a point set from any reader; `name` is used in messages.
@@ -478,5 +500,46 @@ mod tests {
         write_atomically(&p, |w| Ok(w.write_all(b"x")?)).unwrap();
         let mode = |q: &Path| std::fs::metadata(q).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode(&p), mode(&plain));
+    }
+    #[test]
+    fn reads_stereo_points_by_header_and_names_bad_fields() {
+        let dir = tempfile::tempdir().unwrap();
+        let tmp = |name: &str, text: &str| {
+            let p = dir.path().join(name);
+            std::fs::write(&p, text).unwrap();
+            p
+        };
+        let p = tmp(
+            "ok.csv",
+            "x,u_r,v_r,u_l,v_l\n9,289,240,335,240.5\n\n1,1,2,3,4\n",
+        );
+        let pts = read_stereo_points(&p).unwrap();
+        assert_eq!(pts.len(), 2);
+        assert_eq!(
+            pts[0],
+            (
+                2,
+                StereoPoint {
+                    u_l: 335.0,
+                    v_l: 240.5,
+                    u_r: 289.0,
+                    v_r: 240.0
+                }
+            )
+        );
+        assert_eq!(pts[1].0, 4);
+
+        let p = tmp("bad.csv", "u_l,v_l,u_r,v_r\n1,2,3,4\n1,2,abc,4\n");
+        let e = format!("{:#}", read_stereo_points(&p).unwrap_err());
+        assert!(
+            e.contains("bad.csv:3") && e.contains("u_r") && e.contains("abc"),
+            "{e}"
+        );
+        let p = tmp("short.csv", "u_l,v_l,u_r,v_r\n1,2,3\n");
+        let e = format!("{:#}", read_stereo_points(&p).unwrap_err());
+        assert!(e.contains("short.csv:2"), "{e}");
+        let p = tmp("hdr.csv", "u_l,v_l,u_r\n1,2,3\n");
+        let e = format!("{:#}", read_stereo_points(&p).unwrap_err());
+        assert!(e.contains("hdr.csv:1") && e.contains("v_r"), "{e}");
     }
 }

@@ -1,9 +1,34 @@
 //! `hvs simulate`: point sets from the thesis camera model (board protocol or random volume).
 
-use crate::cmd::RigArgs;
-use crate::csv_io::write_output;
-use crate::posture::{self, postures, PostureOptions, Sampling};
-use crate::simulate::{simulate, write_csv, SetKind, SimOptions};
+use super::value_enum;
+use crate::cli::RigArgs;
+use crate::data::csv::write_output;
+use crate::sim::posture::{self, postures, PostureOptions, Sampling};
+use crate::sim::sets::{simulate, write_csv, SetKind, SimOptions};
+
+value_enum! {
+    /// Which set to produce.
+    SetArg => SetKind {
+        /// The 12 board points at each training depth (65..165 cm, step 20): 72 points.
+        Train,
+        /// The two test points P1, P2 at each test depth (65..165 cm, step 10): 22 points.
+        Test,
+        /// Uniform random points in the box the training boards span.
+        Volume,
+    }
+}
+
+value_enum! {
+    /// How the postures of a set are chosen.
+    SamplingArg => Sampling {
+        /// One uniform random posture inside every cell of a `levels` grid (stratified).
+        Grid,
+        /// The regular grid: `levels` evenly spaced values per interval, ends included.
+        Lattice,
+        /// `count` uniform random postures.
+        Random,
+    }
+}
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::posture::HeadRig;
@@ -36,7 +61,7 @@ pub struct Args {
     rig: RigArgs,
     /// Which set.
     #[arg(long, value_enum)]
-    set: SetKind,
+    set: SetArg,
     /// Number of points (volume set only) [default: 500].
     #[arg(long, value_name = "N")]
     points: Option<usize>,
@@ -56,7 +81,7 @@ pub struct Args {
     output: Option<PathBuf>,
     /// Repeat the set at many head postures (adds the five joint columns).
     #[arg(long, value_enum, value_name = "HOW")]
-    postures: Option<Sampling>,
+    postures: Option<SamplingArg>,
     /// Grid levels of neck pan, neck tilt, eye tilt, version, vergence (grid, lattice)
     /// [default: 3,3,3,3,4].
     #[arg(long, value_name = "A,B,C,D,E", value_delimiter = ',')]
@@ -84,7 +109,7 @@ pub fn run(a: Args) -> Result<()> {
         .rig
         .rig()?
         .ok_or_else(|| anyhow!("choose a rig with --case N or --rig FILE.json"))?;
-    if a.points.is_some() && a.set != SetKind::Volume {
+    if a.points.is_some() && SetKind::from(a.set) != SetKind::Volume {
         bail!("--points applies to --set volume only (the board sets have a fixed size)");
     }
     let opt = SimOptions {
@@ -98,7 +123,7 @@ pub fn run(a: Args) -> Result<()> {
     if a.posture_levels.is_some() || a.posture_count.is_some() {
         bail!("--posture-levels and --posture-count need --postures");
     }
-    let samples = simulate(&rig, a.set, &opt).with_context(|| a.rig.label())?;
+    let samples = simulate(&rig, a.set.into(), &opt).with_context(|| a.rig.label())?;
     write_output(a.output.as_deref(), |w| {
         write_csv(w, &samples).context("cannot write the CSV")
     })
@@ -124,6 +149,7 @@ fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -
             vec![hvs_shared::runtime::gaze::Joints::HOME]
         }
         Some(sampling) => {
+            let sampling = Sampling::from(sampling);
             let mut p = PostureOptions {
                 sampling,
                 ..PostureOptions::default()
@@ -148,7 +174,8 @@ fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -
             postures(&p, a.seed ^ POSTURE_SEED_MIX)?
         }
     };
-    let samples = posture::simulate(&head, a.set, &joints, opt).with_context(|| a.rig.label())?;
+    let samples =
+        posture::simulate(&head, a.set.into(), &joints, opt).with_context(|| a.rig.label())?;
     let with_joints = a.postures.is_some();
     write_output(a.output.as_deref(), |w| {
         posture::write_csv(w, &samples, with_joints).context("cannot write the CSV")

@@ -189,7 +189,7 @@ mod tests {
     use super::*;
     use hvs_shared::sim::presets;
 
-    const CASES: &str = include_str!("../../shared/tests/fixtures/cases.json");
+    const CASES: &str = include_str!("../../../shared/tests/fixtures/cases.json");
 
     #[test]
     fn cases_json_entries_are_the_presets() {

@@ -27,14 +27,12 @@
 //! the same seed gives the same CSV bytes. Wall times (the BP/LM comparison and the run time)
 //! are the exception and live in their own file and in `RESULTS.md`.
 
-pub mod plot;
-pub mod posture;
 pub mod report;
 
-use crate::dataset::Dataset;
+use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
-use crate::fallback;
-use crate::simulate::{simulate, Sample, SetKind, SimOptions};
+use crate::sim::sets::{simulate, Sample, SetKind, SimOptions};
+use crate::train::fallback;
 use crate::train::{train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob, OutputKind};

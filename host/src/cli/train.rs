@@ -1,9 +1,9 @@
 //! `hvs train`: fit a net on a CSV training set, add the traditional-method fallback, write
 //! the weights blob.
 
-use crate::csv_io::{read_set, Inputs};
-use crate::fallback::{self, FallbackFit};
-use crate::model;
+use crate::data::csv::{read_set, Inputs};
+use crate::data::model;
+use crate::train::fallback::{self, FallbackFit};
 use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
 use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::blob::{ModelBlob, OutputKind, MAX_HIDDEN};
@@ -123,7 +123,7 @@ pub struct Trained {
 }
 
 /// Trains on `data` and completes the blob: fallback calibration and generation 1.
-pub fn train_model(data: &crate::dataset::Dataset, plan: &Plan) -> Result<Trained> {
+pub fn train_model(data: &crate::data::dataset::Dataset, plan: &Plan) -> Result<Trained> {
     let outcome = train::train(data, &plan.config)?;
     let fit = fallback::fit(data, plan.half_baseline, plan.u0, plan.v0);
     let mut blob = outcome.blob.clone();

@@ -1,4 +1,4 @@
-//! Posture-aware point sets: the sets of [`crate::simulate`] (the thesis' board protocol, its
+//! Posture-aware point sets: the sets of [`crate::sim::sets`] (the thesis' board protocol, its
 //! test points, random points of the training volume) seen by the thesis rig on the five-axis
 //! head at many postures ([`hvs_shared::sim::posture`]), optionally through distorting lenses, with
 //! the five joint angles as extra columns.
@@ -18,8 +18,8 @@
 //!
 //! Every posture is quantised to the drives' 0.18 degree steps, as the head's setpoints are.
 
-use crate::dataset::{Dataset, JOINT_COLUMNS};
-use crate::simulate::{
+use crate::data::dataset::{Dataset, JOINT_COLUMNS};
+use crate::sim::sets::{
     board_points, check_points, to_written_precision, training_volume, SetKind, SimOptions,
 };
 use anyhow::{bail, Result};
@@ -32,7 +32,7 @@ use rand_distr::{Distribution, StandardNormal};
 use std::io::Write;
 
 /// How the postures of a set are chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sampling {
     /// One uniform random posture inside every cell of a `levels` grid (stratified).
     Grid,
@@ -155,7 +155,7 @@ pub fn postures(opt: &PostureOptions, seed: u64) -> Result<Vec<Joints>> {
 /// Simulates set `kind` through `head` at each posture of `joints`: the whole board set
 /// (`train`, `test`) at every posture, or (`volume`) `opt.points` random points of the
 /// training volume, point `k` at posture `k mod n`. Pixel noise as in
-/// [`crate::simulate::simulate`]. The same arguments give the same bytes.
+/// [`crate::sim::sets::simulate`]. The same arguments give the same bytes.
 pub fn simulate(
     head: &HeadRig,
     kind: SetKind,
@@ -264,8 +264,8 @@ pub fn dataset(samples: &[PostureSample]) -> Dataset {
 }
 
 /// Writes samples as CSV: `u_l,v_l,u_r,v_r`, the five joint columns of
-/// [`crate::dataset::JOINT_COLUMNS`] (degrees, printed so that they parse back to the same
-/// f32 the head uses), then `x,y,z` (cm, four decimals, as [`crate::simulate::write_csv`]).
+/// [`crate::data::dataset::JOINT_COLUMNS`] (degrees, printed so that they parse back to the same
+/// f32 the head uses), then `x,y,z` (cm, four decimals, as [`crate::sim::sets::write_csv`]).
 /// With `joints` false the joint columns are left out (a fixed-posture set, e.g. home with
 /// lens distortion).
 pub fn write_csv(
@@ -294,7 +294,7 @@ pub fn write_csv(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::csv_io::{read_set_from, Inputs};
+    use crate::data::csv::{read_set_from, Inputs};
     use hvs_shared::sim::camera::Distortion;
     use hvs_shared::sim::presets;
     use std::path::Path;
@@ -418,7 +418,7 @@ mod tests {
         let head = HeadRig::new(rig);
         let home = [Joints::HOME];
         let a = simulate(&head, SetKind::Test, &home, &SimOptions::default()).unwrap();
-        let b = crate::simulate::simulate(&rig, SetKind::Test, &SimOptions::default()).unwrap();
+        let b = crate::sim::sets::simulate(&rig, SetKind::Test, &SimOptions::default()).unwrap();
         assert_eq!(a.len(), b.len());
         for (x, y) in a.iter().zip(&b) {
             assert_eq!((x.px, x.xyz), (y.px, y.xyz));

@@ -1,8 +1,8 @@
 //! `hvs predict`: run a model over a CSV of matched pixels.
 
-use crate::csv_io::{read_set, write_output, Table};
+use crate::data::csv::{read_set, write_output, Table};
+use crate::data::model::{self, input_names};
 use crate::infer::{to_f32, PointError, Predictor};
-use crate::model::{self, input_names};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{ModelBlob, OutputKind};
 use std::io::Write;

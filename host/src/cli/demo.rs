@@ -2,14 +2,14 @@
 //! camera cases, train the default net on each, evaluate it next to the traditional method,
 //! print the comparison with the thesis' own numbers and write models, data and a report.
 
-use crate::cmd::train::{train_model, Plan};
-use crate::csv_io::{write_atomically, write_output};
-use crate::dataset::Dataset;
+use crate::cli::train::{train_model, Plan};
+use crate::data::csv::{write_atomically, write_output};
+use crate::data::dataset::Dataset;
+use crate::data::model;
 use crate::evaluate::{
     evaluate, model_depths, optimal_depths, pct, text_table, traditional_depths, Evaluation, Method,
 };
-use crate::model;
-use crate::simulate::{simulate, write_csv, Sample, SetKind, SimOptions};
+use crate::sim::sets::{simulate, write_csv, Sample, SetKind, SimOptions};
 use crate::train::TrainConfig;
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::InputKind;

@@ -1,6 +1,6 @@
-//! `hvs image` and `hvs flash`: put a weights blob into a head's weight slot.
+//! A weights blob into a head's weight slot.
 //!
-//! `image` writes a flashable file (raw binary or Intel HEX) for other flashers; `flash` uses
+//! Flash images (`hvs image`) for other flashers: a flashable file (raw binary or Intel HEX) for other flashers; `flash` uses
 //! the `probe-rs` library to read both slots through a debug probe, write the model into the
 //! slot that is not running with the next generation number (the rules of
 //! [`hvs_shared::runtime::slots`], over the slot states the head's own boot sees:
@@ -9,47 +9,17 @@
 //! place. Both refuse a model the head would not run ([`hvs_shared::runtime::head::Network::new`]).
 
 use anyhow::{anyhow, bail, Context, Result};
-use clap::{Args, ValueEnum};
 use hvs_shared::runtime::blob::{self, InputKind, ModelBlob, OutputKind, MAX_BLOB_LEN};
 use hvs_shared::runtime::head::Network;
 use hvs_shared::runtime::layout::{Slot, SLOT_LEN};
 use hvs_shared::runtime::slots::{plan_write, SlotRequest, SlotState, WritePlan};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The head controller's chip.
 pub const DEFAULT_CHIP: &str = "STM32F405RGTx";
 
-/// A slot on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum SlotArg {
-    /// Slot A, flash sector 10 at 0x080C0000.
-    A,
-    /// Slot B, flash sector 11 at 0x080E0000.
-    B,
-}
-
-impl From<SlotArg> for Slot {
-    fn from(s: SlotArg) -> Slot {
-        match s {
-            SlotArg::A => Slot::A,
-            SlotArg::B => Slot::B,
-        }
-    }
-}
-
-/// `--slot` of `hvs flash`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum SlotChoice {
-    /// The slot that is not running (A if none is valid).
-    Auto,
-    /// Slot A.
-    A,
-    /// Slot B.
-    B,
-}
-
-/// Output format of `hvs image`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+/// Output format of a flash image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ImageFormat {
     /// Raw bytes, to be loaded at the slot address (`--base-address`).
     Bin,
@@ -57,47 +27,23 @@ pub enum ImageFormat {
     Hex,
 }
 
-/// Arguments of `hvs image`.
-#[derive(Debug, Args)]
-pub struct ImageArgs {
-    /// The weights blob (from `hvs train`).
-    #[arg(long)]
-    pub model: PathBuf,
-    /// The slot the image is for.
-    #[arg(long, value_enum)]
-    pub slot: SlotArg,
-    /// Generation number to stamp into the blob (default: keep the model's).
-    #[arg(long)]
-    pub generation: Option<u32>,
-    /// Output format.
-    #[arg(long, value_enum)]
-    pub format: ImageFormat,
-    /// Output file.
-    #[arg(short = 'o', long)]
-    pub output: PathBuf,
-}
-
-/// Arguments of `hvs flash`.
-#[derive(Debug, Args)]
-pub struct FlashArgs {
-    /// The weights blob (from `hvs train`).
-    #[arg(long)]
-    pub model: PathBuf,
-    /// Target chip, any name probe-rs knows.
-    #[arg(long, default_value = DEFAULT_CHIP)]
-    pub chip: String,
-    /// Debug probe as VID:PID or VID:PID:SERIAL (hex ids), when several are connected.
-    #[arg(long)]
-    pub probe: Option<String>,
-    /// Which slot to write.
-    #[arg(long, value_enum, default_value_t = SlotChoice::Auto)]
-    pub slot: SlotChoice,
-    /// Print the plan (slot, address, size, generation) without touching a probe.
-    #[arg(long)]
-    pub dry_run: bool,
-    /// Do not reset the head after writing (it keeps running the old model until its next boot).
-    #[arg(long)]
-    pub no_reset: bool,
+/// The image of a blob (its file bytes, re-stamped with `generation` if given) for `slot`.
+pub fn image(
+    blob: &ModelBlob,
+    bytes: Vec<u8>,
+    generation: Option<u32>,
+    slot: Slot,
+    format: ImageFormat,
+) -> Result<(Vec<u8>, usize)> {
+    let bytes = match generation {
+        Some(g) => with_generation(blob, g)?,
+        None => bytes,
+    };
+    let out = match format {
+        ImageFormat::Bin => bytes.clone(),
+        ImageFormat::Hex => intel_hex(slot.addr(), &bytes)?.into_bytes(),
+    };
+    Ok((out, bytes.len()))
 }
 
 /// Reads and validates a blob file and checks that the head would run it
@@ -173,42 +119,8 @@ pub fn intel_hex(addr: u32, bytes: &[u8]) -> Result<String> {
         .map_err(|e| anyhow!("cannot write Intel HEX: {e}"))
 }
 
-/// Writes `data` to `path` atomically ([`crate::csv_io::write_atomically`]).
-pub fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
-    crate::csv_io::write_atomically(path, |w| {
-        w.write_all(data)
-            .with_context(|| format!("{}: cannot write", path.display()))
-    })
-}
-
-/// `hvs image`.
-pub fn run_image(args: &ImageArgs) -> Result<()> {
-    let (blob, bytes) = read_model(&args.model)?;
-    let bytes = match args.generation {
-        Some(g) => with_generation(&blob, g)?,
-        None => bytes,
-    };
-    let slot = Slot::from(args.slot);
-    let out = match args.format {
-        ImageFormat::Bin => bytes.clone(),
-        ImageFormat::Hex => intel_hex(slot.addr(), &bytes)?.into_bytes(),
-    };
-    write_atomic(&args.output, &out)?;
-    let generation = args.generation.unwrap_or(blob.generation);
-    println!(
-        "wrote {} ({:?}, {} blob bytes) for slot {:?} at {:#010x}, generation {}",
-        args.output.display(),
-        args.format,
-        bytes.len(),
-        slot,
-        slot.addr(),
-        generation
-    );
-    Ok(())
-}
-
 /// Checks that the chip is known to probe-rs and that both slots lie in its flash.
-fn check_chip(chip: &str) -> Result<()> {
+pub fn check_chip(chip: &str) -> Result<()> {
     let target = probe_rs::config::Registry::from_builtin_families()
         .get_target_by_name(chip)
         .map_err(|e| anyhow!("--chip {chip}: {e}"))?;
@@ -225,25 +137,6 @@ fn check_chip(chip: &str) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// `hvs flash`.
-pub fn run_flash(args: &FlashArgs) -> Result<()> {
-    let (blob, bytes) = read_model(&args.model)?;
-    check_chip(&args.chip)?;
-    let req = match args.slot {
-        SlotChoice::Auto => SlotRequest::Auto,
-        SlotChoice::A => SlotRequest::Exactly(Slot::A),
-        SlotChoice::B => SlotRequest::Exactly(Slot::B),
-    };
-    if args.dry_run {
-        print!(
-            "{}",
-            dry_run_plan(&args.model, &blob, bytes.len(), &args.chip, args.slot)?
-        );
-        return Ok(());
-    }
-    flash_with_probe(args, &blob, req)
 }
 
 /// The plan for slots holding `a` and `b` (raw bytes read from the head): the head's own
@@ -308,7 +201,7 @@ pub fn dry_run_plan(
     blob: &ModelBlob,
     file_size: usize,
     chip: &str,
-    slot: SlotChoice,
+    slot: SlotRequest,
 ) -> Result<String> {
     let sizes = sizes_by_generation(blob)?;
     let t = &blob.topology;
@@ -330,7 +223,7 @@ pub fn dry_run_plan(
         .unwrap_or((1, u32::MAX, 0));
     let g_plus_1 = format!("generation G+1, {n2} bytes if G+1 <= {hi2}");
     match slot {
-        SlotChoice::Auto => {
+        SlotRequest::Auto => {
             o += "slot: auto, the slot the head is not running (known only once the probe has read both slots):\n";
             o += &format!(
                 "  if A runs (generation G): write slot {}, {g_plus_1}\n",
@@ -346,12 +239,7 @@ pub fn dry_run_plan(
                 size_for(&sizes, 1)
             );
         }
-        SlotChoice::A | SlotChoice::B => {
-            let s = if slot == SlotChoice::A {
-                Slot::A
-            } else {
-                Slot::B
-            };
+        SlotRequest::Exactly(s) => {
             o += &format!("slot: {}\n", at(s));
             o += &format!(
                 "  write generation G+1 if the head runs a model (generation G), {n2} bytes if G+1 <= {hi2}; generation 1, {} bytes if it runs none\n",
@@ -399,7 +287,20 @@ fn read_slot(session: &mut probe_rs::Session, slot: Slot) -> Result<Vec<u8>> {
     Ok(buf)
 }
 
-fn flash_with_probe(args: &FlashArgs, blob: &ModelBlob, req: SlotRequest) -> Result<()> {
+/// Where and how `hvs flash` writes (the probe-rs side of it).
+#[derive(Debug, Clone)]
+pub struct FlashTarget {
+    /// Target chip, any name probe-rs knows.
+    pub chip: String,
+    /// Debug probe as VID:PID or VID:PID:SERIAL (hex ids), when several are connected.
+    pub probe: Option<String>,
+    /// Do not reset the head after writing.
+    pub no_reset: bool,
+}
+
+/// Writes `blob` into the slot chosen by `req` through a debug probe: reads both slots, plans
+/// the write with the head's own rules, writes, verifies by reading back, resets the head.
+pub fn flash_with_probe(args: &FlashTarget, blob: &ModelBlob, req: SlotRequest) -> Result<()> {
     let lister = probe_rs::probe::list::Lister::new();
     let probes = lister.list_all();
     let info = match &args.probe {

@@ -11,7 +11,7 @@
 //! `cases.json`). In posture-aware sets only rows at the home posture (all joint angles 0)
 //! count. No such group: no fallback. The arithmetic is `hvs_shared::runtime::traditional::phi_estimate`.
 
-use crate::dataset::Dataset;
+use crate::data::dataset::Dataset;
 use hvs_shared::runtime::traditional::{phi_estimate, Calibration};
 use std::collections::{BTreeMap, HashMap};
 
@@ -96,7 +96,7 @@ pub fn fit(data: &Dataset, half_baseline: f64, u0: f64, v0: f64) -> Option<Fallb
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulate::{simulate, SetKind, SimOptions};
+    use crate::sim::sets::{simulate, SetKind, SimOptions};
     use hvs_shared::runtime::blob::InputKind;
     use hvs_shared::sim::presets;
 

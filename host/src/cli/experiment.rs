@@ -1,11 +1,11 @@
 //! `hvs experiment`: regenerates studies as CSV, plots and a report. `hvs experiment thesis`
 //! reruns every experiment of the thesis' chapter 4 on the simulated HVS
-//! ([`crate::experiment`]) and writes `RESULTS.md` with the thesis' values beside ours;
+//! ([`crate::study::thesis`]) and writes `RESULTS.md` with the thesis' values beside ours;
 //! `hvs experiment posture` runs the posture study of issue 8
-//! ([`crate::experiment::posture`]) and writes `POSTURE.md`.
+//! ([`crate::study::posture::report`]) and writes `POSTURE.md`.
 
-use crate::experiment::posture::{self, PostureConfig};
-use crate::experiment::{self, report, Bars, Config};
+use crate::study::posture::report::{self as posture, PostureConfig};
+use crate::study::thesis::{self as experiment, report, Bars, Config};
 use anyhow::{Context, Result};
 use std::io::IsTerminal;
 use std::path::PathBuf;

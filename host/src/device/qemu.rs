@@ -1,4 +1,4 @@
-//! `hvs emulate`: boots the head firmware in QEMU (`netduinoplus2`, an STM32F405) with weight
+//! Boots the head firmware in QEMU (`netduinoplus2`, an STM32F405) with weight
 //! blobs loaded into the flash slots, the protocol USART on a TCP port and the servo USART
 //! logged to a file.
 //!
@@ -7,7 +7,6 @@
 //! (`server=on,wait=on`), so nothing the firmware sends is lost.
 
 use anyhow::{bail, Context, Result};
-use clap::Args;
 use hvs_shared::runtime::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
@@ -19,33 +18,6 @@ pub const FIRMWARE_REL: &str = "thumbv7em-none-eabihf/firmware/hvs-firmware";
 /// The command that builds it (from the workspace root).
 pub const FIRMWARE_BUILD: &str =
     "cargo build --profile firmware -p hvs-firmware --target thumbv7em-none-eabihf --features qemu";
-
-/// Arguments of `hvs emulate`.
-#[derive(Debug, Clone, Args)]
-pub struct EmulateArgs {
-    /// Weights blob loaded into slot A (0x080C0000).
-    #[arg(long, alias = "slot-a")]
-    pub model: Option<PathBuf>,
-    /// Weights blob loaded into slot B (0x080E0000).
-    #[arg(long)]
-    pub slot_b: Option<PathBuf>,
-    /// TCP address of the protocol USART (QEMU listens; connect with `hvs head --connect`).
-    #[arg(long, default_value = "127.0.0.1:4444")]
-    pub listen: String,
-    /// File receiving the servo USART (MCDC commands).
-    #[arg(long, default_value = "servo.log")]
-    pub servo_log: PathBuf,
-    /// Firmware ELF [default: $HVS_FIRMWARE, else target/thumbv7em-none-eabihf/firmware/hvs-firmware
-    /// next to the hvs executable's target directory or the current directory].
-    #[arg(long)]
-    pub firmware: Option<PathBuf>,
-    /// QEMU executable.
-    #[arg(long, default_value = "qemu-system-arm")]
-    pub qemu: String,
-    /// Stop QEMU after this many seconds (default: run until interrupted).
-    #[arg(long)]
-    pub timeout: Option<u64>,
-}
 
 /// What to boot.
 #[derive(Debug, Clone)]
@@ -243,31 +215,6 @@ pub fn find_firmware(explicit: Option<&Path>) -> PathBuf {
         .find(|p| p.is_file())
         .cloned()
         .unwrap_or_else(|| candidates.pop().unwrap_or_default())
-}
-
-/// `hvs emulate`.
-pub fn run(args: &EmulateArgs) -> Result<()> {
-    let cfg = EmulatorConfig {
-        firmware: find_firmware(args.firmware.as_deref()),
-        slot_a: args.model.clone(),
-        slot_b: args.slot_b.clone(),
-        listen: args.listen.clone(),
-        servo_log: args.servo_log.clone(),
-        qemu: args.qemu.clone(),
-        extra: Vec::new(),
-    };
-    let mut emu = Emulator::start(&cfg)?;
-    eprintln!(
-        "QEMU netduinoplus2 running {}; protocol on {} (the CPU starts when a client connects), servo USART -> {}",
-        cfg.firmware.display(),
-        emu.endpoint,
-        cfg.servo_log.display()
-    );
-    let exited = emu.wait(args.timeout.map(Duration::from_secs))?;
-    if exited {
-        emu.check_alive()?;
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Model files on disk: the `hvs_shared::runtime::blob` format read with a precise account of what is
 //! wrong with a damaged file, and written atomically.
 
-use crate::csv_io::write_bytes;
+use crate::data::csv::write_bytes;
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{
     self, BlobError, InputKind, ModelBlob, OutputKind, CRC_LEN, MAX_BLOB_LEN,
@@ -106,9 +106,9 @@ pub fn shape(b: &ModelBlob) -> String {
 
 /// Names of a model's input columns.
 pub fn input_names(kind: InputKind) -> Vec<&'static str> {
-    let mut v = crate::dataset::PIXEL_COLUMNS.to_vec();
+    let mut v = crate::data::dataset::PIXEL_COLUMNS.to_vec();
     if kind == InputKind::StereoJoints {
-        v.extend(crate::dataset::JOINT_COLUMNS);
+        v.extend(crate::data::dataset::JOINT_COLUMNS);
     }
     v
 }

@@ -1,10 +1,15 @@
-//! One module per `hvs` subcommand. Each has a clap `Args` struct and a `run(args)` that
-//! parses, wires library modules together and does I/O; none holds math. Adding a command
-//! is one module here, one variant of `Command` and one match arm in `main.rs`.
+//! The command line: one module per `hvs` subcommand, each a clap `Args` struct and a
+//! `run(args)` that parses, wires library modules together and does I/O; none holds math.
+//! This is the only layer that uses clap. Adding a command is one module here, one variant of
+//! `Command` and one match arm in `main.rs`.
 
 pub mod demo;
+pub mod emulate;
 pub mod eval;
 pub mod experiment;
+pub mod flash;
+pub mod head;
+pub mod image;
 pub mod info;
 pub mod predict;
 pub mod simulate;
@@ -30,7 +35,7 @@ impl RigArgs {
     /// The chosen rig, `None` if neither option is given.
     pub fn rig(&self) -> Result<Option<Rig>> {
         match (&self.rig, self.case) {
-            (Some(path), case) => Ok(Some(crate::rigfile::load(path, case)?)),
+            (Some(path), case) => Ok(Some(crate::data::rig::load(path, case)?)),
             (None, Some(n)) => match hvs_shared::sim::presets::case(n) {
                 Some(r) => Ok(Some(r)),
                 None => bail!("--case must be 1-4, got {n}"),
@@ -49,3 +54,23 @@ impl RigArgs {
         }
     }
 }
+
+/// A clap value enum mirroring a library enum variant for variant (help text per variant), with
+/// the conversion into it: clap stays in this layer, the libraries keep plain enums.
+macro_rules! value_enum {
+    ($(#[$em:meta])* $name:ident => $target:ident { $($(#[$m:meta])* $v:ident),+ $(,)? }) => {
+        $(#[$em])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+        pub enum $name {
+            $($(#[$m])* $v),+
+        }
+        impl From<$name> for $target {
+            fn from(a: $name) -> $target {
+                match a {
+                    $($name::$v => $target::$v),+
+                }
+            }
+        }
+    };
+}
+pub(crate) use value_enum;

@@ -1,0 +1,237 @@
+//! `hvs head`: requests to a head controller (real, over a serial port, or QEMU's over TCP).
+//!
+//! Subcommands: `ping`, `info`, `estimate --points FILE.csv` (prints
+//! `u_l,v_l,u_r,v_r,x,y,z,source,in_range`, floats in shortest round-trip form so the bits can
+//! be compared with host inference), `look U_L V_L U_R V_R`, `home`, `bench`.
+
+use crate::data::csv::{read_stereo_points, write_bytes};
+use crate::device::client::{connect, error_text, estimate_row, expect, write_info};
+use crate::device::link::Endpoint;
+use anyhow::{bail, Result};
+use hvs_shared::runtime::protocol::{RequestBody, ResponseBody, StereoPoint};
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Arguments of `hvs head`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// The head over TCP: `tcp:HOST:PORT` (for `hvs emulate`), or `serial:PATH[@BAUD]`.
+    #[arg(long, conflicts_with = "port", required_unless_present = "port")]
+    pub connect: Option<String>,
+    /// The head on a serial port (`/dev/ttyUSB0`, `COM3`).
+    #[arg(long)]
+    pub port: Option<String>,
+    /// Serial baud rate.
+    #[arg(long, default_value_t = hvs_shared::runtime::protocol::BAUD_RATE)]
+    pub baud: u32,
+    /// Milliseconds to wait for each response (and for the head to come up).
+    #[arg(long, default_value_t = 3000)]
+    pub timeout_ms: u64,
+    /// What to ask.
+    #[command(subcommand)]
+    pub command: HeadCommand,
+}
+
+/// `hvs head` subcommands.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum HeadCommand {
+    /// Check that the head answers.
+    Ping,
+    /// Firmware version, running slot and generation, mode, model metadata, slot states.
+    Info,
+    /// Depth estimates of every row of a CSV with columns u_l,v_l,u_r,v_r (others ignored).
+    /// Rows the head has no estimate for keep empty x,y,z and source `none` (with a warning).
+    Estimate {
+        /// Input CSV.
+        #[arg(long)]
+        points: PathBuf,
+        /// Output CSV (default: standard output).
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+    },
+    /// Estimate a point and move the head to fixate it.
+    Look {
+        /// Left image column (px).
+        #[arg(allow_negative_numbers = true)]
+        u_l: f32,
+        /// Left image row (px).
+        #[arg(allow_negative_numbers = true)]
+        v_l: f32,
+        /// Right image column (px).
+        #[arg(allow_negative_numbers = true)]
+        u_r: f32,
+        /// Right image row (px).
+        #[arg(allow_negative_numbers = true)]
+        v_r: f32,
+    },
+    /// Move every axis to its home position.
+    Home,
+    /// Instructions per inference (firmware built with `--features bench`, under QEMU with
+    /// `-icount shift=0`).
+    Bench {
+        /// Inferences to time (the head caps it at 2000).
+        #[arg(long, default_value_t = 1000)]
+        count: u32,
+    },
+}
+
+impl Args {
+    /// The endpoint named by `--connect` or `--port`/`--baud`.
+    pub fn endpoint(&self) -> Result<Endpoint> {
+        match (&self.connect, &self.port) {
+            (Some(c), _) => c.parse(),
+            (None, Some(p)) => Ok(Endpoint::Serial {
+                path: p.clone(),
+                baud: self.baud,
+            }),
+            (None, None) => bail!("give --connect tcp:HOST:PORT or --port DEVICE"),
+        }
+    }
+}
+
+/// `hvs head`.
+pub fn run(args: &Args) -> Result<()> {
+    let timeout = Duration::from_millis(args.timeout_ms);
+    // Inputs are read before the head is contacted: a bad file is named as such, even when
+    // no head answers.
+    let points_read = match &args.command {
+        HeadCommand::Estimate { points, .. } => Some(read_stereo_points(points)?),
+        _ => None,
+    };
+    let endpoint = args.endpoint()?;
+    let mut link = connect(&endpoint, timeout)?;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    match &args.command {
+        HeadCommand::Ping => {
+            expect(link.request(RequestBody::Ping)?, "Ping", |b| {
+                matches!(b, ResponseBody::Pong).then_some(())
+            })?;
+            writeln!(out, "pong from {}", link.endpoint())?;
+        }
+        HeadCommand::Info => {
+            let info = expect(link.request(RequestBody::Info)?, "Info", |b| match b {
+                ResponseBody::Info(i) => Some(i),
+                _ => None,
+            })?;
+            write_info(&mut out, &info)?;
+        }
+        HeadCommand::Estimate { points, output } => {
+            let pts = points_read.as_deref().unwrap_or_default();
+            let mut csv = String::from("u_l,v_l,u_r,v_r,x,y,z,source,in_range\n");
+            for (line, p) in pts {
+                match link.request(RequestBody::Estimate(*p))? {
+                    ResponseBody::Estimate(e) => csv.push_str(&estimate_row(p, &e)),
+                    // A point without an estimate keeps its row, with empty coordinates.
+                    ResponseBody::Error(code) => {
+                        eprintln!(
+                            "warning: {}:{line}: no estimate: {}",
+                            points.display(),
+                            error_text(code)
+                        );
+                        csv.push_str(&format!(
+                            "{},{},{},{},,,,none,false\n",
+                            p.u_l, p.v_l, p.u_r, p.v_r
+                        ));
+                    }
+                    other => bail!(
+                        "{}:{line}: head answered Estimate with an unexpected {other:?}",
+                        points.display()
+                    ),
+                }
+            }
+            match output {
+                Some(path) => write_bytes(path, csv.as_bytes())?,
+                None => out.write_all(csv.as_bytes())?,
+            }
+        }
+        HeadCommand::Look { u_l, v_l, u_r, v_r } => {
+            let p = StereoPoint {
+                u_l: *u_l,
+                v_l: *v_l,
+                u_r: *u_r,
+                v_r: *v_r,
+            };
+            let l = expect(link.request(RequestBody::Look(p))?, "Look", |b| match b {
+                ResponseBody::Look(l) => Some(l),
+                _ => None,
+            })?;
+            let t = l.target.0;
+            writeln!(
+                out,
+                "target x={} y={} z={} cm ({:?}, in_range={})",
+                l.estimate.x, l.estimate.y, l.estimate.z, l.estimate.source, l.estimate.in_range
+            )?;
+            writeln!(
+                out,
+                "joints deg: neck_pan={} neck_tilt={} eye_tilt={} left_eye_pan={} right_eye_pan={}{}",
+                t[0],
+                t[1],
+                t[2],
+                t[3],
+                t[4],
+                if l.limited { " (limited)" } else { "" }
+            )?;
+        }
+        HeadCommand::Home => {
+            expect(link.request(RequestBody::Home)?, "Home", |b| {
+                matches!(b, ResponseBody::Home).then_some(())
+            })?;
+            writeln!(out, "homing")?;
+        }
+        HeadCommand::Bench { count } => {
+            let p = StereoPoint {
+                u_l: 330.0,
+                v_l: 241.0,
+                u_r: 300.0,
+                v_r: 239.0,
+            };
+            let b = expect(
+                link.request(RequestBody::Bench {
+                    point: p,
+                    count: *count,
+                })?,
+                "Bench",
+                |b| match b {
+                    ResponseBody::Bench(d) => Some(d),
+                    _ => None,
+                },
+            )?;
+            let per = b.ticks as f64 / b.count as f64;
+            writeln!(
+                out,
+                "count={} ticks={} overhead_ticks={} tick_hz={} ticks_per_inference={per:.2} instructions_per_inference_icount0={:.1}",
+                b.count,
+                b.ticks,
+                b.overhead_ticks,
+                b.tick_hz,
+                per * 1e9 / b.tick_hz as f64
+            )?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn endpoint_from_flags() {
+        let a = Args {
+            connect: None,
+            port: Some("/dev/ttyACM0".into()),
+            baud: 9600,
+            timeout_ms: 1,
+            command: HeadCommand::Ping,
+        };
+        assert_eq!(
+            a.endpoint().unwrap(),
+            Endpoint::Serial {
+                path: "/dev/ttyACM0".into(),
+                baud: 9600
+            }
+        );
+    }
+}
