@@ -185,8 +185,8 @@ pub fn load_slot(slot: Slot, bytes: &[u8]) -> (SlotStatus, Option<Network>) {
 
 /// What one slot's raw bytes count as in the boot choice: [`SlotState::Valid`] only if the blob
 /// validates *and* the head can run it ([`Network::new`]). [`boot`] chooses with exactly these
-/// states and [`slots::choose_boot`]; `hvs flash` plans its write with them (through
-/// [`SlotState::of`]), so the host's "running slot" is the one the head runs.
+/// states and [`slots::choose_boot`]; `hvs flash` plans its write with them, so the host's
+/// "running slot" is the one the head runs.
 pub fn slot_state(bytes: &[u8]) -> SlotState {
     classify(Slot::A, bytes).1
 }

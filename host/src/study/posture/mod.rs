@@ -16,7 +16,7 @@
 //!
 //! Errors are the thesis' e_ma in percent of the true depth (`mean |Z - Z^| / Z`, Z in the
 //! head frame) and, because a turned head sees points off to the side, the 3-D error in percent
-//! of the distance (`mean |p - p^| / |p|`). [`markdown`] and [`write_csv`] turn the rows into
+//! of the distance (`mean |p - p^| / |p|`). [`markdown`] and [`csv_tables`] turn the rows into
 //! the report section and CSV tables. Every random step takes the study's seed; the same
 //! [`StudyConfig`] gives the same numbers.
 

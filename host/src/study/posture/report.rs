@@ -47,7 +47,7 @@ pub const HIDDEN: usize = 16;
 pub const HIDDEN_SWEEP_QUICK: [usize; 2] = [3, 6];
 /// Hidden neurons of the quick run's posture-aware net.
 pub const HIDDEN_QUICK: usize = 6;
-/// The stems of the files [`write`] produces (each as `.csv`, `.svg`, `.png`), besides
+/// The stems of the files [`write()`] produces (each as `.csv`, `.svg`, `.png`), besides
 /// `timing.csv` and `POSTURE.md`.
 pub const STEMS: [&str; 4] = ["fixed", "bands", "hidden", "distortion"];
 

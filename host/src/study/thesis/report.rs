@@ -128,7 +128,7 @@ fn floor_series(c: &DepthCurve) -> Series {
     )
 }
 
-/// The stems of the files [`write`] produces (each as `.csv`, `.svg`, `.png`), besides
+/// The stems of the files [`write()`] produces (each as `.csv`, `.svg`, `.png`), besides
 /// `bp_vs_lm_timing.csv` and `RESULTS.md`.
 pub const STEMS: [&str; 9] = [
     "fig4_03_04_phi",
