@@ -144,12 +144,30 @@ fn responses() -> Vec<(&'static str, Response)> {
                 }),
             ),
         ),
-        ("response error malformed", r(9, ResponseBody::Error(ErrorCode::Malformed))),
-        ("response error oversize", r(9, ResponseBody::Error(ErrorCode::Oversize))),
-        ("response error non-finite", r(9, ResponseBody::Error(ErrorCode::NonFinite))),
-        ("response error unreachable", r(9, ResponseBody::Error(ErrorCode::Unreachable))),
-        ("response error no solution", r(9, ResponseBody::Error(ErrorCode::NoSolution))),
-        ("response error unsupported", r(9, ResponseBody::Error(ErrorCode::Unsupported))),
+        (
+            "response error malformed",
+            r(9, ResponseBody::Error(ErrorCode::Malformed)),
+        ),
+        (
+            "response error oversize",
+            r(9, ResponseBody::Error(ErrorCode::Oversize)),
+        ),
+        (
+            "response error non-finite",
+            r(9, ResponseBody::Error(ErrorCode::NonFinite)),
+        ),
+        (
+            "response error unreachable",
+            r(9, ResponseBody::Error(ErrorCode::Unreachable)),
+        ),
+        (
+            "response error no solution",
+            r(9, ResponseBody::Error(ErrorCode::NoSolution)),
+        ),
+        (
+            "response error unsupported",
+            r(9, ResponseBody::Error(ErrorCode::Unsupported)),
+        ),
     ]
     .into_iter()
     .chain(
@@ -165,8 +183,14 @@ fn responses() -> Vec<(&'static str, Response)> {
         ]
         .into_iter()
         .map(|(n, e)| {
-            let name: &'static str = Box::leak(format!("response info slot A {n}").into_boxed_str());
-            let i = info(Mode::Fallback, None, SlotStatus::Invalid(e), SlotStatus::Empty);
+            let name: &'static str =
+                Box::leak(format!("response info slot A {n}").into_boxed_str());
+            let i = info(
+                Mode::Fallback,
+                None,
+                SlotStatus::Invalid(e),
+                SlotStatus::Empty,
+            );
             (name, r(2, ResponseBody::Info(i)))
         }),
     )
@@ -188,10 +212,16 @@ fn frames() -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
     let mut buf = [0u8; MAX_FRAME_LEN];
     for (name, req) in requests() {
-        out.push((name.to_string(), encode_request(&req, &mut buf).unwrap().to_vec()));
+        out.push((
+            name.to_string(),
+            encode_request(&req, &mut buf).unwrap().to_vec(),
+        ));
     }
     for (name, resp) in responses() {
-        out.push((name.to_string(), encode_response(&resp, &mut buf).unwrap().to_vec()));
+        out.push((
+            name.to_string(),
+            encode_response(&resp, &mut buf).unwrap().to_vec(),
+        ));
     }
     out
 }

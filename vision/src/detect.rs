@@ -1,0 +1,952 @@
+//! Chessboard corners in one image and in a stereo pair: found, refined to sub-pixel,
+//! validated and labelled by the [`crate::board`] convention.
+//!
+//! **Pixel coordinates.** `(u, v)` are continuous, `u` to the right, `v` down, and integer
+//! values are pixel *centres*: pixel `(0, 0)`'s centre is `(0.0, 0.0)` and it covers
+//! `[-0.5, 0.5]^2`. This is the convention of [`hvs_shared::sim::camera::Camera::project`] (integer
+//! `u, v` are the pixels a camera reports) and of the renderer.
+//!
+//! **Pipeline.** The ChESS corner detector and the chessboard grid builder of `calib-targets`
+//! (with the `chess-corners` saddle-point refiner) find and connect the corners. This module
+//! then refuses anything but a complete `cols x rows` grid, relabels it so `(0, 0)` is the top
+//! left corner as seen (`i` grows with `u`, `j` with `v`, whatever the detector's own labels),
+//! checks the grid's geometry, and fits a homography board -> pixels whose RMS residual is
+//! reported per image.
+//!
+//! **Stereo.** [`detect_pair`] detects both images, requires the same size, and checks that the
+//! left and right labellings agree (a left -> right homography over the shared labels must fit
+//! to a fraction of a square). [`check_set`] fits one fundamental matrix over all pairs of a
+//! capture set and reports each pair's epipolar residual, which exposes a pair whose labels
+//! are shifted or flipped.
+
+use crate::board::Board;
+use crate::geometry::{self, Fundamental, FundamentalFit, GeomError, HomographyFit};
+use calib_targets::chessboard::{ChessboardDetector, ChessboardParams};
+use calib_targets::detect::{DetectorConfig, ImageRefiner, OnRefinerReject};
+use image::{DynamicImage, GrayImage};
+
+/// Which image of a stereo pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// The left camera's image.
+    Left,
+    /// The right camera's image.
+    Right,
+}
+
+impl core::fmt::Display for Side {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Side::Left => "left",
+            Side::Right => "right",
+        })
+    }
+}
+
+/// Why no labelled board came out of an image or a pair.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DetectError {
+    /// The image is too small to hold a board (width, height).
+    ImageTooSmall(u32, u32),
+    /// No chessboard grid was found at all.
+    BoardNotFound,
+    /// A grid was found, but not with `cols x rows` corners.
+    WrongCornerCount {
+        /// Corners the grid builder labelled.
+        found: usize,
+        /// `cols * rows` of the board description.
+        expected: usize,
+        /// The extent of the labels found, `(along the first detector axis, second)`.
+        extent: (u32, u32),
+    },
+    /// The corners are there but do not form a consistent grid (the reason).
+    InconsistentGrid(String),
+    /// The board's orientation in the image cannot be told (the reason).
+    AmbiguousOrientation(String),
+    /// One image of a pair failed.
+    InImage(Side, Box<DetectError>),
+    /// The two images of a pair differ in size.
+    SizeMismatch {
+        /// Left image (width, height).
+        left: (u32, u32),
+        /// Right image (width, height).
+        right: (u32, u32),
+    },
+    /// The left and right labellings disagree: a left -> right homography over the labels
+    /// leaves a residual too large for one board.
+    LabelMismatch {
+        /// Largest residual (px).
+        max_px: f64,
+        /// The limit it exceeded (px).
+        limit_px: f64,
+        /// Label `(i, j)` with the largest residual.
+        worst: (u32, u32),
+    },
+    /// The board's `i` axis points in clearly different directions in the two images
+    /// (degrees from `+u`), so the two labellings cannot both be right.
+    OrientationMismatch {
+        /// Left image's `i` axis angle.
+        left_deg: f64,
+        /// Right image's `i` axis angle.
+        right_deg: f64,
+    },
+    /// A geometric fit failed.
+    Geometry(GeomError),
+}
+
+impl core::fmt::Display for DetectError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            DetectError::ImageTooSmall(w, h) => {
+                write!(f, "image {w}x{h} is too small to hold a board")
+            }
+            DetectError::BoardNotFound => f.write_str("board not found"),
+            DetectError::WrongCornerCount {
+                found,
+                expected,
+                extent,
+            } => write!(
+                f,
+                "wrong corner count: found {found} labelled corners spanning {}x{}, the board has {expected}",
+                extent.0, extent.1
+            ),
+            DetectError::InconsistentGrid(why) => write!(f, "inconsistent grid: {why}"),
+            DetectError::AmbiguousOrientation(why) => {
+                write!(f, "board orientation ambiguous: {why}")
+            }
+            DetectError::InImage(side, e) => write!(f, "{side} image: {e}"),
+            DetectError::SizeMismatch { left, right } => write!(
+                f,
+                "image size mismatch: left {}x{}, right {}x{}",
+                left.0, left.1, right.0, right.1
+            ),
+            DetectError::LabelMismatch {
+                max_px,
+                limit_px,
+                worst,
+            } => write!(
+                f,
+                "left and right labels disagree: corner ({}, {}) is {max_px:.2} px off the left -> right homography (limit {limit_px:.2} px)",
+                worst.0, worst.1
+            ),
+            DetectError::OrientationMismatch {
+                left_deg,
+                right_deg,
+            } => write!(
+                f,
+                "left and right labels disagree: the board's i axis is at {left_deg:.1} degrees in the left image and {right_deg:.1} in the right (limit {MAX_ROLL_DIFF_DEG:.0} apart)"
+            ),
+            DetectError::Geometry(e) => write!(f, "geometry: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for DetectError {}
+
+impl From<GeomError> for DetectError {
+    fn from(e: GeomError) -> Self {
+        DetectError::Geometry(e)
+    }
+}
+
+/// A labelled board in one image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Corners {
+    /// The board that was looked for.
+    pub board: Board,
+    /// Image width (px).
+    pub width: u32,
+    /// Image height (px).
+    pub height: u32,
+    /// Corner positions `(u, v)` (px, pixel-centre convention), index `j * cols + i`.
+    pub points: Vec<[f64; 2]>,
+    /// RMS residual (px) of the homography fit board coordinates -> `points`.
+    pub homography_rms: f64,
+    /// Largest residual (px) of that fit.
+    pub homography_max: f64,
+    /// Median distance between neighbouring corners (px), the apparent square size.
+    pub square_px: f64,
+    /// Spurious corners the grid builder labelled outside the board and that were dropped
+    /// (see [`label_grid`]).
+    pub dropped: usize,
+    /// Board corners the grid builder missed that were filled from the raw corner cloud
+    /// (see [`label_grid`]).
+    pub filled: usize,
+    /// Angle (degrees) of the board's `i` axis from `+u`, positive toward `+v`, in
+    /// `[-90, 90]` (beyond [`PORTRAIT_DEG`] the board is nearly in portrait).
+    pub roll_deg: f64,
+}
+
+impl Corners {
+    /// Position of corner `(i, j)`.
+    pub fn at(&self, i: u32, j: u32) -> [f64; 2] {
+        self.points[self.board.index(i, j)]
+    }
+}
+
+/// A labelled board in both images of a stereo pair, labels checked to agree.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StereoCorners {
+    /// The left image's corners.
+    pub left: Corners,
+    /// The right image's corners.
+    pub right: Corners,
+    /// RMS residual (px) of the left -> right homography over all labels.
+    pub lr_homography_rms: f64,
+}
+
+impl StereoCorners {
+    /// `(left, right)` position pairs in label order, as [`geometry::fit_fundamental`] takes.
+    pub fn pairs(&self) -> Vec<([f64; 2], [f64; 2])> {
+        self.left
+            .points
+            .iter()
+            .copied()
+            .zip(self.right.points.iter().copied())
+            .collect()
+    }
+}
+
+/// The largest tolerated second difference along a row or column, as a fraction of the local
+/// square size: lens distortion and perspective bend a row far less than this, a corner from
+/// the wrong place does not.
+const MAX_BEND: f64 = 0.3;
+/// Every step along a row (column) must be within 60 degrees of the board's mean row (column)
+/// direction.
+const MIN_EDGE_COS: f64 = 0.5;
+/// Neighbouring edges along one axis may differ in length by at most this factor.
+const MAX_EDGE_RATIO: f64 = 1.8;
+/// Beyond this angle (degrees) between the board's `i` axis and `+u` the board is held
+/// nearly in portrait, and reading "i grows with u" from one image is fragile: such an image is
+/// still labelled (i toward +u, however slightly), and in a stereo pair whose two labellings
+/// then point opposite ways, the right one is turned by 180 degrees to agree with the left
+/// (see [`pair_corners`]).
+pub const PORTRAIT_DEG: f64 = 45.0;
+/// The board's i axis may point in directions at most this far apart (degrees) in the two
+/// images of a pair.
+pub const MAX_ROLL_DIFF_DEG: f64 = 45.0;
+/// Left -> right homography residual limit, as a fraction of the square size.
+const LR_LIMIT_SQUARES: f64 = 0.25;
+
+/// The corner front end: ChESS corners with the saddle-point refiner (a rejected refinement
+/// keeps the centre-of-mass position).
+pub fn corner_config() -> DetectorConfig {
+    calib_targets::detect::default_chess_config()
+        .with_refiner(ImageRefiner::SaddlePoint(
+            chess_corners::SaddlePointConfig::default(),
+        ))
+        .with_chess(|c| c.on_refiner_reject = OnRefinerReject::KeepCenterOfMass)
+}
+
+/// Grey level of an RGB(A) or other image: `image`'s luma conversion (Rec. 709 weights).
+pub fn to_grey(img: &DynamicImage) -> GrayImage {
+    img.to_luma8()
+}
+
+/// Detect `board` in a decoded image of any colour type (converted to grey first).
+pub fn detect_image(img: &DynamicImage, board: &Board) -> Result<Corners, DetectError> {
+    detect(&to_grey(img), board)
+}
+
+/// Detect `board` in one grey image: exactly `cols x rows` corners, labelled, sub-pixel.
+pub fn detect(img: &GrayImage, board: &Board) -> Result<Corners, DetectError> {
+    let (w, h) = img.dimensions();
+    if w < 16 || h < 16 {
+        return Err(DetectError::ImageTooSmall(w, h));
+    }
+    let frame = calib_targets::chessboard::detect_corner_frame(
+        &calib_targets::detect::gray_view(img),
+        &corner_config(),
+    );
+    let mut params = ChessboardParams::default();
+    params.min_labeled_corners = board.corner_count().min(8);
+    let detector = ChessboardDetector::new(params)
+        .map_err(|e| DetectError::InconsistentGrid(format!("detector parameters: {e}")))?;
+    let det = detector
+        .detect(&frame.corners)
+        .ok_or(DetectError::BoardNotFound)?;
+    let labelled: Vec<((i32, i32), [f64; 2])> = det
+        .corners
+        .iter()
+        .map(|c| {
+            (
+                (c.grid.u, c.grid.v),
+                [c.position.x as f64, c.position.y as f64],
+            )
+        })
+        .collect();
+    let raw: Vec<[f64; 2]> = frame
+        .corners
+        .iter()
+        .map(|c| [c.position.x as f64, c.position.y as f64])
+        .collect();
+    label_grid(&labelled, &raw, board, w, h)
+}
+
+/// Turn the detector's labelled corners into this crate's labelling, validating the grid.
+/// `labelled` holds `((a, b), (u, v))`: the detector's own grid coordinates, which may start
+/// anywhere, run in either direction and be transposed. `raw` is the detector's whole corner
+/// cloud (labelled or not), used only to complete a block that lacks a corner or two.
+///
+/// The board is the `cols x rows` block of labels (either way round) holding the most labelled
+/// corners; it must be the only block with that many. A few extra corners outside it (at most
+/// `max(cols, rows)`) are dropped, and at most [`MAX_FILLED`] missing ones are filled with the
+/// raw corner nearest their predicted place (within a quarter square; the prediction is a
+/// homography fitted to the block's nearest labelled corners). The block is then relabelled
+/// from scratch, so a spurious corner can neither stay nor shift the labels. Anything else
+/// (more missing corners, a missing row, two equally good blocks) is a
+/// [`DetectError::WrongCornerCount`].
+pub fn label_grid(
+    labelled: &[((i32, i32), [f64; 2])],
+    raw: &[[f64; 2]],
+    board: &Board,
+    width: u32,
+    height: u32,
+) -> Result<Corners, DetectError> {
+    let expected = board.corner_count();
+    if labelled.is_empty() {
+        return Err(DetectError::BoardNotFound);
+    }
+    let (a0, a1) = labelled.iter().fold((i32::MAX, i32::MIN), |m, c| {
+        (m.0.min(c.0 .0), m.1.max(c.0 .0))
+    });
+    let (b0, b1) = labelled.iter().fold((i32::MAX, i32::MIN), |m, c| {
+        (m.0.min(c.0 .1), m.1.max(c.0 .1))
+    });
+    let extent = (
+        (a1 as i64 - a0 as i64 + 1).min(u32::MAX as i64) as u32,
+        (b1 as i64 - b0 as i64 + 1).min(u32::MAX as i64) as u32,
+    );
+    let wrong = || DetectError::WrongCornerCount {
+        found: labelled.len(),
+        expected,
+        extent,
+    };
+    let mut seen = std::collections::HashSet::new();
+    for (l, p) in labelled {
+        if !(p[0].is_finite() && p[1].is_finite()) {
+            return Err(DetectError::InconsistentGrid(
+                "a corner has a non-finite position".into(),
+            ));
+        }
+        if !seen.insert(*l) {
+            return Err(DetectError::InconsistentGrid(format!(
+                "two corners share the detector label ({}, {})",
+                l.0, l.1
+            )));
+        }
+    }
+    if labelled.len() > expected + board.cols.max(board.rows) as usize
+        || labelled.len() + MAX_FILLED < expected
+    {
+        return Err(wrong());
+    }
+    let (oa, ob, wa, wb) = best_block(&seen, board, (a0, a1), (b0, b1)).ok_or_else(wrong)?;
+    let inside = |l: &(i32, i32)| {
+        (oa..oa + wa).contains(&(l.0 as i64)) && (ob..ob + wb).contains(&(l.1 as i64))
+    };
+    let mut block: Vec<((i32, i32), [f64; 2])> =
+        labelled.iter().filter(|c| inside(&c.0)).copied().collect();
+    let dropped = labelled.len() - block.len();
+    let missing: Vec<(i32, i32)> = (oa..oa + wa)
+        .flat_map(|a| (ob..ob + wb).map(move |b| (a as i32, b as i32)))
+        .filter(|l| !seen.contains(l))
+        .collect();
+    if missing.len() > MAX_FILLED {
+        return Err(wrong());
+    }
+    let filled = missing.len();
+    for l in missing {
+        let p = fill(&block, raw, l).ok_or_else(wrong)?;
+        block.push((l, p));
+    }
+    let mut c = label_complete(&block, board, width, height)?;
+    c.dropped = dropped;
+    c.filled = filled;
+    Ok(c)
+}
+
+/// At most this many missing corners of the board block are filled from the raw corners.
+pub const MAX_FILLED: usize = 2;
+
+/// The `cols x rows` block of labels (either way round) with the most labelled corners, as
+/// `(origin a, origin b, width a, width b)`; `None` when two blocks tie.
+fn best_block(
+    labels: &std::collections::HashSet<(i32, i32)>,
+    board: &Board,
+    (a0, a1): (i32, i32),
+    (b0, b1): (i32, i32),
+) -> Option<(i64, i64, i64, i64)> {
+    let (c, r) = (board.cols as i64, board.rows as i64);
+    let shapes = if c == r {
+        vec![(c, r)]
+    } else {
+        vec![(c, r), (r, c)]
+    };
+    let mut best: Option<(usize, (i64, i64, i64, i64))> = None;
+    let mut tie = false;
+    for (wa, wb) in shapes {
+        // Placements that overlap the labels' range at all.
+        for oa in (a0 as i64 - wa + 1)..=(a1 as i64) {
+            for ob in (b0 as i64 - wb + 1)..=(b1 as i64) {
+                let n = labels
+                    .iter()
+                    .filter(|(a, b)| {
+                        (oa..oa + wa).contains(&(*a as i64)) && (ob..ob + wb).contains(&(*b as i64))
+                    })
+                    .count();
+                match best {
+                    Some((m, _)) if n < m => {}
+                    Some((m, _)) if n == m => tie = true,
+                    _ => {
+                        best = Some((n, (oa, ob, wa, wb)));
+                        tie = false;
+                    }
+                }
+            }
+        }
+    }
+    if tie {
+        return None;
+    }
+    best.map(|b| b.1)
+}
+
+/// The raw corner nearest the predicted position of label `l`, within a quarter of the local
+/// square size. The prediction is a homography fitted to the (up to) 16 labelled corners
+/// nearest `l` in label space.
+fn fill(block: &[((i32, i32), [f64; 2])], raw: &[[f64; 2]], l: (i32, i32)) -> Option<[f64; 2]> {
+    let mut near: Vec<&((i32, i32), [f64; 2])> = block.iter().collect();
+    near.sort_by_key(|c| (c.0 .0 - l.0).pow(2) + (c.0 .1 - l.1).pow(2));
+    near.truncate(16);
+    let pairs: Vec<([f64; 2], [f64; 2])> = near
+        .iter()
+        .map(|c| ([c.0 .0 as f64, c.0 .1 as f64], c.1))
+        .collect();
+    let fit = geometry::fit_homography(&pairs).ok()?;
+    let (x, y) = (l.0 as f64, l.1 as f64);
+    let pred = fit.h.apply([x, y])?;
+    let step = |dx: f64, dy: f64| fit.h.apply([x + dx, y + dy]).map(|q| norm(sub(q, pred)));
+    let square = step(1.0, 0.0)?.min(step(0.0, 1.0)?);
+    let best = raw
+        .iter()
+        .filter(|p| !block.iter().any(|c| norm(sub(c.1, **p)) < 0.5 * square))
+        .min_by(|p, q| norm(sub(**p, pred)).total_cmp(&norm(sub(**q, pred))))?;
+    (norm(sub(*best, pred)) <= 0.25 * square).then_some(*best)
+}
+
+fn label_complete(
+    labelled: &[((i32, i32), [f64; 2])],
+    board: &Board,
+    width: u32,
+    height: u32,
+) -> Result<Corners, DetectError> {
+    let expected = board.corner_count();
+    if labelled.is_empty() {
+        return Err(DetectError::BoardNotFound);
+    }
+    let (mut a0, mut a1, mut b0, mut b1) = (i32::MAX, i32::MIN, i32::MAX, i32::MIN);
+    for ((a, b), p) in labelled {
+        if !(p[0].is_finite() && p[1].is_finite()) {
+            return Err(DetectError::InconsistentGrid(
+                "a corner has a non-finite position".into(),
+            ));
+        }
+        a0 = a0.min(*a);
+        a1 = a1.max(*a);
+        b0 = b0.min(*b);
+        b1 = b1.max(*b);
+    }
+    let na = (a1 as i64 - a0 as i64 + 1) as u64;
+    let nb = (b1 as i64 - b0 as i64 + 1) as u64;
+    let extent = (
+        na.min(u32::MAX as u64) as u32,
+        nb.min(u32::MAX as u64) as u32,
+    );
+    let (cols, rows) = (board.cols as u64, board.rows as u64);
+    let fits = (na == cols && nb == rows) || (na == rows && nb == cols);
+    if labelled.len() != expected || !fits {
+        return Err(DetectError::WrongCornerCount {
+            found: labelled.len(),
+            expected,
+            extent,
+        });
+    }
+    let (na, nb) = (na as usize, nb as usize);
+    let mut grid: Vec<Option<[f64; 2]>> = vec![None; na * nb];
+    for ((a, b), p) in labelled {
+        let k = (b - b0) as usize * na + (a - a0) as usize;
+        if grid[k].replace(*p).is_some() {
+            return Err(DetectError::InconsistentGrid(format!(
+                "two corners share the detector label ({a}, {b})"
+            )));
+        }
+    }
+    let g = |a: usize, b: usize| grid[b * na + a].expect("complete grid checked above");
+    // Mean direction of each detector axis in the image.
+    let mut da = [0.0f64; 2];
+    let mut db = [0.0f64; 2];
+    for b in 0..nb {
+        for a in 0..na {
+            if a + 1 < na {
+                let (p, q) = (g(a, b), g(a + 1, b));
+                da[0] += q[0] - p[0];
+                da[1] += q[1] - p[1];
+            }
+            if b + 1 < nb {
+                let (p, q) = (g(a, b), g(a, b + 1));
+                db[0] += q[0] - p[0];
+                db[1] += q[1] - p[1];
+            }
+        }
+    }
+    // Which detector axis is the board's i axis: the one with `cols` corners; on a square
+    // board, the one nearer the image's u axis.
+    let a_is_i = if cols != rows {
+        na as u64 == cols
+    } else {
+        da[0].abs() / norm(da) >= db[0].abs() / norm(db)
+    };
+    let (di, dj) = if a_is_i { (da, db) } else { (db, da) };
+    // The 180-degree ambiguity: i increases with u. Then j follows from handedness (a board
+    // seen from the front: i x j points like u x v), so (0, 0) is the top-left corner as seen.
+    let flip_i = di[0] < 0.0;
+    let di = if flip_i { [-di[0], -di[1]] } else { di };
+    let flip_j = di[0] * dj[1] - di[1] * dj[0] < 0.0;
+    let roll_deg = di[1].atan2(di[0]).to_degrees();
+    if !roll_deg.is_finite() {
+        return Err(DetectError::AmbiguousOrientation(
+            "the board's axes have no direction".into(),
+        ));
+    }
+    let (bc, br) = (board.cols as usize, board.rows as usize);
+    let mut points = Vec::with_capacity(expected);
+    for j in 0..br {
+        for i in 0..bc {
+            let ii = if flip_i { bc - 1 - i } else { i };
+            let jj = if flip_j { br - 1 - j } else { j };
+            let (a, b) = if a_is_i { (ii, jj) } else { (jj, ii) };
+            points.push(g(a, b));
+        }
+    }
+    let square_px = check_geometry(&points, bc, br)?;
+    let pairs: Vec<([f64; 2], [f64; 2])> = (0..expected)
+        .map(|k| {
+            let (i, j) = board.label(k);
+            (board.corner_offset(i, j), points[k])
+        })
+        .collect();
+    let fit = geometry::fit_homography(&pairs)?;
+    Ok(Corners {
+        board: *board,
+        width,
+        height,
+        points,
+        homography_rms: fit.rms,
+        homography_max: fit.max,
+        square_px,
+        dropped: 0,
+        filled: 0,
+        roll_deg,
+    })
+}
+
+/// Absolute difference of two directions (degrees), in `[0, 180]`.
+fn angle_diff(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(360.0);
+    d.min(360.0 - d)
+}
+
+fn norm(v: [f64; 2]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1]).sqrt().max(1e-300)
+}
+
+fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+/// Check the relabelled grid: every edge along `i` points the same way as the mean `i`
+/// direction (likewise `j`), neighbouring edges have similar lengths, rows and columns bend
+/// little, and every cell has the same handedness. Returns the median edge length.
+fn check_geometry(p: &[[f64; 2]], cols: usize, rows: usize) -> Result<f64, DetectError> {
+    let at = |i: usize, j: usize| p[j * cols + i];
+    let mut edges = Vec::new();
+    for j in 0..rows {
+        for i in 0..cols {
+            if i + 1 < cols {
+                edges.push(norm(sub(at(i + 1, j), at(i, j))));
+            }
+            if j + 1 < rows {
+                edges.push(norm(sub(at(i, j + 1), at(i, j))));
+            }
+        }
+    }
+    edges.sort_by(f64::total_cmp);
+    let median = edges[edges.len() / 2];
+    if median < 2.0 {
+        return Err(DetectError::InconsistentGrid(format!(
+            "squares of {median:.2} px are too small"
+        )));
+    }
+    // Along each row (axis 0) and column (axis 1).
+    for axis in 0..2 {
+        let (n_lines, n_along) = if axis == 0 {
+            (rows, cols)
+        } else {
+            (cols, rows)
+        };
+        let pt = |line: usize, k: usize| if axis == 0 { at(k, line) } else { at(line, k) };
+        let name = if axis == 0 { "row j" } else { "column i" };
+        let mut mean = [0.0f64; 2];
+        for line in 0..n_lines {
+            let e = sub(pt(line, n_along - 1), pt(line, 0));
+            mean = [mean[0] + e[0], mean[1] + e[1]];
+        }
+        let mean = [mean[0] / norm(mean), mean[1] / norm(mean)];
+        for line in 0..n_lines {
+            for k in 0..n_along - 1 {
+                let e = sub(pt(line, k + 1), pt(line, k));
+                let cos = (e[0] * mean[0] + e[1] * mean[1]) / norm(e);
+                if !(cos > MIN_EDGE_COS) {
+                    return Err(DetectError::InconsistentGrid(format!(
+                        "{name} = {line}: the step from corner {k} to {} turns {:.0} degrees away from the board's axis (the grid folds)",
+                        k + 1,
+                        cos.clamp(-1.0, 1.0).acos().to_degrees()
+                    )));
+                }
+                if k + 2 < n_along {
+                    let f = sub(pt(line, k + 2), pt(line, k + 1));
+                    let (le, lf) = (norm(e), norm(f));
+                    let ratio = le.max(lf) / le.min(lf);
+                    if ratio > MAX_EDGE_RATIO {
+                        return Err(DetectError::InconsistentGrid(format!(
+                            "{name} = {line}: neighbouring spacings {le:.1} px and {lf:.1} px differ by {ratio:.2}x around corner {}",
+                            k + 1
+                        )));
+                    }
+                    let bend = norm(sub(f, e)) / (0.5 * (le + lf));
+                    if bend > MAX_BEND {
+                        return Err(DetectError::InconsistentGrid(format!(
+                            "{name} = {line}: the line bends by {bend:.2} squares at corner {}",
+                            k + 1
+                        )));
+                    }
+                }
+            }
+        }
+    }
+    let mut sign = 0.0f64;
+    for j in 0..rows - 1 {
+        for i in 0..cols - 1 {
+            let e = sub(at(i + 1, j), at(i, j));
+            let f = sub(at(i, j + 1), at(i, j));
+            let c = e[0] * f[1] - e[1] * f[0];
+            if sign == 0.0 {
+                sign = c.signum();
+            } else if c.signum() != sign || c == 0.0 {
+                return Err(DetectError::InconsistentGrid(format!(
+                    "cell ({i}, {j}) is mirrored relative to the others"
+                )));
+            }
+        }
+    }
+    Ok(median)
+}
+
+/// Detect `board` in both images of a pair and check that the labels agree.
+pub fn detect_pair(
+    left: &GrayImage,
+    right: &GrayImage,
+    board: &Board,
+) -> Result<StereoCorners, DetectError> {
+    if left.dimensions() != right.dimensions() {
+        return Err(DetectError::SizeMismatch {
+            left: left.dimensions(),
+            right: right.dimensions(),
+        });
+    }
+    let l = detect(left, board).map_err(|e| DetectError::InImage(Side::Left, Box::new(e)))?;
+    let r = detect(right, board).map_err(|e| DetectError::InImage(Side::Right, Box::new(e)))?;
+    pair_corners(l, r)
+}
+
+/// Check two single-image detections of the same board as a stereo pair.
+pub fn pair_corners(left: Corners, right: Corners) -> Result<StereoCorners, DetectError> {
+    if (left.width, left.height) != (right.width, right.height) {
+        return Err(DetectError::SizeMismatch {
+            left: (left.width, left.height),
+            right: (right.width, right.height),
+        });
+    }
+    if left.board != right.board || left.points.len() != right.points.len() {
+        return Err(DetectError::InconsistentGrid(
+            "left and right detections are of different boards".into(),
+        ));
+    }
+    // The two cameras see the board with about the same in-plane rotation. A homography
+    // cannot tell a labelling from its 180-degree turn (both are board-plane maps), so compare
+    // the i axes' directions: near a quarter turn the two images may have resolved the
+    // ambiguity differently, and the right labels are then turned to agree with the left.
+    let mut right = right;
+    let diff = angle_diff(left.roll_deg, right.roll_deg);
+    if diff > 180.0 - MAX_ROLL_DIFF_DEG
+        && left.roll_deg.abs() > PORTRAIT_DEG
+        && right.roll_deg.abs() > PORTRAIT_DEG
+    {
+        right.points.reverse();
+        right.roll_deg += if right.roll_deg > 0.0 { -180.0 } else { 180.0 };
+    }
+    let diff = angle_diff(left.roll_deg, right.roll_deg);
+    if diff > MAX_ROLL_DIFF_DEG {
+        return Err(DetectError::OrientationMismatch {
+            left_deg: left.roll_deg,
+            right_deg: right.roll_deg,
+        });
+    }
+    let rms = lr_check(&left, &right)?;
+    Ok(StereoCorners {
+        left,
+        right,
+        lr_homography_rms: rms,
+    })
+}
+
+/// The left -> right homography over the labels; `Err(LabelMismatch)` when a residual exceeds
+/// a quarter of the smaller square size.
+fn lr_check(left: &Corners, right: &Corners) -> Result<f64, DetectError> {
+    let pairs: Vec<([f64; 2], [f64; 2])> = left
+        .points
+        .iter()
+        .copied()
+        .zip(right.points.iter().copied())
+        .collect();
+    let fit: HomographyFit = geometry::fit_homography(&pairs)?;
+    let limit = LR_LIMIT_SQUARES * left.square_px.min(right.square_px);
+    let mut worst = (0usize, 0.0f64);
+    for (k, (l, r)) in pairs.iter().enumerate() {
+        let p = fit.h.apply(*l).unwrap_or([f64::INFINITY; 2]);
+        let d = norm(sub(p, *r));
+        if d.is_nan() || d > worst.1 {
+            worst = (k, if d.is_nan() { f64::INFINITY } else { d });
+        }
+    }
+    if worst.1 > limit {
+        return Err(DetectError::LabelMismatch {
+            max_px: worst.1,
+            limit_px: limit,
+            worst: left.board.label(worst.0),
+        });
+    }
+    Ok(fit.rms)
+}
+
+/// One fundamental matrix over a whole capture set, with each pair's residuals.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetCheck {
+    /// The fit over every corner of every pair.
+    pub fit: FundamentalFit,
+    /// Per pair: median distance (px) of right corners from their epipolar lines.
+    pub pair_median_px: Vec<f64>,
+    /// Per pair: largest such distance (px).
+    pub pair_max_px: Vec<f64>,
+    /// Per pair: median distance (px) under a fundamental matrix fitted to all the *other*
+    /// pairs (leave one out), `None` when the others do not determine one (fewer than two
+    /// other pairs). One badly labelled pair drags the joint fit off for every pair; this
+    /// column points at the culprit.
+    pub pair_held_out_median_px: Vec<Option<f64>>,
+}
+
+impl SetCheck {
+    /// The fitted fundamental matrix.
+    pub fn fundamental(&self) -> &Fundamental {
+        &self.fit.f
+    }
+}
+
+/// Fit one fundamental matrix over all corners of `pairs` and report each pair's residual: a
+/// pair whose labels are shifted or flipped stands out by whole squares. The set needs at
+/// least two board poses (one plane does not determine `F`).
+pub fn check_set(pairs: &[StereoCorners]) -> Result<SetCheck, DetectError> {
+    let all: Vec<([f64; 2], [f64; 2])> = pairs.iter().flat_map(|p| p.pairs()).collect();
+    let fit = geometry::fit_fundamental_report(&all)?;
+    let distances = |f: &Fundamental, p: &StereoCorners| {
+        let mut d: Vec<f64> = p
+            .pairs()
+            .iter()
+            .map(|(l, r)| f.distance_in_right(*l, *r))
+            .collect();
+        d.sort_by(f64::total_cmp);
+        d
+    };
+    let mut pair_median_px = Vec::new();
+    let mut pair_max_px = Vec::new();
+    let mut pair_held_out_median_px = Vec::new();
+    for (k, p) in pairs.iter().enumerate() {
+        let d = distances(&fit.f, p);
+        pair_median_px.push(d[d.len() / 2]);
+        pair_max_px.push(*d.last().unwrap_or(&0.0));
+        let others: Vec<([f64; 2], [f64; 2])> = pairs
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| *m != k)
+            .flat_map(|(_, q)| q.pairs())
+            .collect();
+        let held = if pairs.len() >= 3 {
+            geometry::fit_fundamental(&others)
+                .ok()
+                .map(|f| distances(&f, p)[d.len() / 2])
+        } else {
+            None
+        };
+        pair_held_out_median_px.push(held);
+    }
+    Ok(SetCheck {
+        fit,
+        pair_median_px,
+        pair_max_px,
+        pair_held_out_median_px,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn synthetic(board: &Board) -> Vec<((i32, i32), [f64; 2])> {
+        // A slightly rotated, perspective-free grid of 20 px squares, labelled like the detector
+        // might: transposed, starting at (-3, 5), running right-to-left.
+        let mut out = Vec::new();
+        for j in 0..board.rows {
+            for i in 0..board.cols {
+                let (x, y) = (i as f64 * 20.0, j as f64 * 20.0);
+                let p = [100.0 + x * 0.99 - y * 0.1, 80.0 + x * 0.1 + y * 0.99];
+                out.push(((5 + j as i32, -3 - i as i32), p));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn relabels_any_detector_labelling_to_top_left_origin() {
+        let board = Board::new(9, 6, 6.0).unwrap();
+        let c = label_grid(&synthetic(&board), &[], &board, 640, 480).unwrap();
+        assert_eq!(c.points.len(), 54);
+        let p00 = c.at(0, 0);
+        assert!((p00[0] - 100.0).abs() < 1e-12 && (p00[1] - 80.0).abs() < 1e-12);
+        assert!(c.at(1, 0)[0] > p00[0] && c.at(0, 1)[1] > p00[1]);
+        assert!(c.homography_rms < 1e-9);
+        assert!((c.square_px - 20.0).abs() < 0.5);
+    }
+
+    #[test]
+    fn refuses_extra_missing_and_duplicate_corners() {
+        let board = Board::new(9, 6, 6.0).unwrap();
+        // A 55th corner outside the one complete block is dropped, the labels are not shifted.
+        let mut extra = synthetic(&board);
+        extra.push(((11, -3), [80.0, 78.0]));
+        let c = label_grid(&extra, &[], &board, 640, 480).unwrap();
+        assert_eq!((c.points.len(), c.dropped), (54, 1));
+        assert!((c.at(0, 0)[0] - 100.0).abs() < 1e-12 && (c.at(0, 0)[1] - 80.0).abs() < 1e-12);
+        // A full extra row: two complete blocks, ambiguous, refused.
+        let mut row = synthetic(&board);
+        for i in 0..9 {
+            let p = row[i].1;
+            row.push(((4, -3 - i as i32), [p[0] + 2.0, p[1] - 20.0]));
+        }
+        assert!(matches!(
+            label_grid(&row, &[], &board, 640, 480),
+            Err(DetectError::WrongCornerCount { found: 63, .. })
+        ));
+        // A 55th corner inside the block's label range but duplicating a label: refused.
+        let mut dup55 = synthetic(&board);
+        dup55.push(((5, -3), [99.0, 79.0]));
+        assert!(label_grid(&dup55, &[], &board, 640, 480).is_err());
+        let mut missing_row = synthetic(&board);
+        missing_row.retain(|((a, _), _)| *a != 5);
+        assert!(matches!(
+            label_grid(&missing_row, &[], &board, 640, 480),
+            Err(DetectError::WrongCornerCount { found: 45, .. })
+        ));
+        // 54 corners, but one moved to a label outside the range: the extent is wrong.
+        let mut shifted = synthetic(&board);
+        shifted[0].0 = (20, 20);
+        assert!(matches!(
+            label_grid(&shifted, &[], &board, 640, 480),
+            Err(DetectError::WrongCornerCount { found: 54, .. })
+        ));
+        // One corner missed by the grid builder, present in the raw cloud: filled.
+        let full = synthetic(&board);
+        let mut holed = full.clone();
+        let lost = holed.remove(20);
+        let raw: Vec<[f64; 2]> = vec![[500.0, 400.0], [lost.1[0] + 0.7, lost.1[1] - 0.4]];
+        let c = label_grid(&holed, &raw, &board, 640, 480).unwrap();
+        assert_eq!((c.filled, c.dropped), (1, 0));
+        let want = label_grid(&full, &[], &board, 640, 480).unwrap();
+        let k = want.points.iter().position(|p| *p == lost.1).unwrap();
+        assert_eq!(c.points[k], raw[1]);
+        // ... but not with a raw corner too far from where it should be.
+        let far = vec![[lost.1[0] + 9.0, lost.1[1]]];
+        assert!(matches!(
+            label_grid(&holed, &far, &board, 640, 480),
+            Err(DetectError::WrongCornerCount { found: 53, .. })
+        ));
+        let mut dup = synthetic(&board);
+        dup[1].0 = dup[0].0;
+        assert!(matches!(
+            label_grid(&dup, &[], &board, 640, 480),
+            Err(DetectError::InconsistentGrid(_))
+        ));
+    }
+
+    #[test]
+    fn refuses_a_misplaced_corner_and_labels_portrait_boards_consistently() {
+        let board = Board::new(9, 6, 6.0).unwrap();
+        let mut moved = synthetic(&board);
+        moved[20].1[0] += 12.0;
+        let e = label_grid(&moved, &[], &board, 640, 480).unwrap_err();
+        assert!(matches!(e, DetectError::InconsistentGrid(_)), "{e}");
+        // Rotate the whole grid by 90 degrees: cols now run down the image.
+        let rot: Vec<_> = synthetic(&board)
+            .into_iter()
+            .map(|(l, p)| (l, [400.0 - p[1], p[0]]))
+            .collect();
+        let l = label_grid(&rot, &[], &board, 640, 480).unwrap();
+        assert!(l.roll_deg.abs() > PORTRAIT_DEG && l.roll_deg.abs() <= 90.0);
+        assert!(l.at(8, 0)[0] > l.at(0, 0)[0], "i grows with u");
+        // The right image resolved the portrait board the other way: turned to agree.
+        let mut r = l.clone();
+        r.points.reverse();
+        r.roll_deg += if r.roll_deg > 0.0 { -180.0 } else { 180.0 };
+        for p in r.points.iter_mut() {
+            p[0] -= 25.0;
+        }
+        let s = pair_corners(l.clone(), r).unwrap();
+        assert!((s.right.at(0, 0)[0] - (l.at(0, 0)[0] - 25.0)).abs() < 1e-12);
+        assert!(s.lr_homography_rms < 1e-9);
+        // An upright left board and a portrait right one cannot be the same board.
+        let up = label_grid(&synthetic(&board), &[], &board, 640, 480).unwrap();
+        let e = pair_corners(up, l).unwrap_err();
+        assert!(matches!(e, DetectError::OrientationMismatch { .. }), "{e}");
+    }
+
+    #[test]
+    fn pair_check_catches_shifted_labels() {
+        let board = Board::new(9, 6, 6.0).unwrap();
+        let l = label_grid(&synthetic(&board), &[], &board, 640, 480).unwrap();
+        let mut r = l.clone();
+        for p in r.points.iter_mut() {
+            p[0] -= 30.0;
+        }
+        assert!(pair_corners(l.clone(), r.clone()).is_ok());
+        // Swap two labels in the right image.
+        r.points.swap(3, 4);
+        let e = pair_corners(l.clone(), r).unwrap_err();
+        assert!(matches!(e, DetectError::LabelMismatch { .. }), "{e}");
+        let mut small = l.clone();
+        small.width = 320;
+        assert!(matches!(
+            pair_corners(l, small),
+            Err(DetectError::SizeMismatch { .. })
+        ));
+    }
+}

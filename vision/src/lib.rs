@@ -1,0 +1,16 @@
+//! `hvs-vision`: what hvs-depth does with images, on the host only (never on the head).
+//!
+//! - [`board`]: board descriptions (`BOARD.json`) and the corner labelling convention.
+//! - [`detect`]: chessboard corners in a stereo pair, sub-pixel, validated and labelled.
+//! - [`geometry`]: homographies and the fundamental matrix (normalised 8-point + refinement).
+//! - [`render`]: stereo images of a board through a rig, with exact corner truth.
+//! - [`matching`]: one point of the left image found in the right one (ZNCC on the epipolar line).
+//! - [`overlay`]: drawing what was found, for a user to look at.
+#![forbid(unsafe_code)]
+
+pub mod board;
+pub mod detect;
+pub mod geometry;
+pub mod matching;
+pub mod overlay;
+pub mod render;
