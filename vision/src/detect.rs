@@ -612,7 +612,7 @@ fn check_geometry(p: &[[f64; 2]], cols: usize, rows: usize) -> Result<f64, Detec
             for k in 0..n_along - 1 {
                 let e = sub(pt(line, k + 1), pt(line, k));
                 let cos = (e[0] * mean[0] + e[1] * mean[1]) / norm(e);
-                if !(cos > MIN_EDGE_COS) {
+                if cos.is_nan() || cos <= MIN_EDGE_COS {
                     return Err(DetectError::InconsistentGrid(format!(
                         "{name} = {line}: the step from corner {k} to {} turns {:.0} degrees away from the board's axis (the grid folds)",
                         k + 1,
