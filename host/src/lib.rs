@@ -12,6 +12,7 @@
 //! - [`evaluate`]: e_ma per depth for several estimators side by side.
 //! - [`study`]: the thesis' chapter-4 experiments and the posture study: facts computed and
 //!   unit-tested, plots (`plotters`), and the reports written from templates.
+//! - [`vision`]: image files around `hvs-vision` (board photos into a training set).
 //! - [`device`]: the head as a device: the protocol link (TCP or serial), the client of its
 //!   requests, QEMU emulation, and flash images / probe-rs.
 //! - [`cli`]: one module per `hvs` subcommand, clap `Args` + `run`; the only place clap is used.
@@ -24,3 +25,4 @@ pub mod infer;
 pub mod sim;
 pub mod study;
 pub mod train;
+pub mod vision;

@@ -28,6 +28,10 @@ enum Command {
     Info(cmd::info::Args),
     Demo(cmd::demo::Args),
     Experiment(cmd::experiment::Args),
+    /// Stereo photos of a chessboard through a rig, with exact corner truth.
+    Render(cmd::render::Args),
+    /// Board photos into a training set (`hvs board detect`).
+    Board(cmd::board::Args),
     /// Boot the head firmware in QEMU with a model in slot A.
     Emulate(cmd::emulate::Args),
     /// Talk to a head (QEMU over TCP, or a serial port).
@@ -48,6 +52,8 @@ fn main() {
         Command::Info(a) => cmd::info::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Experiment(a) => cmd::experiment::run(a),
+        Command::Render(a) => cmd::render::run(a),
+        Command::Board(a) => cmd::board::run(a),
         Command::Emulate(a) => cmd::emulate::run(&a),
         Command::Head(a) => cmd::head::run(&a),
         Command::Image(a) => cmd::image::run(&a),

@@ -126,3 +126,23 @@ fn one_pair_with_turned_labels_stands_out_in_the_set_check() {
         }
     }
 }
+
+#[test]
+fn overlay_of_a_portrait_pair_is_written_and_reads_back() {
+    let board = Board::from_path(&dir().join("board.json")).unwrap();
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    for name in ["left12.jpg", "right12.jpg"] {
+        let grey = image::open(dir().join(name)).unwrap().to_luma8();
+        let c = detect::detect(&grey, &board).unwrap();
+        let img = hvs_vision::overlay::draw_corners(&grey, &c);
+        let path = out.join(format!("overlay-{name}.png"));
+        hvs_vision::overlay::save_png(&img, &path).unwrap();
+        let back = image::open(&path).unwrap().to_rgb8();
+        assert_eq!(back.dimensions(), grey.dimensions());
+        let p = c.at(0, 0);
+        assert_eq!(
+            back.get_pixel(p[0].round() as u32, p[1].round() as u32),
+            &image::Rgb([0, 255, 0])
+        );
+    }
+}

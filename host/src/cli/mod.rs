@@ -3,6 +3,7 @@
 //! This is the only layer that uses clap. Adding a command is one module here, one variant of
 //! `Command` and one match arm in `main.rs`.
 
+pub mod board;
 pub mod demo;
 pub mod emulate;
 pub mod eval;
@@ -12,6 +13,7 @@ pub mod head;
 pub mod image;
 pub mod info;
 pub mod predict;
+pub mod render;
 pub mod simulate;
 pub mod train;
 

@@ -220,14 +220,14 @@ pub fn read_set_from<R: Read>(
 /// 1-based line numbers of records from their byte offsets. The csv crate's own line count
 /// is off after blank lines and CRLF endings, and its record offsets may point at the previous
 /// line's terminator, so terminators are skipped first. Offsets must not decrease.
-struct LineCounter<'a> {
+pub(crate) struct LineCounter<'a> {
     bytes: &'a [u8],
     pos: usize,
     line: u64,
 }
 
 impl<'a> LineCounter<'a> {
-    fn new(bytes: &'a [u8]) -> Self {
+    pub(crate) fn new(bytes: &'a [u8]) -> Self {
         LineCounter {
             bytes,
             pos: 0,
@@ -235,7 +235,7 @@ impl<'a> LineCounter<'a> {
         }
     }
 
-    fn line_at(&mut self, offset: u64) -> u64 {
+    pub(crate) fn line_at(&mut self, offset: u64) -> u64 {
         let mut start = (offset as usize).min(self.bytes.len());
         while start < self.bytes.len() && matches!(self.bytes[start], b'\r' | b'\n') {
             start += 1;
@@ -254,7 +254,7 @@ impl<'a> LineCounter<'a> {
     }
 }
 
-fn number(file: &str, line: u64, column: &str, field: &[u8]) -> Result<f64> {
+pub(crate) fn number(file: &str, line: u64, column: &str, field: &[u8]) -> Result<f64> {
     let text = std::str::from_utf8(field)
         .map_err(|_| anyhow!("{file}:{line}: column \"{column}\" is not valid UTF-8"))?;
     if text.is_empty() {
@@ -269,7 +269,7 @@ fn number(file: &str, line: u64, column: &str, field: &[u8]) -> Result<f64> {
     Ok(v)
 }
 
-fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {
+pub(crate) fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {
     let line = e.position().map(|p| p.line());
     let what = match e.kind() {
         csv::ErrorKind::Io(io) => format!("cannot read: {io}"),

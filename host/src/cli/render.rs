@@ -1,0 +1,217 @@
+//! `hvs render`: stereo photos of a chessboard through a rig, with exact corner truth
+//! (`hvs_vision::render`), as a capture set `hvs board detect` reads.
+
+use super::RigArgs;
+use crate::data::csv::write_bytes;
+use crate::data::dataset::JOINT_COLUMNS;
+use crate::vision::png_bytes;
+use anyhow::{anyhow, bail, Context, Result};
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::sim::camera::Distortion;
+use hvs_shared::sim::posture::HeadRig;
+use hvs_shared::sim::presets;
+use hvs_vision::render::{self, RenderOptions};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+/// Arguments of `hvs render`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The cameras.
+    #[command(flatten)]
+    pub rig: RigArgs,
+    /// Output folder (created if missing): leftNN.png, rightNN.png, captures.csv
+    /// (left,right,z,x,y and the joints with --joints), truth.csv (the exact, unrounded corner
+    /// pixels) and board.json.
+    #[arg(short = 'o', long, value_name = "DIR")]
+    pub output: PathBuf,
+    /// Inner corners per row and column.
+    #[arg(long, value_name = "COLSxROWS", default_value = "9x6")]
+    pub inner_corners: String,
+    /// Side of one square (cm).
+    #[arg(long, value_name = "CM", default_value_t = 6.0)]
+    pub square_cm: f64,
+    /// Board depths (cm), one stereo pair each [default: the thesis' training depths
+    /// 65,85,105,125,145,165].
+    #[arg(long, value_name = "Z,...", value_delimiter = ',')]
+    pub depths: Option<Vec<f64>>,
+    /// Board centre X, Y (cm).
+    #[arg(
+        long,
+        value_name = "X,Y",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        default_value = "0,0"
+    )]
+    pub centre: Vec<f64>,
+    /// Head posture, degrees: neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan
+    /// (written to captures.csv as the joint columns) [default: home, no joint columns].
+    #[arg(
+        long,
+        value_name = "NP,NT,ET,LP,RP",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub joints: Option<Vec<f32>>,
+    /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
+    #[arg(
+        long,
+        value_name = "K1[,K2]",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub distortion: Option<Vec<f64>>,
+    /// Gaussian blur, standard deviation (px).
+    #[arg(long, value_name = "PX", default_value_t = 0.8)]
+    pub blur: f64,
+    /// Sensor noise, standard deviation (grey levels).
+    #[arg(long, value_name = "GREY", default_value_t = 2.0)]
+    pub noise: f64,
+    /// Supersampling of edge pixels (N x N samples, 1-16).
+    #[arg(long, value_name = "N", default_value_t = 8)]
+    pub supersample: u32,
+    /// Seed of the sensor noise (same seed, same bytes).
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    pub seed: u64,
+}
+
+/// `hvs render`.
+pub fn run(a: Args) -> Result<()> {
+    let rig = a
+        .rig
+        .rig()?
+        .ok_or_else(|| anyhow!("choose a rig with --case N or --rig FILE.json"))?;
+    let (cols, rows) = parse_size(&a.inner_corners)?;
+    let board = render::Board {
+        cols,
+        rows,
+        square_cm: a.square_cm,
+        margin_cm: a.square_cm,
+    };
+    let opt = RenderOptions {
+        supersample: a.supersample,
+        blur_sigma_px: a.blur,
+        noise_sigma: a.noise,
+        ..RenderOptions::default()
+    };
+    let distortion = match a.distortion.as_deref() {
+        None => Distortion::NONE,
+        Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
+        Some([k1, k2]) => Distortion { k1: *k1, k2: *k2 },
+        Some(_) => bail!("--distortion takes K1 or K1,K2"),
+    };
+    if !distortion.is_finite() {
+        bail!("--distortion must be finite");
+    }
+    let joints = match a.joints.as_deref() {
+        None => None,
+        Some(j) if j.len() == 5 && j.iter().all(|v| v.is_finite()) => {
+            Some(Joints([j[0], j[1], j[2], j[3], j[4]]))
+        }
+        Some(_) => bail!("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan"),
+    };
+    let [x, y] = match a.centre.as_slice() {
+        [x, y] if x.is_finite() && y.is_finite() => [*x, *y],
+        _ => bail!("--centre takes X,Y (cm)"),
+    };
+    let depths = a
+        .depths
+        .clone()
+        .unwrap_or_else(|| presets::TRAIN_DEPTHS.to_vec());
+    let head = HeadRig::new(rig).with_distortion(distortion);
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let b = indicatif::ProgressBar::new_spinner();
+        b.set_message(format!("rendering {} stereo pairs", depths.len()));
+        b.enable_steady_tick(std::time::Duration::from_millis(120));
+        b
+    });
+    let set = render::render_capture_set(
+        &head,
+        &joints.unwrap_or(Joints::HOME),
+        &board,
+        [x, y],
+        &depths,
+        &opt,
+        a.seed,
+    )
+    .map_err(|e| anyhow!("{e}"))?;
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    std::fs::create_dir_all(&a.output)
+        .with_context(|| format!("{}: cannot create the folder", a.output.display()))?;
+    for c in &set.captures {
+        write_bytes(&a.output.join(&c.left_name), &png_bytes(&c.render.left)?)?;
+        write_bytes(&a.output.join(&c.right_name), &png_bytes(&c.render.right)?)?;
+    }
+    let mut caps = String::from("left,right,z,x,y");
+    if joints.is_some() {
+        caps.push(',');
+        caps.push_str(&JOINT_COLUMNS.join(","));
+    }
+    caps.push('\n');
+    for c in &set.captures {
+        caps.push_str(&format!(
+            "{},{},{},{},{}",
+            c.left_name, c.right_name, c.centre[2], c.centre[0], c.centre[1]
+        ));
+        if let Some(j) = joints {
+            for v in j.0 {
+                caps.push_str(&format!(",{v}"));
+            }
+        }
+        caps.push('\n');
+    }
+    write_bytes(&a.output.join("captures.csv"), caps.as_bytes())?;
+    write_bytes(&a.output.join("truth.csv"), set.truth_csv().as_bytes())?;
+    let board_json = format!(
+        "{{\"pattern\": \"chessboard\", \"inner_corners\": [{cols}, {rows}], \"square_cm\": {}}}\n",
+        a.square_cm
+    );
+    write_bytes(&a.output.join("board.json"), board_json.as_bytes())?;
+    let hidden = set
+        .truth_rows()
+        .iter()
+        .filter(|r| !r.corner.in_image)
+        .count();
+    eprintln!(
+        "rendered {} stereo pairs of a {cols}x{rows} board ({} cm squares) into {}{}",
+        set.captures.len(),
+        a.square_cm,
+        a.output.display(),
+        if hidden > 0 {
+            format!("; warning: {hidden} corners fall outside an image")
+        } else {
+            String::new()
+        }
+    );
+    Ok(())
+}
+
+/// `9x6` -> (9, 6).
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let bad = || anyhow!("--inner-corners: {s:?} is not COLSxROWS (e.g. 9x6)");
+    let (c, r) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let (c, r): (u32, u32) = (
+        c.trim().parse().map_err(|_| bad())?,
+        r.trim().parse().map_err(|_| bad())?,
+    );
+    if c < 2 || r < 2 || c > 100 || r > 100 {
+        bail!("--inner-corners: {c}x{r} must be 2..=100 in each direction");
+    }
+    Ok((c, r))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn board_sizes() {
+        assert_eq!(parse_size("9x6").unwrap(), (9, 6));
+        assert_eq!(parse_size("7X4").unwrap(), (7, 4));
+        for bad in ["9", "9x", "x6", "1x6", "9x-1", "axb"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+    }
+}

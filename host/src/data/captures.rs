@@ -1,0 +1,251 @@
+//! `CAPTURES.csv`: one row per stereo pair of board photos.
+//!
+//! Columns by name, any order: `left,right` (image paths relative to the CSV's folder),
+//! optionally `z` (board depth, cm), `x,y` (board centre, cm, default 0), and any others
+//! (the five joint columns among them), which are passed through to every corner row of the
+//! pair. Errors name the file, the line and the column.
+
+use super::csv::{csv_error, number, LineCounter};
+use super::dataset::JOINT_COLUMNS;
+use anyhow::{anyhow, bail, Context, Result};
+use std::path::{Path, PathBuf};
+
+/// One stereo pair of a capture set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Capture {
+    /// 1-based line of the row in the CSV.
+    pub line: u64,
+    /// The left image as written in the CSV.
+    pub left_name: String,
+    /// The right image as written in the CSV.
+    pub right_name: String,
+    /// The left image's path (relative to the CSV's folder).
+    pub left: PathBuf,
+    /// The right image's path.
+    pub right: PathBuf,
+    /// Board depth (cm), if the set gives it.
+    pub z: Option<f64>,
+    /// Board centre X, Y (cm).
+    pub xy: [f64; 2],
+    /// The passed-through fields, in the order of [`CaptureSet::extra_columns`].
+    pub extra: Vec<String>,
+}
+
+/// A capture set read from a file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaptureSet {
+    /// The file, as given.
+    pub path: PathBuf,
+    /// Whether every row gives `z` (all or none do).
+    pub has_z: bool,
+    /// The columns passed through (joint columns first, in their canonical order, then the
+    /// others in file order).
+    pub extra_columns: Vec<String>,
+    /// The pairs.
+    pub captures: Vec<Capture>,
+}
+
+impl CaptureSet {
+    /// `file:line` of a capture, for messages.
+    pub fn at(&self, c: &Capture) -> String {
+        format!("{}:{}", self.path.display(), c.line)
+    }
+}
+
+const OWN: [&str; 5] = ["left", "right", "z", "x", "y"];
+
+/// Reads `path`.
+pub fn read(path: &Path) -> Result<CaptureSet> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).with_context(|| format!("{file}: cannot read"))?;
+    let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(&bytes);
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+    let mut lines_of = LineCounter::new(bytes);
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(bytes);
+    let header = rdr.headers().map_err(|e| csv_error(&file, e))?.clone();
+    let hl = lines_of.line_at(header.position().map_or(0, |p| p.byte()));
+    let names: Vec<String> = header.iter().map(str::to_string).collect();
+    if names.iter().all(String::is_empty) {
+        bail!("{file}: empty file (expected a header row naming the columns left,right)");
+    }
+    for (i, n) in names.iter().enumerate() {
+        if names[..i].contains(n) {
+            bail!("{file}:{hl}: column \"{n}\" appears twice in the header");
+        }
+    }
+    let find = |c: &str| names.iter().position(|n| n == c);
+    let need = |c: &str| {
+        find(c).ok_or_else(|| {
+            anyhow!(
+                "{file}:{hl}: missing column \"{c}\" (the header has: {})",
+                names.join(",")
+            )
+        })
+    };
+    let (li, ri) = (need("left")?, need("right")?);
+    let (zi, xi, yi) = (find("z"), find("x"), find("y"));
+    let present_joints: Vec<&str> = JOINT_COLUMNS
+        .iter()
+        .copied()
+        .filter(|c| find(c).is_some())
+        .collect();
+    if !present_joints.is_empty() && present_joints.len() < JOINT_COLUMNS.len() {
+        let missing = JOINT_COLUMNS
+            .iter()
+            .find(|c| !present_joints.contains(c))
+            .copied()
+            .unwrap_or_default();
+        bail!(
+            "{file}:{hl}: missing column \"{missing}\" (a posture-aware set needs all of {})",
+            JOINT_COLUMNS.join(",")
+        );
+    }
+    let mut extra_columns: Vec<String> = present_joints.iter().map(|s| s.to_string()).collect();
+    for n in &names {
+        if !OWN.contains(&n.as_str()) && !JOINT_COLUMNS.contains(&n.as_str()) && !n.is_empty() {
+            extra_columns.push(n.clone());
+        }
+    }
+    let extra_idx: Vec<usize> = extra_columns.iter().map(|c| find(c).unwrap_or(0)).collect();
+    let mut captures = Vec::new();
+    let mut rec = csv::StringRecord::new();
+    loop {
+        match rdr.read_record(&mut rec) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => return Err(csv_error(&file, e)),
+        }
+        let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
+        if rec.len() != header.len() {
+            bail!(
+                "{file}:{line}: row has {} fields, the header has {}",
+                rec.len(),
+                header.len()
+            );
+        }
+        let name = |k: usize, col: &str| -> Result<String> {
+            let s = rec[k].to_string();
+            if s.is_empty() {
+                bail!("{file}:{line}: column \"{col}\" is empty");
+            }
+            Ok(s)
+        };
+        let (left_name, right_name) = (name(li, "left")?, name(ri, "right")?);
+        let opt_num = |k: Option<usize>, col: &str| -> Result<Option<f64>> {
+            match k {
+                Some(k) => Ok(Some(number(&file, line, col, rec[k].as_bytes())?)),
+                None => Ok(None),
+            }
+        };
+        let z = opt_num(zi, "z")?;
+        if let Some(z) = z {
+            if z <= 0.0 {
+                bail!("{file}:{line}: column \"z\": {z} cm is not a depth in front of the head (must be > 0)");
+            }
+        }
+        let xy = [
+            opt_num(xi, "x")?.unwrap_or(0.0),
+            opt_num(yi, "y")?.unwrap_or(0.0),
+        ];
+        let mut extra = Vec::with_capacity(extra_idx.len());
+        for (k, c) in extra_idx.iter().zip(&extra_columns) {
+            if JOINT_COLUMNS.contains(&c.as_str()) {
+                number(&file, line, c, rec[*k].as_bytes())?;
+            }
+            extra.push(rec[*k].to_string());
+        }
+        captures.push(Capture {
+            line,
+            left: dir.join(&left_name),
+            right: dir.join(&right_name),
+            left_name,
+            right_name,
+            z,
+            xy,
+            extra,
+        });
+    }
+    if captures.is_empty() {
+        bail!("{file}: no captures after the header");
+    }
+    Ok(CaptureSet {
+        path: path.to_path_buf(),
+        has_z: zi.is_some(),
+        extra_columns,
+        captures,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read_text(text: &str) -> Result<CaptureSet> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("captures.csv");
+        std::fs::write(&p, text).unwrap();
+        read(&p).map_err(|e| {
+            anyhow!(
+                "{}",
+                format!("{e:#}").replace(&dir.path().display().to_string(), "DIR")
+            )
+        })
+    }
+
+    #[test]
+    fn reads_pairs_depths_and_passes_other_columns_through() {
+        let s =
+            read_text("\u{feff}note,right,left,z\nfar,r1.png,l1.png,165\nnear,r2.png,l2.png,65\n")
+                .unwrap();
+        assert!(s.has_z);
+        assert_eq!(s.extra_columns, ["note"]);
+        assert_eq!(s.captures.len(), 2);
+        let c = &s.captures[1];
+        assert_eq!(
+            (c.line, c.left_name.as_str(), c.z, c.xy),
+            (3, "l2.png", Some(65.0), [0.0, 0.0])
+        );
+        assert!(c.right.ends_with("r2.png"));
+        assert_eq!(c.extra, ["near"]);
+    }
+
+    #[test]
+    fn joints_come_first_and_must_be_complete() {
+        let h = JOINT_COLUMNS.join(",");
+        let s = read_text(&format!("left,right,{h}\na,b,1,2,3,4,5\n")).unwrap();
+        assert_eq!(s.extra_columns, JOINT_COLUMNS);
+        assert!(!s.has_z);
+        let e = read_text("left,right,neck_pan\na,b,1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(":1:") && e.contains("neck_tilt"), "{e}");
+        let e = read_text(&format!("left,right,{h}\na,b,1,2,x,4,5\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(":2:") && e.contains("eye_tilt"), "{e}");
+    }
+
+    #[test]
+    fn bad_files_name_line_and_column() {
+        for (text, want) in [
+            ("", "empty file"),
+            ("left,right\n", "no captures"),
+            ("left,z\na,65\n", "missing column \"right\""),
+            ("left,right,z\na,b,abc\n", ":2: column \"z\""),
+            ("left,right,z\na,b,-5\n", ":2: column \"z\""),
+            ("left,right\n,b\n", ":2: column \"left\" is empty"),
+            ("left,right,left\na,b,c\n", "appears twice"),
+            ("left,right\na,b,c\n", ":2: row has 3 fields"),
+        ] {
+            let e = read_text(text).unwrap_err().to_string();
+            assert!(e.contains(want), "{text:?}: {e}");
+        }
+    }
+}

@@ -1,0 +1,172 @@
+//! The matcher's refusals: each status where it belongs, and errors naming the field.
+
+use hvs_shared::sim::presets;
+use hvs_vision::geometry::Fundamental;
+use hvs_vision::matching::{
+    match_points, pinhole_fundamental, MatchParams, MatchStatus, Matcher, Query,
+};
+use hvs_vision::render::{render_rig, Board, RenderOptions};
+use image::GrayImage;
+
+fn rectified() -> Fundamental {
+    Fundamental {
+        m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+    }
+}
+
+/// A textured image: a smooth pseudo-random pattern.
+fn texture(w: u32, h: u32, shift: u32) -> GrayImage {
+    GrayImage::from_fn(w, h, |x, y| {
+        let x = x + shift;
+        let v = 128.0
+            + 50.0 * ((x as f64) * 0.37).sin() * ((y as f64) * 0.23).cos()
+            + 40.0 * ((x as f64 * 0.11 + y as f64 * 0.19).sin());
+        image::Luma([v as u8])
+    })
+}
+
+#[test]
+fn a_shifted_texture_is_found_at_its_shift() {
+    // Right image = left shifted by 12 px: u_r = u_l - 12.
+    let l = texture(200, 120, 0);
+    let r = texture(200, 120, 12);
+    // r(x) = pattern(x + 12) = l(x + 12): the left point u_l is at u_r = u_l - 12.
+    let m = Matcher::new(&l, &r, &rectified(), MatchParams::default()).unwrap();
+    let got = m.find(&Query {
+        ul: 100.0,
+        vl: 60.0,
+        d_min: 5.0,
+        d_max: 20.0,
+    });
+    assert_eq!(got.status, MatchStatus::Ok, "{got:?}");
+    // The parabola through an asymmetric ZNCC peak is biased by up to ~0.15 px.
+    assert!(
+        (got.ur - 88.0).abs() < 0.2 && (got.vr - 60.0).abs() < 1e-9,
+        "{got:?}"
+    );
+    assert!(got.score > 0.99);
+    // The true disparity outside the interval: no peak inside it.
+    let got = m.find(&Query {
+        ul: 100.0,
+        vl: 60.0,
+        d_min: 20.0,
+        d_max: 30.0,
+    });
+    assert_ne!(got.status, MatchStatus::Ok, "{got:?}");
+}
+
+#[test]
+fn refusals_have_their_status() {
+    let l = texture(200, 120, 0);
+    let r = texture(200, 120, 12);
+    let q = |ul: f64, vl: f64, d_min: f64, d_max: f64| Query {
+        ul,
+        vl,
+        d_min,
+        d_max,
+    };
+    let m = Matcher::new(&l, &r, &rectified(), MatchParams::default()).unwrap();
+    assert_eq!(
+        m.find(&q(f64::NAN, 60.0, 5.0, 20.0)).status,
+        MatchStatus::NanInput
+    );
+    assert_eq!(
+        m.find(&q(100.0, 60.0, 5.0, f64::INFINITY)).status,
+        MatchStatus::NanInput
+    );
+    assert_eq!(
+        m.find(&q(2.0, 60.0, 5.0, 20.0)).status,
+        MatchStatus::Outside
+    );
+    assert_eq!(
+        m.find(&q(100.0, 118.0, 5.0, 20.0)).status,
+        MatchStatus::Outside
+    );
+    // Every candidate window off the right image's left edge.
+    assert_eq!(
+        m.find(&q(20.0, 60.0, 30.0, 40.0)).status,
+        MatchStatus::Outside
+    );
+    assert_eq!(
+        m.find(&q(100.0, 60.0, 20.0, 5.0)).status,
+        MatchStatus::NoCandidate
+    );
+    // A flat image has no texture.
+    let flat = GrayImage::from_pixel(200, 120, image::Luma([90]));
+    let m = Matcher::new(&flat, &r, &rectified(), MatchParams::default()).unwrap();
+    assert_eq!(
+        m.find(&q(100.0, 60.0, 5.0, 20.0)).status,
+        MatchStatus::NoTexture
+    );
+    // A vertical stripe pattern with a 6 px period, searched over 30 px: ambiguous.
+    let stripes = |shift: u32| {
+        GrayImage::from_fn(200, 120, |x, _| {
+            image::Luma([if ((x + shift) / 3) % 2 == 0 { 40 } else { 200 }])
+        })
+    };
+    let m = Matcher::new(
+        &stripes(0),
+        &stripes(2),
+        &rectified(),
+        MatchParams::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        m.find(&q(100.0, 60.0, 0.0, 30.0)).status,
+        MatchStatus::Ambiguous
+    );
+}
+
+#[test]
+fn an_occluded_corner_is_not_returned() {
+    let rig = presets::CASE_1;
+    let board = Board::default();
+    let r = render_rig(&rig, &board, [0.0, 0.0, 85.0], &RenderOptions::default(), 4).unwrap();
+    let f = pinhole_fundamental(&rig.left(), &rig.right());
+    let c = &r.corners[20];
+    let d = c.px[0] - c.px[2];
+    let q = Query {
+        ul: c.px[0],
+        vl: c.px[1],
+        d_min: d - 3.0,
+        d_max: d + 3.0,
+    };
+    let all = match_points(&r.left, &r.right, &f, &[q], MatchParams::default()).unwrap();
+    assert_eq!(all[0].status, MatchStatus::Ok);
+    // Occlude the corner in the right image with flat grey: the best candidate then is
+    // weak or refused, never ok at the wrong place.
+    let mut right = r.right.clone();
+    let (uc, vc) = (c.px[2].round() as i64, c.px[3].round() as i64);
+    for y in vc - 8..=vc + 8 {
+        for x in uc - 8..=uc + 8 {
+            right.put_pixel(x as u32, y as u32, image::Luma([128]));
+        }
+    }
+    let got = match_points(&r.left, &right, &f, &[q], MatchParams::default()).unwrap()[0];
+    assert_ne!(got.status, MatchStatus::Ok, "{got:?}");
+}
+
+#[test]
+fn bad_setup_is_an_error_naming_the_field() {
+    let l = texture(100, 80, 0);
+    let small = texture(90, 80, 0);
+    let e = Matcher::new(&l, &small, &rectified(), MatchParams::default())
+        .err()
+        .unwrap();
+    assert!(e.to_string().starts_with("right"), "{e}");
+    let e = Matcher::new(
+        &l,
+        &l,
+        &Fundamental { m: [[0.0; 3]; 3] },
+        MatchParams::default(),
+    )
+    .err()
+    .unwrap();
+    assert!(e.to_string().starts_with("fundamental"), "{e}");
+    let p = MatchParams {
+        lr_tolerance_px: -1.0,
+        ..MatchParams::default()
+    };
+    let e = Matcher::new(&l, &l, &rectified(), p).err().unwrap();
+    assert!(e.to_string().starts_with("params.lr_tolerance_px"), "{e}");
+}
