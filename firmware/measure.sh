@@ -22,14 +22,55 @@ trap cleanup EXIT
 
 build() { cargo build --quiet --locked --profile firmware -p hvs-firmware --target thumbv7em-none-eabihf "$@"; }
 
+# Flash: every allocated section with contents whose load address (LMA) lies in the code
+# flash (0x08000000..+768 KiB): .vector_table, .text, .rodata, .data's initial values, veneers.
+# The image end (highest LMA + size, alignment gaps included) must fit too. Static RAM: every
+# allocated section whose address (VMA) lies in RAM (.data, .bss, .uninit); the stack is the
+# rest of RAM and is measured on the head (`stack peak` in Info, see below).
+FLASH_BUDGET=24576
+RAM_BUDGET=16384
+# sections ELF -> "flash BYTES END PARTS|ram BYTES PARTS" from `arm-none-eabi-objdump -h`.
+sections() {
+  arm-none-eabi-objdump -h "$1" | python3 -c '
+import sys
+lines = sys.stdin.read().splitlines()
+flash = ram = end = 0
+fparts, rparts = [], []
+for i, l in enumerate(lines):
+    f = l.split()
+    if len(f) < 7 or not f[0].isdigit():
+        continue
+    name, size, vma, lma = f[1], int(f[2], 16), int(f[3], 16), int(f[4], 16)
+    flags = lines[i + 1]
+    if "ALLOC" not in flags:
+        continue
+    if "CONTENTS" in flags and 0x08000000 <= lma < 0x080C0000:
+        flash += size
+        end = max(end, lma + size - 0x08000000)
+        if size:
+            fparts.append(f"{name} {size}")
+    if 0x20000000 <= vma < 0x20020000:
+        ram += size
+        if size:
+            rparts.append(f"{name} {size}")
+print(flash, end, " + ".join(fparts), "|", ram, " + ".join(rparts) or "none", sep="\t")'
+}
 footprint() { # name elf
-  arm-none-eabi-size -A "$2" | awk -v name="$1" '
-    $1==".text"{t=$2} $1==".rodata"{r=$2} $1==".data"{d=$2} $1==".bss"{b=$2}
-    END{printf "%-28s flash %6d B (%.1f KiB; text %d + rodata %d)   static RAM %5d B (data %d + bss %d)   %s\n", name, t+r, (t+r)/1024, t, r, d+b, d, b, ((t+r)<=24576 && (d+b)<=4096) ? "targets met" : "TARGETS MISSED (24 KiB flash, 4 KiB RAM)"}'
+  local flash end parts _ ram rparts
+  IFS=$'\t' read -r flash end parts _ ram rparts < <(sections "$2")
+  local verdict="flash within 24 KiB"
+  if [ "$flash" -gt "$FLASH_BUDGET" ] || [ "$end" -gt "$FLASH_BUDGET" ]; then verdict="FLASH OVER 24 KiB"; flash_over=1; fi
+  printf '%-30s flash %6d B (%s; image ends at +%d)   static RAM %5d B (%s)   %s\n' "$1" "$flash" "$parts" "$end" "$ram" "$rparts" "$verdict"
   if arm-none-eabi-nm -C "$2" | grep -Eq 'float_to_decimal|flt2dec|float_to_exponential|core::fmt::float'; then
     echo "  FAIL: core::fmt float formatting is linked into $1" >&2; exit 1
   fi
 }
+static_ram() { # elf -> bytes of every allocated section in RAM
+  local _f _e _p _s ram _r
+  IFS=$'\t' read -r _f _e _p _s ram _r < <(sections "$1")
+  echo "$ram"
+}
+flash_over=
 
 echo "== footprint (profile firmware: opt-level s, fat LTO, panic=abort)"
 build;                 cp "$elf" "$work/board.elf"; footprint "board (HSE/PLL 168 MHz, MCDC)" "$work/board.elf"

@@ -22,6 +22,7 @@ mod bench;
 mod clock;
 mod link;
 mod servo;
+mod stack;
 
 use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::syst::SystClkSource;
@@ -182,6 +183,13 @@ fn answer(head: &mut Head, req: &Request, tick_hz: u32) -> Response {
         RequestBody::Bench { point, count } => Response {
             id: req.id,
             body: bench::run(&head.boot, &point, count, tick_hz),
+        },
+        RequestBody::Info => Response {
+            id: req.id,
+            body: ResponseBody::Info(protocol::InfoData {
+                stack_peak: Some(stack::peak()),
+                ..head.boot.info(VERSION)
+            }),
         },
         _ => head.respond(req, VERSION),
     }

@@ -114,6 +114,16 @@ fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
     };
     assert!(info.contains("slot A"), "{info}");
     assert!(info.contains("seed 3"), "{info}");
+    let peak: u32 = info
+        .lines()
+        .find_map(|l| {
+            l.strip_prefix("stack peak: ")?
+                .strip_suffix(" B")?
+                .parse()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("no `stack peak: N B` line: {info}"));
+    assert!(peak >= 256 && peak < 128 * 1024, "stack peak {peak} B");
 
     let estimated = run(&[
         "head",

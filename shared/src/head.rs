@@ -232,6 +232,7 @@ impl Boot {
             slot_b: self.slot_b,
             model,
             fallback,
+            stack_peak: None,
         }
     }
 
