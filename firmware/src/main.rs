@@ -24,19 +24,21 @@ mod link;
 mod servo;
 mod stack;
 
+use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use hvs_shared::blob::MAX_BLOB_LEN;
 use hvs_shared::gaze::{GazeConfig, Joints};
-use hvs_shared::head::{self, Head};
+use hvs_shared::head::{self, Boot, Estimator, Head};
 use hvs_shared::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
 use hvs_shared::protocol::{
     self, ErrorCode, FirmwareVersion, FrameAccumulator, Request, RequestBody, Response,
-    ResponseBody, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
+    ResponseBody, SlotStatus, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
 };
 use hvs_shared::servo::ServoOutput;
-use hvs_shared::trajectory::ControllerConfig;
+use hvs_shared::trajectory::{ControllerConfig, GazeController};
+use hvs_shared::triangulate::Calibration;
 use stm32f4xx_hal::{pac, prelude::*};
 
 /// This firmware's version (the crate version).
@@ -79,13 +81,19 @@ const CONTROL: ControllerConfig = ControllerConfig {
 
 #[entry]
 fn main() -> ! {
+    // The head (with the running network's decoded blob, about 2.5 KB) lives in static RAM,
+    // not in main's frame. cortex-m-rt turns this into a `&'static mut` (main runs once).
+    static mut HEAD: MaybeUninit<Head> = MaybeUninit::uninit();
+
     let dp = pac::Peripherals::take().unwrap_or_else(|| halt());
     let cp = cortex_m::Peripherals::take().unwrap_or_else(|| halt());
     let mut rcc = dp.RCC.freeze(clock::config());
 
-    // Boot decision first: nothing is commanded before it is known what runs.
-    let boot = head::boot(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
-    let mut head = Head::new(boot, GAZE, &CONTROL).unwrap_or_else(|_| halt());
+    // Boot decision first: nothing is commanded before it is known what runs. The head starts
+    // in fallback mode, then boots in place from the two slots.
+    let head = init_head(HEAD);
+    head.boot
+        .boot_in_place(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
 
     let gpioa = dp.GPIOA.split(&mut rcc);
     #[cfg(not(feature = "pwm"))]
@@ -167,7 +175,7 @@ fn main() -> ! {
             None => continue,
             Some(frame) => match head::read_frame(frame) {
                 Ok(req) => {
-                    let r = answer(&mut head, &req, tick_hz);
+                    let r = answer(head, &req, tick_hz);
                     armed |= matches!(r.body, ResponseBody::Look(_) | ResponseBody::Home);
                     r
                 }
@@ -176,6 +184,23 @@ fn main() -> ! {
         };
         send(&mut tx, &mut out, &resp);
     }
+}
+
+/// A head at rest in fallback mode, built in `place` (out of line: the temporaries are gone
+/// before boot decodes the slots).
+#[inline(never)]
+fn init_head(place: &'static mut MaybeUninit<Head>) -> &'static mut Head {
+    let controller = GazeController::new(&CONTROL).unwrap_or_else(|_| halt());
+    // Field by field (what `Head::new` does), so the compiler writes straight into `place`.
+    place.write(Head {
+        boot: Boot {
+            slot_a: SlotStatus::Empty,
+            slot_b: SlotStatus::Empty,
+            estimator: Estimator::Fallback(Calibration::BUILT_IN),
+        },
+        gaze: GAZE,
+        controller,
+    })
 }
 
 fn answer(head: &mut Head, req: &Request, tick_hz: u32) -> Response {

@@ -123,7 +123,9 @@ fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
                 .ok()
         })
         .unwrap_or_else(|| panic!("no `stack peak: N B` line: {info}"));
-    assert!(peak >= 256 && peak < 128 * 1024, "stack peak {peak} B");
+    // Boot has run, so some of the painted stack is used; the budget is 16 KiB for static RAM
+    // (about 3 KiB) and stack together (`firmware/measure.sh` checks the sum).
+    assert!(peak >= 256 && peak <= 12 * 1024, "stack peak {peak} B");
 
     let estimated = run(&[
         "head",

@@ -10,6 +10,7 @@
 //!   and the optimal (least reprojection error) triangulation used as the accuracy floor.
 //! - [`mlp`]: fixed-size f32 MLP inference with scaling inside the model.
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
+//! - [`blob_in_place`]: [`blob::decode`] into an existing blob (the head's boot, small stack).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
 //! - [`head`]: the head controller's logic without I/O (boot slot choice, estimates, Info).
 //! - [`protocol`]: head-controller wire protocol (postcard messages in COBS frames).
@@ -26,6 +27,7 @@
 #![warn(missing_docs)]
 
 pub mod blob;
+pub mod blob_in_place;
 pub mod camera;
 pub mod gaze;
 pub mod head;
