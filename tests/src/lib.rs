@@ -93,8 +93,17 @@ pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
 /// A valid posture-aware 9-8-3 blob (the four pixels and the five joint angles in degrees) with
 /// seeded weights, built like [`sample_model`]: the larger blob for the fault-injection tests.
 pub fn sample_posture_model(generation: u32, seed: u64) -> ModelBlob {
+    sample_posture_model_hidden(generation, seed, 8)
+}
+
+/// [`sample_posture_model`] with `hidden` hidden units (1..=32), e.g. the 9-16-3 net of
+/// `firmware/measure.sh`'s stack workload.
+pub fn sample_posture_model_hidden(generation: u32, seed: u64, hidden: u8) -> ModelBlob {
     let base = sample_model(generation, seed);
-    let params = seeded_params(seed ^ 0x9e37_79b9_7f4a_7c15, param_count(9, 8, 3));
+    let params = seeded_params(
+        seed ^ 0x9e37_79b9_7f4a_7c15,
+        param_count(9, usize::from(hidden), 3),
+    );
     let extend = |px: &[f32], joints: [f32; 5]| {
         let mut v: heapless::Vec<f32, { hvs_shared::blob::MAX_INPUTS }> =
             heapless::Vec::from_slice(px).unwrap();
@@ -104,7 +113,7 @@ pub fn sample_posture_model(generation: u32, seed: u64) -> ModelBlob {
     ModelBlob {
         topology: Topology {
             inputs: InputKind::StereoJoints,
-            hidden: 8,
+            hidden,
             ..base.topology
         },
         in_offset: extend(&base.in_offset, [0.0; 5]),
