@@ -9,6 +9,7 @@
 //! - [`triangulate`]: the traditional depth (eqs. 3.1-16, 3.1-17), the Phi estimate (eq. 4.1-3)
 //!   and the optimal (least reprojection error) triangulation used as the accuracy floor.
 //! - [`mlp`]: fixed-size f32 MLP inference with scaling inside the model.
+//! - [`activation`]: a candidate fast sigmoid (micromath's exp) and an inference over it.
 //! - [`blob`]: the one weights format, on flash and on disk (postcard + CRC-32).
 //! - [`blob_in_place`]: [`blob::decode`] into an existing blob (the head's boot, small stack).
 //! - [`layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
@@ -26,6 +27,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod activation;
 pub mod blob;
 pub mod blob_in_place;
 pub mod camera;
