@@ -125,7 +125,7 @@ fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
         .unwrap_or_else(|| panic!("no `stack peak: N B` line: {info}"));
     // Boot has run, so some of the painted stack is used; the budget is 16 KiB for static RAM
     // (about 3 KiB) and stack together (`firmware/measure.sh` checks the sum).
-    assert!(peak >= 256 && peak <= 12 * 1024, "stack peak {peak} B");
+    assert!((256..=12 * 1024).contains(&peak), "stack peak {peak} B");
 
     let estimated = run(&[
         "head",
