@@ -13,6 +13,33 @@ use hvs_shared::runtime::protocol::{ErrorCode, ResponseBody, StereoPoint};
 #[cfg(feature = "bench")]
 pub const MAX_COUNT: u32 = 2000;
 
+/// The inference timed: the head's own (`Network::infer`).
+#[cfg(all(feature = "bench", not(feature = "bench-micromath")))]
+fn infer(
+    net: &hvs_shared::runtime::head::Network,
+    x: &[f32; 4],
+    joints: &hvs_shared::runtime::gaze::Joints,
+) -> Result<[f32; 3], hvs_shared::runtime::mlp::MlpError> {
+    net.infer(x, joints)
+}
+
+/// The inference timed with `bench-micromath` (an evaluation build, not a head build): the
+/// 4-5-3 net with `hvs_shared::runtime::activation`'s micromath sigmoid, out of line like
+/// `Network::infer`; other nets as the head runs them.
+#[cfg(feature = "bench-micromath")]
+#[inline(never)]
+fn infer(
+    net: &hvs_shared::runtime::head::Network,
+    x: &[f32; 4],
+    joints: &hvs_shared::runtime::gaze::Joints,
+) -> Result<[f32; 3], hvs_shared::runtime::mlp::MlpError> {
+    use hvs_shared::runtime::activation::{infer_fixed_with, sigmoid_micromath};
+    if net.fast {
+        return infer_fixed_with::<4, 5, 3>(&net.blob.flat(), x, sigmoid_micromath);
+    }
+    net.infer(x, joints)
+}
+
 /// Answers `Bench`.
 #[cfg(not(feature = "bench"))]
 pub fn run(_: &Boot, _: &StereoPoint, _: u32, _: u32) -> ResponseBody {
@@ -61,7 +88,7 @@ pub fn run(boot: &Boot, point: &StereoPoint, count: u32, tick_hz: u32) -> Respon
     });
     let total = time(&|| {
         for _ in 0..count {
-            let _ = black_box(net.infer(black_box(&x), black_box(&Joints::HOME)));
+            let _ = black_box(infer(net, black_box(&x), black_box(&Joints::HOME)));
         }
     });
     ResponseBody::Bench(BenchData {

@@ -30,7 +30,7 @@ pub fn init(usart: pac::USART1, tx_pin: PA9, rx_pin: PA10, rcc: &mut Rcc) -> Tx 
     let serial: Serial<pac::USART1> =
         match Serial::new(usart, (tx_pin, rx_pin), BAUD_RATE.bps(), rcc) {
             Ok(s) => s,
-            Err(_) => crate::halt(),
+            Err(_) => crate::halt(crate::HaltReason::LinkInit),
         };
     let (tx, mut rx) = serial.split();
     rx.listen();

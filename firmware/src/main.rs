@@ -14,28 +14,40 @@
 //! - panic and HardFault: interrupts off, `V0` (stop and hold) to every MCDC drive (PWM timers
 //!   hold the last pulses), halt.
 //!
-//! Features: `qemu` (16 MHz HSI, SysTick counted at QEMU's fixed 168 MHz), `pwm`, `bench`.
+//! Features: `qemu` (16 MHz HSI, SysTick counted at QEMU's fixed 168 MHz), `pwm` (the servo
+//! backend `servo/pwm.rs` instead of `servo/mcdc.rs`), `bench`, `defmt` (bring-up logging over
+//! RTT, see [`log`]; off in the measured builds).
 #![no_std]
 #![no_main]
 
 mod bench;
 mod clock;
 mod link;
+#[macro_use]
+mod log;
+#[cfg(not(feature = "pwm"))]
+#[path = "servo/mcdc.rs"]
 mod servo;
+#[cfg(feature = "pwm")]
+#[path = "servo/pwm.rs"]
+mod servo;
+mod stack;
 
+use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use hvs_shared::runtime::blob::MAX_BLOB_LEN;
 use hvs_shared::runtime::gaze::{GazeConfig, Joints};
-use hvs_shared::runtime::head::{self, Head};
+use hvs_shared::runtime::head::{self, Boot, Estimator, Head};
 use hvs_shared::runtime::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
 use hvs_shared::runtime::protocol::{
     self, ErrorCode, FirmwareVersion, FrameAccumulator, Request, RequestBody, Response,
-    ResponseBody, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
+    ResponseBody, SlotStatus, MAX_FRAME_LEN, PROTOCOL_VERSION, UNSOLICITED_ID,
 };
 use hvs_shared::runtime::servo::ServoOutput;
-use hvs_shared::runtime::trajectory::ControllerConfig;
+use hvs_shared::runtime::traditional::Calibration;
+use hvs_shared::runtime::trajectory::{ControllerConfig, GazeController};
 use stm32f4xx_hal::{pac, prelude::*};
 
 /// This firmware's version (the crate version).
@@ -78,47 +90,32 @@ const CONTROL: ControllerConfig = ControllerConfig {
 
 #[entry]
 fn main() -> ! {
-    let dp = pac::Peripherals::take().unwrap_or_else(|| halt());
-    let cp = cortex_m::Peripherals::take().unwrap_or_else(|| halt());
+    // The head (with the running network's decoded blob, about 2.5 KB) lives in static RAM,
+    // not in main's frame. cortex-m-rt turns this into a `&'static mut` (main runs once).
+    static mut HEAD: MaybeUninit<Head> = MaybeUninit::uninit();
+
+    let dp = pac::Peripherals::take().unwrap_or_else(|| halt(HaltReason::Peripherals));
+    let cp = cortex_m::Peripherals::take().unwrap_or_else(|| halt(HaltReason::CorePeripherals));
     let mut rcc = dp.RCC.freeze(clock::config());
 
-    // Boot decision first: nothing is commanded before it is known what runs.
-    let boot = head::boot(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
-    let mut head = Head::new(boot, GAZE, &CONTROL).unwrap_or_else(|_| halt());
+    // Boot decision first: nothing is commanded before it is known what runs. The head starts
+    // in fallback mode, then boots in place from the two slots.
+    let head = init_head(HEAD);
+    head.boot
+        .boot_in_place(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
+    log::boot(&head.boot);
 
     let gpioa = dp.GPIOA.split(&mut rcc);
-    #[cfg(not(feature = "pwm"))]
-    let mut servos = {
-        let tx = dp
-            .USART2
-            .tx(gpioa.pa2, servo::MCDC_BAUD.bps(), &mut rcc)
-            .unwrap_or_else(|_| halt());
-        servo::Mcdc::new(tx, servo::MCDC, GAZE.limits)
+    let parts = ServoParts {
+        usart2: dp.USART2,
+        tim3: dp.TIM3,
+        tim4: dp.TIM4,
+        pa2: gpioa.pa2,
+        pa6: gpioa.pa6,
+        pa7: gpioa.pa7,
+        gpiob: dp.GPIOB,
     };
-    #[cfg(feature = "pwm")]
-    let (mut c0, mut c1, mut c2, mut c3, mut c4) = {
-        use hvs_shared::runtime::servo::PWM_HZ;
-        let gpiob = dp.GPIOB.split(&mut rcc);
-        let (_, (t3c1, t3c2, t3c3, t3c4)) = dp.TIM3.pwm_hz(PWM_HZ.Hz(), &mut rcc);
-        let (_, (t4c1, ..)) = dp.TIM4.pwm_hz(PWM_HZ.Hz(), &mut rcc);
-        let mut c0 = t3c1.with(gpioa.pa6);
-        let mut c1 = t3c2.with(gpioa.pa7);
-        let mut c2 = t3c3.with(gpiob.pb0);
-        let mut c3 = t3c4.with(gpiob.pb1);
-        let mut c4 = t4c1.with(gpiob.pb6);
-        c0.enable();
-        c1.enable();
-        c2.enable();
-        c3.enable();
-        c4.enable();
-        (c0, c1, c2, c3, c4)
-    };
-    #[cfg(feature = "pwm")]
-    let mut servos = servo::Pwm::new(
-        [&mut c0, &mut c1, &mut c2, &mut c3, &mut c4],
-        servo::PWM,
-        GAZE.limits,
-    );
+    let mut servos = servo::init(parts, GAZE.limits, &mut rcc);
 
     let mut tx = link::init(dp.USART1, gpioa.pa9, gpioa.pa10, &mut rcc);
 
@@ -166,15 +163,36 @@ fn main() -> ! {
             None => continue,
             Some(frame) => match head::read_frame(frame) {
                 Ok(req) => {
-                    let r = answer(&mut head, &req, tick_hz);
+                    let r = answer(head, &req, tick_hz);
                     armed |= matches!(r.body, ResponseBody::Look(_) | ResponseBody::Home);
                     r
                 }
-                Err(error) => error,
+                Err(error) => {
+                    log!("protocol error: {}", defmt::Debug2Format(&error.body));
+                    error
+                }
             },
         };
         send(&mut tx, &mut out, &resp);
     }
+}
+
+/// A head at rest in fallback mode, built in `place` (out of line: the temporaries are gone
+/// before boot decodes the slots).
+#[inline(never)]
+fn init_head(place: &'static mut MaybeUninit<Head>) -> &'static mut Head {
+    let controller =
+        GazeController::new(&CONTROL).unwrap_or_else(|_| halt(HaltReason::ControllerConfig));
+    // Field by field (what `Head::new` does), so the compiler writes straight into `place`.
+    place.write(Head {
+        boot: Boot {
+            slot_a: SlotStatus::Empty,
+            slot_b: SlotStatus::Empty,
+            estimator: Estimator::Fallback(Calibration::BUILT_IN),
+        },
+        gaze: GAZE,
+        controller,
+    })
 }
 
 fn answer(head: &mut Head, req: &Request, tick_hz: u32) -> Response {
@@ -182,6 +200,13 @@ fn answer(head: &mut Head, req: &Request, tick_hz: u32) -> Response {
         RequestBody::Bench { point, count } => Response {
             id: req.id,
             body: bench::run(&head.boot, &point, count, tick_hz),
+        },
+        RequestBody::Info => Response {
+            id: req.id,
+            body: ResponseBody::Info(protocol::InfoData {
+                stack_peak: Some(stack::peak()),
+                ..head.boot.info(VERSION)
+            }),
         },
         _ => head.respond(req, VERSION),
     }
@@ -204,21 +229,64 @@ fn SysTick() {
     TICKS.fetch_add(1, Ordering::Relaxed);
 }
 
+/// The peripherals a servo backend may take (each backend takes the ones it drives).
+pub struct ServoParts {
+    /// MCDC line (transmit only).
+    pub usart2: pac::USART2,
+    /// PWM channels 1-4.
+    pub tim3: pac::TIM3,
+    /// PWM channel 5.
+    pub tim4: pac::TIM4,
+    /// USART2 TX.
+    pub pa2: stm32f4xx_hal::gpio::PA2,
+    /// TIM3 CH1.
+    pub pa6: stm32f4xx_hal::gpio::PA6,
+    /// TIM3 CH2.
+    pub pa7: stm32f4xx_hal::gpio::PA7,
+    /// TIM3 CH3-4 (PB0, PB1), TIM4 CH1 (PB6).
+    pub gpiob: pac::GPIOB,
+}
+
+/// Why the firmware stopped for good (logged with the `defmt` feature).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum HaltReason {
+    /// The device peripherals were already taken.
+    Peripherals,
+    /// The core peripherals were already taken.
+    CorePeripherals,
+    /// The trajectory settings are unusable.
+    ControllerConfig,
+    /// The servo backend could not be configured.
+    ServoInit,
+    /// The protocol USART could not be configured.
+    LinkInit,
+    /// A panic.
+    Panic,
+    /// A HardFault.
+    HardFault,
+}
+
 /// Stops here for good: no interrupt runs again, so no servo is commanded again.
-fn halt() -> ! {
+fn halt(reason: HaltReason) -> ! {
     cortex_m::interrupt::disable();
+    log!("halt: {}", reason);
+    #[cfg(not(feature = "defmt"))]
+    let _ = reason;
     loop {
         cortex_m::asm::nop();
     }
 }
 
 #[panic_handler]
-fn panic(_: &core::panic::PanicInfo) -> ! {
-    // No formatting of the message: it would pull core::fmt into the image. MCDC drives get
-    // V0 (stop and hold); PWM timers run on without the CPU (hold the last pulses).
+fn panic(_info: &core::panic::PanicInfo) -> ! {
+    // No formatting of the message without `defmt`: it would pull core::fmt into the image.
+    // MCDC drives get V0 (stop and hold); PWM timers run on without the CPU (hold the last
+    // pulses).
     cortex_m::interrupt::disable();
     servo::panic_halt();
-    halt()
+    log!("panic: {}", defmt::Display2Format(_info));
+    halt(HaltReason::Panic)
 }
 
 /// A fault (bus, memory management, usage escalated to HardFault) ends like a panic: the MCDC
@@ -227,5 +295,5 @@ fn panic(_: &core::panic::PanicInfo) -> ! {
 unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
     cortex_m::interrupt::disable();
     servo::panic_halt();
-    halt()
+    halt(HaltReason::HardFault)
 }

@@ -153,9 +153,15 @@ pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
 /// A valid posture-aware 9-8-3 blob (four pixels, five joint angles in degrees), built like
 /// [`sample_model`]: the larger blob of the fault-injection tests.
 pub fn sample_posture_model(generation: u32, seed: u64) -> ModelBlob {
+    sample_posture_model_hidden(generation, seed, 8)
+}
+
+/// [`sample_posture_model`] with `hidden` hidden units, e.g. the 9-16-3 net of
+/// `firmware/measure.sh`'s stack workload.
+pub fn sample_posture_model_hidden(generation: u32, seed: u64, hidden: u8) -> ModelBlob {
     sample(SampleSpec {
         inputs: InputKind::StereoJoints,
-        hidden: 8,
+        hidden,
         ..SampleSpec {
             generation,
             seed,

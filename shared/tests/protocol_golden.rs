@@ -43,6 +43,7 @@ fn info(mode: Mode, model: Option<ModelInfo>, a: SlotStatus, b: SlotStatus) -> I
         slot_b: b,
         model,
         fallback: Calibration::BUILT_IN,
+        stack_peak: model.map(|_| 5_260),
     }
 }
 

@@ -1,10 +1,11 @@
 //! Writes the seeded 4-5-3 sample blob of the QEMU tests to a file (for `firmware/measure.sh`
-//! until a trained model is at hand): `cargo run -p hvs-tests --example sample_blob -- OUT [GENERATION]`.
+//! until a trained model is at hand): `cargo run -p hvs-tests --example sample_blob -- OUT
+//! [GENERATION [POSTURE_HIDDEN]]`; with POSTURE_HIDDEN, a posture-aware 9-POSTURE_HIDDEN-3 one.
 
 fn main() {
     let mut args = std::env::args().skip(1);
     let Some(out) = args.next() else {
-        eprintln!("usage: sample_blob OUT [GENERATION]");
+        eprintln!("usage: sample_blob OUT [GENERATION [POSTURE_HIDDEN]]");
         std::process::exit(2);
     };
     let generation = match args.next().map(|g| g.parse::<u32>()) {
@@ -15,7 +16,14 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let blob = hvs_tests::sample_model(generation, 42);
+    let blob = match args.next().map(|h| h.parse::<u8>()) {
+        None => hvs_tests::sample_model(generation, 42),
+        Some(Ok(h @ 1..=32)) => hvs_tests::sample_posture_model_hidden(generation, 42, h),
+        Some(_) => {
+            eprintln!("error: POSTURE_HIDDEN: a hidden unit count 1..=32");
+            std::process::exit(2);
+        }
+    };
     let mut buf = vec![0u8; hvs_shared::runtime::blob::MAX_BLOB_LEN];
     let n = match blob.encode(&mut buf) {
         Ok(n) => n,

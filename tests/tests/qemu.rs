@@ -202,6 +202,10 @@ fn estimates_equal_host_inference_bit_for_bit() {
         (model_info.hidden, model_info.seed, model_info.train_hash),
         (5, 42, 0x1234_5678_9abc_def0)
     );
+    let peak = i.stack_peak.expect("the firmware reports its stack peak");
+    // Boot has run, so some of the painted stack is used; the budget is 16 KiB for static RAM
+    // (about 3 KiB) and stack together (`firmware/measure.sh` checks the sum).
+    assert!((256..=12 * 1024).contains(&peak), "stack peak {peak} B");
     let host = head::boot(&bytes, &[]);
     assert_estimates_match(&mut run, &host, Source::Network);
     // The same numbers as the blob's own inference on the host.

@@ -118,6 +118,9 @@ pub fn write_info(out: &mut impl Write, i: &InfoData) -> Result<()> {
         "fallback calibration: phi {} px, d {} cm, principal point ({}, {})",
         i.fallback.phi, i.fallback.half_baseline, i.fallback.u0, i.fallback.v0
     )?;
+    if let Some(peak) = i.stack_peak {
+        writeln!(out, "stack peak: {peak} B")?;
+    }
     Ok(())
 }
 

@@ -291,7 +291,9 @@ mod tests {
             let mut out = [0u8; MAX_FRAME_LEN];
             let ready = Response {
                 id: 0,
-                body: ResponseBody::Ready { protocol: 1 },
+                body: ResponseBody::Ready {
+                    protocol: protocol::PROTOCOL_VERSION,
+                },
             };
             s.write_all(protocol::encode_response(&ready, &mut out).unwrap())
                 .unwrap();

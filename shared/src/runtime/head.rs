@@ -17,6 +17,7 @@
 //! head falls back to the traditional method with [`Calibration::BUILT_IN`].
 
 use crate::runtime::blob::{self, InputKind, ModelBlob, OutputKind};
+use crate::runtime::blob_in_place;
 use crate::runtime::gaze::{self, Axis, GazeConfig, GazeError, Joints};
 use crate::runtime::layout::Slot;
 use crate::runtime::mlp::{self, Mlp, MlpError};
@@ -61,6 +62,19 @@ impl Network {
     /// The network of a decoded (hence validated) blob loaded from `slot`, or `None` if the
     /// head cannot supply its inputs or use its outputs (see the module documentation).
     pub fn new(slot: Slot, blob: ModelBlob) -> Option<Network> {
+        let (fast, model) = Network::check(&blob)?;
+        Some(Network {
+            generation: blob.generation,
+            blob,
+            fast,
+            slot,
+            model,
+        })
+    }
+
+    /// What [`Network::new`] decides, by reference: `(fast, model)` if the head can run
+    /// `blob`, `None` if not.
+    fn check(blob: &ModelBlob) -> Option<(bool, ModelInfo)> {
         let suppliable = matches!(
             blob.topology.inputs,
             InputKind::Stereo | InputKind::StereoJoints
@@ -80,13 +94,7 @@ impl Network {
         let fast = blob.topology.inputs == InputKind::Stereo
             && usize::from(blob.topology.hidden) == NET_HIDDEN
             && blob.n_outputs() == NET_OUTPUTS;
-        Some(Network {
-            generation: blob.generation,
-            blob,
-            fast,
-            slot,
-            model,
-        })
+        Some((fast, model))
     }
 
     /// The network's inputs for pixels `px` seen at posture `joints`: the pixels, then (for
@@ -153,27 +161,63 @@ fn classify(slot: Slot, bytes: &[u8]) -> (SlotStatus, SlotState, Option<Network>
         Err(blob::BlobError::BadMagic) => return (SlotStatus::Empty, SlotState::Empty, None),
         Err(e) => return (SlotStatus::Invalid(e), SlotState::Invalid(e), None),
     };
-    let (generation, inputs, hidden, outputs) = (
-        blob.generation,
-        blob.n_inputs() as u16,
-        u16::from(blob.topology.hidden),
-        blob.n_outputs() as u16,
-    );
-    match Network::new(slot, blob) {
-        Some(net) => (
+    let (status, state) = runnable(&blob);
+    (status, state, Network::new(slot, blob))
+}
+
+/// What a decoded blob counts as: valid if the head can run it ([`Network::check`]).
+fn runnable(blob: &ModelBlob) -> (SlotStatus, SlotState) {
+    let generation = blob.generation;
+    if Network::check(blob).is_some() {
+        return (
             SlotStatus::Valid { generation },
             SlotState::Valid { generation },
-            Some(net),
-        ),
-        None => (
-            SlotStatus::UnsupportedTopology {
-                inputs,
-                hidden,
-                outputs,
+        );
+    }
+    (
+        SlotStatus::UnsupportedTopology {
+            inputs: blob.n_inputs() as u16,
+            hidden: u16::from(blob.topology.hidden),
+            outputs: blob.n_outputs() as u16,
+        },
+        SlotState::Unrunnable { generation },
+    )
+}
+
+/// `est`'s network, made an [`Estimator::Network`] with a placeholder blob if it was not
+/// one: the place boot decodes into.
+#[inline(never)]
+fn network_place(est: &mut Estimator) -> &mut Network {
+    if let Estimator::Fallback(_) = *est {
+        *est = Estimator::Network(Network {
+            blob: blob_in_place::placeholder(),
+            fast: false,
+            slot: Slot::A,
+            generation: 0,
+            model: ModelInfo {
+                inputs: 0,
+                hidden: 0,
+                outputs: 0,
+                seed: 0,
+                train_hash: 0,
+                train_points: 0,
+                train_error_pct: 0.0,
             },
-            SlotState::Unrunnable { generation },
-            None,
-        ),
+        });
+    }
+    match est {
+        Estimator::Network(n) => n,
+        Estimator::Fallback(_) => unreachable!("set to a network just above"),
+    }
+}
+
+/// [`classify`]'s status and state, decoding into `place` ([`blob_in_place::decode_into`]);
+/// on `Valid`, `place` holds the decoded blob.
+fn classify_in_place(bytes: &[u8], place: &mut ModelBlob) -> (SlotStatus, SlotState) {
+    match blob_in_place::decode_into(bytes, place) {
+        Ok(()) => runnable(place),
+        Err(blob::BlobError::BadMagic) => (SlotStatus::Empty, SlotState::Empty),
+        Err(e) => (SlotStatus::Invalid(e), SlotState::Invalid(e)),
     }
 }
 
@@ -195,19 +239,51 @@ pub fn slot_state(bytes: &[u8]) -> SlotState {
 /// bytes are ignored). The runnable slot with the higher generation runs (A on a tie, the
 /// rule of [`slots::choose_boot`] over [`slot_state`]); with none, the traditional method with
 /// [`Calibration::BUILT_IN`].
+///
+/// The firmware boots with [`Boot::boot_in_place`] instead (same result, smaller stack).
 pub fn boot(slot_a: &[u8], slot_b: &[u8]) -> Boot {
-    let (status_a, state_a, net_a) = classify(Slot::A, slot_a);
-    let (status_b, state_b, net_b) = classify(Slot::B, slot_b);
-    let estimator = match slots::choose_boot(state_a, state_b) {
-        Some(Slot::A) => net_a.map(Estimator::Network),
-        Some(Slot::B) => net_b.map(Estimator::Network),
-        None => None,
-    }
-    .unwrap_or(Estimator::Fallback(Calibration::BUILT_IN));
-    Boot {
-        slot_a: status_a,
-        slot_b: status_b,
-        estimator,
+    let mut b = Boot {
+        slot_a: SlotStatus::Empty,
+        slot_b: SlotStatus::Empty,
+        estimator: Estimator::Fallback(Calibration::BUILT_IN),
+    };
+    b.boot_in_place(slot_a, slot_b);
+    b
+}
+
+impl Boot {
+    /// [`boot`] into `self`, replacing what it held, with every blob decoded in place
+    /// ([`blob_in_place`]) into the network `self` will run: the head keeps its `Boot` in
+    /// static RAM, so boot copies no decoded blob through the stack. The same result as
+    /// [`boot`] (tested).
+    pub fn boot_in_place(&mut self, slot_a: &[u8], slot_b: &[u8]) {
+        let net = network_place(&mut self.estimator);
+        let (status_a, state_a) = classify_in_place(slot_a, &mut net.blob);
+        let (status_b, state_b) = classify_in_place(slot_b, &mut net.blob);
+        self.slot_a = status_a;
+        self.slot_b = status_b;
+        let (slot, bytes) = match slots::choose_boot(state_a, state_b) {
+            Some(Slot::A) => (Slot::A, slot_a),
+            Some(Slot::B) => (Slot::B, slot_b),
+            None => {
+                self.estimator = Estimator::Fallback(Calibration::BUILT_IN);
+                return;
+            }
+        };
+        // Slot B was decoded last, maybe partly: if A runs, decode it once more (it decoded
+        // before, so it does again).
+        if slot == Slot::A {
+            let _ = blob_in_place::decode_into(bytes, &mut net.blob);
+        }
+        match Network::check(&net.blob) {
+            Some((fast, model)) => {
+                net.fast = fast;
+                net.slot = slot;
+                net.generation = net.blob.generation;
+                net.model = model;
+            }
+            None => self.estimator = Estimator::Fallback(Calibration::BUILT_IN),
+        }
     }
 }
 
@@ -232,6 +308,7 @@ impl Boot {
             slot_b: self.slot_b,
             model,
             fallback,
+            stack_peak: None,
         }
     }
 
@@ -635,6 +712,51 @@ mod tests {
                 let p = plan_write(slot_state(a), slot_state(b), SlotRequest::Auto).unwrap();
                 assert_eq!(p.running, booted);
                 assert_ne!(Some(p.slot), booted);
+            }
+        }
+    }
+
+    /// [`boot`] as it was before it decoded in place: every slot through [`classify`].
+    fn boot_by_value(slot_a: &[u8], slot_b: &[u8]) -> Boot {
+        let (status_a, state_a, net_a) = classify(Slot::A, slot_a);
+        let (status_b, state_b, net_b) = classify(Slot::B, slot_b);
+        let estimator = match slots::choose_boot(state_a, state_b) {
+            Some(Slot::A) => net_a.map(Estimator::Network),
+            Some(Slot::B) => net_b.map(Estimator::Network),
+            None => None,
+        }
+        .unwrap_or(Estimator::Fallback(Calibration::BUILT_IN));
+        Boot {
+            slot_a: status_a,
+            slot_b: status_b,
+            estimator,
+        }
+    }
+
+    #[test]
+    fn booting_in_place_equals_booting_by_value() {
+        let mut half = bytes(&sample(5, 3, 8));
+        half.truncate(40);
+        let contents = [
+            StdVec::new(),
+            std::vec![0xffu8; MAX_BLOB_LEN],
+            corrupt(bytes(&sample(5, 4, 3))),
+            half,
+            z_only(9),
+            z_only(2),
+            bytes(&sample(5, 1, 4)),
+            bytes(&sample(7, 7, 5)),
+            bytes(&sample_joints(9, 3, 6)),
+            bytes(&sample_joints(16, 3, 7)),
+        ];
+        // One Boot reused for every pair, as a head that booted before would be.
+        let mut reused = boot(&[], &[]);
+        for a in &contents {
+            for b in &contents {
+                let want = boot_by_value(a, b);
+                assert_eq!(boot(a, b), want);
+                reused.boot_in_place(a, b);
+                assert_eq!(reused, want);
             }
         }
     }

@@ -5,7 +5,9 @@
 //! `mlp` <- `blob` <- `head`; `gaze` <- `trajectory`, `servo`, `head`; `slots` and `layout` are
 //! pure rules that `head` (boot) and the host (`hvs flash`) share.
 
+pub mod activation;
 pub mod blob;
+pub mod blob_in_place;
 pub mod gaze;
 pub mod head;
 pub mod layout;

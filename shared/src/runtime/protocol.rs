@@ -20,8 +20,8 @@ pub use crate::runtime::traditional::Calibration;
 use serde::{Deserialize, Serialize};
 
 /// Version of this protocol, reported by [`ResponseBody::Ready`] and [`InfoData`]. Bumped on
-/// every incompatible change of the message types.
-pub const PROTOCOL_VERSION: u16 = 1;
+/// every incompatible change of the message types (2: [`InfoData::stack_peak`]).
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Request id reserved for messages the head sends without being asked.
 pub const UNSOLICITED_ID: u32 = 0;
@@ -229,6 +229,10 @@ pub struct InfoData {
     pub model: Option<ModelInfo>,
     /// The calibration of the traditional method used in fallback mode (built in).
     pub fallback: Calibration,
+    /// Deepest the head's stack has been since reset, in bytes: the firmware paints the stack
+    /// at reset and counts the words no longer painted. `None` where nothing measures it
+    /// (the host-side [`crate::head`] logic).
+    pub stack_peak: Option<u32>,
 }
 
 /// Which method produced an estimate.
@@ -485,6 +489,7 @@ mod tests {
                 u0: f32::MAX,
                 v0: f32::MAX,
             },
+            stack_peak: Some(u32::MAX),
         }
     }
 
