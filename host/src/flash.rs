@@ -549,6 +549,8 @@ mod tests {
                 restarts: 1,
             },
             fallback: None,
+            family: hvs_shared::blob::Family::THESIS,
+            matcher: None,
         }
     }
 

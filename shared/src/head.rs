@@ -13,7 +13,8 @@
 //! three), any hidden count the blob allows. The thesis' 4-5-3 net runs on the fixed-size
 //! [`Mlp`] ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`]); every other runnable topology on
 //! the runtime-sized [`crate::mlp::infer_flat`] over the blob (the same bits as the blob's own
-//! [`ModelBlob::infer`]). Anything else counts as not runnable, and with no runnable slot the
+//! [`ModelBlob::infer`]); either way the blob's family maps the outputs to cm
+//! ([`crate::mlp::OutputMap`]). Anything else counts as not runnable, and with no runnable slot the
 //! head falls back to the traditional method with [`Calibration::BUILT_IN`].
 
 use crate::blob::{self, InputKind, ModelBlob, OutputKind};
@@ -108,7 +109,10 @@ impl Network {
         joints: &Joints,
     ) -> Result<[f32; NET_OUTPUTS], MlpError> {
         if self.fast {
-            return mlp::infer_fixed::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(&self.blob.flat(), px);
+            let mut y =
+                mlp::infer_fixed::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(&self.blob.flat(), px)?;
+            self.blob.family.output_map.apply(&mut y)?;
+            return Ok(y);
         }
         let (x, n) = self.inputs(px, joints);
         let mut y = [0.0f32; NET_OUTPUTS];
@@ -477,6 +481,8 @@ mod tests {
                 restarts: 1,
             },
             fallback: None,
+            family: blob::Family::THESIS,
+            matcher: None,
         }
     }
 
@@ -726,6 +732,32 @@ mod tests {
             );
             assert_eq!(e.in_range, blob.in_range(&p.to_array()), "{p:?}");
             assert_eq!(e.source, Source::Network);
+        }
+    }
+
+    #[test]
+    fn inverse_depth_family_runs_on_both_paths_bit_for_bit() {
+        // 4-5-3 (fast path) and 4-7-3 (flat path), outputs X/Z, Y/Z, 1/Z: o2 kept positive.
+        for hidden in [5u8, 7] {
+            let mut blob = sample(hidden, 1, 21);
+            blob.family = blob::Family::INVERSE_DEPTH;
+            blob.out_offset = Vec::from_slice(&[0.0, 0.0, 0.05]).unwrap();
+            blob.out_scale = Vec::from_slice(&[0.02, 0.02, 0.001]).unwrap();
+            let got = boot(&bytes(&blob), &[]);
+            assert_eq!(network(&got).fast, hidden == 5);
+            for k in 0..50 {
+                let p = StereoPoint {
+                    u_l: 300.0 + k as f32 * 0.7,
+                    v_l: 225.0 + k as f32 * 0.3,
+                    u_r: 285.0 + k as f32 * 0.6,
+                    v_r: 235.0,
+                };
+                let e = got.estimate(&p).unwrap();
+                let mut want = [0.0f32; 3];
+                blob.infer(&p.to_array(), &mut want).unwrap();
+                assert_eq!([e.x, e.y, e.z].map(f32::to_bits), want.map(f32::to_bits));
+                assert!(e.z > 0.0 && (1.0 / e.z - 0.05).abs() < 0.01, "{e:?}");
+            }
         }
     }
 

@@ -87,6 +87,8 @@ pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
             restarts: 1,
         },
         fallback: Some(Calibration::BUILT_IN),
+        family: hvs_shared::blob::Family::THESIS,
+        matcher: None,
     }
 }
 
