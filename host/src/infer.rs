@@ -288,8 +288,10 @@ pub(crate) mod tests {
                     }
                 })
                 .collect();
-            // Shift the last output so that the first 100 rows keep a positive 1/Z and some
-            // later ones do not.
+            // Offset the last output by minus row 150's value: its 1/Z (and that of any row
+            // with the same value) is exactly 0, an infinite depth; the rows below it are
+            // negative depths, still estimates.
+            b.out_offset[no - 1] = 0.0;
             let last: Vec<f32> = (0..n)
                 .map(|r| {
                     let mut y = [0.0f32; 3];
@@ -297,17 +299,7 @@ pub(crate) mod tests {
                     y[no - 1]
                 })
                 .collect();
-            let head_min = last[..100].iter().copied().fold(f32::INFINITY, f32::min);
-            let cut = last[100..]
-                .iter()
-                .copied()
-                .filter(|v| *v < head_min)
-                .fold(f32::NEG_INFINITY, f32::max);
-            assert!(
-                cut.is_finite(),
-                "some later row is lower than the first 100"
-            );
-            b.out_offset[no - 1] -= cut;
+            b.out_offset[no - 1] = -last[150];
             b.family = hvs_shared::blob::Family::INVERSE_DEPTH;
             let p = Predictor::new(&b);
             assert_eq!(p.is_fixed(), fixed);
@@ -321,8 +313,9 @@ pub(crate) mod tests {
                     }
                 }
             }
-            let (bad, err) = first_bad.expect("some rows have a non-positive inverse depth");
-            assert!(bad >= 100, "{bad}");
+            let (bad, err) = first_bad.expect("row 150 has an infinite depth");
+            assert!((100..=150).contains(&bad), "{bad}");
+            assert_eq!(err, MlpError::NonFiniteOutput);
             // Up to the first bad row the bits agree; the error names that row.
             let got = p.predict(&x[..bad * ni]).unwrap();
             assert_eq!(

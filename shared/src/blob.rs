@@ -646,9 +646,19 @@ mod tests {
         let mut out = [0.0f32; 3];
         b.infer(&x, &mut out).unwrap();
         assert_eq!(out, [want[0] / w, want[1] / w, 1.0 / w]);
-        // A non-positive inverse depth is refused.
+        // A negative inverse depth is a negative depth; a zero one is refused.
         b.out_offset[2] -= 2.0;
-        assert_eq!(b.infer(&x, &mut out), Err(MlpError::NonFiniteOutput));
+        b.infer(&x, &mut out).unwrap();
+        assert!(out[2] < 0.0);
+        b.out_offset[2] = 0.0;
+        b.out_scale[2] = 0.0;
+        b.params[mlp::param_count(4, 5, 3) - 1] = 0.0;
+        assert_eq!(b.validate(), Err(BlobError::BadParameter), "zero scale");
+        let mut z = [0.5f32, 0.25, 0.0];
+        assert_eq!(
+            OutputMap::InverseDepth.apply(&mut z),
+            Err(MlpError::NonFiniteOutput)
+        );
     }
 
     #[test]

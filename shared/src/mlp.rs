@@ -52,8 +52,9 @@ pub enum OutputMap {
     /// The outputs are `X/Z, Y/Z, 1/Z` (1/cm for the last; or `1/Z` alone for a Z-only
     /// model): `X = o0 / o2`, `Y = o1 / o2`, `Z = 1 / o2`. For a pinhole rig these are close to
     /// affine in the pixels (exactly so for parallel cameras), which the sigmoid layer fits far
-    /// better than `X, Y, Z` themselves. `o2 <= 0` (a point at or beyond infinity) is refused as
-    /// [`MlpError::NonFiniteOutput`].
+    /// better than `X, Y, Z` themselves. As with `X, Y, Z` outputs, only a non-finite result
+    /// is refused ([`MlpError::NonFiniteOutput`]: `o2 = 0`, or an overflow); a negative `o2`
+    /// (far outside the training box) gives a negative depth.
     InverseDepth,
 }
 
@@ -64,11 +65,10 @@ impl OutputMap {
         match self {
             OutputMap::Direct => Ok(()),
             OutputMap::InverseDepth => {
-                let w = match y.last() {
-                    Some(w) if *w > 0.0 => *w,
-                    _ => return Err(MlpError::NonFiniteOutput),
+                let (n, w) = match y.last() {
+                    Some(w) => (y.len(), *w),
+                    None => return Err(MlpError::Shape),
                 };
-                let n = y.len();
                 for v in y[..n - 1].iter_mut() {
                     *v /= w;
                 }
@@ -88,8 +88,7 @@ impl OutputMap {
 pub enum MlpError {
     /// An input is NaN or infinite.
     NonFiniteInput,
-    /// The result is NaN or infinite (a broken model), or an inverse-depth model's `1/Z` is
-    /// not positive.
+    /// The result is NaN or infinite (a broken model, or an inverse-depth model's `1/Z` is 0).
     NonFiniteOutput,
     /// Slice lengths do not match the topology.
     Shape,

@@ -29,7 +29,10 @@ fn check(model: &str, predictions: &str, n_inputs: usize, hidden: u8) {
         b.infer(&v[..n_inputs], &mut out).unwrap();
         assert_eq!(
             out.map(f32::to_bits).to_vec(),
-            v[n_inputs..].iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            v[n_inputs..]
+                .iter()
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>(),
             "{model}: {line}"
         );
         rows += 1;

@@ -76,7 +76,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = OutputsArg::Xyz)]
     outputs: OutputsArg,
     /// Model family.
-    #[arg(long, value_enum, default_value_t = ArchArg::Thesis)]
+    #[arg(long, value_enum, default_value_t = ArchArg::InverseDepth)]
     arch: ArchArg,
     /// Training algorithm.
     #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]
@@ -225,8 +225,9 @@ fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained, algo: AlgoA
     let enrolled = oc.restarts.iter().filter(|r| r.enrolled).count();
     writeln!(
         o,
-        "trained {} ({:?}) on {} points of {} in {:.3} s",
+        "trained {} {} ({:?}) on {} points of {} in {:.3} s",
         model::shape(&t.blob),
+        t.blob.family.name(),
         algo,
         t.blob.meta.train_points,
         data.display(),
