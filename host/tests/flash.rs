@@ -34,6 +34,8 @@ fn model(generation: u32) -> ModelBlob {
             restarts: 1,
         },
         fallback: None,
+        family: hvs_shared::runtime::blob::Family::THESIS,
+        matcher: None,
     }
 }
 

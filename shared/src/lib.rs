@@ -6,8 +6,8 @@
 //!
 //! - [`runtime`]: what the head runs.
 //!   - [`runtime::mlp`]: fixed-size f32 MLP inference with scaling inside the model.
-//!   - [`runtime::blob`]: the one weights format, on flash and on disk (postcard + CRC-32);
-//!     [`runtime::blob_in_place`] decodes it into an existing blob (the head's small stack).
+//!   - [`runtime::blob`]: the one weights format, on flash and on disk (postcard + CRC-32),
+//!     decoded in place on the head (its small stack).
 //!   - [`runtime::activation`]: micromath's `exp` as a candidate fast sigmoid (evaluated).
 //!   - [`runtime::layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
 //!   - [`runtime::slots`]: pure rules: which slot boots, which one a new model is written to.

@@ -7,8 +7,8 @@
 //! (joints, degrees).
 
 use crate::runtime::blob::{
-    Algorithm, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_INPUTS, MAX_OUTPUTS,
-    MAX_PARAMS,
+    Algorithm, Family, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_INPUTS,
+    MAX_OUTPUTS, MAX_PARAMS,
 };
 use crate::runtime::mlp::{param_count, Activation};
 use crate::runtime::traditional::Calibration;
@@ -31,6 +31,8 @@ pub struct SampleSpec {
     pub amplitude: f32,
     /// The traditional method's calibration carried as the fallback.
     pub fallback: Option<Calibration>,
+    /// The model family (how the outputs map to cm).
+    pub family: Family,
 }
 
 impl SampleSpec {
@@ -43,6 +45,7 @@ impl SampleSpec {
         seed: 0,
         amplitude: 1.0,
         fallback: None,
+        family: Family::THESIS,
     };
 
     /// This spec with `hidden` neurons.
@@ -60,6 +63,10 @@ impl SampleSpec {
     /// This spec at `generation`.
     pub const fn generation(self, generation: u32) -> SampleSpec {
         SampleSpec { generation, ..self }
+    }
+    /// This spec in `family`.
+    pub const fn family(self, family: Family) -> SampleSpec {
+        SampleSpec { family, ..self }
     }
     /// This spec with weights from `seed`.
     pub const fn seed(self, seed: u64) -> SampleSpec {
@@ -135,6 +142,8 @@ pub fn sample(spec: SampleSpec) -> ModelBlob {
             restarts: 1,
         },
         fallback: spec.fallback,
+        family: spec.family,
+        matcher: None,
     }
 }
 

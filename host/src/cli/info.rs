@@ -2,7 +2,6 @@
 
 use crate::data::model::{self, input_names, output_names};
 use anyhow::Result;
-use hvs_shared::runtime::blob::VERSION;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -30,8 +29,9 @@ pub fn run(a: Args) -> Result<()> {
     let trailing = f.file_len - f.blob_len;
     writeln!(
         o,
-        "size:        {} bytes (HVSW v{VERSION}, payload {} bytes{})",
+        "size:        {} bytes (HVSW v{}, payload {} bytes{})",
         f.file_len,
+        f.version,
         f.blob_len - hvs_shared::runtime::blob::HEADER_LEN - hvs_shared::runtime::blob::CRC_LEN,
         if trailing > 0 {
             format!(", {trailing} trailing bytes ignored")
@@ -51,6 +51,24 @@ pub fn run(a: Args) -> Result<()> {
         b.topology.output_activation,
         b.params.len()
     )?;
+    writeln!(
+        o,
+        "family:      {} ({}, sigmoid exp {:?})",
+        b.family.name(),
+        match b.family.output_map {
+            hvs_shared::runtime::mlp::OutputMap::Direct => "outputs are X, Y, Z in cm",
+            hvs_shared::runtime::mlp::OutputMap::InverseDepth =>
+                "outputs are X/Z, Y/Z, 1/Z: X = o0/o2, Y = o1/o2, Z = 1/o2",
+        },
+        b.family.exp
+    )?;
+    if let Some(g) = &b.matcher {
+        writeln!(
+            o,
+            "matcher:     fundamental matrix {:?}, training box {:?} .. {:?} cm",
+            g.fundamental, g.out_min, g.out_max
+        )?;
+    }
     let m = &b.meta;
     writeln!(
         o,

@@ -6,7 +6,7 @@ use crate::data::model;
 use crate::train::fallback::{self, FallbackFit};
 use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
 use anyhow::{bail, Context, Result};
-use hvs_shared::runtime::blob::{ModelBlob, OutputKind, MAX_HIDDEN};
+use hvs_shared::runtime::blob::{Family, ModelBlob, OutputKind, MAX_HIDDEN};
 use hvs_shared::runtime::traditional::Calibration;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -29,6 +29,26 @@ pub enum OutputsArg {
     Xyz,
     /// Z only.
     Z,
+}
+
+/// Model family (command-line form).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ArchArg {
+    /// The thesis' net, kept exactly: X, Y, Z outputs (what `hvs experiment thesis` uses).
+    Thesis,
+    /// The same net trained to output X/Z, Y/Z, 1/Z; the model divides (X = o0/o2, Y = o1/o2,
+    /// Z = 1/o2).
+    InverseDepth,
+}
+
+impl ArchArg {
+    /// The blob's family.
+    pub fn family(self) -> Family {
+        match self {
+            ArchArg::Thesis => Family::THESIS,
+            ArchArg::InverseDepth => Family::INVERSE_DEPTH,
+        }
+    }
 }
 
 /// Arguments of `hvs train`.
@@ -55,6 +75,9 @@ pub struct Args {
     /// Outputs of the net.
     #[arg(long, value_enum, default_value_t = OutputsArg::Xyz)]
     outputs: OutputsArg,
+    /// Model family.
+    #[arg(long, value_enum, default_value_t = ArchArg::InverseDepth)]
+    arch: ArchArg,
     /// Training algorithm.
     #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]
     algo: AlgoArg,
@@ -181,6 +204,7 @@ pub fn run(a: Args) -> Result<()> {
             max_cycles: a.max_cycles,
         },
         progress: std::io::stderr().is_terminal(),
+        family: a.arch.family(),
     };
     let table = read_set(&a.data, Inputs::Auto, true)?;
     let plan = Plan {
@@ -201,8 +225,9 @@ fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained, algo: AlgoA
     let enrolled = oc.restarts.iter().filter(|r| r.enrolled).count();
     writeln!(
         o,
-        "trained {} ({:?}) on {} points of {} in {:.3} s",
+        "trained {} {} ({:?}) on {} points of {} in {:.3} s",
         model::shape(&t.blob),
+        t.blob.family.name(),
         algo,
         t.blob.meta.train_points,
         data.display(),

@@ -19,6 +19,8 @@ pub struct ModelFile {
     pub blob_len: usize,
     /// The CRC-32 stored in (and matching) the blob.
     pub crc: u32,
+    /// The file's blob format version (1 or 2).
+    pub version: u16,
 }
 
 /// Reads and fully checks a model file. The error says which check failed.
@@ -38,6 +40,7 @@ pub fn check(bytes: &[u8]) -> Result<ModelFile, String> {
                 file_len: bytes.len(),
                 blob_len,
                 crc,
+                version: u16::from_le_bytes([bytes[4], bytes[5]]),
             })
         }
         Err(e) => Err(explain(bytes, e)),

@@ -456,6 +456,8 @@ mod tests {
                 restarts: 1,
             },
             fallback: None,
+            family: hvs_shared::runtime::blob::Family::THESIS,
+            matcher: None,
         }
     }
 

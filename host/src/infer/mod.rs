@@ -4,13 +4,13 @@
 //! Common topologies (4 or 9 inputs, 1-10 hidden units, 1 or 3 outputs) run through the
 //! fixed-size `hvs_shared::runtime::mlp::Mlp<I, H, O>` evaluated `lanes::LANES` points at a time by
 //! the auto-vectorised, bit-identical kernel in `lanes` (including a lane-wise
-//! `libm::expf`); anything else through the runtime-sized `infer_flat`. Both give the same
+//! `libm::expf`), then the family's output map (`OutputMap`, per row); anything else through the runtime-sized `infer_flat`. Both give the same
 //! bits (a property test in `hvs-shared`, and the tests here and in `lanes`). Large batches
 //! are split into chunks run in parallel with `rayon`; the result does not depend on the
 //! thread count.
 
 use hvs_shared::runtime::blob::ModelBlob;
-use hvs_shared::runtime::mlp::{Mlp, MlpError};
+use hvs_shared::runtime::mlp::{Mlp, MlpError, OutputMap};
 use rayon::prelude::*;
 
 mod lanes;
@@ -43,8 +43,26 @@ pub struct Predictor<'a> {
 
 fn fixed<const I: usize, const H: usize, const O: usize>(blob: &ModelBlob) -> Option<Kernel> {
     let m: Mlp<I, H, O> = blob.to_mlp().ok()?;
+    let map = blob.family.output_map;
+    if map == OutputMap::Direct {
+        return Some(Kernel::Fixed(Box::new(
+            move |x: &[f32], out: &mut [f32]| lanes::run(&m, x, out),
+        )));
+    }
+    // The lanes stop at the de-normalised outputs; the family's map follows row by row (the
+    // rows before a failing one are written, so the first failure is reported either way).
     Some(Kernel::Fixed(Box::new(
-        move |x: &[f32], out: &mut [f32]| lanes::run(&m, x, out),
+        move |x: &[f32], out: &mut [f32]| {
+            let done = lanes::run(&m, x, out);
+            let rows = match done {
+                Ok(()) => out.len() / O,
+                Err((r, _)) => r,
+            };
+            for (r, o) in out.chunks_exact_mut(O).take(rows).enumerate() {
+                map.apply(o).map_err(|e| (r, e))?;
+            }
+            done
+        },
     )))
 }
 
@@ -211,6 +229,8 @@ pub(crate) mod tests {
                 restarts: 1,
             },
             fallback: None,
+            family: hvs_shared::runtime::blob::Family::THESIS,
+            matcher: None,
         }
     }
 
@@ -243,6 +263,75 @@ pub(crate) mod tests {
                     assert_eq!(serial[r * o.len() + k].to_bits(), want[k].to_bits());
                 }
             }
+        }
+    }
+
+    #[test]
+    fn inverse_depth_family_gives_the_bits_of_the_shared_inference() {
+        for (h, o, i, fixed) in [
+            (5, OutputKind::Xyz, InputKind::Stereo, true),
+            (5, OutputKind::Z, InputKind::Stereo, true),
+            (7, OutputKind::Xyz, InputKind::StereoJoints, true),
+            (17, OutputKind::Xyz, InputKind::Stereo, false),
+        ] {
+            let mut b = blob(h, o, i);
+            let no = o.len();
+            let ni = i.len();
+            let n = 3000;
+            let x: Vec<f32> = (0..(n * ni) as u64)
+                .map(|k| {
+                    let h = (k + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                    if (k as usize) % ni < 4 {
+                        200.0 + (h % 24_000) as f32 / 100.0
+                    } else {
+                        (h % 4_000) as f32 / 100.0 - 20.0
+                    }
+                })
+                .collect();
+            // Offset the last output by minus row 150's value: its 1/Z (and that of any row
+            // with the same value) is exactly 0, an infinite depth; the rows below it are
+            // negative depths, still estimates.
+            b.out_offset[no - 1] = 0.0;
+            let last: Vec<f32> = (0..n)
+                .map(|r| {
+                    let mut y = [0.0f32; 3];
+                    b.infer(&x[r * ni..(r + 1) * ni], &mut y[..no]).unwrap();
+                    y[no - 1]
+                })
+                .collect();
+            b.out_offset[no - 1] = -last[150];
+            b.family = hvs_shared::runtime::blob::Family::INVERSE_DEPTH;
+            let p = Predictor::new(&b);
+            assert_eq!(p.is_fixed(), fixed);
+            let mut first_bad = None;
+            let mut want = vec![0.0f32; n * no];
+            for r in 0..n {
+                match b.infer(&x[r * ni..(r + 1) * ni], &mut want[r * no..(r + 1) * no]) {
+                    Ok(()) => {}
+                    Err(e) => {
+                        first_bad.get_or_insert((r, e));
+                    }
+                }
+            }
+            let (bad, err) = first_bad.expect("row 150 has an infinite depth");
+            assert!((100..=150).contains(&bad), "{bad}");
+            assert_eq!(err, MlpError::NonFiniteOutput);
+            // Up to the first bad row the bits agree; the error names that row.
+            let got = p.predict(&x[..bad * ni]).unwrap();
+            assert_eq!(
+                got.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                want[..bad * no]
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>()
+            );
+            assert_eq!(
+                p.predict(&x).unwrap_err(),
+                PointError {
+                    index: bad,
+                    error: err
+                }
+            );
         }
     }
 

@@ -37,14 +37,15 @@ mod bp;
 pub mod fallback;
 mod lm;
 mod net;
+mod noise;
 mod rng;
 
 use crate::data::dataset::Dataset;
 use anyhow::{bail, Result};
 use hvs_shared::runtime::blob::{
-    Algorithm, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_HIDDEN, MAX_INPUTS,
+    Algorithm, Family, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_HIDDEN, MAX_INPUTS,
 };
-use hvs_shared::runtime::mlp::Activation;
+use hvs_shared::runtime::mlp::{Activation, OutputMap};
 use hvs_shared::sim::metrics::EmaAcc;
 use net::{Problem, Shape};
 use rayon::prelude::*;
@@ -67,6 +68,18 @@ const LM_OPTIONS: lm::LmOptions = lm::LmOptions {
     patience: 4,
     weight_decay: WEIGHT_DECAY,
 };
+
+/// LM settings of a family on `data`: the thesis family's are fixed ([`LM_OPTIONS`]); the
+/// inverse-depth family's weight decay follows the pixel noise of the data (`noise`).
+fn lm_options(f: Family, data: &Dataset) -> lm::LmOptions {
+    if f == Family::THESIS {
+        return LM_OPTIONS;
+    }
+    lm::LmOptions {
+        weight_decay: noise::decay(data),
+        ..LM_OPTIONS
+    }
+}
 
 /// Training algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -115,6 +128,9 @@ pub struct TrainConfig {
     pub bp: BpParams,
     /// Draw a progress bar on stderr.
     pub progress: bool,
+    /// Model family: what the outputs are ([`Family::THESIS`]: X, Y, Z;
+    /// [`Family::INVERSE_DEPTH`]: X/Z, Y/Z, 1/Z).
+    pub family: Family,
 }
 
 impl Default for TrainConfig {
@@ -129,6 +145,7 @@ impl Default for TrainConfig {
             seed: 0,
             bp: BpParams::default(),
             progress: false,
+            family: Family::THESIS,
         }
     }
 }
@@ -180,7 +197,27 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 /// Smallest range treated as a varying column; below it the column is held constant.
 const MIN_SPAN: f64 = 1e-6;
 
-fn scaling(data: &Dataset, out_cols: &[usize], act: Activation) -> Scaling {
+/// What output column `col` of `[x, y, z]` is trained on under `map`.
+fn target_value(map: OutputMap, col: usize, t: &[f64; 3]) -> f64 {
+    match map {
+        OutputMap::Direct => t[col],
+        OutputMap::InverseDepth if col == 2 => 1.0 / t[2],
+        OutputMap::InverseDepth => t[col] / t[2],
+    }
+}
+
+/// Weight of the residual of output column `col` (in normalised units, output scale `scale`)
+/// so that it is the error in cm relative to the true depth `t[2]`, to first order: `X, Y, Z`
+/// directly; `X/Z, Y/Z` as they are (`dX / Z = d(X/Z)`), `1/Z` times `Z` (`dZ / Z = Z d(1/Z)`).
+fn residual_weight(map: OutputMap, col: usize, scale: f64, t: &[f64; 3]) -> f64 {
+    match map {
+        OutputMap::Direct => scale / t[2],
+        OutputMap::InverseDepth if col == 2 => scale * t[2],
+        OutputMap::InverseDepth => scale,
+    }
+}
+
+fn scaling(data: &Dataset, out_cols: &[usize], act: Activation, map: OutputMap) -> Scaling {
     let ni = data.n_inputs;
     let mut s = Scaling {
         in_offset: Vec::new(),
@@ -207,7 +244,7 @@ fn scaling(data: &Dataset, out_cols: &[usize], act: Activation) -> Scaling {
             .push(if span > MIN_SPAN { 2.0 / span } else { 1.0 } as f32);
     }
     for &k in out_cols {
-        let (lo, hi) = range(data.targets.iter().map(|t| t[k]));
+        let (lo, hi) = range(data.targets.iter().map(|t| target_value(map, k, t)));
         let span = hi - lo;
         let (off, scale) = match act {
             // y = a * scale + offset maps a in [-1, 1] onto [lo, hi].
@@ -251,11 +288,12 @@ fn problem(data: &Dataset, cfg: &TrainConfig, sc: &Scaling) -> Problem {
     for target in &data.targets {
         for (k, &col) in cols.iter().enumerate() {
             let (off, scale) = (sc.out_offset[k] as f64, sc.out_scale[k] as f64);
-            t.push((target[col] - off) / scale);
+            let map = cfg.family.output_map;
+            t.push((target_value(map, col, target) - off) / scale);
             // Residual in cm relative to the true depth; back-propagation keeps the thesis'
             // unweighted error (eq. 2.1-5).
             c.push(match cfg.algo {
-                Algo::Lm | Algo::Adam => scale / target[2],
+                Algo::Lm | Algo::Adam => residual_weight(map, col, scale, target),
                 Algo::Bp => 1.0,
             });
         }
@@ -321,6 +359,8 @@ fn export(
             restarts: u16::try_from(cfg.restarts).ok()?,
         },
         fallback: None,
+        family: cfg.family,
+        matcher: None,
     };
     blob.validate().ok()?;
     Some(blob)
@@ -413,8 +453,9 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     check(data, cfg)?;
     let act = cfg.algo.output_activation();
     let (cols, _) = output_columns(cfg.outputs);
-    let sc = scaling(data, cols, act);
+    let sc = scaling(data, cols, act, cfg.family.output_map);
     let prob = problem(data, cfg, &sc);
+    let lm_opts = lm_options(cfg.family, data);
 
     let bar = cfg.progress.then(|| {
         let b = indicatif::ProgressBar::new(cfg.restarts as u64);
@@ -433,7 +474,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
             let mut rng = SplitMix64::for_restart(cfg.seed, index);
             let mut p = initial_params(&prob.shape, &mut rng);
             let iterations = match cfg.algo {
-                Algo::Lm => lm::fit(&prob, &mut p, &LM_OPTIONS).iterations,
+                Algo::Lm => lm::fit(&prob, &mut p, &lm_opts).iterations,
                 Algo::Adam => adam::fit(&prob, &mut p, &adam::AdamOptions::default()).epochs,
                 Algo::Bp => bp::fit(&prob, &mut p, &cfg.bp).cycles,
             };

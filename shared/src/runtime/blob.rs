@@ -5,25 +5,37 @@
 //! | bytes | field |
 //! |---|---|
 //! | 0..4 | [`MAGIC`] `b"HVSW"` |
-//! | 4..6 | format [`VERSION`] (u16) |
+//! | 4..6 | format version (u16): [`VERSION`] 2, or 1 (read, never written) |
 //! | 6..10 | payload length `n` (u32), at most [`MAX_PAYLOAD_LEN`] |
 //! | 10..10+n | payload: [`ModelBlob`] in `postcard` |
 //! | 10+n..14+n | CRC-32 (ISO-HDLC, as zlib) of bytes `0..10+n` |
+//!
+//! The payload is the fields of [`ModelBlob`] in declaration order. Version 2 added the last
+//! two, [`ModelBlob::family`] (how the outputs become cm, which exp the sigmoid uses) and
+//! [`ModelBlob::matcher`] (optional stereo-matcher geometry); a version-1 payload is the same
+//! bytes without them and decodes as the thesis family ([`Family::THESIS`]) with no matcher
+//! geometry: the decoder appends those defaults' encoding (3 bytes) to a stack copy of the
+//! payload, so one deserializer reads both versions.
 //!
 //! Bytes after the CRC are ignored (a flash slot is larger than any blob). Decoding works
 //! from a `&[u8]` with no allocation, checks everything before trusting anything, and returns
 //! a distinct [`BlobError`] for each way a blob can be wrong. A blob whose bytes decode has a
 //! consistent topology, finite parameters and non-zero scales.
 
-use crate::runtime::mlp::{self, Activation, FlatMlp, Mlp, MlpError};
+use crate::runtime::mlp::{self, Activation, FlatMlp, Mlp, MlpError, OutputMap};
 use crate::runtime::traditional::Calibration;
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"HVSW";
-/// The format version this crate writes and reads.
-pub const VERSION: u16 = 1;
+/// The format version this crate writes (it also reads [`VERSION_1`]).
+pub const VERSION: u16 = 2;
+/// The first format version: no [`ModelBlob::family`] and [`ModelBlob::matcher`] fields.
+pub const VERSION_1: u16 = 1;
+/// Postcard bytes of `(Family::THESIS, None::<MatcherGeometry>)`: what a version-1 payload
+/// lacks.
+const V1_TAIL: [u8; 3] = [0, 0, 0];
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 10;
 /// Bytes of the trailing CRC.
@@ -80,7 +92,7 @@ impl core::fmt::Display for BlobError {
             BlobError::BadMagic => f.write_str("not an hvs weights blob (bad magic)"),
             BlobError::UnsupportedVersion(v) => write!(
                 f,
-                "unsupported blob format version {v} (this build reads {VERSION})"
+                "unsupported blob format version {v} (this build reads {VERSION_1} and {VERSION})"
             ),
             BlobError::Truncated => f.write_str("blob is truncated"),
             BlobError::TooLarge => f.write_str("blob payload length exceeds the maximum"),
@@ -187,6 +199,68 @@ pub struct TrainingMeta {
     pub restarts: u16,
 }
 
+/// Which `exp` the sigmoid uses. Extensible: a faster approximation for the firmware would be
+/// a new variant (new models only; every variant must give the same bits on host and head).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ExpKind {
+    /// `libm::expf` (libm 0.2), what every model so far uses.
+    LibmExp,
+}
+
+/// The model family: what the net's outputs mean and how its activation is computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Family {
+    /// How the de-normalised outputs become cm.
+    pub output_map: OutputMap,
+    /// The sigmoid's exp.
+    pub exp: ExpKind,
+}
+
+impl Family {
+    /// The thesis' net: `X, Y, Z` outputs, libm exp (every version-1 blob).
+    pub const THESIS: Family = Family {
+        output_map: OutputMap::Direct,
+        exp: ExpKind::LibmExp,
+    };
+    /// Inverse-depth outputs `X/Z, Y/Z, 1/Z`, libm exp.
+    pub const INVERSE_DEPTH: Family = Family {
+        output_map: OutputMap::InverseDepth,
+        exp: ExpKind::LibmExp,
+    };
+    /// Short name (`thesis`, `inverse-depth`), as `hvs train --arch` takes it.
+    pub fn name(&self) -> &'static str {
+        match self.output_map {
+            OutputMap::Direct => "thesis",
+            OutputMap::InverseDepth => "inverse-depth",
+        }
+    }
+}
+
+/// Geometry for the run-time stereo matcher, fitted to the training correspondences (the
+/// fitting lives with the matcher, not here).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MatcherGeometry {
+    /// Fundamental matrix `F` with `[u_r, v_r, 1] F [u_l, v_l, 1]^T = 0` for a matched pair.
+    pub fundamental: [[f64; 3]; 3],
+    /// Smallest `X, Y, Z` (cm) of the training targets; `out_min[2]..out_max[2]` is the depth
+    /// range the matcher searches.
+    pub out_min: [f32; 3],
+    /// Largest `X, Y, Z` (cm) of the training targets.
+    pub out_max: [f32; 3],
+}
+
+impl MatcherGeometry {
+    /// Finite entries, a non-empty box.
+    pub fn is_valid(&self) -> bool {
+        self.fundamental.iter().flatten().all(|v| v.is_finite())
+            && self
+                .out_min
+                .iter()
+                .zip(&self.out_max)
+                .all(|(lo, hi)| lo.is_finite() && hi.is_finite() && lo <= hi)
+    }
+}
+
 /// A model as stored: the decoded payload of a blob.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ModelBlob {
@@ -213,6 +287,10 @@ pub struct ModelBlob {
     /// The traditional method's calibration fitted on the same data (eq. 4.1-3), if the data
     /// allowed it.
     pub fallback: Option<Calibration>,
+    /// The model family (format version 2; [`Family::THESIS`] for a version-1 blob).
+    pub family: Family,
+    /// Stereo-matcher geometry, if fitted (format version 2; `None` for a version-1 blob).
+    pub matcher: Option<MatcherGeometry>,
 }
 
 impl ModelBlob {
@@ -263,6 +341,11 @@ impl ModelBlob {
                 return Err(BlobError::BadParameter);
             }
         }
+        if let Some(m) = &self.matcher {
+            if !m.is_valid() {
+                return Err(BlobError::BadParameter);
+            }
+        }
         Ok(())
     }
 
@@ -279,9 +362,11 @@ impl ModelBlob {
         }
     }
 
-    /// Inference with whatever topology the blob holds; same bits as [`Mlp::infer`].
+    /// Inference with whatever topology the blob holds, in cm: [`mlp::infer_flat`] (same
+    /// bits as [`Mlp::infer`]) then the family's [`OutputMap`].
     pub fn infer(&self, x: &[f32], out: &mut [f32]) -> Result<(), MlpError> {
-        mlp::infer_flat(&self.flat(), x, out)
+        mlp::infer_flat(&self.flat(), x, out)?;
+        self.family.output_map.apply(out)
     }
 
     /// Whether every input lies inside the box seen in training.
@@ -292,7 +377,8 @@ impl ModelBlob {
                 .all(|(v, (lo, hi))| *v >= *lo && *v <= *hi)
     }
 
-    /// The model as a fixed-size [`Mlp`], if its topology is exactly `I-H-O`.
+    /// The model as a fixed-size [`Mlp`], if its topology is exactly `I-H-O`. The [`Mlp`] stops
+    /// at the de-normalised outputs: apply `self.family.output_map` to get cm.
     pub fn to_mlp<const I: usize, const H: usize, const O: usize>(
         &self,
     ) -> Result<Mlp<I, H, O>, BlobError> {
@@ -352,7 +438,7 @@ pub fn framed_len(bytes: &[u8]) -> Result<usize, BlobError> {
         return Err(BlobError::Truncated);
     }
     let version = u16::from_le_bytes([bytes[4], bytes[5]]);
-    if version != VERSION {
+    if version != VERSION && version != VERSION_1 {
         return Err(BlobError::UnsupportedVersion(version));
     }
     let n = u32::from_le_bytes([bytes[6], bytes[7], bytes[8], bytes[9]]) as usize;
@@ -364,6 +450,19 @@ pub fn framed_len(bytes: &[u8]) -> Result<usize, BlobError> {
 
 /// Decodes and validates the blob at the start of `bytes` (trailing bytes are ignored).
 pub fn decode(bytes: &[u8]) -> Result<ModelBlob, BlobError> {
+    let mut blob = placeholder();
+    decode_into(bytes, &mut blob)?;
+    Ok(blob)
+}
+
+/// [`decode`] into an existing blob, for the head's boot: the same checks in the same order
+/// (header, length, CRC, postcard payload with nothing left over, [`ModelBlob::validate`]),
+/// but the payload is deserialized field by field into `out` (serde's
+/// `deserialize_in_place`) instead of being built on the stack and moved out through several
+/// frames: on the Cortex-M4F this keeps boot's stack at a few KB (`firmware/measure.sh`
+/// reports the measured peak). `Ok` leaves exactly what [`decode`] returns in `out`; on `Err`,
+/// `out` holds some partly decoded blob that must not be used.
+pub fn decode_into(bytes: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
     let total = framed_len(bytes)?;
     if bytes.len() < total {
         return Err(BlobError::Truncated);
@@ -378,13 +477,72 @@ pub fn decode(bytes: &[u8]) -> Result<ModelBlob, BlobError> {
     if crc32(&bytes[..body]) != stored {
         return Err(BlobError::BadCrc);
     }
-    let (blob, rest): (ModelBlob, &[u8]) =
-        postcard::take_from_bytes(&bytes[HEADER_LEN..body]).map_err(|_| BlobError::Malformed)?;
-    if !rest.is_empty() {
+    let payload = &bytes[HEADER_LEN..body];
+    if u16::from_le_bytes([bytes[4], bytes[5]]) == VERSION_1 {
+        decode_v1_payload_into(payload, out)?;
+    } else {
+        payload_into(payload, out)?;
+    }
+    out.validate()
+}
+
+/// A version-1 payload is the version-2 one without its last two fields: it is read with their
+/// defaults ([`V1_TAIL`]: the thesis family, no matcher geometry) appended. Kept out of line,
+/// so the widened copy is on the stack only while a v1 blob is read.
+#[inline(never)]
+fn decode_v1_payload_into(payload: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
+    let mut widened = [0u8; MAX_PAYLOAD_LEN + V1_TAIL.len()];
+    widened[..payload.len()].copy_from_slice(payload);
+    widened[payload.len()..payload.len() + V1_TAIL.len()].copy_from_slice(&V1_TAIL);
+    payload_into(&widened[..payload.len() + V1_TAIL.len()], out)?;
+    // A version-1 payload with bytes after its last field could have read them as a family
+    // or matcher: it is malformed.
+    if out.family != Family::THESIS || out.matcher.is_some() {
         return Err(BlobError::Malformed);
     }
-    blob.validate()?;
-    Ok(blob)
+    Ok(())
+}
+
+fn payload_into(payload: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
+    let mut de = postcard::Deserializer::from_bytes(payload);
+    ModelBlob::deserialize_in_place(&mut de, out).map_err(|_| BlobError::Malformed)?;
+    let rest = de.finalize().map_err(|_| BlobError::Malformed)?;
+    if rest.is_empty() {
+        Ok(())
+    } else {
+        Err(BlobError::Malformed)
+    }
+}
+
+/// A blob with no parameters (it does not validate): a place to [`decode_into`].
+pub fn placeholder() -> ModelBlob {
+    ModelBlob {
+        generation: 0,
+        topology: Topology {
+            inputs: InputKind::Stereo,
+            hidden: 0,
+            outputs: OutputKind::Xyz,
+            output_activation: Activation::Linear,
+        },
+        in_offset: Vec::new(),
+        in_scale: Vec::new(),
+        out_offset: Vec::new(),
+        out_scale: Vec::new(),
+        params: Vec::new(),
+        in_min: Vec::new(),
+        in_max: Vec::new(),
+        meta: TrainingMeta {
+            seed: 0,
+            train_hash: 0,
+            train_points: 0,
+            train_error_pct: 0.0,
+            algorithm: Algorithm::Other,
+            restarts: 0,
+        },
+        fallback: None,
+        family: Family::THESIS,
+        matcher: None,
+    }
 }
 
 #[cfg(test)]
@@ -433,6 +591,8 @@ mod tests {
                 u0: 320.0,
                 v0: 240.0,
             }),
+            family: Family::THESIS,
+            matcher: None,
         }
     }
 
@@ -467,6 +627,101 @@ mod tests {
     }
 
     #[test]
+    fn v1_tail_is_the_encoding_of_the_defaults() {
+        let mut buf = [0u8; 8];
+        let n = postcard::to_slice(&(Family::THESIS, None::<MatcherGeometry>), &mut buf)
+            .unwrap()
+            .len();
+        assert_eq!(buf[..n], V1_TAIL);
+    }
+
+    /// The v1 framing of `b` (a thesis-family blob without matcher geometry): the v2 payload
+    /// minus its tail, version 1, fresh CRC.
+    fn as_v1(b: &ModelBlob) -> StdVec<u8> {
+        let v2 = bytes(b);
+        let n = v2.len() - HEADER_LEN - CRC_LEN - V1_TAIL.len();
+        let mut v = StdVec::from(&v2[..HEADER_LEN + n]);
+        v[4..6].copy_from_slice(&VERSION_1.to_le_bytes());
+        v[6..10].copy_from_slice(&(n as u32).to_le_bytes());
+        let crc = crc32(&v);
+        v.extend_from_slice(&crc.to_le_bytes());
+        v
+    }
+
+    #[test]
+    fn version_1_decodes_as_the_thesis_family_and_v2_keeps_family_and_matcher() {
+        let b = sample(5, 4);
+        let v1 = as_v1(&b);
+        assert_eq!(decode(&v1).unwrap(), b);
+        // A v1 payload with anything after its fields is malformed, even if the extra bytes
+        // would complete a family or a matcher.
+        let mut extra = StdVec::from(&v1[..v1.len() - CRC_LEN]);
+        let n = extra.len() - HEADER_LEN + 3;
+        extra[6..10].copy_from_slice(&(n as u32).to_le_bytes());
+        extra.extend_from_slice(&[1, 0, 0]);
+        let crc = crc32(&extra);
+        extra.extend_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&extra), Err(BlobError::Malformed));
+        let mut m = b.clone();
+        m.family = Family::INVERSE_DEPTH;
+        m.matcher = Some(MatcherGeometry {
+            fundamental: [[0.0, -1e-5, 2e-3], [1e-5, 0.0, -0.3], [-2e-3, 0.3, 1.0]],
+            out_min: [-3.0, -2.0, 65.0],
+            out_max: [3.0, 2.0, 165.0],
+        });
+        let v = bytes(&m);
+        assert_eq!(u16::from_le_bytes([v[4], v[5]]), VERSION);
+        assert_eq!(decode(&v).unwrap(), m);
+        let mut bad = m.clone();
+        if let Some(g) = bad.matcher.as_mut() {
+            g.out_min[2] = 200.0;
+        }
+        assert_eq!(
+            bad.encode(&mut [0u8; MAX_BLOB_LEN]),
+            Err(BlobError::BadParameter)
+        );
+        if let Some(g) = bad.matcher.as_mut() {
+            g.out_min[2] = 65.0;
+            g.fundamental[1][1] = f64::NAN;
+        }
+        assert_eq!(
+            bad.encode(&mut [0u8; MAX_BLOB_LEN]),
+            Err(BlobError::BadParameter)
+        );
+    }
+
+    #[test]
+    fn inverse_depth_outputs_become_cm() {
+        let mut b = sample(5, 2);
+        let x = [330.0, 235.0, 300.0, 238.0];
+        let mut raw = [0.0f32; 3];
+        b.infer(&x, &mut raw).unwrap();
+        b.family = Family::INVERSE_DEPTH;
+        // Make the last raw output positive: o2 = raw[2] * 1 + offset.
+        b.out_offset[2] += 1.0 - raw[2];
+        let mut want = [0.0f32; 3];
+        mlp::infer_flat(&b.flat(), &x, &mut want).unwrap();
+        let w = want[2];
+        assert!(w > 0.0);
+        let mut out = [0.0f32; 3];
+        b.infer(&x, &mut out).unwrap();
+        assert_eq!(out, [want[0] / w, want[1] / w, 1.0 / w]);
+        // A negative inverse depth is a negative depth; a zero one is refused.
+        b.out_offset[2] -= 2.0;
+        b.infer(&x, &mut out).unwrap();
+        assert!(out[2] < 0.0);
+        b.out_offset[2] = 0.0;
+        b.out_scale[2] = 0.0;
+        b.params[mlp::param_count(4, 5, 3) - 1] = 0.0;
+        assert_eq!(b.validate(), Err(BlobError::BadParameter), "zero scale");
+        let mut z = [0.5f32, 0.25, 0.0];
+        assert_eq!(
+            OutputMap::InverseDepth.apply(&mut z),
+            Err(MlpError::NonFiniteOutput)
+        );
+    }
+
+    #[test]
     fn largest_topology_fits() {
         let i = InputKind::StereoJoints.len();
         let mut b = sample(5, 0);
@@ -477,6 +732,12 @@ mod tests {
             output_activation: Activation::Sigmoid,
         };
         b.params = Vec::from_slice(&[0.5; mlp::param_count(9, MAX_HIDDEN, 3)]).unwrap();
+        b.family = Family::INVERSE_DEPTH;
+        b.matcher = Some(MatcherGeometry {
+            fundamental: [[1.0; 3]; 3],
+            out_min: [0.0; 3],
+            out_max: [1.0; 3],
+        });
         for v in [
             &mut b.in_offset,
             &mut b.in_scale,
@@ -500,8 +761,8 @@ mod tests {
         assert_eq!(decode(&[0u8; 64]), Err(BlobError::BadMagic));
         assert_eq!(decode(&[0xFFu8; 64]), Err(BlobError::BadMagic));
         let mut m = v.clone();
-        m[4] = 2;
-        assert_eq!(decode(&m), Err(BlobError::UnsupportedVersion(2)));
+        m[4] = 3;
+        assert_eq!(decode(&m), Err(BlobError::UnsupportedVersion(3)));
         assert_eq!(decode(&v[..v.len() - 1]), Err(BlobError::Truncated));
         assert_eq!(decode(&v[..2]), Err(BlobError::Truncated));
         let mut m = v.clone();
@@ -571,5 +832,134 @@ mod tests {
         fn random_bytes_never_decode_or_panic(v in proptest::collection::vec(any::<u8>(), 0..300)) {
             prop_assert!(decode(&v).is_err());
         }
+    }
+}
+
+#[cfg(test)]
+mod in_place_tests {
+    extern crate std;
+
+    use super::*;
+    use crate::runtime::blob;
+    use crate::runtime::mlp::param_count;
+    use std::vec::Vec as StdVec;
+
+    fn sample(hidden: u8, inputs: InputKind, seed: u64, fallback: bool) -> ModelBlob {
+        let n_in = inputs.len();
+        let mut b = placeholder();
+        b.generation = seed as u32 + 1;
+        b.topology = Topology {
+            inputs,
+            hidden,
+            outputs: OutputKind::Xyz,
+            output_activation: if seed % 2 == 0 {
+                Activation::Linear
+            } else {
+                Activation::Sigmoid
+            },
+        };
+        for k in 0..param_count(n_in, hidden as usize, 3) {
+            let r = ((k as u64 * 2_654_435_761 + seed) % 2000) as f32 / 1000.0 - 1.0;
+            b.params.push(r).unwrap();
+        }
+        for i in 0..n_in {
+            b.in_offset.push(300.0 + i as f32).unwrap();
+            b.in_scale.push(0.02 + i as f32 * 0.001).unwrap();
+            b.in_min.push(-1.0 - i as f32).unwrap();
+            b.in_max.push(600.0 + i as f32).unwrap();
+        }
+        for k in 0..3 {
+            b.out_offset.push(k as f32 * 50.0).unwrap();
+            b.out_scale.push(3.0 + k as f32).unwrap();
+        }
+        b.meta = TrainingMeta {
+            seed,
+            train_hash: seed.wrapping_mul(0x9e37_79b9_7f4a_7c15),
+            train_points: 72,
+            train_error_pct: 1.5,
+            algorithm: Algorithm::Lm,
+            restarts: 3,
+        };
+        b.fallback = fallback.then_some(Calibration::BUILT_IN);
+        b
+    }
+
+    fn encode(b: &ModelBlob) -> StdVec<u8> {
+        let mut buf = std::vec![0u8; MAX_BLOB_LEN];
+        let n = b.encode(&mut buf).unwrap();
+        buf.truncate(n);
+        buf
+    }
+
+    /// Re-frames `payload` with a correct header and CRC (so the payload itself is judged).
+    fn frame(payload: &[u8]) -> StdVec<u8> {
+        let mut v = StdVec::from(&b"HVSW"[..]);
+        v.extend_from_slice(&blob::VERSION.to_le_bytes());
+        v.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+        v.extend_from_slice(payload);
+        let crc = blob::crc32(&v);
+        v.extend_from_slice(&crc.to_le_bytes());
+        v
+    }
+
+    fn agree(bytes: &[u8]) {
+        // A dirty place: what a previous slot left there.
+        let mut place = sample(7, InputKind::StereoJoints, 99, true);
+        let got = decode_into(bytes, &mut place);
+        match decode(bytes) {
+            Ok(want) => {
+                assert_eq!(got, Ok(()));
+                assert_eq!(place, want);
+            }
+            Err(e) => assert_eq!(got, Err(e)),
+        }
+    }
+
+    #[test]
+    fn agrees_with_decode_on_valid_and_broken_blobs() {
+        let blobs = [
+            sample(5, InputKind::Stereo, 1, true),
+            sample(16, InputKind::StereoJoints, 2, false),
+            sample(1, InputKind::Stereo, 3, false),
+            sample(32, InputKind::StereoJoints, 4, true),
+        ];
+        let mut cases = 0;
+        for b in &blobs {
+            let bytes = encode(b);
+            agree(&bytes);
+            let mut padded = bytes.clone();
+            padded.resize(MAX_BLOB_LEN, 0xff);
+            agree(&padded);
+            // Every truncation and a bit flip in every byte (header, payload, CRC).
+            for n in 0..bytes.len() {
+                agree(&bytes[..n]);
+                let mut flipped = bytes.clone();
+                flipped[n] ^= 1 << (n % 8);
+                agree(&flipped);
+                cases += 2;
+            }
+            // Payloads with a valid CRC that are not a valid blob: cut short, one byte too
+            // many, a length prefix changed.
+            let payload = &bytes[HEADER_LEN..bytes.len() - CRC_LEN];
+            for n in [1, 7, payload.len() / 2, payload.len() - 1] {
+                agree(&frame(&payload[..n]));
+            }
+            let mut long = StdVec::from(payload);
+            long.push(0);
+            agree(&frame(&long));
+            for k in 0..payload.len() {
+                let mut p = StdVec::from(payload);
+                p[k] = p[k].wrapping_add(1);
+                agree(&frame(&p));
+                cases += 1;
+            }
+        }
+        assert!(cases > 1000, "{cases}");
+        // Decoding into a fresh placeholder works as well.
+        let mut place = placeholder();
+        assert_eq!(decode_into(&encode(&blobs[1]), &mut place), Ok(()));
+        assert_eq!(place, blobs[1]);
+        assert_eq!(place.validate(), Ok(()));
+        assert_eq!(placeholder().validate(), Err(BlobError::TopologyMismatch));
     }
 }

@@ -13,11 +13,11 @@
 //! three), any hidden count the blob allows. The thesis' 4-5-3 net runs on the fixed-size
 //! [`Mlp`] ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`]); every other runnable topology on
 //! the runtime-sized [`crate::runtime::mlp::infer_flat`] over the blob (the same bits as the blob's own
-//! [`ModelBlob::infer`]). Anything else counts as not runnable, and with no runnable slot the
+//! [`ModelBlob::infer`]); either way the blob's family maps the outputs to cm
+//! ([`crate::runtime::mlp::OutputMap`]). Anything else counts as not runnable, and with no runnable slot the
 //! head falls back to the traditional method with [`Calibration::BUILT_IN`].
 
 use crate::runtime::blob::{self, InputKind, ModelBlob, OutputKind};
-use crate::runtime::blob_in_place;
 use crate::runtime::gaze::{self, Axis, GazeConfig, GazeError, Joints};
 use crate::runtime::layout::Slot;
 use crate::runtime::mlp::{self, Mlp, MlpError};
@@ -116,7 +116,10 @@ impl Network {
         joints: &Joints,
     ) -> Result<[f32; NET_OUTPUTS], MlpError> {
         if self.fast {
-            return mlp::infer_fixed::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(&self.blob.flat(), px);
+            let mut y =
+                mlp::infer_fixed::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(&self.blob.flat(), px)?;
+            self.blob.family.output_map.apply(&mut y)?;
+            return Ok(y);
         }
         let (x, n) = self.inputs(px, joints);
         let mut y = [0.0f32; NET_OUTPUTS];
@@ -190,7 +193,7 @@ fn runnable(blob: &ModelBlob) -> (SlotStatus, SlotState) {
 fn network_place(est: &mut Estimator) -> &mut Network {
     if let Estimator::Fallback(_) = *est {
         *est = Estimator::Network(Network {
-            blob: blob_in_place::placeholder(),
+            blob: blob::placeholder(),
             fast: false,
             slot: Slot::A,
             generation: 0,
@@ -211,10 +214,10 @@ fn network_place(est: &mut Estimator) -> &mut Network {
     }
 }
 
-/// [`classify`]'s status and state, decoding into `place` ([`blob_in_place::decode_into`]);
+/// [`classify`]'s status and state, decoding into `place` ([`blob::decode_into`]);
 /// on `Valid`, `place` holds the decoded blob.
 fn classify_in_place(bytes: &[u8], place: &mut ModelBlob) -> (SlotStatus, SlotState) {
-    match blob_in_place::decode_into(bytes, place) {
+    match blob::decode_into(bytes, place) {
         Ok(()) => runnable(place),
         Err(blob::BlobError::BadMagic) => (SlotStatus::Empty, SlotState::Empty),
         Err(e) => (SlotStatus::Invalid(e), SlotState::Invalid(e)),
@@ -253,7 +256,7 @@ pub fn boot(slot_a: &[u8], slot_b: &[u8]) -> Boot {
 
 impl Boot {
     /// [`boot`] into `self`, replacing what it held, with every blob decoded in place
-    /// ([`blob_in_place`]) into the network `self` will run: the head keeps its `Boot` in
+    /// ([`blob::decode_into`]) into the network `self` will run: the head keeps its `Boot` in
     /// static RAM, so boot copies no decoded blob through the stack. The same result as
     /// [`boot`] (tested).
     pub fn boot_in_place(&mut self, slot_a: &[u8], slot_b: &[u8]) {
@@ -273,7 +276,7 @@ impl Boot {
         // Slot B was decoded last, maybe partly: if A runs, decode it once more (it decoded
         // before, so it does again).
         if slot == Slot::A {
-            let _ = blob_in_place::decode_into(bytes, &mut net.blob);
+            let _ = blob::decode_into(bytes, &mut net.blob);
         }
         match Network::check(&net.blob) {
             Some((fast, model)) => {
@@ -554,6 +557,8 @@ mod tests {
                 restarts: 1,
             },
             fallback: None,
+            family: blob::Family::THESIS,
+            matcher: None,
         }
     }
 
@@ -848,6 +853,32 @@ mod tests {
             );
             assert_eq!(e.in_range, blob.in_range(&p.to_array()), "{p:?}");
             assert_eq!(e.source, Source::Network);
+        }
+    }
+
+    #[test]
+    fn inverse_depth_family_runs_on_both_paths_bit_for_bit() {
+        // 4-5-3 (fast path) and 4-7-3 (flat path), outputs X/Z, Y/Z, 1/Z: o2 kept positive.
+        for hidden in [5u8, 7] {
+            let mut blob = sample(hidden, 1, 21);
+            blob.family = blob::Family::INVERSE_DEPTH;
+            blob.out_offset = Vec::from_slice(&[0.0, 0.0, 0.05]).unwrap();
+            blob.out_scale = Vec::from_slice(&[0.02, 0.02, 0.001]).unwrap();
+            let got = boot(&bytes(&blob), &[]);
+            assert_eq!(network(&got).fast, hidden == 5);
+            for k in 0..50 {
+                let p = StereoPoint {
+                    u_l: 300.0 + k as f32 * 0.7,
+                    v_l: 225.0 + k as f32 * 0.3,
+                    u_r: 285.0 + k as f32 * 0.6,
+                    v_r: 235.0,
+                };
+                let e = got.estimate(&p).unwrap();
+                let mut want = [0.0f32; 3];
+                blob.infer(&p.to_array(), &mut want).unwrap();
+                assert_eq!([e.x, e.y, e.z].map(f32::to_bits), want.map(f32::to_bits));
+                assert!(e.z > 0.0 && (1.0 / e.z - 0.05).abs() < 0.01, "{e:?}");
+            }
         }
     }
 

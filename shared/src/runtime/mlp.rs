@@ -41,12 +41,54 @@ pub fn sigmoid(a: f32) -> f32 {
     1.0 / (1.0 + libm::expf(-a))
 }
 
+/// How a net's de-normalised outputs become centimetres: the model family's output side.
+///
+/// Applied after the output scaling, in f32 with IEEE division (the same bits on the host and
+/// on the Cortex-M4F's VDIV).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum OutputMap {
+    /// The outputs are `X, Y, Z` (or `Z`) in cm: the thesis' net.
+    Direct,
+    /// The outputs are `X/Z, Y/Z, 1/Z` (1/cm for the last; or `1/Z` alone for a Z-only
+    /// model): `X = o0 / o2`, `Y = o1 / o2`, `Z = 1 / o2`. For a pinhole rig these are close to
+    /// affine in the pixels (exactly so for parallel cameras), which the sigmoid layer fits far
+    /// better than `X, Y, Z` themselves. As with `X, Y, Z` outputs, only a non-finite result
+    /// is refused ([`MlpError::NonFiniteOutput`]: `o2 = 0`, or an overflow); a negative `o2`
+    /// (far outside the training box) gives a negative depth.
+    InverseDepth,
+}
+
+impl OutputMap {
+    /// Turns the de-normalised outputs `y` (length 3 or 1) into cm in place.
+    #[inline]
+    pub fn apply(self, y: &mut [f32]) -> Result<(), MlpError> {
+        match self {
+            OutputMap::Direct => Ok(()),
+            OutputMap::InverseDepth => {
+                let (n, w) = match y.last() {
+                    Some(w) => (y.len(), *w),
+                    None => return Err(MlpError::Shape),
+                };
+                for v in y[..n - 1].iter_mut() {
+                    *v /= w;
+                }
+                y[n - 1] = 1.0 / w;
+                if y.iter().all(|v| v.is_finite()) {
+                    Ok(())
+                } else {
+                    Err(MlpError::NonFiniteOutput)
+                }
+            }
+        }
+    }
+}
+
 /// Why an inference was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum MlpError {
     /// An input is NaN or infinite.
     NonFiniteInput,
-    /// The result is NaN or infinite (a broken model).
+    /// The result is NaN or infinite (a broken model, or an inverse-depth model's `1/Z` is 0).
     NonFiniteOutput,
     /// Slice lengths do not match the topology.
     Shape,

@@ -7,7 +7,6 @@
 
 pub mod activation;
 pub mod blob;
-pub mod blob_in_place;
 pub mod gaze;
 pub mod head;
 pub mod layout;

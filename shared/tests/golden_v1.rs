@@ -1,0 +1,51 @@
+//! Golden v1 blobs: files written by `hvs train` before the format's version 2 (a 4-5-3 net on
+//! the case I boards, `--seed 7`, and a posture-aware 9-8-3 net) still decode, and predict
+//! the exact f32 bits `hvs predict` printed for them then (`*_predict.csv`, written by the v1
+//! code on volume points).
+
+use hvs_shared::runtime::blob::{self, OutputKind};
+use std::path::PathBuf;
+
+fn golden(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/golden")
+        .join(name)
+}
+
+fn check(model: &str, predictions: &str, n_inputs: usize, hidden: u8) {
+    let bytes = std::fs::read(golden(model)).unwrap();
+    assert_eq!(&bytes[0..4], b"HVSW");
+    assert_eq!(u16::from_le_bytes([bytes[4], bytes[5]]), 1, "a v1 file");
+    let b = blob::decode(&bytes).unwrap();
+    assert_eq!(b.n_inputs(), n_inputs);
+    assert_eq!(b.topology.hidden, hidden);
+    assert_eq!(b.topology.outputs, OutputKind::Xyz);
+    let text = std::fs::read_to_string(golden(predictions)).unwrap();
+    let mut rows = 0;
+    for line in text.lines().skip(1).filter(|l| !l.trim().is_empty()) {
+        let v: Vec<f32> = line.split(',').map(|s| s.parse().unwrap()).collect();
+        assert_eq!(v.len(), n_inputs + 3, "{line}");
+        let mut out = [0.0f32; 3];
+        b.infer(&v[..n_inputs], &mut out).unwrap();
+        assert_eq!(
+            out.map(f32::to_bits).to_vec(),
+            v[n_inputs..]
+                .iter()
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>(),
+            "{model}: {line}"
+        );
+        rows += 1;
+    }
+    assert_eq!(rows, 20);
+}
+
+#[test]
+fn v1_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
+    check("v1_4_5_3.hvsw", "v1_4_5_3_predict.csv", 4, 5);
+}
+
+#[test]
+fn v1_posture_9_8_3_decodes_and_predicts_the_recorded_bits() {
+    check("v1_9_8_3.hvsw", "v1_9_8_3_predict.csv", 9, 8);
+}
