@@ -4,7 +4,9 @@
 //! turns the crate's results into the project's CSV rows.
 
 use crate::data::captures::{Capture, CaptureSet};
+use crate::data::dataset::Dataset;
 use anyhow::{anyhow, Context, Result};
+use hvs_shared::runtime::blob::MatcherGeometry;
 use hvs_vision::board::Board;
 use hvs_vision::detect::{self, SetCheck, StereoCorners};
 use image::GrayImage;
@@ -180,5 +182,74 @@ fn csv_field(s: &str) -> String {
         format!("\"{}\"", s.replace('"', "\"\""))
     } else {
         s.to_string()
+    }
+}
+
+/// What the run-time matcher (`hvs locate`) needs, learned from a training set's pixels alone:
+/// one fundamental matrix fitted to the training correspondences (normalised 8-point, then
+/// Levenberg-Marquardt on the Sampson error) and the box of the training targets (the depth
+/// range the matcher searches). `None` for a set that cannot give one: fewer than 8 rows, no
+/// targets, joint inputs (the epipolar geometry moves with the eyes), or a degenerate fit.
+pub fn matcher_geometry(data: &Dataset) -> Option<MatcherGeometry> {
+    if data.n_inputs != 4 || !data.has_targets() || data.len() < 8 {
+        return None;
+    }
+    let pairs: Vec<([f64; 2], [f64; 2])> = (0..data.len())
+        .map(|i| {
+            let r = data.row(i);
+            ([r[0], r[1]], [r[2], r[3]])
+        })
+        .collect();
+    let f = hvs_vision::geometry::fit_fundamental(&pairs).ok()?;
+    let mut out_min = [f32::INFINITY; 3];
+    let mut out_max = [f32::NEG_INFINITY; 3];
+    for t in &data.targets {
+        for k in 0..3 {
+            out_min[k] = out_min[k].min(t[k] as f32);
+            out_max[k] = out_max[k].max(t[k] as f32);
+        }
+    }
+    let g = MatcherGeometry {
+        fundamental: f.m,
+        out_min,
+        out_max,
+    };
+    g.is_valid().then_some(g)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::sets::{simulate, SetKind, SimOptions};
+    use hvs_shared::sim::presets;
+
+    #[test]
+    fn matcher_geometry_is_the_rigs_epipolar_geometry() {
+        let rig = presets::CASE_2;
+        let opt = SimOptions {
+            points: 300,
+            noise_px: 0.0,
+            seed: 5,
+        };
+        let mut d = Dataset::new(hvs_shared::runtime::blob::InputKind::Stereo);
+        for s in simulate(&rig, SetKind::Volume, &opt).unwrap() {
+            d.push(&s.px, Some(s.xyz));
+        }
+        let g = matcher_geometry(&d).unwrap();
+        assert!(g.out_min[2] >= 65.0 && g.out_max[2] <= 165.0 && g.out_min[2] < g.out_max[2]);
+        // Points the fit never saw lie on their epipolar lines (rounded pixels: within ~1 px).
+        let f = hvs_vision::geometry::Fundamental { m: g.fundamental };
+        let test = simulate(&rig, SetKind::Test, &SimOptions::default()).unwrap();
+        for s in &test {
+            let d = f.distance_in_right([s.px[0], s.px[1]], [s.px[2], s.px[3]]);
+            assert!(d < 1.5, "{d} px");
+        }
+        // No geometry from too few rows or without targets.
+        let mut few = Dataset::new(hvs_shared::runtime::blob::InputKind::Stereo);
+        for i in 0..7 {
+            let r = d.row(i).to_vec();
+            few.push(&r, Some(d.targets[i]));
+        }
+        assert!(matcher_geometry(&few).is_none());
     }
 }

@@ -51,6 +51,11 @@ pub struct Args {
     /// Restarts per net (the default net's 10; fewer for a quick run).
     #[arg(long, value_name = "R", default_value_t = TrainConfig::default().restarts)]
     restarts: usize,
+    /// Instead, the image front end end to end: render stereo photos of a 9x6 board, detect
+    /// the corners, train the default model on them, predict on other rendered boards and
+    /// compare with the floor on the same detected corners (writes caseN_images/ and IMAGES.md).
+    #[arg(long)]
+    images: bool,
 }
 
 /// Results of one case.
@@ -365,6 +370,9 @@ pub fn run(a: Args) -> Result<()> {
     }
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create the directory", a.output.display()))?;
+    if a.images {
+        return super::demo_images::run(&a.output, a.seed, a.restarts);
+    }
     // Cases run in parallel; each is deterministic on its own, so the output does not
     // depend on the scheduling.
     let results = (1..=4u8)

@@ -5,6 +5,7 @@
 
 pub mod board;
 pub mod demo;
+pub mod demo_images;
 pub mod emulate;
 pub mod eval;
 pub mod experiment;

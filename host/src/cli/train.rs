@@ -151,6 +151,7 @@ pub fn train_model(data: &crate::data::dataset::Dataset, plan: &Plan) -> Result<
     let fit = fallback::fit(data, plan.half_baseline, plan.u0, plan.v0);
     let mut blob = outcome.blob.clone();
     blob.fallback = fit.map(|f| f.calibration);
+    blob.matcher = crate::vision::matcher_geometry(data);
     blob.generation = 1;
     Ok(Trained {
         blob,
