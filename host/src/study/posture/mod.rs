@@ -25,6 +25,7 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::sim::sets::{SetKind, SimOptions};
+use crate::study::fmt::pct;
 use crate::train::{train, TrainConfig};
 use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob};
@@ -818,20 +819,6 @@ pub fn run(cfg: &StudyConfig) -> Result<Report> {
     })
 }
 
-fn pct(v: f64) -> String {
-    if v.is_finite() {
-        if v >= 100.0 {
-            format!("{v:.0} %")
-        } else if v >= 10.0 {
-            format!("{v:.1} %")
-        } else {
-            format!("{v:.2} %")
-        }
-    } else {
-        "-".to_string()
-    }
-}
-
 /// The markdown section of the experiments report: three tables and what they show.
 /// `command` is the command that produced the numbers.
 pub fn markdown(r: &Report, command: &str) -> String {
@@ -874,12 +861,12 @@ pub fn markdown(r: &Report, command: &str) -> String {
         s,
         "\n### (b) The posture-aware net over the working range\n\n\
          Inputs: the four pixels and the five joint angles (degrees); outputs X, Y, Z in the \
-         head frame. Working range: neck pan +-30, neck tilt +-20, eye tilt +-15, version +-15, \
-         vergence 0-10 degrees. Trained (LM, {} restarts) on the board protocol (72 points) at \
+         head frame. Working range: {} degrees. Trained (LM, {} restarts) on the board protocol (72 points) at \
          {} postures, one drawn at random in each cell of a {:?} grid: {} rows. Tested on {} \
          random points at {} random postures, and {} points at extreme postures (the four angles \
          in the outer third of their magnitude, e.g. |neck pan| 20-30, and vergence 6.7-10). Bands: thirds of each term's \
          range (by magnitude for the four angles).\n",
+        report::working_range_words(&PostureRange::WORKING),
         c.restarts,
         a.train_postures,
         c.train_levels,
@@ -917,8 +904,9 @@ pub fn markdown(r: &Report, command: &str) -> String {
     let worst = a.bands.iter().map(BandRow::ratio).fold(0.0, f64::max);
     let _ = writeln!(
         s,
-        "\nWorst band: {:.2} x the floor (goal: at most 1.20 everywhere).\n",
-        worst
+        "\nWorst band: {:.2} x the floor (goal: at most {:.2} everywhere).\n",
+        worst,
+        report::GOAL_RATIO
     );
     if a.sweep.len() > 1 {
         let _ = writeln!(
