@@ -9,7 +9,7 @@ use crate::study::posture::report::{self as posture, PostureConfig};
 use crate::study::thesis::{self as experiment, report, Bars, Config};
 use anyhow::{Context, Result};
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::LazyLock;
 use std::time::Instant;
 
@@ -115,50 +115,62 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 fn posture_study(a: PostureArgs) -> Result<()> {
-    let start = Instant::now();
-    std::fs::create_dir_all(&a.output)
-        .with_context(|| format!("{}: cannot create the directory", a.output.display()))?;
     let cfg = PostureConfig {
         seed: a.seed,
         quick: a.quick,
     };
-    let bars = Bars::new(std::io::stderr().is_terminal());
-    let r = posture::run(&cfg, &bars)?;
-    let total = start.elapsed().as_secs_f64();
-    let files = posture::write(&a.output, &r, total)?;
-    println!(
-        "wrote {} files ({} parts: CSV, SVG, PNG; timing.csv, POSTURE.md) to {} in {:.1} s with {} threads",
-        files.len(),
-        posture::STEMS.len(),
-        a.output.display(),
-        start.elapsed().as_secs_f64(),
-        r.threads
-    );
-    println!("see {}", a.output.join("POSTURE.md").display());
-    Ok(())
+    study(
+        &a.output,
+        format!(
+            "{} parts: CSV, SVG, PNG; timing.csv, POSTURE.md",
+            posture::STEMS.len()
+        ),
+        "POSTURE.md",
+        |bars| posture::run(&cfg, bars).map(|r| (r.threads, r)),
+        posture::write,
+    )
 }
 
 fn thesis(a: ThesisArgs) -> Result<()> {
-    let start = Instant::now();
-    std::fs::create_dir_all(&a.output)
-        .with_context(|| format!("{}: cannot create the directory", a.output.display()))?;
     let cfg = Config {
         seed: a.seed,
         quick: a.quick,
     };
+    study(
+        &a.output,
+        format!(
+            "{} experiments: CSV, SVG, PNG; RESULTS.md",
+            report::STEMS.len()
+        ),
+        "RESULTS.md",
+        |bars| experiment::run(&cfg, bars).map(|t| (t.threads, t)),
+        report::write,
+    )
+}
+
+/// Runs a study into `output` (created if missing) with progress bars on a terminal, writes
+/// its files with the run's wall time, and says what it wrote (`what`) and where the report
+/// is. `run` returns the worker threads it used and the results.
+fn study<R>(
+    output: &Path,
+    what: String,
+    report_name: &str,
+    run: impl FnOnce(&Bars) -> Result<(usize, R)>,
+    write: impl FnOnce(&Path, &R, f64) -> Result<Vec<String>>,
+) -> Result<()> {
+    let start = Instant::now();
+    std::fs::create_dir_all(output)
+        .with_context(|| format!("{}: cannot create the directory", output.display()))?;
     let bars = Bars::new(std::io::stderr().is_terminal());
-    let t = experiment::run(&cfg, &bars)?;
-    let total = start.elapsed().as_secs_f64();
-    let files = report::write(&a.output, &t, total)?;
+    let (threads, r) = run(&bars)?;
+    let files = write(output, &r, start.elapsed().as_secs_f64())?;
     println!(
-        "wrote {} files ({} experiments: CSV, SVG, PNG; RESULTS.md) to {} in {:.1} s with {} threads",
+        "wrote {} files ({what}) to {} in {:.1} s with {threads} threads",
         files.len(),
-        report::STEMS.len(),
-        a.output.display(),
+        output.display(),
         start.elapsed().as_secs_f64(),
-        t.threads
     );
-    println!("see {}", a.output.join("RESULTS.md").display());
+    println!("see {}", output.join(report_name).display());
     Ok(())
 }
 

@@ -83,14 +83,8 @@ impl PostureConfig {
             train_levels: [2, 1, 1, 2, 2],
             hidden: HIDDEN_QUICK,
             sweep: HIDDEN_SWEEP_QUICK.to_vec(),
-            restarts: 1,
-            test_postures: 100,
-            test_points: 300,
-            extreme_points: 100,
-            fixed_points: 60,
-            k1: vec![0.0, -0.5],
             distortion_hidden: vec![4],
-            ..full
+            ..full.reduced()
         }
     }
 }
@@ -912,37 +906,28 @@ fn fixed_sentence(r: &Report) -> String {
     let (zlo, zhi) = span(turned.iter().map(|f| f.net.z_pct));
     let (dlo, dhi) = span(turned.iter().map(|f| f.net.d3_pct));
     let (flo, fhi) = span(r.fixed.iter().map(|f| f.floor.z_pct));
+    let turned_z = format!("{}-{}", pct(zlo), pct(zhi));
+    let turned_3d = format!("{}-{}", pct(dlo), pct(dhi));
+    let floor = format!("{}-{}", pct(flo), pct(fhi));
     match (home, verged_worst(r)) {
         (Some(h), Some((v, row))) if row.net.z_pct > 10.0 * row.floor.z_pct => format!(
             "Vergence is what breaks the home-trained net: {} at home ({:.1} x the floor) but \
              {} at {v:.1} degrees of vergence ({:.0} x the floor), because vergence changes \
              the disparity of every point, which the net reads as depth; turning the eyes or \
-             the neck keeps the disparity, so its depth error grows only to {}-{}, but it \
-             answers in the turned cameras' frame, not the head's, so its 3-D error is {}-{}, \
-             while the floor stays at {}-{} at every posture.",
+             the neck keeps the disparity, so its depth error grows only to {turned_z}, but it \
+             answers in the turned cameras' frame, not the head's, so its 3-D error is \
+             {turned_3d}, while the floor stays at {floor} at every posture.",
             pct(h.net.z_pct),
             h.net.z_pct / h.floor.z_pct,
             pct(row.net.z_pct),
             row.net.z_pct / row.floor.z_pct,
-            pct(zlo),
-            pct(zhi),
-            pct(dlo),
-            pct(dhi),
-            pct(flo),
-            pct(fhi)
         ),
         (_, Some((v, row))) => format!(
             "At {v:.1} degrees of vergence the home-trained net's depth error is {} ({:.1} x \
-             the floor), at the turned postures {}-{} (3-D error {}-{}); the floor stays at \
-             {}-{}.",
+             the floor), at the turned postures {turned_z} (3-D error {turned_3d}); the floor \
+             stays at {floor}.",
             pct(row.net.z_pct),
             row.net.z_pct / row.floor.z_pct,
-            pct(zlo),
-            pct(zhi),
-            pct(dlo),
-            pct(dhi),
-            pct(flo),
-            pct(fhi)
         ),
         _ => "The run has no verged posture.".to_string(),
     }
@@ -1081,7 +1066,7 @@ fn distortion_sentence(r: &Report) -> String {
         .collect();
     let dlt_grows = d1.dlt.z_pct > 1.5 * d0.dlt.z_pct;
     format!(
-        "{} from {} at k1 = {:.1} ({}) to {} at k1 = {:.1} ({}); the nets learn the lens \
+        "{} from {} at k1 = {:.1} ({} the floor) to {} at k1 = {:.1} ({}); the nets learn the lens \
          ({}, {} the floor at the strongest lens); the floor itself goes from {} to {}{}.",
         if dlt_grows {
             "The DLT, a linear camera model, degrades steadily as the lens bends the image:"
@@ -1090,7 +1075,7 @@ fn distortion_sentence(r: &Report) -> String {
         },
         pct(d0.dlt.z_pct),
         d0.k1,
-        format!("{} the floor", times(d0.dlt.z_pct / d0.floor.z_pct)),
+        times(d0.dlt.z_pct / d0.floor.z_pct),
         pct(d1.dlt.z_pct),
         d1.k1,
         times(d1.dlt.z_pct / d1.floor.z_pct),

@@ -418,11 +418,9 @@ fn proposed_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         .map(|p| format!("{} ({})", roman(p.case), pct(p.optimal.worst())))
         .collect();
     let n = t.proposed.len();
+    let b = bound();
     let bound_sentence = if over.is_empty() {
-        format!(
-            "as in the thesis, the worst depth stays below {} in every case.",
-            bound()
-        )
+        format!("as in the thesis, the worst depth stays below {b} in every case.")
     } else {
         format!(
             "the thesis' \"well below {} even in the worst case\" holds here in {} of {n} \
@@ -433,10 +431,7 @@ fn proposed_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         )
     };
     let floor_sentence = if near.is_empty() {
-        format!(
-            "Optimal triangulation with the true rig stays well below {} everywhere.",
-            bound()
-        )
+        format!("Optimal triangulation with the true rig stays well below {b} everywhere.")
     } else {
         format!(
             "On these {} rounded test points even optimal triangulation with the true rig \

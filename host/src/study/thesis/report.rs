@@ -13,6 +13,7 @@ use crate::study::reported::NET_BOUND_PCT;
 use crate::train::Algo;
 use anyhow::{Context, Result};
 use hvs_shared::runtime::blob::OutputKind;
+use hvs_shared::sim::presets::TEST_DEPTHS;
 use std::path::Path;
 
 fn algo_name(a: Algo) -> &'static str {
@@ -36,6 +37,17 @@ struct Out<'a> {
 }
 
 impl Out<'_> {
+    /// [`Out::csv`] with one row per item of `items`.
+    fn rows<T>(
+        &mut self,
+        name: &str,
+        header: &str,
+        items: &[T],
+        row: impl Fn(&T) -> Vec<String>,
+    ) -> Result<()> {
+        let rows: Vec<Vec<String>> = items.iter().map(row).collect();
+        self.csv(name, header, &rows)
+    }
     fn csv(&mut self, name: &str, header: &str, rows: &[Vec<String>]) -> Result<()> {
         let mut s = String::new();
         s.push_str(header);
@@ -113,10 +125,11 @@ pub fn write(dir: &Path, t: &Thesis, total_s: f64) -> Result<Vec<String>> {
 }
 
 fn phi_files(o: &mut Out, t: &Thesis) -> Result<()> {
-    let rows: Vec<Vec<String>> = t
-        .phi
-        .iter()
-        .map(|r| {
+    o.rows(
+        "fig4_03_04_phi.csv",
+        "case,z_cm,phi_l_px,phi_r_px,true_phi_l_px,true_phi_r_px",
+        &t.phi,
+        |r| {
             vec![
                 r.case.to_string(),
                 num(r.z),
@@ -125,12 +138,7 @@ fn phi_files(o: &mut Out, t: &Thesis) -> Result<()> {
                 num(r.true_l),
                 num(r.true_r),
             ]
-        })
-        .collect();
-    o.csv(
-        "fig4_03_04_phi.csv",
-        "case,z_cm,phi_l_px,phi_r_px,true_phi_l_px,true_phi_r_px",
-        &rows,
+        },
     )?;
     let case1: Vec<_> = t.phi.iter().filter(|r| r.case == 1).collect();
     let z: Vec<f64> = case1.iter().map(|r| r.z).collect();
@@ -182,55 +190,97 @@ fn phi_files(o: &mut Out, t: &Thesis) -> Result<()> {
     o.figure("fig4_03_04_phi", &fig)
 }
 
-fn traditional_files(o: &mut Out, t: &Thesis) -> Result<()> {
+/// One method against the floor in each case: the CSV `case,z_cm,<column>,optimal_pct` and
+/// a figure with one panel per case (`Fig. 4.<first_fig + k>`), the method as `method`
+/// (label, colour) beside the floor and the `extra` series.
+struct PerCase<'a> {
+    stem: &'a str,
+    column: &'a str,
+    title: &'a str,
+    first_fig: usize,
+    method: (&'a str, usize),
+    log_y: bool,
+    extra: Vec<Series>,
+}
+
+fn per_case_files(
+    o: &mut Out,
+    spec: PerCase,
+    cases: &[(u8, &DepthCurve, &DepthCurve)],
+) -> Result<()> {
     let mut rows = Vec::new();
-    for c in &t.traditional {
-        for (k, z) in c.traditional.z.iter().enumerate() {
+    for (case, curve, floor) in cases {
+        for (k, z) in curve.z.iter().enumerate() {
             rows.push(vec![
-                c.case.to_string(),
+                case.to_string(),
                 num(*z),
-                num(c.traditional.pct[k]),
-                num(c.optimal.pct[k]),
+                num(curve.pct[k]),
+                num(floor.pct[k]),
             ]);
         }
     }
     o.csv(
-        "fig4_08_11_traditional.csv",
-        "case,z_cm,traditional_pct,optimal_pct",
+        &format!("{}.csv", spec.stem),
+        &format!("case,z_cm,{},optimal_pct", spec.column),
         &rows,
     )?;
-    let panels = t
-        .traditional
+    let panels = cases
         .iter()
-        .map(|c| {
-            let k = (c.case - 1) as usize;
+        .map(|(case, curve, floor)| {
+            let mut series = vec![
+                Series::new(
+                    spec.method.0,
+                    &curve.z,
+                    &curve.pct,
+                    Style::LinePoints,
+                    spec.method.1,
+                ),
+                floor_series(floor),
+            ];
+            series.extend(spec.extra.iter().cloned());
             Panel {
-                title: format!("Fig. 4.{}: case {}", 8 + k, roman(c.case)),
+                title: format!(
+                    "Fig. 4.{}: case {}",
+                    spec.first_fig + usize::from(case - 1),
+                    roman(*case)
+                ),
                 x_label: Z_LABEL.into(),
                 y_label: EMA_LABEL.into(),
-                log_y: true,
-                series: vec![
-                    Series::new(
-                        "traditional, eq. 3.1-17, one Phi",
-                        &c.traditional.z,
-                        &c.traditional.pct,
-                        Style::LinePoints,
-                        1,
-                    ),
-                    floor_series(&c.optimal),
-                ],
+                log_y: spec.log_y,
+                series,
                 legend: Legend::UpperLeft,
                 integer_x: false,
             }
         })
         .collect();
     o.figure(
-        "fig4_08_11_traditional",
+        spec.stem,
         &Figure {
-            title: "Traditional method vs. depth, cases I-IV (thesis Figs. 4.8-4.11)".into(),
+            title: spec.title.into(),
             panels,
             cols: 2,
         },
+    )
+}
+
+fn traditional_files(o: &mut Out, t: &Thesis) -> Result<()> {
+    let cases: Vec<_> = t
+        .traditional
+        .iter()
+        .map(|c| (c.case, &c.traditional, &c.optimal))
+        .collect();
+    per_case_files(
+        o,
+        PerCase {
+            stem: "fig4_08_11_traditional",
+            column: "traditional_pct",
+            title: "Traditional method vs. depth, cases I-IV (thesis Figs. 4.8-4.11)",
+            first_fig: 8,
+            method: ("traditional, eq. 3.1-17, one Phi", 1),
+            log_y: true,
+            extra: Vec::new(),
+        },
+        &cases,
     )
 }
 
@@ -348,10 +398,11 @@ fn net_case4_files(o: &mut Out, t: &Thesis) -> Result<()> {
 }
 
 fn sweep_files(o: &mut Out, t: &Thesis) -> Result<()> {
-    let rows: Vec<Vec<String>> = t
-        .sweep
-        .iter()
-        .map(|r| {
+    o.rows(
+        "fig4_14_15_hidden.csv",
+        "outputs,hidden,net,seed,train_pct,test_mean_pct,test_worst_depth_pct",
+        &t.sweep,
+        |r| {
             vec![
                 outputs_name(r.outputs).to_string(),
                 r.hidden.to_string(),
@@ -361,12 +412,7 @@ fn sweep_files(o: &mut Out, t: &Thesis) -> Result<()> {
                 num(r.test_mean_pct),
                 num(r.test_worst_pct),
             ]
-        })
-        .collect();
-    o.csv(
-        "fig4_14_15_hidden.csv",
-        "outputs,hidden,net,seed,train_pct,test_mean_pct,test_worst_depth_pct",
-        &rows,
+        },
     )?;
     let h: Vec<f64> = hidden_counts(&t.sweep).iter().map(|&h| h as f64).collect();
     let floor = t.proposed[(GENERAL_CASE - 1) as usize].optimal.worst();
@@ -450,61 +496,30 @@ fn sweep_files(o: &mut Out, t: &Thesis) -> Result<()> {
 }
 
 fn proposed_files(o: &mut Out, t: &Thesis) -> Result<()> {
-    let mut rows = Vec::new();
-    for c in &t.proposed {
-        for (k, z) in c.net.z.iter().enumerate() {
-            rows.push(vec![
-                c.case.to_string(),
-                num(*z),
-                num(c.net.pct[k]),
-                num(c.optimal.pct[k]),
-            ]);
-        }
-    }
-    o.csv(
-        "fig4_16_19_proposed.csv",
-        "case,z_cm,network_pct,optimal_pct",
-        &rows,
-    )?;
-    let panels = t
+    let cases: Vec<_> = t
         .proposed
         .iter()
-        .map(|c| {
-            let k = (c.case - 1) as usize;
-            Panel {
-                title: format!("Fig. 4.{}: case {}", 16 + k, roman(c.case)),
-                x_label: Z_LABEL.into(),
-                y_label: EMA_LABEL.into(),
-                log_y: false,
-                series: vec![
-                    Series::new(
-                        "proposed 4-5-3 net",
-                        &c.net.z,
-                        &c.net.pct,
-                        Style::LinePoints,
-                        0,
-                    ),
-                    floor_series(&c.optimal),
-                    Series::new(
-                        format!("thesis' bound, {NET_BOUND_PCT} %"),
-                        &[65.0, 165.0],
-                        &[NET_BOUND_PCT, NET_BOUND_PCT],
-                        Style::Dashed,
-                        1,
-                    ),
-                ],
-                legend: Legend::UpperLeft,
-                integer_x: false,
-            }
-        })
+        .map(|c| (c.case, &c.net, &c.optimal))
         .collect();
-    o.figure(
-        "fig4_16_19_proposed",
-        &Figure {
-            title: "The proposed net in cases I-IV (thesis Figs. 4.16-4.19)".into(),
-            panels,
-            cols: 2,
+    let depths = [TEST_DEPTHS[0], TEST_DEPTHS[TEST_DEPTHS.len() - 1]];
+    per_case_files(
+        o,
+        PerCase {
+            stem: "fig4_16_19_proposed",
+            column: "network_pct",
+            title: "The proposed net in cases I-IV (thesis Figs. 4.16-4.19)",
+            first_fig: 16,
+            method: ("proposed 4-5-3 net", 0),
+            log_y: false,
+            extra: vec![Series::new(
+                format!("thesis' bound, {NET_BOUND_PCT} %"),
+                &depths,
+                &[NET_BOUND_PCT, NET_BOUND_PCT],
+                Style::Dashed,
+                1,
+            )],
         },
+        &cases,
     )
 }
 
@@ -580,10 +595,11 @@ fn fewer_files(o: &mut Out, t: &Thesis) -> Result<()> {
 }
 
 fn algo_files(o: &mut Out, t: &Thesis) -> Result<()> {
-    let rows: Vec<Vec<String>> = t
-        .algos
-        .iter()
-        .map(|r| {
+    o.rows(
+        "bp_vs_lm.csv",
+        "case,algorithm,train_pct,test_mean_pct,test_worst_depth_pct",
+        &t.algos,
+        |r| {
             vec![
                 r.case.to_string(),
                 algo_name(r.algo).to_string(),
@@ -591,25 +607,20 @@ fn algo_files(o: &mut Out, t: &Thesis) -> Result<()> {
                 num(r.test_mean_pct),
                 num(r.test_worst_pct),
             ]
-        })
-        .collect();
-    o.csv(
-        "bp_vs_lm.csv",
-        "case,algorithm,train_pct,test_mean_pct,test_worst_depth_pct",
-        &rows,
+        },
     )?;
-    let rows: Vec<Vec<String>> = t
-        .algos
-        .iter()
-        .map(|r| {
+    o.rows(
+        "bp_vs_lm_timing.csv",
+        "case,algorithm,wall_s",
+        &t.algos,
+        |r| {
             vec![
                 r.case.to_string(),
                 algo_name(r.algo).to_string(),
                 format!("{:.4}", r.wall_s),
             ]
-        })
-        .collect();
-    o.csv("bp_vs_lm_timing.csv", "case,algorithm,wall_s", &rows)?;
+        },
+    )?;
     let pick = |a: Algo, f: &dyn Fn(&super::AlgoRow) -> f64| -> (Vec<f64>, Vec<f64>) {
         t.algos
             .iter()
@@ -675,10 +686,11 @@ fn algo_files(o: &mut Out, t: &Thesis) -> Result<()> {
 }
 
 fn noise_files(o: &mut Out, t: &Thesis) -> Result<()> {
-    let rows: Vec<Vec<String>> = t
-        .noise
-        .iter()
-        .map(|r| {
+    o.rows(
+        "noise.csv",
+        "case,sigma_px,repeats,traditional_pct,traditional_no_estimate_pct,network_pct,optimal_pct",
+        &t.noise,
+        |r| {
             vec![
                 r.case.to_string(),
                 num(r.sigma),
@@ -688,12 +700,7 @@ fn noise_files(o: &mut Out, t: &Thesis) -> Result<()> {
                 num(r.network_pct),
                 num(r.optimal_pct),
             ]
-        })
-        .collect();
-    o.csv(
-        "noise.csv",
-        "case,sigma_px,repeats,traditional_pct,traditional_no_estimate_pct,network_pct,optimal_pct",
-        &rows,
+        },
     )?;
     let panels = (1..=4u8)
         .map(|case| {
