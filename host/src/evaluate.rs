@@ -237,18 +237,7 @@ pub fn optimal_depths(rig: &Rig, data: &Dataset) -> Vec<f64> {
         .collect()
 }
 
-/// Formats a percentage for tables: `inf` for a method that failed somewhere.
-pub fn pct(v: f64) -> String {
-    if v.is_finite() {
-        if v >= 100.0 {
-            format!("{v:.1} %")
-        } else {
-            format!("{v:.3} %")
-        }
-    } else {
-        "inf".to_string()
-    }
-}
+pub use crate::study::fmt::pct;
 
 /// Plain-text table of an evaluation: one row per depth, e_ma in cm and % for each method.
 pub fn text_table(ev: &Evaluation) -> String {

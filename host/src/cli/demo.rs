@@ -10,18 +10,18 @@ use crate::evaluate::{
     evaluate, model_depths, optimal_depths, pct, text_table, traditional_depths, Evaluation, Method,
 };
 use crate::sim::sets::{simulate, write_csv, Sample, SetKind, SimOptions};
+use crate::study::fmt::roman;
+use crate::study::reported::{self, NET_BOUND_PCT};
 use crate::train::TrainConfig;
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::traditional::Calibration;
-use hvs_shared::sim::presets::{self, LABELS, THESIS_TRADITIONAL_PCT};
+use hvs_shared::sim::presets::{self, LABELS};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The thesis' bound on the network's worst per-depth e_ma (%), section 4.2.2.
-pub const THESIS_NETWORK_BOUND_PCT: f64 = 4.0;
 /// Random points of the training volume used for the accuracy-floor comparison.
 pub const VOLUME_POINTS: usize = 500;
 /// Random points of the training volume a second net is trained on.
@@ -193,8 +193,6 @@ pub fn run_case(n: u8, dir: &Path, seed: u64, restarts: usize) -> Result<CaseRes
     })
 }
 
-const ROMAN: [&str; 4] = ["I", "II", "III", "IV"];
-
 /// The comparison table, one row per case, as cells.
 fn table(results: &[CaseResult]) -> (Vec<&'static str>, Vec<Vec<String>>) {
     let head = vec![
@@ -210,32 +208,34 @@ fn table(results: &[CaseResult]) -> (Vec<&'static str>, Vec<Vec<String>>) {
     let rows = results
         .iter()
         .map(|r| {
-            let k = (r.case - 1) as usize;
             let m = &r.test.methods;
-            let th = THESIS_TRADITIONAL_PCT[k];
-            let net_ok = m[0].worst_depth_pct < THESIS_NETWORK_BOUND_PCT;
+            let net_ok = m[0].worst_depth_pct < NET_BOUND_PCT;
             let (vn, vf) = (
                 r.volume.methods[0].mean.e_ma_pct,
                 r.volume.methods[2].mean.e_ma_pct,
             );
             vec![
-                ROMAN[k].to_string(),
+                roman(r.case).to_string(),
                 format!(
                     "{} .. {}",
                     pct(m[1].best_depth_pct),
                     pct(m[1].worst_depth_pct)
                 ),
-                format!("{} .. {} %", th[0], th[1]),
+                reported::traditional_range(r.case).unwrap_or_default(),
                 m.get(3)
                     .map_or("no fallback".into(), |s| pct(s.worst_depth_pct)),
                 format!(
                     "{} ({}){}",
                     pct(m[0].worst_depth_pct),
                     pct(m[0].mean.e_ma_pct),
-                    if net_ok { "" } else { " > 4 %" }
+                    if net_ok {
+                        String::new()
+                    } else {
+                        format!(" > {NET_BOUND_PCT} %")
+                    }
                 ),
                 pct(m[2].worst_depth_pct),
-                format!("< {THESIS_NETWORK_BOUND_PCT} %"),
+                format!("< {NET_BOUND_PCT} %"),
                 format!(
                     "{} / {} ({:+.1} %)",
                     pct(vn),
@@ -312,10 +312,10 @@ fn report(results: &[CaseResult], tbl: &str, total_s: f64, seed: u64, restarts: 
          boards (the fallback stored in `caseN.hvsw`): a better Phi does not rescue the formula \
          when the cameras differ.\n\
          - *network*: worst per-depth e_ma of the exported f32 model (what the head computes), \
-         mean over all test points in brackets; the thesis' bound is the worst depth below 4 %.\n\
+         mean over all test points in brackets; the thesis' bound is the worst depth below {NET_BOUND_PCT} %.\n\
          - *optimal, true rig*: least-reprojection-error triangulation with the exact rig on \
          the same rounded pixels: what the pixel rounding alone costs on these 22 points. \
-         Where it is close to 4 %, no calibration-free method can be expected to stay below \
+         Where it is close to {NET_BOUND_PCT} %, no calibration-free method can be expected to stay below \
          the thesis' bound on simulated pixels.\n\
          - *volume*: mean e_ma of the volume-trained net on the {VOLUME_POINTS} test points of \
          the training volume (X -3..3, Y -2..2, Z 65..165 cm), next to optimal triangulation \
@@ -324,7 +324,7 @@ fn report(results: &[CaseResult], tbl: &str, total_s: f64, seed: u64, restarts: 
     );
     for r in results {
         let k = (r.case - 1) as usize;
-        let _ = writeln!(s, "## Case {}\n\n{}.\n", ROMAN[k], &LABELS[k]);
+        let _ = writeln!(s, "## Case {}\n\n{}.\n", roman(r.case), &LABELS[k]);
         let _ = writeln!(
             s,
             "Board-trained net: training e_ma {:.4} %, {:.3} s; volume-trained net: training \

@@ -427,38 +427,10 @@ mod tests {
         };
 
     fn model(generation: u32, outputs: OutputKind) -> ModelBlob {
-        use hvs_shared::runtime::blob::{Algorithm, Topology, TrainingMeta};
-        use hvs_shared::runtime::mlp::{param_count, Activation};
-        let n_out = outputs.len();
-        ModelBlob {
-            generation,
-            topology: Topology {
-                inputs: InputKind::Stereo,
-                hidden: 5,
-                outputs,
-                output_activation: Activation::Linear,
-            },
-            in_offset: heapless::Vec::from_slice(&[320.0, 240.0, 300.0, 240.0]).unwrap(),
-            in_scale: heapless::Vec::from_slice(&[0.05; 4]).unwrap(),
-            out_offset: heapless::Vec::from_slice(&[0.0, 0.0, 115.0][3 - n_out..]).unwrap(),
-            out_scale: heapless::Vec::from_slice(&[3.0, 2.0, 50.0][3 - n_out..]).unwrap(),
-            params: (0..param_count(4, 5, n_out))
-                .map(|k| (k as f32 * 0.37).sin())
-                .collect(),
-            in_min: heapless::Vec::from_slice(&[0.0; 4]).unwrap(),
-            in_max: heapless::Vec::from_slice(&[640.0, 480.0, 640.0, 480.0]).unwrap(),
-            meta: TrainingMeta {
-                seed: 1,
-                train_hash: 2,
-                train_points: 72,
-                train_error_pct: 1.0,
-                algorithm: Algorithm::Other,
-                restarts: 1,
-            },
-            fallback: None,
-            family: hvs_shared::runtime::blob::Family::THESIS,
-            matcher: None,
-        }
+        hvs_shared::test_support::SampleSpec::THESIS
+            .outputs(outputs)
+            .generation(generation)
+            .build()
     }
 
     #[test]

@@ -282,54 +282,43 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> D
         .margin(12)
         .x_label_area_size(48)
         .y_label_area_size(70);
-    if p.log_y {
-        let mut chart = b.build_cartesian_2d(x0..x1, (y0..y1).log_scale())?;
-        chart
-            .configure_mesh()
-            .x_desc(&p.x_label)
-            .y_desc(&p.y_label)
-            .axis_desc_style((FAMILY, 16))
-            .label_style((FAMILY, 14))
-            .x_label_formatter(&|v| x_tick(*v, p.integer_x))
-            .y_label_formatter(&|v| tick_label(*v))
-            .light_line_style(RGBColor(235, 235, 235))
-            .max_light_lines(2)
-            .draw()?;
-        for s in &p.series {
-            let pts: Vec<(f64, f64)> = s
-                .points
-                .iter()
-                .copied()
-                .filter(|(a, b)| a.is_finite() && b.is_finite() && *b > 0.0)
-                .map(|(a, b)| (a, b.max(y0)))
-                .collect();
-            series(&mut chart, s, pts)?;
-        }
-        legend(&mut chart, p.legend)
-    } else {
-        let mut chart = b.build_cartesian_2d(x0..x1, y0..y1)?;
-        chart
-            .configure_mesh()
-            .x_desc(&p.x_label)
-            .y_desc(&p.y_label)
-            .axis_desc_style((FAMILY, 16))
-            .label_style((FAMILY, 14))
-            .x_label_formatter(&|v| x_tick(*v, p.integer_x))
-            .y_label_formatter(&|v| tick_label(*v))
-            .light_line_style(RGBColor(235, 235, 235))
-            .max_light_lines(2)
-            .draw()?;
-        for s in &p.series {
-            let pts: Vec<(f64, f64)> = s
-                .points
-                .iter()
-                .copied()
-                .filter(|(a, b)| a.is_finite() && b.is_finite())
-                .collect();
-            series(&mut chart, s, pts)?;
-        }
-        legend(&mut chart, p.legend)
+    // The same mesh, series and legend on either y axis (the two chart types differ).
+    macro_rules! draw {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart
+                .configure_mesh()
+                .x_desc(&p.x_label)
+                .y_desc(&p.y_label)
+                .axis_desc_style((FAMILY, 16))
+                .label_style((FAMILY, 14))
+                .x_label_formatter(&|v| x_tick(*v, p.integer_x))
+                .y_label_formatter(&|v| tick_label(*v))
+                .light_line_style(RGBColor(235, 235, 235))
+                .max_light_lines(2)
+                .draw()?;
+            for s in &p.series {
+                series(&mut chart, s, drawable(s, p.log_y, y0))?;
+            }
+            legend(&mut chart, p.legend)
+        }};
     }
+    if p.log_y {
+        draw!(b.build_cartesian_2d(x0..x1, (y0..y1).log_scale())?)
+    } else {
+        draw!(b.build_cartesian_2d(x0..x1, y0..y1)?)
+    }
+}
+
+/// The points of `s` a chart can draw: finite ones; on a log axis only positive values,
+/// and none below the axis' bottom `y0` (they are drawn on it).
+fn drawable(s: &Series, log_y: bool, y0: f64) -> Vec<(f64, f64)> {
+    s.points
+        .iter()
+        .copied()
+        .filter(|(a, b)| a.is_finite() && b.is_finite() && (!log_y || *b > 0.0))
+        .map(|(a, b)| if log_y { (a, b.max(y0)) } else { (a, b) })
+        .collect()
 }
 
 fn series<'a, DB, X, Y>(

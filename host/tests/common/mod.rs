@@ -84,3 +84,9 @@ pub fn wait_ok(child: Child) -> (String, Vec<u8>) {
     );
     (stdout, output.stderr)
 }
+
+/// [`ok`] of a command line split at white space (for arguments without spaces, such as
+/// temporary paths): `ok_line(&format!("info {}", model))`.
+pub fn ok_line(line: &str) -> String {
+    ok(&line.split_whitespace().collect::<Vec<_>>())
+}

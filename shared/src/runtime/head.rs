@@ -503,63 +503,27 @@ mod tests {
     extern crate std;
 
     use super::*;
-    use crate::runtime::blob::{Algorithm, BlobError, Topology, TrainingMeta, MAX_BLOB_LEN};
-    use crate::runtime::mlp::{param_count, Activation};
-    use heapless::Vec;
+    use crate::runtime::blob::{BlobError, MAX_BLOB_LEN};
+    use crate::test_support::SampleSpec;
     use std::vec::Vec as StdVec;
 
-    /// A posture-aware 9-`hidden`-3 blob: the 4-input sample's pixel scaling, joint inputs
-    /// scaled by 1/30 per degree, training box +-30 degrees.
+    /// A posture-aware 9-`hidden`-3 sample blob (pixels and joint angles).
     fn sample_joints(hidden: u8, generation: u32, seed: u64) -> ModelBlob {
-        let mut b = sample(hidden, generation, seed);
-        b.topology.inputs = InputKind::StereoJoints;
-        b.params.clear();
-        for k in 0..param_count(9, hidden as usize, 3) {
-            let r = ((k as u64 * 2_654_435_761 + seed) % 2000) as f32 / 1000.0 - 1.0;
-            b.params.push(r).unwrap();
-        }
-        for _ in 0..5 {
-            b.in_offset.push(0.0).unwrap();
-            b.in_scale.push(1.0 / 30.0).unwrap();
-            b.in_min.push(-30.0).unwrap();
-            b.in_max.push(30.0).unwrap();
-        }
-        b
+        SampleSpec::THESIS
+            .inputs(InputKind::StereoJoints)
+            .hidden(hidden)
+            .generation(generation)
+            .seed(seed)
+            .build()
     }
 
+    /// A 4-`hidden`-3 sample blob.
     fn sample(hidden: u8, generation: u32, seed: u64) -> ModelBlob {
-        let mut params = Vec::new();
-        for k in 0..param_count(4, hidden as usize, 3) {
-            let r = ((k as u64 * 2_654_435_761 + seed) % 2000) as f32 / 1000.0 - 1.0;
-            params.push(r).unwrap();
-        }
-        ModelBlob {
-            generation,
-            topology: Topology {
-                inputs: InputKind::Stereo,
-                hidden,
-                outputs: OutputKind::Xyz,
-                output_activation: Activation::Linear,
-            },
-            in_offset: Vec::from_slice(&[320.0, 240.0, 300.0, 240.0]).unwrap(),
-            in_scale: Vec::from_slice(&[0.02, 0.05, 0.02, 0.05]).unwrap(),
-            out_offset: Vec::from_slice(&[0.0, 0.0, 115.0]).unwrap(),
-            out_scale: Vec::from_slice(&[3.0, 2.0, 50.0]).unwrap(),
-            params,
-            in_min: Vec::from_slice(&[300.0, 220.0, 280.0, 220.0]).unwrap(),
-            in_max: Vec::from_slice(&[360.0, 260.0, 330.0, 260.0]).unwrap(),
-            meta: TrainingMeta {
-                seed,
-                train_hash: 0xfeed,
-                train_points: 72,
-                train_error_pct: 1.25,
-                algorithm: Algorithm::Lm,
-                restarts: 1,
-            },
-            fallback: None,
-            family: blob::Family::THESIS,
-            matcher: None,
-        }
+        SampleSpec::THESIS
+            .hidden(hidden)
+            .generation(generation)
+            .seed(seed)
+            .build()
     }
 
     fn bytes(b: &ModelBlob) -> StdVec<u8> {
@@ -653,12 +617,7 @@ mod tests {
 
         // A valid blob with Z-only outputs (the head cannot Look with it) and a higher
         // generation loses to a runnable 4-5-3 one.
-        let mut z_only = sample(5, 50, 1);
-        z_only.topology.outputs = OutputKind::Z;
-        z_only.out_offset.truncate(1);
-        z_only.out_scale.truncate(1);
-        z_only.params.truncate(param_count(4, 5, 1));
-        let z_only = bytes(&z_only);
+        let z_only = z_only(50);
         let got = boot(&z_only, &bytes(&sample(5, 1, 2)));
         assert_eq!(
             got.slot_a,
@@ -678,12 +637,13 @@ mod tests {
 
     /// A valid blob with Z-only outputs: the head does not run it.
     fn z_only(generation: u32) -> StdVec<u8> {
-        let mut z = sample(5, generation, 1);
-        z.topology.outputs = OutputKind::Z;
-        z.out_offset.truncate(1);
-        z.out_scale.truncate(1);
-        z.params.truncate(param_count(4, 5, 1));
-        bytes(&z)
+        bytes(
+            &SampleSpec::THESIS
+                .outputs(OutputKind::Z)
+                .generation(generation)
+                .seed(1)
+                .build(),
+        )
     }
 
     #[test]
@@ -862,8 +822,8 @@ mod tests {
         for hidden in [5u8, 7] {
             let mut blob = sample(hidden, 1, 21);
             blob.family = blob::Family::INVERSE_DEPTH;
-            blob.out_offset = Vec::from_slice(&[0.0, 0.0, 0.05]).unwrap();
-            blob.out_scale = Vec::from_slice(&[0.02, 0.02, 0.001]).unwrap();
+            blob.out_offset = heapless::Vec::from_slice(&[0.0, 0.0, 0.05]).unwrap();
+            blob.out_scale = heapless::Vec::from_slice(&[0.02, 0.02, 0.001]).unwrap();
             let got = boot(&bytes(&blob), &[]);
             assert_eq!(network(&got).fast, hidden == 5);
             for k in 0..50 {

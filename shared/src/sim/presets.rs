@@ -58,10 +58,6 @@ pub const LABELS: [&str; 4] = [
     "IV: distinct focal lengths and deflected optic axes",
 ];
 
-/// The thesis' reported traditional-method error range (percent) per case, Figs. 4.8-4.11.
-pub const THESIS_TRADITIONAL_PCT: [[f64; 2]; 4] =
-    [[0.017, 1.78], [15.1, 19.0], [58.3, 1146.0], [155.0, 2654.0]];
-
 /// Case `n` (1-4).
 pub fn case(n: u8) -> Option<Rig> {
     match n {

@@ -25,6 +25,7 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::sim::sets::{SetKind, SimOptions};
+use crate::study::fmt::pct;
 use crate::train::{train, TrainConfig};
 use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob};
@@ -91,6 +92,19 @@ impl Default for StudyConfig {
 }
 
 impl StudyConfig {
+    /// This configuration at test size: one restart, 100 test postures, 300 test points,
+    /// 100 extreme and 60 fixed-posture points, two lenses (k1 0 and -0.5).
+    pub fn reduced(self) -> StudyConfig {
+        StudyConfig {
+            restarts: 1,
+            test_postures: 100,
+            test_points: 300,
+            extreme_points: 100,
+            fixed_points: 60,
+            k1: vec![0.0, -0.5],
+            ..self
+        }
+    }
     /// The rig of the configured case.
     pub fn rig(&self) -> Result<Rig> {
         match presets::case(self.case) {
@@ -818,20 +832,6 @@ pub fn run(cfg: &StudyConfig) -> Result<Report> {
     })
 }
 
-fn pct(v: f64) -> String {
-    if v.is_finite() {
-        if v >= 100.0 {
-            format!("{v:.0} %")
-        } else if v >= 10.0 {
-            format!("{v:.1} %")
-        } else {
-            format!("{v:.2} %")
-        }
-    } else {
-        "-".to_string()
-    }
-}
-
 /// The markdown section of the experiments report: three tables and what they show.
 /// `command` is the command that produced the numbers.
 pub fn markdown(r: &Report, command: &str) -> String {
@@ -853,33 +853,31 @@ pub fn markdown(r: &Report, command: &str) -> String {
          {} random points of the thesis' training volume in front of the head at each posture.\n",
         c.fixed_points
     );
-    let _ = writeln!(
-        s,
-        "| posture | net depth e_ma | net 3-D | floor depth e_ma | net / floor |"
+    table(
+        &mut s,
+        "| posture | net depth e_ma | net 3-D | floor depth e_ma | net / floor |\n|---|---:|---:|---:|---:|",
+        r.fixed.iter().map(|row| {
+            format!(
+                "| {} | {} | {} | {} | {:.1} |",
+                row.label,
+                pct(row.net.z_pct),
+                pct(row.net.d3_pct),
+                pct(row.floor.z_pct),
+                row.net.z_pct / row.floor.z_pct
+            )
+        }),
     );
-    let _ = writeln!(s, "|---|---:|---:|---:|---:|");
-    for row in &r.fixed {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {:.1} |",
-            row.label,
-            pct(row.net.z_pct),
-            pct(row.net.d3_pct),
-            pct(row.floor.z_pct),
-            row.net.z_pct / row.floor.z_pct
-        );
-    }
     let a = &r.aware;
     let _ = writeln!(
         s,
         "\n### (b) The posture-aware net over the working range\n\n\
          Inputs: the four pixels and the five joint angles (degrees); outputs X, Y, Z in the \
-         head frame. Working range: neck pan +-30, neck tilt +-20, eye tilt +-15, version +-15, \
-         vergence 0-10 degrees. Trained (LM, {} restarts) on the board protocol (72 points) at \
+         head frame. Working range: {} degrees. Trained (LM, {} restarts) on the board protocol (72 points) at \
          {} postures, one drawn at random in each cell of a {:?} grid: {} rows. Tested on {} \
          random points at {} random postures, and {} points at extreme postures (the four angles \
          in the outer third of their magnitude, e.g. |neck pan| 20-30, and vergence 6.7-10). Bands: thirds of each term's \
          range (by magnitude for the four angles).\n",
+        report::working_range_words(&PostureRange::WORKING),
         c.restarts,
         a.train_postures,
         c.train_levels,
@@ -895,30 +893,29 @@ pub fn markdown(r: &Report, command: &str) -> String {
         a.blob.params.len(),
         a.blob.params.len() * 4
     );
-    let _ = writeln!(
-        s,
-        "| term | band (deg) | points | net depth e_ma | floor depth e_ma | net / floor | net 3-D | floor 3-D |"
+    table(
+        &mut s,
+        "| term | band (deg) | points | net depth e_ma | floor depth e_ma | net / floor | net 3-D | floor 3-D |\n|---|---|---:|---:|---:|---:|---:|---:|",
+        a.bands.iter().map(|b| {
+            format!(
+                "| {} | {} | {} | {} | {} | {:.2} | {} | {} |",
+                b.term,
+                b.band,
+                b.net.points,
+                pct(b.net.z_pct),
+                pct(b.floor.z_pct),
+                b.ratio(),
+                pct(b.net.d3_pct),
+                pct(b.floor.d3_pct)
+            )
+        }),
     );
-    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|");
-    for b in &a.bands {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {} | {:.2} | {} | {} |",
-            b.term,
-            b.band,
-            b.net.points,
-            pct(b.net.z_pct),
-            pct(b.floor.z_pct),
-            b.ratio(),
-            pct(b.net.d3_pct),
-            pct(b.floor.d3_pct)
-        );
-    }
     let worst = a.bands.iter().map(BandRow::ratio).fold(0.0, f64::max);
     let _ = writeln!(
         s,
-        "\nWorst band: {:.2} x the floor (goal: at most 1.20 everywhere).\n",
-        worst
+        "\nWorst band: {:.2} x the floor (goal: at most {:.2} everywhere).\n",
+        worst,
+        report::GOAL_RATIO
     );
     if a.sweep.len() > 1 {
         let _ = writeln!(
@@ -927,25 +924,23 @@ pub fn markdown(r: &Report, command: &str) -> String {
              instead of one random posture per cell):\n",
             c.train_levels
         );
-        let _ = writeln!(
-            s,
-            "| training postures | hidden | parameters | train e_ma | test e_ma | net / floor | worst band / floor | training time |"
+        table(
+            &mut s,
+            "| training postures | hidden | parameters | train e_ma | test e_ma | net / floor | worst band / floor | training time |\n|---|---:|---:|---:|---:|---:|---:|---:|",
+            a.sweep.iter().map(|h| {
+                format!(
+                    "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.0} s |",
+                    h.postures,
+                    h.hidden,
+                    h.params,
+                    pct(h.train_pct),
+                    pct(h.test.z_pct),
+                    h.test.z_pct / h.floor.z_pct,
+                    h.worst_band_ratio,
+                    h.seconds
+                )
+            }),
         );
-        let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|");
-        for h in &a.sweep {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.0} s |",
-                h.postures,
-                h.hidden,
-                h.params,
-                pct(h.train_pct),
-                pct(h.test.z_pct),
-                h.test.z_pct / h.floor.z_pct,
-                h.worst_band_ratio,
-                h.seconds
-            );
-        }
         let _ = writeln!(s);
     }
     let _ = writeln!(
@@ -985,6 +980,14 @@ pub fn markdown(r: &Report, command: &str) -> String {
         r.seconds[0], r.seconds[1], r.seconds[2]
     );
     s
+}
+
+/// Writes a markdown table: its head (header and alignment lines), then one row a line.
+fn table(s: &mut String, head: &str, rows: impl IntoIterator<Item = String>) {
+    let _ = writeln!(s, "{head}");
+    for r in rows {
+        let _ = writeln!(s, "{r}");
+    }
 }
 
 /// The report's tables as CSV files: `fixed.csv`, `bands.csv`, `hidden.csv`,
@@ -1132,14 +1135,8 @@ mod tests {
         StudyConfig {
             train_levels: [2, 2, 2, 2, 2],
             hidden: 8,
-            restarts: 1,
-            test_postures: 100,
-            test_points: 300,
-            extreme_points: 100,
-            fixed_points: 60,
-            k1: vec![0.0, -0.5],
             distortion_hidden: vec![5],
-            ..StudyConfig::default()
+            ..StudyConfig::default().reduced()
         }
     }
 

@@ -27,6 +27,8 @@
 //! the same seed gives the same CSV bytes. Wall times (the BP/LM comparison and the run time)
 //! are the exception and live in their own file and in `RESULTS.md`.
 
+pub mod facts;
+pub mod markdown;
 pub mod report;
 
 use crate::data::dataset::Dataset;

@@ -2,8 +2,7 @@
 //! experiment, the files written, and determinism (the library run and the CLI run with the
 //! same seed write the same CSV bytes).
 
-mod common;
-use common::{read, spawn_quick_experiment, wait_ok};
+use crate::common::{read, spawn_quick_experiment, wait_ok};
 
 use assert_cmd::Command;
 use hvs_host::study::thesis::{
@@ -248,21 +247,24 @@ fn quick_run_invariants_files_and_determinism() {
     assert!(md.contains("--quick"));
 }
 
+/// Both studies: an output path that is a file is a one-line error naming it.
 #[test]
 fn an_unusable_output_directory_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("not_a_dir");
     std::fs::write(&file, b"x").unwrap();
-    let assert = Command::cargo_bin("hvs")
-        .unwrap()
-        .args(["experiment", "thesis", "--quick", "-o"])
-        .arg(&file)
-        .assert()
-        .failure()
-        .code(1);
-    let err = String::from_utf8_lossy(&assert.get_output().stderr).into_owned();
-    assert!(
-        err.contains("not_a_dir") && err.contains("cannot create"),
-        "{err}"
-    );
+    for study in ["thesis", "posture"] {
+        let assert = Command::cargo_bin("hvs")
+            .unwrap()
+            .args(["experiment", study, "--quick", "-o"])
+            .arg(&file)
+            .assert()
+            .failure()
+            .code(1);
+        let err = String::from_utf8_lossy(&assert.get_output().stderr).into_owned();
+        assert!(
+            err.contains("not_a_dir") && err.contains("cannot create"),
+            "{study}: {err}"
+        );
+    }
 }

@@ -3,8 +3,7 @@
 //! stays at the rounding floor (it used to triangulate with the home-posture rig, and most
 //! points of verged or turned postures came out "no estimate").
 
-mod common;
-use common::ok;
+use crate::common::ok_line;
 
 use tempfile::TempDir;
 
@@ -14,55 +13,24 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
     let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
     // Any posture-aware model will do: the floor does not depend on it. Two postures and
     // two hidden neurons keep the training short.
-    ok(&[
-        "simulate",
-        "--case",
-        "3",
-        "--set",
-        "train",
-        "--postures",
-        "grid",
-        "--posture-levels",
-        "1,1,1,1,2",
-        "-o",
-        &p("train.csv"),
-    ]);
-    ok(&[
-        "train",
-        "--data",
-        &p("train.csv"),
-        "-o",
-        &p("m.hvsw"),
-        "--hidden",
-        "2",
-        "--restarts",
-        "1",
-    ]);
-    ok(&[
-        "simulate",
-        "--case",
-        "3",
-        "--set",
-        "test",
-        "--postures",
-        "random",
-        "--posture-count",
-        "12",
-        "--seed",
-        "3",
-        "-o",
-        &p("test.csv"),
-    ]);
-    let json = ok(&[
-        "eval",
-        "--model",
-        &p("m.hvsw"),
-        "--data",
-        &p("test.csv"),
-        "--case",
-        "3",
-        "--json",
-    ]);
+    ok_line(&format!(
+        "simulate --case 3 --set train --postures grid --posture-levels 1,1,1,1,2 -o {}",
+        p("train.csv")
+    ));
+    ok_line(&format!(
+        "train --data {} -o {} --hidden 2 --restarts 1",
+        p("train.csv"),
+        p("m.hvsw")
+    ));
+    ok_line(&format!(
+        "simulate --case 3 --set test --postures random --posture-count 12 --seed 3 -o {}",
+        p("test.csv")
+    ));
+    let json = ok_line(&format!(
+        "eval --model {} --data {} --case 3 --json",
+        p("m.hvsw"),
+        p("test.csv")
+    ));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let methods = v["evaluation"]["methods"].as_array().unwrap();
     let floor = methods
@@ -78,48 +46,30 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
     assert!(worst < 5.0, "floor worst depth {worst} %");
 
     // The table says the same, without "no estimate".
-    let text = ok(&[
-        "eval",
-        "--model",
-        &p("m.hvsw"),
-        "--data",
-        &p("test.csv"),
-        "--case",
-        "3",
-    ]);
+    let text = ok_line(&format!(
+        "eval --model {} --data {} --case 3",
+        p("m.hvsw"),
+        p("test.csv")
+    ));
     assert!(text.contains("optimal"), "{text}");
     assert!(!text.contains("optimal: no estimate"), "{text}");
 
     // A 4-input (fixed-posture) model on the same posture set: the net sees only the pixels,
     // the floor still triangulates at each row's posture, with the same numbers as above.
-    ok(&[
-        "simulate",
-        "--case",
-        "3",
-        "--set",
-        "train",
-        "-o",
-        &p("home.csv"),
-    ]);
-    ok(&[
-        "train",
-        "--data",
-        &p("home.csv"),
-        "-o",
-        &p("home.hvsw"),
-        "--restarts",
-        "1",
-    ]);
-    let json = ok(&[
-        "eval",
-        "--model",
-        &p("home.hvsw"),
-        "--data",
-        &p("test.csv"),
-        "--case",
-        "3",
-        "--json",
-    ]);
+    ok_line(&format!(
+        "simulate --case 3 --set train -o {}",
+        p("home.csv")
+    ));
+    ok_line(&format!(
+        "train --data {} -o {} --restarts 1",
+        p("home.csv"),
+        p("home.hvsw")
+    ));
+    let json = ok_line(&format!(
+        "eval --model {} --data {} --case 3 --json",
+        p("home.hvsw"),
+        p("test.csv")
+    ));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let home_floor = v["evaluation"]["methods"]
         .as_array()

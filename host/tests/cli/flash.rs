@@ -1,42 +1,13 @@
 //! `hvs image` and `hvs flash` driven from outside: image addresses, dry run, missing probe.
 
 use assert_cmd::Command;
-use hvs_shared::runtime::blob::{
-    self, Algorithm, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_BLOB_LEN,
-};
+use hvs_shared::runtime::blob::{self, ModelBlob, OutputKind, MAX_BLOB_LEN};
 use hvs_shared::runtime::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
-use hvs_shared::runtime::mlp::{param_count, Activation};
+use hvs_shared::test_support::SampleSpec;
 use std::path::Path;
 
 fn model(generation: u32) -> ModelBlob {
-    let n = param_count(4, 5, 3);
-    ModelBlob {
-        generation,
-        topology: Topology {
-            inputs: InputKind::Stereo,
-            hidden: 5,
-            outputs: OutputKind::Xyz,
-            output_activation: Activation::Linear,
-        },
-        in_offset: heapless::Vec::from_slice(&[320.0, 240.0, 300.0, 240.0]).unwrap(),
-        in_scale: heapless::Vec::from_slice(&[0.05; 4]).unwrap(),
-        out_offset: heapless::Vec::from_slice(&[0.0, 0.0, 115.0]).unwrap(),
-        out_scale: heapless::Vec::from_slice(&[3.0, 2.0, 50.0]).unwrap(),
-        params: (0..n).map(|k| (k as f32 * 0.37).sin()).collect(),
-        in_min: heapless::Vec::from_slice(&[0.0; 4]).unwrap(),
-        in_max: heapless::Vec::from_slice(&[640.0, 480.0, 640.0, 480.0]).unwrap(),
-        meta: TrainingMeta {
-            seed: 1,
-            train_hash: 2,
-            train_points: 72,
-            train_error_pct: 1.0,
-            algorithm: Algorithm::Other,
-            restarts: 1,
-        },
-        fallback: None,
-        family: hvs_shared::runtime::blob::Family::THESIS,
-        matcher: None,
-    }
+    SampleSpec::THESIS.generation(generation).build()
 }
 
 fn write_model(dir: &Path, generation: u32) -> std::path::PathBuf {
@@ -186,11 +157,7 @@ fn dry_run_prints_the_plan_without_a_probe() {
 #[test]
 fn a_model_the_head_would_not_run_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let mut z = model(1);
-    z.topology.outputs = OutputKind::Z;
-    z.out_offset.truncate(1);
-    z.out_scale.truncate(1);
-    z.params.truncate(param_count(4, 5, 1));
+    let z = SampleSpec::THESIS.outputs(OutputKind::Z).build();
     let mut buf = [0u8; MAX_BLOB_LEN];
     let n = z.encode(&mut buf).unwrap();
     let p = dir.path().join("z.hvsw");

@@ -1,24 +1,13 @@
 //! `hvs simulate --postures/--distortion` driven from outside: columns, sizes, determinism,
 //! a posture-aware model trained and evaluated through the CLI, and the bad-flag errors.
 
-mod common;
-use common::{fails, ok};
+use crate::common::{fails, ok, ok_line};
 
 use tempfile::TempDir;
 
 #[test]
 fn posture_sets_have_joint_columns_and_are_seeded() {
-    let grid = ok(&[
-        "simulate",
-        "--case",
-        "3",
-        "--set",
-        "test",
-        "--postures",
-        "grid",
-        "--seed",
-        "5",
-    ]);
+    let grid = ok_line("simulate --case 3 --set test --postures grid --seed 5");
     let mut lines = grid.lines();
     assert_eq!(
         lines.next(),
@@ -28,81 +17,25 @@ fn posture_sets_have_joint_columns_and_are_seeded() {
     assert_eq!(lines.count(), 324 * 22);
     assert_eq!(
         grid,
-        ok(&[
-            "simulate",
-            "--case",
-            "3",
-            "--set",
-            "test",
-            "--postures",
-            "grid",
-            "--seed",
-            "5"
-        ])
+        ok_line("simulate --case 3 --set test --postures grid --seed 5")
     );
     assert_ne!(
         grid,
-        ok(&[
-            "simulate",
-            "--case",
-            "3",
-            "--set",
-            "test",
-            "--postures",
-            "grid",
-            "--seed",
-            "6"
-        ])
+        ok_line("simulate --case 3 --set test --postures grid --seed 6")
     );
-    let random = ok(&[
-        "simulate",
-        "--case",
-        "1",
-        "--set",
-        "volume",
-        "--points",
-        "50",
-        "--postures",
-        "random",
-        "--posture-count",
-        "7",
-    ]);
+    let random =
+        ok_line("simulate --case 1 --set volume --points 50 --postures random --posture-count 7");
     assert_eq!(random.lines().count(), 51);
-    let lattice = ok(&[
-        "simulate",
-        "--case",
-        "2",
-        "--set",
-        "train",
-        "--postures",
-        "lattice",
-        "--posture-levels",
-        "2,1,1,1,2",
-    ]);
+    let lattice =
+        ok_line("simulate --case 2 --set train --postures lattice --posture-levels 2,1,1,1,2");
     assert_eq!(lattice.lines().count(), 1 + 4 * 72);
     // Distortion alone keeps the thesis columns; zero distortion is the thesis set.
     let plain = ok(&["simulate", "--case", "4", "--set", "train"]);
     assert_eq!(
-        ok(&[
-            "simulate",
-            "--case",
-            "4",
-            "--set",
-            "train",
-            "--distortion",
-            "0"
-        ]),
+        ok_line("simulate --case 4 --set train --distortion 0"),
         plain
     );
-    let bent = ok(&[
-        "simulate",
-        "--case",
-        "4",
-        "--set",
-        "train",
-        "--distortion",
-        "-0.5,0.1",
-    ]);
+    let bent = ok_line("simulate --case 4 --set train --distortion -0.5,0.1");
     assert!(bent.starts_with("u_l,v_l,u_r,v_r,x,y,z\n"));
     assert_ne!(bent, plain);
 }
@@ -139,53 +72,26 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     let dir = TempDir::new().unwrap();
     let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
     // A coarse grid (2 cells per axis, 32 postures), so the test stays quick.
-    ok(&[
-        "simulate",
-        "--case",
-        "1",
-        "--set",
-        "train",
-        "--postures",
-        "grid",
-        "--posture-levels",
-        "2,2,2,2,2",
-        "-o",
-        &p("train.csv"),
-    ]);
-    ok(&[
-        "simulate",
-        "--case",
-        "1",
-        "--set",
-        "test",
-        "--postures",
-        "random",
-        "--posture-count",
-        "20",
-        "-o",
-        &p("test.csv"),
-    ]);
-    ok(&[
-        "train",
-        "--data",
-        &p("train.csv"),
-        "-o",
-        &p("m.hvsw"),
-        "--hidden",
-        "8",
-        "--restarts",
-        "2",
-    ]);
+    ok_line(&format!(
+        "simulate --case 1 --set train --postures grid --posture-levels 2,2,2,2,2 -o {}",
+        p("train.csv")
+    ));
+    ok_line(&format!(
+        "simulate --case 1 --set test --postures random --posture-count 20 -o {}",
+        p("test.csv")
+    ));
+    ok_line(&format!(
+        "train --data {} -o {} --hidden 8 --restarts 2",
+        p("train.csv"),
+        p("m.hvsw")
+    ));
     let info = ok(&["info", &p("m.hvsw")]);
     assert!(info.contains("9-8-3"), "{info}");
-    let json = ok(&[
-        "eval",
-        "--model",
-        &p("m.hvsw"),
-        "--data",
-        &p("test.csv"),
-        "--json",
-    ]);
+    let json = ok_line(&format!(
+        "eval --model {} --data {} --json",
+        p("m.hvsw"),
+        p("test.csv")
+    ));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let net = &v["evaluation"]["methods"][0];
     assert_eq!(net["name"], "network");
@@ -194,12 +100,10 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     // The optimal triangulation floor of these points is about 1.3 %.
     assert!(e < 2.5, "mean e_ma {e} %");
     // predict reads the joint columns of a posture-aware model.
-    let pred = ok(&[
-        "predict",
-        "--model",
-        &p("m.hvsw"),
-        "--points",
-        &p("test.csv"),
-    ]);
+    let pred = ok_line(&format!(
+        "predict --model {} --points {}",
+        p("m.hvsw"),
+        p("test.csv")
+    ));
     assert_eq!(pred.lines().count(), 1 + 20 * 22);
 }

@@ -6,32 +6,17 @@
 //! Needs `qemu-system-arm` and the QEMU firmware build
 //! (`cargo build --profile firmware -p hvs-firmware --target thumbv7em-none-eabihf --features qemu`);
 //! `#[ignore]`d in a plain `cargo test`, run by `.ci/run` with
-//! `cargo test -p hvs-host --test qemu_cli -- --ignored`. When run, a missing QEMU or ELF is a
+//! `cargo test -p hvs-host --test cli qemu_cli -- --ignored`. When run, a missing QEMU or ELF is a
 //! failure with the command that fixes it, never a skip.
 
+use crate::common::{ok, ok_line, s};
 use hvs_host::device::qemu::{find_firmware, free_port, FIRMWARE_BUILD};
-use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use tempfile::TempDir;
 
 fn hvs() -> Command {
     Command::new(env!("CARGO_BIN_EXE_hvs"))
-}
-
-/// Runs `hvs args`, asserts success, returns stdout.
-fn run(args: &[&str]) -> String {
-    let out = hvs().args(args).output().expect("hvs runs");
-    assert!(
-        out.status.success(),
-        "hvs {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).expect("utf-8 stdout")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
 }
 
 /// `hvs emulate`, killed when dropped.
@@ -64,24 +49,13 @@ fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     let (train, pts, model) = (d.join("train.csv"), d.join("pts.csv"), d.join("m.hvsw"));
-    run(&["simulate", "--case", "4", "--set", "train", "-o", s(&train)]);
-    run(&[
-        "simulate",
-        "--case",
-        "4",
-        "--set",
-        "volume",
-        "--points",
-        "300",
-        "--noise-px",
-        "0.4",
-        "--seed",
-        "11",
-        "-o",
-        s(&pts),
-    ]);
-    run(&["train", "--data", s(&train), "-o", s(&model), "--seed", "3"]);
-    let predicted = run(&["predict", "--model", s(&model), "--points", s(&pts)]);
+    ok(&["simulate", "--case", "4", "--set", "train", "-o", s(&train)]);
+    ok_line(&format!(
+        "simulate --case 4 --set volume --points 300 --noise-px 0.4 --seed 11 -o {}",
+        s(&pts)
+    ));
+    ok(&["train", "--data", s(&train), "-o", s(&model), "--seed", "3"]);
+    let predicted = ok(&["predict", "--model", s(&model), "--points", s(&pts)]);
 
     let port = free_port().expect("a free port");
     let listen = format!("127.0.0.1:{port}");
@@ -127,14 +101,11 @@ fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
     // (about 3 KiB) and stack together (`firmware/measure.sh` checks the sum).
     assert!((256..=12 * 1024).contains(&peak), "stack peak {peak} B");
 
-    let estimated = run(&[
-        "head",
-        "--connect",
-        &connect,
-        "estimate",
-        "--points",
-        s(&pts),
-    ]);
+    let estimated = ok_line(&format!(
+        "head --connect {} estimate --points {}",
+        connect,
+        s(&pts)
+    ));
     let (host, head) = (fields(&predicted, 7), fields(&estimated, 7));
     assert_eq!(head[0], ["u_l", "v_l", "u_r", "v_r", "x", "y", "z"]);
     assert_eq!(host.len(), 301);

@@ -1,8 +1,7 @@
 //! The `hvs` binary driven from outside, as a user would: the thesis protocol end to end,
 //! bit-exact prediction, every bad-input class, determinism, and the demo.
 
-mod common;
-use common::{fails, hvs, ok, s};
+use crate::common::{fails, hvs, ok, ok_line, s};
 
 use hvs_shared::runtime::blob::{self, ModelBlob};
 use serde_json::Value;
@@ -115,17 +114,10 @@ fn simulate_volume_and_noise_are_seeded() {
             "alpha_right": 0.0299, "beta0": 0.008726646259971648, "phi0": 0.008726646259971648}"#,
     )
     .unwrap();
-    let b = ok(&[
-        "simulate",
-        "--rig",
-        s(&rig),
-        "--set",
-        "volume",
-        "--points",
-        "200",
-        "--seed",
-        "5",
-    ]);
+    let b = ok_line(&format!(
+        "simulate --rig {} --set volume --points 200 --seed 5",
+        s(&rig)
+    ));
     assert_eq!(a, b);
 }
 
@@ -161,16 +153,12 @@ fn network_is_near_the_rounding_floor_on_the_deflected_rigs() {
     for n in [3u8, 4] {
         let (_, test, model) = train_case(dir.path(), n, 10);
         let case = n.to_string();
-        let out = ok(&[
-            "eval",
-            "--model",
+        let out = ok_line(&format!(
+            "eval --model {} --data {} --case {} --json",
             s(&model),
-            "--data",
             s(&test),
-            "--case",
-            &case,
-            "--json",
-        ]);
+            case
+        ));
         let r: Value = serde_json::from_str(&out).expect("eval --json prints JSON");
         let net = method(&r, "network")["worst_depth_pct"].as_f64().unwrap();
         let floor = method(&r, "optimal")["worst_depth_pct"].as_f64().unwrap();
@@ -195,29 +183,17 @@ fn predict_gives_the_bits_of_the_shared_inference() {
     let dir = TempDir::new().unwrap();
     let (_, _, model) = train_case(dir.path(), 4, 2);
     let pts = dir.path().join("vol.csv");
-    ok(&[
-        "simulate",
-        "--case",
-        "4",
-        "--set",
-        "volume",
-        "--points",
-        "3000",
-        "--noise-px",
-        "0.8",
-        "-o",
-        s(&pts),
-    ]);
+    ok_line(&format!(
+        "simulate --case 4 --set volume --points 3000 --noise-px 0.8 -o {}",
+        s(&pts)
+    ));
     let out = dir.path().join("pred.csv");
-    ok(&[
-        "predict",
-        "--model",
+    ok_line(&format!(
+        "predict --model {} --points {} -o {}",
         s(&model),
-        "--points",
         s(&pts),
-        "-o",
-        s(&out),
-    ]);
+        s(&out)
+    ));
     let blob: ModelBlob = blob::decode(&std::fs::read(&model).unwrap()).unwrap();
     let input = rows(&std::fs::read_to_string(&pts).unwrap());
     let pred = rows(&std::fs::read_to_string(&out).unwrap());
@@ -246,17 +222,11 @@ fn z_only_models_leave_x_and_y_empty() {
     let tr = dir.path().join("t.csv");
     let m = dir.path().join("z.hvsw");
     ok(&["simulate", "--case", "2", "--set", "train", "-o", s(&tr)]);
-    ok(&[
-        "train",
-        "--data",
+    ok_line(&format!(
+        "train --data {} -o {} --outputs z --restarts 2",
         s(&tr),
-        "-o",
-        s(&m),
-        "--outputs",
-        "z",
-        "--restarts",
-        "2",
-    ]);
+        s(&m)
+    ));
     let out = ok(&["predict", "--model", s(&m), "--points", s(&tr)]);
     let r = rows(&out);
     assert_eq!(r.len(), 73);
@@ -316,17 +286,10 @@ fn train_stores_the_thesis_calibration_as_fallback() {
     // Random volume points hold no symmetric board: no fallback, and eval says so.
     let vol = dir.path().join("v.csv");
     let mv = dir.path().join("v.hvsw");
-    ok(&[
-        "simulate",
-        "--case",
-        "1",
-        "--set",
-        "volume",
-        "--points",
-        "100",
-        "-o",
-        s(&vol),
-    ]);
+    ok_line(&format!(
+        "simulate --case 1 --set volume --points 100 -o {}",
+        s(&vol)
+    ));
     let out = ok(&["train", "--data", s(&vol), "-o", s(&mv), "--restarts", "2"]);
     assert!(out.contains("fallback: none"), "{out}");
     let out = ok(&["eval", "--model", s(&mv), "--data", s(&tr)]);
@@ -338,27 +301,15 @@ fn eval_reports_the_optimal_floor_with_a_true_rig() {
     let dir = TempDir::new().unwrap();
     let (_, _, m) = train_case(dir.path(), 2, 2);
     let vol = dir.path().join("v.csv");
-    ok(&[
-        "simulate",
-        "--case",
-        "2",
-        "--set",
-        "volume",
-        "--points",
-        "300",
-        "-o",
-        s(&vol),
-    ]);
-    let out = ok(&[
-        "eval",
-        "--model",
+    ok_line(&format!(
+        "simulate --case 2 --set volume --points 300 -o {}",
+        s(&vol)
+    ));
+    let out = ok_line(&format!(
+        "eval --model {} --data {} --json --case 2",
         s(&m),
-        "--data",
-        s(&vol),
-        "--json",
-        "--case",
-        "2",
-    ]);
+        s(&vol)
+    ));
     let r: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(r["evaluation"]["exact_depths"], false);
     let floor = method(&r, "optimal")["mean"]["e_ma_pct"].as_f64().unwrap();

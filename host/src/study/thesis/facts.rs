@@ -1,0 +1,239 @@
+//! The facts `RESULTS.md` states, each derived from the presets, the protocol or a run's
+//! results by a small pure function (and unit-tested here), so that no number is typed into
+//! the report's prose.
+
+use super::{DepthCurve, PhiRow};
+use crate::study::fmt::join;
+use crate::study::reported;
+use hvs_shared::sim::camera::Rig;
+
+/// Statistics of the Phi_L (`left`) or Phi_R estimates of one case over the depths.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PhiStats {
+    /// Mean estimate (px).
+    pub mean: f64,
+    /// The rig's true value (px).
+    pub truth: f64,
+    /// Largest deviation of one depth's estimate from the mean, in % of the mean.
+    pub max_dev_pct: f64,
+    /// Standard deviation of the estimates in % of the mean.
+    pub sd_pct: f64,
+}
+
+impl PhiStats {
+    /// The mean's deviation from the true value (%, signed).
+    pub fn bias_pct(&self) -> f64 {
+        (self.mean / self.truth - 1.0) * 100.0
+    }
+}
+
+/// [`PhiStats`] of `case`'s Phi_L (`left`) or Phi_R rows (NaN fields when it has none).
+pub fn phi_stats(rows: &[PhiRow], case: u8, left: bool) -> PhiStats {
+    let pick = |r: &PhiRow| {
+        if left {
+            (r.phi_l, r.true_l)
+        } else {
+            (r.phi_r, r.true_r)
+        }
+    };
+    let v: Vec<(f64, f64)> = rows.iter().filter(|r| r.case == case).map(pick).collect();
+    let n = v.len() as f64;
+    let mean = v.iter().map(|p| p.0).sum::<f64>() / n;
+    let truth = v.first().map_or(f64::NAN, |p| p.1);
+    let max_dev_pct = v
+        .iter()
+        .map(|p| (p.0 - mean).abs() / mean * 100.0)
+        .fold(0.0, f64::max);
+    let var = v.iter().map(|p| (p.0 - mean) * (p.0 - mean)).sum::<f64>() / n;
+    PhiStats {
+        mean,
+        truth,
+        max_dev_pct,
+        sd_pct: libm::sqrt(var) / mean * 100.0,
+    }
+}
+
+/// How far apart two means are, in % of the first.
+pub fn apart_pct(a: f64, b: f64) -> f64 {
+    (a - b).abs() / a * 100.0
+}
+
+/// Consecutive `depths` (cm) at which the point `(x, y)` has the same rounded pixels in
+/// both cameras of `rig`: where no method can tell the depths apart.
+pub fn identical_pixel_depths(rig: &Rig, xy: [f64; 2], depths: &[f64]) -> Vec<(f64, f64)> {
+    let px = |z: f64| rig.project_rounded(&[xy[0], xy[1], z]).ok();
+    depths
+        .windows(2)
+        .filter(|w| {
+            let (a, b) = (px(w[0]), px(w[1]));
+            a.is_some() && a == b
+        })
+        .map(|w| (w[0], w[1]))
+        .collect()
+}
+
+/// The mean horizontal disparity `u_l - u_r` (px, rounded pixels) of the 12 board points
+/// centred at `centre_x` at depth `z`, or None when a point has no image.
+pub fn board_disparity_px(rig: &Rig, centre_x: f64, z: f64) -> Option<f64> {
+    let points = hvs_shared::sim::presets::board_points(z).map(|[x, y, z]| [centre_x + x, y, z]);
+    let mut sum = 0.0;
+    for p in points {
+        let px = rig.project_rounded(&p).ok()?;
+        sum += px[0] - px[2];
+    }
+    Some(sum / points.len() as f64)
+}
+
+/// The depth (cm) and e_ma (%) of a curve's worst depth (the first, on ties).
+pub fn worst_depth(c: &DepthCurve) -> (f64, f64) {
+    c.z.iter()
+        .zip(&c.pct)
+        .fold((f64::NAN, f64::NEG_INFINITY), |a, (z, v)| {
+            if *v > a.1 {
+                (*z, *v)
+            } else {
+                a
+            }
+        })
+}
+
+/// A depth grid in words: `65-165 cm in steps of 20 cm` (evenly spaced), or the list.
+pub fn depth_grid(d: &[f64]) -> String {
+    let step = d.get(1).zip(d.first()).map(|(b, a)| b - a);
+    let even = step.is_some_and(|s| s > 0.0 && d.windows(2).all(|w| w[1] - w[0] == s));
+    match (even, step) {
+        (true, Some(s)) => format!("{}-{} cm in steps of {s} cm", d[0], d[d.len() - 1]),
+        _ => format!("{} cm", join(d.iter(), ", ")),
+    }
+}
+
+/// Signed positions as the text gives them: `-1.75, +1.75`.
+pub fn signed_list(v: impl IntoIterator<Item = f64>) -> String {
+    join(
+        v.into_iter().map(|x| {
+            if x > 0.0 {
+                format!("+{x}")
+            } else {
+                format!("{x}")
+            }
+        }),
+        ", ",
+    )
+}
+
+/// Whether a traditional-method range (lowest, highest per-depth e_ma, %) matches the
+/// thesis' range of `case` within 10 % at both ends (at the low end, at least 0.1 points).
+pub fn matches_thesis_traditional(case: u8, lo: f64, hi: f64) -> bool {
+    let Some(th) = usize::from(case)
+        .checked_sub(1)
+        .and_then(|k| reported::TRADITIONAL_PCT.get(k))
+    else {
+        return false;
+    };
+    (lo - th[0]).abs() <= 0.1 * th[0].max(1.0) && (hi - th[1]).abs() <= 0.1 * th[1]
+}
+
+/// The index of the smallest value (the first, on ties; 0 when empty).
+pub fn argmin(v: &[f64]) -> usize {
+    let mut best = 0;
+    for (k, x) in v.iter().enumerate() {
+        if *x < v[best] {
+            best = k;
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hvs_shared::sim::presets::{self, CASE_1, CASE_2, CASE_4, TEST_DEPTHS, TEST_POINTS_XY};
+
+    fn row(case: u8, phi_l: f64, phi_r: f64) -> PhiRow {
+        PhiRow {
+            case,
+            z: 50.0,
+            phi_l,
+            phi_r,
+            true_l: 100.0,
+            true_r: 200.0,
+        }
+    }
+
+    #[test]
+    fn phi_statistics() {
+        let rows = [row(1, 99.0, 1.0), row(1, 101.0, 1.0), row(2, 0.0, 202.0)];
+        let s = phi_stats(&rows, 1, true);
+        assert_eq!(
+            (s.mean, s.truth, s.max_dev_pct, s.sd_pct),
+            (100.0, 100.0, 1.0, 1.0)
+        );
+        assert_eq!(s.bias_pct(), 0.0);
+        let r = phi_stats(&rows, 2, false);
+        assert_eq!((r.mean, r.truth, r.max_dev_pct), (202.0, 200.0, 0.0));
+        assert!((r.bias_pct() - 1.0).abs() < 1e-12);
+        assert!(phi_stats(&rows, 3, true).mean.is_nan());
+        assert_eq!(apart_pct(200.0, 199.0), 0.5);
+    }
+
+    #[test]
+    fn case_iv_p1_has_identical_pixels_at_two_test_depths() {
+        let twins = identical_pixel_depths(&CASE_4, TEST_POINTS_XY[0], &TEST_DEPTHS);
+        assert_eq!(twins, vec![(135.0, 145.0)]);
+        // Case I sees P1 differently at every test depth.
+        assert!(identical_pixel_depths(&CASE_1, TEST_POINTS_XY[0], &TEST_DEPTHS).is_empty());
+        // On the axis 20 m away, one centimetre moves no pixel (u_l = 320 + 0.75 px).
+        assert_eq!(
+            identical_pixel_depths(&CASE_1, [0.0, 0.0], &[2000.0, 2001.0, 1000.0]),
+            vec![(2000.0, 2001.0)]
+        );
+    }
+
+    #[test]
+    fn disparities_of_the_phi_boards() {
+        let d = CASE_1.half_baseline;
+        // Parallel rig: u_l - u_r = Phi 2d / Z up to rounding.
+        for z in [45.0, 105.0] {
+            let got = board_disparity_px(&CASE_1, d, z).unwrap();
+            let want = CASE_1.phi_u_left * 2.0 * d / z;
+            assert!((got - want).abs() <= 1.0, "{z}: {got} vs {want}");
+        }
+        let r = board_disparity_px(&CASE_2, -d, 100.0).unwrap()
+            / board_disparity_px(&CASE_1, d, 100.0).unwrap();
+        assert!((r - 1.4).abs() < 0.05, "{r}");
+        assert_eq!(board_disparity_px(&CASE_1, 0.0, -10.0), None);
+    }
+
+    #[test]
+    fn worst_depth_and_argmin() {
+        let c = DepthCurve {
+            z: vec![65.0, 75.0, 85.0],
+            pct: vec![1.0, 3.0, 3.0],
+            mean: 2.0,
+        };
+        assert_eq!(worst_depth(&c), (75.0, 3.0));
+        assert_eq!(argmin(&[3.0, 1.0, 1.0, 2.0]), 1);
+        assert_eq!(argmin(&[]), 0);
+    }
+
+    #[test]
+    fn grids_and_lists_in_words() {
+        assert_eq!(
+            depth_grid(&presets::TRAIN_DEPTHS),
+            "65-165 cm in steps of 20 cm"
+        );
+        assert_eq!(depth_grid(&TEST_DEPTHS), "65-165 cm in steps of 10 cm");
+        assert_eq!(depth_grid(&[65.0, 95.0, 165.0]), "65, 95, 165 cm");
+        assert_eq!(depth_grid(&[]), " cm");
+        assert_eq!(signed_list([-1.75, 1.75, 0.0]), "-1.75, +1.75, 0");
+    }
+
+    #[test]
+    fn traditional_ranges_within_ten_percent() {
+        assert!(matches_thesis_traditional(1, 0.0, 1.806));
+        assert!(matches_thesis_traditional(4, 158.7, 2600.0));
+        assert!(!matches_thesis_traditional(4, 158.7, 2000.0));
+        assert!(!matches_thesis_traditional(2, 13.0, 18.9));
+        assert!(!matches_thesis_traditional(5, 0.0, 0.0));
+    }
+}
