@@ -1,0 +1,213 @@
+//! `hvs render` and `hvs board detect`: rendered stereo photos into a training set, through the
+//! built binary, and every kind of bad input named and skipped or refused.
+
+use crate::common::{hvs, ok, s};
+use std::collections::HashMap;
+use std::path::Path;
+
+fn render(dir: &Path, extra: &[&str]) {
+    let mut args = vec!["render", "--case", "1", "-o", s(dir)];
+    args.extend_from_slice(extra);
+    hvs().args(&args).assert().success();
+}
+
+/// `(capture, i, j) -> [u_l, v_l, u_r, v_r]` of a points or truth CSV with those columns
+/// (truth.csv names captures by their left image `leftNN.png`).
+fn corners(path: &Path) -> HashMap<(String, u32, u32), [f64; 4]> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let h: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| h.iter().position(|c| *c == n).unwrap();
+    let (cap, i, j) = if h.contains(&"capture") {
+        (col("capture"), col("i"), col("j"))
+    } else {
+        (col("left"), col("i"), col("j"))
+    };
+    let px = ["u_l", "v_l", "u_r", "v_r"].map(col);
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            let key = f[cap]
+                .trim_start_matches("left")
+                .trim_end_matches(".png")
+                .trim_start_matches('0')
+                .to_string();
+            (
+                (key, f[i].parse().unwrap(), f[j].parse().unwrap()),
+                px.map(|k| f[k].parse::<f64>().unwrap()),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
+    let dir = tempfile::tempdir().unwrap();
+    let shots = dir.path().join("shots");
+    render(&shots, &["--depths", "65,115,165", "--seed", "2"]);
+    for f in ["left01.png", "right03.png", "captures.csv", "truth.csv", "board.json"] {
+        assert!(shots.join(f).is_file(), "{f}");
+    }
+    let caps = std::fs::read_to_string(shots.join("captures.csv")).unwrap();
+    assert_eq!(caps.lines().next(), Some("left,right,z,x,y"));
+    assert_eq!(caps.lines().count(), 4);
+    // Same seed, same bytes; another seed, other noise.
+    let again = dir.path().join("again");
+    render(&again, &["--depths", "65,115,165", "--seed", "2"]);
+    let other = dir.path().join("other");
+    render(&other, &["--depths", "65,115,165", "--seed", "3"]);
+    let img = |d: &Path| std::fs::read(d.join("left02.png")).unwrap();
+    assert_eq!(img(&shots), img(&again));
+    assert_ne!(img(&shots), img(&other));
+
+    let points = dir.path().join("points.csv");
+    let ov = dir.path().join("ov");
+    let out = hvs()
+        .args([
+            "board",
+            "detect",
+            "--board",
+            s(&shots.join("board.json")),
+            "--captures",
+            s(&shots.join("captures.csv")),
+            "-o",
+            s(&points),
+            "--overlays",
+            s(&ov),
+        ])
+        .assert()
+        .success()
+        .get_output()
+        .stderr
+        .clone();
+    let summary = String::from_utf8(out).unwrap();
+    assert!(summary.contains("54/54 corners"), "{summary}");
+    assert!(summary.contains("3 of 3 pairs, 162 corners"), "{summary}");
+    let text = std::fs::read_to_string(&points).unwrap();
+    assert_eq!(
+        text.lines().next(),
+        Some("capture,i,j,u_l,v_l,u_r,v_r,x,y,z")
+    );
+    assert_eq!(text.lines().count(), 1 + 3 * 54);
+    // Board coordinates of the convention: (0, 0) top-left, 6 cm squares, centred on the axis.
+    let row1: Vec<&str> = text.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(&row1[..3], ["1", "0", "0"]);
+    assert_eq!(&row1[7..], ["-24", "-15", "65"]);
+    // Every detected corner is within 0.1 px of the exact one, under the same label.
+    let got = corners(&points);
+    let truth = corners(&shots.join("truth.csv"));
+    assert_eq!(got.len(), 162);
+    let mut worst = 0.0f64;
+    for (k, p) in &got {
+        let t = truth.get(k).unwrap_or_else(|| panic!("{k:?} not in the truth"));
+        for c in 0..4 {
+            worst = worst.max((p[c] - t[c]).abs());
+        }
+    }
+    assert!(worst < 0.1, "worst corner error {worst} px");
+    for f in ["left01.overlay.png", "right03.overlay.png"] {
+        assert!(ov.join(f).is_file(), "{f}");
+    }
+    // hvs train takes it as it is.
+    let model = dir.path().join("m.hvsw");
+    ok(&["train", "--data", s(&points), "-o", s(&model), "--restarts", "2"]);
+    let info = ok(&["info", s(&model)]);
+    assert!(info.contains("matcher"), "{info}");
+}
+
+/// Runs `board detect` expecting exit 1; returns stderr.
+fn detect_fails(board: &Path, captures: &Path, out: &Path) -> String {
+    let o = hvs()
+        .args([
+            "board",
+            "detect",
+            "--board",
+            s(board),
+            "--captures",
+            s(captures),
+            "-o",
+            s(out),
+        ])
+        .assert()
+        .code(1)
+        .get_output()
+        .stderr
+        .clone();
+    let e = String::from_utf8(o).unwrap();
+    assert!(!e.contains("panicked"), "{e}");
+    assert!(!out.exists(), "nothing is written on failure");
+    e
+}
+
+#[test]
+fn bad_images_and_boards_are_named_skipped_or_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render(&d.join("r"), &["--depths", "85", "--seed", "1"]);
+    let copy = |from: &str, to: &str| std::fs::copy(d.join("r").join(from), d.join(to)).unwrap();
+    copy("left01.png", "l.png");
+    copy("right01.png", "r.png");
+    copy("board.json", "board.json");
+    // A truncated PNG, a blank picture, an image of another size.
+    let png = std::fs::read(d.join("l.png")).unwrap();
+    std::fs::write(d.join("cut.png"), &png[..png.len() / 2]).unwrap();
+    image::GrayImage::from_pixel(640, 480, image::Luma([128u8]))
+        .save(d.join("blank.png"))
+        .unwrap();
+    image::GrayImage::from_pixel(320, 240, image::Luma([128u8]))
+        .save(d.join("small.png"))
+        .unwrap();
+    let board = d.join("board.json");
+    let out = d.join("points.csv");
+    let cases = [
+        ("missing.png,r.png", "missing.png"),
+        ("cut.png,r.png", "cut.png"),
+        ("blank.png,r.png", "left"),
+        ("l.png,small.png", "size"),
+    ];
+    for (row, want) in cases {
+        let caps = d.join("caps.csv");
+        std::fs::write(&caps, format!("left,right,z\n{row},85\n")).unwrap();
+        let e = detect_fails(&board, &caps, &out);
+        assert!(e.contains("caps.csv:2"), "{row}: {e}");
+        assert!(e.contains(want), "{row}: {e}");
+        assert!(e.contains("no usable stereo pair"), "{row}: {e}");
+    }
+    // A wrong inner_corners: the board is not found as described.
+    let wrong = d.join("wrong.json");
+    std::fs::write(
+        &wrong,
+        r#"{"pattern": "chessboard", "inner_corners": [7, 4], "square_cm": 6.0}"#,
+    )
+    .unwrap();
+    let caps = d.join("caps.csv");
+    std::fs::write(&caps, "left,right,z\nl.png,r.png,85\n").unwrap();
+    let e = detect_fails(&wrong, &caps, &out);
+    assert!(e.contains("caps.csv:2") && e.contains("skipped"), "{e}");
+    // A bad board file names itself.
+    let bad = d.join("bad.json");
+    std::fs::write(&bad, r#"{"pattern": "chessboard", "inner_corners": [9]}"#).unwrap();
+    let e = detect_fails(&bad, &caps, &out);
+    assert!(e.contains("bad.json"), "{e}");
+    // One good pair and one bad one: the good one is written, the bad one named.
+    std::fs::write(&caps, "left,right,z\nl.png,r.png,85\nmissing.png,r.png,95\n").unwrap();
+    let o = hvs()
+        .args([
+            "board",
+            "detect",
+            "--board",
+            s(&board),
+            "--captures",
+            s(&caps),
+            "-o",
+            s(&out),
+        ])
+        .assert()
+        .success()
+        .get_output()
+        .stderr
+        .clone();
+    let e = String::from_utf8(o).unwrap();
+    assert!(e.contains("caps.csv:3") && e.contains("missing.png"), "{e}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 1 + 54);
+}

@@ -1,0 +1,18 @@
+//! The integration tests of `hvs`, driven from outside through the built binary: one test
+//! binary (probe-rs and plotters are linked once), one module per area.
+//!
+//! `cargo test -p hvs-host --test cli` runs them all; `cargo test -p hvs-host --test cli
+//! qemu_cli -- --ignored` runs the QEMU ones (the firmware built for thumbv7em-none-eabihf
+//! and `qemu-system-arm` on PATH).
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod cli;
+mod eval_posture;
+mod experiment;
+mod experiment_posture;
+mod flash;
+mod images;
+mod posture_cli;
+mod qemu_cli;
