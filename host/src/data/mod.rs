@@ -4,4 +4,5 @@
 pub mod csv;
 pub mod dataset;
 pub mod model;
+pub mod output;
 pub mod rig;

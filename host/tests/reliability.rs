@@ -1,0 +1,152 @@
+//! Reliability (issue 13): outputs never destroy inputs, interrupted runs leave nothing,
+//! strict input checks everywhere. Each test drives the built `hvs` binary.
+
+mod common;
+use common::{fails, hvs, ok, read, s};
+
+use std::os::unix::fs::FileTypeExt;
+use std::path::{Path, PathBuf};
+use tempfile::TempDir;
+
+/// Case 1's training and test sets and a model trained on them (one restart) in `dir`:
+/// (train csv, test csv, model).
+fn setup(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let (tr, te, m) = (
+        dir.join("train.csv"),
+        dir.join("test.csv"),
+        dir.join("m.hvsw"),
+    );
+    ok(&["simulate", "--case", "1", "--set", "train", "-o", s(&tr)]);
+    ok(&["simulate", "--case", "1", "--set", "test", "-o", s(&te)]);
+    ok(&["train", "--data", s(&tr), "-o", s(&m), "--restarts", "1"]);
+    (tr, te, m)
+}
+
+fn mknod(path: &Path, major: u32, minor: u32) -> bool {
+    let c = std::ffi::CString::new(s(path)).unwrap();
+    // SAFETY: plain mknod(2) on a path in a temporary directory.
+    let r = unsafe {
+        libc::mknod(
+            c.as_ptr(),
+            libc::S_IFCHR | 0o666,
+            libc::makedev(major, minor),
+        )
+    };
+    if r != 0 {
+        eprintln!(
+            "note: mknod {}: {} (needs root); device case skipped",
+            path.display(),
+            std::io::Error::last_os_error()
+        );
+    }
+    r == 0
+}
+
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(s(path)).unwrap();
+    // SAFETY: plain mkfifo(3) on a path in a temporary directory.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o666) }, 0, "mkfifo");
+}
+
+fn file_type(p: &Path) -> std::fs::FileType {
+    std::fs::symlink_metadata(p)
+        .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+        .file_type()
+}
+
+// Item 1: an existing target that is not a regular file is written in place, never renamed
+// over.
+#[test]
+fn outputs_onto_devices_fifos_and_links_are_written_in_place() {
+    let dir = TempDir::new().unwrap();
+    let (_, te, m) = setup(dir.path());
+    let predict = |out: &Path| {
+        hvs()
+            .args([
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(out),
+            ])
+            .assert()
+    };
+    let want = ok(&["predict", "--model", s(&m), "--points", s(&te)]);
+    assert!(want.starts_with("u_l,v_l,u_r,v_r,x,y,z\n"), "{want}");
+
+    // A FIFO: the reader gets the CSV, the FIFO stays a FIFO.
+    let fifo = dir.path().join("fifo");
+    mkfifo(&fifo);
+    let f2 = fifo.clone();
+    let reader = std::thread::spawn(move || std::fs::read_to_string(&f2).unwrap());
+    predict(&fifo).success();
+    // (Checked first: had the FIFO been replaced, the reader would wait forever.)
+    assert!(file_type(&fifo).is_fifo(), "the FIFO was replaced");
+    assert_eq!(reader.join().unwrap(), want);
+
+    // A character device: null (1,3) swallows it; full (1,7) fails with the reason, exit 1.
+    let null = dir.path().join("mynull");
+    if mknod(&null, 1, 3) {
+        predict(&null).success();
+        assert!(file_type(&null).is_char_device(), "mynull was replaced");
+        let full = dir.path().join("myfull");
+        assert!(mknod(&full, 1, 7));
+        let e = fails(
+            &[
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(&full),
+            ],
+            "myfull: cannot write",
+        );
+        assert!(e.contains("No space left"), "{e}");
+        assert!(file_type(&full).is_char_device(), "myfull was replaced");
+    }
+
+    // A symbolic link stays a link; the file it names gets the CSV, atomically.
+    let real = dir.path().join("real.csv");
+    std::fs::write(&real, "old").unwrap();
+    let link = dir.path().join("link.csv");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    predict(&link).success();
+    assert!(file_type(&link).is_symlink(), "the link was replaced");
+    assert_eq!(String::from_utf8(read(&real)).unwrap(), want);
+    let to_null = dir.path().join("to_null");
+    std::os::unix::fs::symlink("/dev/null", &to_null).unwrap();
+    predict(&to_null).success();
+    assert!(file_type(&to_null).is_symlink());
+    assert!(file_type(Path::new("/dev/null")).is_char_device());
+    // Nothing else was left in the directory.
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    names.sort();
+    assert!(names.is_empty(), "left behind: {names:?}");
+}
+
+// Item 1: `-o /dev/stdout` is standard output (not a rename over /dev/stdout).
+#[test]
+fn output_to_dev_stdout_is_standard_output() {
+    let dir = TempDir::new().unwrap();
+    let (_, te, m) = setup(dir.path());
+    let want = ok(&["predict", "--model", s(&m), "--points", s(&te)]);
+    let got = ok(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--points",
+        s(&te),
+        "-o",
+        "/dev/stdout",
+    ]);
+    assert_eq!(got, want);
+    assert!(file_type(Path::new("/dev/stdout")).is_symlink());
+}
