@@ -150,3 +150,123 @@ fn output_to_dev_stdout_is_standard_output() {
     assert_eq!(got, want);
     assert!(file_type(Path::new("/dev/stdout")).is_symlink());
 }
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/tests/fixtures")
+        .join(name)
+}
+
+// Item 2: an output that is one of the inputs is refused before any work, input untouched.
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let (tr, te, m) = setup(dir.path());
+    let rig = dir.path().join("rig.json");
+    std::fs::copy(fixture("cases.json"), &rig).unwrap();
+    // Another name for the test set: a hard link, and a path through "./".
+    let hard = dir.path().join("hard.csv");
+    std::fs::hard_link(&te, &hard).unwrap();
+    let dotted = dir.path().join(".").join("test.csv");
+    let cases: Vec<(Vec<&str>, &str, &Path)> = vec![
+        (
+            vec![
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(&te),
+            ],
+            "--points",
+            &te,
+        ),
+        (
+            vec![
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(&hard),
+            ],
+            "--points",
+            &te,
+        ),
+        (
+            vec![
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(&dotted),
+            ],
+            "--points",
+            &te,
+        ),
+        (
+            vec!["predict", "--model", s(&m), "--points", s(&te), "-o", s(&m)],
+            "--model",
+            &m,
+        ),
+        (
+            vec!["train", "--data", s(&tr), "-o", s(&tr), "--restarts", "1"],
+            "--data",
+            &tr,
+        ),
+        (
+            vec![
+                "image",
+                "--model",
+                s(&m),
+                "--slot",
+                "a",
+                "--format",
+                "bin",
+                "-o",
+                s(&m),
+            ],
+            "--model",
+            &m,
+        ),
+        (
+            vec![
+                "simulate",
+                "--rig",
+                s(&rig),
+                "--case",
+                "1",
+                "--set",
+                "train",
+                "-o",
+                s(&rig),
+            ],
+            "--rig",
+            &rig,
+        ),
+        (
+            vec![
+                "head",
+                "--connect",
+                "tcp:127.0.0.1:9",
+                "estimate",
+                "--points",
+                s(&te),
+                "-o",
+                s(&te),
+            ],
+            "--points",
+            &te,
+        ),
+    ];
+    for (args, flag, input) in cases {
+        let before = read(input);
+        let e = fails(&args, &format!("is also the {flag} input"));
+        assert!(e.contains(&format!("error: -o ")), "{e}");
+        assert_eq!(read(input), before, "{args:?} changed {}", input.display());
+    }
+}

@@ -5,6 +5,7 @@
 //! be compared with host inference), `look U_L V_L U_R V_R`, `home`, `bench`.
 
 use crate::data::csv::{read_stereo_points, write_bytes};
+use crate::data::output::check_not_input;
 use crate::device::client::{connect, error_text, estimate_row, expect, write_info};
 use crate::device::link::Endpoint;
 use anyhow::{bail, Result};
@@ -96,7 +97,12 @@ pub fn run(args: &Args) -> Result<()> {
     // Inputs are read before the head is contacted: a bad file is named as such, even when
     // no head answers.
     let points_read = match &args.command {
-        HeadCommand::Estimate { points, .. } => Some(read_stereo_points(points)?),
+        HeadCommand::Estimate { points, output } => {
+            if let Some(out) = output {
+                check_not_input("-o", out, &[("--points", points)])?;
+            }
+            Some(read_stereo_points(points)?)
+        }
         _ => None,
     };
     let endpoint = args.endpoint()?;

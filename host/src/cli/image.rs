@@ -3,6 +3,7 @@
 
 use super::value_enum;
 use crate::data::csv::write_bytes;
+use crate::data::output::check_not_input;
 use crate::device::probe::{image, read_model, ImageFormat};
 use anyhow::Result;
 use hvs_shared::runtime::layout::Slot;
@@ -50,6 +51,7 @@ pub struct Args {
 
 /// `hvs image`.
 pub fn run(args: &Args) -> Result<()> {
+    check_not_input("-o", &args.output, &[("--model", &args.model)])?;
     let (blob, bytes) = read_model(&args.model)?;
     let slot = Slot::from(args.slot);
     let format = ImageFormat::from(args.format);

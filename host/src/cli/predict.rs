@@ -2,6 +2,7 @@
 
 use crate::data::csv::{read_set, write_output, Table};
 use crate::data::model::{self, input_names};
+use crate::data::output::check_not_input;
 use crate::infer::{to_f32, PointError, Predictor};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{ModelBlob, OutputKind};
@@ -32,6 +33,9 @@ pub struct Args {
 
 /// Runs `hvs predict`.
 pub fn run(a: Args) -> Result<()> {
+    if let Some(out) = &a.output {
+        check_not_input("-o", out, &[("--points", &a.points), ("--model", &a.model)])?;
+    }
     let m = model::load(&a.model)?;
     let blob = &m.blob;
     let table = read_set(&a.points, blob.topology.inputs.into(), false)?;

@@ -3,6 +3,7 @@
 use super::value_enum;
 use crate::cli::RigArgs;
 use crate::data::csv::write_output;
+use crate::data::output::check_not_input;
 use crate::sim::posture::{self, postures, PostureOptions, Sampling};
 use crate::sim::sets::{simulate, write_csv, SetKind, SimOptions};
 
@@ -105,6 +106,9 @@ pub const POSTURE_SEED_MIX: u64 = 0x706f_7374_7572_6573;
 
 /// Runs `hvs simulate`.
 pub fn run(a: Args) -> Result<()> {
+    if let (Some(out), Some(rig)) = (&a.output, &a.rig.rig) {
+        check_not_input("-o", out, &[("--rig", rig)])?;
+    }
     let rig = a
         .rig
         .rig()?

@@ -3,6 +3,7 @@
 
 use crate::data::csv::{read_set, Inputs};
 use crate::data::model;
+use crate::data::output::check_not_input;
 use crate::train::fallback::{self, FallbackFit};
 use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
 use anyhow::{bail, Context, Result};
@@ -182,6 +183,7 @@ pub fn run(a: Args) -> Result<()> {
         },
         progress: std::io::stderr().is_terminal(),
     };
+    check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
     let plan = Plan {
         config,
