@@ -270,3 +270,80 @@ fn an_output_that_is_an_input_is_refused() {
         assert_eq!(read(input), before, "{args:?} changed {}", input.display());
     }
 }
+
+/// Temporary files (`.NAME...tmp`) in `dir`.
+fn temp_files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.') && n.ends_with(".tmp"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Starts a long `hvs simulate` into `out`, waits until its temporary file exists, sends
+/// `signal`; returns the exit status and the temporary files seen while it ran.
+fn interrupt_a_write(out: &Path, signal: libc::c_int) -> (std::process::ExitStatus, Vec<String>) {
+    let dir = out.parent().unwrap();
+    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
+        .args([
+            "simulate", "--case", "1", "--set", "volume", "--points", "1000000",
+        ])
+        .arg("-o")
+        .arg(out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Not a timing assertion: the loop only waits for the write to begin.
+    let seen = loop {
+        let t = temp_files(dir);
+        if !t.is_empty() {
+            break t;
+        }
+        if let Some(st) = child.try_wait().unwrap() {
+            panic!("hvs simulate ended ({st}) before its temporary file was seen");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, signal) }, 0);
+    (child.wait().unwrap(), seen)
+}
+
+// Item 3: SIGINT and SIGTERM remove the temporary file; the process dies of the signal.
+#[test]
+fn interrupted_writes_leave_nothing() {
+    use std::os::unix::process::ExitStatusExt;
+    for sig in [libc::SIGINT, libc::SIGTERM] {
+        let dir = TempDir::new().unwrap();
+        let out = dir.path().join("int.csv");
+        let (st, seen) = interrupt_a_write(&out, sig);
+        assert_eq!(st.signal(), Some(sig), "{st}");
+        assert_eq!(seen.len(), 1, "{seen:?}");
+        assert!(seen[0].starts_with(".int.csv.hvs-"), "{seen:?}");
+        assert_eq!(temp_files(dir.path()), Vec::<String>::new(), "signal {sig}");
+        assert!(!out.exists());
+    }
+}
+
+// Item 3: after SIGKILL the temporary file stays (nothing can run), named with the dead pid;
+// the next write into the same directory removes it, and leaves other files alone.
+#[test]
+fn the_next_write_removes_what_a_killed_run_left() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("int.csv");
+    let (_, seen) = interrupt_a_write(&out, libc::SIGKILL);
+    assert_eq!(temp_files(dir.path()), seen, "SIGKILL cannot clean up");
+    // Not ours (no pid), and ours but alive (this test's pid): kept.
+    let foreign = ".notes.csv.tmp".to_string();
+    let alive = format!(".x.csv.hvs-{}.abcdef.tmp", std::process::id());
+    std::fs::write(dir.path().join(&foreign), "keep").unwrap();
+    std::fs::write(dir.path().join(&alive), "keep").unwrap();
+    let next = dir.path().join("next.csv");
+    ok(&["simulate", "--case", "1", "--set", "test", "-o", s(&next)]);
+    let mut want = vec![foreign, alive];
+    want.sort();
+    assert_eq!(temp_files(dir.path()), want);
+}
