@@ -347,3 +347,80 @@ fn the_next_write_removes_what_a_killed_run_left() {
     want.sort();
     assert_eq!(temp_files(dir.path()), want);
 }
+
+/// Writes `header` and `rows` as a CSV in `dir`.
+fn csv(dir: &Path, name: &str, header: &str, rows: &[String]) -> PathBuf {
+    let p = dir.join(name);
+    let mut t = format!("{header}\n");
+    for r in rows {
+        t.push_str(r);
+        t.push('\n');
+    }
+    std::fs::write(&p, t).unwrap();
+    p
+}
+
+/// The data rows of the case-1 training fixture (12 per depth, depths 65, 85, ..., 165).
+fn train_rows() -> Vec<String> {
+    std::fs::read_to_string(fixture("case1_train.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(str::to_string)
+        .collect()
+}
+
+// Item 5: sets that cannot determine the net, a single depth, and absurd values are refused
+// with the reason; the thesis' two-depth experiment (24 rows x 3 outputs, 43 parameters)
+// still trains.
+#[test]
+fn degenerate_and_absurd_training_sets_are_refused() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let h = "u_l,v_l,u_r,v_r,x,y,z";
+    let rows = train_rows();
+    let m = d.join("m.hvsw");
+    let train = |p: &Path, want: &str| {
+        let e = fails(
+            &["train", "--data", s(p), "-o", s(&m), "--restarts", "1"],
+            want,
+        );
+        assert!(!m.exists(), "{e}");
+        e
+    };
+    let one = csv(d, "one.csv", h, &rows[..1]);
+    let e = train(&one, "1 rows x 3 outputs = 3 equations cannot determine");
+    assert!(e.contains("43 parameters"), "{e}");
+    let flat = csv(d, "flat.csv", h, &rows[..12]);
+    train(&flat, "12 rows x 3 outputs = 36 equations");
+    // Enough rows for the Z-only net (31 parameters), all at Z = 65: one depth.
+    let mut same_depth = rows[..12].to_vec();
+    same_depth.extend(rows[..12].iter().map(|r| r.replacen("330,", "331,", 1)));
+    same_depth.extend(rows[..12].iter().map(|r| r.replacen("231,", "232,", 1)));
+    let flat = csv(d, "flat65.csv", h, &same_depth);
+    train(&flat, "all 36 rows lie at one depth (z = 65 cm)");
+
+    let mut bad = rows.clone();
+    bad[3] = bad[3].replacen("356", "1e30", 1);
+    assert!(bad[3].contains("1e30"), "{}", bad[3]);
+    let p = csv(d, "pixel.csv", h, &bad);
+    train(
+        &p,
+        "pixel.csv:5: column \"u_l\": 1000000000000000000000000000000 px is not a value",
+    );
+    let mut bad = rows.clone();
+    bad[7] = bad[7].replacen(",65.0000", ",1e30", 1);
+    let p = csv(d, "z.csv", h, &bad);
+    train(&p, "z.csv:9: column \"z\"");
+
+    // Values beyond f32: one message for train and predict alike.
+    let mut bad = rows.clone();
+    bad[2] = bad[2].replacen("347", "1e39", 1);
+    let p = csv(d, "huge.csv", h, &bad);
+    let want = "huge.csv:4: column \"u_l\": 1e39 does not fit the f32 the model computes in";
+    train(&p, want);
+    let two = csv(d, "two.csv", h, &rows[..24]);
+    let out = ok(&["train", "--data", s(&two), "-o", s(&m), "--restarts", "1"]);
+    assert!(out.contains("on 24 points"), "{out}");
+    fails(&["predict", "--model", s(&m), "--points", s(&p)], want);
+}

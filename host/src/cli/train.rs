@@ -185,6 +185,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
+    crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
     let plan = Plan {
         config,
         half_baseline: a.half_baseline,

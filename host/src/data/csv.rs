@@ -267,6 +267,11 @@ fn number(file: &str, line: u64, column: &str, field: &[u8]) -> Result<f64> {
     if !v.is_finite() {
         bail!("{file}:{line}: column \"{column}\": \"{text}\" is not a finite number");
     }
+    if v.abs() > f32::MAX as f64 {
+        bail!(
+            "{file}:{line}: column \"{column}\": {text} does not fit the f32 the model computes in"
+        );
+    }
     Ok(v)
 }
 
