@@ -424,3 +424,40 @@ fn degenerate_and_absurd_training_sets_are_refused() {
     assert!(out.contains("on 24 points"), "{out}");
     fails(&["predict", "--model", s(&m), "--points", s(&p)], want);
 }
+
+// Item 7: a rig file with a key given twice is refused, naming the key.
+#[test]
+fn rig_json_with_a_duplicate_key_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let rig = dir.path().join("rig.json");
+    std::fs::write(
+        &rig,
+        r#"{"phi_u_left": 285.8, "phi_u_right": 228.7, "alpha_left": -0.0455,
+            "alpha_right": 0.0455, "beta0": 0.0087, "phi0": 0.0087, "u0": 320, "u0": 100}"#,
+    )
+    .unwrap();
+    let e = fails(
+        &["simulate", "--rig", s(&rig), "--set", "test"],
+        "duplicate key \"u0\"",
+    );
+    assert!(e.contains("rig.json"), "{e}");
+    let cases = dir.path().join("cases.json");
+    let text = std::fs::read_to_string(fixture("cases.json")).unwrap();
+    std::fs::write(
+        &cases,
+        text.replacen("\"phi0\"", "\"phi0\": 0.1, \"phi0\"", 1),
+    )
+    .unwrap();
+    fails(
+        &[
+            "simulate",
+            "--rig",
+            s(&cases),
+            "--case",
+            "1",
+            "--set",
+            "test",
+        ],
+        "duplicate key \"phi0\" in \"cases\".\"1\"",
+    );
+}
