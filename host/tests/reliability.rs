@@ -461,3 +461,68 @@ fn rig_json_with_a_duplicate_key_is_refused() {
         "duplicate key \"phi0\" in \"cases\".\"1\"",
     );
 }
+
+/// A file with only an ELF header: 32-bit little-endian, machine `machine`.
+fn fake_elf(p: &Path, machine: u16) {
+    let mut h = vec![0u8; 52];
+    h[..4].copy_from_slice(b"\x7fELF");
+    h[4] = 1;
+    h[5] = 1;
+    h[6] = 1;
+    h[16] = 2;
+    h[18..20].copy_from_slice(&machine.to_le_bytes());
+    std::fs::write(p, h).unwrap();
+}
+
+// Item 4: `hvs emulate` checks the model, firmware, servo-log directory and listen address
+// before it starts (QEMU is never run: --qemu names a program that does not exist).
+#[test]
+fn emulate_checks_its_inputs_before_it_starts() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (_, _, m) = setup(d);
+    let arm = d.join("fw.elf");
+    fake_elf(&arm, 40);
+    let x86 = d.join("x86.elf");
+    fake_elf(&x86, 62);
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let busy = port.local_addr().unwrap().to_string();
+    let free = {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().to_string()
+    };
+    let log = d.join("s.log");
+    let nodir = d.join("nodir").join("s.log");
+    let emulate = |model: &Path, fw: &Path, log: &Path, listen: &str, want: &str| {
+        fails(
+            &[
+                "emulate",
+                "--model",
+                s(model),
+                "--firmware",
+                s(fw),
+                "--servo-log",
+                s(log),
+                "--listen",
+                listen,
+                "--qemu",
+                "/nonexistent/qemu-system-arm",
+            ],
+            want,
+        )
+    };
+    let e = emulate(d, &arm, &log, &free, "Is a directory");
+    assert!(e.contains("--model"), "{e}");
+    let e = emulate(&m, &m, &log, &free, "not an ELF file");
+    assert!(e.contains("--firmware"), "{e}");
+    emulate(&m, &x86, &log, &free, "e_machine 62");
+    emulate(&m, &arm, &nodir, &free, "the directory");
+    emulate(&m, &arm, &m, &free, "--servo-log");
+    let e = emulate(&m, &arm, &log, &busy, "cannot listen there");
+    assert!(e.contains(&busy), "{e}");
+    emulate(&m, &arm, &log, "nonsense", "not a HOST:PORT address");
+    // With every input right, the next failure is QEMU itself.
+    emulate(&m, &arm, &log, &free, "cannot run");
+    assert!(!log.exists());
+    drop(port);
+}
