@@ -526,3 +526,76 @@ fn emulate_checks_its_inputs_before_it_starts() {
     assert!(!log.exists());
     drop(port);
 }
+
+// Item 6: every command reads CSVs with the one reader: a UTF-8 BOM is accepted, a
+// duplicated column and a header-only file are errors; `hvs head estimate` checks its
+// input and output before it connects.
+#[test]
+fn every_command_reads_csvs_alike() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (tr, _, m) = setup(d);
+    let text = std::fs::read_to_string(&tr).unwrap();
+    let bom = d.join("bom.csv");
+    std::fs::write(&bom, format!("\u{feff}{text}")).unwrap();
+    let header_only = d.join("hdr.csv");
+    std::fs::write(&header_only, text.lines().next().unwrap()).unwrap();
+    let dup = d.join("dup.csv");
+    std::fs::write(
+        &dup,
+        text.replacen("u_l,v_l,u_r,v_r,x,y,z", "u_l,v_l,u_r,v_r,x,y,z,u_l", 1)
+            .replace('\n', ",1\n"),
+    )
+    .unwrap();
+    let m2 = d.join("m2.hvsw");
+    let no_head = "tcp:127.0.0.1:9";
+    let commands = |f: &Path| -> Vec<Vec<String>> {
+        let f = s(f).to_string();
+        let m = s(&m).to_string();
+        [
+            vec!["train", "--restarts", "1", "-o", s(&m2), "--data", &f],
+            vec!["predict", "--model", &m, "--points", &f],
+            vec!["eval", "--model", &m, "--data", &f],
+            vec!["head", "--connect", no_head, "estimate", "--points", &f],
+        ]
+        .iter()
+        .map(|v| v.iter().map(|x| x.to_string()).collect())
+        .collect()
+    };
+    for args in commands(&bom) {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        if args[0] == "head" {
+            // Read fine; the failure is the missing head.
+            fails(&args, "cannot connect");
+        } else {
+            ok(&args);
+        }
+    }
+    for (f, want) in [
+        (&header_only, "hdr.csv: no data rows after the header"),
+        (
+            &dup,
+            "dup.csv:1: column \"u_l\" appears twice in the header",
+        ),
+    ] {
+        for args in commands(f) {
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            fails(&args, want);
+        }
+    }
+    let nodir = d.join("nodir").join("x.csv");
+    let e = fails(
+        &[
+            "head",
+            "--connect",
+            no_head,
+            "estimate",
+            "--points",
+            s(&tr),
+            "-o",
+            s(&nodir),
+        ],
+        "the directory",
+    );
+    assert!(e.contains("nodir/x.csv") && !e.contains(".x.csv."), "{e}");
+}

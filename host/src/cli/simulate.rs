@@ -106,8 +106,9 @@ pub const POSTURE_SEED_MIX: u64 = 0x706f_7374_7572_6573;
 
 /// Runs `hvs simulate`.
 pub fn run(a: Args) -> Result<()> {
-    if let (Some(out), Some(rig)) = (&a.output, &a.rig.rig) {
-        check_not_input("-o", out, &[("--rig", rig)])?;
+    if let Some(out) = &a.output {
+        let rig: Vec<_> = a.rig.rig.iter().map(|r| ("--rig", r.as_path())).collect();
+        check_not_input("-o", out, &rig)?;
     }
     let rig = a
         .rig

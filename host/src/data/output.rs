@@ -53,11 +53,30 @@ pub fn target(path: &Path) -> Result<Target> {
     }
 }
 
+/// Fails unless the directory `path` would be written in exists, so that a command can
+/// refuse a bad `-o` before any work (the same message as the writer's).
+pub fn check_dir(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "{}: the directory {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
 /// Refuses an output that is also an input: `output` (the flag's value, named `out_flag` in
 /// the message, e.g. `-o`) against each `(flag, path)` input. Files are compared by device
 /// and inode (so hard links and symbolic links are caught), only when the output is an
-/// existing regular file (`-o /dev/stdout` next to `--points /dev/stdin` is fine).
+/// existing regular file (`-o /dev/stdout` next to `--points /dev/stdin` is fine). Also
+/// fails when the output's directory does not exist ([`check_dir`]).
 pub fn check_not_input(out_flag: &str, output: &Path, inputs: &[(&str, &Path)]) -> Result<()> {
+    check_dir(output)?;
     let Ok(om) = std::fs::metadata(output) else {
         return Ok(());
     };
