@@ -599,3 +599,144 @@ fn every_command_reads_csvs_alike() {
     );
     assert!(e.contains("nodir/x.csv") && !e.contains(".x.csv."), "{e}");
 }
+
+/// Runs `hvs args` with stdout into /dev/full; returns (exit code, stderr).
+fn to_dev_full(args: &[&str]) -> (Option<i32>, String) {
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let out = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
+        .args(args)
+        .stdout(full)
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+// Item 9: messages that say what is wrong and where.
+#[test]
+fn messages_name_the_real_problem() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (tr, _, m) = setup(d);
+    // Negative numbers get the range, not "unexpected argument".
+    for (args, want) in [
+        (
+            vec![
+                "simulate", "--case", "1", "--set", "volume", "--points", "-5",
+            ],
+            "-5 is out of range: expected a whole number from 0 to",
+        ),
+        (
+            vec![
+                "image",
+                "--model",
+                s(&m),
+                "--slot",
+                "a",
+                "--format",
+                "bin",
+                "--generation",
+                "-1",
+                "-o",
+                "x.bin",
+            ],
+            "-1 is out of range: expected a whole number from 0 to 4294967295",
+        ),
+        (
+            vec![
+                "train",
+                "--data",
+                s(&tr),
+                "-o",
+                "x.hvsw",
+                "--restarts",
+                "-3",
+            ],
+            "-3 is out of range",
+        ),
+    ] {
+        let out = hvs()
+            .args(&args)
+            .assert()
+            .code(2)
+            .get_output()
+            .stderr
+            .clone();
+        let e = String::from_utf8(out).unwrap();
+        assert!(e.contains(want), "{args:?}: {e}");
+        assert!(!e.contains("unexpected argument"), "{e}");
+    }
+    // The noise, not the rig.
+    let e = fails(
+        &[
+            "simulate",
+            "--case",
+            "1",
+            "--set",
+            "test",
+            "--noise-px",
+            "1e30",
+        ],
+        "--noise-px must be 0..=640 px",
+    );
+    assert!(!e.contains("case 1"), "{e}");
+    // A model that is a directory.
+    fails(&["emulate", "--model", s(d)], "Is a directory");
+    // No head given, or none there: both ways are named.
+    let e = fails(&["head", "ping"], "--connect tcp:HOST:PORT");
+    assert!(e.contains("--port DEVICE"), "{e}");
+    fails(
+        &["head", "--connect", "tcp:127.0.0.1:9", "ping"],
+        "--port DEVICE",
+    );
+    // A head that accepts the connection and never answers (as QEMU does for a second client).
+    let busy = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = format!("tcp:{}", busy.local_addr().unwrap());
+    fails(
+        &["head", "--connect", &addr, "--timeout-ms", "300", "ping"],
+        "busy with another client",
+    );
+    drop(busy);
+    // Errors on stdout name stdout.
+    let (code, e) = to_dev_full(&["simulate", "--case", "1", "--set", "train"]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("cannot write to stdout") && e.contains("No space left"),
+        "{e}"
+    );
+    // The model was written; only the summary failed, and the message says so.
+    let m2 = d.join("m2.hvsw");
+    let (code, e) = to_dev_full(&["train", "--data", s(&tr), "-o", s(&m2), "--restarts", "1"]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("but cannot print the summary to stdout") && e.contains("m2.hvsw"),
+        "{e}"
+    );
+    assert_eq!(read(&m2), read(&m), "the model was written in full");
+    let (code, e) = to_dev_full(&[
+        "image",
+        "--model",
+        s(&m),
+        "--slot",
+        "a",
+        "--format",
+        "bin",
+        "-o",
+        s(&d.join("a.bin")),
+    ]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("cannot write to stdout") && !e.contains("panicked"),
+        "{e}"
+    );
+    // The algorithm as --algo spells it.
+    let info = ok(&["info", s(&m)]);
+    assert!(info.contains("training:    lm, seed 0"), "{info}");
+    let out = ok(&["train", "--data", s(&tr), "-o", s(&m2), "--restarts", "1"]);
+    assert!(out.starts_with("trained 4-5-3 (lm) on 72 points"), "{out}");
+}

@@ -46,10 +46,10 @@ pub struct Args {
     #[arg(short = 'o', long, value_name = "DIR", default_value = "hvs-demo")]
     output: PathBuf,
     /// Seed of the training restarts and of the random volume points.
-    #[arg(long, value_name = "S", default_value_t = 0)]
+    #[arg(long, value_name = "S", default_value_t = 0, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
     seed: u64,
     /// Restarts per net (the default net's 10; fewer for a quick run).
-    #[arg(long, value_name = "R", default_value_t = TrainConfig::default().restarts)]
+    #[arg(long, value_name = "R", default_value_t = TrainConfig::default().restarts, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     restarts: usize,
 }
 

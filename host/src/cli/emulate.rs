@@ -30,7 +30,7 @@ pub struct Args {
     #[arg(long, default_value = "qemu-system-arm")]
     pub qemu: String,
     /// Stop QEMU after this many seconds (default: run until interrupted).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
     pub timeout: Option<u64>,
 }
 

@@ -97,15 +97,18 @@ fn posture_study(a: PostureArgs) -> Result<()> {
     let r = posture::run(&cfg, &bars)?;
     let total = start.elapsed().as_secs_f64();
     let files = posture::write(&a.output, &r, total)?;
-    println!(
+    crate::cli::say(format_args!(
         "wrote {} files ({} parts: CSV, SVG, PNG; timing.csv, POSTURE.md) to {} in {:.1} s with {} threads",
         files.len(),
         posture::STEMS.len(),
         a.output.display(),
         start.elapsed().as_secs_f64(),
         r.threads
-    );
-    println!("see {}", a.output.join("POSTURE.md").display());
+    ))?;
+    crate::cli::say(format_args!(
+        "see {}",
+        a.output.join("POSTURE.md").display()
+    ))?;
     Ok(())
 }
 
@@ -121,14 +124,17 @@ fn thesis(a: ThesisArgs) -> Result<()> {
     let t = experiment::run(&cfg, &bars)?;
     let total = start.elapsed().as_secs_f64();
     let files = report::write(&a.output, &t, total)?;
-    println!(
+    crate::cli::say(format_args!(
         "wrote {} files ({} experiments: CSV, SVG, PNG; RESULTS.md) to {} in {:.1} s with {} threads",
         files.len(),
         report::STEMS.len(),
         a.output.display(),
         start.elapsed().as_secs_f64(),
         t.threads
-    );
-    println!("see {}", a.output.join("RESULTS.md").display());
+    ))?;
+    crate::cli::say(format_args!(
+        "see {}",
+        a.output.join("RESULTS.md").display()
+    ))?;
     Ok(())
 }

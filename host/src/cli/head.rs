@@ -18,16 +18,16 @@ use std::time::Duration;
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
     /// The head over TCP: `tcp:HOST:PORT` (for `hvs emulate`), or `serial:PATH[@BAUD]`.
-    #[arg(long, conflicts_with = "port", required_unless_present = "port")]
+    #[arg(long, conflicts_with = "port")]
     pub connect: Option<String>,
     /// The head on a serial port (`/dev/ttyUSB0`, `COM3`).
     #[arg(long)]
     pub port: Option<String>,
     /// Serial baud rate.
-    #[arg(long, default_value_t = hvs_shared::runtime::protocol::BAUD_RATE)]
+    #[arg(long, default_value_t = hvs_shared::runtime::protocol::BAUD_RATE, allow_negative_numbers = true, value_parser = crate::cli::whole_u32)]
     pub baud: u32,
     /// Milliseconds to wait for each response (and for the head to come up).
-    #[arg(long, default_value_t = 3000)]
+    #[arg(long, default_value_t = 3000, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
     pub timeout_ms: u64,
     /// What to ask.
     #[command(subcommand)]
@@ -72,7 +72,7 @@ pub enum HeadCommand {
     /// `-icount shift=0`).
     Bench {
         /// Inferences to time (the head caps it at 2000).
-        #[arg(long, default_value_t = 1000)]
+        #[arg(long, default_value_t = 1000, allow_negative_numbers = true, value_parser = crate::cli::whole_u32)]
         count: u32,
     },
 }
@@ -86,7 +86,9 @@ impl Args {
                 path: p.clone(),
                 baud: self.baud,
             }),
-            (None, None) => bail!("give --connect tcp:HOST:PORT or --port DEVICE"),
+            (None, None) => bail!(
+                "no head given: --connect tcp:HOST:PORT (hvs emulate), --connect serial:PATH[@BAUD] or --port DEVICE (a serial port)"
+            ),
         }
     }
 }
@@ -94,6 +96,7 @@ impl Args {
 /// `hvs head`.
 pub fn run(args: &Args) -> Result<()> {
     let timeout = Duration::from_millis(args.timeout_ms);
+    let endpoint = args.endpoint()?;
     // Inputs are read before the head is contacted: a bad file is named as such, even when
     // no head answers.
     let points_read = match &args.command {
@@ -105,7 +108,6 @@ pub fn run(args: &Args) -> Result<()> {
         }
         _ => None,
     };
-    let endpoint = args.endpoint()?;
     let mut link = connect(&endpoint, timeout)?;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();

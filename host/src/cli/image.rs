@@ -39,7 +39,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub slot: SlotArg,
     /// Generation number to stamp into the blob (default: keep the model's).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::cli::whole_u32)]
     pub generation: Option<u32>,
     /// Output format.
     #[arg(long, value_enum)]
@@ -58,7 +58,7 @@ pub fn run(args: &Args) -> Result<()> {
     let (out, blob_len) = image(&blob, bytes, args.generation, slot, format)?;
     write_bytes(&args.output, &out)?;
     let generation = args.generation.unwrap_or(blob.generation);
-    println!(
+    crate::cli::say(format_args!(
         "wrote {} ({:?}, {} blob bytes) for slot {:?} at {:#010x}, generation {}",
         args.output.display(),
         format,
@@ -66,6 +66,6 @@ pub fn run(args: &Args) -> Result<()> {
         slot,
         slot.addr(),
         generation
-    );
+    ))?;
     Ok(())
 }

@@ -54,8 +54,13 @@ pub fn run(a: Args) -> Result<()> {
     let m = &b.meta;
     writeln!(
         o,
-        "training:    {:?}, seed {}, {} restarts, {} points (set hash {:#018x}), train e_ma {} %",
-        m.algorithm, m.seed, m.restarts, m.train_points, m.train_hash, m.train_error_pct
+        "training:    {}, seed {}, {} restarts, {} points (set hash {:#018x}), train e_ma {} %",
+        crate::cli::train::algo_name(m.algorithm),
+        m.seed,
+        m.restarts,
+        m.train_points,
+        m.train_hash,
+        m.train_error_pct
     )?;
     writeln!(o, "input box:")?;
     for (k, name) in input_names(b.topology.inputs).iter().enumerate() {

@@ -381,8 +381,8 @@ where
         None => {
             let stdout = std::io::stdout();
             let mut w = BufWriter::new(stdout.lock());
-            body(&mut w)?;
-            w.flush().context("stdout")?;
+            body(&mut w).context("cannot write to stdout")?;
+            w.flush().context("cannot write to stdout")?;
             Ok(())
         }
     }
