@@ -740,3 +740,55 @@ fn messages_name_the_real_problem() {
     let out = ok(&["train", "--data", s(&tr), "-o", s(&m2), "--restarts", "1"]);
     assert!(out.starts_with("trained 4-5-3 (lm) on 72 points"), "{out}");
 }
+
+// Item 8: a CRC-valid blob with a huge weight gives estimates far outside the training
+// outputs; `hvs predict` flags them (the head's in_range uses the same
+// `runtime::head::outputs_in_range`, tested in hvs-shared and under QEMU).
+#[test]
+fn estimates_of_a_damaged_model_are_flagged_out_of_range() {
+    use hvs_shared::runtime::blob::{self, MAX_BLOB_LEN};
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (_, te, m) = setup(d);
+    let good = blob::decode(&read(&m)).unwrap();
+    let clean = hvs()
+        .args(["predict", "--model", s(&m), "--points", s(&te)])
+        .assert()
+        .success()
+        .get_output()
+        .stderr
+        .clone();
+    assert!(!String::from_utf8_lossy(&clean).contains("far outside"));
+    let bad_m = d.join("bad.hvsw");
+    let mut huge_and_finite = 0;
+    for k in 0..good.params.len() {
+        let mut b = good.clone();
+        b.params[k] = 3.4e38;
+        let mut buf = vec![0u8; MAX_BLOB_LEN];
+        let n = b.encode(&mut buf).unwrap();
+        std::fs::write(&bad_m, &buf[..n]).unwrap();
+        let out = hvs()
+            .args(["predict", "--model", s(&bad_m), "--points", s(&te)])
+            .output()
+            .unwrap();
+        if !out.status.success() {
+            continue; // the weight overflowed the estimate: "cannot estimate this point"
+        }
+        let csv = String::from_utf8(out.stdout).unwrap();
+        let huge = csv.lines().skip(1).any(|l| {
+            l.split(',')
+                .skip(4)
+                .any(|v| v.parse::<f32>().is_ok_and(|v| v.abs() > 1e6))
+        });
+        if huge {
+            huge_and_finite += 1;
+            let e = String::from_utf8(out.stderr).unwrap();
+            assert!(
+                e.contains("estimates lie far outside the outputs the model was trained on"),
+                "param {k}: {e}"
+            );
+            assert!(e.contains("test.csv:2"), "{e}");
+        }
+    }
+    assert!(huge_and_finite > 0, "no weight gave a huge finite estimate");
+}
