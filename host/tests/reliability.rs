@@ -792,3 +792,35 @@ fn estimates_of_a_damaged_model_are_flagged_out_of_range() {
     }
     assert!(huge_and_finite > 0, "no weight gave a huge finite estimate");
 }
+
+// Item 10: `hvs demo`'s table fits 100 columns (two tables); the README gives the command
+// that installs the firmware target next to the firmware build.
+#[test]
+fn demo_fits_100_columns_and_the_readme_names_the_target_install() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("d");
+    let stdout = ok(&["demo", "-o", s(&out), "--restarts", "1"]);
+    for l in stdout.lines().filter(|l| !l.starts_with("wrote ")) {
+        assert!(
+            l.chars().count() <= 100,
+            "{} columns: {l}",
+            l.chars().count()
+        );
+    }
+    assert_eq!(stdout.lines().filter(|l| l.starts_with("IV ")).count(), 2);
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../README.md"))
+            .unwrap();
+    let at = readme
+        .find("cargo run --profile firmware -p hvs-firmware")
+        .expect("the firmware build");
+    let before = &readme[..at];
+    let hint = before
+        .rfind("rustup toolchain install")
+        .expect("the install command");
+    assert!(
+        at - hint < 400,
+        "the install command is not next to the firmware build"
+    );
+    assert!(readme.contains("can't find crate for `core`"));
+}
