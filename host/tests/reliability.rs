@@ -266,7 +266,7 @@ fn an_output_that_is_an_input_is_refused() {
     for (args, flag, input) in cases {
         let before = read(input);
         let e = fails(&args, &format!("is also the {flag} input"));
-        assert!(e.contains(&format!("error: -o ")), "{e}");
+        assert!(e.contains("error: -o "), "{e}");
         assert_eq!(read(input), before, "{args:?} changed {}", input.display());
     }
 }
