@@ -682,7 +682,7 @@ fn messages_name_the_real_problem() {
             "--noise-px",
             "1e30",
         ],
-        "--noise-px must be 0..=640 px",
+        "--noise-px must be a finite number >= 0 and at most the image size (640 px)",
     );
     assert!(!e.contains("case 1"), "{e}");
     // A model that is a directory.

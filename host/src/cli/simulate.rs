@@ -120,7 +120,7 @@ pub fn run(a: Args) -> Result<()> {
     let image = rig.width.max(rig.height) as f64;
     if !(a.noise_px.is_finite() && (0.0..=image).contains(&a.noise_px)) {
         bail!(
-            "--noise-px must be 0..={image} px (at most the image size), got {}",
+            "--noise-px must be a finite number >= 0 and at most the image size ({image} px), got {}",
             a.noise_px
         );
     }
