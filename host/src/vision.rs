@@ -209,12 +209,41 @@ pub fn matcher_geometry(data: &Dataset) -> Option<MatcherGeometry> {
             out_max[k] = out_max[k].max(t[k] as f32);
         }
     }
+    let mut disparity = [f32::INFINITY, f32::NEG_INFINITY];
+    for (l, r) in &pairs {
+        let d = (l[0] - r[0]) as f32;
+        disparity = [disparity[0].min(d), disparity[1].max(d)];
+    }
     let g = MatcherGeometry {
         fundamental: f.m,
         out_min,
         out_max,
+        disparity,
+        right_scale: right_scale(data)?,
     };
     g.is_valid().then_some(g)
+}
+
+/// How much larger the right image shows a patch than the left one, per axis: the ratio of
+/// the two cameras' image scales, read off the training set. Each camera's `u` is fitted as
+/// `a X/Z + b / Z + c` (and `v` with `Y/Z`) by least squares over the training points;
+/// `[a_right / a_left]` per axis is the scale (1 for equal focal lengths).
+fn right_scale(data: &Dataset) -> Option<[f32; 2]> {
+    let fit = |col: usize, along: usize| -> Option<f64> {
+        let mut ata = nalgebra::Matrix3::<f64>::zeros();
+        let mut atb = nalgebra::Vector3::<f64>::zeros();
+        for (i, t) in data.targets.iter().enumerate() {
+            let a = nalgebra::Vector3::new(t[along] / t[2], 1.0 / t[2], 1.0);
+            ata += a * a.transpose();
+            atb += a * data.row(i)[col];
+        }
+        let x = ata.cholesky()?.solve(&atb);
+        x[0].is_finite().then_some(x[0])
+    };
+    let su = fit(2, 0)? / fit(0, 0)?;
+    let sv = fit(3, 1)? / fit(1, 1)?;
+    let ok = |s: f64| s.is_finite() && (0.25..=4.0).contains(&s);
+    (ok(su) && ok(sv)).then_some([su as f32, sv as f32])
 }
 
 #[cfg(test)]
@@ -237,6 +266,16 @@ mod tests {
         }
         let g = matcher_geometry(&d).unwrap();
         assert!(g.out_min[2] >= 65.0 && g.out_max[2] <= 165.0 && g.out_min[2] < g.out_max[2]);
+        // Case II's right camera has the longer focal length: the right image is larger.
+        let want = [
+            rig.phi_u_right / rig.phi_u_left,
+            rig.phi_v_right / rig.phi_v_left,
+        ];
+        for k in 0..2 {
+            let got = f64::from(g.right_scale[k]);
+            assert!((got / want[k] - 1.0).abs() < 0.01, "{got} vs {}", want[k]);
+        }
+        assert!(g.disparity[0] > 0.0 && g.disparity[0] < g.disparity[1]);
         // Points the fit never saw lie on their epipolar lines (rounded pixels: within ~1 px).
         let f = hvs_vision::geometry::Fundamental { m: g.fundamental };
         let test = simulate(&rig, SetKind::Test, &SimOptions::default()).unwrap();

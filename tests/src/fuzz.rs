@@ -454,5 +454,83 @@ pub fn seeds() -> Vec<Seed> {
         b"z , note, v_r,u_r ,v_l,u_l,y,x\r\n\r\n 110,a,240,297,240,343,0,0\r\n\n120,\"b,c\",241,296,241,344,1,1\r\n"
             .to_vec(),
     ));
+
+    // rig_json: cases.json (case 1: first byte 3), a flat rig, and one with a duplicate key.
+    let mut cases = vec![3u8];
+    cases.extend_from_slice(include_bytes!("../../shared/tests/fixtures/cases.json"));
+    out.push(("rig_json", "cases_json_case1", cases));
+    let flat = br#"{"phi_u_left": 285.8, "phi_u_right": 228.7, "alpha_left": -0.0455,
+        "alpha_right": 0.0455, "beta0": 0.0087, "phi0": 0.0087, "width": 1280, "u0": 600.5}"#;
+    let mut v = vec![0u8];
+    v.extend_from_slice(flat);
+    out.push(("rig_json", "flat", v.clone()));
+    let mut dup = v;
+    dup.extend_from_slice(b"\n");
+    let at = dup.len() - 2;
+    dup.splice(at..at, b", \"u0\": 1".iter().copied());
+    out.push(("rig_json", "duplicate_key", dup));
     out
+}
+
+/// `rig_json`: the first byte picks `--case` (even: none; odd: case `(b >> 1) % 8`), the rest
+/// is the rig file's text. `hvs_host::data::rig::parse` must return, never panic; an error is
+/// one non-empty line; an accepted rig has finite, positive focal lengths and half baseline,
+/// small angles, a 1..65535 pixel image and a finite principal point, and written back as a
+/// flat rig object (every field, shortest round-trip numbers) it parses to the same rig.
+pub fn rig_json(data: &[u8]) {
+    let Some((mode, rest)) = data.split_first() else {
+        return;
+    };
+    let Ok(text) = std::str::from_utf8(rest) else {
+        return;
+    };
+    let case = (mode & 1 == 1).then_some((mode >> 1) % 8);
+    let rig = match hvs_host::data::rig::parse(text, case) {
+        Ok(r) => r,
+        Err(e) => {
+            let msg = format!("{e:#}");
+            assert!(!msg.is_empty(), "an empty error");
+            return;
+        }
+    };
+    for (name, v) in [
+        ("phi_u_left", rig.phi_u_left),
+        ("phi_u_right", rig.phi_u_right),
+        ("phi_v_left", rig.phi_v_left),
+        ("phi_v_right", rig.phi_v_right),
+        ("half_baseline", rig.half_baseline),
+    ] {
+        assert!(v.is_finite() && v > 0.0, "{name} = {v}");
+    }
+    for (name, v) in [
+        ("alpha_left", rig.alpha_left),
+        ("alpha_right", rig.alpha_right),
+        ("beta0", rig.beta0),
+        ("phi0", rig.phi0),
+    ] {
+        assert!(v.abs() < core::f64::consts::FRAC_PI_2, "{name} = {v}");
+    }
+    assert!(rig.u0.is_finite() && rig.v0.is_finite(), "{rig:?}");
+    assert!((1..=65_535).contains(&rig.width) && (1..=65_535).contains(&rig.height));
+    let flat = format!(
+        "{{\"phi_u_left\": {:?}, \"phi_u_right\": {:?}, \"phi_v_left\": {:?}, \"phi_v_right\": {:?}, \
+         \"alpha_left\": {:?}, \"alpha_right\": {:?}, \"beta0\": {:?}, \"phi0\": {:?}, \"u0\": {:?}, \
+         \"v0\": {:?}, \"width\": {}, \"height\": {}, \"half_baseline_cm\": {:?}}}",
+        rig.phi_u_left,
+        rig.phi_u_right,
+        rig.phi_v_left,
+        rig.phi_v_right,
+        rig.alpha_left,
+        rig.alpha_right,
+        rig.beta0,
+        rig.phi0,
+        rig.u0,
+        rig.v0,
+        rig.width,
+        rig.height,
+        rig.half_baseline
+    );
+    let again = hvs_host::data::rig::parse(&flat, None)
+        .unwrap_or_else(|e| panic!("the accepted rig written back is refused: {e:#}: {flat}"));
+    assert_eq!(again, rig, "{flat}");
 }

@@ -96,7 +96,11 @@ fn check_runs(boot: &Boot, want: &Expect, what: &str) {
                     "{what}: estimate of {p:?}"
                 );
                 assert_eq!(e.source, Source::Network);
-                assert_eq!(e.in_range, blob.in_range(&x), "{what}");
+                assert_eq!(
+                    e.in_range,
+                    blob.in_range(&x) && hvs_shared::runtime::head::outputs_in_range(blob, &y),
+                    "{what}"
+                );
             }
         }
         (Expect::Fallback, Estimator::Fallback(cal)) => {

@@ -52,6 +52,20 @@ fn frame_decode_inputs() {
 }
 
 #[test]
+fn rig_json_inputs() {
+    assert!(replay("rig_json", fuzz::rig_json) >= 3);
+    // The duplicate-key seed is refused, the others are accepted.
+    for (t, name, bytes) in fuzz::seeds() {
+        if t == "rig_json" {
+            let text = std::str::from_utf8(&bytes[1..]).unwrap();
+            let case = (bytes[0] & 1 == 1).then_some((bytes[0] >> 1) % 8);
+            let r = hvs_host::data::rig::parse(text, case);
+            assert_eq!(r.is_err(), name == "duplicate_key", "{name}: {r:?}");
+        }
+    }
+}
+
+#[test]
 fn head_stream_inputs() {
     assert!(replay("head_stream", fuzz::head_stream) >= 4);
 }

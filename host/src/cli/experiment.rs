@@ -164,14 +164,13 @@ fn study<R>(
     let bars = Bars::new(std::io::stderr().is_terminal());
     let (threads, r) = run(&bars)?;
     let files = write(output, &r, start.elapsed().as_secs_f64())?;
-    println!(
+    crate::cli::say(format_args!(
         "wrote {} files ({what}) to {} in {:.1} s with {threads} threads",
         files.len(),
         output.display(),
         start.elapsed().as_secs_f64(),
-    );
-    println!("see {}", output.join(report_name).display());
-    Ok(())
+    ))?;
+    crate::cli::say(format_args!("see {}", output.join(report_name).display()))
 }
 
 #[cfg(test)]

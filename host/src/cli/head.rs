@@ -5,6 +5,7 @@
 //! be compared with host inference), `look U_L V_L U_R V_R`, `home`, `bench`.
 
 use crate::data::csv::{read_stereo_points, write_bytes};
+use crate::data::output::check_not_input;
 use crate::device::client::{connect, error_text, estimate_row, expect, write_info};
 use crate::device::link::Endpoint;
 use anyhow::{bail, Result};
@@ -17,16 +18,16 @@ use std::time::Duration;
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
     /// The head over TCP: `tcp:HOST:PORT` (for `hvs emulate`), or `serial:PATH[@BAUD]`.
-    #[arg(long, conflicts_with = "port", required_unless_present = "port")]
+    #[arg(long, conflicts_with = "port")]
     pub connect: Option<String>,
     /// The head on a serial port (`/dev/ttyUSB0`, `COM3`).
     #[arg(long)]
     pub port: Option<String>,
     /// Serial baud rate.
-    #[arg(long, default_value_t = hvs_shared::runtime::protocol::BAUD_RATE)]
+    #[arg(long, default_value_t = hvs_shared::runtime::protocol::BAUD_RATE, allow_negative_numbers = true, value_parser = crate::cli::whole_u32)]
     pub baud: u32,
     /// Milliseconds to wait for each response (and for the head to come up).
-    #[arg(long, default_value_t = 3000)]
+    #[arg(long, default_value_t = 3000, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
     pub timeout_ms: u64,
     /// What to ask.
     #[command(subcommand)]
@@ -71,7 +72,7 @@ pub enum HeadCommand {
     /// `-icount shift=0`).
     Bench {
         /// Inferences to time (the head caps it at 2000).
-        #[arg(long, default_value_t = 1000)]
+        #[arg(long, default_value_t = 1000, allow_negative_numbers = true, value_parser = crate::cli::whole_u32)]
         count: u32,
     },
 }
@@ -85,7 +86,9 @@ impl Args {
                 path: p.clone(),
                 baud: self.baud,
             }),
-            (None, None) => bail!("give --connect tcp:HOST:PORT or --port DEVICE"),
+            (None, None) => bail!(
+                "no head given: --connect tcp:HOST:PORT (hvs emulate), --connect serial:PATH[@BAUD] or --port DEVICE (a serial port)"
+            ),
         }
     }
 }
@@ -93,13 +96,18 @@ impl Args {
 /// `hvs head`.
 pub fn run(args: &Args) -> Result<()> {
     let timeout = Duration::from_millis(args.timeout_ms);
+    let endpoint = args.endpoint()?;
     // Inputs are read before the head is contacted: a bad file is named as such, even when
     // no head answers.
     let points_read = match &args.command {
-        HeadCommand::Estimate { points, .. } => Some(read_stereo_points(points)?),
+        HeadCommand::Estimate { points, output } => {
+            if let Some(out) = output {
+                check_not_input("-o", out, &[("--points", points)])?;
+            }
+            Some(read_stereo_points(points)?)
+        }
         _ => None,
     };
-    let endpoint = args.endpoint()?;
     let mut link = connect(&endpoint, timeout)?;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();

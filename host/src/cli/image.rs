@@ -3,6 +3,7 @@
 
 use super::value_enum;
 use crate::data::csv::write_bytes;
+use crate::data::output::check_not_input;
 use crate::device::probe::{image, read_model, ImageFormat};
 use anyhow::Result;
 use hvs_shared::runtime::layout::Slot;
@@ -38,7 +39,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub slot: SlotArg,
     /// Generation number to stamp into the blob (default: keep the model's).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::cli::whole_u32)]
     pub generation: Option<u32>,
     /// Output format.
     #[arg(long, value_enum)]
@@ -50,13 +51,14 @@ pub struct Args {
 
 /// `hvs image`.
 pub fn run(args: &Args) -> Result<()> {
+    check_not_input("-o", &args.output, &[("--model", &args.model)])?;
     let (blob, bytes) = read_model(&args.model)?;
     let slot = Slot::from(args.slot);
     let format = ImageFormat::from(args.format);
     let (out, blob_len) = image(&blob, bytes, args.generation, slot, format)?;
     write_bytes(&args.output, &out)?;
     let generation = args.generation.unwrap_or(blob.generation);
-    println!(
+    crate::cli::say(format_args!(
         "wrote {} ({:?}, {} blob bytes) for slot {:?} at {:#010x}, generation {}",
         args.output.display(),
         format,
@@ -64,6 +66,6 @@ pub fn run(args: &Args) -> Result<()> {
         slot,
         slot.addr(),
         generation
-    );
+    ))?;
     Ok(())
 }

@@ -65,15 +65,20 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(g) = &b.matcher {
         writeln!(
             o,
-            "matcher:     fundamental matrix {:?}, training box {:?} .. {:?} cm",
-            g.fundamental, g.out_min, g.out_max
+            "matcher:     fundamental matrix {:?}, training box {:?} .. {:?} cm, disparities {} .. {} px, right/left image scale {:?}",
+            g.fundamental, g.out_min, g.out_max, g.disparity[0], g.disparity[1], g.right_scale
         )?;
     }
     let m = &b.meta;
     writeln!(
         o,
-        "training:    {:?}, seed {}, {} restarts, {} points (set hash {:#018x}), train e_ma {} %",
-        m.algorithm, m.seed, m.restarts, m.train_points, m.train_hash, m.train_error_pct
+        "training:    {}, seed {}, {} restarts, {} points (set hash {:#018x}), train e_ma {} %",
+        crate::cli::train::algo_name(m.algorithm),
+        m.seed,
+        m.restarts,
+        m.train_points,
+        m.train_hash,
+        m.train_error_pct
     )?;
     writeln!(o, "input box:")?;
     for (k, name) in input_names(b.topology.inputs).iter().enumerate() {

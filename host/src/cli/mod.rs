@@ -58,6 +58,33 @@ impl RigArgs {
     }
 }
 
+/// clap value parsers of whole numbers: `-5` or `1e99` gets the accepted range, not clap's
+/// `unexpected argument '-5'` (the args also set `allow_negative_numbers`).
+macro_rules! whole_parsers {
+    ($($(#[$m:meta])* $name:ident: $t:ty),+ $(,)?) => {
+        $(
+            $(#[$m])*
+            pub fn $name(s: &str) -> Result<$t, String> {
+                let range = format!("a whole number from {} to {}", <$t>::MIN, <$t>::MAX);
+                match s.trim().parse::<i128>() {
+                    Ok(v) => <$t>::try_from(v).map_err(|_| format!("{v} is out of range: expected {range}")),
+                    Err(_) => Err(format!("expected {range}")),
+                }
+            }
+        )+
+    };
+}
+whole_parsers! {
+    /// A `u8` argument.
+    whole_u8: u8,
+    /// A `u32` argument.
+    whole_u32: u32,
+    /// A `u64` argument.
+    whole_u64: u64,
+    /// A `usize` argument.
+    whole_usize: usize,
+}
+
 /// A clap value enum mirroring a library enum variant for variant (help text per variant), with
 /// the conversion into it: clap stays in this layer, the libraries keep plain enums.
 macro_rules! value_enum {
@@ -77,3 +104,13 @@ macro_rules! value_enum {
     };
 }
 pub(crate) use value_enum;
+
+/// Prints one line to stdout; a failed write is an error naming stdout (`println!` would
+/// panic).
+pub fn say(line: std::fmt::Arguments) -> Result<()> {
+    use std::io::Write;
+    let mut o = std::io::stdout().lock();
+    writeln!(o, "{line}")
+        .and_then(|()| o.flush())
+        .map_err(|e| anyhow::Error::new(e).context("cannot write to stdout"))
+}

@@ -2,9 +2,11 @@
 
 use crate::data::csv::{read_set, write_output, Table};
 use crate::data::model::{self, input_names};
+use crate::data::output::check_not_input;
 use crate::infer::{to_f32, PointError, Predictor};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{ModelBlob, OutputKind};
+use hvs_shared::runtime::head::outputs_in_range;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -32,6 +34,9 @@ pub struct Args {
 
 /// Runs `hvs predict`.
 pub fn run(a: Args) -> Result<()> {
+    if let Some(out) = &a.output {
+        check_not_input("-o", out, &[("--points", &a.points), ("--model", &a.model)])?;
+    }
     let m = model::load(&a.model)?;
     let blob = &m.blob;
     let table = read_set(&a.points, blob.topology.inputs.into(), false)?;
@@ -44,6 +49,26 @@ pub fn run(a: Args) -> Result<()> {
         eprintln!(
             "note: {outside} of {} points lie outside the input box the model was trained on; their estimates are extrapolations",
             table.data.len()
+        );
+    }
+    let no = blob.n_outputs();
+    let mut far = y
+        .chunks_exact(no)
+        .enumerate()
+        .filter(|(_, o)| !outputs_in_range(blob, o));
+    if let Some((first, o)) = far.next() {
+        let names = model::output_names(blob.topology.outputs);
+        let shown: Vec<String> = names
+            .iter()
+            .zip(o)
+            .map(|(n, v)| format!("{n} = {v}"))
+            .collect();
+        eprintln!(
+            "warning: {} of {} estimates lie far outside the outputs the model was trained on (first: {}: {} cm): out of range; is the model damaged, or not for these points?",
+            far.count() + 1,
+            table.data.len(),
+            table.at(first),
+            shown.join(", ")
         );
     }
     write_output(a.output.as_deref(), |w| {

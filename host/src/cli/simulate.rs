@@ -3,6 +3,7 @@
 use super::value_enum;
 use crate::cli::RigArgs;
 use crate::data::csv::write_output;
+use crate::data::output::check_not_input;
 use crate::sim::posture::{self, postures, PostureOptions, Sampling};
 use crate::sim::sets::{simulate, write_csv, SetKind, SimOptions};
 
@@ -63,7 +64,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     set: SetArg,
     /// Number of points (volume set only) [default: 500].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     points: Option<usize>,
     /// Standard deviation of Gaussian pixel noise added before rounding (px).
     #[arg(
@@ -74,7 +75,7 @@ pub struct Args {
     )]
     noise_px: f64,
     /// Seed of the random points and the noise.
-    #[arg(long, value_name = "S", default_value_t = 0)]
+    #[arg(long, value_name = "S", default_value_t = 0, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
     seed: u64,
     /// Output CSV (written atomically); stdout if absent.
     #[arg(short = 'o', long, value_name = "FILE.csv")]
@@ -87,7 +88,7 @@ pub struct Args {
     #[arg(long, value_name = "A,B,C,D,E", value_delimiter = ',')]
     posture_levels: Option<Vec<u8>>,
     /// Number of random postures (random) [default: 100].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     posture_count: Option<usize>,
     /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
     #[arg(
@@ -105,12 +106,23 @@ pub const POSTURE_SEED_MIX: u64 = 0x706f_7374_7572_6573;
 
 /// Runs `hvs simulate`.
 pub fn run(a: Args) -> Result<()> {
+    if let Some(out) = &a.output {
+        let rig: Vec<_> = a.rig.rig.iter().map(|r| ("--rig", r.as_path())).collect();
+        check_not_input("-o", out, &rig)?;
+    }
     let rig = a
         .rig
         .rig()?
         .ok_or_else(|| anyhow!("choose a rig with --case N or --rig FILE.json"))?;
     if a.points.is_some() && SetKind::from(a.set) != SetKind::Volume {
         bail!("--points applies to --set volume only (the board sets have a fixed size)");
+    }
+    let image = rig.width.max(rig.height) as f64;
+    if !(a.noise_px.is_finite() && (0.0..=image).contains(&a.noise_px)) {
+        bail!(
+            "--noise-px must be a finite number >= 0 and at most the image size ({image} px), got {}",
+            a.noise_px
+        );
     }
     let opt = SimOptions {
         points: a.points.unwrap_or(SimOptions::default().points),

@@ -3,6 +3,7 @@
 
 use crate::data::csv::{read_set, Inputs};
 use crate::data::model;
+use crate::data::output::check_not_input;
 use crate::train::fallback::{self, FallbackFit};
 use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
 use anyhow::{bail, Context, Result};
@@ -70,7 +71,7 @@ pub struct Args {
     #[arg(short = 'o', long, value_name = "MODEL")]
     output: PathBuf,
     /// Hidden units.
-    #[arg(long, value_name = "H", default_value_t = 5)]
+    #[arg(long, value_name = "H", default_value_t = 5, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     hidden: usize,
     /// Outputs of the net.
     #[arg(long, value_enum, default_value_t = OutputsArg::Xyz)]
@@ -82,13 +83,13 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]
     algo: AlgoArg,
     /// Restarts from random starts.
-    #[arg(long, value_name = "R", default_value_t = 10)]
+    #[arg(long, value_name = "R", default_value_t = 10, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     restarts: usize,
     /// Enrol only restarts whose training e_ma is at most T percent.
     #[arg(long, value_name = "T")]
     threshold: Option<f64>,
     /// Seed of the random starts.
-    #[arg(long, value_name = "S", default_value_t = 0)]
+    #[arg(long, value_name = "S", default_value_t = 0, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
     seed: u64,
     /// Back-propagation (--algo bp): learning rate.
     #[arg(long, value_name = "ETA", default_value_t = BpParams::default().learning_rate)]
@@ -97,7 +98,7 @@ pub struct Args {
     #[arg(long, value_name = "E", default_value_t = BpParams::default().e_max)]
     e_max: f64,
     /// Back-propagation (--algo bp): most learning cycles.
-    #[arg(long, value_name = "N", default_value_t = BpParams::default().max_cycles)]
+    #[arg(long, value_name = "N", default_value_t = BpParams::default().max_cycles, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     max_cycles: usize,
     /// Half baseline d (cm) stored with the fallback calibration.
     #[arg(long, value_name = "CM", default_value_t = Calibration::BUILT_IN.half_baseline as f64)]
@@ -207,7 +208,9 @@ pub fn run(a: Args) -> Result<()> {
         progress: std::io::stderr().is_terminal(),
         family: a.arch.family(),
     };
+    check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
+    crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
     let plan = Plan {
         config,
         half_baseline: a.half_baseline,
@@ -217,19 +220,35 @@ pub fn run(a: Args) -> Result<()> {
     let t = train_model(&table.data, &plan)
         .with_context(|| format!("{}: training failed", a.data.display()))?;
     let n = model::save(&a.output, &t.blob)?;
-    print_summary(&a.data, &a.output, n, &t, a.algo)
+    print_summary(&a.data, &a.output, n, &t).with_context(|| {
+        format!(
+            "wrote {} ({n} bytes), but cannot print the summary to stdout",
+            a.output.display()
+        )
+    })
 }
 
-fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained, algo: AlgoArg) -> Result<()> {
+/// The algorithm as `--algo` spells it.
+pub fn algo_name(a: hvs_shared::runtime::blob::Algorithm) -> &'static str {
+    use hvs_shared::runtime::blob::Algorithm;
+    match a {
+        Algorithm::Lm => "lm",
+        Algorithm::Bp => "bp",
+        Algorithm::Adam => "adam",
+        Algorithm::Other => "other",
+    }
+}
+
+fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<()> {
     let mut o = std::io::stdout().lock();
     let oc = &t.outcome;
     let enrolled = oc.restarts.iter().filter(|r| r.enrolled).count();
     writeln!(
         o,
-        "trained {} {} ({:?}) on {} points of {} in {:.3} s",
+        "trained {} {} ({}) on {} points of {} in {:.3} s",
         model::shape(&t.blob),
         t.blob.family.name(),
-        algo,
+        algo_name(t.blob.meta.algorithm),
         t.blob.meta.train_points,
         data.display(),
         oc.elapsed.as_secs_f64()

@@ -8,6 +8,7 @@
 //! ignored. Surrounding spaces are trimmed; blank lines are skipped.
 
 use crate::data::dataset::{Dataset, JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
+use crate::data::output;
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::protocol::StereoPoint;
@@ -266,6 +267,11 @@ pub(crate) fn number(file: &str, line: u64, column: &str, field: &[u8]) -> Resul
     if !v.is_finite() {
         bail!("{file}:{line}: column \"{column}\": \"{text}\" is not a finite number");
     }
+    if v.abs() > f32::MAX as f64 {
+        bail!(
+            "{file}:{line}: column \"{column}\": {text} does not fit the f32 the model computes in"
+        );
+    }
     Ok(v)
 }
 
@@ -288,10 +294,20 @@ pub(crate) fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {
 /// Writes to `path` atomically: everything goes to a temporary file in the same directory,
 /// which replaces `path` only after `body` succeeded and the data reached the disk. On any
 /// error the temporary file is removed and `path` is untouched.
+///
+/// Only regular files (and names not yet taken) are replaced so; an existing FIFO or device
+/// (`/dev/null`, a terminal) is written in place, `/dev/stdout` is standard output, and a
+/// symbolic link stays a link to the file it names ([`crate::data::output::target`]).
 pub fn write_atomically<F>(path: &Path, body: F) -> Result<()>
 where
     F: FnOnce(&mut dyn Write) -> Result<()>,
 {
+    let path = match output::target(path)? {
+        output::Target::Stdout => return write_output(None, body),
+        output::Target::InPlace(p) => return write_in_place(&p, body),
+        output::Target::Atomic(p) => p,
+    };
+    let path = path.as_path();
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -299,7 +315,7 @@ where
     let fname = path
         .file_name()
         .ok_or_else(|| anyhow!("{}: not a file name", path.display()))?;
-    let prefix = format!(".{}.", fname.to_string_lossy());
+    let prefix = output::temp_prefix(&fname.to_string_lossy());
     let mut builder = tempfile::Builder::new();
     builder.prefix(&prefix).suffix(".tmp");
     // Created like any new file (0666 less the umask), not tempfile's private 0600.
@@ -312,6 +328,7 @@ where
             dir.display()
         );
     }
+    output::remove_stale(&dir);
     // The error names the output and its directory, not the temporary file's random name
     // (tempfile's message would).
     let tmp = builder.tempfile_in(&dir).map_err(|e| {
@@ -322,6 +339,8 @@ where
             std::io::Error::from(e.kind())
         )
     })?;
+    // Removed by SIGINT/SIGTERM/SIGHUP while it exists; unregistered after the rename.
+    let _pending = output::Pending::register(tmp.path());
     let mut w = BufWriter::new(tmp);
     body(&mut w)?;
     let tmp = w
@@ -335,6 +354,23 @@ where
     Ok(())
 }
 
+/// Writes into an existing file that is not a regular file (FIFO, device), without
+/// replacing it.
+fn write_in_place<F>(path: &Path, body: F) -> Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> Result<()>,
+{
+    let f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .with_context(|| format!("{}: cannot open for writing", path.display()))?;
+    let mut w = BufWriter::new(f);
+    body(&mut w).with_context(|| format!("{}: cannot write", path.display()))?;
+    w.flush()
+        .with_context(|| format!("{}: cannot write", path.display()))?;
+    Ok(())
+}
+
 /// Writes to `path` atomically ([`write_atomically`]), or to stdout when `path` is `None`.
 pub fn write_output<F>(path: Option<&Path>, body: F) -> Result<()>
 where
@@ -345,8 +381,8 @@ where
         None => {
             let stdout = std::io::stdout();
             let mut w = BufWriter::new(stdout.lock());
-            body(&mut w)?;
-            w.flush().context("stdout")?;
+            body(&mut w).context("cannot write to stdout")?;
+            w.flush().context("cannot write to stdout")?;
             Ok(())
         }
     }

@@ -5,4 +5,6 @@ pub mod captures;
 pub mod csv;
 pub mod dataset;
 pub mod model;
+pub mod output;
 pub mod rig;
+pub mod validate;

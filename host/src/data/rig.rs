@@ -53,6 +53,12 @@ pub fn load(path: &Path, case: Option<u8>) -> Result<Rig> {
 
 /// Parses a rig from JSON text (see the module documentation for the accepted shapes).
 pub fn parse(text: &str, case: Option<u8>) -> Result<Rig> {
+    // serde_json keeps the last of duplicated keys silently; a rig file with `"u0"` twice
+    // is refused instead, naming the key.
+    let mut de = serde_json::Deserializer::from_str(text);
+    serde::de::DeserializeSeed::deserialize(Unique(String::new()), &mut de)
+        .and_then(|()| de.end())
+        .map_err(|e| anyhow!("invalid JSON: {e}"))?;
     let v: Value = serde_json::from_str(text).map_err(|e| anyhow!("invalid JSON: {e}"))?;
     let obj = v
         .as_object()
@@ -101,6 +107,76 @@ pub fn parse(text: &str, case: Option<u8>) -> Result<Rig> {
             }
             rig_from(obj)
         }
+    }
+}
+
+/// Walks any JSON value and fails on the first object with a key given twice; the value is
+/// the path of the object, for the message.
+struct Unique(String);
+
+impl<'de> serde::de::DeserializeSeed<'de> for Unique {
+    type Value = ();
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for Unique {
+    type Value = ();
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("any JSON value")
+    }
+    fn visit_bool<E>(self, _: bool) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_i64<E>(self, _: i64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_u64<E>(self, _: u64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_f64<E>(self, _: f64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_str<E>(self, _: &str) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_unit<E>(self) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        let mut i = 0usize;
+        while seq
+            .next_element_seed(Unique(format!("{}[{i}]", self.0)))?
+            .is_some()
+        {
+            i += 1;
+        }
+        Ok(())
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        let mut seen = std::collections::BTreeSet::new();
+        while let Some(k) = map.next_key::<String>()? {
+            if !seen.insert(k.clone()) {
+                let within = if self.0.is_empty() {
+                    "the top-level object".to_string()
+                } else {
+                    self.0.clone()
+                };
+                return Err(serde::de::Error::custom(format!(
+                    "duplicate key \"{k}\" in {within} (each field once)"
+                )));
+            }
+            map.next_value_seed(Unique(format!(
+                "{}\"{k}\"",
+                if self.0.is_empty() {
+                    String::new()
+                } else {
+                    format!("{}.", self.0)
+                }
+            )))?;
+        }
+        Ok(())
     }
 }
 
@@ -247,6 +323,17 @@ mod tests {
         ))
         .starts_with("field \"beta0\": 45 rad is not a small camera angle"));
         assert!(e("[1,2]").starts_with("expected a JSON object"));
+        assert!(e(&format!(
+            "{{\"phi_u_left\": 1, \"u0\": 320, \"u0\": 100, {base}}}"
+        ))
+        .starts_with("invalid JSON: duplicate key \"u0\" in the top-level object"),);
+        let cases = CASES.replacen("\"beta0\"", "\"beta0\": 1, \"beta0\"", 1);
+        let msg = format!("{:#}", parse(&cases, Some(1)).unwrap_err());
+        assert!(
+            msg.starts_with("invalid JSON: duplicate key \"beta0\" in \"cases\".\"1\""),
+            "{msg}"
+        );
+        assert!(msg.contains(" at line "), "{msg}");
         assert!(e("{").starts_with("invalid JSON"));
         assert!(format!(
             "{:#}",

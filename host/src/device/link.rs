@@ -120,7 +120,7 @@ impl Link {
                         }
                         Err(e) => {
                             return Err(e).with_context(|| {
-                                format!("{endpoint}: cannot connect within {connect_timeout:?}")
+                                format!("{endpoint}: cannot connect within {connect_timeout:?} (is `hvs emulate` running there? a head on a serial port is --port DEVICE)")
                             })
                         }
                     }
@@ -165,7 +165,10 @@ impl Link {
                 // Earlier pings' Pongs and the boot announcement are expected here.
             }
             if start.elapsed() >= deadline {
-                bail!("{}: no answer to Ping within {deadline:?}", self.endpoint);
+                bail!(
+                    "{}: no answer to Ping within {deadline:?}: the head is not running, or is busy with another client (QEMU serves one connection at a time; close the other `hvs head`)",
+                    self.endpoint
+                );
             }
         }
     }

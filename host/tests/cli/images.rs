@@ -45,7 +45,13 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     let dir = tempfile::tempdir().unwrap();
     let shots = dir.path().join("shots");
     render(&shots, &["--depths", "65,115,165", "--seed", "2"]);
-    for f in ["left01.png", "right03.png", "captures.csv", "truth.csv", "board.json"] {
+    for f in [
+        "left01.png",
+        "right03.png",
+        "captures.csv",
+        "truth.csv",
+        "board.json",
+    ] {
         assert!(shots.join(f).is_file(), "{f}");
     }
     let caps = std::fs::read_to_string(shots.join("captures.csv")).unwrap();
@@ -99,7 +105,9 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     assert_eq!(got.len(), 162);
     let mut worst = 0.0f64;
     for (k, p) in &got {
-        let t = truth.get(k).unwrap_or_else(|| panic!("{k:?} not in the truth"));
+        let t = truth
+            .get(k)
+            .unwrap_or_else(|| panic!("{k:?} not in the truth"));
         for c in 0..4 {
             worst = worst.max((p[c] - t[c]).abs());
         }
@@ -110,7 +118,15 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     }
     // hvs train takes it as it is.
     let model = dir.path().join("m.hvsw");
-    ok(&["train", "--data", s(&points), "-o", s(&model), "--restarts", "2"]);
+    ok(&[
+        "train",
+        "--data",
+        s(&points),
+        "-o",
+        s(&model),
+        "--restarts",
+        "2",
+    ]);
     let info = ok(&["info", s(&model)]);
     assert!(info.contains("matcher"), "{info}");
 }
@@ -190,7 +206,11 @@ fn bad_images_and_boards_are_named_skipped_or_refused() {
     let e = detect_fails(&bad, &caps, &out);
     assert!(e.contains("bad.json"), "{e}");
     // One good pair and one bad one: the good one is written, the bad one named.
-    std::fs::write(&caps, "left,right,z\nl.png,r.png,85\nmissing.png,r.png,95\n").unwrap();
+    std::fs::write(
+        &caps,
+        "left,right,z\nl.png,r.png,85\nmissing.png,r.png,95\n",
+    )
+    .unwrap();
     let o = hvs()
         .args([
             "board",
@@ -209,5 +229,8 @@ fn bad_images_and_boards_are_named_skipped_or_refused() {
         .clone();
     let e = String::from_utf8(o).unwrap();
     assert!(e.contains("caps.csv:3") && e.contains("missing.png"), "{e}");
-    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 1 + 54);
+    assert_eq!(
+        std::fs::read_to_string(&out).unwrap().lines().count(),
+        1 + 54
+    );
 }

@@ -16,3 +16,4 @@ mod flash;
 mod images;
 mod posture_cli;
 mod qemu_cli;
+mod reliability;

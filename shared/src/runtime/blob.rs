@@ -247,6 +247,11 @@ pub struct MatcherGeometry {
     pub out_min: [f32; 3],
     /// Largest `X, Y, Z` (cm) of the training targets.
     pub out_max: [f32; 3],
+    /// Smallest and largest disparity `u_l - u_r` (px) of the training pixels.
+    pub disparity: [f32; 2],
+    /// How much larger the right image shows a patch than the left one, along `u` and `v`
+    /// (the ratio of the two cameras' image scales, read off the training set).
+    pub right_scale: [f32; 2],
 }
 
 impl MatcherGeometry {
@@ -258,6 +263,9 @@ impl MatcherGeometry {
                 .iter()
                 .zip(&self.out_max)
                 .all(|(lo, hi)| lo.is_finite() && hi.is_finite() && lo <= hi)
+            && self.disparity.iter().all(|d| d.is_finite())
+            && self.disparity[0] <= self.disparity[1]
+            && self.right_scale.iter().all(|s| s.is_finite() && *s > 0.0)
     }
 }
 
@@ -668,6 +676,8 @@ mod tests {
             fundamental: [[0.0, -1e-5, 2e-3], [1e-5, 0.0, -0.3], [-2e-3, 0.3, 1.0]],
             out_min: [-3.0, -2.0, 65.0],
             out_max: [3.0, 2.0, 165.0],
+            disparity: [10.5, 46.0],
+            right_scale: [1.25, 1.25],
         });
         let v = bytes(&m);
         assert_eq!(u16::from_le_bytes([v[4], v[5]]), VERSION);
@@ -737,6 +747,8 @@ mod tests {
             fundamental: [[1.0; 3]; 3],
             out_min: [0.0; 3],
             out_max: [1.0; 3],
+            disparity: [1.0; 2],
+            right_scale: [1.0; 2],
         });
         for v in [
             &mut b.in_offset,

@@ -134,6 +134,39 @@ impl Network {
     }
 }
 
+/// How far an estimate may lie outside the output box of training before it is flagged, in
+/// units of the output's scale (the training outputs span `offset +- scale` at most, for
+/// linear and sigmoid outputs alike): `offset +- OUTPUT_MARGIN * |scale|`.
+pub const OUTPUT_MARGIN: f32 = 4.0;
+
+/// No estimate beyond this many cm (a kilometre) is in range, whatever the blob says (`hvs
+/// train` refuses ground truth beyond it).
+pub const PLAUSIBLE_CM: f32 = 1e5;
+
+/// Whether the outputs `y` of `blob` (in its output order, cm) lie within [`OUTPUT_MARGIN`]
+/// output scales of the box seen in training, and within [`PLAUSIBLE_CM`]. A damaged but
+/// CRC-valid blob (a weight of 3.4e38) gives estimates far outside it. The blob keeps the
+/// output normalisation (`out_offset`, `out_scale`, in the family's output space: X, Y, Z for
+/// the thesis family, X/Z, Y/Z, 1/Z for inverse depth), not the training output box itself;
+/// the box derived from it holds the training outputs for linear and sigmoid outputs, and the
+/// estimate is taken back to that space to be compared.
+pub fn outputs_in_range(blob: &ModelBlob, y: &[f32]) -> bool {
+    if y.len() != blob.out_offset.len() || !y.iter().all(|v| libm::fabsf(*v) <= PLAUSIBLE_CM) {
+        return false;
+    }
+    let inv;
+    let o: &[f32] = match (blob.family.output_map, y) {
+        (mlp::OutputMap::InverseDepth, [x, yy, z]) => {
+            inv = [*x / *z, *yy / *z, 1.0 / *z];
+            &inv
+        }
+        _ => y,
+    };
+    o.iter()
+        .zip(blob.out_offset.iter().zip(blob.out_scale.iter()))
+        .all(|(v, (off, scale))| libm::fabsf(*v - *off) <= OUTPUT_MARGIN * libm::fabsf(*scale))
+}
+
 /// How the head computes depth after boot.
 // No allocator to box the network into; one instance lives for the whole run.
 #[allow(clippy::large_enum_variant)]
@@ -466,7 +499,8 @@ impl Estimator {
                     MlpError::NonFiniteInput => ErrorCode::NonFinite,
                     MlpError::NonFiniteOutput | MlpError::Shape => ErrorCode::NoSolution,
                 })?;
-                let in_range = n.in_range(&x, joints);
+                let in_range =
+                    n.in_range(&x, joints) && outputs_in_range(&n.blob, &[x_cm, y_cm, z_cm]);
                 Ok(EstimateData {
                     x: x_cm,
                     y: y_cm,
@@ -811,7 +845,8 @@ mod tests {
                 [e.x.to_bits(), e.y.to_bits(), e.z.to_bits()],
                 want.map(f32::to_bits)
             );
-            assert_eq!(e.in_range, blob.in_range(&p.to_array()), "{p:?}");
+            let in_range = blob.in_range(&p.to_array()) && outputs_in_range(&blob, &want);
+            assert_eq!(e.in_range, in_range, "{p:?}");
             assert_eq!(e.source, Source::Network);
         }
     }
@@ -840,6 +875,36 @@ mod tests {
                 assert!(e.z > 0.0 && (1.0 / e.z - 0.05).abs() < 0.01, "{e:?}");
             }
         }
+    }
+
+    #[test]
+    fn estimates_far_outside_the_training_outputs_are_out_of_range() {
+        let p = StereoPoint {
+            u_l: 330.0,
+            v_l: 240.0,
+            u_r: 305.0,
+            v_r: 240.0,
+        };
+        let good = sample(5, 1, 77);
+        assert!(good.in_range(&p.to_array()));
+        // A CRC-valid blob with a huge weight: x's output bias (w2[0][0..5], then b2[0]).
+        let mut huge_bias = good.clone();
+        huge_bias.params[25 + 5] = 1e37;
+        // And one whose output offset itself was damaged: caught by PLAUSIBLE_CM.
+        let mut huge_offset = good.clone();
+        huge_offset.out_offset[0] = 3.4e38;
+        for bad in [huge_bias, huge_offset] {
+            let e = boot(&bytes(&bad), &[]).estimate(&p).unwrap();
+            assert!(e.x.is_finite() && libm::fabsf(e.x) > 1e30, "{e:?}");
+            assert!(!e.in_range, "{e:?}");
+        }
+        // The box: offset +- 4 scales; x has offset 0, scale 3.
+        let y = |x: f32| [x, 0.0, 115.0];
+        assert!(outputs_in_range(&good, &y(12.0)));
+        assert!(outputs_in_range(&good, &y(-12.0)));
+        assert!(!outputs_in_range(&good, &y(12.01)));
+        assert!(!outputs_in_range(&good, &y(f32::NAN)));
+        assert!(!outputs_in_range(&good, &[0.0, 0.0]));
     }
 
     #[test]

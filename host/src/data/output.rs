@@ -1,0 +1,345 @@
+//! Where an output goes, and what is left behind when a run stops: the machinery behind
+//! [`crate::data::csv::write_atomically`].
+//!
+//! - [`Target`]: a regular file (or a name not yet taken) is written through a temporary file
+//!   renamed into place; anything else that exists (a FIFO, a character device such as
+//!   `/dev/null`, a terminal, `/dev/stdout`) is written in place and never renamed over, as
+//!   `cp`, `sed -i` and `sponge` do. A symbolic link is followed, so the link stays a link.
+//! - Temporary files are named `.<name>.hvs-<pid>.<random>.tmp`. SIGINT, SIGTERM and SIGHUP
+//!   remove the ones being written before the process dies of the signal; after a SIGKILL the
+//!   next write into the same directory removes the ones whose process is gone.
+//! - [`check_not_input`]: an output that is one of the inputs (same device and inode) is
+//!   refused before any work.
+
+use anyhow::{bail, Result};
+use std::ffi::CString;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicPtr, Ordering};
+
+/// How an output path is written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Target {
+    /// Through a temporary file in the directory of this path (the link target for a
+    /// symbolic link), renamed over it when complete.
+    Atomic(PathBuf),
+    /// Opened for writing and written in place (not a regular file: FIFO, device, ...).
+    InPlace(PathBuf),
+    /// The process' standard output (`/dev/stdout`, `/dev/fd/1`, `/proc/self/fd/1`).
+    Stdout,
+}
+
+/// Classifies `path` (see the module documentation).
+pub fn target(path: &Path) -> Result<Target> {
+    let names_stdout = [
+        "/dev/stdout",
+        "/dev/fd/1",
+        "/proc/self/fd/1",
+        &format!("/proc/{}/fd/1", std::process::id()),
+    ]
+    .iter()
+    .any(|s| Path::new(s) == path);
+    if names_stdout {
+        return Ok(Target::Stdout);
+    }
+    let link = std::fs::symlink_metadata(path).ok();
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_dir() => bail!("{}: is a directory", path.display()),
+        Ok(m) if !m.is_file() => Ok(Target::InPlace(path.to_path_buf())),
+        Ok(_) if link.is_some_and(|l| l.file_type().is_symlink()) => {
+            // Replace the file the link points at, keep the link.
+            Ok(Target::Atomic(std::fs::canonicalize(path)?))
+        }
+        _ => Ok(Target::Atomic(path.to_path_buf())),
+    }
+}
+
+/// Fails unless the directory `path` would be written in exists, so that a command can
+/// refuse a bad `-o` before any work (the same message as the writer's).
+pub fn check_dir(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "{}: the directory {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+/// Refuses an output that is also an input: `output` (the flag's value, named `out_flag` in
+/// the message, e.g. `-o`) against each `(flag, path)` input. Files are compared by device
+/// and inode (so hard links and symbolic links are caught), only when the output is an
+/// existing regular file (`-o /dev/stdout` next to `--points /dev/stdin` is fine). Also
+/// fails when the output's directory does not exist ([`check_dir`]).
+pub fn check_not_input(out_flag: &str, output: &Path, inputs: &[(&str, &Path)]) -> Result<()> {
+    check_dir(output)?;
+    let Ok(om) = std::fs::metadata(output) else {
+        return Ok(());
+    };
+    if !om.is_file() {
+        return Ok(());
+    }
+    for (flag, input) in inputs {
+        let Ok(im) = std::fs::metadata(input) else {
+            continue;
+        };
+        if same_file(&om, &im) {
+            bail!(
+                "{out_flag} {} is also the {flag} input (it would be overwritten); write to another file",
+                output.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+#[cfg(not(unix))]
+fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata) -> bool {
+    false
+}
+
+/// The marker between the output's name and the pid in a temporary file's name.
+const MARK: &str = ".hvs-";
+
+/// The prefix of this process' temporary files for `file_name`: `.<name>.hvs-<pid>.`.
+pub fn temp_prefix(file_name: &str) -> String {
+    format!(".{file_name}{MARK}{}.", std::process::id())
+}
+
+/// The pid in a temporary file's name written by [`temp_prefix`] (plus random part and
+/// `.tmp`), if `name` is one.
+pub fn temp_owner(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let at = rest.rfind(MARK)?;
+    let (pid, random) = rest[at + MARK.len()..].split_once('.')?;
+    if pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) || random.is_empty() {
+        return None;
+    }
+    pid.parse().ok()
+}
+
+/// Removes the temporary files in `dir` left by `hvs` processes that no longer run (killed
+/// with SIGKILL, or by a power cut) and owned by this user. Errors are ignored: this is
+/// housekeeping, never a reason to fail a write.
+pub fn remove_stale(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let me = std::process::id();
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(pid) = name.to_str().and_then(temp_owner) else {
+            continue;
+        };
+        if pid == me || process_alive(pid) {
+            continue;
+        }
+        let Ok(m) = std::fs::symlink_metadata(e.path()) else {
+            continue;
+        };
+        if m.is_file() && owned_by_me(&m) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
+#[cfg(unix)]
+fn process_alive(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    if pid <= 0 {
+        return true;
+    }
+    // SAFETY: kill with signal 0 only checks whether the process exists.
+    let r = unsafe { libc::kill(pid, 0) };
+    r == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+}
+
+#[cfg(not(unix))]
+fn process_alive(_: u32) -> bool {
+    true
+}
+
+#[cfg(unix)]
+fn owned_by_me(m: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: geteuid has no preconditions.
+    m.uid() == unsafe { libc::geteuid() }
+}
+
+#[cfg(not(unix))]
+fn owned_by_me(_: &std::fs::Metadata) -> bool {
+    false
+}
+
+/// Temporary files being written, for the signal handler: each slot holds a `CString`
+/// pointer or null. Whoever swaps a pointer out owns it (the handler only unlinks and dies).
+const SLOTS: usize = 64;
+#[allow(clippy::declare_interior_mutable_const)]
+const EMPTY: AtomicPtr<libc::c_char> = AtomicPtr::new(std::ptr::null_mut());
+static PENDING: [AtomicPtr<libc::c_char>; SLOTS] = [EMPTY; SLOTS];
+
+/// A temporary file registered for removal on SIGINT/SIGTERM/SIGHUP; unregisters on drop.
+#[derive(Debug)]
+pub struct Pending {
+    slot: Option<(usize, *mut libc::c_char)>,
+}
+
+impl Pending {
+    /// Registers `path` (installs the signal handlers on first use).
+    pub fn register(path: &Path) -> Pending {
+        install_handlers();
+        let Ok(c) = CString::new(path.as_os_str().as_encoded_bytes()) else {
+            return Pending { slot: None };
+        };
+        let p = c.into_raw();
+        for (i, s) in PENDING.iter().enumerate() {
+            if s.compare_exchange(std::ptr::null_mut(), p, Ordering::SeqCst, Ordering::SeqCst)
+                .is_ok()
+            {
+                return Pending { slot: Some((i, p)) };
+            }
+        }
+        // All slots taken: the file is still removed by the next write after the process
+        // is gone (remove_stale).
+        // SAFETY: p came from CString::into_raw above and was not shared.
+        drop(unsafe { CString::from_raw(p) });
+        Pending { slot: None }
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        if let Some((i, p)) = self.slot.take() {
+            if PENDING[i]
+                .compare_exchange(p, std::ptr::null_mut(), Ordering::SeqCst, Ordering::SeqCst)
+                .is_ok()
+            {
+                // SAFETY: p came from CString::into_raw and we took it back out of the slot.
+                drop(unsafe { CString::from_raw(p) });
+            }
+        }
+    }
+}
+
+#[cfg(unix)]
+extern "C" fn on_signal(sig: libc::c_int) {
+    for s in &PENDING {
+        let p = s.swap(std::ptr::null_mut(), Ordering::SeqCst);
+        if !p.is_null() {
+            // SAFETY: p is a NUL-terminated path; unlink is async-signal-safe.
+            unsafe { libc::unlink(p) };
+        }
+    }
+    // Die of the signal as if there were no handler (the shell sees 128 + sig).
+    // SAFETY: signal and raise are async-signal-safe.
+    unsafe {
+        libc::signal(sig, libc::SIG_DFL);
+        libc::raise(sig);
+    }
+}
+
+#[cfg(unix)]
+fn install_handlers() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+            // SAFETY: plain sigaction calls; a signal ignored at start (nohup, background
+            // jobs) stays ignored.
+            unsafe {
+                let mut old: libc::sigaction = std::mem::zeroed();
+                if libc::sigaction(sig, std::ptr::null(), &mut old) != 0
+                    || old.sa_sigaction == libc::SIG_IGN
+                {
+                    continue;
+                }
+                let mut act: libc::sigaction = std::mem::zeroed();
+                act.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as usize;
+                libc::sigemptyset(&mut act.sa_mask);
+                libc::sigaction(sig, &act, std::ptr::null_mut());
+            }
+        }
+    });
+}
+
+#[cfg(not(unix))]
+fn install_handlers() {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temp_names_carry_the_pid() {
+        let p = temp_prefix("int.csv");
+        let me = std::process::id();
+        assert_eq!(temp_owner(&format!("{p}a1B2c3.tmp")), Some(me));
+        assert_eq!(temp_owner(".x.hvs-12.abc.tmp"), Some(12));
+        assert_eq!(temp_owner(".a.hvs-b.csv.hvs-7.zz.tmp"), Some(7));
+        for other in [
+            ".int.csv.abc.tmp",
+            "x.hvs-12.abc.tmp",
+            ".x.hvs-12.abc",
+            ".x.hvs-.abc.tmp",
+            ".x.hvs-1a.abc.tmp",
+            ".x.hvs-12..tmp",
+        ] {
+            assert_eq!(temp_owner(other), None, "{other}");
+        }
+    }
+
+    #[test]
+    fn targets_by_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("f.csv");
+        assert_eq!(target(&f).unwrap(), Target::Atomic(f.clone()));
+        std::fs::write(&f, "x").unwrap();
+        assert_eq!(target(&f).unwrap(), Target::Atomic(f.clone()));
+        assert_eq!(
+            target(Path::new("/dev/null")).unwrap(),
+            Target::InPlace("/dev/null".into())
+        );
+        assert_eq!(target(Path::new("/dev/stdout")).unwrap(), Target::Stdout);
+        assert!(target(dir.path()).is_err());
+        #[cfg(unix)]
+        {
+            let l = dir.path().join("l.csv");
+            std::os::unix::fs::symlink(&f, &l).unwrap();
+            let real = std::fs::canonicalize(&f).unwrap();
+            assert_eq!(target(&l).unwrap(), Target::Atomic(real));
+        }
+    }
+
+    #[test]
+    fn an_input_is_not_an_output() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.csv");
+        let b = dir.path().join("b.csv");
+        std::fs::write(&a, "x").unwrap();
+        std::fs::write(&b, "x").unwrap();
+        let dotted = dir.path().join(".").join("a.csv");
+        let e = check_not_input("-o", &dotted, &[("--model", &b), ("--points", &a)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("is also the --points input"), "{e}");
+        check_not_input("-o", &b, &[("--points", &a)]).unwrap();
+        check_not_input("-o", &dir.path().join("new.csv"), &[("--points", &a)]).unwrap();
+        check_not_input(
+            "-o",
+            Path::new("/dev/null"),
+            &[("--points", Path::new("/dev/null"))],
+        )
+        .unwrap();
+    }
+}

@@ -1,0 +1,74 @@
+//! Checks a training set before any training: refuses sets that cannot determine the net
+//! (fewer equations, rows x outputs, than the net has parameters), sets that hold a single
+//! depth, and values no camera or head produces, naming the row and column.
+
+use crate::data::csv::Table;
+use crate::data::dataset::{JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
+use anyhow::{bail, Result};
+use hvs_shared::runtime::mlp::param_count;
+
+/// Largest |pixel| a camera reports (px): far beyond any sensor, far below f32 trouble.
+pub const MAX_ABS_PIXEL: f64 = 1e5;
+/// Largest |x|, |y| and z of a point (cm): a kilometre.
+pub const MAX_ABS_CM: f64 = 1e5;
+/// Largest |joint angle| (degrees).
+pub const MAX_ABS_DEG: f64 = 360.0;
+
+/// Checks `table` as the training set of a net with `hidden` units and `outputs` outputs.
+pub fn training_set(table: &Table, hidden: usize, outputs: usize) -> Result<()> {
+    let d = &table.data;
+    let file = table.path.display();
+    let ni = d.n_inputs;
+    for r in 0..d.len() {
+        for (c, &v) in d.row(r).iter().enumerate() {
+            let (name, limit, unit) = if c < PIXEL_COLUMNS.len() {
+                (PIXEL_COLUMNS[c], MAX_ABS_PIXEL, "px")
+            } else {
+                (
+                    JOINT_COLUMNS[c - PIXEL_COLUMNS.len()],
+                    MAX_ABS_DEG,
+                    "degrees",
+                )
+            };
+            if v.abs() > limit {
+                bail!(
+                    "{}: column \"{name}\": {v} {unit} is not a value a camera head produces (|{name}| must be at most {limit})",
+                    table.at(r)
+                );
+            }
+        }
+        if let Some(t) = d.targets.get(r) {
+            for (k, &v) in t.iter().enumerate() {
+                if v.abs() > MAX_ABS_CM {
+                    bail!(
+                        "{}: column \"{}\": {v} cm is not a position a camera sees (|{}| must be at most {MAX_ABS_CM} cm)",
+                        table.at(r),
+                        TARGET_COLUMNS[k],
+                        TARGET_COLUMNS[k]
+                    );
+                }
+            }
+        }
+    }
+    let params = param_count(ni, hidden, outputs);
+    let equations = d.len() * outputs;
+    if equations < params {
+        bail!(
+            "{file}: {} rows x {outputs} outputs = {equations} equations cannot determine the \
+             {ni}-{hidden}-{outputs} net's {params} parameters; give at least {} rows (or fewer --hidden units)",
+            d.len(),
+            params.div_ceil(outputs)
+        );
+    }
+    let z0 = d.targets.first().map(|t| t[2]);
+    if let Some(z0) = z0 {
+        if d.targets.iter().all(|t| t[2] == z0) {
+            bail!(
+                "{file}: all {} rows lie at one depth (z = {z0} cm): a net cannot learn depth \
+                 from one depth; give boards at two or more depths",
+                d.len()
+            );
+        }
+    }
+    Ok(())
+}

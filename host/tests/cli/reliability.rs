@@ -1,0 +1,833 @@
+//! Reliability (issue 13): outputs never destroy inputs, interrupted runs leave nothing,
+//! strict input checks everywhere. Each test drives the built `hvs` binary.
+
+use crate::common::{fails, hvs, ok, read, s};
+
+use std::os::unix::fs::FileTypeExt;
+use std::path::{Path, PathBuf};
+use tempfile::TempDir;
+
+/// Case 1's training and test sets and a model trained on them (one restart) in `dir`:
+/// (train csv, test csv, model).
+fn setup(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let (tr, te, m) = (
+        dir.join("train.csv"),
+        dir.join("test.csv"),
+        dir.join("m.hvsw"),
+    );
+    ok(&["simulate", "--case", "1", "--set", "train", "-o", s(&tr)]);
+    ok(&["simulate", "--case", "1", "--set", "test", "-o", s(&te)]);
+    ok(&["train", "--data", s(&tr), "-o", s(&m), "--restarts", "1"]);
+    (tr, te, m)
+}
+
+fn mknod(path: &Path, major: u32, minor: u32) -> bool {
+    let c = std::ffi::CString::new(s(path)).unwrap();
+    // SAFETY: plain mknod(2) on a path in a temporary directory.
+    let r = unsafe {
+        libc::mknod(
+            c.as_ptr(),
+            libc::S_IFCHR | 0o666,
+            libc::makedev(major, minor),
+        )
+    };
+    if r != 0 {
+        eprintln!(
+            "note: mknod {}: {} (needs root); device case skipped",
+            path.display(),
+            std::io::Error::last_os_error()
+        );
+    }
+    r == 0
+}
+
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(s(path)).unwrap();
+    // SAFETY: plain mkfifo(3) on a path in a temporary directory.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o666) }, 0, "mkfifo");
+}
+
+fn file_type(p: &Path) -> std::fs::FileType {
+    std::fs::symlink_metadata(p)
+        .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+        .file_type()
+}
+
+// Item 1: an existing target that is not a regular file is written in place, never renamed
+// over.
+#[test]
+fn outputs_onto_devices_fifos_and_links_are_written_in_place() {
+    let dir = TempDir::new().unwrap();
+    let (_, te, m) = setup(dir.path());
+    let predict = |out: &Path| {
+        hvs()
+            .args([
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(out),
+            ])
+            .assert()
+    };
+    let want = ok(&["predict", "--model", s(&m), "--points", s(&te)]);
+    assert!(want.starts_with("u_l,v_l,u_r,v_r,x,y,z\n"), "{want}");
+
+    // A FIFO: the reader gets the CSV, the FIFO stays a FIFO.
+    let fifo = dir.path().join("fifo");
+    mkfifo(&fifo);
+    let f2 = fifo.clone();
+    let reader = std::thread::spawn(move || std::fs::read_to_string(&f2).unwrap());
+    predict(&fifo).success();
+    // (Checked first: had the FIFO been replaced, the reader would wait forever.)
+    assert!(file_type(&fifo).is_fifo(), "the FIFO was replaced");
+    assert_eq!(reader.join().unwrap(), want);
+
+    // A character device: null (1,3) swallows it; full (1,7) fails with the reason, exit 1.
+    let null = dir.path().join("mynull");
+    if mknod(&null, 1, 3) {
+        predict(&null).success();
+        assert!(file_type(&null).is_char_device(), "mynull was replaced");
+        let full = dir.path().join("myfull");
+        assert!(mknod(&full, 1, 7));
+        let e = fails(
+            &[
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(&full),
+            ],
+            "myfull: cannot write",
+        );
+        assert!(e.contains("No space left"), "{e}");
+        assert!(file_type(&full).is_char_device(), "myfull was replaced");
+    }
+
+    // A symbolic link stays a link; the file it names gets the CSV, atomically.
+    let real = dir.path().join("real.csv");
+    std::fs::write(&real, "old").unwrap();
+    let link = dir.path().join("link.csv");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    predict(&link).success();
+    assert!(file_type(&link).is_symlink(), "the link was replaced");
+    assert_eq!(String::from_utf8(read(&real)).unwrap(), want);
+    let to_null = dir.path().join("to_null");
+    std::os::unix::fs::symlink("/dev/null", &to_null).unwrap();
+    predict(&to_null).success();
+    assert!(file_type(&to_null).is_symlink());
+    assert!(file_type(Path::new("/dev/null")).is_char_device());
+    // Nothing else was left in the directory.
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    names.sort();
+    assert!(names.is_empty(), "left behind: {names:?}");
+}
+
+// Item 1: `-o /dev/stdout` is standard output (not a rename over /dev/stdout).
+#[test]
+fn output_to_dev_stdout_is_standard_output() {
+    let dir = TempDir::new().unwrap();
+    let (_, te, m) = setup(dir.path());
+    let want = ok(&["predict", "--model", s(&m), "--points", s(&te)]);
+    let got = ok(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--points",
+        s(&te),
+        "-o",
+        "/dev/stdout",
+    ]);
+    assert_eq!(got, want);
+    assert!(file_type(Path::new("/dev/stdout")).is_symlink());
+}
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/tests/fixtures")
+        .join(name)
+}
+
+// Item 2: an output that is one of the inputs is refused before any work, input untouched.
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let (tr, te, m) = setup(dir.path());
+    let rig = dir.path().join("rig.json");
+    std::fs::copy(fixture("cases.json"), &rig).unwrap();
+    // Another name for the test set: a hard link, and a path through "./".
+    let hard = dir.path().join("hard.csv");
+    std::fs::hard_link(&te, &hard).unwrap();
+    let dotted = dir.path().join(".").join("test.csv");
+    let cases: Vec<(Vec<&str>, &str, &Path)> = vec![
+        (
+            vec![
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(&te),
+            ],
+            "--points",
+            &te,
+        ),
+        (
+            vec![
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(&hard),
+            ],
+            "--points",
+            &te,
+        ),
+        (
+            vec![
+                "predict",
+                "--model",
+                s(&m),
+                "--points",
+                s(&te),
+                "-o",
+                s(&dotted),
+            ],
+            "--points",
+            &te,
+        ),
+        (
+            vec!["predict", "--model", s(&m), "--points", s(&te), "-o", s(&m)],
+            "--model",
+            &m,
+        ),
+        (
+            vec!["train", "--data", s(&tr), "-o", s(&tr), "--restarts", "1"],
+            "--data",
+            &tr,
+        ),
+        (
+            vec![
+                "image",
+                "--model",
+                s(&m),
+                "--slot",
+                "a",
+                "--format",
+                "bin",
+                "-o",
+                s(&m),
+            ],
+            "--model",
+            &m,
+        ),
+        (
+            vec![
+                "simulate",
+                "--rig",
+                s(&rig),
+                "--case",
+                "1",
+                "--set",
+                "train",
+                "-o",
+                s(&rig),
+            ],
+            "--rig",
+            &rig,
+        ),
+        (
+            vec![
+                "head",
+                "--connect",
+                "tcp:127.0.0.1:9",
+                "estimate",
+                "--points",
+                s(&te),
+                "-o",
+                s(&te),
+            ],
+            "--points",
+            &te,
+        ),
+    ];
+    for (args, flag, input) in cases {
+        let before = read(input);
+        let e = fails(&args, &format!("is also the {flag} input"));
+        assert!(e.contains("error: -o "), "{e}");
+        assert_eq!(read(input), before, "{args:?} changed {}", input.display());
+    }
+}
+
+/// Temporary files (`.NAME...tmp`) in `dir`.
+fn temp_files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.') && n.ends_with(".tmp"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Starts a long `hvs simulate` into `out`, waits until its temporary file exists, sends
+/// `signal`; returns the exit status and the temporary files seen while it ran.
+fn interrupt_a_write(out: &Path, signal: libc::c_int) -> (std::process::ExitStatus, Vec<String>) {
+    let dir = out.parent().unwrap();
+    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
+        .args([
+            "simulate", "--case", "1", "--set", "volume", "--points", "1000000",
+        ])
+        .arg("-o")
+        .arg(out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Not a timing assertion: the loop only waits for the write to begin.
+    let seen = loop {
+        let t = temp_files(dir);
+        if !t.is_empty() {
+            break t;
+        }
+        if let Some(st) = child.try_wait().unwrap() {
+            panic!("hvs simulate ended ({st}) before its temporary file was seen");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, signal) }, 0);
+    (child.wait().unwrap(), seen)
+}
+
+// Item 3: SIGINT and SIGTERM remove the temporary file; the process dies of the signal.
+#[test]
+fn interrupted_writes_leave_nothing() {
+    use std::os::unix::process::ExitStatusExt;
+    for sig in [libc::SIGINT, libc::SIGTERM] {
+        let dir = TempDir::new().unwrap();
+        let out = dir.path().join("int.csv");
+        let (st, seen) = interrupt_a_write(&out, sig);
+        assert_eq!(st.signal(), Some(sig), "{st}");
+        assert_eq!(seen.len(), 1, "{seen:?}");
+        assert!(seen[0].starts_with(".int.csv.hvs-"), "{seen:?}");
+        assert_eq!(temp_files(dir.path()), Vec::<String>::new(), "signal {sig}");
+        assert!(!out.exists());
+    }
+}
+
+// Item 3: after SIGKILL the temporary file stays (nothing can run), named with the dead pid;
+// the next write into the same directory removes it, and leaves other files alone.
+#[test]
+fn the_next_write_removes_what_a_killed_run_left() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("int.csv");
+    let (_, seen) = interrupt_a_write(&out, libc::SIGKILL);
+    assert_eq!(temp_files(dir.path()), seen, "SIGKILL cannot clean up");
+    // Not ours (no pid), and ours but alive (this test's pid): kept.
+    let foreign = ".notes.csv.tmp".to_string();
+    let alive = format!(".x.csv.hvs-{}.abcdef.tmp", std::process::id());
+    std::fs::write(dir.path().join(&foreign), "keep").unwrap();
+    std::fs::write(dir.path().join(&alive), "keep").unwrap();
+    let next = dir.path().join("next.csv");
+    ok(&["simulate", "--case", "1", "--set", "test", "-o", s(&next)]);
+    let mut want = vec![foreign, alive];
+    want.sort();
+    assert_eq!(temp_files(dir.path()), want);
+}
+
+/// Writes `header` and `rows` as a CSV in `dir`.
+fn csv(dir: &Path, name: &str, header: &str, rows: &[String]) -> PathBuf {
+    let p = dir.join(name);
+    let mut t = format!("{header}\n");
+    for r in rows {
+        t.push_str(r);
+        t.push('\n');
+    }
+    std::fs::write(&p, t).unwrap();
+    p
+}
+
+/// The data rows of the case-1 training fixture (12 per depth, depths 65, 85, ..., 165).
+fn train_rows() -> Vec<String> {
+    std::fs::read_to_string(fixture("case1_train.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(str::to_string)
+        .collect()
+}
+
+// Item 5: sets that cannot determine the net, a single depth, and absurd values are refused
+// with the reason; the thesis' two-depth experiment (24 rows x 3 outputs, 43 parameters)
+// still trains.
+#[test]
+fn degenerate_and_absurd_training_sets_are_refused() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let h = "u_l,v_l,u_r,v_r,x,y,z";
+    let rows = train_rows();
+    let m = d.join("m.hvsw");
+    let train = |p: &Path, want: &str| {
+        let e = fails(
+            &["train", "--data", s(p), "-o", s(&m), "--restarts", "1"],
+            want,
+        );
+        assert!(!m.exists(), "{e}");
+        e
+    };
+    let one = csv(d, "one.csv", h, &rows[..1]);
+    let e = train(&one, "1 rows x 3 outputs = 3 equations cannot determine");
+    assert!(e.contains("43 parameters"), "{e}");
+    let flat = csv(d, "flat.csv", h, &rows[..12]);
+    train(&flat, "12 rows x 3 outputs = 36 equations");
+    // Enough rows for the Z-only net (31 parameters), all at Z = 65: one depth.
+    let mut same_depth = rows[..12].to_vec();
+    same_depth.extend(rows[..12].iter().map(|r| r.replacen("330,", "331,", 1)));
+    same_depth.extend(rows[..12].iter().map(|r| r.replacen("231,", "232,", 1)));
+    let flat = csv(d, "flat65.csv", h, &same_depth);
+    train(&flat, "all 36 rows lie at one depth (z = 65 cm)");
+
+    let mut bad = rows.clone();
+    bad[3] = bad[3].replacen("356", "1e30", 1);
+    assert!(bad[3].contains("1e30"), "{}", bad[3]);
+    let p = csv(d, "pixel.csv", h, &bad);
+    train(
+        &p,
+        "pixel.csv:5: column \"u_l\": 1000000000000000000000000000000 px is not a value",
+    );
+    let mut bad = rows.clone();
+    bad[7] = bad[7].replacen(",65.0000", ",1e30", 1);
+    let p = csv(d, "z.csv", h, &bad);
+    train(&p, "z.csv:9: column \"z\"");
+
+    // Values beyond f32: one message for train and predict alike.
+    let mut bad = rows.clone();
+    bad[2] = bad[2].replacen("347", "1e39", 1);
+    let p = csv(d, "huge.csv", h, &bad);
+    let want = "huge.csv:4: column \"u_l\": 1e39 does not fit the f32 the model computes in";
+    train(&p, want);
+    let two = csv(d, "two.csv", h, &rows[..24]);
+    let out = ok(&["train", "--data", s(&two), "-o", s(&m), "--restarts", "1"]);
+    assert!(out.contains("on 24 points"), "{out}");
+    fails(&["predict", "--model", s(&m), "--points", s(&p)], want);
+}
+
+// Item 7: a rig file with a key given twice is refused, naming the key.
+#[test]
+fn rig_json_with_a_duplicate_key_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let rig = dir.path().join("rig.json");
+    std::fs::write(
+        &rig,
+        r#"{"phi_u_left": 285.8, "phi_u_right": 228.7, "alpha_left": -0.0455,
+            "alpha_right": 0.0455, "beta0": 0.0087, "phi0": 0.0087, "u0": 320, "u0": 100}"#,
+    )
+    .unwrap();
+    let e = fails(
+        &["simulate", "--rig", s(&rig), "--set", "test"],
+        "duplicate key \"u0\"",
+    );
+    assert!(e.contains("rig.json"), "{e}");
+    let cases = dir.path().join("cases.json");
+    let text = std::fs::read_to_string(fixture("cases.json")).unwrap();
+    std::fs::write(
+        &cases,
+        text.replacen("\"phi0\"", "\"phi0\": 0.1, \"phi0\"", 1),
+    )
+    .unwrap();
+    fails(
+        &[
+            "simulate",
+            "--rig",
+            s(&cases),
+            "--case",
+            "1",
+            "--set",
+            "test",
+        ],
+        "duplicate key \"phi0\" in \"cases\".\"1\"",
+    );
+}
+
+/// A file with only an ELF header: 32-bit little-endian, machine `machine`.
+fn fake_elf(p: &Path, machine: u16) {
+    let mut h = vec![0u8; 52];
+    h[..4].copy_from_slice(b"\x7fELF");
+    h[4] = 1;
+    h[5] = 1;
+    h[6] = 1;
+    h[16] = 2;
+    h[18..20].copy_from_slice(&machine.to_le_bytes());
+    std::fs::write(p, h).unwrap();
+}
+
+// Item 4: `hvs emulate` checks the model, firmware, servo-log directory and listen address
+// before it starts (QEMU is never run: --qemu names a program that does not exist).
+#[test]
+fn emulate_checks_its_inputs_before_it_starts() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (_, _, m) = setup(d);
+    let arm = d.join("fw.elf");
+    fake_elf(&arm, 40);
+    let x86 = d.join("x86.elf");
+    fake_elf(&x86, 62);
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let busy = port.local_addr().unwrap().to_string();
+    let free = {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().to_string()
+    };
+    let log = d.join("s.log");
+    let nodir = d.join("nodir").join("s.log");
+    let emulate = |model: &Path, fw: &Path, log: &Path, listen: &str, want: &str| {
+        fails(
+            &[
+                "emulate",
+                "--model",
+                s(model),
+                "--firmware",
+                s(fw),
+                "--servo-log",
+                s(log),
+                "--listen",
+                listen,
+                "--qemu",
+                "/nonexistent/qemu-system-arm",
+            ],
+            want,
+        )
+    };
+    let e = emulate(d, &arm, &log, &free, "Is a directory");
+    assert!(e.contains("--model"), "{e}");
+    let e = emulate(&m, &m, &log, &free, "not an ELF file");
+    assert!(e.contains("--firmware"), "{e}");
+    emulate(&m, &x86, &log, &free, "e_machine 62");
+    emulate(&m, &arm, &nodir, &free, "the directory");
+    emulate(&m, &arm, &m, &free, "--servo-log");
+    let e = emulate(&m, &arm, &log, &busy, "cannot listen there");
+    assert!(e.contains(&busy), "{e}");
+    emulate(&m, &arm, &log, "nonsense", "not a HOST:PORT address");
+    // With every input right, the next failure is QEMU itself.
+    emulate(&m, &arm, &log, &free, "cannot run");
+    assert!(!log.exists());
+    drop(port);
+}
+
+// Item 6: every command reads CSVs with the one reader: a UTF-8 BOM is accepted, a
+// duplicated column and a header-only file are errors; `hvs head estimate` checks its
+// input and output before it connects.
+#[test]
+fn every_command_reads_csvs_alike() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (tr, _, m) = setup(d);
+    let text = std::fs::read_to_string(&tr).unwrap();
+    let bom = d.join("bom.csv");
+    std::fs::write(&bom, format!("\u{feff}{text}")).unwrap();
+    let header_only = d.join("hdr.csv");
+    std::fs::write(&header_only, text.lines().next().unwrap()).unwrap();
+    let dup = d.join("dup.csv");
+    std::fs::write(
+        &dup,
+        text.replacen("u_l,v_l,u_r,v_r,x,y,z", "u_l,v_l,u_r,v_r,x,y,z,u_l", 1)
+            .replace('\n', ",1\n"),
+    )
+    .unwrap();
+    let m2 = d.join("m2.hvsw");
+    let no_head = "tcp:127.0.0.1:9";
+    let commands = |f: &Path| -> Vec<Vec<String>> {
+        let f = s(f).to_string();
+        let m = s(&m).to_string();
+        [
+            vec!["train", "--restarts", "1", "-o", s(&m2), "--data", &f],
+            vec!["predict", "--model", &m, "--points", &f],
+            vec!["eval", "--model", &m, "--data", &f],
+            vec!["head", "--connect", no_head, "estimate", "--points", &f],
+        ]
+        .iter()
+        .map(|v| v.iter().map(|x| x.to_string()).collect())
+        .collect()
+    };
+    for args in commands(&bom) {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        if args[0] == "head" {
+            // Read fine; the failure is the missing head.
+            fails(&args, "cannot connect");
+        } else {
+            ok(&args);
+        }
+    }
+    for (f, want) in [
+        (&header_only, "hdr.csv: no data rows after the header"),
+        (
+            &dup,
+            "dup.csv:1: column \"u_l\" appears twice in the header",
+        ),
+    ] {
+        for args in commands(f) {
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            fails(&args, want);
+        }
+    }
+    let nodir = d.join("nodir").join("x.csv");
+    let e = fails(
+        &[
+            "head",
+            "--connect",
+            no_head,
+            "estimate",
+            "--points",
+            s(&tr),
+            "-o",
+            s(&nodir),
+        ],
+        "the directory",
+    );
+    assert!(e.contains("nodir/x.csv") && !e.contains(".x.csv."), "{e}");
+}
+
+/// Runs `hvs args` with stdout into /dev/full; returns (exit code, stderr).
+fn to_dev_full(args: &[&str]) -> (Option<i32>, String) {
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let out = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
+        .args(args)
+        .stdout(full)
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+// Item 9: messages that say what is wrong and where.
+#[test]
+fn messages_name_the_real_problem() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (tr, _, m) = setup(d);
+    // Negative numbers get the range, not "unexpected argument".
+    for (args, want) in [
+        (
+            vec![
+                "simulate", "--case", "1", "--set", "volume", "--points", "-5",
+            ],
+            "-5 is out of range: expected a whole number from 0 to",
+        ),
+        (
+            vec![
+                "image",
+                "--model",
+                s(&m),
+                "--slot",
+                "a",
+                "--format",
+                "bin",
+                "--generation",
+                "-1",
+                "-o",
+                "x.bin",
+            ],
+            "-1 is out of range: expected a whole number from 0 to 4294967295",
+        ),
+        (
+            vec![
+                "train",
+                "--data",
+                s(&tr),
+                "-o",
+                "x.hvsw",
+                "--restarts",
+                "-3",
+            ],
+            "-3 is out of range",
+        ),
+    ] {
+        let out = hvs()
+            .args(&args)
+            .assert()
+            .code(2)
+            .get_output()
+            .stderr
+            .clone();
+        let e = String::from_utf8(out).unwrap();
+        assert!(e.contains(want), "{args:?}: {e}");
+        assert!(!e.contains("unexpected argument"), "{e}");
+    }
+    // The noise, not the rig.
+    let e = fails(
+        &[
+            "simulate",
+            "--case",
+            "1",
+            "--set",
+            "test",
+            "--noise-px",
+            "1e30",
+        ],
+        "--noise-px must be a finite number >= 0 and at most the image size (640 px)",
+    );
+    assert!(!e.contains("case 1"), "{e}");
+    // A model that is a directory.
+    fails(&["emulate", "--model", s(d)], "Is a directory");
+    // No head given, or none there: both ways are named.
+    let e = fails(&["head", "ping"], "--connect tcp:HOST:PORT");
+    assert!(e.contains("--port DEVICE"), "{e}");
+    fails(
+        &["head", "--connect", "tcp:127.0.0.1:9", "ping"],
+        "--port DEVICE",
+    );
+    // A head that accepts the connection and never answers (as QEMU does for a second client).
+    let busy = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = format!("tcp:{}", busy.local_addr().unwrap());
+    fails(
+        &["head", "--connect", &addr, "--timeout-ms", "300", "ping"],
+        "busy with another client",
+    );
+    drop(busy);
+    // Errors on stdout name stdout.
+    let (code, e) = to_dev_full(&["simulate", "--case", "1", "--set", "train"]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("cannot write to stdout") && e.contains("No space left"),
+        "{e}"
+    );
+    // The model was written; only the summary failed, and the message says so.
+    let m2 = d.join("m2.hvsw");
+    let (code, e) = to_dev_full(&["train", "--data", s(&tr), "-o", s(&m2), "--restarts", "1"]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("but cannot print the summary to stdout") && e.contains("m2.hvsw"),
+        "{e}"
+    );
+    assert_eq!(read(&m2), read(&m), "the model was written in full");
+    let (code, e) = to_dev_full(&[
+        "image",
+        "--model",
+        s(&m),
+        "--slot",
+        "a",
+        "--format",
+        "bin",
+        "-o",
+        s(&d.join("a.bin")),
+    ]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("cannot write to stdout") && !e.contains("panicked"),
+        "{e}"
+    );
+    // The algorithm as --algo spells it.
+    let info = ok(&["info", s(&m)]);
+    assert!(info.contains("training:    lm, seed 0"), "{info}");
+    let out = ok(&["train", "--data", s(&tr), "-o", s(&m2), "--restarts", "1"]);
+    assert!(
+        out.starts_with("trained 4-5-3 inverse-depth (lm) on 72 points"),
+        "{out}"
+    );
+}
+
+// Item 8: a CRC-valid blob with a huge weight gives estimates far outside the training
+// outputs; `hvs predict` flags them (the head's in_range uses the same
+// `runtime::head::outputs_in_range`, tested in hvs-shared and under QEMU).
+#[test]
+fn estimates_of_a_damaged_model_are_flagged_out_of_range() {
+    use hvs_shared::runtime::blob::{self, MAX_BLOB_LEN};
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (_, te, m) = setup(d);
+    let good = blob::decode(&read(&m)).unwrap();
+    let clean = hvs()
+        .args(["predict", "--model", s(&m), "--points", s(&te)])
+        .assert()
+        .success()
+        .get_output()
+        .stderr
+        .clone();
+    assert!(!String::from_utf8_lossy(&clean).contains("far outside"));
+    let bad_m = d.join("bad.hvsw");
+    let mut huge_and_finite = 0;
+    for k in 0..good.params.len() {
+        let mut b = good.clone();
+        b.params[k] = 3.4e38;
+        let mut buf = vec![0u8; MAX_BLOB_LEN];
+        let n = b.encode(&mut buf).unwrap();
+        std::fs::write(&bad_m, &buf[..n]).unwrap();
+        let out = hvs()
+            .args(["predict", "--model", s(&bad_m), "--points", s(&te)])
+            .output()
+            .unwrap();
+        if !out.status.success() {
+            continue; // the weight overflowed the estimate: "cannot estimate this point"
+        }
+        let csv = String::from_utf8(out.stdout).unwrap();
+        // Absurd: a coordinate beyond 10 km, or a depth under 1 cm (the inverse-depth family
+        // divides by a huge 1/Z output).
+        let huge = csv.lines().skip(1).any(|l| {
+            let f: Vec<f32> = l
+                .split(',')
+                .skip(4)
+                .filter_map(|v| v.parse().ok())
+                .collect();
+            f.iter().any(|v| v.abs() > 1e6) || f.get(2).is_some_and(|z| z.abs() < 1.0)
+        });
+        if huge {
+            huge_and_finite += 1;
+            let e = String::from_utf8(out.stderr).unwrap();
+            assert!(
+                e.contains("estimates lie far outside the outputs the model was trained on"),
+                "param {k}: {e}"
+            );
+            assert!(e.contains("test.csv:2"), "{e}");
+        }
+    }
+    assert!(huge_and_finite > 0, "no weight gave a huge finite estimate");
+}
+
+// Item 10: `hvs demo`'s table fits 100 columns (two tables); the README gives the command
+// that installs the firmware target next to the firmware build.
+#[test]
+fn demo_fits_100_columns_and_the_readme_names_the_target_install() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("d");
+    let stdout = ok(&["demo", "-o", s(&out), "--restarts", "1"]);
+    for l in stdout.lines().filter(|l| !l.starts_with("wrote ")) {
+        assert!(
+            l.chars().count() <= 100,
+            "{} columns: {l}",
+            l.chars().count()
+        );
+    }
+    assert_eq!(stdout.lines().filter(|l| l.starts_with("IV ")).count(), 2);
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../README.md"))
+            .unwrap();
+    let at = readme
+        .find("cargo run --profile firmware -p hvs-firmware")
+        .expect("the firmware build");
+    let before = &readme[..at];
+    let hint = before
+        .rfind("rustup toolchain install")
+        .expect("the install command");
+    assert!(
+        at - hint < 400,
+        "the install command is not next to the firmware build"
+    );
+    assert!(readme.contains("can't find crate for `core`"));
+}
