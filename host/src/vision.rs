@@ -271,9 +271,9 @@ mod tests {
             rig.phi_u_right / rig.phi_u_left,
             rig.phi_v_right / rig.phi_v_left,
         ];
-        for k in 0..2 {
-            let got = f64::from(g.right_scale[k]);
-            assert!((got / want[k] - 1.0).abs() < 0.01, "{got} vs {}", want[k]);
+        for (got, want) in g.right_scale.iter().zip(want) {
+            let got = f64::from(*got);
+            assert!((got / want - 1.0).abs() < 0.01, "{got} vs {want}");
         }
         assert!(g.disparity[0] > 0.0 && g.disparity[0] < g.disparity[1]);
         // Points the fit never saw lie on their epipolar lines (rounded pixels: within ~1 px).
