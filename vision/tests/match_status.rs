@@ -45,12 +45,13 @@ fn a_shifted_texture_is_found_at_its_shift() {
         "{got:?}"
     );
     assert!(got.score > 0.99);
-    // The true disparity outside the interval: no peak inside it.
+    // The true disparity outside the interval: no peak inside it (the pattern's 17 px
+    // period would repeat at 29 and 46 px: the interval avoids both).
     let got = m.find(&Query {
         ul: 100.0,
         vl: 60.0,
-        d_min: 20.0,
-        d_max: 30.0,
+        d_min: 32.0,
+        d_max: 40.0,
     });
     assert_ne!(got.status, MatchStatus::Ok, "{got:?}");
 }
@@ -74,14 +75,16 @@ fn refusals_have_their_status() {
         m.find(&q(100.0, 60.0, 5.0, f64::INFINITY)).status,
         MatchStatus::NanInput
     );
-    assert_eq!(
-        m.find(&q(2.0, 60.0, 5.0, 20.0)).status,
-        MatchStatus::Outside
-    );
-    assert_eq!(
-        m.find(&q(100.0, 118.0, 5.0, 20.0)).status,
-        MatchStatus::Outside
-    );
+    // Points off the image.
+    for (u, v) in [(-0.5, 60.0), (199.5, 60.0), (100.0, -1.0), (100.0, 119.2)] {
+        assert_eq!(m.find(&q(u, v, 5.0, 20.0)).status, MatchStatus::Outside);
+    }
+    // Near the borders the window is clipped to the image and the match still found.
+    for (u, v) in [(30.0, 1.0), (100.0, 118.0), (196.0, 60.0), (190.0, 117.5)] {
+        let got = m.find(&q(u, v, 5.0, 20.0));
+        assert_eq!(got.status, MatchStatus::Ok, "({u}, {v}): {got:?}");
+        assert!((got.ur - (u - 12.0)).abs() < 0.3, "({u}, {v}): {got:?}");
+    }
     // Every candidate window off the right image's left edge.
     assert_eq!(
         m.find(&q(20.0, 60.0, 30.0, 40.0)).status,
