@@ -49,7 +49,20 @@
 //! surface only) go through 2-8 in full; the best-scoring one that passes is returned if
 //! another window's best candidate lies within `lr_tolerance_px` of it
 //! ([`MatchParams::shifted_must_agree`]); otherwise the centred window's status stands.
-//! Ambiguous, textureless and outside points are never retried.
+//! Textureless and outside points are never retried. An **ambiguous** point (step 5) is
+//! retried with the window grown to `2r`, `4r`, ... up to [`MatchParams::max_half_window`]
+//! until one is not ambiguous; its answer is returned if it passes every check and scores at
+//! least [`MatchParams::grown_min_score`] (a large window that reaches the end of a repeating
+//! pattern, such as a board's border, tells the repeats apart); otherwise the point stays
+//! ambiguous.
+//!
+//! In step 5 peaks are compared by their ZNCC at the sub-pixel top of their parabola
+//! (sampled there), and a score still rising at an end of the interval counts as a peak
+//! just beyond it: a repeat that falls on the pixel grid must not beat the true peak that
+//! falls between two pixels.
+//!
+//! With cameras of different focal lengths set [`MatchParams::right_scale`] (e.g.
+//! [`pinhole_right_scale`]): the right window then covers the same patch of the scene.
 //!
 //! # Parameters (how the defaults were chosen)
 //!
@@ -150,6 +163,19 @@ pub struct Query {
 pub struct MatchParams {
     /// Half window `r`: windows are `(2r + 1) x (2r + 1)` pixels (1..=30).
     pub half_window: u32,
+    /// Smallest score of a grown window's answer (a large window fits a plane, such as a
+    /// board, well; across the depth changes of a real scene it scores lower and is then
+    /// not trusted).
+    pub grown_min_score: f64,
+    /// How much larger the scene looks in the right image than in the left, along `u` and
+    /// `v` (the right window's pixel offsets are the left one's times this, sampled
+    /// bilinearly): the ratio of the focal lengths, e.g. [`pinhole_right_scale`]; `[1, 1]`
+    /// for cameras alike (0.25..=4).
+    pub right_scale: [f64; 2],
+    /// Largest half window tried when the `half_window` one is ambiguous: the window doubles
+    /// (`2r`, `4r`, ... up to this) until it is unique or fails otherwise (`half_window` or
+    /// less: never grow). At most 60.
+    pub max_half_window: u32,
     /// Smallest standard deviation of the left window (grey levels) worth correlating.
     pub min_std: f64,
     /// Smallest acceptable best ZNCC.
@@ -193,13 +219,18 @@ impl Default for MatchParams {
     /// intervals that hold the truth), shifted windows on (moved by a whole `r`, and they
     /// must agree), support weights `gamma = 10` grey levels with a floor of 0.2 (without a
     /// floor a chessboard saddle, whose own grey is rare in its window, lost its accuracy).
-    /// On the Motorcycle development seeds 1-4 (4000 points, interval true disparity
-    /// +- 10 %) this took the points returned within 1 px from 77.5 % (the previous
-    /// defaults) to 83.4 % with 1.3 % returned 2 px or more off. Chosen on development seeds
+    /// Ambiguous points grow their window up to `r = 40`, trusted from a score of 0.9 (0.8
+    /// and 0.95 differed by 0.1 % of points on the real pair). On the Motorcycle development
+    /// seeds 1-4 (4000 points, interval true disparity +- 10 %) this took the points
+    /// returned within 1 px from 77.5 % (the previous defaults) to 83.4 % with 1.3 %
+    /// returned 2 px or more off. Chosen on development seeds
     /// only (rendered boards seeds 1-4, Motorcycle point seeds 1-4; tests use other seeds).
     fn default() -> Self {
         MatchParams {
             half_window: 5,
+            max_half_window: 40,
+            right_scale: [1.0, 1.0],
+            grown_min_score: 0.9,
             min_std: 1.0,
             min_score: 0.5,
             uniqueness_margin: 0.05,
@@ -254,7 +285,16 @@ impl MatchParams {
                 format!("must be 1..=30, got {}", self.half_window),
             ));
         }
-        let checks: [(&'static str, f64, f64, f64); 10] = [
+        if self.max_half_window > 60 {
+            return Err(invalid(
+                "params.max_half_window",
+                format!("must be at most 60, got {}", self.max_half_window),
+            ));
+        }
+        let checks: [(&'static str, f64, f64, f64); 13] = [
+            ("params.grown_min_score", self.grown_min_score, -1.0, 1.0),
+            ("params.right_scale[0]", self.right_scale[0], 0.25, 4.0),
+            ("params.right_scale[1]", self.right_scale[1], 0.25, 4.0),
             ("params.support_floor", self.support_floor, 0.0, 1.0),
             ("params.support_gamma", self.support_gamma, 0.0, 1000.0),
             (
@@ -346,20 +386,67 @@ impl Win {
             && self.y1 - self.y0 + 1 >= min_side
     }
     /// The part of the window that fits, with its interpolation support, in a `w x h` image
-    /// around every centre with `u` in `[u_lo, u_hi]` and `v` in `[v_lo, v_hi]` (centres
-    /// clamped to the image first: candidates off the image are dropped, not the window).
+    /// around every centre with `u` in `[u_lo, u_hi]` and `v` in `[v_lo, v_hi]` when window
+    /// offset `(dx, dy)` lands at `(u + scale[0] dx, v + scale[1] dy)` (centres clamped to
+    /// the image first: candidates off the image are dropped, not the window).
     #[allow(clippy::too_many_arguments)]
-    fn clip(&self, w: usize, h: usize, u_lo: f64, u_hi: f64, v_lo: f64, v_hi: f64) -> Win {
+    fn clip(
+        &self,
+        w: usize,
+        h: usize,
+        u_lo: f64,
+        u_hi: f64,
+        v_lo: f64,
+        v_hi: f64,
+        scale: [f64; 2],
+    ) -> Win {
         let (wm, hm) = ((w - 1) as f64, (h - 1) as f64);
         let (u_lo, u_hi) = (u_lo.clamp(0.0, wm), u_hi.clamp(0.0, wm));
         let (v_lo, v_hi) = (v_lo.clamp(0.0, hm), v_hi.clamp(0.0, hm));
+        // A tiny tolerance so that exact multiples are not lost to rounding.
+        let lo = |c: f64, s: f64| (-c / s - 1e-9).ceil() as i64;
+        let hi = |c: f64, m: f64, s: f64| ((m - c) / s + 1e-9).floor() as i64;
         Win {
-            x0: self.x0.max(-(u_lo.floor() as i64)),
-            x1: self.x1.min((w - 1) as i64 - u_hi.ceil() as i64),
-            y0: self.y0.max(-(v_lo.floor() as i64)),
-            y1: self.y1.min((h - 1) as i64 - v_hi.ceil() as i64),
+            x0: self.x0.max(lo(u_lo, scale[0])),
+            x1: self.x1.min(hi(u_hi, wm, scale[0])),
+            y0: self.y0.max(lo(v_lo, scale[1])),
+            y1: self.y1.min(hi(v_hi, hm, scale[1])),
         }
     }
+}
+
+/// Entries per grey level of the support-weight table.
+const WEIGHT_STEPS_PER_GREY: f64 = 4.0;
+
+/// The support weights `floor + (1 - floor) exp(-|dI| / gamma)` for `|dI|` = 0, 1/4, ...,
+/// 255 grey levels (empty when `gamma` is 0: every pixel counts the same).
+fn weight_lut(gamma: f64, floor: f64) -> Vec<f32> {
+    if gamma <= 0.0 {
+        return Vec::new();
+    }
+    let n = (255.0 * WEIGHT_STEPS_PER_GREY) as usize + 1;
+    (0..n)
+        .map(|k| {
+            let d = k as f64 / WEIGHT_STEPS_PER_GREY;
+            (floor + (1.0 - floor) * (-d / gamma).exp()) as f32
+        })
+        .collect()
+}
+
+/// Bilinear grey level of `img` at `(x, y)`, `None` off the image (support included).
+fn bilinear(img: &Plane, x: f64, y: f64) -> Option<f32> {
+    let (xf, yf) = (x.floor(), y.floor());
+    if !(xf >= 0.0 && yf >= 0.0 && x <= (img.w - 1) as f64 && y <= (img.h - 1) as f64) {
+        return None;
+    }
+    let (xi, yi) = (xf as usize, yf as usize);
+    let (fx, fy) = ((x - xf) as f32, (y - yf) as f32);
+    let x2 = if fx > 0.0 { xi + 1 } else { xi };
+    let y2 = if fy > 0.0 { yi + 1 } else { yi };
+    let p = |xx: usize, yy: usize| img.px[yy * img.w + xx];
+    let a = p(xi, yi) + fx * (p(x2, yi) - p(xi, yi));
+    let b = p(xi, y2) + fx * (p(x2, y2) - p(xi, y2));
+    Some(a + fy * (b - a))
 }
 
 /// The outcome of one search along a line.
@@ -371,6 +458,8 @@ struct Search {
     /// `v` on the line at `u`.
     v: f64,
     status: MatchStatus,
+    /// When ambiguous: the whole-pixel `u` of the best peak and of its rivals.
+    peaks: Vec<i64>,
 }
 
 impl Search {
@@ -380,6 +469,7 @@ impl Search {
             u: f64::NAN,
             v: f64::NAN,
             status,
+            peaks: Vec::new(),
         }
     }
 }
@@ -389,6 +479,8 @@ impl Search {
 pub struct Matcher {
     left: Plane,
     right: Plane,
+    /// Support weights by grey-level difference ([`weight_lut`]).
+    weights: Vec<f32>,
     f: Fundamental,
     /// The parameters in use.
     pub params: MatchParams,
@@ -431,6 +523,7 @@ impl Matcher {
         Ok(Matcher {
             left: Plane::new(left),
             right: Plane::new(right),
+            weights: weight_lut(params.support_gamma, params.support_floor),
             f: *f,
             params,
         })
@@ -463,7 +556,28 @@ impl Matcher {
             return Match::fail(MatchStatus::Outside);
         }
         let r = i64::from(self.params.half_window);
-        let first = self.find_window(q, Win::shifted(r, 0, 0), buf);
+        let mut peaks = Vec::new();
+        let first = self.find_window(q, Win::shifted(r, 0, 0), None, &mut peaks, buf);
+        if first.status == MatchStatus::Ambiguous {
+            // A repeating pattern: a larger window may reach what does not repeat (the edge
+            // of the pattern); it must pass every check on its own. Only the rivals are
+            // compared (and mirrored in the left-right check): a few candidates, not the
+            // whole interval.
+            let rivals = std::mem::take(&mut peaks);
+            let mut big = 2 * r;
+            while big <= i64::from(self.params.max_half_window) {
+                let m =
+                    self.find_window(q, Win::shifted(big, 0, 0), Some(&rivals), &mut peaks, buf);
+                if m.status != MatchStatus::Ambiguous {
+                    if m.status == MatchStatus::Ok && m.score >= self.params.grown_min_score {
+                        return m;
+                    }
+                    break;
+                }
+                big *= 2;
+            }
+            return first;
+        }
         let retry = matches!(
             first.status,
             MatchStatus::NoCandidate | MatchStatus::LrCheckFailed
@@ -476,7 +590,8 @@ impl Matcher {
         let step = (r as f64 * self.params.shift_fraction).round() as i64;
         let mut tried = [first; 5];
         for (k, (sx, sy)) in [(-1, 0), (1, 0), (0, -1), (0, 1)].into_iter().enumerate() {
-            tried[k + 1] = self.find_window(q, Win::shifted(r, sx * step, sy * step), buf);
+            let w = Win::shifted(r, sx * step, sy * step);
+            tried[k + 1] = self.find_window(q, w, None, &mut peaks, buf);
         }
         // The best-scoring acceptable shifted window, if another window's best candidate
         // (acceptable or not) lies within `lr_tolerance_px` of it when agreement is asked.
@@ -498,7 +613,16 @@ impl Matcher {
     }
 
     /// One window shape's search from the left point and its left-right check.
-    fn find_window(&self, q: &Query, shape: Win, buf: &mut Vec<f32>) -> Match {
+    /// `only`: search only around these whole-pixel `u_r` (and, in the left-right check,
+    /// around the left points they mirror); `peaks` receives the rivals when ambiguous.
+    fn find_window(
+        &self,
+        q: &Query,
+        shape: Win,
+        only: Option<&[i64]>,
+        peaks: &mut Vec<i64>,
+        buf: &mut Vec<f32>,
+    ) -> Match {
         let slack = self.params.interval_slack_px;
         let line = self.f.line_in_right([q.ul, q.vl]);
         let Some(s) = self.search_from(
@@ -509,11 +633,13 @@ impl Matcher {
             line,
             q.ul - q.d_max - slack,
             q.ul - q.d_min + slack,
+            only,
             true,
             buf,
         ) else {
             return Match::fail(MatchStatus::Outside);
         };
+        *peaks = s.peaks;
         let out = Match {
             ur: s.u,
             vr: s.v,
@@ -525,6 +651,11 @@ impl Matcher {
         }
         // Left-right check: the right window at the match, searched back in the left image.
         let back_line = self.f.line_in_left([s.u, s.v]);
+        let back_only: Option<Vec<i64>> = only.map(|o| {
+            o.iter()
+                .map(|&c| (q.ul + (c as f64 - s.u)).round() as i64)
+                .collect()
+        });
         let b = self.search_from(
             Side::Back,
             s.u,
@@ -533,6 +664,7 @@ impl Matcher {
             back_line,
             s.u + q.d_min - slack,
             s.u + q.d_max + slack,
+            back_only.as_deref(),
             false,
             buf,
         );
@@ -563,6 +695,7 @@ impl Matcher {
         line: [f64; 3],
         u_lo: f64,
         u_hi: f64,
+        only: Option<&[i64]>,
         check_unique: bool,
         buf: &mut Vec<f32>,
     ) -> Option<Search> {
@@ -570,12 +703,26 @@ impl Matcher {
             Side::Forward => (&self.left, &self.right),
             Side::Back => (&self.right, &self.left),
         };
+        // The right window is the left one scaled by `right_scale` (both searches).
+        let one = [1.0, 1.0];
+        let (s_src, s_dst) = match side {
+            Side::Forward => (one, self.params.right_scale),
+            Side::Back => (self.params.right_scale, one),
+        };
         let [a, b, c] = line;
         if !(a.is_finite() && b.is_finite() && c.is_finite()) || b.abs() < a.abs() {
             return Some(Search::none(MatchStatus::NoCandidate));
         }
         let v_at = |u: f64| -(a * u + c) / b;
         let (mut k_lo, mut k_hi) = (u_lo.ceil() as i64, u_hi.floor() as i64);
+        if let Some(o) = only {
+            // Only around the listed candidates (the rivals of an ambiguous search).
+            let (lo, hi) = (o.iter().min(), o.iter().max());
+            let (Some(&lo), Some(&hi)) = (lo, hi) else {
+                return Some(Search::none(MatchStatus::NoCandidate));
+            };
+            (k_lo, k_hi) = (lo, hi);
+        }
         if k_lo > k_hi {
             // The interval holds no whole pixel: take the nearest one.
             k_lo = (0.5 * (u_lo + u_hi)).round() as i64;
@@ -589,34 +736,39 @@ impl Matcher {
         let (va, vb) = (v_at(ka), v_at(kb));
         // Clip the window to the source image at the point and to the destination image
         // over the candidates of the interval proper.
-        let win = shape.clip(src.w, src.h, u, u, v, v).clip(
+        let win = shape.clip(src.w, src.h, u, u, v, v, s_src).clip(
             dst.w,
             dst.h,
             k_lo as f64,
             k_hi as f64,
             va.min(vb),
             va.max(vb),
+            s_dst,
         );
         if !win.usable(i64::from(self.params.half_window) + 1) {
             return None;
         }
         buf.clear();
         buf.resize(2 * win.len(), 0.0);
-        let std = template(
-            src,
-            u,
-            v,
-            win,
-            (self.params.support_gamma, self.params.support_floor),
-            buf,
-        )?;
+        let std = template(src, u, v, win, s_src, &self.weights, buf)?;
         if std < self.params.min_std {
             return Some(Search::none(match side {
                 Side::Forward => MatchStatus::NoTexture,
                 Side::Back => MatchStatus::LrCheckFailed,
             }));
         }
-        let s = search_range(dst, buf, win, k_lo, k_hi, &v_at, &self.params, check_unique);
+        let s = search_range(
+            dst,
+            buf,
+            win,
+            s_dst,
+            k_lo,
+            k_hi,
+            only,
+            &v_at,
+            &self.params,
+            check_unique,
+        );
         // A peak found only thanks to the slack must still be near the interval.
         Some(s)
     }
@@ -640,14 +792,28 @@ pub fn match_points(
 /// weighted covariance over `s`. Weights: [`MatchParams::support_gamma`]. Returns the
 /// window's (unweighted) standard deviation, or `None` when the window (with its
 /// interpolation support) leaves the image.
+#[allow(clippy::too_many_arguments)]
 fn template(
     img: &Plane,
     u: f64,
     v: f64,
     win: Win,
-    (gamma, floor): (f64, f64),
+    scale: [f64; 2],
+    lut: &[f32],
     t: &mut [f32],
 ) -> Option<f64> {
+    let n = win.len();
+    if scale != [1.0, 1.0] {
+        let ww = win.width();
+        for dy in 0..win.height() {
+            let y = v + scale[1] * (win.y0 + dy as i64) as f64;
+            for dx in 0..ww {
+                let x = u + scale[0] * (win.x0 + dx as i64) as f64;
+                t[dy * ww + dx] = bilinear(img, x, y)?;
+            }
+        }
+        return Some(weigh(win, lut, t));
+    }
     let (x0, y0) = (u.floor(), v.floor());
     let (fx, fy) = (u - x0, v - y0);
     let (xa, xb) = (x0 as i64 + win.x0, x0 as i64 + win.x1 + i64::from(fx > 0.0));
@@ -664,10 +830,8 @@ fn template(
     let (fx, fy) = (fx as f32, fy as f32);
     let (xs, ys) = (xa as usize, ya as usize);
     let (ww, wh) = (win.width(), win.height());
-    let n = win.len();
-    let (vals, wts) = t.split_at_mut(n);
+    let (vals, _) = t.split_at_mut(n);
     let w = img.w;
-    let mut sum = 0.0f64;
     for dy in 0..wh {
         let row = (ys + dy) * w;
         let row2 = if fy > 0.0 { row + w } else { row };
@@ -676,22 +840,30 @@ fn template(
             let x2 = if fx > 0.0 { x + 1 } else { x };
             let a = img.px[row + x] + fx * (img.px[row + x2] - img.px[row + x]);
             let b = img.px[row2 + x] + fx * (img.px[row2 + x2] - img.px[row2 + x]);
-            let val = a + fy * (b - a);
-            vals[dy * ww + dx] = val;
-            sum += f64::from(val);
+            vals[dy * ww + dx] = a + fy * (b - a);
         }
     }
-    let mean = sum / n as f64;
+    Some(weigh(win, lut, t))
+}
+
+/// Turns the grey levels in `t[..n]` into the template of [`template`] (coefficients, then
+/// weights in `t[n..]`) and returns their unweighted standard deviation.
+fn weigh(win: Win, lut: &[f32], t: &mut [f32]) -> f64 {
+    let n = win.len();
+    let ww = win.width();
+    let (vals, wts) = t.split_at_mut(n);
+    let mean = vals.iter().map(|&x| f64::from(x)).sum::<f64>() / n as f64;
     let ss: f64 = vals.iter().map(|&x| (f64::from(x) - mean).powi(2)).sum();
     let std = (ss / n as f64).sqrt();
     // Weights.
     let centre = f64::from(vals[(-win.y0) as usize * ww + (-win.x0) as usize]);
     let mut wsum = 0.0f64;
     for (wt, &x) in wts.iter_mut().zip(vals.iter()) {
-        let wv = if gamma > 0.0 {
-            floor + (1.0 - floor) * (-(f64::from(x) - centre).abs() / gamma).exp()
-        } else {
+        let wv = if lut.is_empty() {
             1.0
+        } else {
+            let k = ((f64::from(x) - centre).abs() * WEIGHT_STEPS_PER_GREY).round() as usize;
+            f64::from(lut[k.min(lut.len() - 1)])
         };
         *wt = wv as f32;
         wsum += wv;
@@ -711,15 +883,18 @@ fn template(
         let k = (1.0 / wvar.sqrt()) as f32;
         vals.iter_mut().for_each(|x| *x *= k);
     }
-    Some(std)
+    std
 }
 
 /// Weighted ZNCC of the template `t` ([`template`]: coefficients then weights, window `win`)
 /// with the window of `img` around whole column `u` and sub-pixel row `v` (linear in `v`),
 /// or `None` when the window leaves the image.
-fn zncc_at(img: &Plane, t: &[f32], win: Win, u: i64, v: f64) -> Option<f64> {
+fn zncc_at(img: &Plane, t: &[f32], win: Win, scale: [f64; 2], u: i64, v: f64) -> Option<f64> {
     if !v.is_finite() {
         return None;
+    }
+    if scale != [1.0, 1.0] {
+        return zncc_scaled(img, t, win, scale, u as f64, v);
     }
     let y0 = v.floor();
     let fy = (v - y0) as f32;
@@ -766,6 +941,32 @@ fn zncc_at(img: &Plane, t: &[f32], win: Win, u: i64, v: f64) -> Option<f64> {
     Some((f64::from(st) / var.sqrt()).clamp(-1.0, 1.0))
 }
 
+/// [`zncc_at`] with window offset `(dx, dy)` at `(u + scale[0] dx, v + scale[1] dy)`,
+/// bilinear.
+fn zncc_scaled(img: &Plane, t: &[f32], win: Win, scale: [f64; 2], u: f64, v: f64) -> Option<f64> {
+    let n = win.len();
+    let (coef, wts) = t.split_at(n);
+    let ww = win.width();
+    let (mut st, mut s1, mut s2) = (0.0f32, 0.0f32, 0.0f32);
+    for dy in 0..win.height() {
+        let y = v + scale[1] * (win.y0 + dy as i64) as f64;
+        for dx in 0..ww {
+            let x = u + scale[0] * (win.x0 + dx as i64) as f64;
+            let val = bilinear(img, x, y)?;
+            let k = dy * ww + dx;
+            st += coef[k] * val;
+            let wv = wts[k] * val;
+            s1 += wv;
+            s2 += wv * val;
+        }
+    }
+    let var = f64::from(s2) - f64::from(s1) * f64::from(s1);
+    if var <= 1e-4 {
+        return Some(0.0);
+    }
+    Some((f64::from(st) / var.sqrt()).clamp(-1.0, 1.0))
+}
+
 /// Scores the whole `u` from `k_lo - 1` to `k_hi + 1` along the line `v_at` and applies the
 /// decisions 4-6 of the module documentation to the peak in `k_lo..=k_hi`
 /// (`check_unique`: whether step 5 applies).
@@ -774,8 +975,10 @@ fn search_range(
     img: &Plane,
     t: &[f32],
     win: Win,
+    scale: [f64; 2],
     k_lo: i64,
     k_hi: i64,
+    only: Option<&[i64]>,
     v_at: &dyn Fn(f64) -> f64,
     p: &MatchParams,
     check_unique: bool,
@@ -793,8 +996,11 @@ fn search_range(
     let mut any = false;
     for (idx, sc) in scores.iter_mut().enumerate() {
         let u = k_lo - 1 + idx as i64;
-        if let Some(z) = zncc_at(img, t, win, u, v_at(u as f64)) {
-            *sc = z;
+        if only.is_some_and(|o| !o.iter().any(|&c| (c - u).abs() <= 1)) {
+            continue;
+        }
+        if let Some(zn) = zncc_at(img, t, win, scale, u, v_at(u as f64)) {
+            *sc = zn;
             if idx >= 1 && idx + 1 < len {
                 any = true;
             }
@@ -818,6 +1024,7 @@ fn search_range(
         u: u_best,
         v: v_at(u_best),
         status: MatchStatus::Ok,
+        peaks: Vec::new(),
     };
     // A peak needs both neighbours, no higher than it.
     // NaN compares false: a missing neighbour (window off the image) is no peak.
@@ -827,19 +1034,66 @@ fn search_range(
         return out;
     }
     if check_unique {
+        // Peaks are compared by their score at the parabola's sub-pixel top (sampled there,
+        // bilinear), not by the whole-pixel sample: a sharp peak half a pixel off the grid
+        // samples low and would lose to a repeat that happens to fall on the grid.
+        let refined = |idx: usize| -> f64 {
+            let (l, c, r) = (scores[idx - 1], scores[idx], scores[idx + 1]);
+            let den = l - 2.0 * c + r;
+            let off = if den < 0.0 && l.is_finite() && r.is_finite() {
+                (0.5 * (l - r) / den).clamp(-0.5, 0.5)
+            } else if r > c {
+                0.5
+            } else if l > c {
+                -0.5
+            } else {
+                0.0
+            };
+            if off == 0.0 {
+                return c;
+            }
+            let u = (k_lo - 1 + idx as i64) as f64 + off;
+            zncc_scaled(img, t, win, scale, u, v_at(u)).map_or(c, |z| z.max(c))
+        };
+        let sb_top = refined(best);
         let sep = p.min_peak_separation_px;
         for idx in 1..len - 1 {
             if idx == best || ((idx as f64) - (best as f64)).abs() < sep {
                 continue;
             }
             let z = scores[idx];
+            // Not worth a closer look: far below the best even at its top.
+            if !z.is_finite() || z < sb - p.uniqueness_margin - 0.15 {
+                continue;
+            }
             // A neighbour off the image (NaN) does not stop a peak here.
             let left_ok = scores[idx - 1].partial_cmp(&z) != Some(core::cmp::Ordering::Greater);
             let right_ok = scores[idx + 1].partial_cmp(&z) != Some(core::cmp::Ordering::Greater);
-            if z.is_finite() && left_ok && right_ok && z > sb - p.uniqueness_margin {
-                out.status = MatchStatus::Ambiguous;
-                return out;
+            // At an end of the interval, scores still rising outwards: a peak just beyond
+            // the end competes too (the interval's ends are not sharp).
+            let outer = if idx == 1 {
+                scores[0]
+            } else if idx == len - 2 {
+                scores[len - 1]
+            } else {
+                f64::NAN
+            };
+            let rising_out = outer > z;
+            if !(rising_out || left_ok && right_ok) {
+                continue;
             }
+            let mut z_top = refined(idx);
+            if rising_out {
+                z_top = z_top.max(outer);
+            }
+            if z_top > sb_top - p.uniqueness_margin {
+                out.status = MatchStatus::Ambiguous;
+                out.peaks.push(k_lo - 1 + idx as i64);
+            }
+        }
+        if out.status == MatchStatus::Ambiguous {
+            out.peaks.push(k_lo - 1 + best as i64);
+            return out;
         }
     }
     // Parabola through the three scores.
@@ -852,6 +1106,80 @@ fn search_range(
     out.u = u_best + off;
     out.v = v_at(out.u);
     out
+}
+
+/// Steps of the disparity scan of [`model_disparity_interval`] (px).
+pub const MODEL_SCAN_STEP_PX: f64 = 0.25;
+
+/// Share of the training depth span allowed beyond either end by
+/// [`model_disparity_interval`].
+pub const MODEL_Z_MARGIN: f64 = 0.05;
+
+/// The disparity interval a trained model allows for left pixel `(ul, vl)`: the candidate
+/// right points on the epipolar line `line` (`a u + b v + c = 0` in the right image, e.g.
+/// [`Fundamental::line_in_right`]) at every disparity `d = ul - u_r` of `d_range` (the
+/// training set's whole disparity range, px), [`MODEL_SCAN_STEP_PX`] apart, are fed to
+/// `predict` (`[u_l, v_l, u_r, v_r]` to `[X, Y, Z]` cm, `None` when the model has no answer);
+/// those whose `Z` lies inside the training depths `z_range` (cm), widened by
+/// [`MODEL_Z_MARGIN`] of its span on each side, are kept. Returns the smallest and largest
+/// kept disparity, each widened by one scan step and clipped to `d_range`, or `None` when
+/// none is kept, an input is not finite or out of order, or the line is steeper than
+/// 45 degrees (no `v` per `u`). The model is a closure so that this crate need not know the
+/// model's format: the CLI passes `|x| blob.infer(&x)`.
+pub fn model_disparity_interval(
+    predict: impl Fn([f32; 4]) -> Option<[f32; 3]>,
+    ul: f64,
+    vl: f64,
+    line: [f64; 3],
+    z_range: [f64; 2],
+    d_range: [f64; 2],
+) -> Option<(f64, f64)> {
+    let [a, b, c] = line;
+    let finite = [
+        ul, vl, a, b, c, z_range[0], z_range[1], d_range[0], d_range[1],
+    ]
+    .iter()
+    .all(|x| x.is_finite());
+    if !finite || z_range[0] > z_range[1] || d_range[0] > d_range[1] || b.abs() < a.abs() {
+        return None;
+    }
+    // At most 100 000 model calls per point.
+    let n = ((d_range[1] - d_range[0]) / MODEL_SCAN_STEP_PX).ceil();
+    if n > 100_000.0 {
+        return None;
+    }
+    let n = n as usize;
+    let margin = MODEL_Z_MARGIN * (z_range[1] - z_range[0]);
+    let (z_lo, z_hi) = (z_range[0] - margin, z_range[1] + margin);
+    let mut kept: Option<(f64, f64)> = None;
+    for k in 0..=n {
+        let d = (d_range[0] + k as f64 * MODEL_SCAN_STEP_PX).min(d_range[1]);
+        let ur = ul - d;
+        let vr = -(a * ur + c) / b;
+        let Some(xyz) = predict([ul as f32, vl as f32, ur as f32, vr as f32]) else {
+            continue;
+        };
+        let z = f64::from(xyz[2]);
+        if z >= z_lo && z <= z_hi {
+            kept = Some(match kept {
+                None => (d, d),
+                Some((lo, hi)) => (lo.min(d), hi.max(d)),
+            });
+        }
+    }
+    kept.map(|(lo, hi)| {
+        (
+            (lo - MODEL_SCAN_STEP_PX).max(d_range[0]),
+            (hi + MODEL_SCAN_STEP_PX).min(d_range[1]),
+        )
+    })
+}
+
+/// The right window's scale for two pinhole cameras: `[phi_u_right / phi_u_left,
+/// phi_v_right / phi_v_left]` (for [`MatchParams::right_scale`]; exact for a fronto-parallel
+/// patch with parallel axes, close enough with the thesis' small deflections).
+pub fn pinhole_right_scale(left: &Camera, right: &Camera) -> [f64; 2] {
+    [right.phi_u / left.phi_u, right.phi_v / left.phi_v]
 }
 
 /// The fundamental matrix of two pinhole cameras (no lens): `r~^T F l~ = 0`, unit Frobenius
@@ -928,6 +1256,44 @@ mod tests {
     }
 
     #[test]
+    fn model_interval_keeps_the_disparities_of_the_training_depths() {
+        // A rectified toy model: Z = 1000 / d.
+        let model = |x: [f32; 4]| {
+            let d = x[0] - x[2];
+            (d > 0.0).then(|| [0.0, 0.0, 1000.0 / d])
+        };
+        let row = [0.0, -1.0, 50.0];
+        let (lo, hi) =
+            model_disparity_interval(model, 300.0, 50.0, row, [50.0, 100.0], [0.0, 80.0]).unwrap();
+        // Z in 47.5..102.5 cm: d in 9.76..21.05 px, plus one step.
+        assert!(
+            (lo - 9.5).abs() < 0.26 && (hi - 21.25).abs() < 0.26,
+            "{lo} {hi}"
+        );
+        // Nothing inside: None; bad input: None.
+        assert!(
+            model_disparity_interval(model, 300.0, 50.0, row, [500.0, 600.0], [0.0, 1.0]).is_none()
+        );
+        assert!(
+            model_disparity_interval(model, f64::NAN, 50.0, row, [50.0, 100.0], [0.0, 80.0])
+                .is_none()
+        );
+        assert!(model_disparity_interval(
+            model,
+            300.0,
+            50.0,
+            [1.0, 0.0, -5.0],
+            [50.0, 100.0],
+            [0.0, 80.0]
+        )
+        .is_none());
+        assert!(
+            model_disparity_interval(|_| None, 300.0, 50.0, row, [50.0, 100.0], [0.0, 80.0])
+                .is_none()
+        );
+    }
+
+    #[test]
     fn bad_params_name_the_field() {
         let p = MatchParams {
             half_window: 0,
@@ -956,7 +1322,16 @@ mod tests {
         let mut t = vec![0.0f32; 98];
         let w = Win::shifted(3, 0, 0);
         for gamma in [0.0, 10.0] {
-            let std = template(&p, 20.3, 14.6, w, (gamma, 0.2), &mut t).unwrap();
+            let std = template(
+                &p,
+                20.3,
+                14.6,
+                w,
+                [1.0, 1.0],
+                &weight_lut(gamma, 0.2),
+                &mut t,
+            )
+            .unwrap();
             assert!(std > 1.0);
             let (a, wt) = t.split_at(49);
             let s: f32 = a.iter().sum();
@@ -964,18 +1339,27 @@ mod tests {
             let ss: f32 = a.iter().zip(wt).map(|(x, w)| x * x / w).sum();
             assert!(s.abs() < 1e-4 && (ws - 1.0).abs() < 1e-4 && (ss - 1.0).abs() < 1e-3);
             // The same window correlates with itself at 1, and not with its neighbour.
-            template(&p, 20.0, 14.0, w, (gamma, 0.2), &mut t).unwrap();
-            let z = zncc_at(&p, &t, w, 20, 14.0).unwrap();
+            template(
+                &p,
+                20.0,
+                14.0,
+                w,
+                [1.0, 1.0],
+                &weight_lut(gamma, 0.2),
+                &mut t,
+            )
+            .unwrap();
+            let z = zncc_at(&p, &t, w, [1.0, 1.0], 20, 14.0).unwrap();
             assert!((z - 1.0).abs() < 1e-4, "{z}");
-            let z = zncc_at(&p, &t, w, 21, 14.0).unwrap();
+            let z = zncc_at(&p, &t, w, [1.0, 1.0], 21, 14.0).unwrap();
             assert!(z < 0.999, "{z}");
         }
-        assert!(template(&p, 2.5, 14.0, w, (0.0, 0.0), &mut t).is_none());
-        assert!(template(&p, 3.0, 3.0, w, (0.0, 0.0), &mut t).is_some());
-        assert!(template(&p, 36.0, 26.0, w, (0.0, 0.0), &mut t).is_some());
-        assert!(template(&p, 36.5, 26.0, w, (0.0, 0.0), &mut t).is_none());
+        assert!(template(&p, 2.5, 14.0, w, [1.0, 1.0], &[], &mut t).is_none());
+        assert!(template(&p, 3.0, 3.0, w, [1.0, 1.0], &[], &mut t).is_some());
+        assert!(template(&p, 36.0, 26.0, w, [1.0, 1.0], &[], &mut t).is_some());
+        assert!(template(&p, 36.5, 26.0, w, [1.0, 1.0], &[], &mut t).is_none());
         // Clipped at the border: the part that fits.
-        let c = w.clip(40, 30, 1.5, 1.5, 28.0, 28.0);
+        let c = w.clip(40, 30, 1.5, 1.5, 28.0, 28.0, [1.0, 1.0]);
         assert_eq!(
             c,
             Win {
@@ -985,6 +1369,6 @@ mod tests {
                 y1: 1
             }
         );
-        assert!(template(&p, 1.5, 28.0, c, (0.0, 0.0), &mut t[..2 * c.len()]).is_some());
+        assert!(template(&p, 1.5, 28.0, c, [1.0, 1.0], &[], &mut t[..2 * c.len()]).is_some());
     }
 }

@@ -130,6 +130,41 @@ fn motorcycle_dev() {
             },
         ),
         (
+            "no growing",
+            MatchParams {
+                max_half_window: 5,
+                ..d
+            },
+        ),
+        (
+            "grown 0.8",
+            MatchParams {
+                grown_min_score: 0.8,
+                ..d
+            },
+        ),
+        (
+            "grown 0.95",
+            MatchParams {
+                grown_min_score: 0.95,
+                ..d
+            },
+        ),
+        (
+            "margin 0.1",
+            MatchParams {
+                uniqueness_margin: 0.1,
+                ..d
+            },
+        ),
+        (
+            "lr 0.5",
+            MatchParams {
+                lr_tolerance_px: 0.5,
+                ..d
+            },
+        ),
+        (
             "no agree",
             MatchParams {
                 shifted_must_agree: false,

@@ -173,3 +173,56 @@ fn bad_setup_is_an_error_naming_the_field() {
     let e = Matcher::new(&l, &l, &rectified(), p).err().unwrap();
     assert!(e.to_string().starts_with("params.lr_tolerance_px"), "{e}");
 }
+
+#[test]
+fn a_right_image_scaled_along_u_is_matched_with_right_scale() {
+    // Right = left stretched by 1.4 along u about u = 100 and moved: the left point u_l is
+    // seen at u_r = 100 + 1.4 (u_l - 112) (a right camera with a 1.4 x longer focal length).
+    let pattern = |x: f64, y: f64| {
+        128.0 + 50.0 * (x * 0.37).sin() * (y * 0.23).cos() + 40.0 * (x * 0.11 + y * 0.19).sin()
+    };
+    let l = GrayImage::from_fn(300, 120, |x, y| {
+        image::Luma([pattern(x as f64, y as f64) as u8])
+    });
+    let r = GrayImage::from_fn(300, 120, |x, y| {
+        let xs = (x as f64 - 100.0) / 1.4 + 112.0;
+        image::Luma([pattern(xs, y as f64) as u8])
+    });
+    let scaled = MatchParams {
+        right_scale: [1.4, 1.0],
+        ..MatchParams::default()
+    };
+    let plain = Matcher::new(&l, &r, &rectified(), MatchParams::default()).unwrap();
+    let m = Matcher::new(&l, &r, &rectified(), scaled).unwrap();
+    let (mut ok, mut plain_score, mut scaled_score) = (0, 0.0, 0.0);
+    for ul in (140..=200).step_by(6) {
+        let ul = f64::from(ul);
+        let truth = 100.0 + 1.4 * (ul - 112.0);
+        let d = ul - truth;
+        let q = Query {
+            ul,
+            vl: 60.0,
+            d_min: d - 4.0,
+            d_max: d + 4.0,
+        };
+        let got = m.find(&q);
+        if got.is_ok() {
+            ok += 1;
+            assert!((got.ur - truth).abs() < 0.5, "{ul}: {got:?} truth {truth}");
+        }
+        scaled_score += got.score;
+        plain_score += plain.find(&q).score;
+    }
+    assert!(ok >= 9, "{ok} of 11");
+    assert!(
+        scaled_score > plain_score,
+        "{scaled_score} vs {plain_score}"
+    );
+    // The scale is validated.
+    let bad = MatchParams {
+        right_scale: [0.0, 1.0],
+        ..MatchParams::default()
+    };
+    let e = Matcher::new(&l, &r, &rectified(), bad).err().unwrap();
+    assert!(e.to_string().starts_with("params.right_scale[0]"), "{e}");
+}
