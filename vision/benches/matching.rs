@@ -10,12 +10,12 @@ use hvs_shared::triangulate;
 use hvs_vision::matching::{
     model_disparity_interval, pinhole_fundamental, MatchParams, Matcher, Query,
 };
-use hvs_vision::render::{render_rig, Board, RenderOptions};
+use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
     let rig = presets::CASE_3;
-    let board = Board::default();
+    let board = opencv_board();
     let z = 105.0;
     let r = render_rig(&rig, &board, [0.0, 0.0, z], &RenderOptions::default(), 1).unwrap();
     let f = pinhole_fundamental(&rig.left(), &rig.right());

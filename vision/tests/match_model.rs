@@ -13,7 +13,7 @@ use hvs_shared::triangulate;
 use hvs_vision::matching::{
     model_disparity_interval, pinhole_fundamental, pinhole_right_scale, MatchParams, Matcher, Query,
 };
-use hvs_vision::render::{corner_truth, render_rig, Board, RenderOptions};
+use hvs_vision::render::{corner_truth, opencv_board, render_rig, Board, RenderOptions};
 use match_common::Rates;
 use rand::{RngExt, SeedableRng};
 
@@ -39,7 +39,7 @@ fn training_disparity_range(rig: &hvs_shared::camera::Rig, board: &Board) -> [f6
 
 #[test]
 fn corners_with_the_model_interval_at_every_depth() {
-    let board = Board::default();
+    let board = opencv_board();
     let z_range = [65.0, 165.0];
     let mut all = Rates::default();
     let mut widths = Vec::new();

@@ -5,7 +5,7 @@ use hvs_vision::geometry::Fundamental;
 use hvs_vision::matching::{
     match_points, pinhole_fundamental, MatchParams, MatchStatus, Matcher, Query,
 };
-use hvs_vision::render::{render_rig, Board, RenderOptions};
+use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use image::GrayImage;
 
 fn rectified() -> Fundamental {
@@ -123,7 +123,7 @@ fn refusals_have_their_status() {
 #[test]
 fn an_occluded_corner_is_not_returned() {
     let rig = presets::CASE_1;
-    let board = Board::default();
+    let board = opencv_board();
     let r = render_rig(&rig, &board, [0.0, 0.0, 85.0], &RenderOptions::default(), 4).unwrap();
     let f = pinhole_fundamental(&rig.left(), &rig.right());
     let c = &r.corners[20];
