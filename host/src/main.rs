@@ -32,6 +32,7 @@ enum Command {
     Render(cmd::render::Args),
     /// Board photos into a training set (`hvs board detect`).
     Board(cmd::board::Args),
+    Locate(cmd::locate::Args),
     /// Boot the head firmware in QEMU with a model in slot A.
     Emulate(cmd::emulate::Args),
     /// Talk to a head (QEMU over TCP, or a serial port).
@@ -54,6 +55,7 @@ fn main() {
         Command::Experiment(a) => cmd::experiment::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Board(a) => cmd::board::run(a),
+        Command::Locate(a) => cmd::locate::run(a),
         Command::Emulate(a) => cmd::emulate::run(&a),
         Command::Head(a) => cmd::head::run(&a),
         Command::Image(a) => cmd::image::run(&a),

@@ -5,11 +5,15 @@
 
 use crate::data::captures::{Capture, CaptureSet};
 use crate::data::dataset::Dataset;
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::MatcherGeometry;
+use hvs_shared::runtime::blob::ModelBlob;
 use hvs_vision::board::Board;
 use hvs_vision::detect::{self, SetCheck, StereoCorners};
-use image::GrayImage;
+use hvs_vision::geometry::Fundamental;
+use hvs_vision::matching::{model_disparity_interval, MatchParams, MatchStatus, Matcher, Query};
+use image::{GrayImage, Rgb, RgbImage};
+use rayon::prelude::*;
 use std::io::Cursor;
 use std::path::Path;
 
@@ -244,6 +248,156 @@ fn right_scale(data: &Dataset) -> Option<[f32; 2]> {
     let sv = fit(3, 1)? / fit(1, 1)?;
     let ok = |s: f64| s.is_finite() && (0.25..=4.0).contains(&s);
     (ok(su) && ok(sv)).then_some([su as f32, sv as f32])
+}
+
+/// One point located in the right image and triangulated by the model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Located {
+    /// The left pixel asked for.
+    pub left: [f64; 2],
+    /// The match in the right image, when trustworthy.
+    pub right: Option<[f64; 2]>,
+    /// The model's X, Y, Z (cm) of the matched pair.
+    pub xyz: Option<[f32; 3]>,
+    /// Zero-mean normalised cross-correlation of the match (NaN when none was scored).
+    pub score: f64,
+    /// `ok`, or why there is no trustworthy match (`outside`, `no_texture`, `ambiguous`,
+    /// `lr_check_failed`, `no_candidate`, `out_of_depth_range`, `nan_input`, `no_estimate`).
+    pub status: &'static str,
+}
+
+/// The training set's disparities widened by this share of their span on each side, as the
+/// search range the model's depth range is looked for in.
+pub const DISPARITY_SLACK: f64 = 0.1;
+
+/// Finds each left pixel of `points` in the right image along its epipolar line, inside the
+/// disparities the model maps into its training depths at that pixel, and gives the model's
+/// X, Y, Z of every trustworthy match. Everything comes from the model
+/// ([`MatcherGeometry`]: learned at training time from the training pixels); the images must
+/// have the same size.
+pub fn locate(
+    blob: &ModelBlob,
+    left: &GrayImage,
+    right: &GrayImage,
+    points: &[[f64; 2]],
+) -> Result<Vec<Located>> {
+    let g = blob.matcher.ok_or_else(|| {
+        anyhow!(
+            "the model has no matcher geometry (written by an older hvs, blob format v1, or \
+             trained on a posture-aware or tiny set): retrain it with `hvs train` on board \
+             points seen at one head posture"
+        )
+    })?;
+    if left.dimensions() != right.dimensions() {
+        bail!(
+            "the images differ in size: left {}x{}, right {}x{}",
+            left.width(),
+            left.height(),
+            right.width(),
+            right.height()
+        );
+    }
+    let f = Fundamental { m: g.fundamental };
+    let params = MatchParams {
+        right_scale: g.right_scale.map(f64::from),
+        ..MatchParams::default()
+    };
+    let matcher = Matcher::new(left, right, &f, params).map_err(|e| anyhow!("{e}"))?;
+    let span = f64::from(g.disparity[1] - g.disparity[0]);
+    let d_range = [
+        f64::from(g.disparity[0]) - DISPARITY_SLACK * span,
+        f64::from(g.disparity[1]) + DISPARITY_SLACK * span,
+    ];
+    let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
+    let predict = |x: [f32; 4]| -> Option<[f32; 3]> {
+        let mut out = [0.0f32; 3];
+        blob.infer(&x, &mut out).ok()?;
+        out.iter().all(|v| v.is_finite()).then_some(out)
+    };
+    Ok(points
+        .par_iter()
+        .map(|&[ul, vl]| {
+            let none = |status| Located {
+                left: [ul, vl],
+                right: None,
+                xyz: None,
+                score: f64::NAN,
+                status,
+            };
+            if !(ul.is_finite() && vl.is_finite()) {
+                return none("nan_input");
+            }
+            let (w, h) = (f64::from(left.width()), f64::from(left.height()));
+            if !(ul > -0.5 && vl > -0.5 && ul < w - 0.5 && vl < h - 0.5) {
+                return none("outside");
+            }
+            let line = f.line_in_right([ul, vl]);
+            let Some((d_min, d_max)) =
+                model_disparity_interval(predict, ul, vl, line, z_range, d_range)
+            else {
+                return none("out_of_depth_range");
+            };
+            let m = matcher.find(&Query {
+                ul,
+                vl,
+                d_min,
+                d_max,
+            });
+            if m.status != MatchStatus::Ok {
+                return Located {
+                    score: m.score,
+                    ..none(m.status.name())
+                };
+            }
+            match predict([ul as f32, vl as f32, m.ur as f32, m.vr as f32]) {
+                Some(xyz) => Located {
+                    left: [ul, vl],
+                    right: Some([m.ur, m.vr]),
+                    xyz: Some(xyz),
+                    score: m.score,
+                    status: "ok",
+                },
+                None => Located {
+                    score: m.score,
+                    ..none("no_estimate")
+                },
+            }
+        })
+        .collect())
+}
+
+/// The two images side by side, each located point drawn in both (a cross, a line between
+/// them, its row number) in green, refused ones as a red cross in the left image only.
+pub fn locate_overlay(left: &GrayImage, right: &GrayImage, found: &[Located]) -> RgbImage {
+    use hvs_vision::overlay::{draw_cross, draw_line, draw_text};
+    let (w, h) = left.dimensions();
+    let mut img = RgbImage::new(2 * w, h.max(right.height()));
+    for (x, y, p) in left.enumerate_pixels() {
+        img.put_pixel(x, y, Rgb([p[0]; 3]));
+    }
+    for (x, y, p) in right.enumerate_pixels() {
+        img.put_pixel(x + w, y, Rgb([p[0]; 3]));
+    }
+    let (ok, bad) = (Rgb([40, 220, 60]), Rgb([230, 40, 40]));
+    for (k, l) in found.iter().enumerate() {
+        if !(l.left[0].is_finite() && l.left[1].is_finite()) {
+            continue;
+        }
+        match l.right {
+            Some(r) => {
+                let r = [r[0] + f64::from(w), r[1]];
+                draw_cross(&mut img, l.left, 4.0, ok);
+                draw_cross(&mut img, r, 4.0, ok);
+                draw_line(&mut img, l.left, r, Rgb([40, 140, 220]));
+                let label = (k + 1).to_string();
+                for p in [l.left, r] {
+                    draw_text(&mut img, p[0] as i64 + 5, p[1] as i64 - 12, &label, 2, ok);
+                }
+            }
+            None => draw_cross(&mut img, l.left, 4.0, bad),
+        }
+    }
+    img
 }
 
 #[cfg(test)]

@@ -3,12 +3,12 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use hvs_shared::sim::presets;
-use hvs_vision::render::{render_rig, Board, RenderOptions};
+use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
     let rig = presets::CASE_3;
-    let board = Board::default();
+    let board = opencv_board();
     let opt = RenderOptions::default();
     let mut g = c.benchmark_group("render");
     g.sample_size(10);

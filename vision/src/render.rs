@@ -3,7 +3,8 @@
 //! # Scene
 //!
 //! A planar chessboard with `cols x rows` **inner corners** (so `(cols + 1) x (rows + 1)`
-//! squares of `square_cm`) and a white border `margin_cm` wide around the squares stands
+//! squares of `square_cm`; a [`crate::board::Board`]) and a white border
+//! [`RenderOptions::margin_cm`] wide around the squares stands
 //! upright, perpendicular to the head frame's `Z` axis, its centre at `(x, y, z)` cm (head
 //! frame: `X` right, `Y` down, `Z` forward). Everything off the board is a uniform background
 //! grey.
@@ -94,29 +95,13 @@ fn invalid(field: &'static str, reason: impl Into<String>) -> RenderError {
     }
 }
 
-/// A chessboard target: inner corners, square size and white border.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Board {
-    /// Inner corners along `X` (at least 1).
-    pub cols: u32,
-    /// Inner corners along `Y` (at least 1).
-    pub rows: u32,
-    /// Side of one square (cm).
-    pub square_cm: f64,
-    /// Width of the white border around the squares (cm, at least one square).
-    pub margin_cm: f64,
-}
+/// The chessboard: [`crate::board::Board`] (what `BOARD.json` describes: inner corners and
+/// square size; the white border is a render option, [`RenderOptions::margin_cm`]).
+pub use crate::board::Board;
 
-impl Default for Board {
-    /// 9 x 6 inner corners (OpenCV's sample board), 6 cm squares, a one-square border.
-    fn default() -> Self {
-        Board {
-            cols: 9,
-            rows: 6,
-            square_cm: 6.0,
-            margin_cm: 6.0,
-        }
-    }
+/// 9 x 6 inner corners of 6 cm (OpenCV's sample board), the board the tests render.
+pub fn opencv_board() -> Board {
+    Board::new(9, 6, 6.0).expect("a valid board")
 }
 
 /// Colour class of a board point.
@@ -127,69 +112,66 @@ enum Class {
     Background,
 }
 
-impl Board {
-    /// Checks the parameters (field names in the error).
-    pub fn validate(&self) -> Result<(), RenderError> {
-        if self.cols == 0 || self.cols > 1000 {
-            return Err(invalid(
-                "board.cols",
-                format!("must be 1..=1000, got {}", self.cols),
-            ));
-        }
-        if self.rows == 0 || self.rows > 1000 {
-            return Err(invalid(
-                "board.rows",
-                format!("must be 1..=1000, got {}", self.rows),
-            ));
-        }
-        if !(self.square_cm.is_finite() && self.square_cm > 0.0) {
-            return Err(invalid(
-                "board.square_cm",
-                format!("must be a finite number > 0, got {}", self.square_cm),
-            ));
-        }
-        if !(self.margin_cm.is_finite() && self.margin_cm >= self.square_cm) {
-            return Err(invalid(
-                "board.margin_cm",
-                format!(
-                    "must be finite and at least one square ({} cm), got {}",
-                    self.square_cm, self.margin_cm
-                ),
-            ));
-        }
-        Ok(())
+/// Checks `board` for rendering (field names in the error; the fields of [`Board`] are
+/// public, so a board need not have come through [`Board::new`]).
+fn validate_board(board: &Board) -> Result<(), RenderError> {
+    if board.cols == 0 || board.cols > 1000 {
+        return Err(invalid(
+            "board.cols",
+            format!("must be 1..=1000, got {}", board.cols),
+        ));
     }
-
-    /// Offset `(dX, dY)` of inner corner `(i, j)` from the board centre (cm).
-    pub fn corner_offset(&self, i: u32, j: u32) -> [f64; 2] {
-        [
-            (f64::from(i) - (f64::from(self.cols) - 1.0) / 2.0) * self.square_cm,
-            (f64::from(j) - (f64::from(self.rows) - 1.0) / 2.0) * self.square_cm,
-        ]
+    if board.rows == 0 || board.rows > 1000 {
+        return Err(invalid(
+            "board.rows",
+            format!("must be 1..=1000, got {}", board.rows),
+        ));
     }
+    if !(board.square_cm.is_finite() && board.square_cm > 0.0) {
+        return Err(invalid(
+            "board.square_cm",
+            format!("must be a finite number > 0, got {}", board.square_cm),
+        ));
+    }
+    Ok(())
+}
 
-    /// Colour of the board point at offset `(bx, by)` from the centre.
-    fn class(&self, bx: f64, by: f64) -> Class {
-        let hx = (f64::from(self.cols) + 1.0) * 0.5 * self.square_cm;
-        let hy = (f64::from(self.rows) + 1.0) * 0.5 * self.square_cm;
-        let fx = bx + hx;
-        let fy = by + hy;
-        let (wx, wy) = (2.0 * hx, 2.0 * hy);
-        if fx >= 0.0 && fx < wx && fy >= 0.0 && fy < wy {
-            let a = (fx / self.square_cm) as i64;
-            let b = (fy / self.square_cm) as i64;
-            return if (a + b) % 2 == 0 {
-                Class::Black
-            } else {
-                Class::White
-            };
-        }
-        let m = self.margin_cm;
-        if fx >= -m && fx < wx + m && fy >= -m && fy < wy + m {
-            Class::White
+/// Checks the border width `margin_cm` against `board`'s squares.
+fn validate_margin(board: &Board, margin_cm: f64) -> Result<(), RenderError> {
+    if !(margin_cm.is_finite() && margin_cm >= board.square_cm) {
+        return Err(invalid(
+            "margin_cm",
+            format!(
+                "must be finite and at least one square ({} cm), got {margin_cm}",
+                board.square_cm
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Colour of the point of `board` (white border `margin_cm` wide) at offset `(bx, by)` from
+/// its centre.
+fn class(board: &Board, margin_cm: f64, bx: f64, by: f64) -> Class {
+    let hx = (f64::from(board.cols) + 1.0) * 0.5 * board.square_cm;
+    let hy = (f64::from(board.rows) + 1.0) * 0.5 * board.square_cm;
+    let fx = bx + hx;
+    let fy = by + hy;
+    let (wx, wy) = (2.0 * hx, 2.0 * hy);
+    if fx >= 0.0 && fx < wx && fy >= 0.0 && fy < wy {
+        let a = (fx / board.square_cm) as i64;
+        let b = (fy / board.square_cm) as i64;
+        return if (a + b) % 2 == 0 {
+            Class::Black
         } else {
-            Class::Background
-        }
+            Class::White
+        };
+    }
+    let m = margin_cm;
+    if fx >= -m && fx < wx + m && fy >= -m && fy < wy + m {
+        Class::White
+    } else {
+        Class::Background
     }
 }
 
@@ -208,11 +190,13 @@ pub struct RenderOptions {
     pub white: u8,
     /// Grey level off the board.
     pub background: u8,
+    /// Width of the white border around the squares (cm, at least one square).
+    pub margin_cm: f64,
 }
 
 impl Default for RenderOptions {
     /// 8 x 8 samples on edges, blur 0.8 px, noise 2 grey levels, black 30, white 220,
-    /// background 110.
+    /// background 110, a 6 cm border (one square of [`opencv_board`]).
     fn default() -> Self {
         RenderOptions {
             supersample: 8,
@@ -221,6 +205,7 @@ impl Default for RenderOptions {
             black: 30,
             white: 220,
             background: 110,
+            margin_cm: 6.0,
         }
     }
 }
@@ -307,7 +292,7 @@ pub fn corner_truth(
     board: &Board,
     centre: Vec3,
 ) -> Result<Vec<CornerTruth>, RenderError> {
-    board.validate()?;
+    validate_board(board)?;
     let mut out = Vec::with_capacity((board.cols * board.rows) as usize);
     for j in 0..board.rows {
         for i in 0..board.cols {
@@ -337,8 +322,9 @@ pub fn render_pair(
     opt: &RenderOptions,
     seed: u64,
 ) -> Result<StereoRender, RenderError> {
-    board.validate()?;
+    validate_board(board)?;
     opt.validate()?;
+    validate_margin(board, opt.margin_cm)?;
     if !centre.iter().all(|c| c.is_finite()) {
         return Err(invalid("centre", format!("must be finite, got {centre:?}")));
     }
@@ -384,7 +370,7 @@ pub fn render_rig(
 }
 
 /// The board's colour class seen along the ray of pixel coordinate `(u, v)`.
-fn sample(cam: &LensCamera, board: &Board, centre: &Vec3, u: f64, v: f64) -> Class {
+fn sample(cam: &LensCamera, board: &Board, margin_cm: f64, centre: &Vec3, u: f64, v: f64) -> Class {
     let Some((o, d)) = cam.ray(u, v) else {
         return Class::Background;
     };
@@ -400,7 +386,7 @@ fn sample(cam: &LensCamera, board: &Board, centre: &Vec3, u: f64, v: f64) -> Cla
     if !(x.is_finite() && y.is_finite()) {
         return Class::Background;
     }
-    board.class(x, y)
+    class(board, margin_cm, x, y)
 }
 
 /// Noise-free, blur-free grey levels of one camera, row-major `f32`.
@@ -418,7 +404,14 @@ fn shade(
     for r in 0..=hu {
         let v = r as f64 - 0.5;
         for c in 0..=wu {
-            corner.push(sample(cam, board, &centre, c as f64 - 0.5, v));
+            corner.push(sample(
+                cam,
+                board,
+                opt.margin_cm,
+                &centre,
+                c as f64 - 0.5,
+                v,
+            ));
         }
     }
     let n = opt.supersample as usize;
@@ -444,7 +437,7 @@ fn shade(
                 for sx in 0..n {
                     let u = c as f64 - 0.5 + (sx as f64 + (sy as f64 + 0.5) * inv) * inv;
                     let v = r as f64 - 0.5 + (sy as f64 + (sx as f64 + 0.5) * inv) * inv;
-                    sum += opt.level(sample(cam, board, &centre, u, v));
+                    sum += opt.level(sample(cam, board, opt.margin_cm, &centre, u, v));
                 }
             }
             out.push(sum / (n * n) as f32);
@@ -693,30 +686,34 @@ mod tests {
 
     #[test]
     fn polarity_top_left_square_is_black() {
-        let b = Board::default();
+        let b = opencv_board();
+        let m = RenderOptions::default().margin_cm;
+        let class = |x, y| class(&b, m, x, y);
         let [dx, dy] = b.corner_offset(0, 0);
         let e = 0.1 * b.square_cm;
-        assert_eq!(b.class(dx - e, dy - e), Class::Black);
-        assert_eq!(b.class(dx + e, dy - e), Class::White);
-        assert_eq!(b.class(dx - e, dy + e), Class::White);
-        assert_eq!(b.class(dx + e, dy + e), Class::Black);
+        assert_eq!(class(dx - e, dy - e), Class::Black);
+        assert_eq!(class(dx + e, dy - e), Class::White);
+        assert_eq!(class(dx - e, dy + e), Class::White);
+        assert_eq!(class(dx + e, dy + e), Class::Black);
         // Corner (1, 0): up-left square white.
         let [dx, dy] = b.corner_offset(1, 0);
-        assert_eq!(b.class(dx - e, dy - e), Class::White);
+        assert_eq!(class(dx - e, dy - e), Class::White);
         // Border is white, beyond it background.
         let hx = 5.0 * b.square_cm;
-        assert_eq!(b.class(-hx - 0.5 * b.margin_cm, 0.0), Class::White);
-        assert_eq!(b.class(-hx - 1.5 * b.margin_cm, 0.0), Class::Background);
+        assert_eq!(class(-hx - 0.5 * m, 0.0), Class::White);
+        assert_eq!(class(-hx - 1.5 * m, 0.0), Class::Background);
     }
 
     #[test]
     fn bad_parameters_name_the_field() {
-        let b = Board {
+        let o = RenderOptions {
             margin_cm: 1.0,
-            ..Board::default()
+            ..RenderOptions::default()
         };
-        let e = b.validate().unwrap_err().to_string();
-        assert!(e.starts_with("board.margin_cm"), "{e}");
+        let e = render_rig(&presets::CASE_1, &opencv_board(), [0.0, 0.0, 100.0], &o, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("margin_cm"), "{e}");
         let o = RenderOptions {
             blur_sigma_px: f64::NAN,
             ..RenderOptions::default()

@@ -47,7 +47,8 @@ fn corners_of_rendered_boards_all_cases() {
 fn wide_interval_on_the_repetitive_board_refuses_rather_than_guesses() {
     // Without the model's narrow interval (all the training volume's disparities, 10..60 px,
     // against squares of 10-26 px) the board repeats inside the search: the matcher must
-    // call those points ambiguous, and what it does return must still be right.
+    // call those points ambiguous (or grow its window until it is unique), and what it does
+    // return must still be right.
     let (mut corners, mut random) = (Rates::default(), Rates::default());
     for seed in [1001u64, 1002] {
         let (c, r) = eval_case_with(
@@ -65,9 +66,11 @@ fn wide_interval_on_the_repetitive_board_refuses_rather_than_guesses() {
         "case I, interval 10..60 px, random points: {}",
         random.summary()
     );
+    // Some points stay ambiguous even with the grown windows (those whose window can reach
+    // no edge of the board): they are refused as such, not guessed.
     for r in [&corners, &random] {
         let amb = r.status.get("ambiguous").copied().unwrap_or(0);
-        assert!(amb >= r.asked / 5, "{}", r.summary());
+        assert!(amb >= r.asked / 10, "{}", r.summary());
     }
     assert!(corners.within(0.5) >= 0.99, "{}", corners.summary());
     assert!(random.within(1.0) >= 0.95, "{}", random.summary());

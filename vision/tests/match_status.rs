@@ -5,7 +5,7 @@ use hvs_vision::geometry::Fundamental;
 use hvs_vision::matching::{
     match_points, pinhole_fundamental, MatchParams, MatchStatus, Matcher, Query,
 };
-use hvs_vision::render::{render_rig, Board, RenderOptions};
+use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use image::GrayImage;
 
 fn rectified() -> Fundamental {
@@ -45,12 +45,13 @@ fn a_shifted_texture_is_found_at_its_shift() {
         "{got:?}"
     );
     assert!(got.score > 0.99);
-    // The true disparity outside the interval: no peak inside it.
+    // The true disparity outside the interval: no peak inside it (the pattern's 17 px
+    // period would repeat at 29 and 46 px: the interval avoids both).
     let got = m.find(&Query {
         ul: 100.0,
         vl: 60.0,
-        d_min: 20.0,
-        d_max: 30.0,
+        d_min: 32.0,
+        d_max: 40.0,
     });
     assert_ne!(got.status, MatchStatus::Ok, "{got:?}");
 }
@@ -74,14 +75,16 @@ fn refusals_have_their_status() {
         m.find(&q(100.0, 60.0, 5.0, f64::INFINITY)).status,
         MatchStatus::NanInput
     );
-    assert_eq!(
-        m.find(&q(2.0, 60.0, 5.0, 20.0)).status,
-        MatchStatus::Outside
-    );
-    assert_eq!(
-        m.find(&q(100.0, 118.0, 5.0, 20.0)).status,
-        MatchStatus::Outside
-    );
+    // Points off the image.
+    for (u, v) in [(-0.5, 60.0), (199.5, 60.0), (100.0, -1.0), (100.0, 119.2)] {
+        assert_eq!(m.find(&q(u, v, 5.0, 20.0)).status, MatchStatus::Outside);
+    }
+    // Near the borders the window is clipped to the image and the match still found.
+    for (u, v) in [(30.0, 1.0), (100.0, 118.0), (196.0, 60.0), (190.0, 117.5)] {
+        let got = m.find(&q(u, v, 5.0, 20.0));
+        assert_eq!(got.status, MatchStatus::Ok, "({u}, {v}): {got:?}");
+        assert!((got.ur - (u - 12.0)).abs() < 0.3, "({u}, {v}): {got:?}");
+    }
     // Every candidate window off the right image's left edge.
     assert_eq!(
         m.find(&q(20.0, 60.0, 30.0, 40.0)).status,
@@ -120,7 +123,7 @@ fn refusals_have_their_status() {
 #[test]
 fn an_occluded_corner_is_not_returned() {
     let rig = presets::CASE_1;
-    let board = Board::default();
+    let board = opencv_board();
     let r = render_rig(&rig, &board, [0.0, 0.0, 85.0], &RenderOptions::default(), 4).unwrap();
     let f = pinhole_fundamental(&rig.left(), &rig.right());
     let c = &r.corners[20];
@@ -169,4 +172,57 @@ fn bad_setup_is_an_error_naming_the_field() {
     };
     let e = Matcher::new(&l, &l, &rectified(), p).err().unwrap();
     assert!(e.to_string().starts_with("params.lr_tolerance_px"), "{e}");
+}
+
+#[test]
+fn a_right_image_scaled_along_u_is_matched_with_right_scale() {
+    // Right = left stretched by 1.4 along u about u = 100 and moved: the left point u_l is
+    // seen at u_r = 100 + 1.4 (u_l - 112) (a right camera with a 1.4 x longer focal length).
+    let pattern = |x: f64, y: f64| {
+        128.0 + 50.0 * (x * 0.37).sin() * (y * 0.23).cos() + 40.0 * (x * 0.11 + y * 0.19).sin()
+    };
+    let l = GrayImage::from_fn(300, 120, |x, y| {
+        image::Luma([pattern(x as f64, y as f64) as u8])
+    });
+    let r = GrayImage::from_fn(300, 120, |x, y| {
+        let xs = (x as f64 - 100.0) / 1.4 + 112.0;
+        image::Luma([pattern(xs, y as f64) as u8])
+    });
+    let scaled = MatchParams {
+        right_scale: [1.4, 1.0],
+        ..MatchParams::default()
+    };
+    let plain = Matcher::new(&l, &r, &rectified(), MatchParams::default()).unwrap();
+    let m = Matcher::new(&l, &r, &rectified(), scaled).unwrap();
+    let (mut ok, mut plain_score, mut scaled_score) = (0, 0.0, 0.0);
+    for ul in (140..=200).step_by(6) {
+        let ul = f64::from(ul);
+        let truth = 100.0 + 1.4 * (ul - 112.0);
+        let d = ul - truth;
+        let q = Query {
+            ul,
+            vl: 60.0,
+            d_min: d - 4.0,
+            d_max: d + 4.0,
+        };
+        let got = m.find(&q);
+        if got.is_ok() {
+            ok += 1;
+            assert!((got.ur - truth).abs() < 0.5, "{ul}: {got:?} truth {truth}");
+        }
+        scaled_score += got.score;
+        plain_score += plain.find(&q).score;
+    }
+    assert!(ok >= 9, "{ok} of 11");
+    assert!(
+        scaled_score > plain_score,
+        "{scaled_score} vs {plain_score}"
+    );
+    // The scale is validated.
+    let bad = MatchParams {
+        right_scale: [0.0, 1.0],
+        ..MatchParams::default()
+    };
+    let e = Matcher::new(&l, &r, &rectified(), bad).err().unwrap();
+    assert!(e.to_string().starts_with("params.right_scale[0]"), "{e}");
 }

@@ -8,8 +8,8 @@ use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
 use hvs_vision::render::{
-    corner_truth, render_capture_set, render_pair, render_rig, training_captures, Board,
-    CornerTruth, RenderOptions,
+    corner_truth, opencv_board, render_capture_set, render_pair, render_rig, training_captures,
+    Board, CornerTruth, RenderOptions,
 };
 use image::GrayImage;
 
@@ -102,7 +102,7 @@ fn corner_errors(
 
 #[test]
 fn truth_is_rig_project_with_the_labelling_convention() {
-    let board = Board::default();
+    let board = opencv_board();
     for n in 1..=4 {
         let rig = presets::case(n).unwrap();
         let centre = [2.0, -1.5, 105.0];
@@ -128,7 +128,7 @@ fn truth_is_rig_project_with_the_labelling_convention() {
 #[test]
 fn same_seed_same_bytes_other_seed_other_bytes() {
     let rig = presets::CASE_3;
-    let board = Board::default();
+    let board = opencv_board();
     let opt = RenderOptions::default();
     let a = render_rig(&rig, &board, [0.0, 0.0, 125.0], &opt, 7).unwrap();
     let b = render_rig(&rig, &board, [0.0, 0.0, 125.0], &opt, 7).unwrap();
@@ -147,7 +147,7 @@ fn same_seed_same_bytes_other_seed_other_bytes() {
 #[test]
 fn capture_set_is_the_training_depths_and_deterministic() {
     let rig = presets::CASE_1;
-    let board = Board::default();
+    let board = opencv_board();
     let opt = RenderOptions::default();
     let a = training_captures(&rig, &board, &opt, 3).unwrap();
     let b = training_captures(&rig, &board, &opt, 3).unwrap();
@@ -191,7 +191,7 @@ fn black_squares_centroid_is_where_the_model_projects_them() {
     // board and the darkness centroid of the black squares is the projected mean of their
     // centres. A half-pixel slip of the pixel convention would show as 0.5 px.
     let rig = Rig::parallel(285.836);
-    let board = Board::default();
+    let board = opencv_board();
     let opt = RenderOptions::clean();
     let centre = [3.0, 2.0, 85.0];
     let r = render_rig(&rig, &board, centre, &opt, 0).unwrap();
@@ -217,8 +217,8 @@ fn black_squares_centroid_is_where_the_model_projects_them() {
         }
     }
     // Window: the squares plus half the white border.
-    let hx = (f64::from(board.cols) + 1.0) / 2.0 * s + 0.5 * board.margin_cm;
-    let hy = (f64::from(board.rows) + 1.0) / 2.0 * s + 0.5 * board.margin_cm;
+    let hx = (f64::from(board.cols) + 1.0) / 2.0 * s + 0.5 * RenderOptions::default().margin_cm;
+    let hy = (f64::from(board.rows) + 1.0) / 2.0 * s + 0.5 * RenderOptions::default().margin_cm;
     for (k, img) in [&r.left, &r.right].into_iter().enumerate() {
         let tl = rig
             .project(&[centre[0] - hx, centre[1] - hy, centre[2]])
@@ -249,7 +249,7 @@ fn corners_in_the_image_are_where_the_truth_says() {
     for n in [1u8, 3, 4] {
         let rig = presets::case(n).unwrap();
         let opt = RenderOptions::clean();
-        let board = Board::default();
+        let board = opencv_board();
         let r = render_rig(&rig, &board, [-4.0, 3.0, 85.0], &opt, 0).unwrap();
         let sq = [
             rig.phi_u_left * board.square_cm / 85.0,
@@ -265,7 +265,7 @@ fn corners_in_the_image_are_where_the_truth_says() {
 fn distortion_and_posture_render_where_head_rig_projects() {
     let head = HeadRig::new(presets::CASE_3).with_distortion(Distortion { k1: -0.2, k2: 0.05 });
     let joints = Joints([4.0, -3.0, 2.0, -1.5, 1.0]);
-    let board = Board::default();
+    let board = opencv_board();
     let opt = RenderOptions::clean();
     let centre = [-8.0, 6.0, 95.0];
     let r = render_pair(&head, &joints, &board, centre, &opt, 0).unwrap();
@@ -293,7 +293,7 @@ fn distortion_and_posture_render_where_head_rig_projects() {
 #[test]
 fn squares_at_165_cm_are_about_10_px() {
     let rig = presets::CASE_1;
-    let board = Board::default();
+    let board = opencv_board();
     let r = render_rig(
         &rig,
         &board,
@@ -339,7 +339,7 @@ fn bad_input_is_an_error_naming_the_field() {
         &rig,
         &Board {
             cols: 0,
-            ..Board::default()
+            ..opencv_board()
         },
         [0.0, 0.0, 100.0],
         &opt,
@@ -347,20 +347,20 @@ fn bad_input_is_an_error_naming_the_field() {
     )
     .unwrap_err();
     assert!(e.to_string().starts_with("board.cols"), "{e}");
-    let e = render_rig(&rig, &Board::default(), [0.0, f64::NAN, 100.0], &opt, 0).unwrap_err();
+    let e = render_rig(&rig, &opencv_board(), [0.0, f64::NAN, 100.0], &opt, 0).unwrap_err();
     assert!(e.to_string().starts_with("centre"), "{e}");
-    let e = render_rig(&rig, &Board::default(), [0.0, 0.0, -10.0], &opt, 0).unwrap_err();
+    let e = render_rig(&rig, &opencv_board(), [0.0, 0.0, -10.0], &opt, 0).unwrap_err();
     assert!(e.to_string().contains("behind"), "{e}");
     let bad = RenderOptions {
         supersample: 0,
         ..opt
     };
-    let e = render_rig(&rig, &Board::default(), [0.0, 0.0, 100.0], &bad, 0).unwrap_err();
+    let e = render_rig(&rig, &opencv_board(), [0.0, 0.0, 100.0], &bad, 0).unwrap_err();
     assert!(e.to_string().starts_with("supersample"), "{e}");
     let e = render_capture_set(
         &HeadRig::new(rig),
         &Joints::HOME,
-        &Board::default(),
+        &opencv_board(),
         [0.0, 0.0],
         &[100.0, f64::INFINITY],
         &opt,

@@ -54,7 +54,7 @@ fn render_and_detect(
     seed: u64,
 ) -> Result<(Board, Dataset, Detection, Vec<[f64; 4]>)> {
     let rig = presets::case(case).ok_or_else(|| anyhow!("no case {case}"))?;
-    let rboard = render::Board::default();
+    let rboard = render::opencv_board();
     let set = render::render_capture_set(
         &HeadRig::new(rig),
         &Joints::HOME,

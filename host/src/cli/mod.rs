@@ -13,6 +13,7 @@ pub mod flash;
 pub mod head;
 pub mod image;
 pub mod info;
+pub mod locate;
 pub mod predict;
 pub mod render;
 pub mod simulate;

@@ -82,13 +82,10 @@ pub fn run(a: Args) -> Result<()> {
         .rig()?
         .ok_or_else(|| anyhow!("choose a rig with --case N or --rig FILE.json"))?;
     let (cols, rows) = parse_size(&a.inner_corners)?;
-    let board = render::Board {
-        cols,
-        rows,
-        square_cm: a.square_cm,
-        margin_cm: a.square_cm,
-    };
+    let board =
+        hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| anyhow!("{e}"))?;
     let opt = RenderOptions {
+        margin_cm: a.square_cm,
         supersample: a.supersample,
         blur_sigma_px: a.blur,
         noise_sigma: a.noise,

@@ -3,7 +3,7 @@
 
 use hvs_shared::sim::presets;
 use hvs_vision::matching::{pinhole_fundamental, Match, MatchParams, MatchStatus, Matcher, Query};
-use hvs_vision::render::{render_rig, Board, RenderOptions};
+use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use rand::{RngExt, SeedableRng};
 use std::collections::BTreeMap;
 
@@ -95,7 +95,7 @@ pub fn eval_case_with(
         Interval::Fixed(a, b) => (a, b),
     };
     let rig = presets::case(case).unwrap();
-    let board = Board::default();
+    let board = opencv_board();
     let opt = RenderOptions::default();
     let f = pinhole_fundamental(&rig.left(), &rig.right());
     let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed ^ (u64::from(case) << 32));

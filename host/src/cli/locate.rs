@@ -1,0 +1,281 @@
+//! `hvs locate`: points of the left image found in the right one and turned into X, Y, Z by the
+//! model, with nothing but the model and the two images ([`crate::vision::locate`]).
+
+use crate::data::csv::{csv_error, write_bytes, write_output, LineCounter};
+use crate::data::model;
+use crate::data::output::check_not_input;
+use crate::vision::{locate, locate_overlay, png_bytes, read_grey, Located};
+use anyhow::{anyhow, bail, Context, Result};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `hvs locate`.
+#[derive(Debug, clap::Args)]
+#[command(
+    about = "Find left-image points in the right image and give their X, Y, Z",
+    long_about = "Find points of the left image in the right one (zero-mean normalised \
+    cross-correlation along the epipolar line, inside the disparities the model maps into its \
+    training depths at that pixel, sub-pixel, with texture, uniqueness and left-right checks) \
+    and give the model's X, Y, Z of each trustworthy match. The model carries the geometry the \
+    search needs, learned from its training pixels (`hvs train` stores it); no camera parameter \
+    is used. A point without a trustworthy match keeps u_r..z empty and says why in `status`: \
+    outside, no_texture, ambiguous, lr_check_failed, no_candidate, out_of_depth_range, \
+    nan_input, no_estimate."
+)]
+pub struct Args {
+    /// The model (from `hvs train`, with its matcher geometry).
+    #[arg(long, value_name = "M.hvsw")]
+    pub model: PathBuf,
+    /// The left image (PNG or JPEG).
+    #[arg(long, value_name = "L.png")]
+    pub left: PathBuf,
+    /// The right image, the same size.
+    #[arg(long, value_name = "R.png")]
+    pub right: PathBuf,
+    /// Points to locate: a CSV with columns u_l,v_l (other columns passed through).
+    #[arg(
+        long,
+        value_name = "PIXELS.csv",
+        conflicts_with = "at",
+        required_unless_present = "at"
+    )]
+    pub points: Option<PathBuf>,
+    /// One point U,V of the left image, printed.
+    #[arg(long, value_name = "U,V", allow_hyphen_values = true)]
+    pub at: Option<String>,
+    /// Output CSV: u_l,v_l,u_r,v_r,x,y,z,score,status then the passed-through columns
+    /// (default: standard output).
+    #[arg(short = 'o', long, value_name = "OUT.csv")]
+    pub output: Option<PathBuf>,
+    /// The two images side by side with each match drawn and labelled by its row number.
+    #[arg(long, value_name = "OUT.png")]
+    pub overlay: Option<PathBuf>,
+}
+
+/// `U,V` -> `[u, v]`.
+pub fn parse_at(s: &str) -> Result<[f64; 2]> {
+    let bad = || anyhow!("--at: {s:?} is not U,V (two pixel coordinates, e.g. 320.5,240)");
+    let (u, v) = s.split_once(',').ok_or_else(bad)?;
+    let (u, v): (f64, f64) = (
+        u.trim().parse().map_err(|_| bad())?,
+        v.trim().parse().map_err(|_| bad())?,
+    );
+    Ok([u, v])
+}
+
+/// The pixels of a `PIXELS.csv` (`u_l,v_l`, `NaN` allowed: it gets the status `nan_input`),
+/// with the header and each row's other fields for the output.
+pub struct Pixels {
+    /// Names of the passed-through columns.
+    pub extra_names: Vec<String>,
+    /// `(u_l, v_l)` per row.
+    pub points: Vec<[f64; 2]>,
+    /// The passed-through fields per row.
+    pub extra: Vec<Vec<String>>,
+}
+
+/// Reads `path`; errors name the file, the line and the column.
+pub fn read_pixels(path: &Path) -> Result<Pixels> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).with_context(|| format!("{file}: cannot read"))?;
+    let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(&bytes);
+    let mut lines_of = LineCounter::new(bytes);
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(bytes);
+    let header = rdr.headers().map_err(|e| csv_error(&file, e))?.clone();
+    let hl = lines_of.line_at(header.position().map_or(0, |p| p.byte()));
+    let names: Vec<String> = header.iter().map(str::to_string).collect();
+    for (i, n) in names.iter().enumerate() {
+        if names[..i].contains(n) {
+            bail!("{file}:{hl}: column \"{n}\" appears twice in the header");
+        }
+    }
+    let find = |c: &str| {
+        names.iter().position(|n| n == c).ok_or_else(|| {
+            anyhow!(
+                "{file}:{hl}: missing column \"{c}\" (the header has: {})",
+                names.join(",")
+            )
+        })
+    };
+    let (ui, vi) = (find("u_l")?, find("v_l")?);
+    let own = ["u_l", "v_l", "u_r", "v_r", "x", "y", "z", "score", "status"];
+    let extra_idx: Vec<usize> = (0..names.len())
+        .filter(|&k| !own.contains(&names[k].as_str()))
+        .collect();
+    let mut out = Pixels {
+        extra_names: extra_idx.iter().map(|&k| names[k].clone()).collect(),
+        points: Vec::new(),
+        extra: Vec::new(),
+    };
+    let mut rec = csv::StringRecord::new();
+    while rdr.read_record(&mut rec).map_err(|e| csv_error(&file, e))? {
+        let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
+        if rec.len() != header.len() {
+            bail!(
+                "{file}:{line}: row has {} fields, the header has {}",
+                rec.len(),
+                header.len()
+            );
+        }
+        let num = |k: usize, c: &str| -> Result<f64> {
+            let t = &rec[k];
+            if t.eq_ignore_ascii_case("nan") {
+                return Ok(f64::NAN);
+            }
+            t.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| anyhow!("{file}:{line}: column \"{c}\": {t:?} is not a number"))
+        };
+        out.points.push([num(ui, "u_l")?, num(vi, "v_l")?]);
+        out.extra
+            .push(extra_idx.iter().map(|&k| rec[k].to_string()).collect());
+    }
+    if out.points.is_empty() {
+        bail!("{file}: no points after the header");
+    }
+    Ok(out)
+}
+
+fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
+    v.map_or_else(String::new, |v| v.to_string())
+}
+
+/// One output row (without the passed-through fields).
+pub fn row(l: &Located) -> String {
+    let r = l.right;
+    let x = l.xyz;
+    format!(
+        "{},{},{},{},{},{},{},{},{}",
+        l.left[0],
+        l.left[1],
+        opt(r.map(|r| r[0] as f32)),
+        opt(r.map(|r| r[1] as f32)),
+        opt(x.map(|x| x[0])),
+        opt(x.map(|x| x[1])),
+        opt(x.map(|x| x[2])),
+        if l.score.is_finite() {
+            format!("{:.4}", l.score)
+        } else {
+            String::new()
+        },
+        l.status
+    )
+}
+
+/// Loads the model and both images, then locates `points`.
+pub fn locate_files(
+    model_path: &Path,
+    left: &Path,
+    right: &Path,
+    points: &[[f64; 2]],
+) -> Result<(Vec<Located>, image::GrayImage, image::GrayImage)> {
+    let m = model::load(model_path)?;
+    if m.blob.n_inputs() != 4 {
+        bail!(
+            "{}: a posture-aware model (9 inputs) cannot locate from images alone: its epipolar geometry moves with the eyes",
+            model_path.display()
+        );
+    }
+    let (l, r) = (read_grey(left)?, read_grey(right)?);
+    let found = locate(&m.blob, &l, &r, points)
+        .map_err(|e| anyhow!("{}: {e:#}", model_path.display()))
+        .map_err(|e| {
+            if e.to_string().contains("differ in size") {
+                anyhow!(
+                    "{} and {}: {}",
+                    left.display(),
+                    right.display(),
+                    e.to_string().split(": ").last().unwrap_or("")
+                )
+            } else {
+                e
+            }
+        })?;
+    Ok((found, l, r))
+}
+
+/// `hvs locate`.
+pub fn run(a: Args) -> Result<()> {
+    let mut inputs: Vec<(&str, &Path)> = vec![
+        ("--model", &a.model),
+        ("--left", &a.left),
+        ("--right", &a.right),
+    ];
+    if let Some(p) = &a.points {
+        inputs.push(("--points", p));
+    }
+    for out in [a.output.as_deref(), a.overlay.as_deref()]
+        .into_iter()
+        .flatten()
+    {
+        check_not_input(
+            if Some(out) == a.overlay.as_deref() {
+                "--overlay"
+            } else {
+                "-o"
+            },
+            out,
+            &inputs,
+        )?;
+    }
+    let pixels = match (&a.points, &a.at) {
+        (Some(p), _) => read_pixels(p)?,
+        (None, Some(at)) => Pixels {
+            extra_names: Vec::new(),
+            points: vec![parse_at(at)?],
+            extra: vec![Vec::new()],
+        },
+        (None, None) => bail!("give --points PIXELS.csv or --at U,V"),
+    };
+    let (found, l, r) = locate_files(&a.model, &a.left, &a.right, &pixels.points)?;
+    if let Some(p) = &a.overlay {
+        write_bytes(p, &png_bytes(&locate_overlay(&l, &r, &found))?)?;
+    }
+    if a.points.is_none() {
+        let f = &found[0];
+        let text = match (f.right, f.xyz) {
+            (Some(rp), Some(x)) => format!(
+                "u_r={} v_r={} x={} y={} z={} cm (score {:.3})",
+                rp[0] as f32, rp[1] as f32, x[0], x[1], x[2], f.score
+            ),
+            _ => format!("no trustworthy match: {}", f.status),
+        };
+        return crate::cli::say(format_args!("{text}"));
+    }
+    let mut header = String::from("u_l,v_l,u_r,v_r,x,y,z,score,status");
+    for n in &pixels.extra_names {
+        header.push(',');
+        header.push_str(n);
+    }
+    write_output(a.output.as_deref(), |w| {
+        writeln!(w, "{header}")?;
+        for (l, extra) in found.iter().zip(&pixels.extra) {
+            write!(w, "{}", row(l))?;
+            for e in extra {
+                write!(w, ",{e}")?;
+            }
+            writeln!(w)?;
+        }
+        Ok(())
+    })?;
+    let ok = found.iter().filter(|f| f.status == "ok").count();
+    eprintln!("{ok} of {} points located", found.len());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn at_takes_two_numbers() {
+        assert_eq!(parse_at("320.5,-2").unwrap(), [320.5, -2.0]);
+        for bad in ["", "3", "a,b", "1,2,3"] {
+            assert!(parse_at(bad).is_err(), "{bad}");
+        }
+    }
+}
