@@ -44,11 +44,12 @@ struct Args {
     /// Test points per set.
     #[arg(long, default_value_t = 500)]
     test: usize,
-    /// Families to train, `NAME-H` (NAME `thesis` or `inverse-depth`, H hidden units).
+    /// Families to train, `NAME-H` (NAME `thesis`, `inverse-depth` or `inverse-depth-skip`, H
+    /// hidden units).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "thesis-5,inverse-depth-5"
+        default_value = "thesis-5,inverse-depth-5,inverse-depth-skip-5"
     )]
     family: Vec<String>,
     /// Regimes (int, sub, exact, barrel).
@@ -195,6 +196,7 @@ fn parse_family(s: &str) -> anyhow::Result<(Family, usize)> {
     let f = match name {
         "thesis" => Family::THESIS,
         "inverse-depth" => Family::INVERSE_DEPTH,
+        "inverse-depth-skip" => Family::INVERSE_DEPTH_SKIP,
         _ => anyhow::bail!("unknown family {name}"),
     };
     Ok((f, h.parse()?))

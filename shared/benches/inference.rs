@@ -86,6 +86,7 @@ fn inference(c: &mut Criterion) {
     let flat = FlatMlp {
         hidden: 5,
         params: &p,
+        skip: &[],
         output: Activation::Linear,
         in_offset: &IN_OFFSET,
         in_scale: &IN_SCALE,

@@ -129,7 +129,7 @@ pub fn run_case(case: u8, dir: &Path, seed: u64, restarts: usize) -> Result<Imag
     }
     let corner_error_px = err / (4 * truth.len()) as f64;
     let mut plan = Plan::default();
-    plan.config.family = ArchArg::InverseDepth.family();
+    plan.config.family = ArchArg::DEFAULT.family();
     plan.config.restarts = restarts;
     plan.config.seed = seed;
     let trained = train_model(&train, &plan)?;

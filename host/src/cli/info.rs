@@ -53,12 +53,17 @@ pub fn run(a: Args) -> Result<()> {
     )?;
     writeln!(
         o,
-        "family:      {} ({}, sigmoid exp {:?})",
+        "family:      {} ({}{}, sigmoid exp {:?})",
         b.family.name(),
         match b.family.output_map {
             hvs_shared::runtime::mlp::OutputMap::Direct => "outputs are X, Y, Z in cm",
             hvs_shared::runtime::mlp::OutputMap::InverseDepth =>
                 "outputs are X/Z, Y/Z, 1/Z: X = o0/o2, Y = o1/o2, Z = 1/o2",
+        },
+        match b.family.skip {
+            hvs_shared::runtime::blob::Skip::None => "",
+            hvs_shared::runtime::blob::Skip::Linear =>
+                "; a linear skip term adds an affine map of the inputs",
         },
         b.family.exp
     )?;

@@ -40,14 +40,21 @@ pub enum ArchArg {
     /// The same net trained to output X/Z, Y/Z, 1/Z; the model divides (X = o0/o2, Y = o1/o2,
     /// Z = 1/o2).
     InverseDepth,
+    /// Inverse-depth outputs over an affine map of the pixels (a linear skip term from the
+    /// inputs to the outputs) plus the sigmoid net's residual: the default.
+    InverseDepthSkip,
 }
 
 impl ArchArg {
+    /// The default of `hvs train` (and of `hvs demo --images`).
+    pub const DEFAULT: ArchArg = ArchArg::InverseDepthSkip;
+
     /// The blob's family.
     pub fn family(self) -> Family {
         match self {
             ArchArg::Thesis => Family::THESIS,
             ArchArg::InverseDepth => Family::INVERSE_DEPTH,
+            ArchArg::InverseDepthSkip => Family::INVERSE_DEPTH_SKIP,
         }
     }
 }
@@ -77,7 +84,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = OutputsArg::Xyz)]
     outputs: OutputsArg,
     /// Model family.
-    #[arg(long, value_enum, default_value_t = ArchArg::InverseDepth)]
+    #[arg(long, value_enum, default_value_t = ArchArg::DEFAULT)]
     arch: ArchArg,
     /// Training algorithm.
     #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]

@@ -117,6 +117,7 @@ mod tests {
             ni: 2,
             nh: 3,
             no: 2,
+            skip: false,
         };
         let prob = random_problem(shape, Activation::Linear, 30, 1);
         let mut p = random_params(&shape, 2);

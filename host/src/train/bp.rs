@@ -163,6 +163,7 @@ mod tests {
                 ni: 1,
                 nh: 1,
                 no: 2,
+                skip: false,
             },
             output: Activation::Sigmoid,
             n: 1,
@@ -216,6 +217,7 @@ mod tests {
             ni: 3,
             nh: 4,
             no: 2,
+            skip: false,
         };
         let mut prob = random_problem(shape, Activation::Sigmoid, 1, 21);
         prob.c.iter_mut().for_each(|c| *c = 1.0);
@@ -237,6 +239,7 @@ mod tests {
             ni: 2,
             nh: 3,
             no: 1,
+            skip: false,
         };
         let mut prob = random_problem(shape, Activation::Sigmoid, 20, 5);
         prob.c.iter_mut().for_each(|c| *c = 1.0);

@@ -1,7 +1,8 @@
 //! Levenberg-Marquardt for the weighted least-squares problem of [`Problem`], with weight
 //! decay.
 //!
-//! The cost is `F(p) = 1/2 sum r^2 + alpha/2 sum p^2`. Each iteration solves
+//! The cost is `F(p) = 1/2 sum r^2 + 1/2 sum alpha_q p_q^2` (`alpha_q` is the weight decay,
+//! another one for the tail of skip weights, [`LmOptions::tail`]). Each iteration solves
 //! `(J^T J + alpha I + lambda D) delta = -(J^T r + alpha p)` by Cholesky (`nalgebra`), with `D`
 //! the diagonal of `J^T J + alpha I` (Marquardt's scaling, floored so that no direction is
 //! free), and updates `lambda` by Nielsen's rule from the ratio of actual to predicted
@@ -29,6 +30,8 @@ pub(crate) struct LmOptions {
     pub patience: usize,
     /// Weight decay `alpha` (0: plain least squares).
     pub weight_decay: f64,
+    /// The last `tail.0` parameters (a net's linear skip weights) decay with `tail.1` instead.
+    pub tail: (usize, f64),
 }
 
 impl Default for LmOptions {
@@ -40,6 +43,7 @@ impl Default for LmOptions {
             rel_tol: 1e-6,
             patience: 4,
             weight_decay: 0.0,
+            tail: (0, 0.0),
         }
     }
 }
@@ -54,6 +58,7 @@ pub(crate) struct LmResult {
     pub cost: f64,
 }
 
+#[cfg(test)]
 fn sum_sq(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum()
 }
@@ -61,7 +66,16 @@ fn sum_sq(v: &[f64]) -> f64 {
 /// Minimises the problem's regularised cost from `p` (updated in place).
 pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     let np = p.len();
-    let alpha = opts.weight_decay;
+    let decay: Vec<f64> = (0..np)
+        .map(|q| {
+            if q + opts.tail.0 >= np {
+                opts.tail.1
+            } else {
+                opts.weight_decay
+            }
+        })
+        .collect();
+    let alpha_max = decay.iter().copied().fold(0.0, f64::max);
     let mut ws = NormalWorkspace::new(prob);
     let mut jtj = vec![0.0; np * np];
     let mut jtr = vec![0.0; np];
@@ -72,7 +86,9 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     let mut trial = vec![0.0; np];
     let mut act = prob.activations();
     let mut act_trial = prob.activations();
-    let objective = |sse_half: f64, q: &[f64]| sse_half + 0.5 * alpha * sum_sq(q);
+    let objective = |sse_half: f64, q: &[f64]| {
+        sse_half + 0.5 * q.iter().zip(&decay).map(|(v, a)| a * v * v).sum::<f64>()
+    };
 
     prob.evaluate(p, &mut act);
     let mut f = objective(
@@ -93,11 +109,11 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     while iterations < opts.max_iter {
         if fresh {
             for q in 0..np {
-                g[q] = jtr[q] + alpha * p[q];
+                g[q] = jtr[q] + decay[q] * p[q];
             }
-            let dmax = (0..np).map(|q| jtj[q * np + q]).fold(0.0, f64::max) + alpha;
+            let dmax = (0..np).map(|q| jtj[q * np + q]).fold(0.0, f64::max) + alpha_max;
             for (q, d) in diag.iter_mut().enumerate() {
-                *d = (jtj[q * np + q] + alpha).max(1e-9 * dmax).max(1e-300);
+                *d = (jtj[q * np + q] + decay[q]).max(1e-9 * dmax).max(1e-300);
             }
             fresh = false;
         }
@@ -106,7 +122,7 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
             for s in 0..np {
                 a[(q, s)] = jtj[q * np + s];
             }
-            a[(q, q)] += alpha + lambda * diag[q];
+            a[(q, q)] += decay[q] + lambda * diag[q];
         }
         let m = std::mem::replace(&mut a, DMatrix::zeros(0, 0));
         let Some(chol) = Cholesky::new(m) else {
@@ -181,6 +197,7 @@ mod tests {
             ni: 2,
             nh: 3,
             no: 1,
+            skip: false,
         };
         // Targets produced by a 2-3-1 net: the global minimum is zero.
         let mut prob = random_problem(shape, Activation::Linear, 40, 3);
@@ -215,6 +232,7 @@ mod tests {
             ni: 3,
             nh: 4,
             no: 2,
+            skip: false,
         };
         let prob = random_problem(shape, Activation::Linear, 25, 8);
         for seed in 0..5 {
@@ -236,6 +254,7 @@ mod tests {
             ni: 3,
             nh: 3,
             no: 2,
+            skip: false,
         };
         let prob = random_problem(shape, Activation::Linear, 30, 12);
         let alpha = 1e-2;
@@ -246,6 +265,7 @@ mod tests {
             rel_tol: 1e-14,
             patience: 8,
             weight_decay: alpha,
+            tail: (0, 0.0),
         };
         let res = fit(&prob, &mut p, &opts);
         let f = prob.cost(&p) + 0.5 * alpha * sum_sq(&p);

@@ -12,18 +12,41 @@ use hvs_shared::runtime::mlp::Activation;
 
 /// Sizes of an `ni-nh-no` net and the index of every parameter in the shared layout: for each
 /// hidden unit `j`, `w1[j][0..ni]` then `b1[j]`; then for each output `k`, `w2[k][0..nh]` then
-/// `b2[k]`.
+/// `b2[k]`; then, with a linear skip term, `s[k][0..ni]` for each output `k`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Shape {
     pub ni: usize,
     pub nh: usize,
     pub no: usize,
+    /// Linear skip term: output `k` also gets `sum_i s[k][i] x[i]`.
+    pub skip: bool,
 }
 
 impl Shape {
     /// Number of parameters.
     pub(crate) fn n_params(&self) -> usize {
         hvs_shared::runtime::mlp::param_count(self.ni, self.nh, self.no)
+            + if self.skip { self.ni * self.no } else { 0 }
+    }
+    /// Index of the skip weight `s[k][i]`.
+    #[inline(always)]
+    pub(crate) fn sk(&self, k: usize, i: usize) -> usize {
+        hvs_shared::runtime::mlp::param_count(self.ni, self.nh, self.no) + k * self.ni + i
+    }
+    /// Length of the output layer's input vector `h~`: the hidden units, the bias, then (with a
+    /// skip term) the inputs.
+    #[inline(always)]
+    pub(crate) fn ne(&self) -> usize {
+        self.nh + 1 + if self.skip { self.ni } else { 0 }
+    }
+    /// Index of output `k`'s weight on entry `e` of `h~` (see [`Shape::ne`]).
+    #[inline(always)]
+    pub(crate) fn w2e(&self, k: usize, e: usize) -> usize {
+        if e <= self.nh {
+            self.w2(k, e)
+        } else {
+            self.sk(k, e - self.nh - 1)
+        }
     }
     /// Index of `w1[j][i]` (`i == ni` is the bias `b1[j]`).
     #[inline(always)]
@@ -83,6 +106,11 @@ pub(crate) fn forward(
         for (w, hj) in row[..s.nh].iter().zip(h.iter()) {
             a += w * hj;
         }
+        if s.skip {
+            for (i, xi) in x.iter().enumerate().take(s.ni) {
+                a += p[s.sk(k, i)] * xi;
+            }
+        }
         *yk = match output {
             Activation::Linear => a,
             Activation::Sigmoid => sigmoid(a),
@@ -123,7 +151,7 @@ impl NormalWorkspace {
     /// Scratch for `prob`.
     pub(crate) fn new(prob: &Problem) -> Self {
         let s = &prob.shape;
-        let (ni1, nh1, n) = (s.ni + 1, s.nh + 1, prob.n);
+        let (ni1, ne, n) = (s.ni + 1, s.ne(), prob.n);
         let (nu, nx) = (s.nh * (s.nh + 1) / 2, ni1 * (ni1 + 1) / 2);
         let mut xpk = Vec::with_capacity(n * nx);
         for r in 0..n {
@@ -138,12 +166,12 @@ impl NormalWorkspace {
         NormalWorkspace {
             xpk,
             m: vec![0.0; nu * nx],
-            cross: vec![0.0; s.no * s.nh * ni1 * nh1],
-            w2w2: vec![0.0; s.no * nh1 * (nh1 + 1) / 2],
+            cross: vec![0.0; s.no * s.nh * ni1 * ne],
+            w2w2: vec![0.0; s.no * ne * (ne + 1) / 2],
             upk: vec![0.0; nu],
             a: vec![0.0; s.no * s.nh],
-            b: vec![0.0; ni1 * nh1],
-            ht: vec![0.0; nh1],
+            b: vec![0.0; ni1 * ne],
+            ht: vec![0.0; ne],
             y: vec![0.0; s.no],
             gu: vec![0.0; s.nh],
             rb: vec![0.0; s.nh],
@@ -258,6 +286,11 @@ impl Problem {
                     jac[s.w2(k, j) * nr + row] = g * h[j];
                 }
                 jac[s.w2(k, s.nh) * nr + row] = g;
+                if s.skip {
+                    for (i, xi) in x.iter().enumerate() {
+                        jac[s.sk(k, i) * nr + row] = g * xi;
+                    }
+                }
                 for j in 0..s.nh {
                     let gj = g * p[s.w2(k, j)] * dh[j];
                     for (i, xi) in x.iter().enumerate() {
@@ -296,10 +329,10 @@ impl Problem {
         ws: &mut NormalWorkspace,
     ) -> f64 {
         let s = &self.shape;
-        let (ni1, nh1, np) = (s.ni + 1, s.nh + 1, s.n_params());
+        let (ni1, ne, np) = (s.ni + 1, s.ne(), s.n_params());
         let nx = ni1 * (ni1 + 1) / 2;
-        let nw2 = nh1 * (nh1 + 1) / 2;
-        let nb = ni1 * nh1;
+        let nw2 = ne * (ne + 1) / 2;
+        let nb = ni1 * ne;
         let NormalWorkspace {
             xpk,
             m,
@@ -322,12 +355,15 @@ impl Problem {
         for n in 0..self.n {
             let x = &self.x[n * s.ni..(n + 1) * s.ni];
             ht[..s.nh].copy_from_slice(&act.h[n * s.nh..(n + 1) * s.nh]);
+            if s.skip {
+                ht[s.nh + 1..].copy_from_slice(x);
+            }
             y.copy_from_slice(&act.y[n * s.no..(n + 1) * s.no]);
             // x~ (x) h~.
             for i in 0..ni1 {
                 let xi = if i < s.ni { x[i] } else { 1.0 };
-                for j2 in 0..nh1 {
-                    b[i * nh1 + j2] = xi * ht[j2];
+                for j2 in 0..ne {
+                    b[i * ne + j2] = xi * ht[j2];
                 }
             }
             upk.iter_mut().for_each(|v| *v = 0.0);
@@ -354,13 +390,13 @@ impl Problem {
                         q += 1;
                     }
                 }
-                // Second layer of output k: g h~.
+                // Second layer (and skip weights) of output k: g h~.
                 let w2 = &mut w2w2[k * nw2..(k + 1) * nw2];
                 let mut q = 0;
-                for j2 in 0..nh1 {
-                    jtr[base + j2] += rk * g * ht[j2];
+                for j2 in 0..ne {
+                    jtr[s.w2e(k, j2)] += rk * g * ht[j2];
                     let gg = g * g * ht[j2];
-                    for j3 in j2..nh1 {
+                    for j3 in j2..ne {
                         w2[q] += gg * ht[j3];
                         q += 1;
                     }
@@ -400,13 +436,11 @@ impl Problem {
             }
         }
         for k in 0..s.no {
-            let base = s.w2(k, 0);
             for k2 in 0..s.no {
-                let b2 = s.w2(k2, 0);
-                for j2 in 0..nh1 {
-                    for j3 in 0..nh1 {
-                        jtj[(base + j2) * np + b2 + j3] = if k2 == k {
-                            w2w2[k * nw2 + pack(j2, j3, nh1)]
+                for j2 in 0..ne {
+                    for j3 in 0..ne {
+                        jtj[s.w2e(k, j2) * np + s.w2e(k2, j3)] = if k2 == k {
+                            w2w2[k * nw2 + pack(j2, j3, ne)]
                         } else {
                             0.0
                         };
@@ -415,10 +449,11 @@ impl Problem {
             }
             for j in 0..s.nh {
                 for i in 0..ni1 {
-                    for j2 in 0..nh1 {
-                        let v = cross[(k * s.nh + j) * nb + i * nh1 + j2];
-                        jtj[s.w1(j, i) * np + base + j2] = v;
-                        jtj[(base + j2) * np + s.w1(j, i)] = v;
+                    for j2 in 0..ne {
+                        let v = cross[(k * s.nh + j) * nb + i * ne + j2];
+                        let e = s.w2e(k, j2);
+                        jtj[s.w1(j, i) * np + e] = v;
+                        jtj[e * np + s.w1(j, i)] = v;
                     }
                 }
             }
@@ -452,6 +487,11 @@ impl Problem {
                     dhid[j] += g * p[s.w2(k, j)];
                 }
                 grad[s.w2(k, s.nh)] += g;
+                if s.skip {
+                    for (i, xi) in x.iter().enumerate() {
+                        grad[s.sk(k, i)] += g * xi;
+                    }
+                }
             }
             for j in 0..s.nh {
                 let gj = dhid[j] * h[j] * (1.0 - h[j]);
@@ -514,6 +554,7 @@ pub(crate) mod tests {
             ni: 2,
             nh: 2,
             no: 1,
+            skip: false,
         };
         let p = [0.3, -0.7, 0.1, 1.2, 0.4, -0.5, 0.8, -1.1, 0.25];
         let pf: Vec<f32> = p.iter().map(|v| *v as f32).collect();
@@ -549,6 +590,7 @@ pub(crate) mod tests {
                     ni: 4,
                     nh: 5,
                     no: 3,
+                    skip: false,
                 },
                 Activation::Linear,
             ),
@@ -557,6 +599,7 @@ pub(crate) mod tests {
                     ni: 9,
                     nh: 3,
                     no: 1,
+                    skip: false,
                 },
                 Activation::Sigmoid,
             ),
@@ -565,8 +608,27 @@ pub(crate) mod tests {
                     ni: 2,
                     nh: 1,
                     no: 2,
+                    skip: false,
                 },
                 Activation::Linear,
+            ),
+            (
+                Shape {
+                    ni: 4,
+                    nh: 5,
+                    no: 3,
+                    skip: true,
+                },
+                Activation::Linear,
+            ),
+            (
+                Shape {
+                    ni: 9,
+                    nh: 2,
+                    no: 1,
+                    skip: true,
+                },
+                Activation::Sigmoid,
             ),
         ] {
             let prob = random_problem(shape, act, 13, 4);
@@ -610,6 +672,7 @@ pub(crate) mod tests {
                     ni: 4,
                     nh: 5,
                     no: 3,
+                    skip: false,
                 },
                 Activation::Linear,
             ),
@@ -618,8 +681,18 @@ pub(crate) mod tests {
                     ni: 3,
                     nh: 4,
                     no: 1,
+                    skip: false,
                 },
                 Activation::Sigmoid,
+            ),
+            (
+                Shape {
+                    ni: 4,
+                    nh: 3,
+                    no: 3,
+                    skip: true,
+                },
+                Activation::Linear,
             ),
         ] {
             let prob = random_problem(shape, act, 9, 11);

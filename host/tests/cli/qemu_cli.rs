@@ -9,7 +9,7 @@
 //! `cargo test -p hvs-host --test cli qemu_cli -- --ignored`. When run, a missing QEMU or ELF is a
 //! failure with the command that fixes it, never a skip.
 
-use crate::common::{ok, ok_line, s};
+use crate::common::{ok as run, s};
 use hvs_host::device::qemu::{find_firmware, free_port, FIRMWARE_BUILD};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -40,6 +40,21 @@ fn fields(text: &str, cols: usize) -> Vec<Vec<String>> {
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
+    head_agrees_with_predict(false);
+}
+
+/// The default family on a posture-aware (9-input) net: the head feeds its own joint angles
+/// (the home posture, all zero, after boot), the host reads them from the CSV's joint columns.
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn head_estimate_of_a_posture_aware_default_net_equals_predict_bit_for_bit() {
+    head_agrees_with_predict(true);
+}
+
+/// `hvs train` (default family) then `hvs predict` on the host and `hvs head estimate` in QEMU
+/// on 300 noisy volume points; with `joints`, trained on a posture set (9 inputs) and asked at
+/// the home posture.
+fn head_agrees_with_predict(joints: bool) {
     let fw = find_firmware(None);
     assert!(
         fw.exists(),
@@ -49,13 +64,58 @@ fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     let (train, pts, model) = (d.join("train.csv"), d.join("pts.csv"), d.join("m.hvsw"));
-    ok(&["simulate", "--case", "4", "--set", "train", "-o", s(&train)]);
-    ok_line(&format!(
-        "simulate --case 4 --set volume --points 300 --noise-px 0.4 --seed 11 -o {}",
-        s(&pts)
-    ));
-    ok(&["train", "--data", s(&train), "-o", s(&model), "--seed", "3"]);
-    let predicted = ok(&["predict", "--model", s(&model), "--points", s(&pts)]);
+    if joints {
+        run(&[
+            "simulate",
+            "--case",
+            "4",
+            "--set",
+            "train",
+            "--postures",
+            "random",
+            "--posture-count",
+            "6",
+            "--seed",
+            "5",
+            "-o",
+            s(&train),
+        ]);
+    } else {
+        run(&["simulate", "--case", "4", "--set", "train", "-o", s(&train)]);
+    }
+    run(&[
+        "simulate",
+        "--case",
+        "4",
+        "--set",
+        "volume",
+        "--points",
+        "300",
+        "--noise-px",
+        "0.4",
+        "--seed",
+        "11",
+        "-o",
+        s(&pts),
+    ]);
+    if joints {
+        // The home posture's joint columns after the pixels and truth.
+        let text = std::fs::read_to_string(&pts).unwrap();
+        let mut out = String::new();
+        for (i, l) in text.lines().enumerate() {
+            out.push_str(l);
+            out.push_str(if i == 0 {
+                ",neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan\n"
+            } else {
+                ",0,0,0,0,0\n"
+            });
+        }
+        std::fs::write(&pts, out).unwrap();
+    }
+    run(&["train", "--data", s(&train), "-o", s(&model), "--seed", "3"]);
+    let shown = run(&["info", s(&model)]);
+    assert!(shown.contains("inverse-depth-skip"), "{shown}");
+    let predicted = run(&["predict", "--model", s(&model), "--points", s(&pts)]);
 
     let port = free_port().expect("a free port");
     let listen = format!("127.0.0.1:{port}");
@@ -101,12 +161,25 @@ fn head_estimate_in_qemu_equals_predict_bit_for_bit() {
     // (about 3 KiB) and stack together (`firmware/measure.sh` checks the sum).
     assert!((256..=12 * 1024).contains(&peak), "stack peak {peak} B");
 
-    let estimated = ok_line(&format!(
-        "head --connect {} estimate --points {}",
-        connect,
-        s(&pts)
-    ));
-    let (host, head) = (fields(&predicted, 7), fields(&estimated, 7));
+    let estimated = run(&[
+        "head",
+        "--connect",
+        &connect,
+        "estimate",
+        "--points",
+        s(&pts),
+    ]);
+    // A posture-aware model's prediction repeats the joint columns before x, y, z.
+    let host: Vec<Vec<String>> = fields(&predicted, 12)
+        .into_iter()
+        .map(|r| {
+            let n = r.len();
+            let mut v = r[..4].to_vec();
+            v.extend_from_slice(&r[n - 3..]);
+            v
+        })
+        .collect();
+    let head = fields(&estimated, 7);
     assert_eq!(head[0], ["u_l", "v_l", "u_r", "v_r", "x", "y", "z"]);
     assert_eq!(host.len(), 301);
     assert_eq!(head.len(), host.len());

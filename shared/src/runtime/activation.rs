@@ -52,6 +52,7 @@ pub fn infer_fixed_with<const I: usize, const H: usize, const O: usize>(
         || !sized(m.in_scale, I)
         || !sized(m.out_offset, O)
         || !sized(m.out_scale, O)
+        || !(m.skip.is_empty() || sized(m.skip, I * O))
     {
         return Err(MlpError::Shape);
     }
@@ -78,6 +79,11 @@ pub fn infer_fixed_with<const I: usize, const H: usize, const O: usize>(
         let mut a = p[row + H];
         for j in 0..H {
             a += p[row + j] * h[j];
+        }
+        if !m.skip.is_empty() {
+            for i in 0..I {
+                a += m.skip[k * I + i] * xn[i];
+            }
         }
         let out = match m.output {
             Activation::Linear => a,
@@ -146,7 +152,7 @@ mod tests {
             let output = if sig { Activation::Sigmoid } else { Activation::Linear };
             let (io, is) = ([320.0, 240.0, 320.0, 240.0], [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0]);
             let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
-            let m = FlatMlp { hidden: 5, params: &params, output, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+            let m = FlatMlp { hidden: 5, params: &params, skip: &[], output, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
             let want = infer_fixed::<4, 5, 3>(&m, &x).unwrap();
             let got = infer_fixed_with::<4, 5, 3>(&m, &x, sigmoid).unwrap();
             prop_assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits));

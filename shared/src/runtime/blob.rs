@@ -14,7 +14,7 @@
 //! two, [`ModelBlob::family`] (how the outputs become cm, which exp the sigmoid uses) and
 //! [`ModelBlob::matcher`] (optional stereo-matcher geometry); a version-1 payload is the same
 //! bytes without them and decodes as the thesis family ([`Family::THESIS`]) with no matcher
-//! geometry: the decoder appends those defaults' encoding (3 bytes) to a stack copy of the
+//! geometry: the decoder appends those defaults' encoding (4 bytes) to a stack copy of the
 //! payload, so one deserializer reads both versions.
 //!
 //! Bytes after the CRC are ignored (a flash slot is larger than any blob). Decoding works
@@ -35,7 +35,7 @@ pub const VERSION: u16 = 2;
 pub const VERSION_1: u16 = 1;
 /// Postcard bytes of `(Family::THESIS, None::<MatcherGeometry>)`: what a version-1 payload
 /// lacks.
-const V1_TAIL: [u8; 3] = [0, 0, 0];
+const V1_TAIL: [u8; 4] = [0, 0, 0, 0];
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 10;
 /// Bytes of the trailing CRC.
@@ -46,8 +46,9 @@ pub const MAX_INPUTS: usize = 12;
 pub const MAX_HIDDEN: usize = 32;
 /// Most outputs (X, Y, Z).
 pub const MAX_OUTPUTS: usize = 3;
-/// Most parameters of the largest topology.
-pub const MAX_PARAMS: usize = mlp::param_count(MAX_INPUTS, MAX_HIDDEN, MAX_OUTPUTS);
+/// Most parameters of the largest topology, linear skip weights included.
+pub const MAX_PARAMS: usize = mlp::param_count(MAX_INPUTS, MAX_HIDDEN, MAX_OUTPUTS)
+    + mlp::skip_count(MAX_INPUTS, MAX_OUTPUTS);
 /// Largest payload accepted.
 pub const MAX_PAYLOAD_LEN: usize = 4096 - HEADER_LEN - CRC_LEN;
 /// Largest blob, header and CRC included: a buffer this big holds any valid blob.
@@ -207,6 +208,18 @@ pub enum ExpKind {
     LibmExp,
 }
 
+/// Whether the net has a linear skip term (inputs straight to outputs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Skip {
+    /// The sigmoid net alone.
+    None,
+    /// Each output also gets `sum_i s[k][i] xn[i]` over the normalised inputs
+    /// ([`crate::runtime::mlp`] documents the layout and order): the sigmoid layer learns a
+    /// residual over an affine map of the pixels. With inverse-depth outputs the affine part
+    /// alone is exact for parallel pinhole cameras.
+    Linear,
+}
+
 /// The model family: what the net's outputs mean and how its activation is computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Family {
@@ -214,6 +227,8 @@ pub struct Family {
     pub output_map: OutputMap,
     /// The sigmoid's exp.
     pub exp: ExpKind,
+    /// Linear skip term or not.
+    pub skip: Skip,
 }
 
 impl Family {
@@ -221,17 +236,36 @@ impl Family {
     pub const THESIS: Family = Family {
         output_map: OutputMap::Direct,
         exp: ExpKind::LibmExp,
+        skip: Skip::None,
     };
     /// Inverse-depth outputs `X/Z, Y/Z, 1/Z`, libm exp.
     pub const INVERSE_DEPTH: Family = Family {
         output_map: OutputMap::InverseDepth,
         exp: ExpKind::LibmExp,
+        skip: Skip::None,
     };
-    /// Short name (`thesis`, `inverse-depth`), as `hvs train --arch` takes it.
+    /// Inverse-depth outputs over an affine map of the pixels plus the sigmoid net's residual
+    /// ([`Skip::Linear`]), libm exp.
+    pub const INVERSE_DEPTH_SKIP: Family = Family {
+        output_map: OutputMap::InverseDepth,
+        exp: ExpKind::LibmExp,
+        skip: Skip::Linear,
+    };
+    /// Short name (`thesis`, `inverse-depth`, `inverse-depth-skip`; `direct-skip` for X, Y, Z
+    /// outputs with a skip term), as `hvs train --arch` takes it.
     pub fn name(&self) -> &'static str {
-        match self.output_map {
-            OutputMap::Direct => "thesis",
-            OutputMap::InverseDepth => "inverse-depth",
+        match (self.output_map, self.skip) {
+            (OutputMap::Direct, Skip::None) => "thesis",
+            (OutputMap::InverseDepth, Skip::None) => "inverse-depth",
+            (OutputMap::InverseDepth, Skip::Linear) => "inverse-depth-skip",
+            (OutputMap::Direct, Skip::Linear) => "direct-skip",
+        }
+    }
+    /// Skip weights of a net with `i` inputs and `o` outputs in this family.
+    pub const fn skip_len(&self, i: usize, o: usize) -> usize {
+        match self.skip {
+            Skip::None => 0,
+            Skip::Linear => mlp::skip_count(i, o),
         }
     }
 }
@@ -284,7 +318,8 @@ pub struct ModelBlob {
     pub out_offset: Vec<f32, MAX_OUTPUTS>,
     /// Output scales.
     pub out_scale: Vec<f32, MAX_OUTPUTS>,
-    /// Parameters in the layout documented in [`crate::runtime::mlp`].
+    /// Parameters in the layout documented in [`crate::runtime::mlp`]: the sigmoid net's,
+    /// then the skip weights if the family has them.
     pub params: Vec<f32, MAX_PARAMS>,
     /// Smallest value of each input seen in training.
     pub in_min: Vec<f32, MAX_INPUTS>,
@@ -325,7 +360,7 @@ impl ModelBlob {
             || self.in_max.len() != i
             || self.out_offset.len() != o
             || self.out_scale.len() != o
-            || self.params.len() != mlp::param_count(i, h, o)
+            || self.params.len() != mlp::param_count(i, h, o) + self.family.skip_len(i, o)
         {
             return Err(BlobError::TopologyMismatch);
         }
@@ -359,9 +394,14 @@ impl ModelBlob {
 
     /// A runtime-sized view for [`mlp::infer_flat`].
     pub fn flat(&self) -> FlatMlp<'_> {
+        let n = self
+            .params
+            .len()
+            .saturating_sub(self.family.skip_len(self.n_inputs(), self.n_outputs()));
         FlatMlp {
             hidden: self.topology.hidden as usize,
-            params: &self.params,
+            params: &self.params[..n],
+            skip: &self.params[n..],
             output: self.topology.output_activation,
             in_offset: &self.in_offset,
             in_scale: &self.in_scale,
@@ -385,12 +425,17 @@ impl ModelBlob {
                 .all(|(v, (lo, hi))| *v >= *lo && *v <= *hi)
     }
 
-    /// The model as a fixed-size [`Mlp`], if its topology is exactly `I-H-O`. The [`Mlp`] stops
-    /// at the de-normalised outputs: apply `self.family.output_map` to get cm.
+    /// The model as a fixed-size [`Mlp`], if its topology is exactly `I-H-O` and it has no
+    /// skip term (an [`Mlp`] has none). The [`Mlp`] stops at the de-normalised outputs: apply
+    /// `self.family.output_map` to get cm.
     pub fn to_mlp<const I: usize, const H: usize, const O: usize>(
         &self,
     ) -> Result<Mlp<I, H, O>, BlobError> {
-        if self.n_inputs() != I || self.topology.hidden as usize != H || self.n_outputs() != O {
+        if self.n_inputs() != I
+            || self.topology.hidden as usize != H
+            || self.n_outputs() != O
+            || self.family.skip != Skip::None
+        {
             return Err(BlobError::TopologyMismatch);
         }
         let arr = |s: &[f32]| -> Result<[f32; I], BlobError> {
@@ -664,9 +709,9 @@ mod tests {
         // A v1 payload with anything after its fields is malformed, even if the extra bytes
         // would complete a family or a matcher.
         let mut extra = StdVec::from(&v1[..v1.len() - CRC_LEN]);
-        let n = extra.len() - HEADER_LEN + 3;
+        let n = extra.len() - HEADER_LEN + 4;
         extra[6..10].copy_from_slice(&(n as u32).to_le_bytes());
-        extra.extend_from_slice(&[1, 0, 0]);
+        extra.extend_from_slice(&[1, 0, 0, 0]);
         let crc = crc32(&extra);
         extra.extend_from_slice(&crc.to_le_bytes());
         assert_eq!(decode(&extra), Err(BlobError::Malformed));
@@ -732,6 +777,52 @@ mod tests {
     }
 
     #[test]
+    fn skip_family_stores_its_weights_after_the_net_and_adds_them() {
+        let mut b = sample(5, 6);
+        let x = [330.0, 235.0, 300.0, 238.0];
+        let mut plain = [0.0f32; 3];
+        b.infer(&x, &mut plain).unwrap();
+        b.family = Family {
+            output_map: OutputMap::Direct,
+            ..Family::INVERSE_DEPTH_SKIP
+        };
+        assert_eq!(
+            b.validate(),
+            Err(BlobError::TopologyMismatch),
+            "no skip weights"
+        );
+        let skip = [
+            0.5f32, -0.25, 0.125, 1.0, 0.0, 2.0, -1.0, 0.5, 0.75, 0.0, 0.25, -0.5,
+        ];
+        b.params.extend_from_slice(&skip).unwrap();
+        assert_eq!(b.validate(), Ok(()));
+        assert_eq!(b.flat().params.len(), mlp::param_count(4, 5, 3));
+        assert_eq!(b.flat().skip, &skip[..]);
+        assert_eq!(
+            b.to_mlp::<4, 5, 3>().unwrap_err(),
+            BlobError::TopologyMismatch
+        );
+        let mut out = [0.0f32; 3];
+        b.infer(&x, &mut out).unwrap();
+        for k in 0..3 {
+            // Undo the output scaling of the plain net, add the skip sum, scale again: the
+            // same value up to rounding (the exact order is pinned in mlp's tests).
+            let a = (plain[k] - b.out_offset[k]) / b.out_scale[k];
+            let s: f32 = (0..4)
+                .map(|i| skip[k * 4 + i] * (x[i] - b.in_offset[i]) * b.in_scale[i])
+                .sum();
+            let want = (a + s) * b.out_scale[k] + b.out_offset[k];
+            assert!((out[k] - want).abs() < 1e-3 * (1.0 + want.abs()), "{k}");
+        }
+        // It round-trips, and the family is part of the bytes.
+        let v = bytes(&b);
+        assert_eq!(decode(&v).unwrap(), b);
+        b.family = Family::INVERSE_DEPTH_SKIP;
+        assert_ne!(bytes(&b), v);
+        assert_eq!(Family::INVERSE_DEPTH_SKIP.name(), "inverse-depth-skip");
+    }
+
+    #[test]
     fn largest_topology_fits() {
         let i = InputKind::StereoJoints.len();
         let mut b = sample(5, 0);
@@ -741,8 +832,9 @@ mod tests {
             outputs: OutputKind::Xyz,
             output_activation: Activation::Sigmoid,
         };
-        b.params = Vec::from_slice(&[0.5; mlp::param_count(9, MAX_HIDDEN, 3)]).unwrap();
-        b.family = Family::INVERSE_DEPTH;
+        b.params =
+            Vec::from_slice(&[0.5; MAX_PARAMS][..mlp::param_count(9, MAX_HIDDEN, 3) + 27]).unwrap();
+        b.family = Family::INVERSE_DEPTH_SKIP;
         b.matcher = Some(MatcherGeometry {
             fundamental: [[1.0; 3]; 3],
             out_min: [0.0; 3],

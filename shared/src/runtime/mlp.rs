@@ -8,7 +8,11 @@
 //! the Cortex-M4F.
 //!
 //! Parameter layout (also the blob's): for each hidden unit `j`, `w1[j][0..I]` then `b1[j]`;
-//! then for each output `k`, `w2[k][0..H]` then `b2[k]`.
+//! then for each output `k`, `w2[k][0..H]` then `b2[k]`. A net with a linear skip term
+//! ([`FlatMlp::skip`]) adds, for each output `k`, `s[k][0..I]` after all of those: output `k`'s
+//! sum is `b2[k] + sum_j w2[k][j] h[j]`, then `+ sum_i s[k][i] xn[i]` over the normalised
+//! inputs, in that order, before the output activation. The net then learns a residual over
+//! an affine map of the pixels.
 
 // Index loops keep the summation order explicit: it is part of the bit-exactness contract.
 #![allow(clippy::needless_range_loop)]
@@ -206,13 +210,30 @@ impl<const I: usize, const H: usize, const O: usize> Mlp<I, H, O> {
     }
 }
 
+/// Number of linear skip weights of an `i`-input, `o`-output net that has them.
+pub const fn skip_count(i: usize, o: usize) -> usize {
+    i * o
+}
+
+/// `a + sum_i s[i] xn[i]` in index order: output `k`'s linear skip term (`s` is `s[k][0..I]`).
+#[inline(always)]
+fn add_skip(mut a: f32, s: &[f32], xn: &[f32]) -> f32 {
+    for (w, x) in s.iter().zip(xn) {
+        a += *w * *x;
+    }
+    a
+}
+
 /// Runtime-sized view of a model, used where the topology is only known from a blob.
 #[derive(Debug, Clone, Copy)]
 pub struct FlatMlp<'a> {
     /// Hidden units.
     pub hidden: usize,
-    /// Flat parameters (documented layout).
+    /// Flat parameters of the sigmoid net (documented layout, without the skip weights).
     pub params: &'a [f32],
+    /// Linear skip weights `s[k][0..I]` for each output `k` (empty: no skip term; otherwise
+    /// exactly `inputs * outputs` of them).
+    pub skip: &'a [f32],
     /// Output activation.
     pub output: Activation,
     /// Input offsets (length = number of inputs).
@@ -242,6 +263,7 @@ pub fn infer_flat(m: &FlatMlp<'_>, x: &[f32], out: &mut [f32]) -> Result<(), Mlp
         || ni > FLAT_MAX_INPUTS
         || h > FLAT_MAX_HIDDEN
         || m.params.len() != param_count(ni, h, no)
+        || !(m.skip.is_empty() || m.skip.len() == skip_count(ni, no))
     {
         return Err(MlpError::Shape);
     }
@@ -268,6 +290,9 @@ pub fn infer_flat(m: &FlatMlp<'_>, x: &[f32], out: &mut [f32]) -> Result<(), Mlp
         for j in 0..h {
             a += row[j] * hid[j];
         }
+        if !m.skip.is_empty() {
+            a = add_skip(a, &m.skip[k * ni..(k + 1) * ni], &xn[..ni]);
+        }
         let v = m.output.apply(a) * m.out_scale[k] + m.out_offset[k];
         if !v.is_finite() {
             return Err(MlpError::NonFiniteOutput);
@@ -293,6 +318,7 @@ pub fn infer_fixed<const I: usize, const H: usize, const O: usize>(
         || !sized(m.in_scale, I)
         || !sized(m.out_offset, O)
         || !sized(m.out_scale, O)
+        || !(m.skip.is_empty() || sized(m.skip, skip_count(I, O)))
     {
         return Err(MlpError::Shape);
     }
@@ -319,6 +345,9 @@ pub fn infer_fixed<const I: usize, const H: usize, const O: usize>(
         let mut a = p[row + H];
         for j in 0..H {
             a += p[row + j] * h[j];
+        }
+        if !m.skip.is_empty() {
+            a = add_skip(a, &m.skip[k * I..(k + 1) * I], &xn);
         }
         let v = m.output.apply(a) * m.out_scale[k] + m.out_offset[k];
         if !v.is_finite() {
@@ -413,13 +442,47 @@ mod tests {
             let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
             let m: Mlp<4, 5, 3> = Mlp::from_params(&params, act, io, is, oo, os).unwrap();
             let a = m.infer(&x).unwrap();
-            let flat = FlatMlp { hidden: 5, params: &params, output: act, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+            let flat = FlatMlp { hidden: 5, params: &params, skip: &[], output: act, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
             let mut b = [0.0f32; 3];
             infer_flat(&flat, &x, &mut b).unwrap();
             prop_assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
             let c = infer_fixed::<4, 5, 3>(&flat, &x).unwrap();
             prop_assert_eq!(a.map(f32::to_bits), c.map(f32::to_bits));
             prop_assert_eq!(infer_fixed::<4, 6, 3>(&flat, &x), Err(MlpError::Shape));
+        }
+
+        #[test]
+        fn skip_term_is_added_in_order_and_flat_and_fixed_agree(
+            params in proptest::collection::vec(-3.0f32..3.0, param_count(4, 5, 3)),
+            skip in proptest::collection::vec(-2.0f32..2.0, skip_count(4, 3)),
+            x in proptest::array::uniform4(0.0f32..640.0),
+        ) {
+            let (io, is) = ([320.0, 240.0, 320.0, 240.0], [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0]);
+            let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
+            let plain = FlatMlp { hidden: 5, params: &params, skip: &[], output: Activation::Linear, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+            let with = FlatMlp { skip: &skip, ..plain };
+            let mut b = [0.0f32; 3];
+            infer_flat(&with, &x, &mut b).unwrap();
+            let c = infer_fixed::<4, 5, 3>(&with, &x).unwrap();
+            prop_assert_eq!(b.map(f32::to_bits), c.map(f32::to_bits));
+            // By hand: the net's pre-activation sum, then the skip products in input order.
+            let xn: [f32; 4] = core::array::from_fn(|i| (x[i] - io[i]) * is[i]);
+            let hid: [f32; 5] = core::array::from_fn(|j| {
+                let mut a = params[j * 5 + 4];
+                for i in 0..4 { a += params[j * 5 + i] * xn[i]; }
+                sigmoid(a)
+            });
+            for k in 0..3 {
+                let row = 25 + k * 6;
+                let mut a = params[row + 5];
+                for j in 0..5 { a += params[row + j] * hid[j]; }
+                for i in 0..4 { a += skip[k * 4 + i] * xn[i]; }
+                prop_assert_eq!((a * os[k] + oo[k]).to_bits(), b[k].to_bits());
+            }
+            // A skip of the wrong length is a shape error.
+            let short = FlatMlp { skip: &skip[..11], ..plain };
+            prop_assert_eq!(infer_flat(&short, &x, &mut b), Err(MlpError::Shape));
+            prop_assert_eq!(infer_fixed::<4, 5, 3>(&short, &x), Err(MlpError::Shape));
         }
     }
 }
