@@ -52,19 +52,34 @@ pub enum HeadCommand {
         output: Option<PathBuf>,
     },
     /// Estimate a point and move the head to fixate it.
+    /// The pair is given as U_L V_L U_R V_R, or found from images: `--model M.hvsw --left L.png
+    /// --right R.png --at U,V` locates left pixel U,V in the right image as `hvs locate` does
+    /// and sends the matched pair.
     Look {
         /// Left image column (px).
-        #[arg(allow_negative_numbers = true)]
-        u_l: f32,
+        #[arg(allow_negative_numbers = true, required_unless_present = "at")]
+        u_l: Option<f32>,
         /// Left image row (px).
-        #[arg(allow_negative_numbers = true)]
-        v_l: f32,
+        #[arg(allow_negative_numbers = true, required_unless_present = "at")]
+        v_l: Option<f32>,
         /// Right image column (px).
-        #[arg(allow_negative_numbers = true)]
-        u_r: f32,
+        #[arg(allow_negative_numbers = true, required_unless_present = "at")]
+        u_r: Option<f32>,
         /// Right image row (px).
-        #[arg(allow_negative_numbers = true)]
-        v_r: f32,
+        #[arg(allow_negative_numbers = true, required_unless_present = "at")]
+        v_r: Option<f32>,
+        /// The model the head runs (its matcher geometry finds the point in the right image).
+        #[arg(long, value_name = "M.hvsw", requires_all = ["left", "right", "at"])]
+        model: Option<PathBuf>,
+        /// The left image.
+        #[arg(long, value_name = "L.png", requires = "model")]
+        left: Option<PathBuf>,
+        /// The right image.
+        #[arg(long, value_name = "R.png", requires = "model")]
+        right: Option<PathBuf>,
+        /// The left pixel U,V to look at.
+        #[arg(long, value_name = "U,V", allow_hyphen_values = true, requires = "model", conflicts_with_all = ["u_l", "v_l", "u_r", "v_r"])]
+        at: Option<String>,
     },
     /// Move every axis to its home position.
     Home,
@@ -105,6 +120,58 @@ pub fn run(args: &Args) -> Result<()> {
                 check_not_input("-o", out, &[("--points", points)])?;
             }
             Some(read_stereo_points(points)?)
+        }
+        _ => None,
+    };
+    // A Look from images is located before the head is contacted too.
+    let look_point = match &args.command {
+        HeadCommand::Look {
+            model: Some(m),
+            left: Some(l),
+            right: Some(r),
+            at: Some(at),
+            ..
+        } => {
+            let p = crate::cli::locate::parse_at(at)?;
+            let (found, _, _) = crate::cli::locate::locate_files(m, l, r, &[p])?;
+            let f = found[0];
+            let Some(rp) = f.right else {
+                bail!(
+                    "--at {at}: no trustworthy match in {}: {}",
+                    r.display(),
+                    f.status
+                );
+            };
+            eprintln!(
+                "located ({}, {}) in {} at ({}, {}) (score {:.3})",
+                p[0],
+                p[1],
+                r.display(),
+                rp[0] as f32,
+                rp[1] as f32,
+                f.score
+            );
+            Some(StereoPoint {
+                u_l: p[0] as f32,
+                v_l: p[1] as f32,
+                u_r: rp[0] as f32,
+                v_r: rp[1] as f32,
+            })
+        }
+        HeadCommand::Look {
+            u_l: Some(u_l),
+            v_l: Some(v_l),
+            u_r: Some(u_r),
+            v_r: Some(v_r),
+            ..
+        } => Some(StereoPoint {
+            u_l: *u_l,
+            v_l: *v_l,
+            u_r: *u_r,
+            v_r: *v_r,
+        }),
+        HeadCommand::Look { .. } => {
+            bail!("look: give U_L V_L U_R V_R, or --model, --left, --right and --at")
         }
         _ => None,
     };
@@ -154,13 +221,8 @@ pub fn run(args: &Args) -> Result<()> {
                 None => out.write_all(csv.as_bytes())?,
             }
         }
-        HeadCommand::Look { u_l, v_l, u_r, v_r } => {
-            let p = StereoPoint {
-                u_l: *u_l,
-                v_l: *v_l,
-                u_r: *u_r,
-                v_r: *v_r,
-            };
+        HeadCommand::Look { .. } => {
+            let p = look_point.ok_or_else(|| anyhow::anyhow!("look: no point"))?;
             let l = expect(link.request(RequestBody::Look(p))?, "Look", |b| match b {
                 ResponseBody::Look(l) => Some(l),
                 _ => None,

@@ -181,20 +181,19 @@ pub fn locate_files(
         );
     }
     let (l, r) = (read_grey(left)?, read_grey(right)?);
-    let found = locate(&m.blob, &l, &r, points)
-        .map_err(|e| anyhow!("{}: {e:#}", model_path.display()))
-        .map_err(|e| {
-            if e.to_string().contains("differ in size") {
-                anyhow!(
-                    "{} and {}: {}",
-                    left.display(),
-                    right.display(),
-                    e.to_string().split(": ").last().unwrap_or("")
-                )
-            } else {
-                e
-            }
-        })?;
+    if l.dimensions() != r.dimensions() {
+        bail!(
+            "{} and {}: the images differ in size ({}x{} and {}x{})",
+            left.display(),
+            right.display(),
+            l.width(),
+            l.height(),
+            r.width(),
+            r.height()
+        );
+    }
+    let found =
+        locate(&m.blob, &l, &r, points).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))?;
     Ok((found, l, r))
 }
 

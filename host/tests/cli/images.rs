@@ -234,3 +234,148 @@ fn bad_images_and_boards_are_named_skipped_or_refused() {
         1 + 54
     );
 }
+
+#[test]
+fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let shots = d.join("shots");
+    render(&shots, &["--seed", "6"]);
+    let points = d.join("points.csv");
+    ok(&[
+        "board",
+        "detect",
+        "--board",
+        s(&shots.join("board.json")),
+        "--captures",
+        s(&shots.join("captures.csv")),
+        "-o",
+        s(&points),
+    ]);
+    let model = d.join("m.hvsw");
+    ok(&[
+        "train",
+        "--data",
+        s(&points),
+        "-o",
+        s(&model),
+        "--restarts",
+        "2",
+    ]);
+    let test = d.join("test");
+    render(
+        &test,
+        &["--seed", "7", "--depths", "95", "--centre", "-3,2"],
+    );
+    // The test pair's true corners, plus a NaN row and a point outside the image.
+    let truth = std::fs::read_to_string(test.join("truth.csv")).unwrap();
+    let mut px = String::from("u_l,v_l,tag,true_u_r,true_v_r\n");
+    for l in truth.lines().skip(1) {
+        let f: Vec<&str> = l.split(',').collect();
+        px.push_str(&format!(
+            "{},{},c{}_{},{},{}\n",
+            f[6], f[7], f[1], f[2], f[8], f[9]
+        ));
+    }
+    px.push_str("NaN,10,nan,0,0\n-50,10,off,0,0\n");
+    let pix = d.join("px.csv");
+    std::fs::write(&pix, px).unwrap();
+    let (l, r) = (test.join("left01.png"), test.join("right01.png"));
+    let out = d.join("out.csv");
+    let overlay = d.join("ov.png");
+    ok(&[
+        "locate",
+        "--model",
+        s(&model),
+        "--left",
+        s(&l),
+        "--right",
+        s(&r),
+        "--points",
+        s(&pix),
+        "-o",
+        s(&out),
+        "--overlay",
+        s(&overlay),
+    ]);
+    assert!(overlay.is_file());
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("u_l,v_l,u_r,v_r,x,y,z,score,status,tag,true_u_r,true_v_r")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 54 + 2);
+    let (mut okc, mut good) = (0, 0);
+    for f in &rows[..54] {
+        if f[8] == "ok" {
+            okc += 1;
+            let e = (f[2].parse::<f64>().unwrap() - f[10].parse::<f64>().unwrap())
+                .hypot(f[3].parse::<f64>().unwrap() - f[11].parse::<f64>().unwrap());
+            good += usize::from(e < 0.5);
+            let z: f64 = f[6].parse().unwrap();
+            assert!((z - 95.0).abs() < 1.0, "{f:?}");
+        } else {
+            assert!(f[2..7].iter().all(|v| v.is_empty()), "{f:?}");
+            assert!(
+                ["ambiguous", "no_candidate", "lr_check_failed", "no_texture"].contains(&f[8]),
+                "{f:?}"
+            );
+        }
+    }
+    assert!(okc >= 40, "{okc} of 54 returned");
+    assert_eq!(good, okc, "every returned corner within 0.5 px");
+    assert_eq!(rows[54][8], "nan_input");
+    assert_eq!(rows[55][8], "outside");
+    // One point, printed.
+    let one = ok(&[
+        "locate",
+        "--model",
+        s(&model),
+        "--left",
+        s(&l),
+        "--right",
+        s(&r),
+        "--at",
+        "300,200",
+    ]);
+    assert!(
+        one.contains("z=") || one.contains("no trustworthy match"),
+        "{one}"
+    );
+    // Images of different sizes; a model without the matcher's geometry (a v1 blob).
+    image::GrayImage::from_pixel(320, 240, image::Luma([90u8]))
+        .save(d.join("small.png"))
+        .unwrap();
+    let e = crate::common::fails(
+        &[
+            "locate",
+            "--model",
+            s(&model),
+            "--left",
+            s(&l),
+            "--right",
+            s(&d.join("small.png")),
+            "--at",
+            "1,1",
+        ],
+        "differ in size",
+    );
+    assert!(e.contains("small.png"), "{e}");
+    let v1 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/tests/golden/v1_4_5_3.hvsw");
+    crate::common::fails(
+        &[
+            "locate",
+            "--model",
+            s(&v1),
+            "--left",
+            s(&l),
+            "--right",
+            s(&r),
+            "--at",
+            "1,1",
+        ],
+        "retrain it with `hvs train`",
+    );
+}

@@ -195,3 +195,116 @@ fn head_agrees_with_predict(joints: bool) {
         assert_eq!(bits(e), bits(h), "row {i}: head {e:?}, host {h:?}");
     }
 }
+
+/// The loop from images to servo setpoints: a model trained on rendered board photos, a left
+/// pixel located in the right image (`hvs head look --model --left --right --at`), the head's
+/// estimate and fixation in QEMU; the head's X, Y, Z equal `hvs locate`'s bit for bit.
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn head_looks_at_a_point_found_in_the_images() {
+    let fw = find_firmware(None);
+    assert!(
+        fw.exists(),
+        "no firmware ELF at {}: build it with `{FIRMWARE_BUILD}`",
+        fw.display()
+    );
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let (shots, test, model) = (d.join("shots"), d.join("test"), d.join("m.hvsw"));
+    run(&["render", "--case", "1", "-o", s(&shots), "--seed", "4"]);
+    let points = d.join("points.csv");
+    run(&[
+        "board",
+        "detect",
+        "--board",
+        s(&shots.join("board.json")),
+        "--captures",
+        s(&shots.join("captures.csv")),
+        "-o",
+        s(&points),
+    ]);
+    run(&[
+        "train",
+        "--data",
+        s(&points),
+        "-o",
+        s(&model),
+        "--restarts",
+        "2",
+    ]);
+    run(&[
+        "render",
+        "--case",
+        "1",
+        "-o",
+        s(&test),
+        "--seed",
+        "5",
+        "--depths",
+        "110",
+        "--centre",
+        "2,1",
+    ]);
+    // A board corner of the test pair: textured, unique along its epipolar line.
+    let truth = std::fs::read_to_string(test.join("truth.csv")).unwrap();
+    let row: Vec<&str> = truth.lines().nth(20).unwrap().split(',').collect();
+    let at = format!("{},{}", row[6], row[7]);
+    let (l, r) = (test.join("left01.png"), test.join("right01.png"));
+    let located = run(&[
+        "locate",
+        "--model",
+        s(&model),
+        "--left",
+        s(&l),
+        "--right",
+        s(&r),
+        "--at",
+        &at,
+    ]);
+    let xyz = |text: &str| -> Vec<String> {
+        ["x=", "y=", "z="]
+            .iter()
+            .map(|k| {
+                let i = text.find(k).unwrap_or_else(|| panic!("no {k} in {text}")) + 2;
+                text[i..].split_whitespace().next().unwrap().to_string()
+            })
+            .collect()
+    };
+    let want = xyz(&located);
+    let port = free_port().expect("a free port");
+    let listen = format!("127.0.0.1:{port}");
+    let _emu = Emulate(
+        hvs()
+            .args(["emulate", "--model", s(&model), "--listen", &listen])
+            .args(["--servo-log", s(&d.join("servo.log")), "--timeout", "120"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("hvs emulate starts"),
+    );
+    let connect = format!("tcp:{listen}");
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let looked = loop {
+        let out = hvs()
+            .args(["head", "--connect", &connect, "look", "--model", s(&model)])
+            .args(["--left", s(&l), "--right", s(&r), "--at", &at])
+            .output()
+            .expect("hvs head runs");
+        if out.status.success() {
+            break String::from_utf8(out.stdout).expect("utf-8 stdout");
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the emulated head never answered: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    assert!(looked.contains("(Network, in_range=true)"), "{looked}");
+    assert!(looked.contains("joints deg: neck_pan="), "{looked}");
+    let got = xyz(&looked);
+    assert_eq!(got, want, "head {looked} vs locate {located}");
+    // The point is about where the board was.
+    let z: f32 = got[2].parse().unwrap();
+    assert!((z - 110.0).abs() < 2.0, "z = {z}");
+}
