@@ -219,7 +219,10 @@ pub fn matcher_geometry(data: &Dataset) -> Option<MatcherGeometry> {
         disparity = [disparity[0].min(d), disparity[1].max(d)];
     }
     let g = MatcherGeometry {
-        fundamental: f.m,
+        fundamental: {
+            let big = f.m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+            f.m.map(|r| r.map(|v| (v / big) as f32))
+        },
         out_min,
         out_max,
         disparity,
@@ -297,7 +300,9 @@ pub fn locate(
             right.height()
         );
     }
-    let f = Fundamental { m: g.fundamental };
+    let f = Fundamental {
+        m: g.fundamental.map(|r| r.map(f64::from)),
+    };
     let params = MatchParams {
         right_scale: g.right_scale.map(f64::from),
         ..MatchParams::default()
@@ -431,7 +436,9 @@ mod tests {
         }
         assert!(g.disparity[0] > 0.0 && g.disparity[0] < g.disparity[1]);
         // Points the fit never saw lie on their epipolar lines (rounded pixels: within ~1 px).
-        let f = hvs_vision::geometry::Fundamental { m: g.fundamental };
+        let f = hvs_vision::geometry::Fundamental {
+            m: g.fundamental.map(|r| r.map(f64::from)),
+        };
         let test = simulate(&rig, SetKind::Test, &SimOptions::default()).unwrap();
         for s in &test {
             let d = f.distance_in_right([s.px[0], s.px[1]], [s.px[2], s.px[3]]);

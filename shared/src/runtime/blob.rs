@@ -274,8 +274,9 @@ impl Family {
 /// fitting lives with the matcher, not here).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MatcherGeometry {
-    /// Fundamental matrix `F` with `[u_r, v_r, 1] F [u_l, v_l, 1]^T = 0` for a matched pair.
-    pub fundamental: [[f64; 3]; 3],
+    /// Fundamental matrix `F` with `[u_r, v_r, 1] F [u_l, v_l, 1]^T = 0` for a matched pair,
+    /// scaled so that its largest entry is 1 (`f32`: no `f64` decoding on the head).
+    pub fundamental: [[f32; 3]; 3],
     /// Smallest `X, Y, Z` (cm) of the training targets; `out_min[2]..out_max[2]` is the depth
     /// range the matcher searches.
     pub out_min: [f32; 3],
@@ -737,7 +738,7 @@ mod tests {
         );
         if let Some(g) = bad.matcher.as_mut() {
             g.out_min[2] = 65.0;
-            g.fundamental[1][1] = f64::NAN;
+            g.fundamental[1][1] = f32::NAN;
         }
         assert_eq!(
             bad.encode(&mut [0u8; MAX_BLOB_LEN]),
