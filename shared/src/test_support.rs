@@ -10,7 +10,7 @@ use crate::runtime::blob::{
     Algorithm, Family, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_INPUTS,
     MAX_OUTPUTS, MAX_PARAMS,
 };
-use crate::runtime::mlp::{param_count, Activation};
+use crate::runtime::mlp::{param_count, Activation, OutputMap};
 use crate::runtime::traditional::Calibration;
 use heapless::Vec;
 
@@ -86,6 +86,9 @@ const JOINT_SCALE: [f32; 5] = [1.0 / 30.0, 1.0 / 20.0, 1.0 / 15.0, 1.0 / 20.0, 1
 const JOINT_MIN: [f32; 5] = [-30.0, -20.0, -15.0, -20.0, -20.0];
 const XYZ_OFFSET: [f32; 3] = [0.0, 0.0, 115.0];
 const XYZ_SCALE: [f32; 3] = [3.0, 2.0, 50.0];
+/// X/Z, Y/Z, 1/Z of the training volume (Z 65..165 cm): 1/Z stays positive.
+const INV_OFFSET: [f32; 3] = [0.0, 0.0, 0.01];
+const INV_SCALE: [f32; 3] = [0.02, 0.02, 0.002];
 
 /// The sample model of `spec`.
 pub fn sample(spec: SampleSpec) -> ModelBlob {
@@ -99,7 +102,7 @@ pub fn sample(spec: SampleSpec) -> ModelBlob {
             .wrapping_add(1442695040888963407)
     };
     let mut params: Vec<f32, MAX_PARAMS> = Vec::new();
-    for _ in 0..param_count(ni, spec.hidden as usize, no) {
+    for _ in 0..param_count(ni, spec.hidden as usize, no) + spec.family.skip_len(ni, no) {
         state = state
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
@@ -128,8 +131,14 @@ pub fn sample(spec: SampleSpec) -> ModelBlob {
         },
         in_offset: with_joints(PX_OFFSET, [0.0; 5]),
         in_scale: with_joints(PX_SCALE, JOINT_SCALE),
-        out_offset: out(XYZ_OFFSET),
-        out_scale: out(XYZ_SCALE),
+        out_offset: out(match spec.family.output_map {
+            OutputMap::Direct => XYZ_OFFSET,
+            OutputMap::InverseDepth => INV_OFFSET,
+        }),
+        out_scale: out(match spec.family.output_map {
+            OutputMap::Direct => XYZ_SCALE,
+            OutputMap::InverseDepth => INV_SCALE,
+        }),
         params,
         in_min: with_joints(PX_MIN, JOINT_MIN),
         in_max: with_joints(PX_MAX, JOINT_MIN.map(|v| -v)),
@@ -150,12 +159,26 @@ pub fn sample(spec: SampleSpec) -> ModelBlob {
 /// A valid 4-5-3 blob with seeded weights in [-2, 2) and the built-in fallback: the model of the
 /// fuzz seeds, the fault-injection tests and the firmware's instruction count.
 pub fn sample_model(generation: u32, seed: u64) -> ModelBlob {
-    sample(SampleSpec {
+    sample(legacy(generation, seed))
+}
+
+/// The spec of [`sample_model`].
+fn legacy(generation: u32, seed: u64) -> SampleSpec {
+    SampleSpec {
         generation,
         seed,
         amplitude: 2.0,
         fallback: Some(Calibration::BUILT_IN),
         ..SampleSpec::THESIS
+    }
+}
+
+/// [`sample_model`] in the default family of `hvs train` (inverse depth with a linear skip
+/// term): the firmware's instruction count of the default.
+pub fn sample_default_model(generation: u32, seed: u64) -> ModelBlob {
+    sample(SampleSpec {
+        family: Family::INVERSE_DEPTH_SKIP,
+        ..legacy(generation, seed)
     })
 }
 

@@ -1,6 +1,7 @@
 //! Writes the seeded 4-5-3 sample blob of the QEMU tests to a file (for `firmware/measure.sh`
 //! until a trained model is at hand): `cargo run -p hvs-tests --example sample_blob -- OUT
-//! [GENERATION [POSTURE_HIDDEN]]`; with POSTURE_HIDDEN, a posture-aware 9-POSTURE_HIDDEN-3 one.
+//! [GENERATION [POSTURE_HIDDEN | default]]`; with POSTURE_HIDDEN, a posture-aware
+//! 9-POSTURE_HIDDEN-3 one; with `default`, the 4-5-3 in the default family of `hvs train`.
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -16,8 +17,15 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let blob = match args.next().map(|h| h.parse::<u8>()) {
+    let blob = match args.next().map(|h| {
+        if h == "default" {
+            Ok(0)
+        } else {
+            h.parse::<u8>()
+        }
+    }) {
         None => hvs_tests::sample_model(generation, 42),
+        Some(Ok(0)) => hvs_tests::sample_default_model(generation, 42),
         Some(Ok(h @ 1..=32)) => hvs_tests::sample_posture_model_hidden(generation, 42, h),
         Some(_) => {
             eprintln!("error: POSTURE_HIDDEN: a hidden unit count 1..=32");
