@@ -231,7 +231,7 @@ pub struct InfoData {
     pub fallback: Calibration,
     /// Deepest the head's stack has been since reset, in bytes: the firmware paints the stack
     /// at reset and counts the words no longer painted. `None` where nothing measures it
-    /// (the host-side [`crate::head`] logic).
+    /// (the host-side [`crate::runtime::head`] logic).
     pub stack_peak: Option<u32>,
 }
 
