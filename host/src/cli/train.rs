@@ -46,7 +46,7 @@ pub enum ArchArg {
 }
 
 impl ArchArg {
-    /// The default of `hvs train` (and of `hvs demo --images`).
+    /// The default of `hvs train` for the four pixel inputs (and of `hvs demo --images`).
     pub const DEFAULT: ArchArg = ArchArg::InverseDepthSkip;
 
     /// The blob's family.
@@ -83,9 +83,10 @@ pub struct Args {
     /// Outputs of the net.
     #[arg(long, value_enum, default_value_t = OutputsArg::Xyz)]
     outputs: OutputsArg,
-    /// Model family.
-    #[arg(long, value_enum, default_value_t = ArchArg::DEFAULT)]
-    arch: ArchArg,
+    /// Model family [default: inverse-depth-skip for the four pixel inputs; thesis for a
+    /// posture-aware set (9 inputs), the family the posture study measured].
+    #[arg(long, value_enum)]
+    arch: Option<ArchArg>,
     /// Training algorithm.
     #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]
     algo: AlgoArg,
@@ -213,10 +214,16 @@ pub fn run(a: Args) -> Result<()> {
             max_cycles: a.max_cycles,
         },
         progress: std::io::stderr().is_terminal(),
-        family: a.arch.family(),
+        family: ArchArg::DEFAULT.family(),
     };
     check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
+    let mut config = config;
+    config.family = match a.arch {
+        Some(arch) => arch.family(),
+        None if table.data.n_inputs > 4 => ArchArg::Thesis.family(),
+        None => ArchArg::DEFAULT.family(),
+    };
     crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
     let plan = Plan {
         config,

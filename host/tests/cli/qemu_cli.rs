@@ -112,7 +112,18 @@ fn head_agrees_with_predict(joints: bool) {
         }
         std::fs::write(&pts, out).unwrap();
     }
-    run(&["train", "--data", s(&train), "-o", s(&model), "--seed", "3"]);
+    // The default family (a posture-aware set would default to the thesis family).
+    run(&[
+        "train",
+        "--data",
+        s(&train),
+        "-o",
+        s(&model),
+        "--seed",
+        "3",
+        "--arch",
+        "inverse-depth-skip",
+    ]);
     let shown = run(&["info", s(&model)]);
     assert!(shown.contains("inverse-depth-skip"), "{shown}");
     let predicted = run(&["predict", "--model", s(&model), "--points", s(&pts)]);

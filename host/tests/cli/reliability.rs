@@ -738,7 +738,7 @@ fn messages_name_the_real_problem() {
     assert!(info.contains("training:    lm, seed 0"), "{info}");
     let out = ok(&["train", "--data", s(&tr), "-o", s(&m2), "--restarts", "1"]);
     assert!(
-        out.starts_with("trained 4-5-3 inverse-depth (lm) on 72 points"),
+        out.starts_with("trained 4-5-3 inverse-depth-skip (lm) on 72 points"),
         "{out}"
     );
 }
