@@ -5,25 +5,14 @@
 //! outputs, H = 1..=10, ten single-start nets each, 200 nets, evaluated on the test points):
 //! `cargo bench -p hvs-host --bench sweep`.
 
+mod common;
+
+use common::board_set;
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
-use hvs_host::data::dataset::Dataset;
 use hvs_host::study::thesis::{self as experiment, Quiet};
 use hvs_host::train::{train, TrainConfig};
-use hvs_shared::runtime::blob::InputKind;
-use hvs_shared::sim::presets;
 use std::hint::black_box;
 use std::time::Duration;
-
-fn board_set() -> Dataset {
-    let rig = presets::CASE_4;
-    let mut d = Dataset::new(InputKind::Stereo);
-    for z in presets::TRAIN_DEPTHS {
-        for p in presets::board_points(z) {
-            d.push(&rig.project_rounded(&p).unwrap(), Some(p));
-        }
-    }
-    d
-}
 
 fn bench(c: &mut Criterion) {
     let data = board_set();

@@ -2,24 +2,13 @@
 //! the thesis' case-IV board set (72 points): `cargo bench -p hvs-host --bench train`.
 //! The goal is under 0.1 s wall on the project's 2-core machine.
 
+mod common;
+
+use common::board_set;
 use criterion::{criterion_group, criterion_main, Criterion};
-use hvs_host::data::dataset::Dataset;
 use hvs_host::train::{train, Algo, TrainConfig};
-use hvs_shared::runtime::blob::InputKind;
-use hvs_shared::sim::presets;
 use std::hint::black_box;
 use std::time::Duration;
-
-fn board_set() -> Dataset {
-    let rig = presets::CASE_4;
-    let mut d = Dataset::new(InputKind::Stereo);
-    for z in presets::TRAIN_DEPTHS {
-        for p in presets::board_points(z) {
-            d.push(&rig.project_rounded(&p).unwrap(), Some(p));
-        }
-    }
-    d
-}
 
 fn bench(c: &mut Criterion) {
     let data = board_set();

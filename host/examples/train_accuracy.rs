@@ -26,6 +26,7 @@ use hvs_shared::runtime::blob::{InputKind, ModelBlob, OutputKind};
 use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::metrics::EmaAcc;
 use hvs_shared::sim::{presets, triangulate};
+use hvs_shared::test_support::splitmix64;
 use std::time::Instant;
 
 use hvs_host::cli::train::AlgoArg;
@@ -74,11 +75,7 @@ const VOLUME: [[f64; 2]; 3] = [[-3.0, 3.0], [-2.0, 2.0], [65.0, 165.0]];
 struct SplitMix(u64);
 impl SplitMix {
     fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        (splitmix64(&mut self.0) >> 11) as f64 / (1u64 << 53) as f64
     }
 }
 

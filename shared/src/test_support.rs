@@ -204,6 +204,16 @@ pub fn sample_posture_model_hidden(generation: u32, seed: u64, hidden: u8) -> Mo
     })
 }
 
+/// One SplitMix64 step (Steele, Lea, Flood 2014): advances `state`, returns the next 64
+/// random bits. The seeded generator of tests, examples and fuzzers (same seed, same bits).
+pub fn splitmix64(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -304,15 +304,20 @@ fn flip_scenarios() -> Vec<(&'static str, Vec<u8>, Slot, Vec<u8>)> {
     ]
 }
 
+/// The intact blobs of a scenario: the stored one and the other slot's, if any.
+fn intact_blobs_of(stored: &[u8], other: &[u8]) -> Vec<Vec<u8>> {
+    [stored, other]
+        .into_iter()
+        .filter(|s| !s.is_empty())
+        .map(<[u8]>::to_vec)
+        .collect()
+}
+
 #[test]
 fn every_single_bit_flip_is_refused() {
     let mut flips = 0usize;
     for (name, stored, slot, other) in flip_scenarios() {
-        let intact_blobs: Vec<Vec<u8>> = [&stored, &other]
-            .into_iter()
-            .filter(|s| !s.is_empty())
-            .cloned()
-            .collect();
+        let intact_blobs = intact_blobs_of(&stored, &other);
         for bit in 0..stored.len() * 8 {
             let mut d = stored.clone();
             d[bit / 8] ^= 1 << (bit % 8);
@@ -342,11 +347,7 @@ fn multi_bit_flips_and_bursts_are_refused() {
         s
     };
     for (name, stored, slot, other) in flip_scenarios() {
-        let intact_blobs: Vec<Vec<u8>> = [&stored, &other]
-            .into_iter()
-            .filter(|s| !s.is_empty())
-            .cloned()
-            .collect();
+        let intact_blobs = intact_blobs_of(&stored, &other);
         let bits = stored.len() * 8;
         // 2 and 3 distinct bits (CRC-32 detects all of these at this length).
         for n in [2usize, 3] {

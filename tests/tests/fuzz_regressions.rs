@@ -23,14 +23,20 @@ fn kept(target: &str) -> Vec<(String, Vec<u8>)> {
     out
 }
 
+/// The seeds (name, bytes) of fuzz target `target`.
+fn seeds_of(target: &str) -> impl Iterator<Item = (&'static str, Vec<u8>)> + '_ {
+    fuzz::seeds()
+        .into_iter()
+        .filter(move |(t, _, _)| *t == target)
+        .map(|(_, name, bytes)| (name, bytes))
+}
+
 fn replay(target: &str, check: fn(&[u8])) -> usize {
     let mut n = 0;
-    for (t, name, bytes) in fuzz::seeds() {
-        if t == target {
-            eprintln!("{target}: seed {name}");
-            check(&bytes);
-            n += 1;
-        }
+    for (name, bytes) in seeds_of(target) {
+        eprintln!("{target}: seed {name}");
+        check(&bytes);
+        n += 1;
     }
     for (name, bytes) in kept(target) {
         eprintln!("{target}: {name}");
@@ -55,13 +61,11 @@ fn frame_decode_inputs() {
 fn rig_json_inputs() {
     assert!(replay("rig_json", fuzz::rig_json) >= 3);
     // The duplicate-key seed is refused, the others are accepted.
-    for (t, name, bytes) in fuzz::seeds() {
-        if t == "rig_json" {
-            let text = std::str::from_utf8(&bytes[1..]).unwrap();
-            let case = (bytes[0] & 1 == 1).then_some((bytes[0] >> 1) % 8);
-            let r = hvs_host::data::rig::parse(text, case);
-            assert_eq!(r.is_err(), name == "duplicate_key", "{name}: {r:?}");
-        }
+    for (name, bytes) in seeds_of("rig_json") {
+        let text = std::str::from_utf8(&bytes[1..]).unwrap();
+        let case = (bytes[0] & 1 == 1).then_some((bytes[0] >> 1) % 8);
+        let r = hvs_host::data::rig::parse(text, case);
+        assert_eq!(r.is_err(), name == "duplicate_key", "{name}: {r:?}");
     }
 }
 
@@ -74,12 +78,10 @@ fn head_stream_inputs() {
 fn csv_read_inputs() {
     assert!(replay("csv_read", fuzz::csv_read) >= 3);
     // The seeds are files the reader accepts (so the checks on tables run).
-    for (t, name, bytes) in fuzz::seeds() {
-        if t == "csv_read" {
-            let r = csv_io::read_set_from(Path::new(name), bytes.as_slice(), Inputs::Auto, true);
-            let table = r.unwrap_or_else(|e| panic!("seed {name}: {e:#}"));
-            assert!(!table.data.is_empty());
-        }
+    for (name, bytes) in seeds_of("csv_read") {
+        let r = csv_io::read_set_from(Path::new(name), bytes.as_slice(), Inputs::Auto, true);
+        let table = r.unwrap_or_else(|e| panic!("seed {name}: {e:#}"));
+        assert!(!table.data.is_empty());
     }
 }
 

@@ -886,6 +886,35 @@ fn weigh(win: Win, lut: &[f32], t: &mut [f32]) -> f64 {
     std
 }
 
+/// The running sums of a weighted ZNCC, in f32: template times window, and the weighted
+/// window's sum and sum of squares.
+#[derive(Clone, Copy, Default)]
+struct Sums {
+    st: f32,
+    s1: f32,
+    s2: f32,
+}
+
+impl Sums {
+    /// Adds the window value `val` under template coefficient `coef` and weight `wt`.
+    #[inline(always)]
+    fn add(&mut self, coef: f32, wt: f32, val: f32) {
+        self.st += coef * val;
+        let wv = wt * val;
+        self.s1 += wv;
+        self.s2 += wv * val;
+    }
+
+    /// The ZNCC in `[-1, 1]`; 0 for a flat window.
+    fn score(self) -> f64 {
+        let var = f64::from(self.s2) - f64::from(self.s1) * f64::from(self.s1);
+        if var <= 1e-4 {
+            return 0.0;
+        }
+        (f64::from(self.st) / var.sqrt()).clamp(-1.0, 1.0)
+    }
+}
+
 /// Weighted ZNCC of the template `t` ([`template`]: coefficients then weights, window `win`)
 /// with the window of `img` around whole column `u` and sub-pixel row `v` (linear in `v`),
 /// or `None` when the window leaves the image.
@@ -909,7 +938,7 @@ fn zncc_at(img: &Plane, t: &[f32], win: Win, scale: [f64; 2], u: i64, v: f64) ->
     let (coef, wts) = t.split_at(n);
     let (xs, ys) = (xa as usize, ya as usize);
     let wu = img.w;
-    let (mut st, mut s1, mut s2) = (0.0f32, 0.0f32, 0.0f32);
+    let mut sums = Sums::default();
     for dy in 0..wh {
         let row = (ys + dy) * wu + xs;
         let a = &img.px[row..row + ww];
@@ -918,27 +947,15 @@ fn zncc_at(img: &Plane, t: &[f32], win: Win, scale: [f64; 2], u: i64, v: f64) ->
         if fy > 0.0 {
             let b = &img.px[row + wu..row + wu + ww];
             for k in 0..ww {
-                let val = a[k] + fy * (b[k] - a[k]);
-                st += tr[k] * val;
-                let wv = wr[k] * val;
-                s1 += wv;
-                s2 += wv * val;
+                sums.add(tr[k], wr[k], a[k] + fy * (b[k] - a[k]));
             }
         } else {
             for k in 0..ww {
-                let val = a[k];
-                st += tr[k] * val;
-                let wv = wr[k] * val;
-                s1 += wv;
-                s2 += wv * val;
+                sums.add(tr[k], wr[k], a[k]);
             }
         }
     }
-    let var = f64::from(s2) - f64::from(s1) * f64::from(s1);
-    if var <= 1e-4 {
-        return Some(0.0);
-    }
-    Some((f64::from(st) / var.sqrt()).clamp(-1.0, 1.0))
+    Some(sums.score())
 }
 
 /// [`zncc_at`] with window offset `(dx, dy)` at `(u + scale[0] dx, v + scale[1] dy)`,
@@ -947,24 +964,17 @@ fn zncc_scaled(img: &Plane, t: &[f32], win: Win, scale: [f64; 2], u: f64, v: f64
     let n = win.len();
     let (coef, wts) = t.split_at(n);
     let ww = win.width();
-    let (mut st, mut s1, mut s2) = (0.0f32, 0.0f32, 0.0f32);
+    let mut sums = Sums::default();
     for dy in 0..win.height() {
         let y = v + scale[1] * (win.y0 + dy as i64) as f64;
         for dx in 0..ww {
             let x = u + scale[0] * (win.x0 + dx as i64) as f64;
             let val = bilinear(img, x, y)?;
             let k = dy * ww + dx;
-            st += coef[k] * val;
-            let wv = wts[k] * val;
-            s1 += wv;
-            s2 += wv * val;
+            sums.add(coef[k], wts[k], val);
         }
     }
-    let var = f64::from(s2) - f64::from(s1) * f64::from(s1);
-    if var <= 1e-4 {
-        return Some(0.0);
-    }
-    Some((f64::from(st) / var.sqrt()).clamp(-1.0, 1.0))
+    Some(sums.score())
 }
 
 /// Scores the whole `u` from `k_lo - 1` to `k_hi + 1` along the line `v_at` and applies the

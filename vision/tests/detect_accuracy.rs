@@ -10,6 +10,7 @@
 //! Run with `cargo test --release -p hvs-vision --test detect_accuracy -- --nocapture` to see
 //! the table.
 
+use hvs_shared::test_support::splitmix64;
 use hvs_vision::board::Board;
 use hvs_vision::detect;
 use image::GrayImage;
@@ -128,11 +129,7 @@ fn level(c: u8) -> f64 {
 struct Rng(u64);
 impl Rng {
     fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        z ^= z >> 31;
+        let z = splitmix64(&mut self.0);
         ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
     fn gauss(&mut self) -> f64 {
@@ -149,29 +146,33 @@ fn blur(img: &mut [f64], sigma: f64) {
     let k: Vec<f64> = (-r..=r)
         .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
         .collect();
+    let tmp = blur_pass(img, &k, r, true);
+    let out = blur_pass(&tmp, &k, r, false);
+    img.copy_from_slice(&out);
+}
+
+/// One pass of the separable blur with kernel `k` (radius `r`): along the rows (`along_x`)
+/// or the columns, the edges clamped.
+fn blur_pass(src: &[f64], k: &[f64], r: i64, along_x: bool) -> Vec<f64> {
     let ks: f64 = k.iter().sum();
     let (w, h) = (W as i64, H as i64);
-    let mut tmp = vec![0.0; img.len()];
+    let mut out = vec![0.0; src.len()];
     for y in 0..h {
         for x in 0..w {
             let mut s = 0.0;
             for (i, kv) in k.iter().enumerate() {
-                let xx = (x + i as i64 - r).clamp(0, w - 1);
-                s += kv * img[(y * w + xx) as usize];
+                let d = i as i64 - r;
+                let at = if along_x {
+                    y * w + (x + d).clamp(0, w - 1)
+                } else {
+                    (y + d).clamp(0, h - 1) * w + x
+                };
+                s += kv * src[at as usize];
             }
-            tmp[(y * w + x) as usize] = s / ks;
+            out[(y * w + x) as usize] = s / ks;
         }
     }
-    for y in 0..h {
-        for x in 0..w {
-            let mut s = 0.0;
-            for (i, kv) in k.iter().enumerate() {
-                let yy = (y + i as i64 - r).clamp(0, h - 1);
-                s += kv * tmp[(yy * w + x) as usize];
-            }
-            img[(y * w + x) as usize] = s / ks;
-        }
-    }
+    out
 }
 
 /// The rendered image and the exact corners `(i, j)` in row-major label order.

@@ -2,6 +2,7 @@
 //! `image` decoding and board detection without a panic (an error is fine). Seeded: the same
 //! run every time.
 
+use hvs_shared::test_support::splitmix64;
 use hvs_vision::board::Board;
 use hvs_vision::detect;
 use image::{GrayImage, Luma};
@@ -10,11 +11,7 @@ use std::path::PathBuf;
 struct Rng(u64);
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        z ^ (z >> 31)
+        splitmix64(&mut self.0)
     }
     fn below(&mut self, n: usize) -> usize {
         (self.next() % n as u64) as usize

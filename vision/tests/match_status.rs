@@ -25,6 +25,16 @@ fn texture(w: u32, h: u32, shift: u32) -> GrayImage {
     })
 }
 
+/// The query of the left point `(ul, vl)` for disparities in `[d_min, d_max]`.
+fn query(ul: f64, vl: f64, d_min: f64, d_max: f64) -> Query {
+    Query {
+        ul,
+        vl,
+        d_min,
+        d_max,
+    }
+}
+
 #[test]
 fn a_shifted_texture_is_found_at_its_shift() {
     // Right image = left shifted by 12 px: u_r = u_l - 12.
@@ -32,12 +42,7 @@ fn a_shifted_texture_is_found_at_its_shift() {
     let r = texture(200, 120, 12);
     // r(x) = pattern(x + 12) = l(x + 12): the left point u_l is at u_r = u_l - 12.
     let m = Matcher::new(&l, &r, &rectified(), MatchParams::default()).unwrap();
-    let got = m.find(&Query {
-        ul: 100.0,
-        vl: 60.0,
-        d_min: 5.0,
-        d_max: 20.0,
-    });
+    let got = m.find(&query(100.0, 60.0, 5.0, 20.0));
     assert_eq!(got.status, MatchStatus::Ok, "{got:?}");
     // The parabola through an asymmetric ZNCC peak is biased by up to ~0.15 px.
     assert!(
@@ -47,12 +52,7 @@ fn a_shifted_texture_is_found_at_its_shift() {
     assert!(got.score > 0.99);
     // The true disparity outside the interval: no peak inside it (the pattern's 17 px
     // period would repeat at 29 and 46 px: the interval avoids both).
-    let got = m.find(&Query {
-        ul: 100.0,
-        vl: 60.0,
-        d_min: 32.0,
-        d_max: 40.0,
-    });
+    let got = m.find(&query(100.0, 60.0, 32.0, 40.0));
     assert_ne!(got.status, MatchStatus::Ok, "{got:?}");
 }
 
@@ -60,12 +60,7 @@ fn a_shifted_texture_is_found_at_its_shift() {
 fn refusals_have_their_status() {
     let l = texture(200, 120, 0);
     let r = texture(200, 120, 12);
-    let q = |ul: f64, vl: f64, d_min: f64, d_max: f64| Query {
-        ul,
-        vl,
-        d_min,
-        d_max,
-    };
+    let q = query;
     let m = Matcher::new(&l, &r, &rectified(), MatchParams::default()).unwrap();
     assert_eq!(
         m.find(&q(f64::NAN, 60.0, 5.0, 20.0)).status,
@@ -128,12 +123,7 @@ fn an_occluded_corner_is_not_returned() {
     let f = pinhole_fundamental(&rig.left(), &rig.right());
     let c = &r.corners[20];
     let d = c.px[0] - c.px[2];
-    let q = Query {
-        ul: c.px[0],
-        vl: c.px[1],
-        d_min: d - 3.0,
-        d_max: d + 3.0,
-    };
+    let q = query(c.px[0], c.px[1], d - 3.0, d + 3.0);
     let all = match_points(&r.left, &r.right, &f, &[q], MatchParams::default()).unwrap();
     assert_eq!(all[0].status, MatchStatus::Ok);
     // Occlude the corner in the right image with flat grey: the best candidate then is
@@ -199,12 +189,7 @@ fn a_right_image_scaled_along_u_is_matched_with_right_scale() {
         let ul = f64::from(ul);
         let truth = 100.0 + 1.4 * (ul - 112.0);
         let d = ul - truth;
-        let q = Query {
-            ul,
-            vl: 60.0,
-            d_min: d - 4.0,
-            d_max: d + 4.0,
-        };
+        let q = query(ul, 60.0, d - 4.0, d + 4.0);
         let got = m.find(&q);
         if got.is_ok() {
             ok += 1;

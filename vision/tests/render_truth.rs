@@ -26,31 +26,28 @@ fn dark(img: &GrayImage, opt: &RenderOptions, c: i64, r: i64) -> f64 {
 /// Position of the one black/white edge crossed by row `r` between columns `c0..=c1` (clean
 /// render): the run's summed darkness (or lightness) from the run's left pixel boundary.
 fn edge_u(img: &GrayImage, opt: &RenderOptions, r: i64, c0: i64, c1: i64, dark_left: bool) -> f64 {
-    let s: f64 = (c0..=c1)
-        .map(|c| {
-            let d = dark(img, opt, c, r);
-            if dark_left {
-                d
-            } else {
-                1.0 - d
-            }
-        })
-        .sum();
-    c0 as f64 - 0.5 + s
+    edge(c0, c1, dark_left, |c| dark(img, opt, c, r))
 }
 
+/// The same down column `c` between rows `r0..=r1`.
 fn edge_v(img: &GrayImage, opt: &RenderOptions, c: i64, r0: i64, r1: i64, dark_top: bool) -> f64 {
-    let s: f64 = (r0..=r1)
-        .map(|r| {
-            let d = dark(img, opt, c, r);
-            if dark_top {
+    edge(r0, r1, dark_top, |r| dark(img, opt, c, r))
+}
+
+/// The run `i0..=i1`'s summed darkness (lightness unless `dark_first`) from its first pixel
+/// boundary.
+fn edge(i0: i64, i1: i64, dark_first: bool, dark_at: impl Fn(i64) -> f64) -> f64 {
+    let s: f64 = (i0..=i1)
+        .map(|i| {
+            let d = dark_at(i);
+            if dark_first {
                 d
             } else {
                 1.0 - d
             }
         })
         .sum();
-    r0 as f64 - 0.5 + s
+    i0 as f64 - 0.5 + s
 }
 
 /// The corner `(u, v)` measured in a clean image from the grid lines through it: the vertical

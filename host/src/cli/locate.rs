@@ -1,7 +1,10 @@
 //! `hvs locate`: points of the left image found in the right one and turned into X, Y, Z by the
 //! model, with nothing but the model and the two images ([`crate::vision::locate`]).
 
-use crate::data::csv::{csv_error, write_bytes, write_output, LineCounter};
+use crate::data::csv::{
+    check_row_len, check_unique_names, csv_error, csv_reader, missing_column, write_bytes,
+    write_output, LineCounter,
+};
 use crate::data::model;
 use crate::data::output::check_not_input;
 use crate::vision::{locate, locate_overlay, png_bytes, read_grey, Located};
@@ -79,26 +82,14 @@ pub fn read_pixels(path: &Path) -> Result<Pixels> {
     let bytes = std::fs::read(path).with_context(|| format!("{file}: cannot read"))?;
     let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(&bytes);
     let mut lines_of = LineCounter::new(bytes);
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .from_reader(bytes);
+    let mut rdr = csv_reader(bytes);
     let header = rdr.headers().map_err(|e| csv_error(&file, e))?.clone();
     let hl = lines_of.line_at(header.position().map_or(0, |p| p.byte()));
     let names: Vec<String> = header.iter().map(str::to_string).collect();
-    for (i, n) in names.iter().enumerate() {
-        if names[..i].contains(n) {
-            bail!("{file}:{hl}: column \"{n}\" appears twice in the header");
-        }
-    }
+    check_unique_names(&file, hl, &names, false)?;
     let find = |c: &str| {
-        names.iter().position(|n| n == c).ok_or_else(|| {
-            anyhow!(
-                "{file}:{hl}: missing column \"{c}\" (the header has: {})",
-                names.join(",")
-            )
-        })
+        let at = names.iter().position(|n| n == c);
+        at.ok_or_else(|| missing_column(&file, hl, c, &names))
     };
     let (ui, vi) = (find("u_l")?, find("v_l")?);
     let own = ["u_l", "v_l", "u_r", "v_r", "x", "y", "z", "score", "status"];
@@ -113,13 +104,7 @@ pub fn read_pixels(path: &Path) -> Result<Pixels> {
     let mut rec = csv::StringRecord::new();
     while rdr.read_record(&mut rec).map_err(|e| csv_error(&file, e))? {
         let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
-        if rec.len() != header.len() {
-            bail!(
-                "{file}:{line}: row has {} fields, the header has {}",
-                rec.len(),
-                header.len()
-            );
-        }
+        check_row_len(&file, line, rec.len(), header.len())?;
         let num = |k: usize, c: &str| -> Result<f64> {
             let t = &rec[k];
             if t.eq_ignore_ascii_case("nan") {

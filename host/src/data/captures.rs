@@ -5,9 +5,12 @@
 //! (the five joint columns among them), which are passed through to every corner row of the
 //! pair. Errors name the file, the line and the column.
 
-use super::csv::{csv_error, number, LineCounter};
+use super::csv::{
+    check_row_len, check_unique_names, csv_error, csv_reader, joint_columns_present,
+    missing_column, number, LineCounter,
+};
 use super::dataset::JOINT_COLUMNS;
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 
 /// One stereo pair of a capture set.
@@ -64,49 +67,19 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
         .filter(|d| !d.as_os_str().is_empty())
         .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
     let mut lines_of = LineCounter::new(bytes);
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .from_reader(bytes);
+    let mut rdr = csv_reader(bytes);
     let header = rdr.headers().map_err(|e| csv_error(&file, e))?.clone();
     let hl = lines_of.line_at(header.position().map_or(0, |p| p.byte()));
     let names: Vec<String> = header.iter().map(str::to_string).collect();
     if names.iter().all(String::is_empty) {
         bail!("{file}: empty file (expected a header row naming the columns left,right)");
     }
-    for (i, n) in names.iter().enumerate() {
-        if names[..i].contains(n) {
-            bail!("{file}:{hl}: column \"{n}\" appears twice in the header");
-        }
-    }
+    check_unique_names(&file, hl, &names, false)?;
     let find = |c: &str| names.iter().position(|n| n == c);
-    let need = |c: &str| {
-        find(c).ok_or_else(|| {
-            anyhow!(
-                "{file}:{hl}: missing column \"{c}\" (the header has: {})",
-                names.join(",")
-            )
-        })
-    };
+    let need = |c: &str| find(c).ok_or_else(|| missing_column(&file, hl, c, &names));
     let (li, ri) = (need("left")?, need("right")?);
     let (zi, xi, yi) = (find("z"), find("x"), find("y"));
-    let present_joints: Vec<&str> = JOINT_COLUMNS
-        .iter()
-        .copied()
-        .filter(|c| find(c).is_some())
-        .collect();
-    if !present_joints.is_empty() && present_joints.len() < JOINT_COLUMNS.len() {
-        let missing = JOINT_COLUMNS
-            .iter()
-            .find(|c| !present_joints.contains(c))
-            .copied()
-            .unwrap_or_default();
-        bail!(
-            "{file}:{hl}: missing column \"{missing}\" (a posture-aware set needs all of {})",
-            JOINT_COLUMNS.join(",")
-        );
-    }
+    let present_joints = joint_columns_present(&file, hl, find)?;
     let mut extra_columns: Vec<String> = present_joints.iter().map(|s| s.to_string()).collect();
     for n in &names {
         if !OWN.contains(&n.as_str()) && !JOINT_COLUMNS.contains(&n.as_str()) && !n.is_empty() {
@@ -116,20 +89,9 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
     let extra_idx: Vec<usize> = extra_columns.iter().map(|c| find(c).unwrap_or(0)).collect();
     let mut captures = Vec::new();
     let mut rec = csv::StringRecord::new();
-    loop {
-        match rdr.read_record(&mut rec) {
-            Ok(true) => {}
-            Ok(false) => break,
-            Err(e) => return Err(csv_error(&file, e)),
-        }
+    while rdr.read_record(&mut rec).map_err(|e| csv_error(&file, e))? {
         let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
-        if rec.len() != header.len() {
-            bail!(
-                "{file}:{line}: row has {} fields, the header has {}",
-                rec.len(),
-                header.len()
-            );
-        }
+        check_row_len(&file, line, rec.len(), header.len())?;
         let name = |k: usize, col: &str| -> Result<String> {
             let s = rec[k].to_string();
             if s.is_empty() {
@@ -186,6 +148,7 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use anyhow::anyhow;
 
     fn read_text(text: &str) -> Result<CaptureSet> {
         let dir = tempfile::tempdir().unwrap();

@@ -98,11 +98,7 @@ pub fn read_set_from<R: Read>(
         .read_to_end(&mut bytes)
         .with_context(|| format!("{file}: cannot read"))?;
     let mut lines_of = LineCounter::new(&bytes);
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .from_reader(bytes.as_slice());
+    let mut rdr = csv_reader(&bytes);
     let header = rdr.byte_headers().map_err(|e| csv_error(&file, e))?.clone();
     if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
         bail!("{file}: empty file (expected a header row naming the columns u_l,v_l,u_r,v_r)");
@@ -112,42 +108,13 @@ pub fn read_set_from<R: Read>(
         .iter()
         .map(|h| String::from_utf8_lossy(h).into_owned())
         .collect();
-    for (i, n) in names.iter().enumerate() {
-        if !n.is_empty() && names[..i].contains(n) {
-            bail!("{file}:{hl}: column \"{n}\" appears twice in the header");
-        }
-    }
+    check_unique_names(&file, hl, &names, true)?;
     let find = |c: &str| names.iter().position(|n| n == c);
-    let require = |c: &str| {
-        find(c).ok_or_else(|| {
-            anyhow!(
-                "{file}:{hl}: missing column \"{c}\" (the header has: {})",
-                names.join(",")
-            )
-        })
-    };
+    let require = |c: &str| find(c).ok_or_else(|| missing_column(&file, hl, c, &names));
     let with_joints = match inputs {
         Inputs::Stereo => false,
         Inputs::StereoJoints => true,
-        Inputs::Auto => {
-            let present: Vec<&str> = JOINT_COLUMNS
-                .iter()
-                .copied()
-                .filter(|c| find(c).is_some())
-                .collect();
-            if !present.is_empty() && present.len() < JOINT_COLUMNS.len() {
-                let missing = JOINT_COLUMNS
-                    .iter()
-                    .find(|c| !present.contains(c))
-                    .copied()
-                    .unwrap_or_default();
-                bail!(
-                    "{file}:{hl}: missing column \"{missing}\" (a posture-aware set needs all of {})",
-                    JOINT_COLUMNS.join(",")
-                );
-            }
-            !present.is_empty()
-        }
+        Inputs::Auto => !joint_columns_present(&file, hl, find)?.is_empty(),
     };
     let mut in_cols: Vec<(usize, &str)> = Vec::new();
     for c in PIXEL_COLUMNS {
@@ -180,13 +147,7 @@ pub fn read_set_from<R: Read>(
             Err(e) => return Err(csv_error(&file, e)),
         }
         let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
-        if rec.len() != header.len() {
-            bail!(
-                "{file}:{line}: row has {} fields, the header has {}",
-                rec.len(),
-                header.len()
-            );
-        }
+        check_row_len(&file, line, rec.len(), header.len())?;
         for (slot, (col, cname)) in row.iter_mut().zip(&in_cols) {
             *slot = number(&file, line, cname, &rec[*col])?;
         }
@@ -273,6 +234,74 @@ pub(crate) fn number(file: &str, line: u64, column: &str, field: &[u8]) -> Resul
         );
     }
     Ok(v)
+}
+
+/// The CSV reader every table of `hvs` is read with: a header row, rows of any length (checked
+/// by [`check_row_len`], naming the line), fields trimmed.
+pub(crate) fn csv_reader(bytes: &[u8]) -> csv::Reader<&[u8]> {
+    csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(bytes)
+}
+
+/// A column named twice in the header (line `hl`) is an error; with `skip_empty`, unnamed
+/// columns may repeat.
+pub(crate) fn check_unique_names(
+    file: &str,
+    hl: u64,
+    names: &[String],
+    skip_empty: bool,
+) -> Result<()> {
+    for (i, n) in names.iter().enumerate() {
+        if !(skip_empty && n.is_empty()) && names[..i].contains(n) {
+            bail!("{file}:{hl}: column \"{n}\" appears twice in the header");
+        }
+    }
+    Ok(())
+}
+
+/// The error of a header (line `hl`) without column `c`.
+pub(crate) fn missing_column(file: &str, hl: u64, c: &str, names: &[String]) -> anyhow::Error {
+    anyhow!(
+        "{file}:{hl}: missing column \"{c}\" (the header has: {})",
+        names.join(",")
+    )
+}
+
+/// The joint columns the header (line `hl`) has, `find` giving a column's index: all of them
+/// or none (a posture-aware set needs all).
+pub(crate) fn joint_columns_present(
+    file: &str,
+    hl: u64,
+    find: impl Fn(&str) -> Option<usize>,
+) -> Result<Vec<&'static str>> {
+    let present: Vec<&str> = JOINT_COLUMNS
+        .iter()
+        .copied()
+        .filter(|c| find(c).is_some())
+        .collect();
+    if !present.is_empty() && present.len() < JOINT_COLUMNS.len() {
+        let missing = JOINT_COLUMNS
+            .iter()
+            .find(|c| !present.contains(c))
+            .copied()
+            .unwrap_or_default();
+        bail!(
+            "{file}:{hl}: missing column \"{missing}\" (a posture-aware set needs all of {})",
+            JOINT_COLUMNS.join(",")
+        );
+    }
+    Ok(present)
+}
+
+/// A row (line `line`) of `got` fields under a header of `want` is an error.
+pub(crate) fn check_row_len(file: &str, line: u64, got: usize, want: usize) -> Result<()> {
+    if got != want {
+        bail!("{file}:{line}: row has {got} fields, the header has {want}");
+    }
+    Ok(())
 }
 
 pub(crate) fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {

@@ -7,6 +7,14 @@ use crate::common::ok_line;
 
 use tempfile::TempDir;
 
+/// `hvs eval --model model --data data --case 3 --json`, parsed.
+fn eval_case_3(model: &str, data: &str) -> serde_json::Value {
+    let json = ok_line(&format!(
+        "eval --model {model} --data {data} --case 3 --json"
+    ));
+    serde_json::from_str(&json).unwrap()
+}
+
 #[test]
 fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
     let dir = TempDir::new().unwrap();
@@ -26,12 +34,7 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
         "simulate --case 3 --set test --postures random --posture-count 12 --seed 3 -o {}",
         p("test.csv")
     ));
-    let json = ok_line(&format!(
-        "eval --model {} --data {} --case 3 --json",
-        p("m.hvsw"),
-        p("test.csv")
-    ));
-    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let v = eval_case_3(&p("m.hvsw"), &p("test.csv"));
     let methods = v["evaluation"]["methods"].as_array().unwrap();
     let floor = methods
         .iter()
@@ -65,12 +68,7 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
         p("home.csv"),
         p("home.hvsw")
     ));
-    let json = ok_line(&format!(
-        "eval --model {} --data {} --case 3 --json",
-        p("home.hvsw"),
-        p("test.csv")
-    ));
-    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let v = eval_case_3(&p("home.hvsw"), &p("test.csv"));
     let home_floor = v["evaluation"]["methods"]
         .as_array()
         .unwrap()

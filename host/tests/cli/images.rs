@@ -1,7 +1,7 @@
 //! `hvs render` and `hvs board detect`: rendered stereo photos into a training set, through the
 //! built binary, and every kind of bad input named and skipped or refused.
 
-use crate::common::{hvs, ok, s};
+use crate::common::{detect_args, hvs, locate_args, ok, s, stderr_with_code, train_restarts};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -68,25 +68,10 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
 
     let points = dir.path().join("points.csv");
     let ov = dir.path().join("ov");
-    let out = hvs()
-        .args([
-            "board",
-            "detect",
-            "--board",
-            s(&shots.join("board.json")),
-            "--captures",
-            s(&shots.join("captures.csv")),
-            "-o",
-            s(&points),
-            "--overlays",
-            s(&ov),
-        ])
-        .assert()
-        .success()
-        .get_output()
-        .stderr
-        .clone();
-    let summary = String::from_utf8(out).unwrap();
+    let (board, caps) = (shots.join("board.json"), shots.join("captures.csv"));
+    let mut args = detect_args(&board, &caps, &points);
+    args.extend(["--overlays", s(&ov)]);
+    let summary = stderr_with_code(&args, 0);
     assert!(summary.contains("54/54 corners"), "{summary}");
     assert!(summary.contains("3 of 3 pairs, 162 corners"), "{summary}");
     let text = std::fs::read_to_string(&points).unwrap();
@@ -118,38 +103,14 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     }
     // hvs train takes it as it is.
     let model = dir.path().join("m.hvsw");
-    ok(&[
-        "train",
-        "--data",
-        s(&points),
-        "-o",
-        s(&model),
-        "--restarts",
-        "2",
-    ]);
+    train_restarts(&points, &model, "2");
     let info = ok(&["info", s(&model)]);
     assert!(info.contains("matcher"), "{info}");
 }
 
 /// Runs `board detect` expecting exit 1; returns stderr.
 fn detect_fails(board: &Path, captures: &Path, out: &Path) -> String {
-    let o = hvs()
-        .args([
-            "board",
-            "detect",
-            "--board",
-            s(board),
-            "--captures",
-            s(captures),
-            "-o",
-            s(out),
-        ])
-        .assert()
-        .code(1)
-        .get_output()
-        .stderr
-        .clone();
-    let e = String::from_utf8(o).unwrap();
+    let e = stderr_with_code(detect_args(board, captures, out), 1);
     assert!(!e.contains("panicked"), "{e}");
     assert!(!out.exists(), "nothing is written on failure");
     e
@@ -211,23 +172,7 @@ fn bad_images_and_boards_are_named_skipped_or_refused() {
         "left,right,z\nl.png,r.png,85\nmissing.png,r.png,95\n",
     )
     .unwrap();
-    let o = hvs()
-        .args([
-            "board",
-            "detect",
-            "--board",
-            s(&board),
-            "--captures",
-            s(&caps),
-            "-o",
-            s(&out),
-        ])
-        .assert()
-        .success()
-        .get_output()
-        .stderr
-        .clone();
-    let e = String::from_utf8(o).unwrap();
+    let e = stderr_with_code(detect_args(&board, &caps, &out), 0);
     assert!(e.contains("caps.csv:3") && e.contains("missing.png"), "{e}");
     assert_eq!(
         std::fs::read_to_string(&out).unwrap().lines().count(),
@@ -242,26 +187,13 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     let shots = d.join("shots");
     render(&shots, &["--seed", "6"]);
     let points = d.join("points.csv");
-    ok(&[
-        "board",
-        "detect",
-        "--board",
-        s(&shots.join("board.json")),
-        "--captures",
-        s(&shots.join("captures.csv")),
-        "-o",
-        s(&points),
-    ]);
+    ok(&detect_args(
+        &shots.join("board.json"),
+        &shots.join("captures.csv"),
+        &points,
+    ));
     let model = d.join("m.hvsw");
-    ok(&[
-        "train",
-        "--data",
-        s(&points),
-        "-o",
-        s(&model),
-        "--restarts",
-        "2",
-    ]);
+    train_restarts(&points, &model, "2");
     let test = d.join("test");
     render(
         &test,
@@ -283,21 +215,13 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     let (l, r) = (test.join("left01.png"), test.join("right01.png"));
     let out = d.join("out.csv");
     let overlay = d.join("ov.png");
-    ok(&[
-        "locate",
-        "--model",
-        s(&model),
-        "--left",
-        s(&l),
-        "--right",
-        s(&r),
-        "--points",
-        s(&pix),
-        "-o",
-        s(&out),
-        "--overlay",
-        s(&overlay),
-    ]);
+    ok(&locate_args(
+        &["locate"],
+        &model,
+        &l,
+        &r,
+        &["--points", s(&pix), "-o", s(&out), "--overlay", s(&overlay)],
+    ));
     assert!(overlay.is_file());
     let text = std::fs::read_to_string(&out).unwrap();
     let mut lines = text.lines();
@@ -329,17 +253,13 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     assert_eq!(rows[54][8], "nan_input");
     assert_eq!(rows[55][8], "outside");
     // One point, printed.
-    let one = ok(&[
-        "locate",
-        "--model",
-        s(&model),
-        "--left",
-        s(&l),
-        "--right",
-        s(&r),
-        "--at",
-        "300,200",
-    ]);
+    let one = ok(&locate_args(
+        &["locate"],
+        &model,
+        &l,
+        &r,
+        &["--at", "300,200"],
+    ));
     assert!(
         one.contains("z=") || one.contains("no trustworthy match"),
         "{one}"
@@ -349,33 +269,19 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
         .save(d.join("small.png"))
         .unwrap();
     let e = crate::common::fails(
-        &[
-            "locate",
-            "--model",
-            s(&model),
-            "--left",
-            s(&l),
-            "--right",
-            s(&d.join("small.png")),
-            "--at",
-            "1,1",
-        ],
+        &locate_args(
+            &["locate"],
+            &model,
+            &l,
+            &d.join("small.png"),
+            &["--at", "1,1"],
+        ),
         "differ in size",
     );
     assert!(e.contains("small.png"), "{e}");
     let v1 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/tests/golden/v1_4_5_3.hvsw");
     crate::common::fails(
-        &[
-            "locate",
-            "--model",
-            s(&v1),
-            "--left",
-            s(&l),
-            "--right",
-            s(&r),
-            "--at",
-            "1,1",
-        ],
+        &locate_args(&["locate"], &v1, &l, &r, &["--at", "1,1"]),
         "retrain it with `hvs train`",
     );
 }

@@ -46,25 +46,27 @@ fn bad_posture_flags_are_refused() {
     let with = |extra: &[&'static str]| -> Vec<&'static str> {
         base.iter().copied().chain(extra.iter().copied()).collect()
     };
-    fails(&with(&["--posture-count", "3"]), "need --postures");
-    fails(
-        &with(&["--postures", "grid", "--posture-levels", "3,3"]),
-        "five counts",
-    );
-    fails(
-        &with(&["--postures", "grid", "--posture-levels", "3,0,3,3,3"]),
-        "at least 1",
-    );
-    fails(
-        &with(&["--postures", "random", "--posture-levels", "3,3,3,3,3"]),
-        "grid or lattice",
-    );
-    fails(
-        &with(&["--postures", "grid", "--posture-count", "4"]),
-        "random",
-    );
-    fails(&with(&["--distortion", "1,2,3"]), "K1 or K1,K2");
-    fails(&with(&["--distortion", "nan"]), "finite");
+    let cases: [(&[&'static str], &str); 7] = [
+        (&["--posture-count", "3"], "need --postures"),
+        (
+            &["--postures", "grid", "--posture-levels", "3,3"],
+            "five counts",
+        ),
+        (
+            &["--postures", "grid", "--posture-levels", "3,0,3,3,3"],
+            "at least 1",
+        ),
+        (
+            &["--postures", "random", "--posture-levels", "3,3,3,3,3"],
+            "grid or lattice",
+        ),
+        (&["--postures", "grid", "--posture-count", "4"], "random"),
+        (&["--distortion", "1,2,3"], "K1 or K1,K2"),
+        (&["--distortion", "nan"], "finite"),
+    ];
+    for (extra, want) in cases {
+        fails(&with(extra), want);
+    }
 }
 
 #[test]

@@ -9,8 +9,9 @@
 //! `cargo test -p hvs-host --test cli qemu_cli -- --ignored`. When run, a missing QEMU or ELF is a
 //! failure with the command that fixes it, never a skip.
 
-use crate::common::{ok as run, s};
+use crate::common::{detect_args, locate_args, ok as run, s, train_restarts};
 use hvs_host::device::qemu::{find_firmware, free_port, FIRMWARE_BUILD};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use tempfile::TempDir;
@@ -26,6 +27,55 @@ impl Drop for Emulate {
     fn drop(&mut self) {
         let _ = self.0.kill();
         let _ = self.0.wait();
+    }
+}
+
+/// Fails, naming the command that builds it, unless the QEMU firmware ELF is there.
+fn assert_firmware_built() {
+    let fw = find_firmware(None);
+    assert!(
+        fw.exists(),
+        "no firmware ELF at {}: build it with `{FIRMWARE_BUILD}`",
+        fw.display()
+    );
+}
+
+/// Starts `hvs emulate --model model` on a free port (servo log in `d`): the guard and the
+/// `--connect` address.
+fn emulate(model: &Path, d: &Path) -> (Emulate, String) {
+    let port = free_port().expect("a free port");
+    let listen = format!("127.0.0.1:{port}");
+    let emu = Emulate(
+        hvs()
+            .args(["emulate", "--model", s(model), "--listen", &listen])
+            .args(["--servo-log", s(&d.join("servo.log")), "--timeout", "120"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("hvs emulate starts"),
+    );
+    (emu, format!("tcp:{listen}"))
+}
+
+/// The stdout of `hvs head --connect connect ARGS`, retried until it succeeds: QEMU opens the
+/// port shortly after it starts (20 s at most).
+fn once_it_answers(connect: &str, args: &[&str]) -> String {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let out = hvs()
+            .args(["head", "--connect", connect])
+            .args(args)
+            .output()
+            .expect("hvs head runs");
+        if out.status.success() {
+            break String::from_utf8(out.stdout).expect("utf-8 stdout");
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the emulated head never answered: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::thread::sleep(Duration::from_millis(200));
     }
 }
 
@@ -55,12 +105,7 @@ fn head_estimate_of_a_posture_aware_default_net_equals_predict_bit_for_bit() {
 /// on 300 noisy volume points; with `joints`, trained on a posture set (9 inputs) and asked at
 /// the home posture.
 fn head_agrees_with_predict(joints: bool) {
-    let fw = find_firmware(None);
-    assert!(
-        fw.exists(),
-        "no firmware ELF at {}: build it with `{FIRMWARE_BUILD}`",
-        fw.display()
-    );
+    assert_firmware_built();
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     let (train, pts, model) = (d.join("train.csv"), d.join("pts.csv"), d.join("m.hvsw"));
@@ -128,35 +173,8 @@ fn head_agrees_with_predict(joints: bool) {
     assert!(shown.contains("inverse-depth-skip"), "{shown}");
     let predicted = run(&["predict", "--model", s(&model), "--points", s(&pts)]);
 
-    let port = free_port().expect("a free port");
-    let listen = format!("127.0.0.1:{port}");
-    let _emu = Emulate(
-        hvs()
-            .args(["emulate", "--model", s(&model), "--listen", &listen])
-            .args(["--servo-log", s(&d.join("servo.log")), "--timeout", "120"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("hvs emulate starts"),
-    );
-    // QEMU opens the port shortly after it starts; retry until it answers.
-    let connect = format!("tcp:{listen}");
-    let deadline = Instant::now() + Duration::from_secs(20);
-    let info = loop {
-        let out = hvs()
-            .args(["head", "--connect", &connect, "info"])
-            .output()
-            .expect("hvs head runs");
-        if out.status.success() {
-            break String::from_utf8(out.stdout).expect("utf-8 stdout");
-        }
-        assert!(
-            Instant::now() < deadline,
-            "the emulated head never answered: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    };
+    let (_emu, connect) = emulate(&model, d);
+    let info = once_it_answers(&connect, &["info"]);
     assert!(info.contains("slot A"), "{info}");
     assert!(info.contains("seed 3"), "{info}");
     let peak: u32 = info
@@ -213,36 +231,18 @@ fn head_agrees_with_predict(joints: bool) {
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn head_looks_at_a_point_found_in_the_images() {
-    let fw = find_firmware(None);
-    assert!(
-        fw.exists(),
-        "no firmware ELF at {}: build it with `{FIRMWARE_BUILD}`",
-        fw.display()
-    );
+    assert_firmware_built();
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     let (shots, test, model) = (d.join("shots"), d.join("test"), d.join("m.hvsw"));
     run(&["render", "--case", "1", "-o", s(&shots), "--seed", "4"]);
     let points = d.join("points.csv");
-    run(&[
-        "board",
-        "detect",
-        "--board",
-        s(&shots.join("board.json")),
-        "--captures",
-        s(&shots.join("captures.csv")),
-        "-o",
-        s(&points),
-    ]);
-    run(&[
-        "train",
-        "--data",
-        s(&points),
-        "-o",
-        s(&model),
-        "--restarts",
-        "2",
-    ]);
+    run(&detect_args(
+        &shots.join("board.json"),
+        &shots.join("captures.csv"),
+        &points,
+    ));
+    train_restarts(&points, &model, "2");
     run(&[
         "render",
         "--case",
@@ -261,17 +261,9 @@ fn head_looks_at_a_point_found_in_the_images() {
     let row: Vec<&str> = truth.lines().nth(20).unwrap().split(',').collect();
     let at = format!("{},{}", row[6], row[7]);
     let (l, r) = (test.join("left01.png"), test.join("right01.png"));
-    let located = run(&[
-        "locate",
-        "--model",
-        s(&model),
-        "--left",
-        s(&l),
-        "--right",
-        s(&r),
-        "--at",
-        &at,
-    ]);
+    // The same question to the host (`hvs locate`) and to the head (`hvs head look`).
+    let question = |verb| locate_args(&[verb], &model, &l, &r, &["--at", &at]);
+    let located = run(&question("locate"));
     let xyz = |text: &str| -> Vec<String> {
         ["x=", "y=", "z="]
             .iter()
@@ -282,35 +274,8 @@ fn head_looks_at_a_point_found_in_the_images() {
             .collect()
     };
     let want = xyz(&located);
-    let port = free_port().expect("a free port");
-    let listen = format!("127.0.0.1:{port}");
-    let _emu = Emulate(
-        hvs()
-            .args(["emulate", "--model", s(&model), "--listen", &listen])
-            .args(["--servo-log", s(&d.join("servo.log")), "--timeout", "120"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("hvs emulate starts"),
-    );
-    let connect = format!("tcp:{listen}");
-    let deadline = Instant::now() + Duration::from_secs(20);
-    let looked = loop {
-        let out = hvs()
-            .args(["head", "--connect", &connect, "look", "--model", s(&model)])
-            .args(["--left", s(&l), "--right", s(&r), "--at", &at])
-            .output()
-            .expect("hvs head runs");
-        if out.status.success() {
-            break String::from_utf8(out.stdout).expect("utf-8 stdout");
-        }
-        assert!(
-            Instant::now() < deadline,
-            "the emulated head never answered: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    };
+    let (_emu, connect) = emulate(&model, d);
+    let looked = once_it_answers(&connect, &question("look"));
     assert!(looked.contains("(Network, in_range=true)"), "{looked}");
     assert!(looked.contains("joints deg: neck_pan="), "{looked}");
     let got = xyz(&looked);

@@ -1,7 +1,7 @@
 //! Reliability (issue 13): outputs never destroy inputs, interrupted runs leave nothing,
 //! strict input checks everywhere. Each test drives the built `hvs` binary.
 
-use crate::common::{fails, hvs, ok, read, s};
+use crate::common::{fails, hvs, ok, read, s, stderr_with_code};
 
 use std::os::unix::fs::FileTypeExt;
 use std::path::{Path, PathBuf};
@@ -19,6 +19,18 @@ fn setup(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
     ok(&["simulate", "--case", "1", "--set", "test", "-o", s(&te)]);
     ok(&["train", "--data", s(&tr), "-o", s(&m), "--restarts", "1"]);
     (tr, te, m)
+}
+
+/// `hvs predict --model m --points te -o out`.
+fn predict_args<'a>(m: &'a Path, te: &'a Path, out: &'a str) -> Vec<&'a str> {
+    vec!["predict", "--model", s(m), "--points", s(te), "-o", out]
+}
+
+/// `hvs image --model m --slot a --format bin` and `rest`.
+fn image_args<'a>(m: &'a Path, rest: &[&'a str]) -> Vec<&'a str> {
+    let mut v = vec!["image", "--model", s(m), "--slot", "a", "--format", "bin"];
+    v.extend_from_slice(rest);
+    v
 }
 
 fn mknod(path: &Path, major: u32, minor: u32) -> bool {
@@ -59,19 +71,7 @@ fn file_type(p: &Path) -> std::fs::FileType {
 fn outputs_onto_devices_fifos_and_links_are_written_in_place() {
     let dir = TempDir::new().unwrap();
     let (_, te, m) = setup(dir.path());
-    let predict = |out: &Path| {
-        hvs()
-            .args([
-                "predict",
-                "--model",
-                s(&m),
-                "--points",
-                s(&te),
-                "-o",
-                s(out),
-            ])
-            .assert()
-    };
+    let predict = |out: &Path| hvs().args(predict_args(&m, &te, s(out))).assert();
     let want = ok(&["predict", "--model", s(&m), "--points", s(&te)]);
     assert!(want.starts_with("u_l,v_l,u_r,v_r,x,y,z\n"), "{want}");
 
@@ -92,18 +92,7 @@ fn outputs_onto_devices_fifos_and_links_are_written_in_place() {
         assert!(file_type(&null).is_char_device(), "mynull was replaced");
         let full = dir.path().join("myfull");
         assert!(mknod(&full, 1, 7));
-        let e = fails(
-            &[
-                "predict",
-                "--model",
-                s(&m),
-                "--points",
-                s(&te),
-                "-o",
-                s(&full),
-            ],
-            "myfull: cannot write",
-        );
+        let e = fails(&predict_args(&m, &te, s(&full)), "myfull: cannot write");
         assert!(e.contains("No space left"), "{e}");
         assert!(file_type(&full).is_char_device(), "myfull was replaced");
     }
@@ -137,15 +126,7 @@ fn output_to_dev_stdout_is_standard_output() {
     let dir = TempDir::new().unwrap();
     let (_, te, m) = setup(dir.path());
     let want = ok(&["predict", "--model", s(&m), "--points", s(&te)]);
-    let got = ok(&[
-        "predict",
-        "--model",
-        s(&m),
-        "--points",
-        s(&te),
-        "-o",
-        "/dev/stdout",
-    ]);
+    let got = ok(&predict_args(&m, &te, "/dev/stdout"));
     assert_eq!(got, want);
     assert!(file_type(Path::new("/dev/stdout")).is_symlink());
 }
@@ -168,70 +149,16 @@ fn an_output_that_is_an_input_is_refused() {
     std::fs::hard_link(&te, &hard).unwrap();
     let dotted = dir.path().join(".").join("test.csv");
     let cases: Vec<(Vec<&str>, &str, &Path)> = vec![
-        (
-            vec![
-                "predict",
-                "--model",
-                s(&m),
-                "--points",
-                s(&te),
-                "-o",
-                s(&te),
-            ],
-            "--points",
-            &te,
-        ),
-        (
-            vec![
-                "predict",
-                "--model",
-                s(&m),
-                "--points",
-                s(&te),
-                "-o",
-                s(&hard),
-            ],
-            "--points",
-            &te,
-        ),
-        (
-            vec![
-                "predict",
-                "--model",
-                s(&m),
-                "--points",
-                s(&te),
-                "-o",
-                s(&dotted),
-            ],
-            "--points",
-            &te,
-        ),
-        (
-            vec!["predict", "--model", s(&m), "--points", s(&te), "-o", s(&m)],
-            "--model",
-            &m,
-        ),
+        (predict_args(&m, &te, s(&te)), "--points", &te),
+        (predict_args(&m, &te, s(&hard)), "--points", &te),
+        (predict_args(&m, &te, s(&dotted)), "--points", &te),
+        (predict_args(&m, &te, s(&m)), "--model", &m),
         (
             vec!["train", "--data", s(&tr), "-o", s(&tr), "--restarts", "1"],
             "--data",
             &tr,
         ),
-        (
-            vec![
-                "image",
-                "--model",
-                s(&m),
-                "--slot",
-                "a",
-                "--format",
-                "bin",
-                "-o",
-                s(&m),
-            ],
-            "--model",
-            &m,
-        ),
+        (image_args(&m, &["-o", s(&m)]), "--model", &m),
         (
             vec![
                 "simulate",
@@ -631,19 +558,7 @@ fn messages_name_the_real_problem() {
             "-5 is out of range: expected a whole number from 0 to",
         ),
         (
-            vec![
-                "image",
-                "--model",
-                s(&m),
-                "--slot",
-                "a",
-                "--format",
-                "bin",
-                "--generation",
-                "-1",
-                "-o",
-                "x.bin",
-            ],
+            image_args(&m, &["--generation", "-1", "-o", "x.bin"]),
             "-1 is out of range: expected a whole number from 0 to 4294967295",
         ),
         (
@@ -659,14 +574,7 @@ fn messages_name_the_real_problem() {
             "-3 is out of range",
         ),
     ] {
-        let out = hvs()
-            .args(&args)
-            .assert()
-            .code(2)
-            .get_output()
-            .stderr
-            .clone();
-        let e = String::from_utf8(out).unwrap();
+        let e = stderr_with_code(&args, 2);
         assert!(e.contains(want), "{args:?}: {e}");
         assert!(!e.contains("unexpected argument"), "{e}");
     }

@@ -43,6 +43,64 @@ pub fn fails(args: &[&str], want: &str) -> String {
     err
 }
 
+/// Runs `hvs` with `args`, asserts exit code `code`; returns stderr.
+pub fn stderr_with_code<I, S>(args: I, code: i32) -> String
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = hvs()
+        .args(args)
+        .assert()
+        .code(code)
+        .get_output()
+        .stderr
+        .clone();
+    String::from_utf8(out).expect("utf-8 stderr")
+}
+
+/// `hvs board detect --board board --captures captures -o out`.
+pub fn detect_args<'a>(board: &'a Path, captures: &'a Path, out: &'a Path) -> Vec<&'a str> {
+    let (b, c) = (s(board), s(captures));
+    vec![
+        "board",
+        "detect",
+        "--board",
+        b,
+        "--captures",
+        c,
+        "-o",
+        s(out),
+    ]
+}
+
+/// Runs `hvs train --data data -o model --restarts restarts`, asserting success.
+pub fn train_restarts(data: &Path, model: &Path, restarts: &str) {
+    ok(&[
+        "train",
+        "--data",
+        s(data),
+        "-o",
+        s(model),
+        "--restarts",
+        restarts,
+    ]);
+}
+
+/// `verb --model model --left left --right right` and `rest` (`hvs locate`, `hvs head look`).
+pub fn locate_args<'a>(
+    verb: &[&'a str],
+    model: &'a Path,
+    left: &'a Path,
+    right: &'a Path,
+    rest: &[&'a str],
+) -> Vec<&'a str> {
+    let mut v = verb.to_vec();
+    v.extend(["--model", s(model), "--left", s(left), "--right", s(right)]);
+    v.extend_from_slice(rest);
+    v
+}
+
 /// `p` as a `&str` argument.
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")

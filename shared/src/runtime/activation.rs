@@ -8,10 +8,6 @@
 //! Relative error of [`exp_micromath`] against `libm::expf`: below 3e-3 over -87..88 (tested: 2.4e-3);
 //! the sigmoid's absolute error stays below 5e-4.
 
-// Index loops keep the summation order explicit: it is the same order as `crate::runtime::mlp`.
-#![allow(clippy::needless_range_loop)]
-
-use crate::runtime::mlp::{param_count, Activation, FlatMlp, MlpError};
 use micromath::F32Ext;
 
 /// `e^x` by `micromath` (`F32Ext::exp`) on -87..=88; 0 below, infinity above, NaN for NaN
@@ -35,73 +31,15 @@ pub fn sigmoid_micromath(a: f32) -> f32 {
     1.0 / (1.0 + exp_micromath(-a))
 }
 
-/// [`crate::runtime::mlp::infer_fixed`] with the hidden activation `sigmoid` (and, for a sigmoid output,
-/// the same function there): the same checks, the same summation order, so with
-/// [`crate::runtime::mlp::sigmoid`] it gives exactly `infer_fixed`'s bits (tested).
-#[inline]
-pub fn infer_fixed_with<const I: usize, const H: usize, const O: usize>(
-    m: &FlatMlp<'_>,
-    x: &[f32; I],
-    sigmoid: fn(f32) -> f32,
-) -> Result<[f32; O], MlpError> {
-    let p = m.params;
-    let sized = |s: &[f32], n: usize| s.len() == n;
-    if m.hidden != H
-        || !sized(p, param_count(I, H, O))
-        || !sized(m.in_offset, I)
-        || !sized(m.in_scale, I)
-        || !sized(m.out_offset, O)
-        || !sized(m.out_scale, O)
-        || !(m.skip.is_empty() || sized(m.skip, I * O))
-    {
-        return Err(MlpError::Shape);
-    }
-    let mut xn = [0.0f32; I];
-    for i in 0..I {
-        if !x[i].is_finite() {
-            return Err(MlpError::NonFiniteInput);
-        }
-        xn[i] = (x[i] - m.in_offset[i]) * m.in_scale[i];
-    }
-    let mut h = [0.0f32; H];
-    for j in 0..H {
-        let row = j * (I + 1);
-        let mut a = p[row + I];
-        for i in 0..I {
-            a += p[row + i] * xn[i];
-        }
-        h[j] = sigmoid(a);
-    }
-    let base = H * (I + 1);
-    let mut y = [0.0f32; O];
-    for k in 0..O {
-        let row = base + k * (H + 1);
-        let mut a = p[row + H];
-        for j in 0..H {
-            a += p[row + j] * h[j];
-        }
-        if !m.skip.is_empty() {
-            for i in 0..I {
-                a += m.skip[k * I + i] * xn[i];
-            }
-        }
-        let out = match m.output {
-            Activation::Linear => a,
-            Activation::Sigmoid => sigmoid(a),
-        };
-        let v = out * m.out_scale[k] + m.out_offset[k];
-        if !v.is_finite() {
-            return Err(MlpError::NonFiniteOutput);
-        }
-        y[k] = v;
-    }
-    Ok(y)
-}
+/// The inference over any sigmoid (here [`sigmoid_micromath`]): [`crate::runtime::mlp::infer_fixed`]'s
+/// checks and summation order, so with [`crate::runtime::mlp::sigmoid`] it gives exactly
+/// `infer_fixed`'s bits (tested).
+pub use crate::runtime::mlp::infer_fixed_with;
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::runtime::mlp::{infer_fixed, sigmoid};
+    use crate::runtime::mlp::{infer_fixed, param_count, sigmoid, Activation, FlatMlp, MlpError};
     use proptest::prelude::*;
 
     #[test]

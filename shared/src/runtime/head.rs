@@ -602,6 +602,12 @@ mod tests {
         assert_eq!((n.slot, n.model.seed), (Slot::A, 9));
     }
 
+    const V0_1_0: FirmwareVersion = FirmwareVersion {
+        major: 0,
+        minor: 1,
+        patch: 0,
+    };
+
     #[test]
     fn corrupted_slot_is_never_run() {
         let a = corrupt(bytes(&sample(5, 9, 1)));
@@ -609,11 +615,7 @@ mod tests {
         let got = boot(&a, &b);
         assert_eq!(got.slot_a, SlotStatus::Invalid(BlobError::BadCrc));
         assert_eq!(got.slot_b, SlotStatus::Valid { generation: 2 });
-        let info = got.info(FirmwareVersion {
-            major: 0,
-            minor: 1,
-            patch: 0,
-        });
+        let info = got.info(V0_1_0);
         assert_eq!(
             (info.slot, info.generation, info.mode),
             (Some(Slot::B), 2, Mode::Network)
@@ -621,11 +623,7 @@ mod tests {
 
         let both = boot(&a, &corrupt(b));
         assert_eq!(both.estimator, Estimator::Fallback(Calibration::BUILT_IN));
-        let info = both.info(FirmwareVersion {
-            major: 0,
-            minor: 1,
-            patch: 0,
-        });
+        let info = both.info(V0_1_0);
         assert_eq!(
             (info.slot, info.mode, info.model),
             (None, Mode::Fallback, None)

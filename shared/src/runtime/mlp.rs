@@ -310,6 +310,19 @@ pub fn infer_fixed<const I: usize, const H: usize, const O: usize>(
     m: &FlatMlp<'_>,
     x: &[f32; I],
 ) -> Result<[f32; O], MlpError> {
+    infer_fixed_with::<I, H, O>(m, x, sigmoid)
+}
+
+/// [`infer_fixed`] with the hidden activation `sigmoid` (and, for a sigmoid output, the same
+/// function there): the same checks, the same summation order, so with [`sigmoid`] it gives
+/// exactly `infer_fixed`'s bits (it is `infer_fixed`). The head's candidate fast activation
+/// (`crate::runtime::activation::sigmoid_micromath`) runs through it.
+#[inline]
+pub fn infer_fixed_with<const I: usize, const H: usize, const O: usize>(
+    m: &FlatMlp<'_>,
+    x: &[f32; I],
+    sigmoid: impl Fn(f32) -> f32,
+) -> Result<[f32; O], MlpError> {
     let p = m.params;
     let sized = |s: &[f32], n: usize| s.len() == n;
     if m.hidden != H
@@ -349,7 +362,11 @@ pub fn infer_fixed<const I: usize, const H: usize, const O: usize>(
         if !m.skip.is_empty() {
             a = add_skip(a, &m.skip[k * I..(k + 1) * I], &xn);
         }
-        let v = m.output.apply(a) * m.out_scale[k] + m.out_offset[k];
+        let out = match m.output {
+            Activation::Linear => a,
+            Activation::Sigmoid => sigmoid(a),
+        };
+        let v = out * m.out_scale[k] + m.out_offset[k];
         if !v.is_finite() {
             return Err(MlpError::NonFiniteOutput);
         }

@@ -77,14 +77,7 @@ pub fn traditional_depth(
     u_l: f64,
     u_r: f64,
 ) -> Result<f64, TriError> {
-    if !(phi.is_finite() && half_baseline.is_finite() && u_l.is_finite() && u_r.is_finite()) {
-        return Err(TriError::NonFinite);
-    }
-    let u_sd = u_l - u_r;
-    if u_sd <= 0.0 {
-        return Err(TriError::NonPositiveDisparity);
-    }
-    Ok(phi * 2.0 * half_baseline / u_sd)
+    depth_eq_3_1_17(phi, half_baseline, u_l, u_r, |u_sd| u_sd <= 0.0)
 }
 
 /// Eq. 3.1-17 evaluated as printed, whatever the sign of the disparity: a negative disparity
@@ -96,11 +89,22 @@ pub fn traditional_depth_signed(
     u_l: f64,
     u_r: f64,
 ) -> Result<f64, TriError> {
+    depth_eq_3_1_17(phi, half_baseline, u_l, u_r, |u_sd| u_sd == 0.0)
+}
+
+/// Eq. 3.1-17 for finite inputs whose disparity `u_l - u_r` is not `refused`.
+fn depth_eq_3_1_17(
+    phi: f64,
+    half_baseline: f64,
+    u_l: f64,
+    u_r: f64,
+    refused: fn(f64) -> bool,
+) -> Result<f64, TriError> {
     if !(phi.is_finite() && half_baseline.is_finite() && u_l.is_finite() && u_r.is_finite()) {
         return Err(TriError::NonFinite);
     }
     let u_sd = u_l - u_r;
-    if u_sd == 0.0 {
+    if refused(u_sd) {
         return Err(TriError::NonPositiveDisparity);
     }
     Ok(phi * 2.0 * half_baseline / u_sd)
