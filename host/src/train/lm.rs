@@ -58,7 +58,6 @@ pub(crate) struct LmResult {
     pub cost: f64,
 }
 
-#[cfg(test)]
 fn sum_sq(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum()
 }
@@ -86,8 +85,16 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     let mut trial = vec![0.0; np];
     let mut act = prob.activations();
     let mut act_trial = prob.activations();
+    // Without a tail the decay is one number: the regulariser is summed as alpha * sum(p^2),
+    // in that order, so nets without skip weights train to the same bits as before the tail.
+    let alpha = opts.weight_decay;
+    let uniform = opts.tail.0 == 0;
     let objective = |sse_half: f64, q: &[f64]| {
-        sse_half + 0.5 * q.iter().zip(&decay).map(|(v, a)| a * v * v).sum::<f64>()
+        if uniform {
+            sse_half + 0.5 * alpha * sum_sq(q)
+        } else {
+            sse_half + 0.5 * q.iter().zip(&decay).map(|(v, a)| a * v * v).sum::<f64>()
+        }
     };
 
     prob.evaluate(p, &mut act);
