@@ -1,9 +1,11 @@
 //! `hvs flash`: a model into the head's idle weight slot through a debug probe
-//! ([`crate::device::probe`]).
+//! ([`crate::device::probe`] plans, `device::debug_probe` writes; feature `probe`).
 
-use crate::device::probe::{
-    check_chip, dry_run_plan, flash_with_probe, read_model, FlashTarget, DEFAULT_CHIP,
-};
+#[cfg(feature = "probe")]
+use crate::device::debug_probe::{check_chip, flash_with_probe, FlashTarget};
+#[cfg(feature = "probe")]
+use crate::device::probe::dry_run_plan;
+use crate::device::probe::{read_model, DEFAULT_CHIP};
 use anyhow::Result;
 use hvs_shared::runtime::layout::Slot;
 use hvs_shared::runtime::slots::SlotRequest;
@@ -54,6 +56,7 @@ pub struct Args {
 }
 
 /// `hvs flash`.
+#[cfg(feature = "probe")]
 pub fn run(args: &Args) -> Result<()> {
     let (blob, bytes) = read_model(&args.model)?;
     check_chip(&args.chip)?;
@@ -71,4 +74,15 @@ pub fn run(args: &Args) -> Result<()> {
         no_reset: args.no_reset,
     };
     flash_with_probe(&target, &blob, req)
+}
+
+/// `hvs flash` in a build without the `probe` feature: the model is still checked, then a
+/// clear error (the chip cannot be checked against probe-rs's database, so no plan either).
+#[cfg(not(feature = "probe"))]
+pub fn run(args: &Args) -> Result<()> {
+    read_model(&args.model)?;
+    anyhow::bail!(
+        "hvs flash: this hvs was built without the `probe` feature (probe-rs); \
+         rebuild with default features, or write `hvs image` output with another flasher"
+    )
 }
