@@ -115,15 +115,21 @@ impl Network {
         px: &[f32; NET_INPUTS],
         joints: &Joints,
     ) -> Result<[f32; NET_OUTPUTS], MlpError> {
-        if self.fast {
-            let mut y =
-                mlp::infer_fixed::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(&self.blob.flat(), px)?;
-            self.blob.family.output_map.apply(&mut y)?;
-            return Ok(y);
-        }
-        let (x, n) = self.inputs(px, joints);
         let mut y = [0.0f32; NET_OUTPUTS];
-        self.blob.infer(&x[..n], &mut y)?;
+        let flat = self.blob.flat();
+        if self.fast {
+            mlp::infer_fixed_into::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(
+                &flat,
+                px,
+                &mut y,
+                mlp::sigmoid,
+            )?;
+        } else {
+            // `ModelBlob::infer`'s two steps, the output map shared with the fast path.
+            let (x, n) = self.inputs(px, joints);
+            mlp::infer_flat(&flat, &x[..n], &mut y)?;
+        }
+        self.blob.family.output_map.apply(&mut y)?;
         Ok(y)
     }
 
