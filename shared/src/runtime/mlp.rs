@@ -404,9 +404,59 @@ pub fn infer_fixed_into<const I: usize, const H: usize, const O: usize>(
     forward(m, x, &mut xn, &mut hid, y, sigmoid, dot4)
 }
 
+/// The 4-5-3 test nets of this module and of `activation`: case I's pixel scaling, outputs
+/// around the working volume.
+#[cfg(test)]
+pub(crate) mod fixture {
+    use super::{Activation, FlatMlp};
+    use proptest::prelude::*;
+    extern crate alloc;
+    use alloc::vec::Vec;
+
+    /// Input offsets (pixels).
+    pub(crate) const IN_OFFSET: [f32; 4] = [320.0, 240.0, 320.0, 240.0];
+    /// Input scales.
+    pub(crate) const IN_SCALE: [f32; 4] = [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0];
+    /// Output offsets (cm).
+    pub(crate) const OUT_OFFSET: [f32; 3] = [0.0, 0.0, 115.0];
+    /// Output scales (cm).
+    pub(crate) const OUT_SCALE: [f32; 3] = [10.0, 5.0, 50.0];
+
+    /// Parameters of a 4-5-3 net (weights and biases in -3..3).
+    pub(crate) fn params() -> impl Strategy<Value = Vec<f32>> {
+        proptest::collection::vec(-3.0f32..3.0, super::param_count(4, 5, 3))
+    }
+
+    /// Four pixels of a 640 x 480 pair.
+    pub(crate) fn pixels() -> impl Strategy<Value = [f32; 4]> {
+        proptest::array::uniform4(0.0f32..640.0)
+    }
+
+    /// A 4-5-3 net's parameters, four pixels and either output activation.
+    pub(crate) fn case() -> impl Strategy<Value = (Vec<f32>, [f32; 4], Activation)> {
+        let act = prop_oneof![Just(Activation::Linear), Just(Activation::Sigmoid)];
+        (params(), pixels(), act)
+    }
+
+    /// A 4-5-3 view of `params` with that scaling and no skip term.
+    pub(crate) fn net(params: &[f32], output: Activation) -> FlatMlp<'_> {
+        FlatMlp {
+            hidden: 5,
+            params,
+            skip: &[],
+            output,
+            in_offset: &IN_OFFSET,
+            in_scale: &IN_SCALE,
+            out_offset: &OUT_OFFSET,
+            out_scale: &OUT_SCALE,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fixture::{IN_OFFSET as io, IN_SCALE as is, OUT_OFFSET as oo, OUT_SCALE as os};
     use proptest::prelude::*;
 
     fn tiny() -> Mlp<2, 1, 1> {
@@ -478,17 +528,10 @@ mod tests {
 
     proptest! {
         #[test]
-        fn flat_and_const_give_identical_bits(
-            params in proptest::collection::vec(-3.0f32..3.0, param_count(4, 5, 3)),
-            x in proptest::array::uniform4(0.0f32..640.0),
-            sig in any::<bool>(),
-        ) {
-            let act = if sig { Activation::Sigmoid } else { Activation::Linear };
-            let (io, is) = ([320.0, 240.0, 320.0, 240.0], [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0]);
-            let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
+        fn flat_and_const_give_identical_bits((params, x, act) in fixture::case()) {
             let m: Mlp<4, 5, 3> = Mlp::from_params(&params, act, io, is, oo, os).unwrap();
             let a = m.infer(&x).unwrap();
-            let flat = FlatMlp { hidden: 5, params: &params, skip: &[], output: act, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+            let flat = fixture::net(&params, act);
             let mut b = [0.0f32; 3];
             infer_flat(&flat, &x, &mut b).unwrap();
             prop_assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
@@ -499,13 +542,11 @@ mod tests {
 
         #[test]
         fn skip_term_is_added_in_order_and_flat_and_fixed_agree(
-            params in proptest::collection::vec(-3.0f32..3.0, param_count(4, 5, 3)),
+            params in fixture::params(),
             skip in proptest::collection::vec(-2.0f32..2.0, skip_count(4, 3)),
-            x in proptest::array::uniform4(0.0f32..640.0),
+            x in fixture::pixels(),
         ) {
-            let (io, is) = ([320.0, 240.0, 320.0, 240.0], [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0]);
-            let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
-            let plain = FlatMlp { hidden: 5, params: &params, skip: &[], output: Activation::Linear, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+            let plain = fixture::net(&params, Activation::Linear);
             let with = FlatMlp { skip: &skip, ..plain };
             let mut b = [0.0f32; 3];
             infer_flat(&with, &x, &mut b).unwrap();
