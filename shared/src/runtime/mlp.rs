@@ -528,6 +528,22 @@ mod tests {
 
     proptest! {
         #[test]
+        fn dot4_is_dot_bit_for_bit(
+            w in proptest::collection::vec(-3.0f32..3.0, 0..20),
+            x in proptest::collection::vec(-640.0f32..640.0, 0..20),
+            a in -10.0f32..10.0,
+        ) {
+            // Any lengths, equal or not (both stop at the shorter): chunks and remainders.
+            prop_assert_eq!(dot4(a, &w, &x).to_bits(), dot(a, &w, &x).to_bits());
+            let n = w.len().min(x.len());
+            let mut by_hand = a;
+            for i in 0..n {
+                by_hand += w[i] * x[i];
+            }
+            prop_assert_eq!(dot(a, &w, &x).to_bits(), by_hand.to_bits());
+        }
+
+        #[test]
         fn flat_and_const_give_identical_bits((params, x, act) in fixture::case()) {
             let m: Mlp<4, 5, 3> = Mlp::from_params(&params, act, io, is, oo, os).unwrap();
             let a = m.infer(&x).unwrap();
