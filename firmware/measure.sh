@@ -8,9 +8,12 @@
 #     9-16-3 that runs), 300 estimates, a Look sequence;
 #   - instructions per inference, counted in QEMU with `-icount shift=0` (1 instruction = 1 ns of
 #     virtual time; SysTick counts at 168 MHz), from the `bench` build's Bench request (2000
-#     inferences, minus an empty loop): the 4-5-3 net and a 9-16-3 posture-aware net.
-# Budgets (issue 17): whole-image flash <= 24 KiB for every board build; static RAM + stack peak
-# <= 16 KiB; <= 900 instructions per 4-5-3 inference. Exits 1 if a budget is missed.
+#     inferences, minus an empty loop): the default family's 4-5-3 net (inverse-depth-skip),
+#     the thesis family's 4-5-3 net and a 9-16-3 posture-aware net.
+# Budgets: whole-image flash <= 24 KiB for every board build and static RAM + stack peak
+# <= 16 KiB (issue 17); <= 1,200 instructions per inference of the default family's 4-5-3 net
+# (issue 14); <= 900 per inference of the thesis family's 4-5-3 net (issue 4). Exits 1 if a
+# budget is missed.
 # Usage: firmware/measure.sh [MODEL_4-5-3.bin [MODEL_9-16-3.bin]]   (default: seeded sample blobs)
 # Needs: qemu-system-arm, binutils-arm-none-eabi (apt-get install -y qemu-system-arm binutils-arm-none-eabi).
 set -euo pipefail
@@ -34,6 +37,8 @@ build() { cargo build --quiet --locked --profile firmware -p hvs-firmware --targ
 # rest of RAM and is measured on the head (`stack peak` in Info, see below).
 FLASH_BUDGET=24576
 RAM_BUDGET=16384
+INSTR_BUDGET_DEFAULT=1200
+INSTR_BUDGET_THESIS=900
 # sections ELF -> "flash BYTES END PARTS|ram BYTES PARTS" from `arm-none-eabi-objdump -h`.
 sections() {
   arm-none-eabi-objdump -h "$1" | python3 -c '
@@ -99,6 +104,7 @@ cargo run --quiet --locked -p hvs-tests --example sample_blob -- "$default_model
 cargo build --quiet --locked -p hvs-host
 hvs="$target_dir/debug/hvs"
 shape() { "$hvs" info "$1" | sed -n 's/^topology: *\([0-9-]*\).*/\1/p'; }
+family() { "$hvs" info "$1" | sed -n 's/^family: *\([a-z-]*\).*/\1/p'; }
 
 # qemu ELF SLOT_A [SLOT_B]: starts QEMU (waiting for the link), sets $port and $qemu_pid.
 qemu() {
@@ -148,11 +154,11 @@ bench() { # model
   out=$(head_cmd bench --count 2000)
   stop_qemu
   instr=$(sed -n 's/.*instructions_per_inference_icount0=\([0-9.]*\).*/\1/p' <<<"$out")
-  printf '   %-8s %8s instructions per inference   (%s)\n' "$(shape "$1")" "$instr" "$out" >&2
+  printf '   %-8s %-18s %8s instructions per inference   (%s)\n' "$(shape "$1")" "$(family "$1")" "$instr" "$out" >&2
   echo "$instr"
 }
-instr_small=$(bench "$small")
 instr_default=$(bench "$default_model")
+instr_small=$(bench "$small")
 bench "$posture" >/dev/null
 
 echo "== summary ($(date -u +%Y-%m-%d))"
@@ -161,9 +167,17 @@ for b in board pwm qemu; do
   printf '   %-6s flash %6d B (image end %d)   static RAM %5d B\n' "$b" "$f" "$e" "$r"
 done
 echo "   stack peak $peak B; static RAM + stack $total B (budget $RAM_BUDGET)"
-echo "   instructions per $(shape "$small") inference: $instr_small (thesis family; issue 4's target <= 900)"
-echo "   instructions per $(shape "$default_model") inference: $instr_default (default family, inverse depth + skip; target <= 1200)"
+echo "   instructions per $(shape "$default_model") $(family "$default_model") inference: $instr_default (default family; budget $INSTR_BUDGET_DEFAULT, issue 14)"
+echo "   instructions per $(shape "$small") $(family "$small") inference: $instr_small (budget $INSTR_BUDGET_THESIS for the thesis family, issue 4)"
+# within VALUE BUDGET: whether a (decimal) instruction count is at most the budget.
+within() { [ -n "$1" ] && awk -v v="$1" -v b="$2" 'BEGIN { exit !(v <= b) }'; }
 status=0
+if ! within "$instr_default" "$INSTR_BUDGET_DEFAULT"; then
+  echo "FAIL: the default family's $(shape "$default_model") net takes '$instr_default' instructions per inference (budget $INSTR_BUDGET_DEFAULT)" >&2; status=1
+fi
+if [ "$(family "$small")" = thesis ] && ! within "$instr_small" "$INSTR_BUDGET_THESIS"; then
+  echo "FAIL: the thesis family's $(shape "$small") net takes '$instr_small' instructions per inference (budget $INSTR_BUDGET_THESIS)" >&2; status=1
+fi
 if [ -n "$flash_over" ]; then echo "FAIL: a board build is over 24 KiB of flash" >&2; status=1; fi
 if [ "$total" -gt "$RAM_BUDGET" ]; then echo "FAIL: static RAM + stack peak over 16 KiB" >&2; status=1; fi
 exit "$status"

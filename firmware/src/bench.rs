@@ -24,8 +24,9 @@ fn infer(
 }
 
 /// The inference timed with `bench-micromath` (an evaluation build, not a head build): the
-/// 4-5-3 net with `hvs_shared::runtime::activation`'s micromath sigmoid, out of line like
-/// `Network::infer`; other nets as the head runs them.
+/// 4-5-3 net with `hvs_shared::runtime::activation`'s micromath sigmoid, out of line and in
+/// place like `Network::infer`'s fast path, then the family's output map; other nets as the
+/// head runs them.
 #[cfg(feature = "bench-micromath")]
 #[inline(never)]
 fn infer(
@@ -33,9 +34,13 @@ fn infer(
     x: &[f32; 4],
     joints: &hvs_shared::runtime::gaze::Joints,
 ) -> Result<[f32; 3], hvs_shared::runtime::mlp::MlpError> {
-    use hvs_shared::runtime::activation::{infer_fixed_with, sigmoid_micromath};
+    use hvs_shared::runtime::activation::sigmoid_micromath;
+    use hvs_shared::runtime::mlp::infer_fixed_into;
     if net.fast {
-        return infer_fixed_with::<4, 5, 3>(&net.blob.flat(), x, sigmoid_micromath);
+        let mut y = [0.0f32; 3];
+        infer_fixed_into::<4, 5, 3>(&net.blob.flat(), x, &mut y, sigmoid_micromath)?;
+        net.blob.family.output_map.apply(&mut y)?;
+        return Ok(y);
     }
     net.infer(x, joints)
 }

@@ -39,7 +39,7 @@ pub use crate::runtime::mlp::infer_fixed_with;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::runtime::mlp::{infer_fixed, param_count, sigmoid, Activation, FlatMlp, MlpError};
+    use crate::runtime::mlp::{fixture, infer_fixed, sigmoid, MlpError};
     use proptest::prelude::*;
 
     #[test]
@@ -82,15 +82,9 @@ mod tests {
 
     proptest! {
         #[test]
-        fn with_the_libm_sigmoid_it_is_infer_fixed(
-            params in proptest::collection::vec(-3.0f32..3.0, param_count(4, 5, 3)),
-            x in proptest::array::uniform4(0.0f32..640.0),
-            sig in any::<bool>(),
-        ) {
-            let output = if sig { Activation::Sigmoid } else { Activation::Linear };
-            let (io, is) = ([320.0, 240.0, 320.0, 240.0], [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0]);
-            let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
-            let m = FlatMlp { hidden: 5, params: &params, skip: &[], output, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+        fn with_the_libm_sigmoid_it_is_infer_fixed((params, x, output) in fixture::case()) {
+            let m = fixture::net(&params, output);
+            let os = fixture::OUT_SCALE;
             let want = infer_fixed::<4, 5, 3>(&m, &x).unwrap();
             let got = infer_fixed_with::<4, 5, 3>(&m, &x, sigmoid).unwrap();
             prop_assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits));

@@ -10,10 +10,11 @@
 //! outputs: inputs [`InputKind::Stereo`] (the four pixels) or [`InputKind::StereoJoints`]
 //! (the four pixels, then the head's own five joint angles in degrees: the gaze controller's
 //! current setpoints, see [`Head::joints`]), outputs [`OutputKind::Xyz`] (`Look` needs all
-//! three), any hidden count the blob allows. The thesis' 4-5-3 net runs on the fixed-size
-//! [`Mlp`] ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`]); every other runnable topology on
-//! the runtime-sized [`crate::runtime::mlp::infer_flat`] over the blob (the same bits as the blob's own
-//! [`ModelBlob::infer`]); either way the blob's family maps the outputs to cm
+//! three), any hidden count the blob allows. A 4-5-3 net of any family
+//! ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`]) runs on the fixed-size fast path
+//! [`crate::runtime::mlp::infer_fixed_into`] over the blob (the arithmetic of [`Mlp`]); every
+//! other runnable topology on the runtime-sized [`crate::runtime::mlp::infer_flat`] (the same
+//! bits as the blob's own [`ModelBlob::infer`]); either way the blob's family maps the outputs to cm
 //! ([`crate::runtime::mlp::OutputMap`]). Anything else counts as not runnable, and with no runnable slot the
 //! head falls back to the traditional method with [`Calibration::BUILT_IN`].
 
@@ -47,8 +48,8 @@ pub type HeadMlp = Mlp<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>;
 pub struct Network {
     /// The decoded blob: weights, scaling and training box.
     pub blob: ModelBlob,
-    /// Whether the blob is the thesis' 4-5-3 net (pixels in, XYZ out), run on the fixed-size
-    /// fast path [`crate::runtime::mlp::infer_fixed`].
+    /// Whether the blob is a 4-5-3 net (pixels in, XYZ out, any family), run on the
+    /// fixed-size fast path [`crate::runtime::mlp::infer_fixed_into`].
     pub fast: bool,
     /// The slot it came from.
     pub slot: Slot,
@@ -115,15 +116,21 @@ impl Network {
         px: &[f32; NET_INPUTS],
         joints: &Joints,
     ) -> Result<[f32; NET_OUTPUTS], MlpError> {
-        if self.fast {
-            let mut y =
-                mlp::infer_fixed::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(&self.blob.flat(), px)?;
-            self.blob.family.output_map.apply(&mut y)?;
-            return Ok(y);
-        }
-        let (x, n) = self.inputs(px, joints);
         let mut y = [0.0f32; NET_OUTPUTS];
-        self.blob.infer(&x[..n], &mut y)?;
+        let flat = self.blob.flat();
+        if self.fast {
+            mlp::infer_fixed_into::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(
+                &flat,
+                px,
+                &mut y,
+                mlp::sigmoid,
+            )?;
+        } else {
+            // `ModelBlob::infer`'s two steps, the output map shared with the fast path.
+            let (x, n) = self.inputs(px, joints);
+            mlp::infer_flat(&flat, &x[..n], &mut y)?;
+        }
+        self.blob.family.output_map.apply(&mut y)?;
         Ok(y)
     }
 

@@ -215,13 +215,38 @@ pub const fn skip_count(i: usize, o: usize) -> usize {
     i * o
 }
 
-/// `a + sum_i s[i] xn[i]` in index order: output `k`'s linear skip term (`s` is `s[k][0..I]`).
+/// How a sum of products is laid out: [`dot`] or [`dot4`] (the same additions in the same
+/// order, so the same bits).
+type Dot = fn(f32, &[f32], &[f32]) -> f32;
+
+/// `a + sum_i w[i] x[i]` over `min(w.len(), x.len())` products, in index order: every sum of
+/// the net (a layer's pre-activation after its bias, the skip term after the net's sum). A
+/// counted loop: the compact form, for runtime lengths.
 #[inline(always)]
-fn add_skip(mut a: f32, s: &[f32], xn: &[f32]) -> f32 {
-    for (w, x) in s.iter().zip(xn) {
+fn dot(mut a: f32, w: &[f32], x: &[f32]) -> f32 {
+    for (w, x) in w.iter().zip(x) {
         a += *w * *x;
     }
     a
+}
+
+/// [`dot`] written four products a step (then the rest one by one): the same additions in the
+/// same order, hence the same bits. With a constant length (the fixed-size path) the compiler
+/// lays the products out straight, where a size-optimised build keeps [`dot`]'s counted loop
+/// with its index arithmetic (5 instructions more per product on the Cortex-M4F).
+#[inline(always)]
+fn dot4(mut a: f32, w: &[f32], x: &[f32]) -> f32 {
+    let n = w.len().min(x.len());
+    let (w, x) = (&w[..n], &x[..n]);
+    let mut w4 = w.chunks_exact(4);
+    let mut x4 = x.chunks_exact(4);
+    for (w, x) in (&mut w4).zip(&mut x4) {
+        a += w[0] * x[0];
+        a += w[1] * x[1];
+        a += w[2] * x[2];
+        a += w[3] * x[3];
+    }
+    dot(a, w4.remainder(), x4.remainder())
 }
 
 /// Runtime-sized view of a model, used where the topology is only known from a blob.
@@ -251,60 +276,94 @@ pub const FLAT_MAX_HIDDEN: usize = 32;
 /// Largest input vector [`infer_flat`] evaluates.
 pub const FLAT_MAX_INPUTS: usize = 16;
 
-/// The same arithmetic as [`Mlp::infer`] over runtime sizes: identical bits for the same model.
-pub fn infer_flat(m: &FlatMlp<'_>, x: &[f32], out: &mut [f32]) -> Result<(), MlpError> {
-    let ni = m.in_offset.len();
-    let no = m.out_offset.len();
-    let h = m.hidden;
-    if x.len() != ni
-        || out.len() != no
-        || m.in_scale.len() != ni
-        || m.out_scale.len() != no
-        || ni > FLAT_MAX_INPUTS
-        || h > FLAT_MAX_HIDDEN
-        || m.params.len() != param_count(ni, h, no)
-        || !(m.skip.is_empty() || m.skip.len() == skip_count(ni, no))
+/// Whether `m` is an `ni`-`h`-`no` net (with or without a skip term): every length the
+/// forward pass relies on.
+#[inline(always)]
+fn shaped(m: &FlatMlp<'_>, ni: usize, h: usize, no: usize) -> bool {
+    m.hidden == h
+        && m.params.len() == param_count(ni, h, no)
+        && m.in_offset.len() == ni
+        && m.in_scale.len() == ni
+        && m.out_offset.len() == no
+        && m.out_scale.len() == no
+        && (m.skip.is_empty() || m.skip.len() == skip_count(ni, no))
+}
+
+/// The forward pass of [`infer_flat`] and [`infer_fixed_with`] (one body for both): `x` in,
+/// `y` out, for a net [`shaped`] `x.len()`-`hid.len()`-`y.len()`; `xn` (as long as `x`) and
+/// `hid` are scratch. Outputs before a non-finite one are written. Inlined, so the fixed-size
+/// callers get constant lengths (straight-line sums, no bounds checks).
+#[inline(always)]
+fn forward(
+    m: &FlatMlp<'_>,
+    x: &[f32],
+    xn: &mut [f32],
+    hid: &mut [f32],
+    y: &mut [f32],
+    sigmoid: impl Fn(f32) -> f32,
+    dot: Dot,
+) -> Result<(), MlpError> {
+    for (v, (x, (off, scale))) in xn
+        .iter_mut()
+        .zip(x.iter().zip(m.in_offset.iter().zip(m.in_scale)))
     {
-        return Err(MlpError::Shape);
-    }
-    let mut xn = [0.0f32; FLAT_MAX_INPUTS];
-    for i in 0..ni {
-        if !x[i].is_finite() {
+        if !x.is_finite() {
             return Err(MlpError::NonFiniteInput);
         }
-        xn[i] = (x[i] - m.in_offset[i]) * m.in_scale[i];
+        *v = (*x - *off) * *scale;
     }
-    let mut hid = [0.0f32; FLAT_MAX_HIDDEN];
-    for j in 0..h {
-        let row = &m.params[j * (ni + 1)..(j + 1) * (ni + 1)];
-        let mut a = row[ni];
-        for i in 0..ni {
-            a += row[i] * xn[i];
+    let (ni, h) = (xn.len(), hid.len());
+    let Some((hidden_rows, output_rows)) = m.params.split_at_checked(h * (ni + 1)) else {
+        return Err(MlpError::Shape);
+    };
+    for (row, v) in hidden_rows.chunks_exact(ni + 1).zip(hid.iter_mut()) {
+        if let Some((b, w)) = row.split_last() {
+            *v = sigmoid(dot(*b, w, xn));
         }
-        hid[j] = sigmoid(a);
     }
-    let base = h * (ni + 1);
-    for k in 0..no {
-        let row = &m.params[base + k * (h + 1)..base + (k + 1) * (h + 1)];
-        let mut a = row[h];
-        for j in 0..h {
-            a += row[j] * hid[j];
+    // Skip rows s[k][0..I]; none when `m.skip` is empty (a zero-input net has none either).
+    let mut skip = m.skip.chunks_exact(ni.max(1));
+    let outputs = y.iter_mut().zip(m.out_scale.iter().zip(m.out_offset));
+    for (row, (v, (scale, off))) in output_rows.chunks_exact(h + 1).zip(outputs) {
+        let Some((b, w)) = row.split_last() else {
+            return Err(MlpError::Shape);
+        };
+        let mut a = dot(*b, w, hid);
+        if let Some(s) = skip.next() {
+            a = dot(a, s, xn);
         }
-        if !m.skip.is_empty() {
-            a = add_skip(a, &m.skip[k * ni..(k + 1) * ni], &xn[..ni]);
-        }
-        let v = m.output.apply(a) * m.out_scale[k] + m.out_offset[k];
-        if !v.is_finite() {
+        let out = match m.output {
+            Activation::Linear => a,
+            Activation::Sigmoid => sigmoid(a),
+        };
+        let o = out * *scale + *off;
+        if !o.is_finite() {
             return Err(MlpError::NonFiniteOutput);
         }
-        out[k] = v;
+        *v = o;
     }
     Ok(())
 }
 
+/// The same arithmetic as [`Mlp::infer`] over runtime sizes: identical bits for the same model.
+pub fn infer_flat(m: &FlatMlp<'_>, x: &[f32], out: &mut [f32]) -> Result<(), MlpError> {
+    let (ni, h, no) = (m.in_offset.len(), m.hidden, m.out_offset.len());
+    if x.len() != ni
+        || out.len() != no
+        || ni > FLAT_MAX_INPUTS
+        || h > FLAT_MAX_HIDDEN
+        || !shaped(m, ni, h, no)
+    {
+        return Err(MlpError::Shape);
+    }
+    let mut xn = [0.0f32; FLAT_MAX_INPUTS];
+    let mut hid = [0.0f32; FLAT_MAX_HIDDEN];
+    forward(m, x, &mut xn[..ni], &mut hid[..h], out, sigmoid, dot)
+}
+
 /// [`infer_flat`] for a model known to be `I-H-O` at compile time: the arithmetic of
-/// [`Mlp::infer`] (identical bits) read straight from the runtime-sized view, with fixed loop
-/// bounds the compiler can unroll. Used by the head's fast path for the thesis' 4-5-3 net.
+/// [`Mlp::infer`] (identical bits) read straight from the runtime-sized view, with fixed
+/// lengths the compiler lays out straight. Used by the head's fast path for 4-5-3 nets.
 #[inline]
 pub fn infer_fixed<const I: usize, const H: usize, const O: usize>(
     m: &FlatMlp<'_>,
@@ -323,61 +382,81 @@ pub fn infer_fixed_with<const I: usize, const H: usize, const O: usize>(
     x: &[f32; I],
     sigmoid: impl Fn(f32) -> f32,
 ) -> Result<[f32; O], MlpError> {
-    let p = m.params;
-    let sized = |s: &[f32], n: usize| s.len() == n;
-    if m.hidden != H
-        || !sized(p, param_count(I, H, O))
-        || !sized(m.in_offset, I)
-        || !sized(m.in_scale, I)
-        || !sized(m.out_offset, O)
-        || !sized(m.out_scale, O)
-        || !(m.skip.is_empty() || sized(m.skip, skip_count(I, O)))
-    {
+    let mut y = [0.0f32; O];
+    infer_fixed_into::<I, H, O>(m, x, &mut y, sigmoid)?;
+    Ok(y)
+}
+
+/// [`infer_fixed_with`] writing into `y` (the outputs before a non-finite one are written):
+/// the head's fast path, which keeps the outputs in place for the family's [`OutputMap`]
+/// instead of moving an array through `Result`s.
+#[inline]
+pub fn infer_fixed_into<const I: usize, const H: usize, const O: usize>(
+    m: &FlatMlp<'_>,
+    x: &[f32; I],
+    y: &mut [f32; O],
+    sigmoid: impl Fn(f32) -> f32,
+) -> Result<(), MlpError> {
+    if !shaped(m, I, H, O) {
         return Err(MlpError::Shape);
     }
-    let mut xn = [0.0f32; I];
-    for i in 0..I {
-        if !x[i].is_finite() {
-            return Err(MlpError::NonFiniteInput);
-        }
-        xn[i] = (x[i] - m.in_offset[i]) * m.in_scale[i];
+    let (mut xn, mut hid) = ([0.0f32; I], [0.0f32; H]);
+    forward(m, x, &mut xn, &mut hid, y, sigmoid, dot4)
+}
+
+/// The 4-5-3 test nets of this module and of `activation`: case I's pixel scaling, outputs
+/// around the working volume.
+#[cfg(test)]
+pub(crate) mod fixture {
+    use super::{Activation, FlatMlp};
+    use proptest::prelude::*;
+    extern crate alloc;
+    use alloc::vec::Vec;
+
+    /// Input offsets (pixels).
+    pub(crate) const IN_OFFSET: [f32; 4] = [320.0, 240.0, 320.0, 240.0];
+    /// Input scales.
+    pub(crate) const IN_SCALE: [f32; 4] = [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0];
+    /// Output offsets (cm).
+    pub(crate) const OUT_OFFSET: [f32; 3] = [0.0, 0.0, 115.0];
+    /// Output scales (cm).
+    pub(crate) const OUT_SCALE: [f32; 3] = [10.0, 5.0, 50.0];
+
+    /// Parameters of a 4-5-3 net (weights and biases in -3..3).
+    pub(crate) fn params() -> impl Strategy<Value = Vec<f32>> {
+        proptest::collection::vec(-3.0f32..3.0, super::param_count(4, 5, 3))
     }
-    let mut h = [0.0f32; H];
-    for j in 0..H {
-        let row = j * (I + 1);
-        let mut a = p[row + I];
-        for i in 0..I {
-            a += p[row + i] * xn[i];
-        }
-        h[j] = sigmoid(a);
+
+    /// Four pixels of a 640 x 480 pair.
+    pub(crate) fn pixels() -> impl Strategy<Value = [f32; 4]> {
+        proptest::array::uniform4(0.0f32..640.0)
     }
-    let base = H * (I + 1);
-    let mut y = [0.0f32; O];
-    for k in 0..O {
-        let row = base + k * (H + 1);
-        let mut a = p[row + H];
-        for j in 0..H {
-            a += p[row + j] * h[j];
-        }
-        if !m.skip.is_empty() {
-            a = add_skip(a, &m.skip[k * I..(k + 1) * I], &xn);
-        }
-        let out = match m.output {
-            Activation::Linear => a,
-            Activation::Sigmoid => sigmoid(a),
-        };
-        let v = out * m.out_scale[k] + m.out_offset[k];
-        if !v.is_finite() {
-            return Err(MlpError::NonFiniteOutput);
-        }
-        y[k] = v;
+
+    /// A 4-5-3 net's parameters, four pixels and either output activation.
+    pub(crate) fn case() -> impl Strategy<Value = (Vec<f32>, [f32; 4], Activation)> {
+        let act = prop_oneof![Just(Activation::Linear), Just(Activation::Sigmoid)];
+        (params(), pixels(), act)
     }
-    Ok(y)
+
+    /// A 4-5-3 view of `params` with that scaling and no skip term.
+    pub(crate) fn net(params: &[f32], output: Activation) -> FlatMlp<'_> {
+        FlatMlp {
+            hidden: 5,
+            params,
+            skip: &[],
+            output,
+            in_offset: &IN_OFFSET,
+            in_scale: &IN_SCALE,
+            out_offset: &OUT_OFFSET,
+            out_scale: &OUT_SCALE,
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fixture::{IN_OFFSET as io, IN_SCALE as is, OUT_OFFSET as oo, OUT_SCALE as os};
     use proptest::prelude::*;
 
     fn tiny() -> Mlp<2, 1, 1> {
@@ -449,17 +528,26 @@ mod tests {
 
     proptest! {
         #[test]
-        fn flat_and_const_give_identical_bits(
-            params in proptest::collection::vec(-3.0f32..3.0, param_count(4, 5, 3)),
-            x in proptest::array::uniform4(0.0f32..640.0),
-            sig in any::<bool>(),
+        fn dot4_is_dot_bit_for_bit(
+            w in proptest::collection::vec(-3.0f32..3.0, 0..20),
+            x in proptest::collection::vec(-640.0f32..640.0, 0..20),
+            a in -10.0f32..10.0,
         ) {
-            let act = if sig { Activation::Sigmoid } else { Activation::Linear };
-            let (io, is) = ([320.0, 240.0, 320.0, 240.0], [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0]);
-            let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
+            // Any lengths, equal or not (both stop at the shorter): chunks and remainders.
+            prop_assert_eq!(dot4(a, &w, &x).to_bits(), dot(a, &w, &x).to_bits());
+            let n = w.len().min(x.len());
+            let mut by_hand = a;
+            for i in 0..n {
+                by_hand += w[i] * x[i];
+            }
+            prop_assert_eq!(dot(a, &w, &x).to_bits(), by_hand.to_bits());
+        }
+
+        #[test]
+        fn flat_and_const_give_identical_bits((params, x, act) in fixture::case()) {
             let m: Mlp<4, 5, 3> = Mlp::from_params(&params, act, io, is, oo, os).unwrap();
             let a = m.infer(&x).unwrap();
-            let flat = FlatMlp { hidden: 5, params: &params, skip: &[], output: act, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+            let flat = fixture::net(&params, act);
             let mut b = [0.0f32; 3];
             infer_flat(&flat, &x, &mut b).unwrap();
             prop_assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits));
@@ -470,13 +558,11 @@ mod tests {
 
         #[test]
         fn skip_term_is_added_in_order_and_flat_and_fixed_agree(
-            params in proptest::collection::vec(-3.0f32..3.0, param_count(4, 5, 3)),
+            params in fixture::params(),
             skip in proptest::collection::vec(-2.0f32..2.0, skip_count(4, 3)),
-            x in proptest::array::uniform4(0.0f32..640.0),
+            x in fixture::pixels(),
         ) {
-            let (io, is) = ([320.0, 240.0, 320.0, 240.0], [1.0 / 320.0, 1.0 / 240.0, 1.0 / 320.0, 1.0 / 240.0]);
-            let (oo, os) = ([0.0, 0.0, 115.0], [10.0, 5.0, 50.0]);
-            let plain = FlatMlp { hidden: 5, params: &params, skip: &[], output: Activation::Linear, in_offset: &io, in_scale: &is, out_offset: &oo, out_scale: &os };
+            let plain = fixture::net(&params, Activation::Linear);
             let with = FlatMlp { skip: &skip, ..plain };
             let mut b = [0.0f32; 3];
             infer_flat(&with, &x, &mut b).unwrap();
