@@ -176,17 +176,24 @@ pub fn run(a: Args) -> Result<()> {
     })
 }
 
-/// `hvs simulate` with `--postures` and/or `--distortion`.
-fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -> Result<()> {
-    let distortion = match a.distortion.as_deref() {
+/// The lens of a `--distortion K1[,K2]` option (`hvs simulate`, `hvs eval`): none when
+/// absent; one or two finite coefficients.
+pub(crate) fn distortion_arg(v: Option<&[f64]>) -> Result<Distortion> {
+    let d = match v {
         None => Distortion::NONE,
         Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
         Some([k1, k2]) => Distortion { k1: *k1, k2: *k2 },
         Some(v) => bail!("--distortion takes K1 or K1,K2, got {} values", v.len()),
     };
-    if !distortion.is_finite() {
+    if !d.is_finite() {
         bail!("--distortion coefficients must be finite numbers");
     }
+    Ok(d)
+}
+
+/// `hvs simulate` with `--postures` and/or `--distortion`.
+fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -> Result<()> {
+    let distortion = distortion_arg(a.distortion.as_deref())?;
     let head = HeadRig::new(rig).with_distortion(distortion);
     let joints = match a.postures {
         None => {
