@@ -689,7 +689,10 @@ mod tests {
         }
         let p = protocol_rows(&cfg).unwrap();
         assert_eq!(p.len(), 1);
-        assert!(p[0].worst.0.iter().all(|v| v.is_finite() && *v > 0.0), "{p:?}");
+        assert!(
+            p[0].worst.0.iter().all(|v| v.is_finite() && *v > 0.0),
+            "{p:?}"
+        );
     }
 
     #[test]
