@@ -5,7 +5,8 @@
 
 use super::{
     floor_span, simulate_command, worst_over_cases, Accuracy, AccuracyConfig, RegimeRow, Scores,
-    SweepRow, BIG_BOARD, BOARDS, HELD_OUT_SEED_BASE, METHODS, REGIMES, SWEEP_CASE,
+    SweepRow, BIG_BOARD, BOARDS, HELD_OUT_SEED_BASE, LENS_SWEEP_PIXELS, METHODS, REGIMES,
+    SWEEP_CASE,
 };
 use crate::data::csv::write_bytes;
 use crate::sim::board::{Board, Pixels};
@@ -213,7 +214,8 @@ pub fn write(dir: &Path, a: &Accuracy, total_s: f64) -> Result<Vec<String>> {
                 a,
                 &a.lens,
                 format!(
-                    "Depth error vs. radial lens distortion on rounded pixels, case {}, {} random test points",
+                    "Depth error vs. radial lens distortion, {} px noise, unrounded, case {}, {} random test points",
+                    LENS_SWEEP_PIXELS.noise_px,
                     roman(SWEEP_CASE),
                     a.config.test_points()
                 ),
@@ -483,6 +485,7 @@ fn accuracy_md(a: &Accuracy, total_s: f64, dir: &str) -> Result<String> {
         ("files_noise", files("noise")),
         ("files_lens", files("lens")),
         ("noise_levels", join(cfg.noise_levels().iter().map(|v| format!("{v}")), ", ")),
+        ("lens_noise", LENS_SWEEP_PIXELS.noise_px.to_string()),
         ("k1_levels", join(cfg.k1_levels().iter().map(|v| format!("{v}")), ", ")),
         ("noise_sentence", sweep_sentence(&a.noise, "sigma")),
         ("lens_sentence", sweep_sentence(&a.lens, "k1")),
