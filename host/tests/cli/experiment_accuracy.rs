@@ -95,3 +95,22 @@ fn quick_run_files_facts_and_determinism() {
     }
     assert!(!md.contains("NaN") && !md.contains("inf "), "{md}");
 }
+
+#[test]
+fn the_readme_shows_the_committed_accuracy_table() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = |p: &str| String::from_utf8(read(&root.join(p))).unwrap();
+    let (page, readme) = (text("docs/ACCURACY.md"), text("README.md"));
+    let start = page
+        .find("| board | regime | floor e_ma")
+        .expect("the summary table in docs/ACCURACY.md");
+    let end = start
+        + page[start..]
+            .find("\n\n")
+            .expect("a blank line after the table");
+    assert!(
+        readme.contains(&page[start..end]),
+        "README.md's accuracy table is not docs/ACCURACY.md's; copy it from there:\n{}",
+        &page[start..end]
+    );
+}
