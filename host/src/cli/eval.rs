@@ -40,15 +40,9 @@ pub struct Args {
     json: bool,
     #[command(flatten)]
     floor: RigArgs,
-    /// Radial lens distortion of the true rig's cameras for the floor: K1 or K1,K2 (as
-    /// `hvs simulate --distortion`); needs --case or --rig.
-    #[arg(
-        long,
-        value_name = "K1[,K2]",
-        value_delimiter = ',',
-        allow_hyphen_values = true
-    )]
-    distortion: Option<Vec<f64>>,
+    // The true lenses of the floor's rig (as the set was simulated); needs --case or --rig.
+    #[command(flatten)]
+    lens: crate::cli::simulate::LensArgs,
 }
 
 /// What `--json` prints.
@@ -88,8 +82,8 @@ pub fn run(a: Args) -> Result<()> {
         });
     }
     let floor = a.floor.rig()?;
-    let lens = crate::cli::simulate::distortion_arg(a.distortion.as_deref())?;
-    if floor.is_none() && a.distortion.is_some() {
+    let lens = a.lens.lens()?;
+    if floor.is_none() && a.lens.given() {
         bail!("--distortion is the true lens of the floor: it needs --case N or --rig FILE.json");
     }
     if let Some(rig) = &floor {
@@ -116,7 +110,7 @@ pub fn run(a: Args) -> Result<()> {
             topology: model::shape(blob),
             fallback: blob.fallback,
             floor_rig: floor.map(|_| a.floor.label()),
-            floor_distortion: a.distortion.as_ref().map(|_| [lens.k1, lens.k2]),
+            floor_distortion: a.lens.given().then_some([lens.k1, lens.k2]),
             evaluation: ev,
         };
         writeln!(o, "{}", serde_json::to_string_pretty(&r)?)?;

@@ -108,14 +108,8 @@ pub struct Args {
     /// Number of random postures (random) [default: 100].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     posture_count: Option<usize>,
-    /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
-    #[arg(
-        long,
-        value_name = "K1[,K2]",
-        value_delimiter = ',',
-        allow_hyphen_values = true
-    )]
-    distortion: Option<Vec<f64>>,
+    #[command(flatten)]
+    lens: LensArgs,
     /// Rounded (whole pixels, the thesis) or exact (unrounded) pixel coordinates.
     #[arg(long, value_enum, value_name = "HOW", default_value_t = PixelsArg::Rounded)]
     pixels: PixelsArg,
@@ -164,7 +158,7 @@ pub fn run(a: Args) -> Result<()> {
         board: a.board.unwrap_or(Board::Thesis),
         pixels: a.pixels.into(),
     };
-    if a.postures.is_some() || a.distortion.is_some() {
+    if a.postures.is_some() || a.lens.given() {
         return run_postures(&a, rig, &opt);
     }
     if a.posture_levels.is_some() || a.posture_count.is_some() {
@@ -176,9 +170,31 @@ pub fn run(a: Args) -> Result<()> {
     })
 }
 
-/// The lens of a `--distortion K1[,K2]` option (`hvs simulate`, `hvs eval`): none when
-/// absent; one or two finite coefficients.
-pub(crate) fn distortion_arg(v: Option<&[f64]>) -> Result<Distortion> {
+/// `--distortion K1[,K2]` (`hvs simulate`, `hvs eval`).
+#[derive(Debug, clap::Args)]
+pub struct LensArgs {
+    /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
+    #[arg(
+        long,
+        value_name = "K1[,K2]",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    distortion: Option<Vec<f64>>,
+}
+
+impl LensArgs {
+    /// Whether `--distortion` was given.
+    pub fn given(&self) -> bool {
+        self.distortion.is_some()
+    }
+    /// The lens: none when absent; one or two finite coefficients.
+    pub fn lens(&self) -> Result<Distortion> {
+        distortion_arg(self.distortion.as_deref())
+    }
+}
+
+fn distortion_arg(v: Option<&[f64]>) -> Result<Distortion> {
     let d = match v {
         None => Distortion::NONE,
         Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
@@ -193,7 +209,7 @@ pub(crate) fn distortion_arg(v: Option<&[f64]>) -> Result<Distortion> {
 
 /// `hvs simulate` with `--postures` and/or `--distortion`.
 fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -> Result<()> {
-    let distortion = distortion_arg(a.distortion.as_deref())?;
+    let distortion = a.lens.lens()?;
     let head = HeadRig::new(rig).with_distortion(distortion);
     let joints = match a.postures {
         None => {

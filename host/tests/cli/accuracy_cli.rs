@@ -2,7 +2,7 @@
 //! both, `--board NXxNY:PITCH`, their errors; `hvs eval --case N [--distortion K1]` gives the
 //! floor on such sets (zero on exact pixels, through the true lenses on a barrel set).
 
-use crate::common::{fails, ok, ok_line, stderr_with_code};
+use crate::common::{fails, fails_line, ok, ok_line, s, stderr_with_code, train_restarts};
 
 use tempfile::TempDir;
 
@@ -169,17 +169,11 @@ fn floor_pct(model: &str, data: &str, floor: &str) -> f64 {
 #[test]
 fn eval_gives_the_floor_on_exact_grid_board_and_barrel_sets() {
     let dir = TempDir::new().unwrap();
-    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let (train, model) = (dir.path().join("train.csv"), dir.path().join("m.hvsw"));
     // Any model: the floor does not depend on it.
-    ok_line(&format!(
-        "simulate --case 4 --set train -o {}",
-        p("train.csv")
-    ));
-    ok_line(&format!(
-        "train --data {} -o {} --hidden 2 --restarts 1",
-        p("train.csv"),
-        p("m.hvsw")
-    ));
+    ok(&["simulate", "--case", "4", "--set", "train", "-o", s(&train)]);
+    train_restarts(&train, &model, "1");
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
     let m = p("m.hvsw");
     let sim = |name: &str, args: &str| {
         ok_line(&format!(
@@ -214,30 +208,12 @@ fn eval_gives_the_floor_on_exact_grid_board_and_barrel_sets() {
         "eval --model {m} --data {barrel} --case 4 --distortion -0.1"
     ));
     assert!(text.contains("through lenses k1 = -0.1, k2 = 0"), "{text}");
-    fails(
-        &[
-            "eval",
-            "--model",
-            &m,
-            "--data",
-            &barrel,
-            "--distortion",
-            "-0.1",
-        ],
+    fails_line(
+        &format!("eval --model {m} --data {barrel} --distortion -0.1"),
         "needs --case N or --rig",
     );
-    fails(
-        &[
-            "eval",
-            "--model",
-            &m,
-            "--data",
-            &barrel,
-            "--case",
-            "4",
-            "--distortion",
-            "-0.1,0,1",
-        ],
+    fails_line(
+        &format!("eval --model {m} --data {barrel} --case 4 --distortion -0.1,0,1"),
         "K1 or K1,K2, got 3 values",
     );
 }

@@ -224,12 +224,9 @@ pub fn write(dir: &Path, a: &Accuracy, total_s: f64) -> Result<Vec<String>> {
         ),
     ];
     for (stem, fig) in &figures {
-        let svg = plot::svg(fig).with_context(|| format!("{stem}.svg"))?;
-        write_bytes(&sub.join(format!("{stem}.svg")), svg.as_bytes())?;
-        let png = plot::png(fig).with_context(|| format!("{stem}.png"))?;
-        write_bytes(&sub.join(format!("{stem}.png")), &png)?;
-        written.push(format!("{SUBDIR}/{stem}.svg"));
-        written.push(format!("{SUBDIR}/{stem}.png"));
+        for name in plot::write_figure(&sub, stem, fig)? {
+            written.push(format!("{SUBDIR}/{name}"));
+        }
     }
     let mut timing = String::from("stage,wall_s\n");
     for (name, s) in a.stage_s.iter().chain([("total", total_s)].iter()) {
@@ -312,67 +309,79 @@ fn score_cells(s: &Scores, exact: bool) -> String {
     out
 }
 
-/// Every case: e_ma (ratio to the floor).
-pub fn case_table(a: &Accuracy) -> String {
+/// A table of the four estimators: `lead` columns, then floor and the three methods, one
+/// row per `(lead cells, scores, exact)`.
+fn method_table<'a>(
+    a: &Accuracy,
+    lead: &[&str],
+    rows: impl Iterator<Item = (Vec<String>, &'a Scores, bool)>,
+) -> String {
     let t = method_titles(&a.config);
-    let mut s = format!(
-        "| board | regime | case | floor | {} | {} | {} |\n|---|---|---|---|---|---|---|\n",
-        t[1], t[2], t[3]
-    );
-    for r in &a.regimes {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} |",
-            r.board.name(),
-            r.regime.name,
-            roman(r.case),
-            score_cells(&r.scores, r.regime.exact())
-        );
-    }
-    s
-}
-
-fn protocol_table(a: &Accuracy) -> String {
-    let t = method_titles(&a.config);
-    let mut s = format!(
-        "| case | floor | {} | {} | {} |\n|---|---|---|---|---|\n",
-        t[1], t[2], t[3]
-    );
-    for p in &a.protocol {
+    let head: Vec<&str> = lead
+        .iter()
+        .copied()
+        .chain(["floor", &t[1], &t[2], &t[3]])
+        .collect();
+    let mut s = format!("| {} |\n|{}\n", head.join(" | "), "---|".repeat(head.len()));
+    for (cells, scores, exact) in rows {
         let _ = writeln!(
             s,
             "| {} | {} |",
-            roman(p.case),
-            score_cells(&p.worst, false)
+            cells.join(" | "),
+            score_cells(scores, exact)
         );
     }
     s
 }
 
+/// Every case: e_ma (ratio to the floor).
+pub fn case_table(a: &Accuracy) -> String {
+    method_table(
+        a,
+        &["board", "regime", "case"],
+        a.regimes.iter().map(|r| {
+            let lead = vec![r.board.name(), r.regime.name.into(), roman(r.case).into()];
+            (lead, &r.scores, r.regime.exact())
+        }),
+    )
+}
+
+fn protocol_table(a: &Accuracy) -> String {
+    method_table(
+        a,
+        &["case"],
+        a.protocol
+            .iter()
+            .map(|p| (vec![roman(p.case).to_string()], &p.worst, false)),
+    )
+}
+
 fn images_table(a: &Accuracy) -> String {
-    let t = method_titles(&a.config);
-    let mut s = format!(
-        "| images | blur (px) | noise (grey levels) | k1 | training corners | test corners | corner error (px) | floor | {} | {} | {} |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
-        t[1], t[2], t[3]
-    );
-    for r in &a.images {
-        let g = &r.regime;
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {}/{} | {}/{} | {:.3} | {} |",
-            g.name,
-            g.blur_px,
-            g.noise_grey,
-            g.k1,
-            r.train_corners[0],
-            r.train_corners[1],
-            r.test_corners[0],
-            r.test_corners[1],
-            r.corner_error_px,
-            score_cells(&r.scores, false)
-        );
-    }
-    s
+    method_table(
+        a,
+        &[
+            "images",
+            "blur (px)",
+            "noise (grey levels)",
+            "k1",
+            "training corners",
+            "test corners",
+            "corner error (px)",
+        ],
+        a.images.iter().map(|r| {
+            let g = &r.regime;
+            let lead = vec![
+                g.name.to_string(),
+                g.blur_px.to_string(),
+                g.noise_grey.to_string(),
+                g.k1.to_string(),
+                format!("{}/{}", r.train_corners[0], r.train_corners[1]),
+                format!("{}/{}", r.test_corners[0], r.test_corners[1]),
+                format!("{:.3}", r.corner_error_px),
+            ];
+            (lead, &r.scores, false)
+        }),
+    )
 }
 
 /// The worst ratio over cases of method `m` in the protocol, with its case.
