@@ -298,6 +298,55 @@ mod tests {
     }
 
     #[test]
+    fn exact_pixels_are_the_projection_and_share_the_noise_draws() {
+        let rig = presets::CASE_4;
+        let exact = SimOptions {
+            pixels: Pixels::Exact,
+            ..SimOptions::default()
+        };
+        for s in simulate(&rig, SetKind::Train, &exact).unwrap() {
+            assert_eq!(s.px, rig.project(&s.xyz).unwrap());
+        }
+        let noisy = |pixels| SimOptions {
+            pixels,
+            noise_px: 0.4,
+            seed: 11,
+            points: 50,
+            ..SimOptions::default()
+        };
+        let e = simulate(&rig, SetKind::Volume, &noisy(Pixels::Exact)).unwrap();
+        let r = simulate(&rig, SetKind::Volume, &noisy(Pixels::Rounded)).unwrap();
+        // The same points and draws: the rounded set is the noisy exact one, rounded (the
+        // presets' principal point is whole). Rejections could differ only at the image edge.
+        assert_eq!(e.len(), r.len());
+        for (e, r) in e.iter().zip(&r) {
+            assert_eq!(e.xyz, r.xyz);
+            assert_eq!(e.px.map(f64::round), r.px);
+            assert_ne!(e.px, rig.project(&e.xyz).unwrap());
+        }
+    }
+
+    #[test]
+    fn a_grid_board_trains_at_the_thesis_depths_and_has_no_test_set() {
+        let rig = presets::CASE_2;
+        let opt = SimOptions {
+            board: Board::parse("9x6:6").unwrap(),
+            points: 200,
+            ..SimOptions::default()
+        };
+        let t = simulate(&rig, SetKind::Train, &opt).unwrap();
+        assert_eq!(t.len(), 324);
+        assert_eq!(t[0].xyz, [-24.0, -15.0, 65.0]);
+        let v = simulate(&rig, SetKind::Volume, &opt).unwrap();
+        assert!(v
+            .iter()
+            .all(|s| s.xyz[0].abs() <= 24.0 && s.xyz[1].abs() <= 15.0));
+        assert!(v.iter().any(|s| s.xyz[0].abs() > 3.0));
+        let e = simulate(&rig, SetKind::Test, &opt).unwrap_err().to_string();
+        assert!(e.contains("--set test is the thesis' test points"), "{e}");
+    }
+
+    #[test]
     fn a_rig_that_misses_the_board_is_an_error() {
         let mut rig = presets::CASE_1;
         rig.alpha_left = 1.2;
