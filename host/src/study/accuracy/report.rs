@@ -130,44 +130,76 @@ pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
 
 const METHOD_COLORS: [usize; 3] = [1, 2, 0];
 
-/// A sweep figure: one panel per board, the four estimators against the swept value.
+/// Below this floor (%) a ratio to it is not drawn: exact pixels, where the floor is zero up
+/// to rounding of the arithmetic.
+const RATIO_MIN_FLOOR: f64 = 1e-6;
+
+/// A sweep figure: per board (columns), the four estimators' e_ma against the swept value
+/// (top row) and the three methods' ratios to the floor (bottom row, where the floor is not
+/// zero).
 fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -> Figure {
     let names = method_titles(&a.config);
-    let panels = BOARDS
+    let per_board: Vec<(&Board, Vec<&SweepRow>)> = BOARDS
         .iter()
-        .map(|board| {
-            let rows: Vec<&SweepRow> = rows.iter().filter(|r| r.board == *board).collect();
+        .map(|b| (b, rows.iter().filter(|r| r.board == *b).collect()))
+        .collect();
+    let methods = |rows: &[&SweepRow], y: &dyn Fn(&SweepRow, usize) -> f64| -> Vec<Series> {
+        let x: Vec<f64> = rows.iter().map(|r| r.x).collect();
+        (1..4)
+            .map(|m| {
+                let y: Vec<f64> = rows.iter().map(|r| y(r, m)).collect();
+                Series::new(
+                    names[m].clone(),
+                    &x,
+                    &y,
+                    Style::LinePoints,
+                    METHOD_COLORS[m - 1],
+                )
+            })
+            .collect()
+    };
+    let panel = |board: &Board, y_label: &str, series: Vec<Series>| Panel {
+        title: format!("{} board ({} points)", board_words(board), 6 * board.len()),
+        x_label: x_label.into(),
+        y_label: y_label.into(),
+        log_y: false,
+        series,
+        legend: Legend::UpperLeft,
+        integer_x: false,
+    };
+    let mut panels: Vec<Panel> = per_board
+        .iter()
+        .map(|(board, rows)| {
+            let mut series = methods(rows, &|r, m| r.scores.0[m]);
             let x: Vec<f64> = rows.iter().map(|r| r.x).collect();
-            let y = |m: usize| -> Vec<f64> { rows.iter().map(|r| r.scores.0[m]).collect() };
-            let mut series: Vec<Series> = (1..4)
-                .map(|m| {
-                    Series::new(
-                        names[m].clone(),
-                        &x,
-                        &y(m),
-                        Style::LinePoints,
-                        METHOD_COLORS[m - 1],
-                    )
-                })
-                .collect();
+            let floor: Vec<f64> = rows.iter().map(|r| r.scores.floor()).collect();
             series.push(Series::new(
                 "optimal triangulation, true rig and lenses (floor)",
                 &x,
-                &y(0),
+                &floor,
                 Style::Dashed,
                 FLOOR_COLOR,
             ));
-            Panel {
-                title: format!("{} board ({} points)", board_words(board), 6 * board.len()),
-                x_label: x_label.into(),
-                y_label: "depth e_ma (% of true depth)".into(),
-                log_y: false,
-                series,
-                legend: Legend::UpperLeft,
-                integer_x: false,
-            }
+            panel(board, "depth e_ma (% of true depth)", series)
         })
         .collect();
+    for (board, rows) in &per_board {
+        let rows: Vec<&SweepRow> = rows
+            .iter()
+            .copied()
+            .filter(|r| r.scores.floor() > RATIO_MIN_FLOOR)
+            .collect();
+        let mut series = methods(&rows, &|r, m| r.scores.ratios()[m - 1]);
+        let x: Vec<f64> = rows.iter().map(|r| r.x).collect();
+        series.push(Series::new(
+            "the floor (ratio 1)",
+            &x,
+            &vec![1.0; x.len()],
+            Style::Dashed,
+            FLOOR_COLOR,
+        ));
+        panels.push(panel(board, "e_ma / the floor's e_ma", series));
+    }
     Figure {
         title,
         panels,
