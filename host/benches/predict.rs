@@ -30,6 +30,7 @@ fn points() -> Vec<f32> {
         points: N,
         noise_px: 0.0,
         seed: 1,
+        ..SimOptions::default()
     };
     simulate(&presets::CASE_4, SetKind::Volume, &opt)
         .unwrap()

@@ -1,22 +1,51 @@
-//! Criterion benchmark of the default training (4-5-3, 10 restarts, Levenberg-Marquardt) on
-//! the thesis' case-IV board set (72 points): `cargo bench -p hvs-host --bench train`.
-//! The goal is under 0.1 s wall on the project's 2-core machine.
+//! Criterion benchmark of the training `hvs train` runs (4-5-3, 10 restarts,
+//! Levenberg-Marquardt): the default family (`ArchArg::DEFAULT`, the CLI's one definition)
+//! side by side with the thesis family, on the thesis' case-IV board set (72 points) and on
+//! the 9x6 board at 6 cm (324 points, `hvs simulate --board 9x6:6`); and the thesis'
+//! back-propagation on the 72 points. `cargo bench -p hvs-host --bench train`.
+//! Goals (issue 14) for the whole `hvs train` command: under 0.1 s wall on 72 points and
+//! under 1 s on 324 on the project's 2-core machine.
 
 mod common;
 
-use common::board_set;
+use common::{board_set, grid_board_set};
 use criterion::{criterion_group, criterion_main, Criterion};
+use hvs_host::cli::train::ArchArg;
+use hvs_host::sim::board::Board;
 use hvs_host::train::{train, Algo, TrainConfig};
+use hvs_shared::runtime::blob::Family;
 use std::hint::black_box;
 use std::time::Duration;
 
 fn bench(c: &mut Criterion) {
-    let data = board_set();
+    let sets = [
+        ("board72", board_set()),
+        (
+            "board324_9x6",
+            grid_board_set(Board::Grid {
+                nx: 9,
+                ny: 6,
+                pitch: 6.0,
+            }),
+        ),
+    ];
+    let families = [
+        ("default", ArchArg::DEFAULT.family()),
+        ("thesis", Family::THESIS),
+    ];
     let mut g = c.benchmark_group("train");
     g.measurement_time(Duration::from_secs(10));
-    g.bench_function("default_lm_case4_board72", |b| {
-        b.iter(|| train(black_box(&data), &TrainConfig::default()).unwrap())
-    });
+    for (set, data) in &sets {
+        for (name, family) in families {
+            let cfg = TrainConfig {
+                family,
+                ..TrainConfig::default()
+            };
+            g.bench_function(format!("{name}_lm_case4_{set}"), |b| {
+                b.iter(|| train(black_box(data), &cfg).unwrap())
+            });
+        }
+    }
     g.sample_size(10);
     g.measurement_time(Duration::from_secs(30));
     g.bench_function("bp_case4_board72_10restarts", |b| {
@@ -24,7 +53,7 @@ fn bench(c: &mut Criterion) {
             algo: Algo::Bp,
             ..TrainConfig::default()
         };
-        b.iter(|| train(black_box(&data), &cfg).unwrap())
+        b.iter(|| train(black_box(&sets[0].1), &cfg).unwrap())
     });
     g.finish();
 }

@@ -16,7 +16,7 @@ use crate::infer::{PointError, Predictor};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::traditional::{traditional_depth_signed, Calibration};
-use hvs_shared::sim::camera::Rig;
+use hvs_shared::sim::camera::{Distortion, Rig};
 use hvs_shared::sim::metrics::EmaAcc;
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::triangulate::optimal_rig as optimal;
@@ -217,10 +217,18 @@ pub fn traditional_depths(cal: &Calibration, data: &Dataset) -> Vec<f64> {
 /// [`crate::data::dataset::JOINT_COLUMNS`] in degrees) each row is triangulated with the rig's
 /// cameras at that row's posture (`hvs_shared::sim::posture::HeadRig::new(rig)`: the simulator's
 /// head, neck axes through the baseline centre, no lens distortion), so the depth is in the
-/// head frame like the set's ground truth. A set's lens distortion is not in the file and is
-/// not modelled here.
+/// head frame like the set's ground truth. A set's lens distortion is not in the file: give
+/// it to [`optimal_depths_lens`].
 pub fn optimal_depths(rig: &Rig, data: &Dataset) -> Vec<f64> {
-    let head = HeadRig::new(*rig);
+    optimal_depths_lens(rig, Distortion::NONE, data)
+}
+
+/// [`optimal_depths`] through lenses with radial distortion `lens` (both cameras, as
+/// `hvs simulate --distortion`): the rays of the undistorted pixels
+/// (`HeadRig::with_distortion`), at the home posture or at each row's posture. Without
+/// distortion this is exactly [`optimal_depths`].
+pub fn optimal_depths_lens(rig: &Rig, lens: Distortion, data: &Dataset) -> Vec<f64> {
+    let head = HeadRig::new(*rig).with_distortion(lens);
     let posed = data.input_kind() == Some(InputKind::StereoJoints);
     (0..data.len())
         .map(|i| {
@@ -229,8 +237,10 @@ pub fn optimal_depths(rig: &Rig, data: &Dataset) -> Vec<f64> {
             let p = if posed {
                 let joints = Joints([r[4], r[5], r[6], r[7], r[8]].map(|v| v as f32));
                 head.optimal(&joints, &px)
-            } else {
+            } else if lens.is_none() {
                 optimal(rig, &px)
+            } else {
+                head.optimal(&Joints::HOME, &px)
             };
             p.map_or(f64::NAN, |p| p[2])
         })

@@ -418,6 +418,7 @@ mod tests {
             points: 300,
             noise_px: 0.0,
             seed: 5,
+            ..SimOptions::default()
         };
         let mut d = Dataset::new(hvs_shared::runtime::blob::InputKind::Stereo);
         for s in simulate(&rig, SetKind::Volume, &opt).unwrap() {

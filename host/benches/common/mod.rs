@@ -1,18 +1,29 @@
 //! What the training benches share.
+// Each bench uses a different subset.
+#![allow(dead_code)]
 
 use hvs_host::data::dataset::Dataset;
+use hvs_host::sim::board::Board;
+use hvs_host::sim::sets::{simulate, SetKind, SimOptions};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::sim::presets;
 
 /// The thesis' case-IV board set: the board protocol's 72 points at the training depths,
 /// projected and rounded to whole pixels.
 pub fn board_set() -> Dataset {
-    let rig = presets::CASE_4;
+    grid_board_set(Board::Thesis)
+}
+
+/// `board` at the thesis' six training depths through case IV, rounded pixels, as
+/// `hvs simulate --case 4 --set train --board NAME` writes it (9x6:6: 324 points).
+pub fn grid_board_set(board: Board) -> Dataset {
+    let opt = SimOptions {
+        board,
+        ..SimOptions::default()
+    };
     let mut d = Dataset::new(InputKind::Stereo);
-    for z in presets::TRAIN_DEPTHS {
-        for p in presets::board_points(z) {
-            d.push(&rig.project_rounded(&p).unwrap(), Some(p));
-        }
+    for s in simulate(&presets::CASE_4, SetKind::Train, &opt).expect("case IV sees the board") {
+        d.push(&s.px, Some(s.xyz));
     }
     d
 }

@@ -114,6 +114,7 @@ pub fn run_case(n: u8, dir: &Path, seed: u64, restarts: usize) -> Result<CaseRes
                 points,
                 noise_px: 0.0,
                 seed,
+                ..SimOptions::default()
             },
         )
     };

@@ -5,9 +5,9 @@ use crate::cli::RigArgs;
 use crate::data::csv::{read_set, Inputs};
 use crate::data::model;
 use crate::evaluate::{
-    evaluate, optimal_depths, text_table, traditional_depths, Evaluation, Method,
+    evaluate, optimal_depths_lens, text_table, traditional_depths, Evaluation, Method,
 };
-use anyhow::Result;
+use anyhow::{bail, Result};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::traditional::Calibration;
 use serde::Serialize;
@@ -22,8 +22,11 @@ use std::path::PathBuf;
     depth, with the mean over all points and the worst depth, for the model and for the \
     traditional method (eq. 3.1-17 with the fallback calibration stored in the model) side by \
     side. With --case/--rig, also the optimal triangulation with that true rig on the same \
-    pixels: the floor no calibration-free method can beat. Sets with more than 50 distinct \
-    depths are grouped into 10 depth bins."
+    pixels: the floor no calibration-free method can beat, on rounded, noisy or exact pixels \
+    and on any board (`hvs simulate --pixels`, `--noise-px`, `--board`). A set simulated \
+    with `--distortion K1[,K2]` needs the same --distortion here, so that the floor \
+    triangulates through the true lenses. Sets with more than 50 distinct depths are grouped \
+    into 10 depth bins."
 )]
 pub struct Args {
     /// The model (weights blob).
@@ -37,6 +40,9 @@ pub struct Args {
     json: bool,
     #[command(flatten)]
     floor: RigArgs,
+    // The true lenses of the floor's rig (as the set was simulated); needs --case or --rig.
+    #[command(flatten)]
+    lens: crate::cli::simulate::LensArgs,
 }
 
 /// What `--json` prints.
@@ -52,6 +58,8 @@ pub struct Report {
     pub fallback: Option<Calibration>,
     /// The rig of the optimal triangulation, if one was given.
     pub floor_rig: Option<String>,
+    /// The floor's lens distortion `[k1, k2]`, if one was given.
+    pub floor_distortion: Option<[f64; 2]>,
     /// Per-depth errors (non-finite values are written as null).
     pub evaluation: Evaluation,
 }
@@ -74,6 +82,10 @@ pub fn run(a: Args) -> Result<()> {
         });
     }
     let floor = a.floor.rig()?;
+    let lens = a.lens.lens()?;
+    if floor.is_none() && a.lens.given() {
+        bail!("--distortion is the true lens of the floor: it needs --case N or --rig FILE.json");
+    }
     if let Some(rig) = &floor {
         // The floor triangulates at each row's posture when the file has the joint columns,
         // also for a 4-input model (which sees only the pixels).
@@ -86,7 +98,7 @@ pub fn run(a: Args) -> Result<()> {
         };
         methods.push(Method {
             name: "optimal".into(),
-            z: optimal_depths(rig, floor_data),
+            z: optimal_depths_lens(rig, lens, floor_data),
         });
     }
     let ev = evaluate(&table.data, &methods);
@@ -98,6 +110,7 @@ pub fn run(a: Args) -> Result<()> {
             topology: model::shape(blob),
             fallback: blob.fallback,
             floor_rig: floor.map(|_| a.floor.label()),
+            floor_distortion: a.lens.given().then_some([lens.k1, lens.k2]),
             evaluation: ev,
         };
         writeln!(o, "{}", serde_json::to_string_pretty(&r)?)?;
@@ -127,8 +140,13 @@ pub fn run(a: Args) -> Result<()> {
     if floor.is_some() {
         writeln!(
             o,
-            "optimal: least-reprojection-error triangulation with the true rig ({})",
-            a.floor.label()
+            "optimal: least-reprojection-error triangulation with the true rig ({}){}",
+            a.floor.label(),
+            if lens.is_none() {
+                String::new()
+            } else {
+                format!(" through lenses k1 = {}, k2 = {}", lens.k1, lens.k2)
+            }
         )?;
     }
     writeln!(o)?;

@@ -4,6 +4,7 @@ use super::value_enum;
 use crate::cli::RigArgs;
 use crate::data::csv::write_output;
 use crate::data::output::check_not_input;
+use crate::sim::board::{Board, Pixels};
 use crate::sim::posture::{self, postures, PostureOptions, Sampling};
 use crate::sim::sets::{simulate, write_csv, SetKind, SimOptions};
 
@@ -16,6 +17,16 @@ value_enum! {
         Test,
         /// Uniform random points in the box the training boards span.
         Volume,
+    }
+}
+
+value_enum! {
+    /// How the camera reports pixel coordinates.
+    PixelsArg => Pixels {
+        /// Rounded to whole pixels (after any noise), as the thesis' cameras report them.
+        Rounded,
+        /// Unrounded: the exact projection plus any noise, as a sub-pixel corner detector.
+        Exact,
     }
 }
 
@@ -44,7 +55,14 @@ use std::path::PathBuf;
     --set test: the test points P1, P2 (X = -+1.75 cm) at Z = 65..165 cm, step 10 (22 rows).\n\
     --set volume: --points uniform random points in the box the training boards span\n\
     (X -3..3, Y -2..2, Z 65..165 cm), kept only when both images see them.\n\n\
-    Output columns: u_l,v_l,u_r,v_r,x,y,z (pixels rounded as a camera reports them; cm).\n\n\
+    --board NXxNY:PITCH: a bigger training board instead of the thesis' 4x3 at 2 cm, e.g.\n\
+    9x6:6 (9 x 6 inner corners 6 cm apart, centred on the axis like the thesis board) at the\n\
+    same six depths (--set train: 324 rows), or --set volume in the box that board spans\n\
+    (9x6:6: X -24..24, Y -15..15, Z 65..165 cm). --set test is the thesis' P1, P2 only.\n\n\
+    Output columns: u_l,v_l,u_r,v_r,x,y,z (pixels; cm). --pixels rounded (the default):\n\
+    whole pixels as a camera reports them; --pixels exact: the unrounded projection, as a\n\
+    sub-pixel corner detector gives it, written in full precision. --noise-px S adds\n\
+    Gaussian noise of S px to every coordinate, before the rounding when rounded.\n\n\
     --postures grid|lattice|random: the rig on the five-axis head, the set repeated at many\n\
     postures of the working range (neck pan +-30, neck tilt +-20, eye tilt +-15, version +-15,\n\
     vergence 0..10 degrees; quantised to the drives' 0.18 degree steps), the points placed in\n\
@@ -55,7 +73,7 @@ use std::path::PathBuf;
     right_eye_pan (degrees).\n\n\
     --distortion K1[,K2]: radial lens distortion of both cameras, 1 + K1 r^2 + K2 r^4 with r\n\
     the distance from the principal point in units of half the image width (K1 < 0: barrel),\n\
-    applied before rounding."
+    applied before any rounding."
 )]
 pub struct Args {
     #[command(flatten)]
@@ -66,7 +84,7 @@ pub struct Args {
     /// Number of points (volume set only) [default: 500].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     points: Option<usize>,
-    /// Standard deviation of Gaussian pixel noise added before rounding (px).
+    /// Standard deviation of Gaussian pixel noise (px), added before any rounding.
     #[arg(
         long,
         value_name = "S",
@@ -90,14 +108,23 @@ pub struct Args {
     /// Number of random postures (random) [default: 100].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     posture_count: Option<usize>,
-    /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
-    #[arg(
-        long,
-        value_name = "K1[,K2]",
-        value_delimiter = ',',
-        allow_hyphen_values = true
-    )]
-    distortion: Option<Vec<f64>>,
+    #[command(flatten)]
+    lens: LensArgs,
+    /// Rounded (whole pixels, the thesis) or exact (unrounded) pixel coordinates.
+    #[arg(long, value_enum, value_name = "HOW", default_value_t = PixelsArg::Rounded)]
+    pixels: PixelsArg,
+    /// Training board: `thesis` (4 x 3 points at 2 cm) or NXxNY:PITCH, e.g. 9x6:6 (inner
+    /// corners, cm) [default: thesis].
+    #[arg(long, value_name = "thesis|NXxNY:PITCH", value_parser = parse_board)]
+    board: Option<Board>,
+}
+
+/// clap's parser of `--board`: [`Board::parse`], its error as the message.
+fn parse_board(s: &str) -> Result<Board, String> {
+    Board::parse(s).map_err(|e| {
+        let m = e.to_string();
+        m.strip_prefix("--board ").unwrap_or(&m).to_string()
+    })
 }
 
 /// Seed of the posture draws: `--seed` mixed with a constant, so that postures and pixel
@@ -128,8 +155,10 @@ pub fn run(a: Args) -> Result<()> {
         points: a.points.unwrap_or(SimOptions::default().points),
         noise_px: a.noise_px,
         seed: a.seed,
+        board: a.board.unwrap_or(Board::Thesis),
+        pixels: a.pixels.into(),
     };
-    if a.postures.is_some() || a.distortion.is_some() {
+    if a.postures.is_some() || a.lens.given() {
         return run_postures(&a, rig, &opt);
     }
     if a.posture_levels.is_some() || a.posture_count.is_some() {
@@ -141,17 +170,46 @@ pub fn run(a: Args) -> Result<()> {
     })
 }
 
-/// `hvs simulate` with `--postures` and/or `--distortion`.
-fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -> Result<()> {
-    let distortion = match a.distortion.as_deref() {
+/// `--distortion K1[,K2]` (`hvs simulate`, `hvs eval`).
+#[derive(Debug, clap::Args)]
+pub struct LensArgs {
+    /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
+    #[arg(
+        long,
+        value_name = "K1[,K2]",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    distortion: Option<Vec<f64>>,
+}
+
+impl LensArgs {
+    /// Whether `--distortion` was given.
+    pub fn given(&self) -> bool {
+        self.distortion.is_some()
+    }
+    /// The lens: none when absent; one or two finite coefficients.
+    pub fn lens(&self) -> Result<Distortion> {
+        distortion_arg(self.distortion.as_deref())
+    }
+}
+
+fn distortion_arg(v: Option<&[f64]>) -> Result<Distortion> {
+    let d = match v {
         None => Distortion::NONE,
         Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
         Some([k1, k2]) => Distortion { k1: *k1, k2: *k2 },
         Some(v) => bail!("--distortion takes K1 or K1,K2, got {} values", v.len()),
     };
-    if !distortion.is_finite() {
+    if !d.is_finite() {
         bail!("--distortion coefficients must be finite numbers");
     }
+    Ok(d)
+}
+
+/// `hvs simulate` with `--postures` and/or `--distortion`.
+fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -> Result<()> {
+    let distortion = a.lens.lens()?;
     let head = HeadRig::new(rig).with_distortion(distortion);
     let joints = match a.postures {
         None => {

@@ -19,8 +19,9 @@
 //! Every posture is quantised to the drives' 0.18 degree steps, as the head's setpoints are.
 
 use crate::data::dataset::{Dataset, JOINT_COLUMNS};
+use crate::sim::board::Pixels;
 use crate::sim::sets::{
-    board_points, check_points, to_written_precision, training_volume, SetKind, SimOptions,
+    check_points, set_points, to_written_precision, volume_of, SetKind, SimOptions,
 };
 use anyhow::{bail, Result};
 use hvs_shared::runtime::blob::InputKind;
@@ -186,15 +187,22 @@ pub fn simulate(
         })
     };
     let frame = |j: &Joints| gaze_frame(j, head.neck_centre_cm, rig.half_baseline);
+    let project = |j: &Joints, p: &Vec3, n: &[f64; 4]| match opt.pixels {
+        Pixels::Rounded => head.project_rounded_noisy(j, p, n),
+        Pixels::Exact => head
+            .project(j, p)
+            .map(|e| core::array::from_fn(|k| e[k] + n[k])),
+    };
     let mut out = Vec::new();
     match kind {
         SetKind::Train | SetKind::Test => {
+            let points = set_points(kind, &opt.board)?;
             for j in joints {
                 let f = frame(j);
-                for q in board_points(kind) {
+                for &q in &points {
                     let p = to_head(&f, &q).map(to_written_precision);
                     let n = noise(&mut rng);
-                    let px = match head.project_rounded_noisy(j, &p, &n) {
+                    let px = match project(j, &p, &n) {
                         Ok(px) => px,
                         Err(e) => bail!(
                             "board point ({}, {}, {}) cm at posture {:?} has no image: {e}",
@@ -220,7 +228,7 @@ pub fn simulate(
         }
         SetKind::Volume => {
             check_points(opt.points)?;
-            let (lo, hi) = training_volume();
+            let (lo, hi) = volume_of(&opt.board);
             let max_tries = opt.points.saturating_mul(1000).max(10_000);
             let mut tries = 0usize;
             while out.len() < opt.points {
@@ -239,7 +247,7 @@ pub fn simulate(
                 });
                 let p = to_head(&frame(j), &q).map(to_written_precision);
                 let n = noise(&mut rng);
-                if let Ok(px) = head.project_rounded_noisy(j, &p, &n) {
+                if let Ok(px) = project(j, &p, &n) {
                     if rig.in_image(&px) {
                         out.push(PostureSample {
                             px,
@@ -440,7 +448,7 @@ mod tests {
         let sees_far = |h: &HeadRig| {
             // The board straight ahead of the head, seen with the eyes turned 30 degrees.
             let mut out = Vec::new();
-            for q in board_points(SetKind::Train) {
+            for q in crate::sim::sets::board_points(SetKind::Train) {
                 out.push(PostureSample {
                     px: h.project_rounded(&far[0], &q).unwrap(),
                     joints: far[0],
@@ -470,6 +478,7 @@ mod tests {
             points: 700,
             noise_px: 0.5,
             seed: 4,
+            ..SimOptions::default()
         };
         let a = simulate(&head, SetKind::Volume, &js, &opt).unwrap();
         assert_eq!(a, simulate(&head, SetKind::Volume, &js, &opt).unwrap());

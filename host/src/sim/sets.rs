@@ -1,7 +1,9 @@
 //! Simulated point sets: the thesis' board protocol and random points of the training
 //! volume, projected through a rig with `hvs_shared::sim::camera` (optionally with seeded Gaussian
-//! pixel noise before the rounding), and their CSV form.
+//! pixel noise before the rounding, or unrounded pixels), on the thesis' board or a larger grid
+//! board ([`crate::sim::board`]), and their CSV form.
 
+use crate::sim::board::{Board, Pixels};
 use anyhow::{bail, Result};
 use hvs_shared::sim::camera::{Rig, StereoPixels, Vec3};
 use hvs_shared::sim::presets;
@@ -38,6 +40,10 @@ pub struct SimOptions {
     pub noise_px: f64,
     /// Seed of every random draw.
     pub seed: u64,
+    /// The training board (`train` sets, and the box of `volume` sets).
+    pub board: Board,
+    /// Rounded (the thesis) or exact pixels.
+    pub pixels: Pixels,
 }
 
 impl Default for SimOptions {
@@ -46,6 +52,8 @@ impl Default for SimOptions {
             points: 500,
             noise_px: 0.0,
             seed: 0,
+            board: Board::Thesis,
+            pixels: Pixels::Rounded,
         }
     }
 }
@@ -92,6 +100,30 @@ pub fn board_points(kind: SetKind) -> Vec<Vec3> {
     }
 }
 
+/// The true positions of a board set on `board`: [`board_points`] for the thesis board; a
+/// grid board has training boards only (its test points P1, P2 are the thesis'), so
+/// `test` with a grid board is an error.
+pub fn set_points(kind: SetKind, board: &Board) -> Result<Vec<Vec3>> {
+    match (kind, board) {
+        (_, Board::Thesis) => Ok(board_points(kind)),
+        (SetKind::Train, b) => Ok(b.train_points()),
+        (SetKind::Test, b) => bail!(
+            "--set test is the thesis' test points P1, P2; --board {} applies to --set train and --set volume",
+            b.name()
+        ),
+        (SetKind::Volume, _) => Ok(Vec::new()),
+    }
+}
+
+/// The box random volume points come from: [`training_volume`] for the thesis board, the box
+/// a grid board spans otherwise.
+pub fn volume_of(board: &Board) -> (Vec3, Vec3) {
+    match board {
+        Board::Thesis => training_volume(),
+        b => b.volume(),
+    }
+}
+
 /// Simulates a set through `rig`. Every random draw comes from one ChaCha8 stream seeded
 /// with `opt.seed`, so the same arguments give the same bytes.
 pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample>> {
@@ -111,17 +143,17 @@ pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample
             n * opt.noise_px
         })
     };
-    let project = |p: &Vec3, n: &[f64; 4]| {
-        if opt.noise_px == 0.0 {
-            rig.project_rounded(p)
-        } else {
-            rig.project_rounded_noisy(p, n)
-        }
+    let project = |p: &Vec3, n: &[f64; 4]| match opt.pixels {
+        Pixels::Exact => rig
+            .project(p)
+            .map(|e| core::array::from_fn(|k| e[k] + n[k])),
+        Pixels::Rounded if opt.noise_px == 0.0 => rig.project_rounded(p),
+        Pixels::Rounded => rig.project_rounded_noisy(p, n),
     };
     match kind {
         SetKind::Train | SetKind::Test => {
             let mut out = Vec::new();
-            for p in board_points(kind) {
+            for p in set_points(kind, &opt.board)? {
                 let n = noise(&mut rng);
                 let px = match project(&p, &n) {
                     Ok(px) => px,
@@ -144,7 +176,7 @@ pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample
         }
         SetKind::Volume => {
             check_points(opt.points)?;
-            let (lo, hi) = training_volume();
+            let (lo, hi) = volume_of(&opt.board);
             let max_tries = opt.points.saturating_mul(1000).max(10_000);
             let mut out = Vec::with_capacity(opt.points);
             let mut tries = 0usize;
@@ -180,8 +212,9 @@ pub(crate) fn to_written_precision(v: f64) -> f64 {
     k / 1e4 + 0.0
 }
 
-/// Writes samples as CSV: header `u_l,v_l,u_r,v_r,x,y,z`, pixels as integers (they are
-/// rounded), positions with four decimals, as in the thesis' data files.
+/// Writes samples as CSV: header `u_l,v_l,u_r,v_r,x,y,z`, pixels in the shortest form that
+/// reads back to the same double (integers when they are rounded), positions with four
+/// decimals, as in the thesis' data files.
 pub fn write_csv(w: &mut dyn Write, samples: &[Sample]) -> std::io::Result<()> {
     writeln!(w, "u_l,v_l,u_r,v_r,x,y,z")?;
     for s in samples {
@@ -262,6 +295,55 @@ mod tests {
             }
         )
         .is_err());
+    }
+
+    #[test]
+    fn exact_pixels_are_the_projection_and_share_the_noise_draws() {
+        let rig = presets::CASE_4;
+        let exact = SimOptions {
+            pixels: Pixels::Exact,
+            ..SimOptions::default()
+        };
+        for s in simulate(&rig, SetKind::Train, &exact).unwrap() {
+            assert_eq!(s.px, rig.project(&s.xyz).unwrap());
+        }
+        let noisy = |pixels| SimOptions {
+            pixels,
+            noise_px: 0.4,
+            seed: 11,
+            points: 50,
+            ..SimOptions::default()
+        };
+        let e = simulate(&rig, SetKind::Volume, &noisy(Pixels::Exact)).unwrap();
+        let r = simulate(&rig, SetKind::Volume, &noisy(Pixels::Rounded)).unwrap();
+        // The same points and draws: the rounded set is the noisy exact one, rounded (the
+        // presets' principal point is whole). Rejections could differ only at the image edge.
+        assert_eq!(e.len(), r.len());
+        for (e, r) in e.iter().zip(&r) {
+            assert_eq!(e.xyz, r.xyz);
+            assert_eq!(e.px.map(f64::round), r.px);
+            assert_ne!(e.px, rig.project(&e.xyz).unwrap());
+        }
+    }
+
+    #[test]
+    fn a_grid_board_trains_at_the_thesis_depths_and_has_no_test_set() {
+        let rig = presets::CASE_2;
+        let opt = SimOptions {
+            board: Board::parse("9x6:6").unwrap(),
+            points: 200,
+            ..SimOptions::default()
+        };
+        let t = simulate(&rig, SetKind::Train, &opt).unwrap();
+        assert_eq!(t.len(), 324);
+        assert_eq!(t[0].xyz, [-24.0, -15.0, 65.0]);
+        let v = simulate(&rig, SetKind::Volume, &opt).unwrap();
+        assert!(v
+            .iter()
+            .all(|s| s.xyz[0].abs() <= 24.0 && s.xyz[1].abs() <= 15.0));
+        assert!(v.iter().any(|s| s.xyz[0].abs() > 3.0));
+        let e = simulate(&rig, SetKind::Test, &opt).unwrap_err().to_string();
+        assert!(e.contains("--set test is the thesis' test points"), "{e}");
     }
 
     #[test]

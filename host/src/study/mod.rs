@@ -1,5 +1,7 @@
 //! The studies: experiments that compute facts, plot them and write a report.
 //!
+//! - [`accuracy`]: depth accuracy per pixel regime against the floor (`hvs experiment accuracy`,
+//!   `ACCURACY.md`).
 //! - [`thesis`]: the thesis' chapter-4 experiments (`hvs experiment thesis`, `RESULTS.md`).
 //! - [`posture`]: the posture study (`hvs experiment posture`, `POSTURE.md`).
 //! - [`plot`]: the figures (SVG and PNG through `plotters`).
@@ -7,6 +9,7 @@
 //! - [`template`]: report prose from `host/templates/*.md`, placeholders filled by [`template::fill`].
 //! - [`reported`]: the thesis' reported values, the one table our numbers are compared with.
 
+pub mod accuracy;
 pub mod fmt;
 pub mod plot;
 pub mod posture;

@@ -133,6 +133,18 @@ fn color(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }
 
+/// Writes `fig` as `dir/stem.svg` and `dir/stem.png` (atomically, as every output) and
+/// returns the two file names.
+pub fn write_figure(dir: &std::path::Path, stem: &str, fig: &Figure) -> Result<[String; 2]> {
+    use anyhow::Context;
+    let names = [format!("{stem}.svg"), format!("{stem}.png")];
+    let svg = svg(fig).with_context(|| names[0].clone())?;
+    crate::data::csv::write_bytes(&dir.join(&names[0]), svg.as_bytes())?;
+    let png = png(fig).with_context(|| names[1].clone())?;
+    crate::data::csv::write_bytes(&dir.join(&names[1]), &png)?;
+    Ok(names)
+}
+
 /// Lowest value of a logarithmic axis; smaller positive values are drawn on it.
 const LOG_MIN: f64 = 1e-2;
 

@@ -8,9 +8,11 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod accuracy_cli;
 mod cli;
 mod eval_posture;
 mod experiment;
+mod experiment_accuracy;
 mod experiment_posture;
 mod flash;
 mod images;

@@ -148,3 +148,8 @@ pub fn wait_ok(child: Child) -> (String, Vec<u8>) {
 pub fn ok_line(line: &str) -> String {
     ok(&line.split_whitespace().collect::<Vec<_>>())
 }
+
+/// [`fails`] of a command line split at white space.
+pub fn fails_line(line: &str, want: &str) -> String {
+    fails(&line.split_whitespace().collect::<Vec<_>>(), want)
+}

@@ -260,6 +260,7 @@ pub fn fixed_posture_study(cfg: &StudyConfig) -> Result<(ModelBlob, Vec<FixedRow
                 points: cfg.fixed_points,
                 noise_px: 0.0,
                 seed: cfg.seed.wrapping_add(100 + k as u64),
+                ..SimOptions::default()
             },
         )?;
         let (mut net, mut floor) = (Acc::default(), Acc::default());
@@ -377,6 +378,7 @@ fn test_sets(
             points: cfg.test_points,
             noise_px: 0.0,
             seed: cfg.seed.wrapping_add(12),
+            ..SimOptions::default()
         },
     )?;
     let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(cfg.seed.wrapping_add(13));
@@ -406,6 +408,7 @@ fn test_sets(
             points: cfg.extreme_points,
             noise_px: 0.0,
             seed: cfg.seed.wrapping_add(14),
+            ..SimOptions::default()
         },
     )?;
     Ok((test, extreme_set))

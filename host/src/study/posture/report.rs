@@ -251,12 +251,7 @@ pub fn write(dir: &Path, r: &PostureRun, total_s: f64) -> Result<Vec<String>> {
         ("distortion", distortion_figure(&r.report)),
     ];
     for (stem, fig) in &figures {
-        let svg = plot::svg(fig).with_context(|| format!("{stem}.svg"))?;
-        write_bytes(&dir.join(format!("{stem}.svg")), svg.as_bytes())?;
-        let png = plot::png(fig).with_context(|| format!("{stem}.png"))?;
-        write_bytes(&dir.join(format!("{stem}.png")), &png)?;
-        written.push(format!("{stem}.svg"));
-        written.push(format!("{stem}.png"));
+        written.extend(plot::write_figure(dir, stem, fig)?);
     }
     write_bytes(&dir.join("POSTURE.md"), posture_md(r, total_s)?.as_bytes())?;
     written.push("POSTURE.md".to_string());

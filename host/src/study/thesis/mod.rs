@@ -693,6 +693,7 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
                             points,
                             noise_px: sigma,
                             seed: derive_seed(cfg.seed, tag, item, 0),
+                            ..SimOptions::default()
                         },
                     )
                 };

@@ -11,7 +11,7 @@ use crate::study::fmt::{join, num, roman};
 use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use crate::study::reported::NET_BOUND_PCT;
 use crate::train::Algo;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use hvs_shared::runtime::blob::OutputKind;
 use hvs_shared::sim::presets::TEST_DEPTHS;
 use std::path::Path;
@@ -61,12 +61,8 @@ impl Out<'_> {
         Ok(())
     }
     fn figure(&mut self, stem: &str, fig: &Figure) -> Result<()> {
-        let svg = plot::svg(fig).with_context(|| format!("{stem}.svg"))?;
-        write_bytes(&self.dir.join(format!("{stem}.svg")), svg.as_bytes())?;
-        let png = plot::png(fig).with_context(|| format!("{stem}.png"))?;
-        write_bytes(&self.dir.join(format!("{stem}.png")), &png)?;
-        self.written.push(format!("{stem}.svg"));
-        self.written.push(format!("{stem}.png"));
+        self.written
+            .extend(plot::write_figure(self.dir, stem, fig)?);
         Ok(())
     }
 }
