@@ -472,12 +472,13 @@ fn commands(a: &Accuracy) -> String {
         };
         let _ = writeln!(
             s,
-            "# {} board, {} (case {}):\n{} -o train.csv\n{} -o test.csv\nhvs train --data train.csv -o model.hvsw\nhvs eval --model model.hvsw --data test.csv --case {c}{lens}\n",
+            "# {} board, {} (case {}):\n{} -o train.csv\n{} -o test.csv\nhvs train --data train.csv -o model.hvsw --seed {}\nhvs eval --model model.hvsw --data test.csv --case {c}{lens}\n",
             board.name(),
             r.name,
             roman(c),
             simulate_command(c, &board, r, "train", train_seed),
             simulate_command(c, &board, r, "volume", test_seed).replace(" N ", &format!(" {} ", a.config.test_points())),
+            super::TRAIN_SEED,
         );
     }
     s
@@ -496,6 +497,7 @@ fn accuracy_md(a: &Accuracy, total_s: f64, dir: &str) -> Result<String> {
         ("threads", a.threads.to_string()),
         ("stage_times", stages(&a.stage_s)),
         ("seed_base", cfg.seed_base.to_string()),
+        ("train_seed", super::TRAIN_SEED.to_string()),
         ("held_out", if cfg.seed_base == HELD_OUT_SEED_BASE { "the held-out base".into() } else { "not the held-out base (1000000)".to_string() }),
         ("default_family", cfg.default_family.name().to_string()),
         ("default_title", t[3].clone()),
