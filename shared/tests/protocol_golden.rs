@@ -145,32 +145,25 @@ fn responses() -> Vec<(&'static str, Response)> {
                 }),
             ),
         ),
-        (
-            "response error malformed",
-            r(9, ResponseBody::Error(ErrorCode::Malformed)),
-        ),
-        (
-            "response error oversize",
-            r(9, ResponseBody::Error(ErrorCode::Oversize)),
-        ),
-        (
-            "response error non-finite",
-            r(9, ResponseBody::Error(ErrorCode::NonFinite)),
-        ),
-        (
-            "response error unreachable",
-            r(9, ResponseBody::Error(ErrorCode::Unreachable)),
-        ),
-        (
-            "response error no solution",
-            r(9, ResponseBody::Error(ErrorCode::NoSolution)),
-        ),
-        (
-            "response error unsupported",
-            r(9, ResponseBody::Error(ErrorCode::Unsupported)),
-        ),
     ]
     .into_iter()
+    .chain(
+        [
+            ("malformed", ErrorCode::Malformed),
+            ("oversize", ErrorCode::Oversize),
+            ("non-finite", ErrorCode::NonFinite),
+            ("unreachable", ErrorCode::Unreachable),
+            ("no solution", ErrorCode::NoSolution),
+            ("unsupported", ErrorCode::Unsupported),
+        ]
+        .into_iter()
+        .map(|(n, c)| {
+            (
+                leak(format!("response error {n}")),
+                r(9, ResponseBody::Error(c)),
+            )
+        }),
+    )
     .chain(
         [
             ("bad magic", BlobError::BadMagic),
@@ -184,8 +177,7 @@ fn responses() -> Vec<(&'static str, Response)> {
         ]
         .into_iter()
         .map(|(n, e)| {
-            let name: &'static str =
-                Box::leak(format!("response info slot A {n}").into_boxed_str());
+            let name = leak(format!("response info slot A {n}"));
             let i = info(
                 Mode::Fallback,
                 None,
@@ -196,6 +188,11 @@ fn responses() -> Vec<(&'static str, Response)> {
         }),
     )
     .collect()
+}
+
+/// A generated message name, for the `&'static str` names of the tables.
+fn leak(name: String) -> &'static str {
+    Box::leak(name.into_boxed_str())
 }
 
 fn hex(b: &[u8]) -> String {

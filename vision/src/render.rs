@@ -44,6 +44,7 @@
 //! one seeded ChaCha8 stream per image pair, as `hvs simulate` draws its noise) models the
 //! sensor, and the result is rounded and clamped to 8 bits.
 
+use crate::invalid::{finite_in, in_range, InvalidField};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::LensCamera;
 use hvs_shared::sim::camera::{CameraError, Rig, StereoPixels, Vec3};
@@ -59,12 +60,7 @@ use std::path::Path;
 #[derive(Debug, Clone, PartialEq)]
 pub enum RenderError {
     /// A parameter is out of its range; names the field.
-    Invalid {
-        /// The parameter (e.g. `board.square_cm`).
-        field: &'static str,
-        /// What is wrong with it.
-        reason: String,
-    },
+    Invalid(InvalidField),
     /// The board centre has no image (behind a camera or not finite).
     Camera(CameraError),
     /// A file could not be written.
@@ -79,7 +75,7 @@ pub enum RenderError {
 impl fmt::Display for RenderError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            RenderError::Invalid { field, reason } => write!(f, "{field}: {reason}"),
+            RenderError::Invalid(e) => e.fmt(f),
             RenderError::Camera(e) => write!(f, "board centre: {e}"),
             RenderError::Io { path, message } => write!(f, "{path}: {message}"),
         }
@@ -88,11 +84,14 @@ impl fmt::Display for RenderError {
 
 impl std::error::Error for RenderError {}
 
-fn invalid(field: &'static str, reason: impl Into<String>) -> RenderError {
-    RenderError::Invalid {
-        field,
-        reason: reason.into(),
+impl From<InvalidField> for RenderError {
+    fn from(e: InvalidField) -> Self {
+        RenderError::Invalid(e)
     }
+}
+
+fn invalid(field: &'static str, reason: impl Into<String>) -> RenderError {
+    InvalidField::new(field, reason).into()
 }
 
 /// The chessboard: [`crate::board::Board`] (what `BOARD.json` describes: inner corners and
@@ -115,18 +114,8 @@ enum Class {
 /// Checks `board` for rendering (field names in the error; the fields of [`Board`] are
 /// public, so a board need not have come through [`Board::new`]).
 fn validate_board(board: &Board) -> Result<(), RenderError> {
-    if board.cols == 0 || board.cols > 1000 {
-        return Err(invalid(
-            "board.cols",
-            format!("must be 1..=1000, got {}", board.cols),
-        ));
-    }
-    if board.rows == 0 || board.rows > 1000 {
-        return Err(invalid(
-            "board.rows",
-            format!("must be 1..=1000, got {}", board.rows),
-        ));
-    }
+    in_range("board.cols", board.cols, 1, 1000)?;
+    in_range("board.rows", board.rows, 1, 1000)?;
     if !(board.square_cm.is_finite() && board.square_cm > 0.0) {
         return Err(invalid(
             "board.square_cm",
@@ -222,30 +211,9 @@ impl RenderOptions {
 
     /// Checks the parameters (field names in the error).
     pub fn validate(&self) -> Result<(), RenderError> {
-        if !(1..=16).contains(&self.supersample) {
-            return Err(invalid(
-                "supersample",
-                format!("must be 1..=16, got {}", self.supersample),
-            ));
-        }
-        if !(self.blur_sigma_px.is_finite() && (0.0..=10.0).contains(&self.blur_sigma_px)) {
-            return Err(invalid(
-                "blur_sigma_px",
-                format!(
-                    "must be a finite number in 0..=10, got {}",
-                    self.blur_sigma_px
-                ),
-            ));
-        }
-        if !(self.noise_sigma.is_finite() && (0.0..=100.0).contains(&self.noise_sigma)) {
-            return Err(invalid(
-                "noise_sigma",
-                format!(
-                    "must be a finite number in 0..=100, got {}",
-                    self.noise_sigma
-                ),
-            ));
-        }
+        in_range("supersample", self.supersample, 1, 16)?;
+        finite_in("blur_sigma_px", self.blur_sigma_px, 0.0, 10.0)?;
+        finite_in("noise_sigma", self.noise_sigma, 0.0, 100.0)?;
         Ok(())
     }
 

@@ -640,14 +640,7 @@ pub fn fit_dlt(points: &[Vec3], pixels: &[[f64; 2]]) -> Result<Matrix3x4<f64>> {
     }
     let svd = a.svd(false, true);
     let vt = svd.v_t.context("SVD without V")?;
-    let (imin, _) = svd
-        .singular_values
-        .iter()
-        .enumerate()
-        .fold(
-            (0, f64::INFINITY),
-            |m, (i, s)| if *s < m.1 { (i, *s) } else { m },
-        );
+    let imin = smallest(svd.singular_values.iter());
     let h = vt.row(imin);
     let pn = Matrix3x4::from_fn(|r, c| h[4 * r + c]);
     let t2 = Matrix3::new(s2, 0.0, -s2 * c2[0], 0.0, s2, -s2 * c2[1], 0.0, 0.0, 1.0);
@@ -673,6 +666,18 @@ pub fn fit_dlt(points: &[Vec3], pixels: &[[f64; 2]]) -> Result<Matrix3x4<f64>> {
     Ok(t2i * pn * t3)
 }
 
+/// Index of the smallest of `values` (the first, on ties; 0 when empty or all NaN): the
+/// singular vector a homogeneous least-squares problem takes.
+fn smallest<'a>(values: impl Iterator<Item = &'a f64>) -> usize {
+    values
+        .enumerate()
+        .fold(
+            (0, f64::INFINITY),
+            |m, (i, s)| if *s < m.1 { (i, *s) } else { m },
+        )
+        .0
+}
+
 /// Linear (DLT) triangulation of one point from two projection matrices and its pixels
 /// `[u_l, v_l, u_r, v_r]`.
 pub fn triangulate_dlt(p: &[Matrix3x4<f64>; 2], px: &[f64; 4]) -> Option<Vec3> {
@@ -693,14 +698,7 @@ pub fn triangulate_dlt(p: &[Matrix3x4<f64>; 2], px: &[f64; 4]) -> Option<Vec3> {
     }
     let svd = a.svd(false, true);
     let vt = svd.v_t?;
-    let (imin, _) = svd
-        .singular_values
-        .iter()
-        .enumerate()
-        .fold(
-            (0, f64::INFINITY),
-            |m, (i, s)| if *s < m.1 { (i, *s) } else { m },
-        );
+    let imin = smallest(svd.singular_values.iter());
     let x: Vector4<f64> = vt.row(imin).transpose();
     if x[3].abs() < 1e-300 {
         return None;
