@@ -149,50 +149,51 @@ fn responses() -> Vec<(&'static str, Response)> {
     .into_iter()
     .chain(
         [
-            ("malformed", ErrorCode::Malformed),
-            ("oversize", ErrorCode::Oversize),
-            ("non-finite", ErrorCode::NonFinite),
-            ("unreachable", ErrorCode::Unreachable),
-            ("no solution", ErrorCode::NoSolution),
-            ("unsupported", ErrorCode::Unsupported),
+            ("response error malformed", ErrorCode::Malformed),
+            ("response error oversize", ErrorCode::Oversize),
+            ("response error non-finite", ErrorCode::NonFinite),
+            ("response error unreachable", ErrorCode::Unreachable),
+            ("response error no solution", ErrorCode::NoSolution),
+            ("response error unsupported", ErrorCode::Unsupported),
         ]
         .into_iter()
-        .map(|(n, c)| {
-            (
-                leak(format!("response error {n}")),
-                r(9, ResponseBody::Error(c)),
-            )
-        }),
+        .map(|(n, c)| (n, r(9, ResponseBody::Error(c)))),
     )
     .chain(
         [
-            ("bad magic", BlobError::BadMagic),
-            ("unsupported version", BlobError::UnsupportedVersion(2)),
-            ("truncated", BlobError::Truncated),
-            ("too large", BlobError::TooLarge),
-            ("malformed", BlobError::Malformed),
-            ("topology mismatch", BlobError::TopologyMismatch),
-            ("bad parameter", BlobError::BadParameter),
-            ("buffer too small", BlobError::BufferTooSmall),
+            ("response info slot A bad magic", BlobError::BadMagic),
+            (
+                "response info slot A unsupported version",
+                BlobError::UnsupportedVersion(2),
+            ),
+            ("response info slot A truncated", BlobError::Truncated),
+            ("response info slot A too large", BlobError::TooLarge),
+            ("response info slot A malformed", BlobError::Malformed),
+            (
+                "response info slot A topology mismatch",
+                BlobError::TopologyMismatch,
+            ),
+            (
+                "response info slot A bad parameter",
+                BlobError::BadParameter,
+            ),
+            (
+                "response info slot A buffer too small",
+                BlobError::BufferTooSmall,
+            ),
         ]
         .into_iter()
         .map(|(n, e)| {
-            let name = leak(format!("response info slot A {n}"));
             let i = info(
                 Mode::Fallback,
                 None,
                 SlotStatus::Invalid(e),
                 SlotStatus::Empty,
             );
-            (name, r(2, ResponseBody::Info(i)))
+            (n, r(2, ResponseBody::Info(i)))
         }),
     )
     .collect()
-}
-
-/// A generated message name, for the `&'static str` names of the tables.
-fn leak(name: String) -> &'static str {
-    Box::leak(name.into_boxed_str())
 }
 
 fn hex(b: &[u8]) -> String {

@@ -61,3 +61,16 @@ pub(crate) fn finite_in(
     }
     Ok(())
 }
+
+/// Asserts that `result` is an error whose message starts with `field`.
+#[cfg(test)]
+#[track_caller]
+pub(crate) fn assert_refused<T: fmt::Debug, E: fmt::Display>(result: Result<T, E>, field: &str) {
+    match result {
+        Ok(v) => panic!("accepted, expected an error naming {field}: {v:?}"),
+        Err(e) => {
+            let e = e.to_string();
+            assert!(e.starts_with(field), "{e:?} does not start with {field}");
+        }
+    }
+}

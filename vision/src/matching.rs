@@ -1282,24 +1282,14 @@ mod tests {
 
     #[test]
     fn bad_params_name_the_field() {
-        let p = MatchParams {
-            half_window: 0,
-            ..MatchParams::default()
+        // The defaults with one field set bad.
+        let refused = |spoil: fn(&mut MatchParams), field: &str| {
+            let mut p = MatchParams::default();
+            spoil(&mut p);
+            crate::invalid::assert_refused(p.validate(), field);
         };
-        assert!(p
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .starts_with("params.half_window"));
-        let p = MatchParams {
-            min_score: f64::NAN,
-            ..MatchParams::default()
-        };
-        assert!(p
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .starts_with("params.min_score"));
+        refused(|p| p.half_window = 0, "params.half_window");
+        refused(|p| p.min_score = f64::NAN, "params.min_score");
     }
 
     #[test]

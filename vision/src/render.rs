@@ -54,7 +54,6 @@ use image::GrayImage;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::fmt;
-use std::path::Path;
 
 /// Why a render was refused.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,13 +62,6 @@ pub enum RenderError {
     Invalid(InvalidField),
     /// The board centre has no image (behind a camera or not finite).
     Camera(CameraError),
-    /// A file could not be written.
-    Io {
-        /// The file.
-        path: String,
-        /// The operating system's message.
-        message: String,
-    },
 }
 
 impl fmt::Display for RenderError {
@@ -77,7 +69,6 @@ impl fmt::Display for RenderError {
         match self {
             RenderError::Invalid(e) => e.fmt(f),
             RenderError::Camera(e) => write!(f, "board centre: {e}"),
-            RenderError::Io { path, message } => write!(f, "{path}: {message}"),
         }
     }
 }
@@ -516,17 +507,12 @@ impl CaptureSet {
             .collect()
     }
 
-    /// The captures table: `left,right,z` (as `data/opencv-stereo/captures.csv`, with the
-    /// depth), one row per pair.
-    pub fn captures_csv(&self) -> String {
-        let mut s = String::from("left,right,z\n");
-        for c in &self.captures {
-            s.push_str(&format!(
-                "{},{},{}\n",
-                c.left_name, c.right_name, c.centre[2]
-            ));
-        }
-        s
+    /// `board.json` of the board the set shows (what `hvs board detect --board` reads).
+    pub fn board_json(&self) -> String {
+        format!(
+            "{{\"pattern\": \"chessboard\", \"inner_corners\": [{}, {}], \"square_cm\": {}}}\n",
+            self.board.cols, self.board.rows, self.board.square_cm
+        )
     }
 
     /// The truth table: `left,i,j,x,y,z,u_l,v_l,u_r,v_r,in_image`, the pixels unrounded
@@ -551,37 +537,6 @@ impl CaptureSet {
             ));
         }
         s
-    }
-
-    /// Writes the PNG images, `captures.csv`, `truth.csv` and `board.json` into `dir`
-    /// (which must exist).
-    pub fn write(&self, dir: &Path) -> Result<(), RenderError> {
-        let io = |p: &Path, e: &dyn fmt::Display| RenderError::Io {
-            path: p.display().to_string(),
-            message: e.to_string(),
-        };
-        for c in &self.captures {
-            for (name, img) in [
-                (&c.left_name, &c.render.left),
-                (&c.right_name, &c.render.right),
-            ] {
-                let p = dir.join(name);
-                img.save(&p).map_err(|e| io(&p, &e))?;
-            }
-        }
-        let board = format!(
-            "{{\"pattern\": \"chessboard\", \"inner_corners\": [{}, {}], \"square_cm\": {}}}\n",
-            self.board.cols, self.board.rows, self.board.square_cm
-        );
-        for (name, text) in [
-            ("captures.csv", self.captures_csv()),
-            ("truth.csv", self.truth_csv()),
-            ("board.json", board),
-        ] {
-            let p = dir.join(name);
-            std::fs::write(&p, text).map_err(|e| io(&p, &e))?;
-        }
-        Ok(())
     }
 }
 
@@ -678,19 +633,13 @@ mod tests {
             margin_cm: 1.0,
             ..RenderOptions::default()
         };
-        let e = render_rig(&presets::CASE_1, &opencv_board(), [0.0, 0.0, 100.0], &o, 0)
-            .unwrap_err()
-            .to_string();
-        assert!(e.starts_with("margin_cm"), "{e}");
+        let r = render_rig(&presets::CASE_1, &opencv_board(), [0.0, 0.0, 100.0], &o, 0);
+        crate::invalid::assert_refused(r, "margin_cm");
         let o = RenderOptions {
             blur_sigma_px: f64::NAN,
             ..RenderOptions::default()
         };
-        assert!(o
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .starts_with("blur_sigma_px"));
+        crate::invalid::assert_refused(o.validate(), "blur_sigma_px");
     }
 
     #[test]

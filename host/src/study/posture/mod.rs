@@ -25,7 +25,7 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::sim::sets::{SetKind, SimOptions};
-use crate::study::fmt::pct;
+use crate::study::fmt::{join, pct};
 use crate::train::{train, TrainConfig};
 use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob};
@@ -988,6 +988,11 @@ fn table(s: &mut String, head: &str, rows: impl IntoIterator<Item = String>) {
     }
 }
 
+/// Appends one CSV line: the fields as they display, comma-separated.
+fn csv_row(out: &mut String, fields: &[&dyn std::fmt::Display]) {
+    let _ = writeln!(out, "{}", join(fields, ","));
+}
+
 /// The report's tables as CSV files: `fixed.csv`, `bands.csv`, `hidden.csv`,
 /// `distortion.csv`, and the wall times in `timing.csv` (so that the four tables depend on the
 /// configuration only: same seed, same bytes). The caller writes them atomically.
@@ -1006,26 +1011,14 @@ pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
         eh("floor")
     );
     for row in &r.fixed {
-        let j: Vec<String> = row.joints.0.iter().map(|v| v.to_string()).collect();
-        let _ = writeln!(
-            fixed,
-            "\"{}\",{},{},{}",
-            row.label,
-            j.join(","),
-            e(&row.net),
-            e(&row.floor)
-        );
+        let label = format!("\"{}\"", row.label);
+        let j = join(row.joints.0, ",");
+        csv_row(&mut fixed, &[&label, &j, &e(&row.net), &e(&row.floor)]);
     }
     let mut bands = format!("term,band,{},{}\n", eh("net"), eh("floor"));
     for b in &r.aware.bands {
-        let _ = writeln!(
-            bands,
-            "{},\"{}\",{},{}",
-            b.term,
-            b.band,
-            e(&b.net),
-            e(&b.floor)
-        );
+        let band = format!("\"{}\"", b.band);
+        csv_row(&mut bands, &[&b.term, &band, &e(&b.net), &e(&b.floor)]);
     }
     let mut hidden = format!(
         "postures,hidden,params,train_pct,{},{},worst_band_ratio\n",
@@ -1040,16 +1033,17 @@ pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
         let _ = writeln!(timing, "{part},,,{}", r.seconds[k]);
     }
     for h in &r.aware.sweep {
-        let _ = writeln!(
-            hidden,
-            "{},{},{},{},{},{},{}",
-            h.postures,
-            h.hidden,
-            h.params,
-            h.train_pct,
-            e(&h.test),
-            e(&h.floor),
-            h.worst_band_ratio
+        csv_row(
+            &mut hidden,
+            &[
+                &h.postures,
+                &h.hidden,
+                &h.params,
+                &h.train_pct,
+                &e(&h.test),
+                &e(&h.floor),
+                &h.worst_band_ratio,
+            ],
         );
         let _ = writeln!(timing, "training,{},{},{}", h.postures, h.hidden, h.seconds);
     }
