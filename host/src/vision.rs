@@ -4,16 +4,20 @@
 //! turns the crate's results into the project's CSV rows.
 
 use crate::data::captures::{Capture, CaptureSet};
-use crate::data::dataset::Dataset;
+use crate::data::csv::write_bytes;
+use crate::data::dataset::{Dataset, JOINT_COLUMNS};
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::MatcherGeometry;
 use hvs_shared::runtime::blob::ModelBlob;
+use hvs_shared::runtime::gaze::Joints;
 use hvs_vision::board::Board;
 use hvs_vision::detect::{self, SetCheck, StereoCorners};
 use hvs_vision::geometry::Fundamental;
 use hvs_vision::matching::{model_disparity_interval, MatchParams, MatchStatus, Matcher, Query};
+use hvs_vision::render;
 use image::{GrayImage, Rgb, RgbImage};
 use rayon::prelude::*;
+use std::fmt::Write as _;
 use std::io::Cursor;
 use std::path::Path;
 
@@ -39,6 +43,50 @@ where
     img.write_to(&mut out, image::ImageFormat::Png)
         .map_err(|e| anyhow!("cannot encode a PNG: {e}"))?;
     Ok(out.into_inner())
+}
+
+/// The `captures.csv` of a rendered set, one row per pair: `left,right,z,x,y` (the board
+/// centre, cm) and, with `joints`, the [`JOINT_COLUMNS`] of the posture it was rendered at.
+pub fn captures_csv(set: &render::CaptureSet, joints: Option<&Joints>) -> String {
+    let mut s = String::from("left,right,z,x,y");
+    if joints.is_some() {
+        s.push(',');
+        s.push_str(&JOINT_COLUMNS.join(","));
+    }
+    s.push('\n');
+    for c in &set.captures {
+        let [x, y, z] = c.centre;
+        let _ = write!(s, "{},{},{z},{x},{y}", c.left_name, c.right_name);
+        for v in joints.map_or(&[][..], |j| &j.0[..]) {
+            let _ = write!(s, ",{v}");
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// Writes a rendered capture set into `dir` (created if missing), each file atomically: the
+/// PNG pairs, `captures.csv` ([`captures_csv`]), `truth.csv` and `board.json`, which is
+/// what `hvs board detect` reads.
+pub fn write_capture_set(
+    dir: &Path,
+    set: &render::CaptureSet,
+    joints: Option<&Joints>,
+) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+    for c in &set.captures {
+        write_bytes(&dir.join(&c.left_name), &png_bytes(&c.render.left)?)?;
+        write_bytes(&dir.join(&c.right_name), &png_bytes(&c.render.right)?)?;
+    }
+    for (name, text) in [
+        ("captures.csv", captures_csv(set, joints)),
+        ("truth.csv", set.truth_csv()),
+        ("board.json", set.board_json()),
+    ] {
+        write_bytes(&dir.join(name), text.as_bytes())?;
+    }
+    Ok(())
 }
 
 /// One pair's outcome.
@@ -69,15 +117,40 @@ pub const MAX_HELD_OUT_EPIPOLAR_PX: f64 = 2.0;
 /// one fundamental matrix over the usable pairs and skips a pair whose labels disagree with
 /// the others ([`MAX_HELD_OUT_EPIPOLAR_PX`]).
 pub fn detect_set(board: &Board, set: &CaptureSet, progress: &dyn Fn()) -> Result<Detection> {
-    let mut outcomes: Vec<PairOutcome> = set
-        .captures
-        .iter()
-        .map(|c| {
-            let r = detect_capture(board, c);
-            progress();
-            r
-        })
-        .collect();
+    Ok(detect_all(board, set, progress, false)?.0)
+}
+
+/// A pair's two images (left, right) as [`detect_set_with_images`] read them; `None` where
+/// one could not be read.
+pub type PairImages = Option<[GrayImage; 2]>;
+
+/// [`detect_set`], also returning every pair's images as read, so that a caller drawing on
+/// them (`hvs board detect --overlays`) does not decode the files again.
+pub fn detect_set_with_images(
+    board: &Board,
+    set: &CaptureSet,
+    progress: &dyn Fn(),
+) -> Result<(Detection, Vec<PairImages>)> {
+    detect_all(board, set, progress, true)
+}
+
+/// [`detect_set`], keeping the images if `keep` (else the second vector is empty).
+fn detect_all(
+    board: &Board,
+    set: &CaptureSet,
+    progress: &dyn Fn(),
+    keep: bool,
+) -> Result<(Detection, Vec<PairImages>)> {
+    let mut images = Vec::new();
+    let mut outcomes: Vec<PairOutcome> = Vec::with_capacity(set.captures.len());
+    for c in &set.captures {
+        let (outcome, pair) = detect_capture(board, c);
+        if keep {
+            images.push(pair);
+        }
+        outcomes.push(outcome);
+        progress();
+    }
     let fit = |outcomes: &[PairOutcome]| -> Option<SetCheck> {
         let pairs: Vec<StereoCorners> = outcomes
             .iter()
@@ -111,22 +184,24 @@ pub fn detect_set(board: &Board, set: &CaptureSet, progress: &dyn Fn()) -> Resul
             check = fit(&outcomes);
         }
     }
-    Ok(Detection {
+    let det = Detection {
         outcomes,
         set: check,
-    })
+    };
+    Ok((det, images))
 }
 
-fn detect_capture(board: &Board, c: &Capture) -> PairOutcome {
+fn detect_capture(board: &Board, c: &Capture) -> (PairOutcome, PairImages) {
     let load = |p: &Path| read_grey(p).map_err(|e| format!("{e:#}"));
     let (l, r) = match (load(&c.left), load(&c.right)) {
         (Ok(l), Ok(r)) => (l, r),
-        (Err(e), _) | (_, Err(e)) => return PairOutcome::Skipped(e),
+        (Err(e), _) | (_, Err(e)) => return (PairOutcome::Skipped(e), None),
     };
-    match detect::detect_pair(&l, &r, board) {
+    let outcome = match detect::detect_pair(&l, &r, board) {
         Ok(p) => PairOutcome::Found(Box::new(p)),
         Err(e) => PairOutcome::Skipped(e.to_string()),
-    }
+    };
+    (outcome, Some([l, r]))
 }
 
 /// `POINTS.csv`: one row per corner found in both images, `capture,i,j,u_l,v_l,u_r,v_r`, then
@@ -142,32 +217,74 @@ pub fn points_csv(board: &Board, set: &CaptureSet, det: &Detection) -> String {
         s.push_str(&csv_field(c));
     }
     s.push('\n');
-    for (k, (cap, out)) in set.captures.iter().zip(&det.outcomes).enumerate() {
-        let PairOutcome::Found(p) = out else { continue };
-        for j in 0..board.rows {
-            for i in 0..board.cols {
-                let (l, r) = (p.left.at(i, j), p.right.at(i, j));
-                s.push_str(&format!(
-                    "{},{i},{j},{},{},{},{}",
-                    k + 1,
-                    shortest(l[0]),
-                    shortest(l[1]),
-                    shortest(r[0]),
-                    shortest(r[1])
-                ));
-                if let Some(z) = cap.z {
-                    let q = board.corner_position([cap.xy[0], cap.xy[1], z], i, j);
-                    s.push_str(&format!(",{},{},{}", q[0], q[1], q[2]));
-                }
-                for e in &cap.extra {
-                    s.push(',');
-                    s.push_str(&csv_field(e));
-                }
-                s.push('\n');
-            }
+    for c in found_corners(board, set, det) {
+        let (i, j, px) = (c.i, c.j, c.px);
+        s.push_str(&format!(
+            "{},{i},{j},{},{},{},{}",
+            c.capture + 1,
+            shortest(px[0]),
+            shortest(px[1]),
+            shortest(px[2]),
+            shortest(px[3])
+        ));
+        if let Some(q) = c.xyz {
+            s.push_str(&format!(",{},{},{}", q[0], q[1], q[2]));
         }
+        for e in &set.captures[c.capture].extra {
+            s.push(',');
+            s.push_str(&csv_field(e));
+        }
+        s.push('\n');
     }
     s
+}
+
+/// One board corner found in both images of a pair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FoundCorner {
+    /// Index of the pair in the capture set (0-based).
+    pub capture: usize,
+    /// Column of the corner on the board.
+    pub i: u32,
+    /// Row of the corner on the board.
+    pub j: u32,
+    /// `[u_l, v_l, u_r, v_r]` (px).
+    pub px: [f64; 4],
+    /// Its position (cm) when the capture gives the board depth.
+    pub xyz: Option<[f64; 3]>,
+}
+
+/// Every corner of every detected pair, pair by pair in capture order, each pair row by row
+/// (`j`, then `i`): the rows of [`points_csv`] and of a training set from images.
+pub fn found_corners<'a>(
+    board: &'a Board,
+    set: &'a CaptureSet,
+    det: &'a Detection,
+) -> impl Iterator<Item = FoundCorner> + 'a {
+    set.captures
+        .iter()
+        .zip(&det.outcomes)
+        .enumerate()
+        .filter_map(|(k, (cap, out))| match out {
+            PairOutcome::Found(p) => Some((k, cap, p)),
+            PairOutcome::Skipped(_) => None,
+        })
+        .flat_map(move |(capture, cap, p)| {
+            (0..board.rows).flat_map(move |j| {
+                (0..board.cols).map(move |i| {
+                    let (l, r) = (p.left.at(i, j), p.right.at(i, j));
+                    FoundCorner {
+                        capture,
+                        i,
+                        j,
+                        px: [l[0], l[1], r[0], r[1]],
+                        xyz: cap
+                            .z
+                            .map(|z| board.corner_position([cap.xy[0], cap.xy[1], z], i, j)),
+                    }
+                })
+            })
+        })
 }
 
 /// The shortest decimal that reads back as `v`: as an `f32` when `v` is one (the detector's
@@ -410,6 +527,65 @@ mod tests {
     use super::*;
     use crate::sim::sets::{simulate, SetKind, SimOptions};
     use hvs_shared::sim::presets;
+
+    /// Two clean pairs of the OpenCV board at (1, -2, 65 | 85) cm through case I at home.
+    fn two_pairs() -> render::CaptureSet {
+        render::render_capture_set(
+            &hvs_shared::sim::posture::HeadRig::new(presets::CASE_1),
+            &Joints::HOME,
+            &render::opencv_board(),
+            [1.0, -2.0],
+            &[65.0, 85.0],
+            &render::RenderOptions::clean(),
+            0,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn capture_set_files_are_what_board_detect_reads() {
+        let set = two_pairs();
+        assert_eq!(
+            captures_csv(&set, None),
+            "left,right,z,x,y\nleft01.png,right01.png,65,1,-2\nleft02.png,right02.png,85,1,-2\n"
+        );
+        let j = Joints([1.5, -2.0, 0.0, 3.0, -3.0]);
+        let with = captures_csv(&set, Some(&j));
+        assert_eq!(
+            with.lines().next(),
+            Some("left,right,z,x,y,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")
+        );
+        assert_eq!(
+            with.lines().nth(1),
+            Some("left01.png,right01.png,65,1,-2,1.5,-2,0,3,-3")
+        );
+
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("shots");
+        write_capture_set(&out, &set, None).unwrap();
+        let read = crate::data::captures::read(&out.join("captures.csv")).unwrap();
+        assert_eq!(read.captures.len(), 2);
+        assert_eq!(
+            (read.captures[1].z, read.captures[1].xy),
+            (Some(85.0), [1.0, -2.0])
+        );
+        assert_eq!(
+            read_grey(&read.captures[0].left).unwrap(),
+            set.captures[0].render.left
+        );
+        let board = std::fs::read_to_string(out.join("board.json")).unwrap();
+        assert_eq!(Board::from_json(&board).unwrap(), set.board);
+        assert_eq!(
+            std::fs::read_to_string(out.join("truth.csv")).unwrap(),
+            set.truth_csv()
+        );
+        // Writing names the file that failed.
+        let blocked = dir.path().join("file");
+        std::fs::write(&blocked, "").unwrap();
+        let err = write_capture_set(&blocked, &set, None).unwrap_err();
+        let err = format!("{err:#}");
+        assert!(err.contains(&blocked.display().to_string()), "{err}");
+    }
 
     #[test]
     fn matcher_geometry_is_the_rigs_epipolar_geometry() {

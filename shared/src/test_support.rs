@@ -14,6 +14,19 @@ use crate::runtime::mlp::{param_count, Activation, OutputMap};
 use crate::runtime::traditional::Calibration;
 use heapless::Vec;
 
+/// One `const fn field(self, value) -> SampleSpec` per field: the builder methods of
+/// [`SampleSpec`] (methods, which a function cannot declare).
+macro_rules! spec_setters {
+    ($($(#[$doc:meta])* $field:ident: $ty:ty,)*) => {
+        $(
+            $(#[$doc])*
+            pub const fn $field(self, $field: $ty) -> SampleSpec {
+                SampleSpec { $field, ..self }
+            }
+        )*
+    };
+}
+
 /// What a sample model looks like.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SampleSpec {
@@ -48,29 +61,19 @@ impl SampleSpec {
         family: Family::THESIS,
     };
 
-    /// This spec with `hidden` neurons.
-    pub const fn hidden(self, hidden: u8) -> SampleSpec {
-        SampleSpec { hidden, ..self }
-    }
-    /// This spec with these inputs.
-    pub const fn inputs(self, inputs: InputKind) -> SampleSpec {
-        SampleSpec { inputs, ..self }
-    }
-    /// This spec with these outputs.
-    pub const fn outputs(self, outputs: OutputKind) -> SampleSpec {
-        SampleSpec { outputs, ..self }
-    }
-    /// This spec at `generation`.
-    pub const fn generation(self, generation: u32) -> SampleSpec {
-        SampleSpec { generation, ..self }
-    }
-    /// This spec in `family`.
-    pub const fn family(self, family: Family) -> SampleSpec {
-        SampleSpec { family, ..self }
-    }
-    /// This spec with weights from `seed`.
-    pub const fn seed(self, seed: u64) -> SampleSpec {
-        SampleSpec { seed, ..self }
+    spec_setters! {
+        /// This spec with `hidden` neurons.
+        hidden: u8,
+        /// This spec with these inputs.
+        inputs: InputKind,
+        /// This spec with these outputs.
+        outputs: OutputKind,
+        /// This spec at `generation`.
+        generation: u32,
+        /// This spec in `family`.
+        family: Family,
+        /// This spec with weights from `seed`.
+        seed: u64,
     }
     /// The model.
     pub fn build(self) -> ModelBlob {

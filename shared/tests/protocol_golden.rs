@@ -145,54 +145,52 @@ fn responses() -> Vec<(&'static str, Response)> {
                 }),
             ),
         ),
-        (
-            "response error malformed",
-            r(9, ResponseBody::Error(ErrorCode::Malformed)),
-        ),
-        (
-            "response error oversize",
-            r(9, ResponseBody::Error(ErrorCode::Oversize)),
-        ),
-        (
-            "response error non-finite",
-            r(9, ResponseBody::Error(ErrorCode::NonFinite)),
-        ),
-        (
-            "response error unreachable",
-            r(9, ResponseBody::Error(ErrorCode::Unreachable)),
-        ),
-        (
-            "response error no solution",
-            r(9, ResponseBody::Error(ErrorCode::NoSolution)),
-        ),
-        (
-            "response error unsupported",
-            r(9, ResponseBody::Error(ErrorCode::Unsupported)),
-        ),
     ]
     .into_iter()
     .chain(
         [
-            ("bad magic", BlobError::BadMagic),
-            ("unsupported version", BlobError::UnsupportedVersion(2)),
-            ("truncated", BlobError::Truncated),
-            ("too large", BlobError::TooLarge),
-            ("malformed", BlobError::Malformed),
-            ("topology mismatch", BlobError::TopologyMismatch),
-            ("bad parameter", BlobError::BadParameter),
-            ("buffer too small", BlobError::BufferTooSmall),
+            ("response error malformed", ErrorCode::Malformed),
+            ("response error oversize", ErrorCode::Oversize),
+            ("response error non-finite", ErrorCode::NonFinite),
+            ("response error unreachable", ErrorCode::Unreachable),
+            ("response error no solution", ErrorCode::NoSolution),
+            ("response error unsupported", ErrorCode::Unsupported),
+        ]
+        .into_iter()
+        .map(|(n, c)| (n, r(9, ResponseBody::Error(c)))),
+    )
+    .chain(
+        [
+            ("response info slot A bad magic", BlobError::BadMagic),
+            (
+                "response info slot A unsupported version",
+                BlobError::UnsupportedVersion(2),
+            ),
+            ("response info slot A truncated", BlobError::Truncated),
+            ("response info slot A too large", BlobError::TooLarge),
+            ("response info slot A malformed", BlobError::Malformed),
+            (
+                "response info slot A topology mismatch",
+                BlobError::TopologyMismatch,
+            ),
+            (
+                "response info slot A bad parameter",
+                BlobError::BadParameter,
+            ),
+            (
+                "response info slot A buffer too small",
+                BlobError::BufferTooSmall,
+            ),
         ]
         .into_iter()
         .map(|(n, e)| {
-            let name: &'static str =
-                Box::leak(format!("response info slot A {n}").into_boxed_str());
             let i = info(
                 Mode::Fallback,
                 None,
                 SlotStatus::Invalid(e),
                 SlotStatus::Empty,
             );
-            (name, r(2, ResponseBody::Info(i)))
+            (n, r(2, ResponseBody::Info(i)))
         }),
     )
     .collect()

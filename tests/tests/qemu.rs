@@ -71,6 +71,20 @@ fn boot(name: &str, slot_a: Option<&[u8]>, slot_b: Option<&[u8]>) -> Run {
     boot_with(name, slot_a, slot_b, vec![])
 }
 
+/// [`boot`] with both slots filled: the head's `Info`, after checking that its estimates
+/// (from `source`) equal those of the host's head booted from the same slots.
+fn boot_slots(
+    name: &str,
+    slot_a: &[u8],
+    slot_b: &[u8],
+    source: Source,
+) -> (Run, protocol::InfoData) {
+    let mut run = boot(name, Some(slot_a), Some(slot_b));
+    let i = info(&mut run);
+    assert_estimates_match(&mut run, &head::boot(slot_a, slot_b), source);
+    (run, i)
+}
+
 /// [`boot`] with extra QEMU arguments (e.g. more `-device loader` images).
 fn boot_with(name: &str, slot_a: Option<&[u8]>, slot_b: Option<&[u8]>, extra: Vec<String>) -> Run {
     require_qemu();
@@ -157,6 +171,33 @@ fn points() -> Vec<StereoPoint> {
     pts
 }
 
+/// The stereo point `[u_l, v_l, u_r, v_r]`.
+fn point(px: [f32; 4]) -> StereoPoint {
+    StereoPoint {
+        u_l: px[0],
+        v_l: px[1],
+        u_r: px[2],
+        v_r: px[3],
+    }
+}
+
+/// The head's estimate of `p` (panics if it answers anything else).
+fn estimate(run: &mut Run, p: StereoPoint) -> protocol::EstimateData {
+    match run.link.request(RequestBody::Estimate(p)).unwrap() {
+        ResponseBody::Estimate(e) => e,
+        other => panic!("Estimate of {p:?} answered {other:?}"),
+    }
+}
+
+/// Asserts that the head runs a network from `slot` at `generation`.
+#[track_caller]
+fn assert_network(i: &protocol::InfoData, slot: Slot, generation: u32) {
+    assert_eq!(
+        (i.mode, i.slot, i.generation),
+        (Mode::Network, Some(slot), generation)
+    );
+}
+
 fn info(run: &mut Run) -> protocol::InfoData {
     match run.link.request(RequestBody::Info).unwrap() {
         ResponseBody::Info(i) => i,
@@ -191,10 +232,7 @@ fn estimates_equal_host_inference_bit_for_bit() {
     let bytes = encode(&m);
     let mut run = boot("bits", Some(&bytes), None);
     let i = info(&mut run);
-    assert_eq!(
-        (i.mode, i.slot, i.generation),
-        (Mode::Network, Some(Slot::A), 1)
-    );
+    assert_network(&i, Slot::A, 1);
     assert_eq!(i.slot_a, SlotStatus::Valid { generation: 1 });
     assert_eq!(i.slot_b, SlotStatus::Empty);
     let model_info = i.model.expect("model metadata");
@@ -209,61 +247,43 @@ fn estimates_equal_host_inference_bit_for_bit() {
     let host = head::boot(&bytes, &[]);
     assert_estimates_match(&mut run, &host, Source::Network);
     // The same numbers as the blob's own inference on the host.
-    let p = StereoPoint {
-        u_l: 340.0,
-        v_l: 240.0,
-        u_r: 295.0,
-        v_r: 240.0,
-    };
+    let p = point([340.0, 240.0, 295.0, 240.0]);
     let mut want = [0f32; 3];
     m.infer(&p.to_array(), &mut want).unwrap();
-    match run.link.request(RequestBody::Estimate(p)).unwrap() {
-        ResponseBody::Estimate(e) => {
-            assert_eq!([e.x, e.y, e.z].map(f32::to_bits), want.map(f32::to_bits));
-            assert!(e.in_range);
-        }
-        other => panic!("{other:?}"),
-    }
+    let e = estimate(&mut run, p);
+    assert_eq!([e.x, e.y, e.z].map(f32::to_bits), want.map(f32::to_bits));
+    assert!(e.in_range);
 }
 
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn corrupted_slot_a_boots_valid_slot_b() {
-    let a = corrupted(&model(9, 1));
-    let b = encode(&model(2, 2));
-    let mut run = boot("slot-b", Some(&a), Some(&b));
-    let i = info(&mut run);
-    assert_eq!(
-        (i.mode, i.slot, i.generation),
-        (Mode::Network, Some(Slot::B), 2)
+    let (_run, i) = boot_slots(
+        "slot-b",
+        &corrupted(&model(9, 1)),
+        &encode(&model(2, 2)),
+        Source::Network,
     );
+    assert_network(&i, Slot::B, 2);
     assert_eq!(i.slot_a, SlotStatus::Invalid(BlobError::BadCrc));
     assert_eq!(i.model.map(|m| m.seed), Some(2));
-    assert_estimates_match(&mut run, &head::boot(&a, &b), Source::Network);
 }
 
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn both_slots_corrupted_fall_back_and_answer() {
-    let a = corrupted(&model(3, 3));
-    let b = corrupted(&model(4, 4));
-    let mut run = boot("fallback", Some(&a), Some(&b));
-    let i = info(&mut run);
+    let (mut run, i) = boot_slots(
+        "fallback",
+        &corrupted(&model(3, 3)),
+        &corrupted(&model(4, 4)),
+        Source::Fallback,
+    );
     assert_eq!((i.mode, i.slot, i.model), (Mode::Fallback, None, None));
     assert_eq!(i.fallback, Calibration::BUILT_IN);
-    let host = head::boot(&a, &b);
-    assert_estimates_match(&mut run, &host, Source::Fallback);
-    let p = StereoPoint {
-        u_l: 335.0,
-        v_l: 240.0,
-        u_r: 289.0,
-        v_r: 240.0,
-    };
+    let p = point([335.0, 240.0, 289.0, 240.0]);
     let want = traditional_xyz(&Calibration::BUILT_IN, &p.to_array()).unwrap();
-    match run.link.request(RequestBody::Estimate(p)).unwrap() {
-        ResponseBody::Estimate(e) => assert_eq!([e.x, e.y, e.z], want),
-        other => panic!("{other:?}"),
-    }
+    let e = estimate(&mut run, p);
+    assert_eq!([e.x, e.y, e.z], want);
 }
 
 /// Waits for the next frame with the unsolicited id (an error about an unreadable frame).
@@ -305,12 +325,7 @@ fn bad_frames_get_errors_and_the_next_frame_is_answered() {
     let mut buf = [0u8; MAX_FRAME_LEN];
     let req = Request {
         id: 77,
-        body: RequestBody::Estimate(StereoPoint {
-            u_l: 340.0,
-            v_l: 240.0,
-            u_r: 300.0,
-            v_r: 240.0,
-        }),
+        body: RequestBody::Estimate(point([340.0, 240.0, 300.0, 240.0])),
     };
     let frame = protocol::encode_request(&req, &mut buf).unwrap().to_vec();
     run.link.send_raw(&frame[..frame.len() / 2]).unwrap();
@@ -406,25 +421,10 @@ fn mcdc_sequences(log: &Path, cfg: &McdcConfig) -> [Vec<i32>; 5] {
 fn look_sequence_commands_follow_the_trajectory_within_limits() {
     let mut run = boot("look", None, None);
     let looks = [
-        StereoPoint {
-            u_l: 250.0,
-            v_l: 300.0,
-            u_r: 220.0,
-            v_r: 300.0,
-        },
-        StereoPoint {
-            u_l: 420.0,
-            v_l: 150.0,
-            u_r: 380.0,
-            v_r: 150.0,
-        },
+        point([250.0, 300.0, 220.0, 300.0]),
+        point([420.0, 150.0, 380.0, 150.0]),
         // Far above (pixels beyond the image): past neck plus eye tilt, clamped at the limits.
-        StereoPoint {
-            u_l: 330.0,
-            v_l: -6000.0,
-            u_r: 300.0,
-            v_r: -6000.0,
-        },
+        point([330.0, -6000.0, 300.0, -6000.0]),
     ];
     // The host runs the same Head from the same boot.
     let mut host = Head::new(
@@ -509,42 +509,47 @@ fn images_written_by_hvs_image_boot_at_the_address_they_name() {
     std::fs::create_dir_all(&dir).unwrap();
     let model_path = dir.join("m.hvsw");
     std::fs::write(&model_path, encode(&model(1, 11))).unwrap();
-    let mut images = Vec::new();
-    for (slot, generation) in [(SlotArg::A, 3), (SlotArg::B, 5)] {
-        let out = dir.join(format!("{slot:?}.bin"));
+    // `hvs image` of the model for `slot` at `generation`; returns the file.
+    let write_image = |slot: SlotArg, generation: u32, format: ImageFormat, ext: &str| {
+        let out = dir.join(format!("{slot:?}.{ext}"));
         run_image(&ImageArgs {
             model: model_path.clone(),
             slot,
             generation: Some(generation),
-            format: ImageFormat::Bin,
+            format,
             output: out.clone(),
         })
         .unwrap();
-        images.push(std::fs::read(&out).unwrap());
-    }
+        out
+    };
+    // The booted head runs the model (seed 11) from `slot` at `generation`; the other slot's
+    // status is `other` (a for A, b for B).
+    let runs = |i: protocol::InfoData, slot: Slot, generation: u32, other: SlotStatus| {
+        assert_network(&i, slot, generation);
+        let other_slot = if slot == Slot::A { i.slot_b } else { i.slot_a };
+        assert_eq!(other_slot, other);
+        assert_eq!(i.model.map(|m| m.seed), Some(11));
+    };
+    let images: Vec<Vec<u8>> = [(SlotArg::A, 3), (SlotArg::B, 5)]
+        .into_iter()
+        .map(|(slot, generation)| {
+            std::fs::read(write_image(slot, generation, ImageFormat::Bin, "bin")).unwrap()
+        })
+        .collect();
     let mut run = boot("image", Some(&images[0]), Some(&images[1]));
-    let i = info(&mut run);
-    assert_eq!(
-        (i.mode, i.slot, i.generation),
-        (Mode::Network, Some(Slot::B), 5)
+    runs(
+        info(&mut run),
+        Slot::B,
+        5,
+        SlotStatus::Valid { generation: 3 },
     );
-    assert_eq!(i.slot_a, SlotStatus::Valid { generation: 3 });
-    assert_eq!(i.model.map(|m| m.seed), Some(11));
     drop(run);
 
     // Intel HEX images carry their own addresses: QEMU's generic loader without `addr` loads
     // a .hex file at the addresses of its records. A (generation 7) now beats B (6).
     let mut loaders = Vec::new();
     for (slot, generation) in [(SlotArg::A, 7), (SlotArg::B, 6)] {
-        let out = dir.join(format!("{slot:?}.hex"));
-        run_image(&ImageArgs {
-            model: model_path.clone(),
-            slot,
-            generation: Some(generation),
-            format: ImageFormat::Hex,
-            output: out.clone(),
-        })
-        .unwrap();
+        let out = write_image(slot, generation, ImageFormat::Hex, "hex");
         assert!(std::fs::read_to_string(&out)
             .unwrap()
             .starts_with(":02000004080"));
@@ -552,13 +557,12 @@ fn images_written_by_hvs_image_boot_at_the_address_they_name() {
         loaders.push(format!("loader,file={}", out.display()));
     }
     let mut run = boot_with("image-hex", None, None, loaders);
-    let i = info(&mut run);
-    assert_eq!(
-        (i.mode, i.slot, i.generation),
-        (Mode::Network, Some(Slot::A), 7)
+    runs(
+        info(&mut run),
+        Slot::A,
+        7,
+        SlotStatus::Valid { generation: 6 },
     );
-    assert_eq!(i.slot_b, SlotStatus::Valid { generation: 6 });
-    assert_eq!(i.model.map(|m| m.seed), Some(11));
     drop(run);
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -613,10 +617,7 @@ fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
 
     let mut run = boot("posture", Some(&bytes), None);
     let i = info(&mut run);
-    assert_eq!(
-        (i.mode, i.slot, i.generation),
-        (Mode::Network, Some(Slot::A), 4)
-    );
+    assert_network(&i, Slot::A, 4);
     let mi = i.model.expect("model metadata");
     assert_eq!((mi.inputs, mi.hidden, mi.outputs), (9, 8, 3));
 
@@ -676,9 +677,7 @@ fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
     // Points seen from the new posture: the head feeds its setpoints to the net.
     for p in [[-6.0, -3.0, 90.0], [-4.0, -1.0, 120.0], [-8.5, -4.0, 75.0]] {
         let px = seen(&moved, &p);
-        let ResponseBody::Estimate(e) = run.link.request(RequestBody::Estimate(px)).unwrap() else {
-            panic!("Estimate refused")
-        };
+        let e = estimate(&mut run, px);
         assert_eq!(bits(&e), infer(&moved, &px).map(f32::to_bits), "{p:?}");
         assert_eq!(Ok(e), host.estimate(&px));
         assert_eq!(e.source, Source::Network);

@@ -177,63 +177,42 @@ mod tests {
 
     #[test]
     fn refuses_bad_descriptions_with_the_reason() {
+        // A chessboard description with these corners and square size (JSON text).
+        let chess = |corners: &str, square: &str| {
+            format!(
+                r#"{{"pattern": "chessboard", "inner_corners": {corners}, "square_cm": {square}}}"#
+            )
+        };
         let cases = [
             (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 6.0, "x": 1}"#,
+                r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 6.0, "x": 1}"#.into(),
                 "unknown field",
             ),
             (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 6], "inner_corners": [9, 6], "square_cm": 6.0}"#,
+                r#"{"pattern": "chessboard", "inner_corners": [9, 6], "inner_corners": [9, 6], "square_cm": 6.0}"#.into(),
                 "duplicate field",
             ),
             (
-                r#"{"pattern": "circles", "inner_corners": [9, 6], "square_cm": 6.0}"#,
+                r#"{"pattern": "circles", "inner_corners": [9, 6], "square_cm": 6.0}"#.into(),
                 "unknown variant",
             ),
+            (chess("[9]", "6.0"), "invalid length"),
+            (chess("[9, 6, 2]", "6.0"), "trailing"),
+            (chess("[9, -6]", "6.0"), "invalid value"),
             (
-                r#"{"pattern": "chessboard", "inner_corners": [9], "square_cm": 6.0}"#,
-                "invalid length",
-            ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 6, 2], "square_cm": 6.0}"#,
-                "trailing",
-            ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [9, -6], "square_cm": 6.0}"#,
-                "invalid value",
-            ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 6]}"#,
+                r#"{"pattern": "chessboard", "inner_corners": [9, 6]}"#.into(),
                 "missing field `square_cm`",
             ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [1, 6], "square_cm": 6.0}"#,
-                "cols",
-            ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 0], "square_cm": 6.0}"#,
-                "rows",
-            ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 0.0}"#,
-                "square_cm",
-            ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": -1.0}"#,
-                "square_cm",
-            ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 1e400}"#,
-                "number out of range",
-            ),
-            (
-                r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": "6"}"#,
-                "invalid type",
-            ),
-            ("", "EOF"),
+            (chess("[1, 6]", "6.0"), "cols"),
+            (chess("[9, 0]", "6.0"), "rows"),
+            (chess("[9, 6]", "0.0"), "square_cm"),
+            (chess("[9, 6]", "-1.0"), "square_cm"),
+            (chess("[9, 6]", "1e400"), "number out of range"),
+            (chess("[9, 6]", "\"6\""), "invalid type"),
+            (String::new(), "EOF"),
         ];
         for (text, needle) in cases {
-            let e = Board::from_json(text).unwrap_err().to_string();
+            let e = Board::from_json(&text).unwrap_err().to_string();
             assert!(e.contains(needle), "{text}: {e:?} lacks {needle:?}");
         }
     }

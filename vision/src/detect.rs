@@ -309,19 +309,8 @@ pub fn label_grid(
     height: u32,
 ) -> Result<Corners, DetectError> {
     let expected = board.corner_count();
-    if labelled.is_empty() {
-        return Err(DetectError::BoardNotFound);
-    }
-    let (a0, a1) = labelled.iter().fold((i32::MAX, i32::MIN), |m, c| {
-        (m.0.min(c.0 .0), m.1.max(c.0 .0))
-    });
-    let (b0, b1) = labelled.iter().fold((i32::MAX, i32::MIN), |m, c| {
-        (m.0.min(c.0 .1), m.1.max(c.0 .1))
-    });
-    let extent = (
-        (a1 as i64 - a0 as i64 + 1).min(u32::MAX as i64) as u32,
-        (b1 as i64 - b0 as i64 + 1).min(u32::MAX as i64) as u32,
-    );
+    let range = LabelRange::of(labelled)?;
+    let ((a0, a1), (b0, b1), extent) = (range.a, range.b, range.extent());
     let wrong = || DetectError::WrongCornerCount {
         found: labelled.len(),
         expected,
@@ -440,6 +429,43 @@ fn fill(block: &[((i32, i32), [f64; 2])], raw: &[[f64; 2]], l: (i32, i32)) -> Op
     (norm(sub(*best, pred)) <= 0.25 * square).then_some(*best)
 }
 
+/// The range of the detector labels on each axis and the corners it spans.
+struct LabelRange {
+    /// Smallest and largest first label.
+    a: (i32, i32),
+    /// Smallest and largest second label.
+    b: (i32, i32),
+    /// Labels spanned on each axis (`max - min + 1`).
+    n: (u64, u64),
+}
+
+impl LabelRange {
+    /// The range of `labelled`'s labels; [`DetectError::BoardNotFound`] when there are none.
+    fn of(labelled: &[((i32, i32), [f64; 2])]) -> Result<Self, DetectError> {
+        if labelled.is_empty() {
+            return Err(DetectError::BoardNotFound);
+        }
+        let range = |label: fn(&(i32, i32)) -> i32| {
+            labelled.iter().fold((i32::MAX, i32::MIN), |m, c| {
+                (m.0.min(label(&c.0)), m.1.max(label(&c.0)))
+            })
+        };
+        let (a, b) = (range(|l| l.0), range(|l| l.1));
+        let span = |(lo, hi): (i32, i32)| (hi as i64 - lo as i64 + 1) as u64;
+        Ok(LabelRange {
+            a,
+            b,
+            n: (span(a), span(b)),
+        })
+    }
+
+    /// The span as [`DetectError::WrongCornerCount`] reports it (saturated to `u32`).
+    fn extent(&self) -> (u32, u32) {
+        let sat = |n: u64| n.min(u32::MAX as u64) as u32;
+        (sat(self.n.0), sat(self.n.1))
+    }
+}
+
 fn label_complete(
     labelled: &[((i32, i32), [f64; 2])],
     board: &Board,
@@ -447,27 +473,16 @@ fn label_complete(
     height: u32,
 ) -> Result<Corners, DetectError> {
     let expected = board.corner_count();
-    if labelled.is_empty() {
-        return Err(DetectError::BoardNotFound);
+    if labelled
+        .iter()
+        .any(|(_, p)| !(p[0].is_finite() && p[1].is_finite()))
+    {
+        return Err(DetectError::InconsistentGrid(
+            "a corner has a non-finite position".into(),
+        ));
     }
-    let (mut a0, mut a1, mut b0, mut b1) = (i32::MAX, i32::MIN, i32::MAX, i32::MIN);
-    for ((a, b), p) in labelled {
-        if !(p[0].is_finite() && p[1].is_finite()) {
-            return Err(DetectError::InconsistentGrid(
-                "a corner has a non-finite position".into(),
-            ));
-        }
-        a0 = a0.min(*a);
-        a1 = a1.max(*a);
-        b0 = b0.min(*b);
-        b1 = b1.max(*b);
-    }
-    let na = (a1 as i64 - a0 as i64 + 1) as u64;
-    let nb = (b1 as i64 - b0 as i64 + 1) as u64;
-    let extent = (
-        na.min(u32::MAX as u64) as u32,
-        nb.min(u32::MAX as u64) as u32,
-    );
+    let range = LabelRange::of(labelled)?;
+    let ((a0, _), (b0, _), (na, nb), extent) = (range.a, range.b, range.n, range.extent());
     let (cols, rows) = (board.cols as u64, board.rows as u64);
     let fits = (na == cols && nb == rows) || (na == rows && nb == cols);
     if labelled.len() != expected || !fits {

@@ -142,6 +142,26 @@ fn check_finite(pairs: &[([f64; 2], [f64; 2])]) -> Result<(), GeomError> {
     Ok(())
 }
 
+/// The checks and the normalisations of a DLT on `pairs`: at least `need` pairs, all finite,
+/// and for each side the [`normaliser`] of its points (`coincide[side]` is the error when
+/// that side's points all coincide).
+fn pair_normalisers(
+    pairs: &[([f64; 2], [f64; 2])],
+    need: usize,
+    coincide: [&'static str; 2],
+) -> Result<[Matrix3<f64>; 2], GeomError> {
+    if pairs.len() < need {
+        return Err(GeomError::TooFewPoints {
+            need,
+            got: pairs.len(),
+        });
+    }
+    check_finite(pairs)?;
+    let first = normaliser(pairs.iter().map(|p| p.0)).ok_or(GeomError::Degenerate(coincide[0]))?;
+    let second = normaliser(pairs.iter().map(|p| p.1)).ok_or(GeomError::Degenerate(coincide[1]))?;
+    Ok([first, second])
+}
+
 /// The right singular vector of the smallest singular value of `a` (rows padded with zeros to
 /// at least as many as columns, so the full right basis exists), with the singular values in
 /// ascending order.
@@ -195,17 +215,14 @@ pub struct HomographyFit {
 /// Fit `dst ~ H src` to `pairs = [(src, dst), ...]` (at least 4, no three of the first four
 /// collinear) by the normalised direct linear transform (Hartley & Zisserman, alg. 4.2).
 pub fn fit_homography(pairs: &[([f64; 2], [f64; 2])]) -> Result<HomographyFit, GeomError> {
-    if pairs.len() < 4 {
-        return Err(GeomError::TooFewPoints {
-            need: 4,
-            got: pairs.len(),
-        });
-    }
-    check_finite(pairs)?;
-    let ts = normaliser(pairs.iter().map(|p| p.0))
-        .ok_or(GeomError::Degenerate("all source points coincide"))?;
-    let td = normaliser(pairs.iter().map(|p| p.1))
-        .ok_or(GeomError::Degenerate("all destination points coincide"))?;
+    let [ts, td] = pair_normalisers(
+        pairs,
+        4,
+        [
+            "all source points coincide",
+            "all destination points coincide",
+        ],
+    )?;
     let mut a = DMatrix::<f64>::zeros(2 * pairs.len(), 9);
     for (k, (s, d)) in pairs.iter().enumerate() {
         let [x, y] = apply_na(&ts, *s);
@@ -391,17 +408,11 @@ fn rms_sampson(f: &Fundamental, pairs: &[([f64; 2], [f64; 2])]) -> f64 {
 
 /// The normalised 8-point estimate, rank 2 enforced (Hartley & Zisserman, alg. 11.1).
 pub fn eight_point(pairs: &[([f64; 2], [f64; 2])]) -> Result<Fundamental, GeomError> {
-    if pairs.len() < 8 {
-        return Err(GeomError::TooFewPoints {
-            need: 8,
-            got: pairs.len(),
-        });
-    }
-    check_finite(pairs)?;
-    let tl = normaliser(pairs.iter().map(|p| p.0))
-        .ok_or(GeomError::Degenerate("all left points coincide"))?;
-    let tr = normaliser(pairs.iter().map(|p| p.1))
-        .ok_or(GeomError::Degenerate("all right points coincide"))?;
+    let [tl, tr] = pair_normalisers(
+        pairs,
+        8,
+        ["all left points coincide", "all right points coincide"],
+    )?;
     let mut a = DMatrix::<f64>::zeros(pairs.len(), 9);
     for (k, (l, r)) in pairs.iter().enumerate() {
         let [x, y] = apply_na(&tl, *l);

@@ -6,11 +6,13 @@
 //! - [`render`]: stereo images of a board through a rig, with exact corner truth.
 //! - [`matching`]: one point of the left image found in the right one (ZNCC on the epipolar line).
 //! - [`overlay`]: drawing what was found, for a user to look at.
+//! - [`invalid`]: the out-of-range parameter error of [`matching`] and [`render`].
 #![forbid(unsafe_code)]
 
 pub mod board;
 pub mod detect;
 pub mod geometry;
+pub mod invalid;
 pub mod matching;
 pub mod overlay;
 pub mod render;

@@ -70,6 +70,7 @@
 //! test seeds) and on the Motorcycle pair's development seeds.
 
 use crate::geometry::Fundamental;
+use crate::invalid::{in_range, InvalidField};
 use hvs_shared::sim::camera::Camera;
 use image::GrayImage;
 use std::fmt;
@@ -247,46 +248,16 @@ impl Default for MatchParams {
     }
 }
 
-/// Why a matcher could not be built or a batch not run.
-#[derive(Debug, Clone, PartialEq)]
-pub enum MatchError {
-    /// A parameter or input is out of range; names it.
-    Invalid {
-        /// The parameter (e.g. `params.half_window`).
-        field: &'static str,
-        /// What is wrong with it.
-        reason: String,
-    },
-}
-
-impl fmt::Display for MatchError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            MatchError::Invalid { field, reason } => write!(f, "{field}: {reason}"),
-        }
-    }
-}
-
-impl std::error::Error for MatchError {}
-
-fn invalid(field: &'static str, reason: impl Into<String>) -> MatchError {
-    MatchError::Invalid {
-        field,
-        reason: reason.into(),
-    }
-}
+/// Why a matcher could not be built or a batch not run: a parameter or input is out of
+/// range, and the error names it.
+pub type MatchError = InvalidField;
 
 impl MatchParams {
     /// Checks the parameters (field names in the error).
     pub fn validate(&self) -> Result<(), MatchError> {
-        if !(1..=30).contains(&self.half_window) {
-            return Err(invalid(
-                "params.half_window",
-                format!("must be 1..=30, got {}", self.half_window),
-            ));
-        }
+        in_range("params.half_window", self.half_window, 1, 30)?;
         if self.max_half_window > 60 {
-            return Err(invalid(
+            return Err(InvalidField::new(
                 "params.max_half_window",
                 format!("must be at most 60, got {}", self.max_half_window),
             ));
@@ -323,7 +294,10 @@ impl MatchParams {
         ];
         for (field, v, lo, hi) in checks {
             if !(v.is_finite() && v >= lo && v <= hi) {
-                return Err(invalid(field, format!("must be in {lo}..={hi}, got {v}")));
+                return Err(InvalidField::new(
+                    field,
+                    format!("must be in {lo}..={hi}, got {v}"),
+                ));
             }
         }
         Ok(())
@@ -505,7 +479,7 @@ impl Matcher {
     ) -> Result<Matcher, MatchError> {
         params.validate()?;
         if left.dimensions() != right.dimensions() {
-            return Err(invalid(
+            return Err(InvalidField::new(
                 "right",
                 format!(
                     "image is {:?}, the left one {:?}: both must be the same size",
@@ -515,10 +489,13 @@ impl Matcher {
             ));
         }
         if left.width() == 0 || left.height() == 0 {
-            return Err(invalid("left", "image is empty"));
+            return Err(InvalidField::new("left", "image is empty"));
         }
         if !f.m.iter().flatten().all(|x| x.is_finite()) || f.m.iter().flatten().all(|&x| x == 0.0) {
-            return Err(invalid("fundamental", "must be finite and not all zero"));
+            return Err(InvalidField::new(
+                "fundamental",
+                "must be finite and not all zero",
+            ));
         }
         Ok(Matcher {
             left: Plane::new(left),
@@ -1305,24 +1282,14 @@ mod tests {
 
     #[test]
     fn bad_params_name_the_field() {
-        let p = MatchParams {
-            half_window: 0,
-            ..MatchParams::default()
+        // The defaults with one field set bad.
+        let refused = |spoil: fn(&mut MatchParams), field: &str| {
+            let mut p = MatchParams::default();
+            spoil(&mut p);
+            crate::invalid::assert_refused(p.validate(), field);
         };
-        assert!(p
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .starts_with("params.half_window"));
-        let p = MatchParams {
-            min_score: f64::NAN,
-            ..MatchParams::default()
-        };
-        assert!(p
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .starts_with("params.min_score"));
+        refused(|p| p.half_window = 0, "params.half_window");
+        refused(|p| p.min_score = f64::NAN, "params.min_score");
     }
 
     #[test]

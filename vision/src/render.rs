@@ -44,6 +44,7 @@
 //! one seeded ChaCha8 stream per image pair, as `hvs simulate` draws its noise) models the
 //! sensor, and the result is rounded and clamped to 8 bits.
 
+use crate::invalid::{finite_in, in_range, InvalidField};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::LensCamera;
 use hvs_shared::sim::camera::{CameraError, Rig, StereoPixels, Vec3};
@@ -53,46 +54,35 @@ use image::GrayImage;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::fmt;
-use std::path::Path;
 
 /// Why a render was refused.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RenderError {
     /// A parameter is out of its range; names the field.
-    Invalid {
-        /// The parameter (e.g. `board.square_cm`).
-        field: &'static str,
-        /// What is wrong with it.
-        reason: String,
-    },
+    Invalid(InvalidField),
     /// The board centre has no image (behind a camera or not finite).
     Camera(CameraError),
-    /// A file could not be written.
-    Io {
-        /// The file.
-        path: String,
-        /// The operating system's message.
-        message: String,
-    },
 }
 
 impl fmt::Display for RenderError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            RenderError::Invalid { field, reason } => write!(f, "{field}: {reason}"),
+            RenderError::Invalid(e) => e.fmt(f),
             RenderError::Camera(e) => write!(f, "board centre: {e}"),
-            RenderError::Io { path, message } => write!(f, "{path}: {message}"),
         }
     }
 }
 
 impl std::error::Error for RenderError {}
 
-fn invalid(field: &'static str, reason: impl Into<String>) -> RenderError {
-    RenderError::Invalid {
-        field,
-        reason: reason.into(),
+impl From<InvalidField> for RenderError {
+    fn from(e: InvalidField) -> Self {
+        RenderError::Invalid(e)
     }
+}
+
+fn invalid(field: &'static str, reason: impl Into<String>) -> RenderError {
+    InvalidField::new(field, reason).into()
 }
 
 /// The chessboard: [`crate::board::Board`] (what `BOARD.json` describes: inner corners and
@@ -115,18 +105,8 @@ enum Class {
 /// Checks `board` for rendering (field names in the error; the fields of [`Board`] are
 /// public, so a board need not have come through [`Board::new`]).
 fn validate_board(board: &Board) -> Result<(), RenderError> {
-    if board.cols == 0 || board.cols > 1000 {
-        return Err(invalid(
-            "board.cols",
-            format!("must be 1..=1000, got {}", board.cols),
-        ));
-    }
-    if board.rows == 0 || board.rows > 1000 {
-        return Err(invalid(
-            "board.rows",
-            format!("must be 1..=1000, got {}", board.rows),
-        ));
-    }
+    in_range("board.cols", board.cols, 1, 1000)?;
+    in_range("board.rows", board.rows, 1, 1000)?;
     if !(board.square_cm.is_finite() && board.square_cm > 0.0) {
         return Err(invalid(
             "board.square_cm",
@@ -222,30 +202,9 @@ impl RenderOptions {
 
     /// Checks the parameters (field names in the error).
     pub fn validate(&self) -> Result<(), RenderError> {
-        if !(1..=16).contains(&self.supersample) {
-            return Err(invalid(
-                "supersample",
-                format!("must be 1..=16, got {}", self.supersample),
-            ));
-        }
-        if !(self.blur_sigma_px.is_finite() && (0.0..=10.0).contains(&self.blur_sigma_px)) {
-            return Err(invalid(
-                "blur_sigma_px",
-                format!(
-                    "must be a finite number in 0..=10, got {}",
-                    self.blur_sigma_px
-                ),
-            ));
-        }
-        if !(self.noise_sigma.is_finite() && (0.0..=100.0).contains(&self.noise_sigma)) {
-            return Err(invalid(
-                "noise_sigma",
-                format!(
-                    "must be a finite number in 0..=100, got {}",
-                    self.noise_sigma
-                ),
-            ));
-        }
+        in_range("supersample", self.supersample, 1, 16)?;
+        finite_in("blur_sigma_px", self.blur_sigma_px, 0.0, 10.0)?;
+        finite_in("noise_sigma", self.noise_sigma, 0.0, 100.0)?;
         Ok(())
     }
 
@@ -548,17 +507,12 @@ impl CaptureSet {
             .collect()
     }
 
-    /// The captures table: `left,right,z` (as `data/opencv-stereo/captures.csv`, with the
-    /// depth), one row per pair.
-    pub fn captures_csv(&self) -> String {
-        let mut s = String::from("left,right,z\n");
-        for c in &self.captures {
-            s.push_str(&format!(
-                "{},{},{}\n",
-                c.left_name, c.right_name, c.centre[2]
-            ));
-        }
-        s
+    /// `board.json` of the board the set shows (what `hvs board detect --board` reads).
+    pub fn board_json(&self) -> String {
+        format!(
+            "{{\"pattern\": \"chessboard\", \"inner_corners\": [{}, {}], \"square_cm\": {}}}\n",
+            self.board.cols, self.board.rows, self.board.square_cm
+        )
     }
 
     /// The truth table: `left,i,j,x,y,z,u_l,v_l,u_r,v_r,in_image`, the pixels unrounded
@@ -583,37 +537,6 @@ impl CaptureSet {
             ));
         }
         s
-    }
-
-    /// Writes the PNG images, `captures.csv`, `truth.csv` and `board.json` into `dir`
-    /// (which must exist).
-    pub fn write(&self, dir: &Path) -> Result<(), RenderError> {
-        let io = |p: &Path, e: &dyn fmt::Display| RenderError::Io {
-            path: p.display().to_string(),
-            message: e.to_string(),
-        };
-        for c in &self.captures {
-            for (name, img) in [
-                (&c.left_name, &c.render.left),
-                (&c.right_name, &c.render.right),
-            ] {
-                let p = dir.join(name);
-                img.save(&p).map_err(|e| io(&p, &e))?;
-            }
-        }
-        let board = format!(
-            "{{\"pattern\": \"chessboard\", \"inner_corners\": [{}, {}], \"square_cm\": {}}}\n",
-            self.board.cols, self.board.rows, self.board.square_cm
-        );
-        for (name, text) in [
-            ("captures.csv", self.captures_csv()),
-            ("truth.csv", self.truth_csv()),
-            ("board.json", board),
-        ] {
-            let p = dir.join(name);
-            std::fs::write(&p, text).map_err(|e| io(&p, &e))?;
-        }
-        Ok(())
     }
 }
 
@@ -710,19 +633,13 @@ mod tests {
             margin_cm: 1.0,
             ..RenderOptions::default()
         };
-        let e = render_rig(&presets::CASE_1, &opencv_board(), [0.0, 0.0, 100.0], &o, 0)
-            .unwrap_err()
-            .to_string();
-        assert!(e.starts_with("margin_cm"), "{e}");
+        let r = render_rig(&presets::CASE_1, &opencv_board(), [0.0, 0.0, 100.0], &o, 0);
+        crate::invalid::assert_refused(r, "margin_cm");
         let o = RenderOptions {
             blur_sigma_px: f64::NAN,
             ..RenderOptions::default()
         };
-        assert!(o
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .starts_with("blur_sigma_px"));
+        crate::invalid::assert_refused(o.validate(), "blur_sigma_px");
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use crate::data::captures;
 use crate::data::csv::write_bytes;
-use crate::vision::{detect_set, png_bytes, points_csv, read_grey, PairOutcome};
+use crate::vision::{detect_set, detect_set_with_images, png_bytes, points_csv, PairOutcome};
 use anyhow::{bail, Context, Result};
 use hvs_vision::board::Board;
 use std::io::IsTerminal;
@@ -66,11 +66,17 @@ fn detect(a: &DetectArgs) -> Result<()> {
         );
         b
     });
-    let det = detect_set(&board, &set, &|| {
+    let progress = || {
         if let Some(b) = &bar {
             b.inc(1);
         }
-    })?;
+    };
+    // With overlays, the images read for detection are drawn on (not decoded twice).
+    let (det, images) = if a.overlays.is_some() {
+        detect_set_with_images(&board, &set, &progress)?
+    } else {
+        (detect_set(&board, &set, &progress)?, Vec::new())
+    };
     if let Some(b) = bar {
         b.finish_and_clear();
     }
@@ -121,13 +127,15 @@ fn detect(a: &DetectArgs) -> Result<()> {
     if let Some(dir) = &a.overlays {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create", dir.display()))?;
-        for (c, out) in set.captures.iter().zip(&det.outcomes) {
-            let PairOutcome::Found(p) = out else { continue };
-            for (path, name, corners) in [
-                (&c.left, &c.left_name, &p.left),
-                (&c.right, &c.right_name, &p.right),
+        for ((c, out), pair) in set.captures.iter().zip(&det.outcomes).zip(&images) {
+            let (PairOutcome::Found(p), Some([left, right])) = (out, pair) else {
+                continue;
+            };
+            for (image, name, corners) in [
+                (left, &c.left_name, &p.left),
+                (right, &c.right_name, &p.right),
             ] {
-                let img = hvs_vision::overlay::draw_corners(&read_grey(path)?, corners);
+                let img = hvs_vision::overlay::draw_corners(image, corners);
                 write_bytes(&overlay_path(dir, name), &png_bytes(&img)?)?;
             }
         }

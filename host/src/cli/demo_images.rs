@@ -11,7 +11,9 @@ use crate::data::model;
 use crate::evaluate::{
     evaluate, model_depths, optimal_depths, pct, text_table, Evaluation, Method,
 };
-use crate::vision::{detect_set, png_bytes, points_csv, Detection, PairOutcome};
+use crate::vision::{
+    detect_set, found_corners, points_csv, write_capture_set, Detection, PairOutcome,
+};
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::gaze::Joints;
@@ -65,19 +67,7 @@ fn render_and_detect(
         seed,
     )
     .map_err(|e| anyhow!("{e}"))?;
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let mut caps = String::from("left,right,z,x,y\n");
-    for c in &set.captures {
-        write_bytes(&dir.join(&c.left_name), &png_bytes(&c.render.left)?)?;
-        write_bytes(&dir.join(&c.right_name), &png_bytes(&c.render.right)?)?;
-        let _ = writeln!(
-            caps,
-            "{},{},{},{},{}",
-            c.left_name, c.right_name, c.centre[2], c.centre[0], c.centre[1]
-        );
-    }
-    write_bytes(&dir.join("captures.csv"), caps.as_bytes())?;
-    write_bytes(&dir.join("truth.csv"), set.truth_csv().as_bytes())?;
+    write_capture_set(dir, &set, None)?;
     let board =
         Board::new(rboard.cols, rboard.rows, rboard.square_cm).map_err(|e| anyhow!("{e}"))?;
     let cset = captures::read(&dir.join("captures.csv"))?;
@@ -88,17 +78,10 @@ fn render_and_detect(
     )?;
     let mut data = Dataset::new(InputKind::Stereo);
     let mut truth_px = Vec::new();
-    for ((cap, out), c) in cset.captures.iter().zip(&det.outcomes).zip(&set.captures) {
-        let PairOutcome::Found(p) = out else { continue };
-        let z = cap.z.unwrap_or(c.centre[2]);
-        for j in 0..board.rows {
-            for i in 0..board.cols {
-                let (l, r) = (p.left.at(i, j), p.right.at(i, j));
-                let xyz = board.corner_position([cap.xy[0], cap.xy[1], z], i, j);
-                data.push(&[l[0], l[1], r[0], r[1]], Some(xyz));
-                truth_px.push(c.render.corners[board.index(i, j)].px);
-            }
-        }
+    for c in found_corners(&board, &cset, &det) {
+        let xyz = c.xyz.context("captures.csv gives every board's depth")?;
+        data.push(&c.px, Some(xyz));
+        truth_px.push(set.captures[c.capture].render.corners[board.index(c.i, c.j)].px);
     }
     Ok((board, data, det, truth_px))
 }

@@ -2,10 +2,8 @@
 //! (`hvs_vision::render`), as a capture set `hvs board detect` reads.
 
 use super::RigArgs;
-use crate::data::csv::write_bytes;
-use crate::data::dataset::JOINT_COLUMNS;
-use crate::vision::png_bytes;
-use anyhow::{anyhow, bail, Context, Result};
+use crate::vision::write_capture_set;
+use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::posture::HeadRig;
@@ -135,37 +133,7 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    std::fs::create_dir_all(&a.output)
-        .with_context(|| format!("{}: cannot create the folder", a.output.display()))?;
-    for c in &set.captures {
-        write_bytes(&a.output.join(&c.left_name), &png_bytes(&c.render.left)?)?;
-        write_bytes(&a.output.join(&c.right_name), &png_bytes(&c.render.right)?)?;
-    }
-    let mut caps = String::from("left,right,z,x,y");
-    if joints.is_some() {
-        caps.push(',');
-        caps.push_str(&JOINT_COLUMNS.join(","));
-    }
-    caps.push('\n');
-    for c in &set.captures {
-        caps.push_str(&format!(
-            "{},{},{},{},{}",
-            c.left_name, c.right_name, c.centre[2], c.centre[0], c.centre[1]
-        ));
-        if let Some(j) = joints {
-            for v in j.0 {
-                caps.push_str(&format!(",{v}"));
-            }
-        }
-        caps.push('\n');
-    }
-    write_bytes(&a.output.join("captures.csv"), caps.as_bytes())?;
-    write_bytes(&a.output.join("truth.csv"), set.truth_csv().as_bytes())?;
-    let board_json = format!(
-        "{{\"pattern\": \"chessboard\", \"inner_corners\": [{cols}, {rows}], \"square_cm\": {}}}\n",
-        a.square_cm
-    );
-    write_bytes(&a.output.join("board.json"), board_json.as_bytes())?;
+    write_capture_set(&a.output, &set, joints.as_ref())?;
     let hidden = set
         .truth_rows()
         .iter()

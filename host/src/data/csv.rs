@@ -478,63 +478,77 @@ mod tests {
     fn every_bad_input_names_file_line_and_column() {
         let h = "u_l,v_l,u_r,v_r,x,y,z\n";
         let ok = "1,2,3,4,5,6,7\n";
-        assert_eq!(
-            err(&format!("{h}{ok}{ok}1,2,3,abc,5,6,7\n"), true),
-            "d.csv:4: column \"v_r\": \"abc\" is not a number"
-        );
-        // Line numbers stay right after blank lines, CRLF endings and quoted fields.
-        assert_eq!(
-            err(
-                &format!(
+        // (file text, ground truth wanted, the whole message).
+        let cases: [(String, bool, &str); 12] = [
+            (
+                format!("{h}{ok}{ok}1,2,3,abc,5,6,7\n"),
+                true,
+                "d.csv:4: column \"v_r\": \"abc\" is not a number",
+            ),
+            // Line numbers stay right after blank lines, CRLF endings and quoted fields.
+            (
+                format!(
                     "{}\r\n\r\n{}\r\n\"1\",2,3,4,5,6,7\r\n\r\n1,2,3,4,5,x,7\r\n",
                     h.trim(),
                     ok.trim()
                 ),
-                true
+                true,
+                "d.csv:6: column \"y\": \"x\" is not a number",
             ),
-            "d.csv:6: column \"y\": \"x\" is not a number"
-        );
-        assert_eq!(
-            err(&format!("{h}{ok}1,NaN,3,4,5,6,7\n"), true),
-            "d.csv:3: column \"v_l\": \"NaN\" is not a finite number"
-        );
-        assert_eq!(
-            err(&format!("{h}1,2,3,4,5,6,-inf\n"), true),
-            "d.csv:2: column \"z\": \"-inf\" is not a finite number"
-        );
-        assert_eq!(
-            err(&format!("{h}1,2,3,4,5,6,1e999\n"), true),
-            "d.csv:2: column \"z\": \"1e999\" is not a finite number"
-        );
-        assert_eq!(
-            err(&format!("{h}{ok}1,2,3,4,5,6\n"), true),
-            "d.csv:3: row has 6 fields, the header has 7"
-        );
-        assert_eq!(
-            err(&format!("{h}1,2,,4,5,6,7\n"), true),
-            "d.csv:2: column \"u_r\" is empty"
-        );
-        assert_eq!(
-            err("u_l,v_l,u_r,x,y,z\n1,2,3,5,6,7\n", true),
-            "d.csv:1: missing column \"v_r\" (the header has: u_l,v_l,u_r,x,y,z)"
-        );
-        assert_eq!(
-            err("u_l,v_l,u_r,v_r\n1,2,3,4\n", true),
-            "d.csv:1: missing column \"x\" (the header has: u_l,v_l,u_r,v_r)"
-        );
+            (
+                format!("{h}{ok}1,NaN,3,4,5,6,7\n"),
+                true,
+                "d.csv:3: column \"v_l\": \"NaN\" is not a finite number",
+            ),
+            (
+                format!("{h}1,2,3,4,5,6,-inf\n"),
+                true,
+                "d.csv:2: column \"z\": \"-inf\" is not a finite number",
+            ),
+            (
+                format!("{h}1,2,3,4,5,6,1e999\n"),
+                true,
+                "d.csv:2: column \"z\": \"1e999\" is not a finite number",
+            ),
+            (
+                format!("{h}{ok}1,2,3,4,5,6\n"),
+                true,
+                "d.csv:3: row has 6 fields, the header has 7",
+            ),
+            (
+                format!("{h}1,2,,4,5,6,7\n"),
+                true,
+                "d.csv:2: column \"u_r\" is empty",
+            ),
+            (
+                "u_l,v_l,u_r,x,y,z\n1,2,3,5,6,7\n".into(),
+                true,
+                "d.csv:1: missing column \"v_r\" (the header has: u_l,v_l,u_r,x,y,z)",
+            ),
+            (
+                "u_l,v_l,u_r,v_r\n1,2,3,4\n".into(),
+                true,
+                "d.csv:1: missing column \"x\" (the header has: u_l,v_l,u_r,v_r)",
+            ),
+            (h.into(), true, "d.csv: no data rows after the header"),
+            (
+                "u_l,v_l,u_r,v_r,u_l\n1,2,3,4,5\n".into(),
+                false,
+                "d.csv:1: column \"u_l\" appears twice in the header",
+            ),
+            (
+                "\n\nu_l,v_l,u_r\n1,2,3\n".into(),
+                false,
+                "d.csv:3: missing column \"v_r\" (the header has: u_l,v_l,u_r)",
+            ),
+        ];
+        for (text, truth, want) in &cases {
+            assert_eq!(err(text, *truth), *want, "{text:?}");
+        }
         assert!(err("", false).starts_with("d.csv: empty file"));
         assert!(err("\n\n", false).starts_with("d.csv: empty file"));
-        assert_eq!(err(h, true), "d.csv: no data rows after the header");
-        assert_eq!(
-            err("u_l,v_l,u_r,v_r,u_l\n1,2,3,4,5\n", false),
-            "d.csv:1: column \"u_l\" appears twice in the header"
-        );
         // Ground truth is not needed for inputs-only reads, so a bad `z` does not matter there.
         assert!(read(&format!("{h}1,2,3,4,5,6,oops\n"), Inputs::Stereo, false).is_ok());
-        assert_eq!(
-            err("\n\nu_l,v_l,u_r\n1,2,3\n", false),
-            "d.csv:3: missing column \"v_r\" (the header has: u_l,v_l,u_r)"
-        );
     }
 
     #[test]

@@ -136,6 +136,19 @@ pub(crate) fn sigmoid_lanes(a: &V) -> V {
     out
 }
 
+/// `bias + sum_i w[i] x[i]` on every lane, the terms added in input order (as
+/// `Mlp::infer` adds them).
+#[inline(always)]
+fn neuron_lanes<const N: usize>(bias: f32, w: &[f32; N], x: &[V; N]) -> V {
+    let mut a = [bias; LANES];
+    for i in 0..N {
+        for l in 0..LANES {
+            a[l] += w[i] * x[i][l];
+        }
+    }
+    a
+}
+
 /// [`LANES`] points (`x`: `LANES * I` values, `out`: `LANES * O`) through `m`. Returns
 /// `false`, writing nothing, if an input or an output is not finite: the caller reruns the
 /// block through `Mlp::infer`.
@@ -162,22 +175,11 @@ fn block<const I: usize, const H: usize, const O: usize>(
     }
     let mut h = [[0.0f32; LANES]; H];
     for j in 0..H {
-        let mut a = [m.b1[j]; LANES];
-        for i in 0..I {
-            for l in 0..LANES {
-                a[l] += m.w1[j][i] * xn[i][l];
-            }
-        }
-        h[j] = sigmoid_lanes(&a);
+        h[j] = sigmoid_lanes(&neuron_lanes(m.b1[j], &m.w1[j], &xn));
     }
     let mut y = [[0.0f32; LANES]; O];
     for k in 0..O {
-        let mut a = [m.b2[k]; LANES];
-        for j in 0..H {
-            for l in 0..LANES {
-                a[l] += m.w2[k][j] * h[j][l];
-            }
-        }
+        let a = neuron_lanes(m.b2[k], &m.w2[k], &h);
         let f = match m.output {
             Activation::Linear => a,
             Activation::Sigmoid => sigmoid_lanes(&a),

@@ -112,9 +112,9 @@ impl<'a> Predictor<'a> {
         self.blob.n_outputs()
     }
 
-    /// Runs `inputs` (row-major, `n_inputs` per point) into `out` (`n_outputs` per point) on
-    /// the current thread. Stops at the first failing point.
-    pub fn run_serial(&self, inputs: &[f32], out: &mut [f32]) -> Result<(), PointError> {
+    /// Inputs and outputs per point, after checking that `inputs` holds whole points and
+    /// `out` room for exactly their outputs ([`MlpError::Shape`] at point 0 if not).
+    fn check_shape(&self, inputs: &[f32], out: &[f32]) -> Result<(usize, usize), PointError> {
         let (ni, no) = (self.n_inputs(), self.n_outputs());
         if inputs.len() % ni != 0 || out.len() != inputs.len() / ni * no {
             return Err(PointError {
@@ -122,6 +122,13 @@ impl<'a> Predictor<'a> {
                 error: MlpError::Shape,
             });
         }
+        Ok((ni, no))
+    }
+
+    /// Runs `inputs` (row-major, `n_inputs` per point) into `out` (`n_outputs` per point) on
+    /// the current thread. Stops at the first failing point.
+    pub fn run_serial(&self, inputs: &[f32], out: &mut [f32]) -> Result<(), PointError> {
+        let (ni, no) = self.check_shape(inputs, out)?;
         match &self.kernel {
             Kernel::Fixed(f) => {
                 f(inputs, out).map_err(|(index, error)| PointError { index, error })
@@ -144,13 +151,7 @@ impl<'a> Predictor<'a> {
     /// As [`Predictor::run_serial`], in parallel chunks; the error reported is the one of the
     /// first failing point.
     pub fn run(&self, inputs: &[f32], out: &mut [f32]) -> Result<(), PointError> {
-        let (ni, no) = (self.n_inputs(), self.n_outputs());
-        if inputs.len() % ni != 0 || out.len() != inputs.len() / ni * no {
-            return Err(PointError {
-                index: 0,
-                error: MlpError::Shape,
-            });
-        }
+        let (ni, no) = self.check_shape(inputs, out)?;
         let errors: Vec<PointError> = inputs
             .par_chunks(CHUNK * ni)
             .zip(out.par_chunks_mut(CHUNK * no))

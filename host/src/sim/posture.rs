@@ -21,15 +21,16 @@
 use crate::data::dataset::{Dataset, JOINT_COLUMNS};
 use crate::sim::board::Pixels;
 use crate::sim::sets::{
-    check_points, set_points, to_written_precision, volume_of, SetKind, SimOptions,
+    check_noise_px, pixel_noise, sample_volume, set_points, to_written_precision, volume_of,
+    volume_point, SetKind, SimOptions,
 };
 use anyhow::{bail, Result};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::{StereoPixels, Vec3};
 use hvs_shared::sim::posture::{gaze_frame, grid_len, to_head, HeadRig, PostureRange};
+use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rand_distr::{Distribution, StandardNormal};
 use std::io::Write;
 
 /// How the postures of a set are chosen.
@@ -163,29 +164,16 @@ pub fn simulate(
     joints: &[Joints],
     opt: &SimOptions,
 ) -> Result<Vec<PostureSample>> {
-    if !(opt.noise_px.is_finite() && opt.noise_px >= 0.0) {
-        bail!(
-            "--noise-px must be a finite number >= 0, got {}",
-            opt.noise_px
-        );
-    }
+    check_noise_px(opt.noise_px)?;
     if !head.distortion.iter().all(|d| d.is_finite()) {
         bail!("the lens distortion coefficients must be finite");
     }
     if joints.is_empty() {
         bail!("no postures to simulate at");
     }
-    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(opt.seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(opt.seed);
     let rig = &head.rig;
-    let noise = |rng: &mut rand::rngs::ChaCha8Rng| -> [f64; 4] {
-        if opt.noise_px == 0.0 {
-            return [0.0; 4];
-        }
-        core::array::from_fn(|_| {
-            let n: f64 = StandardNormal.sample(rng);
-            n * opt.noise_px
-        })
-    };
+    let noise = |rng: &mut ChaCha8Rng| pixel_noise(rng, opt.noise_px);
     let frame = |j: &Joints| gaze_frame(j, head.neck_centre_cm, rig.half_baseline);
     let project = |j: &Joints, p: &Vec3, n: &[f64; 4]| match opt.pixels {
         Pixels::Rounded => head.project_rounded_noisy(j, p, n),
@@ -193,10 +181,10 @@ pub fn simulate(
             .project(j, p)
             .map(|e| core::array::from_fn(|k| e[k] + n[k])),
     };
-    let mut out = Vec::new();
     match kind {
         SetKind::Train | SetKind::Test => {
             let points = set_points(kind, &opt.board)?;
+            let mut out = Vec::new();
             for j in joints {
                 let f = frame(j);
                 for &q in &points {
@@ -225,41 +213,23 @@ pub fn simulate(
                     });
                 }
             }
+            Ok(out)
         }
         SetKind::Volume => {
-            check_points(opt.points)?;
             let (lo, hi) = volume_of(&opt.board);
-            let max_tries = opt.points.saturating_mul(1000).max(10_000);
-            let mut tries = 0usize;
-            while out.len() < opt.points {
-                if tries == max_tries {
-                    bail!(
-                        "only {} of {} random points fell inside both images after {tries} draws; the head does not see the training volume",
-                        out.len(),
-                        opt.points
-                    );
-                }
-                tries += 1;
-                let j = &joints[out.len() % joints.len()];
-                let q: Vec3 = core::array::from_fn(|k| {
-                    let u: f64 = rng.random();
-                    lo[k] + (hi[k] - lo[k]) * u
-                });
-                let p = to_head(&frame(j), &q).map(to_written_precision);
-                let n = noise(&mut rng);
-                if let Ok(px) = project(j, &p, &n) {
-                    if rig.in_image(&px) {
-                        out.push(PostureSample {
-                            px,
-                            joints: *j,
-                            xyz: p,
-                        });
-                    }
-                }
-            }
+            sample_volume(opt.points, "head", &mut rng, |rng, kept| {
+                let j = &joints[kept % joints.len()];
+                let p = to_head(&frame(j), &volume_point(rng, &lo, &hi)).map(to_written_precision);
+                let n = noise(rng);
+                let px = project(j, &p, &n).ok().filter(|px| rig.in_image(px))?;
+                Some(PostureSample {
+                    px,
+                    joints: *j,
+                    xyz: p,
+                })
+            })
         }
     }
-    Ok(out)
 }
 
 /// The samples as a 9-input data set with ground truth.

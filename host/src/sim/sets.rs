@@ -7,6 +7,7 @@ use crate::sim::board::{Board, Pixels};
 use anyhow::{bail, Result};
 use hvs_shared::sim::camera::{Rig, StereoPixels, Vec3};
 use hvs_shared::sim::presets;
+use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::io::Write;
@@ -127,22 +128,9 @@ pub fn volume_of(board: &Board) -> (Vec3, Vec3) {
 /// Simulates a set through `rig`. Every random draw comes from one ChaCha8 stream seeded
 /// with `opt.seed`, so the same arguments give the same bytes.
 pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample>> {
-    if !(opt.noise_px.is_finite() && opt.noise_px >= 0.0) {
-        bail!(
-            "--noise-px must be a finite number >= 0, got {}",
-            opt.noise_px
-        );
-    }
-    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(opt.seed);
-    let noise = |rng: &mut rand::rngs::ChaCha8Rng| -> [f64; 4] {
-        if opt.noise_px == 0.0 {
-            return [0.0; 4];
-        }
-        core::array::from_fn(|_| {
-            let n: f64 = StandardNormal.sample(rng);
-            n * opt.noise_px
-        })
-    };
+    check_noise_px(opt.noise_px)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(opt.seed);
+    let noise = |rng: &mut ChaCha8Rng| pixel_noise(rng, opt.noise_px);
     let project = |p: &Vec3, n: &[f64; 4]| match opt.pixels {
         Pixels::Exact => rig
             .project(p)
@@ -175,34 +163,73 @@ pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample
             Ok(out)
         }
         SetKind::Volume => {
-            check_points(opt.points)?;
             let (lo, hi) = volume_of(&opt.board);
-            let max_tries = opt.points.saturating_mul(1000).max(10_000);
-            let mut out = Vec::with_capacity(opt.points);
-            let mut tries = 0usize;
-            while out.len() < opt.points {
-                if tries == max_tries {
-                    bail!(
-                        "only {} of {} random points fell inside both images after {tries} draws; the rig does not see the training volume",
-                        out.len(),
-                        opt.points
-                    );
-                }
-                tries += 1;
-                let p: Vec3 = core::array::from_fn(|k| {
-                    let u: f64 = rng.random();
-                    to_written_precision(lo[k] + (hi[k] - lo[k]) * u)
-                });
-                let n = noise(&mut rng);
-                if let Ok(px) = project(&p, &n) {
-                    if rig.in_image(&px) {
-                        out.push(Sample { px, xyz: p });
-                    }
-                }
-            }
-            Ok(out)
+            sample_volume(opt.points, "rig", &mut rng, |rng, _| {
+                let p = volume_point(rng, &lo, &hi).map(to_written_precision);
+                let n = noise(rng);
+                let px = project(&p, &n).ok().filter(|px| rig.in_image(px))?;
+                Some(Sample { px, xyz: p })
+            })
         }
     }
+}
+
+/// Checks a `--noise-px` value: finite and >= 0.
+pub(crate) fn check_noise_px(noise_px: f64) -> Result<()> {
+    if !(noise_px.is_finite() && noise_px >= 0.0) {
+        bail!("--noise-px must be a finite number >= 0, got {noise_px}");
+    }
+    Ok(())
+}
+
+/// One draw of the Gaussian pixel noise (standard deviation `noise_px`) for the four pixel
+/// coordinates; with `noise_px == 0` none, and nothing is drawn from `rng`.
+pub(crate) fn pixel_noise(rng: &mut ChaCha8Rng, noise_px: f64) -> [f64; 4] {
+    if noise_px == 0.0 {
+        return [0.0; 4];
+    }
+    core::array::from_fn(|_| {
+        let n: f64 = StandardNormal.sample(rng);
+        n * noise_px
+    })
+}
+
+/// A uniform random point of the box `lo..hi` (three draws from `rng`, X, Y, Z; the box of
+/// [`volume_of`]).
+pub(crate) fn volume_point(rng: &mut ChaCha8Rng, lo: &Vec3, hi: &Vec3) -> Vec3 {
+    core::array::from_fn(|k| {
+        let u: f64 = rng.random();
+        lo[k] + (hi[k] - lo[k]) * u
+    })
+}
+
+/// Rejection sampling of a volume set: calls `draw(rng, kept)` (`kept` = samples so far)
+/// until `points` samples are kept, `None` being a draw that fell outside an image. Checks
+/// `points` ([`check_points`]) and gives up, naming `viewer` ("rig", "head"), after
+/// `max(1000 points, 10 000)` draws.
+pub(crate) fn sample_volume<T>(
+    points: usize,
+    viewer: &str,
+    rng: &mut ChaCha8Rng,
+    mut draw: impl FnMut(&mut ChaCha8Rng, usize) -> Option<T>,
+) -> Result<Vec<T>> {
+    check_points(points)?;
+    let max_tries = points.saturating_mul(1000).max(10_000);
+    let mut out = Vec::with_capacity(points);
+    let mut tries = 0usize;
+    while out.len() < points {
+        if tries == max_tries {
+            bail!(
+                "only {} of {points} random points fell inside both images after {tries} draws; the {viewer} does not see the training volume",
+                out.len(),
+            );
+        }
+        tries += 1;
+        if let Some(sample) = draw(rng, out.len()) {
+            out.push(sample);
+        }
+    }
+    Ok(out)
 }
 
 /// Rounds a coordinate to the 1e-4 cm the CSV holds, so that the written ground truth is

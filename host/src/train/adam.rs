@@ -113,12 +113,7 @@ mod tests {
 
     #[test]
     fn lowers_the_cost() {
-        let shape = Shape {
-            ni: 2,
-            nh: 3,
-            no: 2,
-            skip: false,
-        };
+        let shape = Shape::new(2, 3, 2, false);
         let prob = random_problem(shape, Activation::Linear, 30, 1);
         let mut p = random_params(&shape, 2);
         let start = prob.cost(&p);

@@ -159,12 +159,7 @@ mod tests {
         let (v, b1, w1, c1, w2, c2) = (0.4, -0.2, 0.7, 0.1, -0.5, 0.3);
         let (x, d1, d2, eta) = (0.8, 0.9, 0.2, 0.5);
         let prob = Problem {
-            shape: Shape {
-                ni: 1,
-                nh: 1,
-                no: 2,
-                skip: false,
-            },
+            shape: Shape::new(1, 1, 2, false),
             output: Activation::Sigmoid,
             n: 1,
             x: vec![x],
@@ -209,19 +204,19 @@ mod tests {
         }
     }
 
+    /// A random sigmoid-output problem of `n` patterns (seed `seeds[0]`) with every residual
+    /// weight 1 (eq. 2.1-5 has none), and random parameters (seed `seeds[1]`).
+    fn unit_weight_problem(shape: Shape, n: usize, seeds: [u64; 2]) -> (Problem, Vec<f64>) {
+        let mut prob = random_problem(shape, Activation::Sigmoid, n, seeds[0]);
+        prob.c.iter_mut().for_each(|c| *c = 1.0);
+        (prob, random_params(&shape, seeds[1]))
+    }
+
     #[test]
     fn is_steepest_descent_on_the_pattern_error() {
         // One pattern's update is exactly -eta * grad of its eq. 2.1-5 (both layers' deltas
         // come from the same forward pass), checked against the least-squares gradient.
-        let shape = Shape {
-            ni: 3,
-            nh: 4,
-            no: 2,
-            skip: false,
-        };
-        let mut prob = random_problem(shape, Activation::Sigmoid, 1, 21);
-        prob.c.iter_mut().for_each(|c| *c = 1.0);
-        let p0 = random_params(&shape, 2);
+        let (prob, p0) = unit_weight_problem(Shape::new(3, 4, 2, false), 1, [21, 2]);
         let mut grad = vec![0.0; p0.len()];
         prob.gradient(&p0, &mut grad);
         let mut p = p0.clone();
@@ -235,38 +230,21 @@ mod tests {
 
     #[test]
     fn stops_at_e_max_or_the_cycle_cap_and_lowers_the_error() {
-        let shape = Shape {
-            ni: 2,
-            nh: 3,
-            no: 1,
-            skip: false,
-        };
-        let mut prob = random_problem(shape, Activation::Sigmoid, 20, 5);
-        prob.c.iter_mut().for_each(|c| *c = 1.0);
-        let p0 = random_params(&shape, 6);
+        let (prob, p0) = unit_weight_problem(Shape::new(2, 3, 1, false), 20, [5, 6]);
         let start = prob.cost(&p0);
-        let mut p = p0.clone();
-        let capped = fit(
-            &prob,
-            &mut p,
-            &BpParams {
+        let run = |e_max: f64| {
+            let mut p = p0.clone();
+            let params = BpParams {
                 learning_rate: 0.5,
-                e_max: 0.0,
+                e_max,
                 max_cycles: 300,
-            },
-        );
+            };
+            (fit(&prob, &mut p, &params), p)
+        };
+        let (capped, p) = run(0.0);
         assert_eq!(capped.cycles, 300);
         assert!(prob.cost(&p) < 0.5 * start);
-        let mut p = p0.clone();
-        let easy = fit(
-            &prob,
-            &mut p,
-            &BpParams {
-                learning_rate: 0.5,
-                e_max: capped.error * 2.0,
-                max_cycles: 300,
-            },
-        );
+        let (easy, _) = run(capped.error * 2.0);
         assert!(easy.cycles < 300 && easy.error < capped.error * 2.0);
     }
 

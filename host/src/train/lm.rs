@@ -200,12 +200,7 @@ mod tests {
 
     #[test]
     fn reduces_the_cost_and_fits_a_realisable_problem() {
-        let shape = Shape {
-            ni: 2,
-            nh: 3,
-            no: 1,
-            skip: false,
-        };
+        let shape = Shape::new(2, 3, 1, false);
         // Targets produced by a 2-3-1 net: the global minimum is zero.
         let mut prob = random_problem(shape, Activation::Linear, 40, 3);
         let truth = random_params(&shape, 99);
@@ -235,12 +230,7 @@ mod tests {
 
     #[test]
     fn never_increases_the_cost_and_respects_the_iteration_cap() {
-        let shape = Shape {
-            ni: 3,
-            nh: 4,
-            no: 2,
-            skip: false,
-        };
+        let shape = Shape::new(3, 4, 2, false);
         let prob = random_problem(shape, Activation::Linear, 25, 8);
         for seed in 0..5 {
             let mut p = random_params(&shape, seed);
@@ -257,12 +247,7 @@ mod tests {
 
     #[test]
     fn weight_decay_converges_to_a_stationary_point_of_the_regularised_cost() {
-        let shape = Shape {
-            ni: 3,
-            nh: 3,
-            no: 2,
-            skip: false,
-        };
+        let shape = Shape::new(3, 3, 2, false);
         let prob = random_problem(shape, Activation::Linear, 30, 12);
         let alpha = 1e-2;
         let mut p = random_params(&shape, 3);

@@ -291,12 +291,12 @@ fn output_columns(kind: OutputKind) -> (&'static [usize], usize) {
 fn problem(data: &Dataset, cfg: &TrainConfig, sc: &Scaling) -> Problem {
     let act = cfg.algo.output_activation();
     let (cols, _) = output_columns(cfg.outputs);
-    let shape = Shape {
-        ni: data.n_inputs,
-        nh: cfg.hidden,
-        no: cols.len(),
-        skip: cfg.family.skip == Skip::Linear,
-    };
+    let shape = Shape::new(
+        data.n_inputs,
+        cfg.hidden,
+        cols.len(),
+        cfg.family.skip == Skip::Linear,
+    );
     let n = data.len();
     let mut x = Vec::with_capacity(n * shape.ni);
     for row in 0..n {
@@ -597,6 +597,17 @@ mod tests {
         (set(&rig, &train), set(&rig, &test))
     }
 
+    /// Case `n`'s training set (see [`protocol`]) and the default configuration with
+    /// `restarts` restarts from `seed`.
+    fn protocol_with(n: u8, restarts: usize, seed: u64) -> (Dataset, TrainConfig) {
+        let cfg = TrainConfig {
+            restarts,
+            seed,
+            ..TrainConfig::default()
+        };
+        (protocol(n).0, cfg)
+    }
+
     /// Worst per-depth e_ma (percent) over the test depths, of the depths `estimate` gives.
     fn worst_per_depth(test: &Dataset, estimate: impl Fn(&[f64]) -> f64) -> f64 {
         let mut worst: f64 = 0.0;
@@ -702,12 +713,7 @@ mod tests {
 
     #[test]
     fn blob_holds_scaling_box_metadata_and_the_reported_error() {
-        let (train_set, _) = protocol(2);
-        let cfg = TrainConfig {
-            restarts: 3,
-            seed: 42,
-            ..TrainConfig::default()
-        };
+        let (train_set, cfg) = protocol_with(2, 3, 42);
         let out = train(&train_set, &cfg).unwrap();
         let b = &out.blob;
         assert_eq!(b.generation, 0);
@@ -755,12 +761,7 @@ mod tests {
 
     #[test]
     fn same_seed_same_bytes_whatever_the_thread_count() {
-        let (train_set, _) = protocol(4);
-        let cfg = TrainConfig {
-            restarts: 4,
-            seed: 7,
-            ..TrainConfig::default()
-        };
+        let (train_set, cfg) = protocol_with(4, 4, 7);
         let run = |threads: usize, cfg: &TrainConfig| {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -781,12 +782,7 @@ mod tests {
 
     #[test]
     fn threshold_decides_enrolment() {
-        let (train_set, _) = protocol(1);
-        let cfg = TrainConfig {
-            restarts: 4,
-            seed: 3,
-            ..TrainConfig::default()
-        };
+        let (train_set, cfg) = protocol_with(1, 4, 3);
         let all = train(&train_set, &cfg).unwrap();
         let mut errs: Vec<f64> = all.restarts.iter().map(|r| r.train_error_pct).collect();
         errs.sort_by(f64::total_cmp);

@@ -23,6 +23,10 @@ pub(crate) struct Shape {
 }
 
 impl Shape {
+    /// An `ni-nh-no` net, with the linear skip term if `skip`.
+    pub(crate) const fn new(ni: usize, nh: usize, no: usize, skip: bool) -> Self {
+        Shape { ni, nh, no, skip }
+    }
     /// Number of parameters.
     pub(crate) fn n_params(&self) -> usize {
         hvs_shared::runtime::mlp::param_count(self.ni, self.nh, self.no)
@@ -193,6 +197,18 @@ impl Problem {
         self.n * self.shape.no
     }
 
+    /// Residual `row` (`n * no + k`) for the output value `yk`, `c (y - t)`, and its derivative
+    /// with respect to the pre-activation of output `k`.
+    #[inline(always)]
+    fn residual(&self, row: usize, yk: f64) -> (f64, f64) {
+        let c = self.c[row];
+        let slope = match self.output {
+            Activation::Linear => c,
+            Activation::Sigmoid => c * yk * (1.0 - yk),
+        };
+        (c * (yk - self.t[row]), slope)
+    }
+
     /// Weighted residuals `c (y - t)` into `r` (length `n * no`); returns half their squared sum.
     pub(crate) fn residuals(&self, p: &[f64], r: &mut [f64]) -> f64 {
         let s = &self.shape;
@@ -273,15 +289,9 @@ impl Problem {
             }
             for k in 0..s.no {
                 let row = n * s.no + k;
-                let c = self.c[row];
-                let v = c * (y[k] - self.t[row]);
+                let (v, g) = self.residual(row, y[k]);
                 r[row] = v;
                 cost += v * v;
-                // d r / d a2 (pre-activation of output k).
-                let g = match self.output {
-                    Activation::Linear => c,
-                    Activation::Sigmoid => c * y[k] * (1.0 - y[k]),
-                };
                 for j in 0..s.nh {
                     jac[s.w2(k, j) * nr + row] = g * h[j];
                 }
@@ -370,13 +380,8 @@ impl Problem {
             rb.iter_mut().for_each(|v| *v = 0.0);
             for k in 0..s.no {
                 let row = n * s.no + k;
-                let c = self.c[row];
-                let rk = c * (y[k] - self.t[row]);
+                let (rk, g) = self.residual(row, y[k]);
                 cost += rk * rk;
-                let g = match self.output {
-                    Activation::Linear => c,
-                    Activation::Sigmoid => c * y[k] * (1.0 - y[k]),
-                };
                 let base = s.w2(k, 0);
                 for j in 0..s.nh {
                     gu[j] = g * p[base + j] * ht[j] * (1.0 - ht[j]);
@@ -475,13 +480,9 @@ impl Problem {
             dhid.iter_mut().for_each(|d| *d = 0.0);
             for k in 0..s.no {
                 let row = n * s.no + k;
-                let c = self.c[row];
-                let v = c * (y[k] - self.t[row]);
+                let (v, dv) = self.residual(row, y[k]);
                 cost += v * v;
-                let g = v * match self.output {
-                    Activation::Linear => c,
-                    Activation::Sigmoid => c * y[k] * (1.0 - y[k]),
-                };
+                let g = v * dv;
                 for j in 0..s.nh {
                     grad[s.w2(k, j)] += g * h[j];
                     dhid[j] += g * p[s.w2(k, j)];
@@ -546,16 +547,29 @@ pub(crate) mod tests {
             .collect()
     }
 
+    /// A random problem of `n` patterns (seed `seeds[0]`), random parameters (seed `seeds[1]`)
+    /// and, at those parameters, the residuals, the explicit Jacobian and the cost.
+    #[allow(clippy::type_complexity)]
+    fn explicit_jacobian(
+        shape: Shape,
+        act: Activation,
+        n: usize,
+        seeds: [u64; 2],
+    ) -> (Problem, Vec<f64>, Vec<f64>, Vec<f64>, f64) {
+        let prob = random_problem(shape, act, n, seeds[0]);
+        let p = random_params(&shape, seeds[1]);
+        let (nr, np) = (prob.n_res(), shape.n_params());
+        let mut r = vec![0.0; nr];
+        let mut jac = vec![0.0; nr * np];
+        let cost = prob.jacobian(&p, &mut r, &mut jac);
+        (prob, p, r, jac, cost)
+    }
+
     #[test]
     fn layout_matches_shared_mlp() {
         // A 2-2-1 net built through hvs_shared from the same flat parameters gives the same
         // outputs as this module's forward pass (to f32 precision).
-        let shape = Shape {
-            ni: 2,
-            nh: 2,
-            no: 1,
-            skip: false,
-        };
+        let shape = Shape::new(2, 2, 1, false);
         let p = [0.3, -0.7, 0.1, 1.2, 0.4, -0.5, 0.8, -1.1, 0.25];
         let pf: Vec<f32> = p.iter().map(|v| *v as f32).collect();
         for act in [Activation::Linear, Activation::Sigmoid] {
@@ -582,61 +596,28 @@ pub(crate) mod tests {
         }
     }
 
+    /// Nets of both output activations, with and without the skip term, for the structured
+    /// normal equations.
+    const NORMAL_EQUATION_NETS: [(Shape, Activation); 5] = [
+        (Shape::new(4, 5, 3, false), Activation::Linear),
+        (Shape::new(9, 3, 1, false), Activation::Sigmoid),
+        (Shape::new(2, 1, 2, false), Activation::Linear),
+        (Shape::new(4, 5, 3, true), Activation::Linear),
+        (Shape::new(9, 2, 1, true), Activation::Sigmoid),
+    ];
+
+    /// Nets for the finite-difference checks of the Jacobian and the gradient.
+    const FINITE_DIFFERENCE_NETS: [(Shape, Activation); 3] = [
+        (Shape::new(4, 5, 3, false), Activation::Linear),
+        (Shape::new(3, 4, 1, false), Activation::Sigmoid),
+        (Shape::new(4, 3, 3, true), Activation::Linear),
+    ];
+
     #[test]
     fn structured_normal_equations_equal_the_explicit_ones() {
-        for (shape, act) in [
-            (
-                Shape {
-                    ni: 4,
-                    nh: 5,
-                    no: 3,
-                    skip: false,
-                },
-                Activation::Linear,
-            ),
-            (
-                Shape {
-                    ni: 9,
-                    nh: 3,
-                    no: 1,
-                    skip: false,
-                },
-                Activation::Sigmoid,
-            ),
-            (
-                Shape {
-                    ni: 2,
-                    nh: 1,
-                    no: 2,
-                    skip: false,
-                },
-                Activation::Linear,
-            ),
-            (
-                Shape {
-                    ni: 4,
-                    nh: 5,
-                    no: 3,
-                    skip: true,
-                },
-                Activation::Linear,
-            ),
-            (
-                Shape {
-                    ni: 9,
-                    nh: 2,
-                    no: 1,
-                    skip: true,
-                },
-                Activation::Sigmoid,
-            ),
-        ] {
-            let prob = random_problem(shape, act, 13, 4);
-            let p = random_params(&shape, 8);
+        for (shape, act) in NORMAL_EQUATION_NETS {
+            let (prob, p, r, jac, cost) = explicit_jacobian(shape, act, 13, [4, 8]);
             let (nr, np) = (prob.n_res(), shape.n_params());
-            let mut r = vec![0.0; nr];
-            let mut jac = vec![0.0; nr * np];
-            let cost = prob.jacobian(&p, &mut r, &mut jac);
             let mut jtj = vec![f64::NAN; np * np];
             let mut jtr = vec![f64::NAN; np];
             let mut ws = NormalWorkspace::new(&prob);
@@ -666,41 +647,9 @@ pub(crate) mod tests {
 
     #[test]
     fn jacobian_and_gradient_match_finite_differences() {
-        for (shape, act) in [
-            (
-                Shape {
-                    ni: 4,
-                    nh: 5,
-                    no: 3,
-                    skip: false,
-                },
-                Activation::Linear,
-            ),
-            (
-                Shape {
-                    ni: 3,
-                    nh: 4,
-                    no: 1,
-                    skip: false,
-                },
-                Activation::Sigmoid,
-            ),
-            (
-                Shape {
-                    ni: 4,
-                    nh: 3,
-                    no: 3,
-                    skip: true,
-                },
-                Activation::Linear,
-            ),
-        ] {
-            let prob = random_problem(shape, act, 9, 11);
-            let p = random_params(&shape, 5);
+        for (shape, act) in FINITE_DIFFERENCE_NETS {
+            let (prob, p, r, jac, cost) = explicit_jacobian(shape, act, 9, [11, 5]);
             let (nr, np) = (prob.n_res(), shape.n_params());
-            let mut r = vec![0.0; nr];
-            let mut jac = vec![0.0; nr * np];
-            let cost = prob.jacobian(&p, &mut r, &mut jac);
             assert!((cost - prob.cost(&p)).abs() < 1e-12);
             let mut grad = vec![0.0; np];
             let cost_g = prob.gradient(&p, &mut grad);

@@ -3,9 +3,7 @@
 //! stays at the rounding floor (it used to triangulate with the home-posture rig, and most
 //! points of verged or turned postures came out "no estimate").
 
-use crate::common::ok_line;
-
-use tempfile::TempDir;
+use crate::common::{ok_line, posture_model, simulate_into, train_into, Scratch};
 
 /// `hvs eval --model model --data data --case 3 --json`, parsed.
 fn eval_case_3(model: &str, data: &str) -> serde_json::Value {
@@ -17,24 +15,17 @@ fn eval_case_3(model: &str, data: &str) -> serde_json::Value {
 
 #[test]
 fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
-    let dir = TempDir::new().unwrap();
-    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let dir = Scratch::new();
     // Any posture-aware model will do: the floor does not depend on it. Two postures and
     // two hidden neurons keep the training short.
-    ok_line(&format!(
-        "simulate --case 3 --set train --postures grid --posture-levels 1,1,1,1,2 -o {}",
-        p("train.csv")
-    ));
-    ok_line(&format!(
-        "train --data {} -o {} --hidden 2 --restarts 1",
-        p("train.csv"),
-        p("m.hvsw")
-    ));
-    ok_line(&format!(
-        "simulate --case 3 --set test --postures random --posture-count 12 --seed 3 -o {}",
-        p("test.csv")
-    ));
-    let v = eval_case_3(&p("m.hvsw"), &p("test.csv"));
+    posture_model(
+        &dir,
+        "--case 3",
+        "--postures grid --posture-levels 1,1,1,1,2",
+        "--postures random --posture-count 12 --seed 3",
+        "--hidden 2 --restarts 1",
+    );
+    let v = eval_case_3(&dir.p("m.hvsw"), &dir.p("test.csv"));
     let methods = v["evaluation"]["methods"].as_array().unwrap();
     let floor = methods
         .iter()
@@ -51,24 +42,17 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
     // The table says the same, without "no estimate".
     let text = ok_line(&format!(
         "eval --model {} --data {} --case 3",
-        p("m.hvsw"),
-        p("test.csv")
+        dir.p("m.hvsw"),
+        dir.p("test.csv")
     ));
     assert!(text.contains("optimal"), "{text}");
     assert!(!text.contains("optimal: no estimate"), "{text}");
 
     // A 4-input (fixed-posture) model on the same posture set: the net sees only the pixels,
     // the floor still triangulates at each row's posture, with the same numbers as above.
-    ok_line(&format!(
-        "simulate --case 3 --set train -o {}",
-        p("home.csv")
-    ));
-    ok_line(&format!(
-        "train --data {} -o {} --restarts 1",
-        p("home.csv"),
-        p("home.hvsw")
-    ));
-    let v = eval_case_3(&p("home.hvsw"), &p("test.csv"));
+    simulate_into("--case 3 --set train", &dir.p("home.csv"));
+    train_into(&dir.p("home.csv"), &dir.p("home.hvsw"), "--restarts 1");
+    let v = eval_case_3(&dir.p("home.hvsw"), &dir.p("test.csv"));
     let home_floor = v["evaluation"]["methods"]
         .as_array()
         .unwrap()

@@ -2,7 +2,7 @@
 //! part, the files written, and determinism (the library run and the CLI run on one thread
 //! with the same seed write the same CSV bytes).
 
-use crate::common::{read, spawn_quick_experiment, wait_ok};
+use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok};
 
 use hvs_host::data::dataset::JOINT_COLUMNS;
 use hvs_host::study::posture::fixed_postures;
@@ -135,9 +135,8 @@ fn quick_run_invariants_files_and_determinism() {
         quick: true,
     };
     // The command (same seed, one worker thread) runs while the library run does.
-    let cli_dir = tempfile::tempdir().unwrap();
-    let out = cli_dir.path().join("posture");
-    let child = spawn_quick_experiment("posture", 1, &out);
+    let cli = spawn_quick_experiment("posture", 1);
+    let out = cli.out.clone();
 
     let run = posture::run(&cfg, &Quiet).unwrap();
     check_invariants(&run);
@@ -145,7 +144,7 @@ fn quick_run_invariants_files_and_determinism() {
     let written = posture::write(lib_dir.path(), &run, 0.0).unwrap();
     assert_eq!(written.len(), 3 * STEMS.len() + 2);
 
-    let (stdout, stderr) = wait_ok(child);
+    let (stdout, stderr) = wait_ok(cli.child);
     assert!(stdout.contains("POSTURE.md"), "{stdout}");
     // Not a terminal: no progress bars.
     assert!(stderr.is_empty(), "{stderr:?}");
@@ -175,23 +174,14 @@ fn quick_run_invariants_files_and_determinism() {
     ];
     for (stem, header, rows) in &headers {
         let csv = format!("{stem}.csv");
-        let a = read(&lib_dir.path().join(&csv));
-        let b = read(&out.join(&csv));
-        assert!(a == b, "{csv} differs between two runs with the same seed");
-        let text = String::from_utf8(a).unwrap();
+        let text = same_csv(lib_dir.path(), &out, stem);
         assert!(text.starts_with(header.as_str()), "{csv}: {text}");
         let parsed = csv_rows(&text);
         assert_eq!(parsed.len(), 1 + rows, "{csv}");
         for row in &parsed {
             assert_eq!(row.len(), parsed[0].len(), "{csv}: {row:?}");
         }
-        let png = read(&out.join(format!("{stem}.png")));
-        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{stem}.png");
-        let svg = String::from_utf8(read(&out.join(format!("{stem}.svg")))).unwrap();
-        assert!(
-            svg.starts_with("<svg") && svg.contains("<text"),
-            "{stem}.svg"
-        );
+        let svg = plot_svg(&out, stem);
         assert!(
             svg.contains("(%") || svg.contains("(deg)"),
             "{stem}.svg has no unit in its labels"

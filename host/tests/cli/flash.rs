@@ -1,25 +1,33 @@
 //! `hvs image` and `hvs flash` driven from outside: image addresses, dry run, missing probe.
 
-use assert_cmd::Command;
+use crate::common::{hvs, ok, s};
 use hvs_shared::runtime::blob::{self, ModelBlob, OutputKind, MAX_BLOB_LEN};
 use hvs_shared::runtime::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
 use hvs_shared::test_support::SampleSpec;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn model(generation: u32) -> ModelBlob {
     SampleSpec::THESIS.generation(generation).build()
 }
 
-fn write_model(dir: &Path, generation: u32) -> std::path::PathBuf {
+/// Writes `b` encoded to `dir/name`; returns the path.
+fn write_blob(dir: &Path, name: &str, b: &ModelBlob) -> PathBuf {
     let mut buf = [0u8; MAX_BLOB_LEN];
-    let n = model(generation).encode(&mut buf).unwrap();
-    let p = dir.join("m.hvsw");
+    let n = b.encode(&mut buf).unwrap();
+    let p = dir.join(name);
     std::fs::write(&p, &buf[..n]).unwrap();
     p
 }
 
-fn hvs() -> Command {
-    Command::cargo_bin("hvs").unwrap()
+fn write_model(dir: &Path, generation: u32) -> PathBuf {
+    write_blob(dir, "m.hvsw", &model(generation))
+}
+
+/// Runs `hvs args`, asserts that it fails; returns stderr.
+fn refused(args: &[&str]) -> String {
+    let o = hvs().args(args).output().unwrap();
+    assert!(!o.status.success(), "{args:?} succeeded");
+    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 #[test]
@@ -27,24 +35,19 @@ fn bin_image_is_the_blob_with_the_requested_generation() {
     let dir = tempfile::tempdir().unwrap();
     let m = write_model(dir.path(), 1);
     let out = dir.path().join("a.bin");
-    let o = hvs()
-        .args([
-            "image",
-            "--model",
-            m.to_str().unwrap(),
-            "--slot",
-            "b",
-            "--generation",
-            "9",
-            "--format",
-            "bin",
-            "-o",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stdout = ok(&[
+        "image",
+        "--model",
+        s(&m),
+        "--slot",
+        "b",
+        "--generation",
+        "9",
+        "--format",
+        "bin",
+        "-o",
+        s(&out),
+    ]);
     assert!(stdout.contains(&format!("{SLOT_B_ADDR:#010x}")), "{stdout}");
     let b = blob::decode(&std::fs::read(&out).unwrap()).unwrap();
     assert_eq!(b.generation, 9);
@@ -57,20 +60,17 @@ fn hex_image_sits_at_the_slot_address() {
     let m = write_model(dir.path(), 3);
     for (slot, addr) in [("a", SLOT_A_ADDR), ("b", SLOT_B_ADDR)] {
         let out = dir.path().join(format!("{slot}.hex"));
-        hvs()
-            .args([
-                "image",
-                "--model",
-                m.to_str().unwrap(),
-                "--slot",
-                slot,
-                "--format",
-                "hex",
-                "-o",
-            ])
-            .arg(&out)
-            .assert()
-            .success();
+        ok(&[
+            "image",
+            "--model",
+            s(&m),
+            "--slot",
+            slot,
+            "--format",
+            "hex",
+            "-o",
+            s(&out),
+        ]);
         let text = std::fs::read_to_string(&out).unwrap();
         let mut base = 0u32;
         let mut first = None;
@@ -97,19 +97,7 @@ fn encoded_len(generation: u32) -> usize {
 }
 
 fn dry_run(m: &Path, slot: &str) -> String {
-    let o = hvs()
-        .args([
-            "flash",
-            "--model",
-            m.to_str().unwrap(),
-            "--dry-run",
-            "--slot",
-            slot,
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    String::from_utf8(o.stdout).unwrap()
+    ok(&["flash", "--model", s(m), "--dry-run", "--slot", slot])
 }
 
 #[test]
@@ -158,10 +146,7 @@ fn dry_run_prints_the_plan_without_a_probe() {
 fn a_model_the_head_would_not_run_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let z = SampleSpec::THESIS.outputs(OutputKind::Z).build();
-    let mut buf = [0u8; MAX_BLOB_LEN];
-    let n = z.encode(&mut buf).unwrap();
-    let p = dir.path().join("z.hvsw");
-    std::fs::write(&p, &buf[..n]).unwrap();
+    let p = write_blob(dir.path(), "z.hvsw", &z);
     let out = dir.path().join("z.bin");
     for args in [
         vec!["flash", "--model", p.to_str().unwrap(), "--dry-run"],
@@ -196,43 +181,18 @@ fn flash_errors_are_one_clear_line() {
     let dir = tempfile::tempdir().unwrap();
     let m = write_model(dir.path(), 1);
     // No probe is attached on a build machine.
-    let o = hvs()
-        .args(["flash", "--model", m.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let e = String::from_utf8_lossy(&o.stderr);
+    let e = refused(&["flash", "--model", s(&m)]);
     assert!(e.contains("no debug probe"), "{e}");
     assert!(!e.contains("panicked"), "{e}");
     assert_eq!(e.trim().lines().count(), 1, "{e}");
     // Unknown chip, bad probe selector, damaged model.
-    let o = hvs()
-        .args([
-            "flash",
-            "--model",
-            m.to_str().unwrap(),
-            "--chip",
-            "NOPE123",
-            "--dry-run",
-        ])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--chip NOPE123"));
-    let o = hvs()
-        .args(["flash", "--model", m.to_str().unwrap(), "--probe", "zz"])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
+    let e = refused(&["flash", "--model", s(&m), "--chip", "NOPE123", "--dry-run"]);
+    assert!(e.contains("--chip NOPE123"), "{e}");
+    refused(&["flash", "--model", s(&m), "--probe", "zz"]);
     let mut bytes = std::fs::read(&m).unwrap();
     bytes[20] ^= 0xFF;
     let bad = dir.path().join("bad.hvsw");
     std::fs::write(&bad, &bytes).unwrap();
-    let o = hvs()
-        .args(["flash", "--model", bad.to_str().unwrap(), "--dry-run"])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let e = String::from_utf8_lossy(&o.stderr);
+    let e = refused(&["flash", "--model", s(&bad), "--dry-run"]);
     assert!(e.contains("bad.hvsw") && e.contains("CRC"), "{e}");
 }

@@ -1,9 +1,7 @@
 //! `hvs simulate --postures/--distortion` driven from outside: columns, sizes, determinism,
 //! a posture-aware model trained and evaluated through the CLI, and the bad-flag errors.
 
-use crate::common::{fails, ok, ok_line};
-
-use tempfile::TempDir;
+use crate::common::{fails, ok, ok_line, posture_model, Scratch};
 
 #[test]
 fn posture_sets_have_joint_columns_and_are_seeded() {
@@ -71,28 +69,21 @@ fn bad_posture_flags_are_refused() {
 
 #[test]
 fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
-    let dir = TempDir::new().unwrap();
-    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let dir = Scratch::new();
     // A coarse grid (2 cells per axis, 32 postures), so the test stays quick.
-    ok_line(&format!(
-        "simulate --case 1 --set train --postures grid --posture-levels 2,2,2,2,2 -o {}",
-        p("train.csv")
-    ));
-    ok_line(&format!(
-        "simulate --case 1 --set test --postures random --posture-count 20 -o {}",
-        p("test.csv")
-    ));
-    ok_line(&format!(
-        "train --data {} -o {} --hidden 8 --restarts 2",
-        p("train.csv"),
-        p("m.hvsw")
-    ));
-    let info = ok(&["info", &p("m.hvsw")]);
+    posture_model(
+        &dir,
+        "--case 1",
+        "--postures grid --posture-levels 2,2,2,2,2",
+        "--postures random --posture-count 20",
+        "--hidden 8 --restarts 2",
+    );
+    let info = ok(&["info", &dir.p("m.hvsw")]);
     assert!(info.contains("9-8-3"), "{info}");
     let json = ok_line(&format!(
         "eval --model {} --data {} --json",
-        p("m.hvsw"),
-        p("test.csv")
+        dir.p("m.hvsw"),
+        dir.p("test.csv")
     ));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let net = &v["evaluation"]["methods"][0];
@@ -104,8 +95,8 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     // predict reads the joint columns of a posture-aware model.
     let pred = ok_line(&format!(
         "predict --model {} --points {}",
-        p("m.hvsw"),
-        p("test.csv")
+        dir.p("m.hvsw"),
+        dir.p("test.csv")
     ));
     assert_eq!(pred.lines().count(), 1 + 20 * 22);
 }

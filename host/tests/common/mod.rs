@@ -111,10 +111,23 @@ pub fn read(p: &Path) -> Vec<u8> {
     std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
-/// Starts `hvs experiment <kind> --quick --seed <seed> -o <out>` on one worker thread, so a
-/// test can run the library on all threads meanwhile and compare the bytes.
-pub fn spawn_quick_experiment(kind: &str, seed: u64, out: &Path) -> Child {
-    std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
+/// A started quick experiment: the temporary directory, the output directory in it
+/// (`<kind>`, created by the command) and the process.
+pub struct QuickExperiment {
+    /// Holds the output until the test ends.
+    pub dir: tempfile::TempDir,
+    /// Where the command writes.
+    pub out: std::path::PathBuf,
+    /// The running command.
+    pub child: Child,
+}
+
+/// Starts `hvs experiment <kind> --quick --seed <seed> -o <tmp>/<kind>` on one worker
+/// thread, so a test can run the library on all threads meanwhile and compare the bytes.
+pub fn spawn_quick_experiment(kind: &str, seed: u64) -> QuickExperiment {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join(kind);
+    let child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
         .args([
             "experiment",
             kind,
@@ -123,12 +136,13 @@ pub fn spawn_quick_experiment(kind: &str, seed: u64, out: &Path) -> Child {
             &seed.to_string(),
             "-o",
         ])
-        .arg(out)
+        .arg(&out)
         .env("RAYON_NUM_THREADS", "1")
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
-        .expect("hvs experiment starts")
+        .expect("hvs experiment starts");
+    QuickExperiment { dir, out, child }
 }
 
 /// Waits for `child`, asserts success, returns (stdout, stderr).
@@ -152,4 +166,66 @@ pub fn ok_line(line: &str) -> String {
 /// [`fails`] of a command line split at white space.
 pub fn fails_line(line: &str, want: &str) -> String {
     fails(&line.split_whitespace().collect::<Vec<_>>(), want)
+}
+
+/// `hvs simulate FLAGS -o OUT`, asserting success (`flags` split at white space).
+pub fn simulate_into(flags: &str, out: &str) {
+    ok_line(&format!("simulate {flags} -o {out}"));
+}
+
+/// `hvs train --data DATA -o MODEL FLAGS`, asserting success (`flags` split at white space).
+pub fn train_into(data: &str, model: &str, flags: &str) {
+    ok_line(&format!("train --data {data} -o {model} {flags}"));
+}
+
+/// A temporary directory whose files are named as strings (for [`ok_line`] command lines).
+pub struct Scratch(tempfile::TempDir);
+
+impl Scratch {
+    /// A new empty directory (removed on drop).
+    pub fn new() -> Self {
+        Scratch(tempfile::TempDir::new().expect("a temporary directory"))
+    }
+
+    /// The path of file `name` in the directory.
+    pub fn p(&self, name: &str) -> String {
+        self.0.path().join(name).to_str().unwrap().to_string()
+    }
+}
+
+/// A posture-aware model and its sets in `dir`: `train.csv` and `test.csv` from
+/// `hvs simulate FLAGS --set train|test TRAIN_SET|TEST_SET`, and `m.hvsw` from
+/// `hvs train --data train.csv TRAIN` (flags split at white space).
+pub fn posture_model(dir: &Scratch, flags: &str, train_set: &str, test_set: &str, train: &str) {
+    simulate_into(
+        &format!("{flags} --set train {train_set}"),
+        &dir.p("train.csv"),
+    );
+    simulate_into(
+        &format!("{flags} --set test {test_set}"),
+        &dir.p("test.csv"),
+    );
+    train_into(&dir.p("train.csv"), &dir.p("m.hvsw"), train);
+}
+
+/// The text of `STEM.csv` written by two runs of a study, into `a` and `b`, after checking
+/// that the two files are the same bytes.
+pub fn same_csv(a: &Path, b: &Path, stem: &str) -> String {
+    let csv = format!("{stem}.csv");
+    let (x, y) = (read(&a.join(&csv)), read(&b.join(&csv)));
+    assert!(x == y, "{csv} differs between two runs with the same seed");
+    String::from_utf8(x).expect("utf-8 CSV")
+}
+
+/// The SVG text of plot `STEM` in `dir`, after checking that `STEM.png` is a PNG file and
+/// that the SVG is one with text in it.
+pub fn plot_svg(dir: &Path, stem: &str) -> String {
+    let png = read(&dir.join(format!("{stem}.png")));
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{stem}.png");
+    let svg = String::from_utf8(read(&dir.join(format!("{stem}.svg")))).unwrap();
+    assert!(
+        svg.starts_with("<svg") && svg.contains("<text"),
+        "{stem}.svg"
+    );
+    svg
 }

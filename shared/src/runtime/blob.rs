@@ -650,6 +650,17 @@ mod tests {
         }
     }
 
+    /// A point inside [`sample`]'s input box.
+    const X: [f32; 4] = [330.0, 235.0, 300.0, 238.0];
+
+    /// A 4-5-3 [`sample`] from `seed` and its outputs at [`X`].
+    fn sample_at_x(seed: u32) -> (ModelBlob, [f32; 3]) {
+        let b = sample(5, seed);
+        let mut y = [0.0f32; 3];
+        b.infer(&X, &mut y).unwrap();
+        (b, y)
+    }
+
     fn bytes(b: &ModelBlob) -> StdVec<u8> {
         let mut buf = [0u8; MAX_BLOB_LEN];
         let n = b.encode(&mut buf).unwrap();
@@ -668,7 +679,7 @@ mod tests {
         slot.extend_from_slice(&[0xFF; 100]);
         assert_eq!(decode(&slot).unwrap(), b);
         let m: Mlp<4, 5, 3> = d.to_mlp().unwrap();
-        let x = [330.0, 235.0, 300.0, 238.0];
+        let x = X;
         let mut out = [0.0; 3];
         d.infer(&x, &mut out).unwrap();
         assert_eq!(m.infer(&x).unwrap(), out);
@@ -748,23 +759,20 @@ mod tests {
 
     #[test]
     fn inverse_depth_outputs_become_cm() {
-        let mut b = sample(5, 2);
-        let x = [330.0, 235.0, 300.0, 238.0];
-        let mut raw = [0.0f32; 3];
-        b.infer(&x, &mut raw).unwrap();
+        let (mut b, raw) = sample_at_x(2);
         b.family = Family::INVERSE_DEPTH;
         // Make the last raw output positive: o2 = raw[2] * 1 + offset.
         b.out_offset[2] += 1.0 - raw[2];
         let mut want = [0.0f32; 3];
-        mlp::infer_flat(&b.flat(), &x, &mut want).unwrap();
+        mlp::infer_flat(&b.flat(), &X, &mut want).unwrap();
         let w = want[2];
         assert!(w > 0.0);
         let mut out = [0.0f32; 3];
-        b.infer(&x, &mut out).unwrap();
+        b.infer(&X, &mut out).unwrap();
         assert_eq!(out, [want[0] / w, want[1] / w, 1.0 / w]);
         // A negative inverse depth is a negative depth; a zero one is refused.
         b.out_offset[2] -= 2.0;
-        b.infer(&x, &mut out).unwrap();
+        b.infer(&X, &mut out).unwrap();
         assert!(out[2] < 0.0);
         b.out_offset[2] = 0.0;
         b.out_scale[2] = 0.0;
@@ -779,10 +787,7 @@ mod tests {
 
     #[test]
     fn skip_family_stores_its_weights_after_the_net_and_adds_them() {
-        let mut b = sample(5, 6);
-        let x = [330.0, 235.0, 300.0, 238.0];
-        let mut plain = [0.0f32; 3];
-        b.infer(&x, &mut plain).unwrap();
+        let (mut b, plain) = sample_at_x(6);
         b.family = Family {
             output_map: OutputMap::Direct,
             ..Family::INVERSE_DEPTH_SKIP
@@ -804,13 +809,13 @@ mod tests {
             BlobError::TopologyMismatch
         );
         let mut out = [0.0f32; 3];
-        b.infer(&x, &mut out).unwrap();
+        b.infer(&X, &mut out).unwrap();
         for k in 0..3 {
             // Undo the output scaling of the plain net, add the skip sum, scale again: the
             // same value up to rounding (the exact order is pinned in mlp's tests).
             let a = (plain[k] - b.out_offset[k]) / b.out_scale[k];
             let s: f32 = (0..4)
-                .map(|i| skip[k * 4 + i] * (x[i] - b.in_offset[i]) * b.in_scale[i])
+                .map(|i| skip[k * 4 + i] * (X[i] - b.in_offset[i]) * b.in_scale[i])
                 .sum();
             let want = (a + s) * b.out_scale[k] + b.out_offset[k];
             assert!((out[k] - want).abs() < 1e-3 * (1.0 + want.abs()), "{k}");

@@ -194,13 +194,8 @@ mod tests {
 
     #[test]
     fn optimal_recovers_point_on_a_deflected_rig() {
-        let mut rig = Rig::parallel(285.8);
-        rig.phi_u_right = 228.7;
-        rig.phi_v_right = 228.7;
-        rig.alpha_left = -0.0455;
-        rig.alpha_right = 0.0455;
-        rig.beta0 = 0.0087;
-        rig.phi0 = 0.0087;
+        // Case IV: distinct focal lengths, verged, tilted and rolled.
+        let rig = presets::CASE_4;
         let p = [-2.0, 1.5, 140.0];
         let px = rig.project(&p).unwrap();
         let q = optimal_rig(&rig, &px).unwrap();

@@ -25,7 +25,7 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::sim::sets::{SetKind, SimOptions};
-use crate::study::fmt::pct;
+use crate::study::fmt::{join, pct};
 use crate::train::{train, TrainConfig};
 use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, ModelBlob};
@@ -643,14 +643,7 @@ pub fn fit_dlt(points: &[Vec3], pixels: &[[f64; 2]]) -> Result<Matrix3x4<f64>> {
     }
     let svd = a.svd(false, true);
     let vt = svd.v_t.context("SVD without V")?;
-    let (imin, _) = svd
-        .singular_values
-        .iter()
-        .enumerate()
-        .fold(
-            (0, f64::INFINITY),
-            |m, (i, s)| if *s < m.1 { (i, *s) } else { m },
-        );
+    let imin = smallest(svd.singular_values.iter());
     let h = vt.row(imin);
     let pn = Matrix3x4::from_fn(|r, c| h[4 * r + c]);
     let t2 = Matrix3::new(s2, 0.0, -s2 * c2[0], 0.0, s2, -s2 * c2[1], 0.0, 0.0, 1.0);
@@ -676,6 +669,18 @@ pub fn fit_dlt(points: &[Vec3], pixels: &[[f64; 2]]) -> Result<Matrix3x4<f64>> {
     Ok(t2i * pn * t3)
 }
 
+/// Index of the smallest of `values` (the first, on ties; 0 when empty or all NaN): the
+/// singular vector a homogeneous least-squares problem takes.
+fn smallest<'a>(values: impl Iterator<Item = &'a f64>) -> usize {
+    values
+        .enumerate()
+        .fold(
+            (0, f64::INFINITY),
+            |m, (i, s)| if *s < m.1 { (i, *s) } else { m },
+        )
+        .0
+}
+
 /// Linear (DLT) triangulation of one point from two projection matrices and its pixels
 /// `[u_l, v_l, u_r, v_r]`.
 pub fn triangulate_dlt(p: &[Matrix3x4<f64>; 2], px: &[f64; 4]) -> Option<Vec3> {
@@ -696,14 +701,7 @@ pub fn triangulate_dlt(p: &[Matrix3x4<f64>; 2], px: &[f64; 4]) -> Option<Vec3> {
     }
     let svd = a.svd(false, true);
     let vt = svd.v_t?;
-    let (imin, _) = svd
-        .singular_values
-        .iter()
-        .enumerate()
-        .fold(
-            (0, f64::INFINITY),
-            |m, (i, s)| if *s < m.1 { (i, *s) } else { m },
-        );
+    let imin = smallest(svd.singular_values.iter());
     let x: Vector4<f64> = vt.row(imin).transpose();
     if x[3].abs() < 1e-300 {
         return None;
@@ -993,6 +991,11 @@ fn table(s: &mut String, head: &str, rows: impl IntoIterator<Item = String>) {
     }
 }
 
+/// Appends one CSV line: the fields as they display, comma-separated.
+fn csv_row(out: &mut String, fields: &[&dyn std::fmt::Display]) {
+    let _ = writeln!(out, "{}", join(fields, ","));
+}
+
 /// The report's tables as CSV files: `fixed.csv`, `bands.csv`, `hidden.csv`,
 /// `distortion.csv`, and the wall times in `timing.csv` (so that the four tables depend on the
 /// configuration only: same seed, same bytes). The caller writes them atomically.
@@ -1011,26 +1014,14 @@ pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
         eh("floor")
     );
     for row in &r.fixed {
-        let j: Vec<String> = row.joints.0.iter().map(|v| v.to_string()).collect();
-        let _ = writeln!(
-            fixed,
-            "\"{}\",{},{},{}",
-            row.label,
-            j.join(","),
-            e(&row.net),
-            e(&row.floor)
-        );
+        let label = format!("\"{}\"", row.label);
+        let j = join(row.joints.0, ",");
+        csv_row(&mut fixed, &[&label, &j, &e(&row.net), &e(&row.floor)]);
     }
     let mut bands = format!("term,band,{},{}\n", eh("net"), eh("floor"));
     for b in &r.aware.bands {
-        let _ = writeln!(
-            bands,
-            "{},\"{}\",{},{}",
-            b.term,
-            b.band,
-            e(&b.net),
-            e(&b.floor)
-        );
+        let band = format!("\"{}\"", b.band);
+        csv_row(&mut bands, &[&b.term, &band, &e(&b.net), &e(&b.floor)]);
     }
     let mut hidden = format!(
         "postures,hidden,params,train_pct,{},{},worst_band_ratio\n",
@@ -1045,16 +1036,17 @@ pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
         let _ = writeln!(timing, "{part},,,{}", r.seconds[k]);
     }
     for h in &r.aware.sweep {
-        let _ = writeln!(
-            hidden,
-            "{},{},{},{},{},{},{}",
-            h.postures,
-            h.hidden,
-            h.params,
-            h.train_pct,
-            e(&h.test),
-            e(&h.floor),
-            h.worst_band_ratio
+        csv_row(
+            &mut hidden,
+            &[
+                &h.postures,
+                &h.hidden,
+                &h.params,
+                &h.train_pct,
+                &e(&h.test),
+                &e(&h.floor),
+                &h.worst_band_ratio,
+            ],
         );
         let _ = writeln!(timing, "training,{},{},{}", h.postures, h.hidden, h.seconds);
     }

@@ -248,8 +248,8 @@ impl DepthCurve {
     }
 }
 
-/// Per-depth curves of `z_hat` estimators against the truth of `test`.
-fn curves(test: &Dataset, z_hat: Vec<Vec<f64>>) -> Vec<DepthCurve> {
+/// Per-depth curves of `z_hat` estimators against the truth of `test`, in their order.
+fn curves<const N: usize>(test: &Dataset, z_hat: [Vec<f64>; N]) -> [DepthCurve; N] {
     let methods: Vec<Method> = z_hat
         .into_iter()
         .enumerate()
@@ -259,13 +259,11 @@ fn curves(test: &Dataset, z_hat: Vec<Vec<f64>>) -> Vec<DepthCurve> {
         })
         .collect();
     let ev = evaluate(test, &methods);
-    (0..methods.len())
-        .map(|m| DepthCurve {
-            z: ev.depths.iter().map(|d| d.z_min).collect(),
-            pct: ev.depths.iter().map(|d| d.methods[m].e_ma_pct).collect(),
-            mean: ev.methods[m].mean.e_ma_pct,
-        })
-        .collect()
+    core::array::from_fn(|m| DepthCurve {
+        z: ev.depths.iter().map(|d| d.z_min).collect(),
+        pct: ev.depths.iter().map(|d| d.methods[m].e_ma_pct).collect(),
+        mean: ev.methods[m].mean.e_ma_pct,
+    })
 }
 
 fn dataset(samples: &[Sample]) -> Dataset {
@@ -372,15 +370,13 @@ pub fn traditional() -> Result<Vec<TraditionalCase>> {
     (1..=4u8)
         .map(|case| {
             let (_, test) = protocol(case)?;
-            let mut c = curves(
+            let [traditional, optimal] = curves(
                 &test,
-                vec![
+                [
                     traditional_depths(&Calibration::BUILT_IN, &test),
                     optimal_depths(&rig(case)?, &test),
                 ],
             );
-            let optimal = c.pop().expect("two curves");
-            let traditional = c.pop().expect("two curves");
             Ok(TraditionalCase {
                 case,
                 traditional,
@@ -411,13 +407,11 @@ pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCas
         .map(|case| {
             let (train_set, test) = protocol(case)?;
             let out = train(&train_set, &tc).with_context(|| format!("case {case}"))?;
-            let mut c = curves(
+            let [net, optimal] = curves(
                 &test,
-                vec![net_z(&out.blob, &test)?, optimal_depths(&rig(case)?, &test)],
+                [net_z(&out.blob, &test)?, optimal_depths(&rig(case)?, &test)],
             );
             progress.inc();
-            let optimal = c.pop().expect("two curves");
-            let net = c.pop().expect("two curves");
             Ok(ProposedCase {
                 case,
                 train_pct: out.train_error_pct,
@@ -476,7 +470,7 @@ pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>
             };
             let out = train(&train_set, &tc)
                 .with_context(|| format!("{hidden} hidden, {outputs:?}, net {index}"))?;
-            let c = curves(&test, vec![net_z(&out.blob, &test)?]);
+            let c = curves(&test, [net_z(&out.blob, &test)?]);
             progress.inc();
             Ok(NetRow {
                 outputs,
@@ -576,16 +570,13 @@ pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDe
             let bp = train(&set, &bp_tc)
                 .with_context(|| format!("training depths {depths:?}, back-propagation"))?;
             progress.inc();
-            let mut c = curves(
-                &test,
-                vec![net_z(&out.blob, &test)?, net_z(&bp.blob, &test)?],
-            );
-            let bp_curve = c.pop().expect("two curves");
+            let [net, bp_curve] =
+                curves(&test, [net_z(&out.blob, &test)?, net_z(&bp.blob, &test)?]);
             Ok(FewerDepths {
                 depths: depths.to_vec(),
                 points: set.len(),
                 train_pct: out.train_error_pct,
-                net: c.pop().expect("two curves"),
+                net,
                 bp_train_pct: bp.train_error_pct,
                 bp: bp_curve,
             })
@@ -629,7 +620,7 @@ pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
             let t = Instant::now();
             let out = train(&train_set, &tc).with_context(|| format!("case {case}, {algo:?}"))?;
             let wall_s = t.elapsed().as_secs_f64();
-            let c = curves(&test, vec![net_z(&out.blob, &test)?]);
+            let c = curves(&test, [net_z(&out.blob, &test)?]);
             progress.inc();
             rows.push(AlgoRow {
                 case,
@@ -716,10 +707,7 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
                     }
                 }
                 points += test.len();
-                let c = curves(
-                    &test,
-                    vec![net_z(&out.blob, &test)?, optimal_depths(&r, &test)],
-                );
+                let c = curves(&test, [net_z(&out.blob, &test)?, optimal_depths(&r, &test)]);
                 sums[0] += acc.e_ma_pct();
                 sums[1] += c[0].mean;
                 sums[2] += c[1].mean;

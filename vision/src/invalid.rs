@@ -1,0 +1,76 @@
+//! The "parameter out of range" error that [`crate::matching`] and [`crate::render`] share,
+//! and the range checks that produce it.
+
+use std::fmt;
+
+/// A parameter or input is out of its range: which one, and what is wrong with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InvalidField {
+    /// The parameter (e.g. `params.half_window`, `board.square_cm`).
+    pub field: &'static str,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl InvalidField {
+    /// The error for `field`.
+    pub fn new(field: &'static str, reason: impl Into<String>) -> Self {
+        InvalidField {
+            field,
+            reason: reason.into(),
+        }
+    }
+}
+
+impl fmt::Display for InvalidField {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.field, self.reason)
+    }
+}
+
+impl std::error::Error for InvalidField {}
+
+/// `value` must lie in `lo..=hi` ("must be lo..=hi, got value").
+pub(crate) fn in_range<T: PartialOrd + fmt::Display>(
+    field: &'static str,
+    value: T,
+    lo: T,
+    hi: T,
+) -> Result<(), InvalidField> {
+    if value < lo || value > hi {
+        return Err(InvalidField::new(
+            field,
+            format!("must be {lo}..={hi}, got {value}"),
+        ));
+    }
+    Ok(())
+}
+
+/// `value` must be finite and in `lo..=hi` ("must be a finite number in lo..=hi, got value").
+pub(crate) fn finite_in(
+    field: &'static str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+) -> Result<(), InvalidField> {
+    if !(value.is_finite() && (lo..=hi).contains(&value)) {
+        return Err(InvalidField::new(
+            field,
+            format!("must be a finite number in {lo}..={hi}, got {value}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Asserts that `result` is an error whose message starts with `field`.
+#[cfg(test)]
+#[track_caller]
+pub(crate) fn assert_refused<T: fmt::Debug, E: fmt::Display>(result: Result<T, E>, field: &str) {
+    match result {
+        Ok(v) => panic!("accepted, expected an error naming {field}: {v:?}"),
+        Err(e) => {
+            let e = e.to_string();
+            assert!(e.starts_with(field), "{e:?} does not start with {field}");
+        }
+    }
+}
