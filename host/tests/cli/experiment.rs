@@ -189,7 +189,7 @@ fn quick_run_invariants_files_and_determinism() {
     };
     // The command (same seed, another directory, one worker thread) runs while the library
     // run below does (all threads): equal CSVs also show the thread count does not matter.
-    let cli = spawn_quick_experiment("thesis", 0);
+    let cli = spawn_quick_experiment("thesis", &["--seed", "0"]);
     let out = cli.out.clone();
 
     let t = run(&cfg, &Quiet).unwrap();

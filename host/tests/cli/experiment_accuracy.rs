@@ -2,26 +2,16 @@
 //! determinism (the CLI on one thread and the library in this process, at the same time,
 //! write the same CSV, SVG and PNG bytes).
 
-use crate::common::{read, wait_ok};
+use crate::common::{read, spawn_quick_experiment, wait_ok, QuickExperiment};
 
 use hvs_host::cli::train::ArchArg;
 use hvs_host::study::accuracy::report::{csv_tables, write, STEMS, SUBDIR};
 use hvs_host::study::accuracy::{self as accuracy, AccuracyConfig, BOARDS, REGIMES};
 use hvs_host::study::thesis::Quiet;
-use tempfile::TempDir;
 
 #[test]
 fn quick_run_files_facts_and_determinism() {
-    let dir = TempDir::new().unwrap();
-    let out = dir.path().join("cli");
-    let child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
-        .args(["experiment", "accuracy", "--quick", "-o"])
-        .arg(&out)
-        .env("RAYON_NUM_THREADS", "1")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("hvs experiment starts");
+    let QuickExperiment { dir, out, child } = spawn_quick_experiment("accuracy", &[]);
     let cfg = AccuracyConfig {
         default_family: ArchArg::DEFAULT.family(),
         seed_base: accuracy::HELD_OUT_SEED_BASE,

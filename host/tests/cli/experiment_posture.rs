@@ -135,7 +135,7 @@ fn quick_run_invariants_files_and_determinism() {
         quick: true,
     };
     // The command (same seed, one worker thread) runs while the library run does.
-    let cli = spawn_quick_experiment("posture", 1);
+    let cli = spawn_quick_experiment("posture", &["--seed", "1"]);
     let out = cli.out.clone();
 
     let run = posture::run(&cfg, &Quiet).unwrap();

@@ -122,20 +122,15 @@ pub struct QuickExperiment {
     pub child: Child,
 }
 
-/// Starts `hvs experiment <kind> --quick --seed <seed> -o <tmp>/<kind>` on one worker
-/// thread, so a test can run the library on all threads meanwhile and compare the bytes.
-pub fn spawn_quick_experiment(kind: &str, seed: u64) -> QuickExperiment {
+/// Starts `hvs experiment <kind> --quick ARGS -o <tmp>/<kind>` on one worker thread, so a
+/// test can run the library on all threads meanwhile and compare the bytes.
+pub fn spawn_quick_experiment(kind: &str, args: &[&str]) -> QuickExperiment {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join(kind);
     let child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
-        .args([
-            "experiment",
-            kind,
-            "--quick",
-            "--seed",
-            &seed.to_string(),
-            "-o",
-        ])
+        .args(["experiment", kind, "--quick"])
+        .args(args)
+        .arg("-o")
         .arg(&out)
         .env("RAYON_NUM_THREADS", "1")
         .stdout(std::process::Stdio::piped())
