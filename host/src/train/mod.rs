@@ -15,6 +15,11 @@
 //!   (`mean(|Z - Z^| / Z) * 100`, `hvs_shared::sim::metrics`) computed with `ModelBlob::infer`,
 //!   i.e. exactly what the head computes. Restarts above the threshold are not enrolled (as
 //!   in the thesis); the best enrolled one (lowest e_ma, then lowest index) is returned.
+//! - Quantised pixels (`projective`): on a stereo set of integer pixels that a pinhole camera
+//!   per side explains within rounding, the inverse-depth-skip family is fitted to synthetic
+//!   points of the two cameras fitted to the data (3x4 matrices, residuals bounded rather than
+//!   averaged), with one rounding step of uniform pixel noise; the restarts are still judged
+//!   on the measured points.
 //! - Restarts run in parallel on the rayon pool. Restart `i` draws its initial weights from
 //!   a generator seeded by `(seed, i)` alone and no restart reads another's state, so the
 //!   model bytes for a given seed do not depend on the number of threads.
@@ -38,6 +43,7 @@ pub mod fallback;
 mod lm;
 mod net;
 mod noise;
+mod projective;
 mod rng;
 
 use crate::data::dataset::Dataset;
@@ -481,12 +487,23 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     let act = cfg.algo.output_activation();
     let (cols, _) = output_columns(cfg.outputs);
     let sc = scaling(data, cols, act, cfg.family.output_map);
-    let prob = problem(data, cfg, &sc);
-    let lm_opts = lm_options(
+    // Quantised pixels: the skip family learns from the fitted cameras (`projective`); the
+    // scaling, the restart choice and the reported error stay those of the measured points.
+    let distilled = (cfg.family == Family::INVERSE_DEPTH_SKIP && cfg.algo != Algo::Bp)
+        .then(|| projective::distilled_set(data, cfg.seed))
+        .flatten();
+    let fit_data = distilled.as_ref().unwrap_or(data);
+    let prob = problem(fit_data, cfg, &sc);
+    let mut lm_opts = lm_options(
         cfg.family,
-        data,
+        fit_data,
         cfg.family.skip_len(prob.shape.ni, prob.shape.no),
     );
+    if distilled.is_some() {
+        // 2,000 synthetic points do not overfit: the net gets the plain decay (tuning seeds:
+        // worst volume ratio 1.034 vs 1.040 with the factor, protocol 1.06 vs 1.10-1.12).
+        lm_opts.weight_decay = lm_opts.tail.1;
+    }
 
     let bar = cfg.progress.then(|| {
         let b = indicatif::ProgressBar::new(cfg.restarts as u64);
@@ -658,8 +675,9 @@ mod tests {
     fn skip_family_stores_skip_weights_and_stays_near_the_floor_on_the_protocol() {
         // Rounded pixels, the thesis protocol (two test points per depth): the worst test depth
         // of every case against optimal triangulation with the true rig. Measured (seed 7):
-        // 1.51, 1.20, 1.14, 1.08 times the floor for cases I-IV (issue 14 asks for 1.25; the
-        // thesis family gives 1.39, 1.00, 1.39, 1.09). The bound guards against regressions.
+        // 1.06, 0.99, 1.05, 1.01 times the floor for cases I-IV with the projective fit of
+        // quantised pixels (`projective`; 1.51, 1.20, 1.14, 1.08 without it; issue 14 asks
+        // for 1.25; the thesis family gives 1.39, 1.00, 1.39, 1.09).
         let cfg = TrainConfig {
             family: Family::INVERSE_DEPTH_SKIP,
             seed: 7,
@@ -678,7 +696,7 @@ mod tests {
                 triangulate::optimal_rig(&rig, &x.try_into().unwrap()).unwrap()[2]
             });
             assert!(
-                net <= 1.55 * floor,
+                net <= 1.1 * floor,
                 "case {n}: worst per-depth {net} % vs optimal triangulation {floor} %"
             );
             if n == 4 {
