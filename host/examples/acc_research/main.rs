@@ -252,6 +252,7 @@ fn main() -> anyhow::Result<()> {
         "L16",
         "L64",
         "dist-unif",
+        "dist-true",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -394,7 +395,7 @@ fn main() -> anyhow::Result<()> {
                                 hi[k] = hi[k].max(t[k]);
                             }
                         }
-                        for mode in [2] {
+                        for mode in [2, 3] {
                             let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(99);
                             let mut d = Dataset::new(InputKind::Stereo);
                             for _ in 0..a.synth {
@@ -407,10 +408,13 @@ fn main() -> anyhow::Result<()> {
                                     continue;
                                 };
                                 let mut px = [l[0], l[1], rr[0], rr[1]];
+                                if mode == 3 {
+                                    px = head.project(&Joints::HOME, &p).unwrap();
+                                }
                                 for v in px.iter_mut() {
                                     match mode {
                                         1 => *v = v.round(),
-                                        2 => *v += rng.random::<f64>() - 0.5,
+                                        2 | 3 => *v += rng.random::<f64>() - 0.5,
                                         _ => {}
                                     }
                                 }

@@ -201,6 +201,9 @@ pub struct TrainOutcome {
     pub restarts: Vec<RestartReport>,
     /// Wall time of the whole run.
     pub elapsed: Duration,
+    /// Quantised pixels: how many synthetic points of the cameras fitted to them the net
+    /// learned from instead of the measured points (`None`: the measured points).
+    pub synthetic_points: Option<usize>,
 }
 
 /// Affine maps between physical and normalised units, already rounded to f32 as stored.
@@ -581,6 +584,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
         train_error_pct,
         restarts,
         elapsed: start.elapsed(),
+        synthetic_points: distilled.as_ref().map(Dataset::len),
     })
 }
 
