@@ -6,8 +6,8 @@
 //! 72 rounded board points; a fit that bounds the residuals instead (here: each camera's 3x4
 //! projection matrix minimising `sum |r|^p` over the reprojection residuals, `p` =
 //! [`LP_EXPONENT`], towards the minimax fit that is the natural estimate under uniform noise)
-//! lands much closer to the true cameras (`host/examples/acc_research`, tuning seeds:
-//! 0.99-1.03x on the volume, worst protocol depth 1.03-1.06x).
+//! lands much closer to the true cameras (`docs/model-families.md`, tuning seeds:
+//! 0.99-1.01x on the volume, worst protocol depth 0.97-1.05x).
 //!
 //! The net cannot be fitted by such a cost directly (its errors are in the outputs, the
 //! rounding is in the inputs), so the fitted cameras make its training set:
