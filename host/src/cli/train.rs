@@ -273,6 +273,12 @@ fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<(
         oc.train_error_pct,
         oc.restarts.len()
     )?;
+    if let Some(n) = oc.synthetic_points {
+        writeln!(
+            o,
+            "integer pixels: the net learned {n} synthetic points of two 3x4 cameras fitted to them"
+        )?;
+    }
     match &t.fallback {
         Some(f) => writeln!(
             o,

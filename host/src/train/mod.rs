@@ -15,6 +15,11 @@
 //!   (`mean(|Z - Z^| / Z) * 100`, `hvs_shared::sim::metrics`) computed with `ModelBlob::infer`,
 //!   i.e. exactly what the head computes. Restarts above the threshold are not enrolled (as
 //!   in the thesis); the best enrolled one (lowest e_ma, then lowest index) is returned.
+//! - Quantised pixels (`projective`): on a stereo set of integer pixels that a pinhole camera
+//!   per side explains within rounding, the inverse-depth-skip family is fitted to synthetic
+//!   points of the two cameras fitted to the data (3x4 matrices, residuals bounded rather than
+//!   averaged), with one rounding step of uniform pixel noise; the restarts are still judged
+//!   on the measured points.
 //! - Restarts run in parallel on the rayon pool. Restart `i` draws its initial weights from
 //!   a generator seeded by `(seed, i)` alone and no restart reads another's state, so the
 //!   model bytes for a given seed do not depend on the number of threads.
@@ -38,6 +43,7 @@ pub mod fallback;
 mod lm;
 mod net;
 mod noise;
+mod projective;
 mod rng;
 
 use crate::data::dataset::Dataset;
@@ -76,7 +82,8 @@ const LM_OPTIONS: lm::LmOptions = lm::LmOptions {
 /// distortion) and is held close to zero unless the pixels are precise: on the dev seeds
 /// (`accuracy_regimes`, base 0) 10 overfits rounded thesis boards (1.18x the floor), 300
 /// underfits the 9x6 board (1.34x), 30 is near the affine fit's ratio on both (1.12x, 1.02x)
-/// and keeps exact pixels below 0.01 %.
+/// and keeps exact pixels below 0.01 %. Not applied when the net learns the synthetic points
+/// of quantised pixels (`projective`): 2,000 points do not overfit.
 pub const SKIP_NET_DECAY_FACTOR: f64 = 30.0;
 
 /// LM settings of a family on `data`, for a net with `n_skip` skip weights: the thesis
@@ -195,6 +202,9 @@ pub struct TrainOutcome {
     pub restarts: Vec<RestartReport>,
     /// Wall time of the whole run.
     pub elapsed: Duration,
+    /// Quantised pixels: how many synthetic points of the cameras fitted to them the net
+    /// learned from instead of the measured points (`None`: the measured points).
+    pub synthetic_points: Option<usize>,
 }
 
 /// Affine maps between physical and normalised units, already rounded to f32 as stored.
@@ -481,12 +491,23 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     let act = cfg.algo.output_activation();
     let (cols, _) = output_columns(cfg.outputs);
     let sc = scaling(data, cols, act, cfg.family.output_map);
-    let prob = problem(data, cfg, &sc);
-    let lm_opts = lm_options(
+    // Quantised pixels: the skip family learns from the fitted cameras (`projective`); the
+    // scaling, the restart choice and the reported error stay those of the measured points.
+    let distilled = (cfg.family == Family::INVERSE_DEPTH_SKIP && cfg.algo != Algo::Bp)
+        .then(|| projective::distilled_set(data, cfg.seed))
+        .flatten();
+    let fit_data = distilled.as_ref().unwrap_or(data);
+    let prob = problem(fit_data, cfg, &sc);
+    let mut lm_opts = lm_options(
         cfg.family,
-        data,
+        fit_data,
         cfg.family.skip_len(prob.shape.ni, prob.shape.no),
     );
+    if distilled.is_some() {
+        // 2,000 synthetic points do not overfit: the net gets the plain decay (tuning seeds:
+        // worst volume ratio 1.034 vs 1.041 with the factor, protocol 1.06 vs 1.10-1.12).
+        lm_opts.weight_decay = lm_opts.tail.1;
+    }
 
     let bar = cfg.progress.then(|| {
         let b = indicatif::ProgressBar::new(cfg.restarts as u64);
@@ -564,6 +585,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
         train_error_pct,
         restarts,
         elapsed: start.elapsed(),
+        synthetic_points: distilled.as_ref().map(Dataset::len),
     })
 }
 
@@ -669,8 +691,9 @@ mod tests {
     fn skip_family_stores_skip_weights_and_stays_near_the_floor_on_the_protocol() {
         // Rounded pixels, the thesis protocol (two test points per depth): the worst test depth
         // of every case against optimal triangulation with the true rig. Measured (seed 7):
-        // 1.51, 1.20, 1.14, 1.08 times the floor for cases I-IV (issue 14 asks for 1.25; the
-        // thesis family gives 1.39, 1.00, 1.39, 1.09). The bound guards against regressions.
+        // 1.06, 0.99, 1.05, 1.01 times the floor for cases I-IV with the projective fit of
+        // quantised pixels (`projective`; 1.51, 1.20, 1.14, 1.08 without it; issue 14 asks
+        // for 1.25; the thesis family gives 1.39, 1.00, 1.39, 1.09).
         let cfg = TrainConfig {
             family: Family::INVERSE_DEPTH_SKIP,
             seed: 7,
@@ -689,7 +712,7 @@ mod tests {
                 triangulate::optimal_rig(&rig, &x.try_into().unwrap()).unwrap()[2]
             });
             assert!(
-                net <= 1.55 * floor,
+                net <= 1.1 * floor,
                 "case {n}: worst per-depth {net} % vs optimal triangulation {floor} %"
             );
             if n == 4 {
