@@ -496,7 +496,12 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     let distilled = (cfg.family == Family::INVERSE_DEPTH_SKIP && cfg.algo != Algo::Bp)
         .then(|| projective::distilled_set(data, cfg.seed))
         .flatten();
-    let fit_data = distilled.as_ref().unwrap_or(data);
+    // The restarts learn the first SELECTION_POINTS synthetic points; the best one is then
+    // fitted to all of them (below).
+    let selection = distilled
+        .as_ref()
+        .map(|d| projective::prefix(d, projective::SELECTION_POINTS));
+    let fit_data = selection.as_ref().unwrap_or(data);
     let prob = problem(fit_data, cfg, &sc);
     let mut lm_opts = lm_options(
         cfg.family,
@@ -520,7 +525,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
         b
     });
 
-    let runs: Vec<(RestartReport, Option<ModelBlob>)> = (0..cfg.restarts)
+    let runs: Vec<(RestartReport, Option<ModelBlob>, Vec<f64>)> = (0..cfg.restarts)
         .into_par_iter()
         .map(|index| {
             let mut rng = SplitMix64::for_restart(cfg.seed, index);
@@ -548,22 +553,43 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
                 enrolled,
                 iterations,
             };
-            (report, blob.filter(|_| enrolled))
+            (report, blob.filter(|_| enrolled), p)
         })
         .collect();
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
 
-    let mut best: Option<(f64, ModelBlob)> = None;
-    for (rep, blob) in &runs {
+    let mut best: Option<(f64, ModelBlob, &[f64])> = None;
+    for (rep, blob, p) in &runs {
         if let Some(b) = blob {
-            if best.as_ref().is_none_or(|(e, _)| rep.train_error_pct < *e) {
-                best = Some((rep.train_error_pct, b.clone()));
+            if best
+                .as_ref()
+                .is_none_or(|(e, _, _)| rep.train_error_pct < *e)
+            {
+                best = Some((rep.train_error_pct, b.clone(), p));
             }
         }
     }
-    let restarts: Vec<RestartReport> = runs.into_iter().map(|(r, _)| r).collect();
+    // Quantised pixels: the best restart, fitted to every synthetic point. Kept when it
+    // exports and its training e_ma on the measured points is finite.
+    let mut best = best.map(|(e, b, p)| (e, b, p.to_vec()));
+    if let (Some(all), Some((e, b, p))) = (distilled.as_ref(), best.as_mut()) {
+        let polish = lm::LmOptions {
+            max_iter: projective::POLISH_MAX_ITER,
+            ..lm_opts
+        };
+        lm::fit(&problem(all, cfg, &sc), p, &polish);
+        if let Some(mut polished) = export(p, data, cfg, &sc, 0.0) {
+            let err = blob_error_pct(&polished, data);
+            if err.is_finite() {
+                polished.meta.train_error_pct = err as f32;
+                (*e, *b) = (err, polished);
+            }
+        }
+    }
+    let best = best.map(|(e, b, _)| (e, b));
+    let restarts: Vec<RestartReport> = runs.into_iter().map(|(r, _, _)| r).collect();
     let Some((train_error_pct, blob)) = best else {
         let best_err = restarts
             .iter()
