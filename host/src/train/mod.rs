@@ -86,6 +86,9 @@ const LM_OPTIONS: lm::LmOptions = lm::LmOptions {
 /// of quantised pixels (`projective`): 2,000 points do not overfit.
 pub const SKIP_NET_DECAY_FACTOR: f64 = 30.0;
 
+/// The smallest factor the lens excess can bring [`SKIP_NET_DECAY_FACTOR`] down to.
+pub const MIN_SKIP_NET_DECAY_FACTOR: f64 = 0.01;
+
 /// LM settings of a family on `data`, for a net with `n_skip` skip weights: the thesis
 /// family's are fixed ([`LM_OPTIONS`]); the inverse-depth families' weight decay follows the
 /// pixel noise of the data (`noise`), times [`SKIP_NET_DECAY_FACTOR`] on the sigmoid net
@@ -96,8 +99,10 @@ fn lm_options(f: Family, data: &Dataset, n_skip: usize) -> lm::LmOptions {
     }
     let decay = noise::decay(data);
     // Posture-aware (9-input) sets have no pixel-noise estimate: their net is not held back.
-    let net = if n_skip > 0 && noise::pixel_noise_var(data).is_some() {
-        SKIP_NET_DECAY_FACTOR * decay
+    // A lens that bends the image beyond the pixel noise is what the net is for: its hold
+    // shrinks by that excess (`noise::lens_excess`, 1 for pinhole cameras).
+    let net = if let (true, Some(excess)) = (n_skip > 0, noise::lens_excess(data)) {
+        (SKIP_NET_DECAY_FACTOR / excess).max(MIN_SKIP_NET_DECAY_FACTOR) * decay
     } else {
         decay
     };
