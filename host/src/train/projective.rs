@@ -183,17 +183,16 @@ pub(crate) fn fit_cameras(data: &Dataset) -> Option<[Matrix3x4<f64>; 2]> {
     if !quantised(data) {
         return None;
     }
-    let mut out = [Matrix3x4::zeros(); 2];
-    for (cam, m) in out.iter_mut().enumerate() {
+    // The two cameras are independent fits: one on each core.
+    let fit = |cam: usize| -> Option<Matrix3x4<f64>> {
         let px: Vec<[f64; 2]> = (0..data.len())
             .map(|r| [data.row(r)[2 * cam], data.row(r)[2 * cam + 1]])
             .collect();
-        *m = fit_camera(&data.targets, &px)?;
-        if max_residual(m, &data.targets, &px) > MAX_RESIDUAL_PX {
-            return None;
-        }
-    }
-    Some(out)
+        let m = fit_camera(&data.targets, &px)?;
+        (max_residual(&m, &data.targets, &px) <= MAX_RESIDUAL_PX).then_some(m)
+    };
+    let (l, r) = rayon::join(|| fit(0), || fit(1));
+    Some([l?, r?])
 }
 
 /// The training set the net learns from on quantised pixels ([`fit_cameras`]):
