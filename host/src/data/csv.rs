@@ -347,9 +347,6 @@ where
     let prefix = output::temp_prefix(&fname.to_string_lossy());
     let mut builder = tempfile::Builder::new();
     builder.prefix(&prefix).suffix(".tmp");
-    // Created like any new file (0666 less the umask), not tempfile's private 0600.
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
     if !dir.is_dir() {
         bail!(
             "{}: the directory {} does not exist",
@@ -358,18 +355,30 @@ where
         );
     }
     output::remove_stale(&dir);
-    // The error names the output and its directory, not the temporary file's random name
-    // (tempfile's message would).
-    let tmp = builder.tempfile_in(&dir).map_err(|e| {
-        anyhow!(
-            "{}: cannot create a file in {}: {}",
-            path.display(),
-            dir.display(),
-            std::io::Error::from(e.kind())
-        )
-    })?;
-    // Removed by SIGINT/SIGTERM/SIGHUP while it exists; unregistered after the rename.
-    let _pending = output::Pending::register(tmp.path());
+    // Registered for removal by SIGINT/SIGTERM/SIGHUP *before* it is created (a signal
+    // between creating and registering would leave it behind); unregistered after the
+    // rename. Created like any new file (0666 less the umask), not tempfile's private 0600.
+    let mut pending = None;
+    let tmp = builder
+        .make_in(&dir, |p| {
+            pending = Some(output::Pending::register(p));
+            let mut o = std::fs::OpenOptions::new();
+            o.write(true).create_new(true);
+            #[cfg(unix)]
+            std::os::unix::fs::OpenOptionsExt::mode(&mut o, 0o666);
+            o.open(p)
+        })
+        // The error names the output and its directory, not the temporary file's random
+        // name (tempfile's message would).
+        .map_err(|e| {
+            anyhow!(
+                "{}: cannot create a file in {}: {}",
+                path.display(),
+                dir.display(),
+                std::io::Error::from(e.kind())
+            )
+        })?;
+    let _pending = pending;
     let mut w = BufWriter::new(tmp);
     body(&mut w)?;
     let tmp = w
