@@ -97,14 +97,16 @@ fn lm_options(f: Family, data: &Dataset, n_skip: usize) -> lm::LmOptions {
     if f == Family::THESIS {
         return LM_OPTIONS;
     }
-    let decay = noise::decay(data);
+    let pixel_noise = noise::pixel_noise(data);
+    let decay = noise::decay(pixel_noise.as_ref());
     // Posture-aware (9-input) sets have no pixel-noise estimate: their net is not held back.
     // A lens that bends the image beyond the pixel noise is what the net is for: its hold
-    // shrinks by that excess (`noise::lens_excess`, 1 for pinhole cameras).
-    let net = if let (true, Some(excess)) = (n_skip > 0, noise::lens_excess(data)) {
-        (SKIP_NET_DECAY_FACTOR / excess).max(MIN_SKIP_NET_DECAY_FACTOR) * decay
-    } else {
-        decay
+    // shrinks by that excess (`noise::PixelNoise::lens_excess`, 1 for pinhole cameras).
+    let net = match pixel_noise {
+        Some(n) if n_skip > 0 => {
+            (SKIP_NET_DECAY_FACTOR / n.lens_excess).max(MIN_SKIP_NET_DECAY_FACTOR) * decay
+        }
+        _ => decay,
     };
     lm::LmOptions {
         weight_decay: net,
@@ -565,35 +567,33 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
         b.finish_and_clear();
     }
 
-    let mut best: Option<(f64, ModelBlob, &[f64])> = None;
-    for (rep, blob, p) in &runs {
-        if let Some(b) = blob {
-            if best
-                .as_ref()
-                .is_none_or(|(e, _, _)| rep.train_error_pct < *e)
-            {
-                best = Some((rep.train_error_pct, b.clone(), p));
-            }
-        }
-    }
-    // Quantised pixels: the best restart, fitted to every synthetic point. Kept when it
+    // Quantised pixels: the best restart, fitted to every synthetic point; kept when it
     // exports and its training e_ma on the measured points is finite.
-    let mut best = best.map(|(e, b, p)| (e, b, p.to_vec()));
-    if let (Some(all), Some((e, b, p))) = (distilled.as_ref(), best.as_mut()) {
-        let polish = lm::LmOptions {
+    let polish = |all: &Dataset, p: &[f64]| -> Option<(f64, ModelBlob)> {
+        let opts = lm::LmOptions {
             max_iter: projective::POLISH_MAX_ITER,
             ..lm_opts
         };
-        lm::fit(&problem(all, cfg, &sc), p, &polish);
-        if let Some(mut polished) = export(p, data, cfg, &sc, 0.0) {
-            let err = blob_error_pct(&polished, data);
-            if err.is_finite() {
-                polished.meta.train_error_pct = err as f32;
-                (*e, *b) = (err, polished);
-            }
-        }
-    }
-    let best = best.map(|(e, b, _)| (e, b));
+        let mut p = p.to_vec();
+        lm::fit(&problem(all, cfg, &sc), &mut p, &opts);
+        let mut b = export(&p, data, cfg, &sc, 0.0)?;
+        let err = blob_error_pct(&b, data);
+        err.is_finite().then(|| {
+            b.meta.train_error_pct = err as f32;
+            (err, b)
+        })
+    };
+    // The first of the lowest training e_ma among the enrolled restarts.
+    let best = runs
+        .iter()
+        .filter_map(|(rep, blob, p)| Some((rep.train_error_pct, blob.as_ref()?, p)))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(e, b, p)| {
+            distilled
+                .as_ref()
+                .and_then(|all| polish(all, p))
+                .unwrap_or_else(|| (e, b.clone()))
+        });
     let restarts: Vec<RestartReport> = runs.into_iter().map(|(r, _, _)| r).collect();
     let Some((train_error_pct, blob)) = best else {
         let best_err = restarts

@@ -7,7 +7,7 @@
 //! coordinate over its degrees of freedom estimates the pixel noise variance (rounding:
 //! about 1/12 px^2; 0.05 px Gaussian noise: 0.0025 px^2; exact pixels: about 0), and the
 //! plain DLT residual over it says how far a lens bends the image beyond the noise
-//! ([`lens_excess`]: the net's hold shrinks by it, `super::lm_options`). Without the lens
+//! ([`PixelNoise::lens_excess`]: the net's hold shrinks by it, `super::lm_options`). Without the lens
 //! cubic a barrel lens read as pixel noise and the decay held the net from learning it
 //! (9x6 board, 0.01 px noise, k1 = -0.1: 1.70x the floor; with it 1.05x; the regime table
 //! on the tuning seeds did not move). The decay is
@@ -24,24 +24,31 @@ pub(crate) const DECAY_PER_PX2: f64 = 12.0 * super::WEIGHT_DECAY;
 /// Smallest decay (exact pixels).
 pub(crate) const MIN_DECAY: f64 = 1e-9;
 
-/// Mean squared reprojection residual (px^2) of the per-camera DLT fits of a stereo set, or
-/// `None` if the set has no four pixel columns or too few points for a fit.
-pub(crate) fn pixel_noise_var(data: &Dataset) -> Option<f64> {
-    residual_vars(data).map(|(noise, _)| noise)
+/// The pixel noise of a stereo set with ground truth, read off its residuals.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PixelNoise {
+    /// Noise variance (px^2 per pixel coordinate) with the lens terms taken out.
+    pub var: f64,
+    /// How far the pixels depart from two pinhole cameras beyond their noise: the plain DLT
+    /// residual variance over [`PixelNoise::var`] (1 for pinhole cameras, large when a lens
+    /// bends the image by more than the pixel noise).
+    pub lens_excess: f64,
 }
 
-/// How far the training pixels depart from two pinhole cameras beyond their noise: the
-/// plain DLT residual variance over [`pixel_noise_var`] (1 for pinhole cameras, large when a
-/// lens bends the image by more than the pixel noise). `None` as for [`pixel_noise_var`].
-pub(crate) fn lens_excess(data: &Dataset) -> Option<f64> {
-    residual_vars(data).map(|(noise, plain)| (plain / noise.max(f64::MIN_POSITIVE)).max(1.0))
+/// [`PixelNoise`] of a stereo set, or `None` if the set has no four pixel columns or too few
+/// points for a fit.
+pub(crate) fn pixel_noise(data: &Dataset) -> Option<PixelNoise> {
+    residual_vars(data).map(|(var, plain)| PixelNoise {
+        var,
+        lens_excess: (plain / var.max(f64::MIN_POSITIVE)).max(1.0),
+    })
 }
 
-/// (noise variance with the lens terms taken out, plain DLT residual variance), px^2 per
-/// coordinate, each over its degrees of freedom.
 /// Rounds of the DLT / lens-cubic alternation in [`residual_vars`].
 const LENS_ROUNDS: usize = 6;
 
+/// (noise variance with the lens terms taken out, plain DLT residual variance), px^2 per
+/// coordinate, each over its degrees of freedom.
 fn residual_vars(data: &Dataset) -> Option<(f64, f64)> {
     if data.n_inputs != 4 || data.len() < 12 || !data.has_targets() {
         return None;
@@ -152,10 +159,11 @@ fn smooth_residual(proj: &[[f64; 2]], px: &[[f64; 2]]) -> Option<(f64, usize, Ve
     sum.is_finite().then_some((sum, 2 * TERMS, corr))
 }
 
-/// The LM weight decay of the inverse-depth family on `data`.
-pub(crate) fn decay(data: &Dataset) -> f64 {
-    match pixel_noise_var(data) {
-        Some(v) => (DECAY_PER_PX2 * v).clamp(MIN_DECAY, super::WEIGHT_DECAY),
+/// The LM weight decay of the inverse-depth family for a set with this [`pixel_noise`]
+/// (`None`: the thesis' decay).
+pub(crate) fn decay(noise: Option<&PixelNoise>) -> f64 {
+    match noise {
+        Some(n) => (DECAY_PER_PX2 * n.var).clamp(MIN_DECAY, super::WEIGHT_DECAY),
         None => super::WEIGHT_DECAY,
     }
 }
@@ -195,10 +203,12 @@ mod tests {
     fn the_noise_estimate_sees_through_a_lens_and_the_excess_sees_the_lens() {
         for k1 in [0.0, -0.1] {
             let d = board_set(k1);
-            let v = pixel_noise_var(&d).unwrap();
+            let PixelNoise {
+                var: v,
+                lens_excess: e,
+            } = pixel_noise(&d).unwrap();
             // The true variance is 1e-4 px^2 with or without the lens.
             assert!((0.5e-4..2e-4).contains(&v), "k1 {k1}: noise variance {v}");
-            let e = lens_excess(&d).unwrap();
             if k1 == 0.0 {
                 assert!(e < 1.5, "pinhole: excess {e}");
             } else {
