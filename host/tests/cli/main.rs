@@ -18,4 +18,5 @@ mod flash;
 mod images;
 mod posture_cli;
 mod qemu_cli;
+mod real_pair;
 mod reliability;
