@@ -45,6 +45,7 @@ fn main() -> anyhow::Result<()> {
         noise: Vec::new(),
         lens: Vec::new(),
         images: Vec::new(),
+        real_pair: None,
         stage_s: Vec::new(),
         threads: rayon::current_num_threads(),
     };

@@ -9,6 +9,7 @@
 //! | `noise` | e_ma vs. Gaussian pixel noise 0 to 0.5 px on unrounded pixels (case IV) | [`sweep_rows`] |
 //! | `lens` | e_ma vs. radial distortion k1 0 to -0.2 on the `sub` regime's pixels (case IV) | [`sweep_rows`] |
 //! | `images` | corners detected in rendered images of the 9x6 board, then the same four | [`images::image_rows`] |
+//! | `real_pair` | a real stereo pair with ground truth (Middlebury's Motorcycle), 1000 training points | [`real_pair::real_pair_row`] |
 //!
 //! The four estimators, on the same test pixels:
 //! - the **floor**: optimal triangulation with the true rig and lenses
@@ -32,6 +33,7 @@
 //! the same CSV bytes; wall times go to `timing.csv` and the page only.
 
 pub mod images;
+pub mod real_pair;
 pub mod report;
 
 use crate::data::dataset::Dataset;
@@ -269,6 +271,8 @@ pub struct Accuracy {
     pub lens: Vec<SweepRow>,
     /// Rendered images of the 9x6 board.
     pub images: Vec<images::ImageRow>,
+    /// The real stereo pair (`None` when not run).
+    pub real_pair: Option<real_pair::RealPairRow>,
     /// Wall time per stage (s), not part of the CSVs.
     pub stage_s: Vec<(&'static str, f64)>,
     /// Worker threads.
@@ -547,6 +551,9 @@ pub fn run(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Accuracy> {
     let t = Instant::now();
     let images = images::image_rows(cfg, progress)?;
     timed("images", t);
+    let t = Instant::now();
+    let real_pair = Some(real_pair::real_pair_row(cfg)?);
+    timed("real_pair", t);
     Ok(Accuracy {
         config: *cfg,
         regimes,
@@ -554,6 +561,7 @@ pub fn run(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Accuracy> {
         noise,
         lens,
         images,
+        real_pair,
         stage_s,
         threads: rayon::current_num_threads(),
     })

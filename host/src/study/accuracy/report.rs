@@ -18,7 +18,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The CSV stems in `DIR/accuracy/` (`noise` and `lens` also as `.svg`, `.png`).
-pub const STEMS: [&str; 5] = ["regimes", "protocol", "noise", "lens", "images"];
+pub const STEMS: [&str; 6] = ["regimes", "protocol", "noise", "lens", "images", "real_pair"];
 /// The sub-directory of the CSVs and plots.
 pub const SUBDIR: &str = "accuracy";
 
@@ -119,12 +119,25 @@ pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
             scores_csv(&r.scores)
         );
     }
+    let mut real_pair = format!("set,train_points,test_points,z_min_cm,z_max_cm,{}\n", scores_header());
+    if let Some(r) = &a.real_pair {
+        let _ = writeln!(
+            real_pair,
+            "motorcycle,{},{},{},{},{}",
+            r.train_points,
+            r.test_points,
+            num(r.z_range[0]),
+            num(r.z_range[1]),
+            scores_csv(&r.scores)
+        );
+    }
     vec![
         ("regimes", regimes),
         ("protocol", protocol),
         ("noise", sweep(&a.noise, "noise_px")),
         ("lens", sweep(&a.lens, "k1")),
         ("images", images),
+        ("real_pair", real_pair),
     ]
 }
 
@@ -416,6 +429,22 @@ fn images_table(a: &Accuracy) -> String {
     )
 }
 
+fn real_pair_table(a: &Accuracy) -> String {
+    method_table(
+        a,
+        &["pair", "training points", "test points", "depths (cm)"],
+        a.real_pair.iter().map(|r| {
+            let lead = vec![
+                "Motorcycle (Middlebury 2014, 741 x 500)".to_string(),
+                r.train_points.to_string(),
+                r.test_points.to_string(),
+                format!("{:.0}-{:.0}", r.z_range[0], r.z_range[1]),
+            ];
+            (lead, &r.scores, true)
+        }),
+    )
+}
+
 /// The worst ratio over cases of method `m` in the protocol, with its case.
 fn protocol_worst(a: &Accuracy, m: usize) -> (f64, u8) {
     a.protocol
@@ -533,6 +562,8 @@ fn accuracy_md(a: &Accuracy, total_s: f64, dir: &str) -> Result<String> {
         ("noise_sentence", sweep_sentence(&a.noise, "sigma")),
         ("lens_sentence", sweep_sentence(&a.lens, "k1")),
         ("images_table", images_table(a)),
+        ("files_real_pair", format!("[CSV]({SUBDIR}/real_pair.csv)")),
+        ("real_pair_table", real_pair_table(a)),
         ("commands", commands(a)),
     ];
     fill(
