@@ -16,9 +16,10 @@ fn fixture(name: &str) -> PathBuf {
 
 /// Mean e_ma (%) of `model` on `data`, from `hvs eval --json`.
 fn e_ma_pct(model: &str, data: &str) -> f64 {
-    let json: serde_json::Value =
-        serde_json::from_str(&ok_line(&format!("eval --model {model} --data {data} --json")))
-            .expect("eval --json prints JSON");
+    let json: serde_json::Value = serde_json::from_str(&ok_line(&format!(
+        "eval --model {model} --data {data} --json"
+    )))
+    .expect("eval --json prints JSON");
     let methods = json["evaluation"]["methods"].as_array().expect("methods");
     assert_eq!(methods[0]["name"], "network");
     assert_eq!(methods[0]["missing"], 0, "every test point is estimated");
@@ -39,7 +40,10 @@ fn motorcycle_1000_points_default_within_goal() {
     let (default, thesis) = (got[0], got[1]);
     eprintln!("Motorcycle, 1000 training points: default {default:.4} %, thesis {thesis:.4} %");
     assert!(default <= 0.15, "default family {default} % > 0.15 %");
-    assert!(thesis > 0.2, "the thesis net is not expected to follow exact pixels: {thesis} %");
+    assert!(
+        thesis > 0.2,
+        "the thesis net is not expected to follow exact pixels: {thesis} %"
+    );
 
     // The DLT from the same points is exact here (the ground truth is projective).
     let read = |p: &str| read_set(p.as_ref(), Inputs::Stereo, true).unwrap().data;

@@ -366,12 +366,22 @@ pub fn estimate(
     train_set: &Dataset,
     test: &Dataset,
 ) -> Result<Evaluation> {
+    estimate_with_floor(cfg, optimal_depths_lens(rig, lens, test), train_set, test)
+}
+
+/// [`estimate`] with the floor's depths of `test` given (a real pair's true cameras).
+pub fn estimate_with_floor(
+    cfg: &AccuracyConfig,
+    floor: Vec<f64>,
+    train_set: &Dataset,
+    test: &Dataset,
+) -> Result<Evaluation> {
     let net = |c: TrainConfig| -> Result<Vec<f64>> {
         let out = train(train_set, &c)?;
         model_depths(&out.blob, test).map_err(|e| anyhow!("{e:?}"))
     };
     let z = [
-        optimal_depths_lens(rig, lens, test),
+        floor,
         dlt_depths(train_set, test)?,
         net(cfg.thesis_net())?,
         net(cfg.default_net())?,

@@ -7,13 +7,11 @@
 //! to the file's 1e-4 rounding: the ground truth is projective, so the DLT is exact too, and
 //! what the page shows is how close each net gets to 0.
 
-use super::{mean_scores, AccuracyConfig, Scores, METHODS};
+use super::{estimate_with_floor, mean_scores, AccuracyConfig, Scores};
 use crate::data::csv::{read_set_from, Inputs};
 use crate::data::dataset::Dataset;
-use crate::evaluate::{evaluate, model_depths, Method};
 use crate::study::posture::triangulate_dlt;
-use crate::train::train;
-use anyhow::{anyhow, Result};
+use anyhow::Result;
 use nalgebra::Matrix3x4;
 use std::path::Path;
 
@@ -50,7 +48,18 @@ impl PairCalib {
     pub fn cameras(&self) -> [Matrix3x4<f64>; 2] {
         let cam = |c: [f64; 2], tx: f64| {
             Matrix3x4::new(
-                self.f, 0.0, c[0], self.f * tx, 0.0, self.f, c[1], 0.0, 0.0, 0.0, 1.0, 0.0,
+                self.f,
+                0.0,
+                c[0],
+                self.f * tx,
+                0.0,
+                self.f,
+                c[1],
+                0.0,
+                0.0,
+                0.0,
+                1.0,
+                0.0,
             )
         };
         [cam(self.c_left, 0.0), cam(self.c_right, -self.baseline_cm)]
@@ -96,24 +105,7 @@ pub fn floor_depths(test: &Dataset) -> Vec<f64> {
 /// Fits and scores the four estimators on the pair.
 pub fn real_pair_row(cfg: &AccuracyConfig) -> Result<RealPairRow> {
     let (train_set, test) = sets()?;
-    let net = |c| -> Result<Vec<f64>> {
-        let out = train(&train_set, &c)?;
-        model_depths(&out.blob, &test).map_err(|e| anyhow!("{e:?}"))
-    };
-    let z = [
-        floor_depths(&test),
-        super::dlt_depths(&train_set, &test)?,
-        net(cfg.thesis_net())?,
-        net(cfg.default_net())?,
-    ];
-    let methods: Vec<Method> = METHODS
-        .iter()
-        .zip(z)
-        .map(|(name, z)| Method {
-            name: name.to_string(),
-            z,
-        })
-        .collect();
+    let ev = estimate_with_floor(cfg, floor_depths(&test), &train_set, &test)?;
     let depths = test.targets.iter().map(|t| t[2]);
     let z_range = [
         depths.clone().fold(f64::INFINITY, f64::min),
@@ -123,7 +115,7 @@ pub fn real_pair_row(cfg: &AccuracyConfig) -> Result<RealPairRow> {
         train_points: train_set.len(),
         test_points: test.len(),
         z_range,
-        scores: mean_scores(&evaluate(&test, &methods)),
+        scores: mean_scores(&ev),
     })
 }
 
@@ -142,7 +134,11 @@ mod tests {
                 for (c, m) in p.iter().enumerate() {
                     let h = m * nalgebra::Vector4::new(t[0], t[1], t[2], 1.0);
                     let (u, v) = (h[0] / h[2], h[1] / h[2]);
-                    assert!((u - r[2 * c]).abs() < 2e-3, "row {n} camera {c}: u {u} vs {}", r[2 * c]);
+                    assert!(
+                        (u - r[2 * c]).abs() < 2e-3,
+                        "row {n} camera {c}: u {u} vs {}",
+                        r[2 * c]
+                    );
                     assert!((v - r[2 * c + 1]).abs() < 2e-3, "row {n} camera {c}: v {v}");
                 }
             }

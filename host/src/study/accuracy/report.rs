@@ -18,7 +18,14 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The CSV stems in `DIR/accuracy/` (`noise` and `lens` also as `.svg`, `.png`).
-pub const STEMS: [&str; 6] = ["regimes", "protocol", "noise", "lens", "images", "real_pair"];
+pub const STEMS: [&str; 6] = [
+    "regimes",
+    "protocol",
+    "noise",
+    "lens",
+    "images",
+    "real_pair",
+];
 /// The sub-directory of the CSVs and plots.
 pub const SUBDIR: &str = "accuracy";
 
@@ -119,7 +126,10 @@ pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
             scores_csv(&r.scores)
         );
     }
-    let mut real_pair = format!("set,train_points,test_points,z_min_cm,z_max_cm,{}\n", scores_header());
+    let mut real_pair = format!(
+        "set,train_points,test_points,z_min_cm,z_max_cm,{}\n",
+        scores_header()
+    );
     if let Some(r) = &a.real_pair {
         let _ = writeln!(
             real_pair,
