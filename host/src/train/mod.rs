@@ -212,6 +212,10 @@ pub struct TrainOutcome {
     /// Quantised pixels: how many synthetic points of the cameras fitted to them the net
     /// learned from instead of the measured points (`None`: the measured points).
     pub synthetic_points: Option<usize>,
+    /// Whether those synthetic points came from cameras with fitted radial lenses (sub-pixel
+    /// pixels, `projective::lens_distilled`) rather than from pinhole cameras fitted to
+    /// integer pixels.
+    pub synthetic_lenses: bool,
 }
 
 /// Affine maps between physical and normalised units, already rounded to f32 as stored.
@@ -509,6 +513,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
                     set: d,
                     selection: projective::SELECTION_POINTS,
                     polish_iter: projective::POLISH_MAX_ITER,
+                    lenses: false,
                 })
                 .or_else(|| projective::lens_distilled(data, cfg.seed))
         })
@@ -627,6 +632,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
         restarts,
         elapsed: start.elapsed(),
         synthetic_points: distilled.as_ref().map(|d| d.set.len()),
+        synthetic_lenses: distilled.as_ref().is_some_and(|d| d.lenses),
     })
 }
 
@@ -803,6 +809,7 @@ mod tests {
         };
         let out = train(&train_set, &cfg).unwrap();
         assert_eq!(out.synthetic_points, Some(projective::SYNTHETIC_POINTS));
+        assert!(out.synthetic_lenses);
         let ema = |z: &[f64]| {
             let mut acc = EmaAcc::default();
             for (t, z) in test.targets.iter().zip(z) {

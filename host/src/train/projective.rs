@@ -458,6 +458,8 @@ pub(crate) struct Distilled {
     pub set: Dataset,
     pub selection: usize,
     pub polish_iter: usize,
+    /// Drawn through fitted lenses ([`lens_distilled`]), not pinhole cameras.
+    pub lenses: bool,
 }
 
 /// How much wider (each side, as a fraction of the targets' extent) the lens-distilled points'
@@ -499,6 +501,7 @@ pub(crate) fn lens_distilled(data: &Dataset, seed: u64) -> Option<Distilled> {
         set: lens_distilled_set(data, &cams, var, seed)?,
         selection: LENS_SELECTION_POINTS,
         polish_iter: LENS_POLISH_MAX_ITER,
+        lenses: true,
     })
 }
 
