@@ -274,10 +274,17 @@ fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<(
         oc.restarts.len()
     )?;
     if let Some(n) = oc.synthetic_points {
-        writeln!(
-            o,
-            "integer pixels: the net learned {n} synthetic points of two 3x4 cameras fitted to them"
-        )?;
+        if oc.synthetic_lenses {
+            writeln!(
+                o,
+                "sub-pixel pixels: the net learned {n} synthetic points of two 3x4 cameras with radial lenses fitted to them"
+            )?;
+        } else {
+            writeln!(
+                o,
+                "integer pixels: the net learned {n} synthetic points of two 3x4 cameras fitted to them"
+            )?;
+        }
     }
     match &t.fallback {
         Some(f) => writeln!(

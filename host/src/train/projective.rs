@@ -26,7 +26,7 @@ use super::rng::SplitMix64;
 use crate::data::dataset::Dataset;
 use crate::study::posture::fit_dlt;
 use hvs_shared::runtime::blob::InputKind;
-use nalgebra::{Matrix3x4, SMatrix, SVector, Vector4};
+use nalgebra::{DMatrix, DVector, Matrix3x4, SMatrix, SVector, Vector4};
 
 /// Exponent of the residual cost of the camera fit (reached through 2, 4, 8, 16). On the
 /// tuning seeds 8 is 1.11x on the protocol's worst depth of case I, 16 1.05x; 64 is no better
@@ -243,6 +243,304 @@ pub(crate) fn distilled_set(data: &Dataset, seed: u64) -> Option<Dataset> {
     (out.len() >= SYNTHETIC_POINTS / 2).then_some(out)
 }
 
+/// A pinhole camera (3x4 matrix) seen through a radial lens about its principal point:
+/// offset `o` from the principal point `c` of the matrix's projection moves to
+/// `o (1 + k1 r^2 + k2 r^4)`, `r = |o| / scale` (what `hvs_shared::sim::camera::LensCamera`
+/// does with a pinhole `K [R | t]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LensFit {
+    pub m: Matrix3x4<f64>,
+    pub k: [f64; 2],
+    /// Unit radius (px) of `r`.
+    pub scale: f64,
+}
+
+/// Principal point of a 3x4 projection matrix `K [R | t]`: `(m1 . m3, m2 . m3) / |m3|^2` of
+/// the rows of its left 3x3 block.
+fn principal_point(m: &Matrix3x4<f64>) -> Option<[f64; 2]> {
+    let row = |i: usize| nalgebra::Vector3::new(m[(i, 0)], m[(i, 1)], m[(i, 2)]);
+    let m3 = row(2);
+    let n = m3.norm_squared();
+    (n > 0.0).then(|| [row(0).dot(&m3) / n, row(1).dot(&m3) / n])
+}
+
+impl LensFit {
+    /// Image of `p`, `None` behind the camera.
+    pub fn project(&self, p: &[f64; 3]) -> Option<[f64; 2]> {
+        let y = project(&self.m, p)?;
+        let c = principal_point(&self.m)?;
+        let o = [y[0] - c[0], y[1] - c[1]];
+        let r2 = (o[0] * o[0] + o[1] * o[1]) / (self.scale * self.scale);
+        let f = 1.0 + self.k[0] * r2 + self.k[1] * r2 * r2;
+        Some([c[0] + o[0] * f, c[1] + o[1] * f])
+    }
+
+    fn params(&self) -> [f64; 14] {
+        let mut q = [0.0; 14];
+        for (i, v) in q.iter_mut().take(12).enumerate() {
+            *v = self.m[(i / 4, i % 4)];
+        }
+        q[12] = self.k[0];
+        q[13] = self.k[1];
+        q
+    }
+
+    fn with_params(&self, q: &[f64; 14]) -> LensFit {
+        let mut m = self.m;
+        for (i, v) in q.iter().take(12).enumerate() {
+            m[(i / 4, i % 4)] = *v;
+        }
+        let n = m.norm();
+        LensFit {
+            m: m / n,
+            k: [q[12], q[13]],
+            scale: self.scale,
+        }
+    }
+
+    /// Sum of squared reprojection residuals (infinite when a point is behind the camera).
+    pub fn cost(&self, pts: &[[f64; 3]], px: &[[f64; 2]]) -> f64 {
+        let mut s = 0.0;
+        for (q, x) in pts.iter().zip(px) {
+            match self.project(q) {
+                Some(y) => s += (y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2),
+                None => return f64::INFINITY,
+            }
+        }
+        if s.is_finite() {
+            s
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+/// Parameters of a [`LensFit`] (3x4 up to scale: 11, and `k1`, `k2`).
+pub(crate) const LENS_FIT_DOF: usize = 13;
+
+/// One camera's [`LensFit`] to its training pixels by least squares (Levenberg-Marquardt,
+/// forward-difference Jacobian), from the normalised DLT and no lens.
+pub(crate) fn fit_lens_camera(pts: &[[f64; 3]], px: &[[f64; 2]]) -> Option<LensFit> {
+    let mut m = fit_dlt(pts, px).ok()?;
+    let front = pts
+        .iter()
+        .map(|q| (m * Vector4::new(q[0], q[1], q[2], 1.0))[2])
+        .sum::<f64>();
+    if front < 0.0 {
+        m = -m;
+    }
+    m /= m.norm();
+    // Unit radius: half the pixels' widest spread about the principal point.
+    let c = principal_point(&m)?;
+    let scale = px
+        .iter()
+        .map(|x| (x[0] - c[0]).abs().max((x[1] - c[1]).abs()))
+        .fold(0.0, f64::max)
+        .max(1.0);
+    let mut fit = LensFit {
+        m,
+        k: [0.0; 2],
+        scale,
+    };
+    let n = pts.len();
+    let resid = |f: &LensFit| -> Option<DVector<f64>> {
+        let mut r = DVector::zeros(2 * n);
+        for (i, (q, x)) in pts.iter().zip(px).enumerate() {
+            let y = f.project(q)?;
+            r[2 * i] = y[0] - x[0];
+            r[2 * i + 1] = y[1] - x[1];
+        }
+        Some(r)
+    };
+    let mut r = resid(&fit)?;
+    let mut cost = r.norm_squared();
+    let mut lambda = 1e-3;
+    for _ in 0..100 {
+        let q = fit.params();
+        let mut j = DMatrix::<f64>::zeros(2 * n, 14);
+        for c in 0..14 {
+            let h = 1e-7 * q[c].abs().max(1e-3);
+            let mut qh = q;
+            qh[c] += h;
+            // Without the renormalisation: the derivative along the parameter itself.
+            let mut g = fit;
+            for (i, v) in qh.iter().take(12).enumerate() {
+                g.m[(i / 4, i % 4)] = *v;
+            }
+            g.k = [qh[12], qh[13]];
+            let rh = resid(&g)?;
+            j.set_column(c, &((rh - &r) / h));
+        }
+        let jtj = j.transpose() * &j;
+        let grad = j.transpose() * &r;
+        let mut improved = false;
+        for _ in 0..20 {
+            let mut a = jtj.clone();
+            for d in 0..14 {
+                a[(d, d)] += lambda * (jtj[(d, d)] + 1e-12);
+            }
+            let Some(dp) = a.lu().solve(&(-&grad)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut qt = q;
+            for (v, d) in qt.iter_mut().zip(dp.iter()) {
+                *v += d;
+            }
+            let t = fit.with_params(&qt);
+            let Some(rt) = resid(&t) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let ct = rt.norm_squared();
+            if ct < cost {
+                improved = cost - ct > 1e-10 * cost;
+                fit = t;
+                r = rt;
+                cost = ct;
+                lambda = (lambda * 0.3).max(1e-12);
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    (fit.params().iter().all(|v| v.is_finite()) && cost.is_finite()).then_some(fit)
+}
+
+/// Precise pixels through a distorting lens: both cameras' [`LensFit`]s and the residual
+/// variance (px^2 per coordinate, over the degrees of freedom) of the two fits.
+pub(crate) fn fit_lens_cameras(data: &Dataset) -> Option<([LensFit; 2], f64)> {
+    if data.n_inputs != 4 || data.len() < 3 * LENS_FIT_DOF || !data.has_targets() {
+        return None;
+    }
+    let fit = |cam: usize| -> Option<(LensFit, f64)> {
+        let px: Vec<[f64; 2]> = (0..data.len())
+            .map(|r| [data.row(r)[2 * cam], data.row(r)[2 * cam + 1]])
+            .collect();
+        let f = fit_lens_camera(&data.targets, &px)?;
+        let c = f.cost(&data.targets, &px);
+        Some((f, c))
+    };
+    let (l, r) = rayon::join(|| fit(0), || fit(1));
+    let ((l, cl), (r, cr)) = (l?, r?);
+    let free = (4 * data.len()).checked_sub(2 * LENS_FIT_DOF)?;
+    Some(([l, r], (cl + cr) / free as f64))
+}
+
+/// The synthetic training set of precise pixels through lenses: [`SYNTHETIC_POINTS`] points
+/// uniform in the targets' box through the two [`LensFit`]s, each pixel coordinate plus
+/// Gaussian noise of variance `var`, drawn from `seed`.
+pub(crate) fn lens_distilled_set(
+    data: &Dataset,
+    cams: &[LensFit; 2],
+    var: f64,
+    seed: u64,
+) -> Option<Dataset> {
+    let (mut lo, mut hi) = target_box(data)?;
+    for k in 0..2 {
+        let w = hi[k] - lo[k];
+        lo[k] -= LENS_MARGIN * w;
+        hi[k] += LENS_MARGIN * w;
+    }
+    let sigma = var.max(0.0).sqrt();
+    let mut rng = SplitMix64::new(seed ^ LENS_STREAM);
+    let mut out = Dataset::new(InputKind::Stereo);
+    for _ in 0..SYNTHETIC_POINTS {
+        let p: [f64; 3] = core::array::from_fn(|k| rng.uniform(lo[k], hi[k]));
+        let (Some(l), Some(r)) = (cams[0].project(&p), cams[1].project(&p)) else {
+            continue;
+        };
+        let mut px = [l[0], l[1], r[0], r[1]];
+        for v in &mut px {
+            *v += sigma * gaussian(&mut rng);
+        }
+        if px.iter().all(|v| v.is_finite()) {
+            out.push(&px, Some(p));
+        }
+    }
+    (out.len() >= SYNTHETIC_POINTS / 2).then_some(out)
+}
+
+/// A synthetic training set and how it is learned: the restarts on its first `selection`
+/// points, the best of them then on all of them for at most `polish_iter` LM iterations.
+#[derive(Debug, Clone)]
+pub(crate) struct Distilled {
+    pub set: Dataset,
+    pub selection: usize,
+    pub polish_iter: usize,
+    /// Drawn through fitted lenses ([`lens_distilled`]), not pinhole cameras.
+    pub lenses: bool,
+}
+
+/// How much wider (each side, as a fraction of the targets' extent) the lens-distilled points'
+/// box is than the training targets' in X and Y: a lens bends the image most at its edges,
+/// where the board's outer corners are and uniform points inside their box are few (tuning
+/// seeds, rendered barrel images: margin 0 was worse than the measured points, 0.1 and 0.2
+/// better; 0.2 the best on the rendered mild and barrel sets).
+pub(crate) const LENS_MARGIN: f64 = 0.2;
+/// Synthetic points the restarts learn on lens-distilled sets (a lens needs more than the
+/// [`SELECTION_POINTS`] of a pinhole: 100 was worse than the measured points).
+pub(crate) const LENS_SELECTION_POINTS: usize = 300;
+/// Most LM iterations of the polish on lens-distilled sets (200 changed nothing).
+pub(crate) const LENS_POLISH_MAX_ITER: usize = 100;
+/// The lens fit is trusted when its residual variance is at most this times the pixel
+/// noise variance that `noise` reads off the data (a smooth cubic per coordinate): a
+/// radial lens about the principal point then explains the image as well as the cubic.
+pub(crate) const LENS_MAX_VAR_RATIO: f64 = 2.0;
+/// Fewest training points for a lens fit to be distilled. The thesis' 4x3 board at 2 cm (72
+/// points, a small patch of the image where a lens barely bends it) was worse with it on the
+/// tuning seeds (0.05 px noise, k1 0 to -0.2, case IV, bases 0 and 2,000,000: 1.02x, 1.05x
+/// -> 1.01-1.05x, 1.06x the floor); the 9x6 board's 324 points better in most sub-pixel sets.
+pub(crate) const LENS_MIN_POINTS: usize = 200;
+
+/// Sub-pixel (not quantised) stereo pixels: the net's training set from the two fitted
+/// [`LensFit`]s ([`lens_distilled_set`], noise of the fits' residual variance), when the
+/// fits explain the pixels ([`LENS_MAX_VAR_RATIO`]). `None` for quantised sets (they have
+/// [`distilled_set`]), sets of fewer than [`LENS_MIN_POINTS`], or pixels the fit does not
+/// explain.
+pub(crate) fn lens_distilled(data: &Dataset, seed: u64) -> Option<Distilled> {
+    if quantised(data) || data.len() < LENS_MIN_POINTS {
+        return None;
+    }
+    let noise = super::noise::pixel_noise(data)?;
+    let (cams, var) = fit_lens_cameras(data)?;
+    if var.is_nan() || var > LENS_MAX_VAR_RATIO * noise.var {
+        return None;
+    }
+    Some(Distilled {
+        set: lens_distilled_set(data, &cams, var, seed)?,
+        selection: LENS_SELECTION_POINTS,
+        polish_iter: LENS_POLISH_MAX_ITER,
+        lenses: true,
+    })
+}
+
+/// A standard normal draw (Box-Muller).
+fn gaussian(rng: &mut SplitMix64) -> f64 {
+    let u = rng.next_f64().max(f64::MIN_POSITIVE);
+    let v = rng.next_f64();
+    (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+}
+
+/// Mixed into the training seed for the lens-distilled points' stream.
+const LENS_STREAM: u64 = 0x6c65_6e73_6469_7374;
+
+/// The box of the training targets, `None` when it is degenerate.
+fn target_box(data: &Dataset) -> Option<([f64; 3], [f64; 3])> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for t in &data.targets {
+        for k in 0..3 {
+            lo[k] = lo[k].min(t[k]);
+            hi[k] = hi[k].max(t[k]);
+        }
+    }
+    (0..3).all(|k| hi[k] > lo[k]).then_some((lo, hi))
+}
+
 /// The first `n` rows of `data` (all of them when it has fewer).
 pub(crate) fn prefix(data: &Dataset, n: usize) -> Dataset {
     let mut out = Dataset::new(InputKind::Stereo);
@@ -330,6 +628,62 @@ mod tests {
         }
         // The synthetic pixels are not integers: they carry one rounding step of noise.
         assert!(!quantised(&a));
+    }
+
+    /// The 9x6 board at 6 cm at the training depths.
+    fn wide_board() -> Vec<[f64; 3]> {
+        let mut pts = Vec::new();
+        for z in presets::TRAIN_DEPTHS {
+            for j in 0..6 {
+                for i in 0..9 {
+                    pts.push([(i as f64 - 4.0) * 6.0, (j as f64 - 2.5) * 6.0, z]);
+                }
+            }
+        }
+        pts
+    }
+
+    #[test]
+    fn a_lens_fit_recovers_the_lens_of_precise_pixels() {
+        let lens = Distortion { k1: -0.1, k2: 0.0 };
+        let head = HeadRig::new(presets::CASE_4).with_distortion(lens);
+        let pts = wide_board();
+        let d = set(&head, &pts, false);
+        let (cams, var) = fit_lens_cameras(&d).unwrap();
+        assert!(var < 1e-12, "exact pixels: residual variance {var}");
+        // Off the board and beyond its box: where the true cameras and lenses put it.
+        for q in [[27.0, -17.0, 70.0], [-5.0, 8.0, 120.0], [30.0, 20.0, 160.0]] {
+            let truth = head.project(&Joints::HOME, &q).unwrap();
+            for (cam, f) in cams.iter().enumerate() {
+                let y = f.project(&q).unwrap();
+                for c in 0..2 {
+                    let e = (y[c] - truth[2 * cam + c]).abs();
+                    assert!(e < 1e-4, "{q:?} camera {cam}: {e} px");
+                }
+            }
+        }
+        // The barrel lens is in k1 (both cameras), not left as residual.
+        assert!(
+            cams.iter().all(|f| f.k[0] < -1e-3),
+            "{:?}",
+            cams.map(|f| f.k)
+        );
+        // The distilled set: synthetic points beyond the targets' box, noise of the fit's.
+        let dist = lens_distilled(&d, 7).unwrap();
+        assert_eq!(dist.set.len(), SYNTHETIC_POINTS);
+        assert_eq!(dist.selection, LENS_SELECTION_POINTS);
+        assert!(dist.set.targets.iter().any(|t| t[0] > 24.0));
+        assert!(dist
+            .set
+            .targets
+            .iter()
+            .all(|t| t[0].abs() <= 24.0 * (1.0 + 2.0 * LENS_MARGIN)));
+        assert_eq!(dist.set.inputs, lens_distilled(&d, 7).unwrap().set.inputs);
+        assert_ne!(dist.set.inputs, lens_distilled(&d, 8).unwrap().set.inputs);
+        // Quantised pixels are not for it (they have `distilled_set`), nor the thesis' small
+        // board.
+        assert!(lens_distilled(&set(&head, &pts, true), 7).is_none());
+        assert!(lens_distilled(&set(&head, &thesis_points(), false), 7).is_none());
     }
 
     #[test]

@@ -155,40 +155,71 @@ pub fn image_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<I
     };
     progress.start("images", regimes.len() as u64);
     let rig = case_rig(SWEEP_CASE)?;
-    let (train_z, test_z) = depths(cfg);
     let rows = regimes
         .iter()
         .enumerate()
         .map(|(k, regime)| {
-            let lens = Distortion {
-                k1: regime.k1,
-                k2: 0.0,
-            };
-            let head = HeadRig::new(rig).with_distortion(lens);
-            let seed = |set: u64| move |d: usize| set_seed(cfg.seed_base, 3, k, d, SWEEP_CASE, set);
-            let (train, train_n, err) =
-                detect_boards(&head, regime, [0.0, 0.0], &train_z, seed(1))?;
-            let (test, test_n, _) = detect_boards(&head, regime, TEST_CENTRE, &test_z, seed(2))?;
-            if train.len() < 2 * opencv_board().corner_count() || test.is_empty() {
-                bail!(
-                    "images {}: too few boards detected ({} training and {} test corners)",
-                    regime.name,
-                    train.len(),
-                    test.len()
-                );
-            }
-            let ev = estimate(cfg, &rig, lens, &train, &test)
+            let s = image_sets(cfg, k, regime)?;
+            let ev = estimate(cfg, &rig, s.lens, &s.train, &s.test)
                 .with_context(|| format!("images {}", regime.name))?;
             progress.inc();
             Ok(ImageRow {
                 regime: *regime,
-                train_corners: [train.len(), train_n],
-                test_corners: [test.len(), test_n],
-                corner_error_px: err / (4 * train.len()) as f64,
+                train_corners: [s.train.len(), s.train_rendered],
+                test_corners: [s.test.len(), s.test_rendered],
+                corner_error_px: s.corner_error_px,
                 scores: mean_scores(&ev),
             })
         })
         .collect::<Result<Vec<_>>>()?;
     progress.finish();
     Ok(rows)
+}
+
+/// The detected corners of one image regime: what the estimators are fitted on and scored on.
+#[derive(Debug, Clone)]
+pub struct ImageSets {
+    /// Both lenses.
+    pub lens: Distortion,
+    /// Detected training corners with their true positions.
+    pub train: Dataset,
+    /// Detected test corners with their true positions.
+    pub test: Dataset,
+    /// Training corners rendered.
+    pub train_rendered: usize,
+    /// Test corners rendered.
+    pub test_rendered: usize,
+    /// Mean |detected - exact| per image coordinate over the detected training corners (px).
+    pub corner_error_px: f64,
+}
+
+/// Renders and detects the training and test boards of regime `regime`, the `k`-th of
+/// [`image_regimes`] (its seeds derive from `cfg.seed_base` and `k`), through case IV.
+pub fn image_sets(cfg: &AccuracyConfig, k: usize, regime: &ImageRegime) -> Result<ImageSets> {
+    let rig = case_rig(SWEEP_CASE)?;
+    let (train_z, test_z) = depths(cfg);
+    let lens = Distortion {
+        k1: regime.k1,
+        k2: 0.0,
+    };
+    let head = HeadRig::new(rig).with_distortion(lens);
+    let seed = |set: u64| move |d: usize| set_seed(cfg.seed_base, 3, k, d, SWEEP_CASE, set);
+    let (train, train_n, err) = detect_boards(&head, regime, [0.0, 0.0], &train_z, seed(1))?;
+    let (test, test_n, _) = detect_boards(&head, regime, TEST_CENTRE, &test_z, seed(2))?;
+    if train.len() < 2 * opencv_board().corner_count() || test.is_empty() {
+        bail!(
+            "images {}: too few boards detected ({} training and {} test corners)",
+            regime.name,
+            train.len(),
+            test.len()
+        );
+    }
+    Ok(ImageSets {
+        lens,
+        corner_error_px: err / (4 * train.len()) as f64,
+        train,
+        test,
+        train_rendered: train_n,
+        test_rendered: test_n,
+    })
 }
