@@ -791,16 +791,17 @@ mod tests {
         use hvs_shared::sim::camera::Distortion;
         let lens = Distortion { k1: -0.1, k2: 0.0 };
         let rig = presets::case(4).unwrap();
-        let sim = |kind: SetKind, seed: u64| {
+        let set = |lens: Distortion, noise_px: f64, kind: SetKind, seed: u64| {
             let opt = SimOptions {
                 board: Board::parse("9x6:6").unwrap(),
                 pixels: Pixels::Exact,
-                noise_px: 0.01,
+                noise_px,
                 points: 500,
                 seed,
             };
             crate::study::accuracy::simulate_set(&rig, lens, kind, &opt).unwrap()
         };
+        let sim = |kind, seed| set(lens, 0.01, kind, seed);
         let (train_set, test) = (sim(SetKind::Train, 11), sim(SetKind::Volume, 12));
         let cfg = TrainConfig {
             family: Family::INVERSE_DEPTH_SKIP,
@@ -822,17 +823,7 @@ mod tests {
         // Measured: 1.010 (0.0481 % / 0.0476 %).
         assert!(net <= 1.03 * floor, "net {net} % vs floor {floor} %");
         // Pinhole pixels of a sub-pixel set take the same path (no lens fitted: k = 0 fits).
-        let plain = |kind: SetKind, seed: u64| {
-            let opt = SimOptions {
-                board: Board::parse("9x6:6").unwrap(),
-                pixels: Pixels::Exact,
-                noise_px: 0.05,
-                points: 500,
-                seed,
-            };
-            crate::study::accuracy::simulate_set(&rig, Distortion::NONE, kind, &opt).unwrap()
-        };
-        let out = train(&plain(SetKind::Train, 13), &cfg).unwrap();
+        let out = train(&set(Distortion::NONE, 0.05, SetKind::Train, 13), &cfg).unwrap();
         assert_eq!(out.synthetic_points, Some(projective::SYNTHETIC_POINTS));
     }
 

@@ -128,48 +128,70 @@ fn refine(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: i32) {
                 }
             }
         }
-        let mut improved = false;
-        for _ in 0..30 {
+        let step = damped_step(&mut lambda, &mut cost, 30, 1e-12, |lambda| {
             let mut a = jtj;
             for q in 0..12 {
                 a[(q, q)] += lambda * (jtj[(q, q)] + 1e-12);
             }
-            let Some(dp) = a.lu().solve(&(-g)) else {
-                lambda *= 10.0;
-                continue;
-            };
+            let dp = a.lu().solve(&(-g))?;
             let mut t = *m;
             for q in 0..12 {
                 t[(q / 4, q % 4)] += dp[q];
             }
             t /= t.norm();
-            let c = lp_cost(&t, pts, px, p);
-            if c < cost {
-                improved = (cost - c) > 1e-12 * cost;
+            Some((t, lp_cost(&t, pts, px, p)))
+        });
+        match step {
+            Some((t, improved)) => {
                 *m = t;
-                cost = c;
-                lambda = (lambda * 0.3).max(1e-12);
-                break;
+                if !improved {
+                    break;
+                }
             }
-            lambda *= 10.0;
-        }
-        if !improved {
-            break;
+            None => break,
         }
     }
+}
+
+/// One damped (Levenberg-Marquardt) step: for a damping growing tenfold from `lambda`, at
+/// most `tries` times, `propose(lambda)` gives a candidate and its cost (`None`: no solution
+/// at this damping); the first that lowers `cost` is returned, `cost` and `lambda` (x 0.3,
+/// at least 1e-12) updated, with whether it lowered the cost by more than `rel_tol` of it.
+fn damped_step<T>(
+    lambda: &mut f64,
+    cost: &mut f64,
+    tries: usize,
+    rel_tol: f64,
+    mut propose: impl FnMut(f64) -> Option<(T, f64)>,
+) -> Option<(T, bool)> {
+    for _ in 0..tries {
+        if let Some((t, c)) = propose(*lambda) {
+            if c < *cost {
+                let improved = *cost - c > rel_tol * *cost;
+                *cost = c;
+                *lambda = (*lambda * 0.3).max(1e-12);
+                return Some((t, improved));
+            }
+        }
+        *lambda *= 10.0;
+    }
+    None
+}
+
+/// The normalised DLT of one camera, signed so that the training points lie in front of it.
+fn dlt_in_front(pts: &[[f64; 3]], px: &[[f64; 2]]) -> Option<Matrix3x4<f64>> {
+    let m = fit_dlt(pts, px).ok()?;
+    let front = pts
+        .iter()
+        .map(|q| (m * Vector4::new(q[0], q[1], q[2], 1.0))[2])
+        .sum::<f64>();
+    Some(if front < 0.0 { -m } else { m })
 }
 
 /// The 3x4 projection matrix of one camera from the training targets and its pixels: the
 /// normalised DLT, then the `sum |r|^p` fit for p = 2, 4, 8, .. [`LP_EXPONENT`].
 pub(crate) fn fit_camera(pts: &[[f64; 3]], px: &[[f64; 2]]) -> Option<Matrix3x4<f64>> {
-    let mut m = fit_dlt(pts, px).ok()?;
-    let front = pts
-        .iter()
-        .map(|q| (m * Vector4::new(q[0], q[1], q[2], 1.0))[2])
-        .sum::<f64>();
-    if front < 0.0 {
-        m = -m;
-    }
+    let mut m = dlt_in_front(pts, px)?;
     let mut p = 2;
     refine(&mut m, pts, px, p);
     while p < LP_EXPONENT {
@@ -214,27 +236,34 @@ pub(crate) fn fit_cameras(data: &Dataset) -> Option<[Matrix3x4<f64>; 2]> {
 /// data are not quantised, a pinhole fit does not explain them, or the box is degenerate.
 pub(crate) fn distilled_set(data: &Dataset, seed: u64) -> Option<Dataset> {
     let cams = fit_cameras(data)?;
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for t in &data.targets {
-        for k in 0..3 {
-            lo[k] = lo[k].min(t[k]);
-            hi[k] = hi[k].max(t[k]);
-        }
-    }
-    if (0..3).any(|k| hi[k] <= lo[k]) {
-        return None;
-    }
-    let mut rng = SplitMix64::new(seed ^ STREAM);
+    let (lo, hi) = target_box(data)?;
+    draw_set(
+        (lo, hi),
+        seed ^ STREAM,
+        |p| Some((project(&cams[0], p)?, project(&cams[1], p)?)),
+        |rng| rng.uniform(-0.5, 0.5),
+    )
+}
+
+/// [`SYNTHETIC_POINTS`] points uniform in the box `(lo, hi)`, through `cams` (left and right
+/// images of a point, `None` when it is not seen), each pixel coordinate plus a `noise` draw;
+/// from the stream `seed`. `None` when fewer than half of them are seen.
+fn draw_set(
+    (lo, hi): ([f64; 3], [f64; 3]),
+    seed: u64,
+    cams: impl Fn(&[f64; 3]) -> Option<([f64; 2], [f64; 2])>,
+    mut noise: impl FnMut(&mut SplitMix64) -> f64,
+) -> Option<Dataset> {
+    let mut rng = SplitMix64::new(seed);
     let mut out = Dataset::new(InputKind::Stereo);
     for _ in 0..SYNTHETIC_POINTS {
         let p: [f64; 3] = core::array::from_fn(|k| rng.uniform(lo[k], hi[k]));
-        let (Some(l), Some(r)) = (project(&cams[0], &p), project(&cams[1], &p)) else {
+        let Some((l, r)) = cams(&p) else {
             continue;
         };
         let mut px = [l[0], l[1], r[0], r[1]];
         for v in &mut px {
-            *v += rng.uniform(-0.5, 0.5);
+            *v += noise(&mut rng);
         }
         if px.iter().all(|v| v.is_finite()) {
             out.push(&px, Some(p));
@@ -321,14 +350,7 @@ pub(crate) const LENS_FIT_DOF: usize = 13;
 /// One camera's [`LensFit`] to its training pixels by least squares (Levenberg-Marquardt,
 /// forward-difference Jacobian), from the normalised DLT and no lens.
 pub(crate) fn fit_lens_camera(pts: &[[f64; 3]], px: &[[f64; 2]]) -> Option<LensFit> {
-    let mut m = fit_dlt(pts, px).ok()?;
-    let front = pts
-        .iter()
-        .map(|q| (m * Vector4::new(q[0], q[1], q[2], 1.0))[2])
-        .sum::<f64>();
-    if front < 0.0 {
-        m = -m;
-    }
+    let mut m = dlt_in_front(pts, px)?;
     m /= m.norm();
     // Unit radius: half the pixels' widest spread about the principal point.
     let c = principal_point(&m)?;
@@ -373,38 +395,30 @@ pub(crate) fn fit_lens_camera(pts: &[[f64; 3]], px: &[[f64; 2]]) -> Option<LensF
         }
         let jtj = j.transpose() * &j;
         let grad = j.transpose() * &r;
-        let mut improved = false;
-        for _ in 0..20 {
+        let step = damped_step(&mut lambda, &mut cost, 20, 1e-10, |lambda| {
             let mut a = jtj.clone();
             for d in 0..14 {
                 a[(d, d)] += lambda * (jtj[(d, d)] + 1e-12);
             }
-            let Some(dp) = a.lu().solve(&(-&grad)) else {
-                lambda *= 10.0;
-                continue;
-            };
+            let dp = a.lu().solve(&(-&grad))?;
             let mut qt = q;
             for (v, d) in qt.iter_mut().zip(dp.iter()) {
                 *v += d;
             }
             let t = fit.with_params(&qt);
-            let Some(rt) = resid(&t) else {
-                lambda *= 10.0;
-                continue;
-            };
+            let rt = resid(&t)?;
             let ct = rt.norm_squared();
-            if ct < cost {
-                improved = cost - ct > 1e-10 * cost;
+            Some(((t, rt), ct))
+        });
+        match step {
+            Some(((t, rt), improved)) => {
                 fit = t;
                 r = rt;
-                cost = ct;
-                lambda = (lambda * 0.3).max(1e-12);
-                break;
+                if !improved {
+                    break;
+                }
             }
-            lambda *= 10.0;
-        }
-        if !improved {
-            break;
+            None => break,
         }
     }
     (fit.params().iter().all(|v| v.is_finite()) && cost.is_finite()).then_some(fit)
@@ -446,22 +460,12 @@ pub(crate) fn lens_distilled_set(
         hi[k] += LENS_MARGIN * w;
     }
     let sigma = var.max(0.0).sqrt();
-    let mut rng = SplitMix64::new(seed ^ LENS_STREAM);
-    let mut out = Dataset::new(InputKind::Stereo);
-    for _ in 0..SYNTHETIC_POINTS {
-        let p: [f64; 3] = core::array::from_fn(|k| rng.uniform(lo[k], hi[k]));
-        let (Some(l), Some(r)) = (cams[0].project(&p), cams[1].project(&p)) else {
-            continue;
-        };
-        let mut px = [l[0], l[1], r[0], r[1]];
-        for v in &mut px {
-            *v += sigma * gaussian(&mut rng);
-        }
-        if px.iter().all(|v| v.is_finite()) {
-            out.push(&px, Some(p));
-        }
-    }
-    (out.len() >= SYNTHETIC_POINTS / 2).then_some(out)
+    draw_set(
+        (lo, hi),
+        seed ^ LENS_STREAM,
+        |p| Some((cams[0].project(p)?, cams[1].project(p)?)),
+        |rng| sigma * gaussian(rng),
+    )
 }
 
 /// A synthetic training set and how it is learned: the restarts on its first `selection`
