@@ -99,33 +99,52 @@ fn refine(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: i32) {
     let mut cost = lp_cost(m, pts, px, p);
     let mut lambda = 1e-3;
     for _ in 0..300 {
-        let mut jtj = SMatrix::<f64, 12, 12>::zeros();
+        // Every row of the Jacobian is a multiple of a = x~ / w: u's row is (a, 0, -u a),
+        // v's (0, a, -v a). So J^T W J is made of five weighted sums of a a^T: the blocks
+        // (0,0) sum w_u a a^T, (1,1) sum w_v a a^T, (0,2) -sum w_u u a a^T, (1,2)
+        // -sum w_v v a a^T, (2,2) sum (w_u u^2 + w_v v^2) a a^T.
+        let mut blocks = [[0.0f64; 16]; 5];
         let mut g = SVector::<f64, 12>::zeros();
         for (q, x) in pts.iter().zip(px) {
-            let xh = [q[0], q[1], q[2], 1.0];
             let h = *m * Vector4::new(q[0], q[1], q[2], 1.0);
             let w = h[2];
+            let a = [q[0] / w, q[1] / w, q[2] / w, 1.0 / w];
             let uv = [h[0] / w, h[1] / w];
-            for c in 0..2 {
-                let r = uv[c] - x[c];
-                let weight = abs_pow(r.abs().max(1e-6), p - 2);
-                // The row's non-zero entries: columns 4c..4c+4 (x~ / w) and 8..12
-                // (-uv_c x~ / w).
-                let mut cols = [0usize; 8];
-                let mut vals = [0.0; 8];
-                for (k, xk) in xh.iter().enumerate() {
-                    cols[k] = 4 * c + k;
-                    vals[k] = xk / w;
-                    cols[4 + k] = 8 + k;
-                    vals[4 + k] = -uv[c] * xk / w;
-                }
-                for a in 0..8 {
-                    let wa = vals[a] * weight;
-                    g[cols[a]] += wa * r;
-                    for b in 0..8 {
-                        jtj[(cols[a], cols[b])] += wa * vals[b];
+            let r = [uv[0] - x[0], uv[1] - x[1]];
+            let wt = r.map(|r| abs_pow(r.abs().max(1e-6), p - 2));
+            let coef = [
+                wt[0],
+                wt[1],
+                -wt[0] * uv[0],
+                -wt[1] * uv[1],
+                wt[0] * uv[0] * uv[0] + wt[1] * uv[1] * uv[1],
+            ];
+            for (blk, c) in blocks.iter_mut().zip(coef) {
+                for i in 0..4 {
+                    let ca = c * a[i];
+                    for j in 0..4 {
+                        blk[4 * i + j] += ca * a[j];
                     }
                 }
+            }
+            let gl = -wt[0] * r[0] * uv[0] - wt[1] * r[1] * uv[1];
+            for i in 0..4 {
+                g[i] += wt[0] * r[0] * a[i];
+                g[4 + i] += wt[1] * r[1] * a[i];
+                g[8 + i] += gl * a[i];
+            }
+        }
+        let mut jtj = SMatrix::<f64, 12, 12>::zeros();
+        for i in 0..4 {
+            for j in 0..4 {
+                let k = 4 * i + j;
+                jtj[(i, j)] = blocks[0][k];
+                jtj[(4 + i, 4 + j)] = blocks[1][k];
+                jtj[(i, 8 + j)] = blocks[2][k];
+                jtj[(8 + j, i)] = blocks[2][k];
+                jtj[(4 + i, 8 + j)] = blocks[3][k];
+                jtj[(8 + j, 4 + i)] = blocks[3][k];
+                jtj[(8 + i, 8 + j)] = blocks[4][k];
             }
         }
         let step = damped_step(&mut lambda, &mut cost, 30, 1e-12, |lambda| {
