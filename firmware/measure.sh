@@ -9,7 +9,9 @@
 #   - instructions per inference, counted in QEMU with `-icount shift=0` (1 instruction = 1 ns of
 #     virtual time; SysTick counts at 168 MHz), from the `bench` build's Bench request (2000
 #     inferences, minus an empty loop): the default family's 4-5-3 net (inverse-depth-skip),
-#     the thesis family's 4-5-3 net and a 9-16-3 posture-aware net.
+#     the thesis family's 4-5-3 net, and a 9-16-3 posture-aware net in the thesis family (what
+#     `hvs train` writes for a posture set) and in the default family (`--arch
+#     inverse-depth-skip`).
 # Budgets: whole-image flash <= 24 KiB for every board build and static RAM + stack peak
 # <= 16 KiB (issue 17); <= 1,200 instructions per inference of the default family's 4-5-3 net
 # (issue 14); <= 900 per inference of the thesis family's 4-5-3 net (issue 4). Exits 1 if a
@@ -99,6 +101,8 @@ if [ -z "$posture" ]; then
   posture="$work/sample-9-16-3.bin"
   cargo run --quiet --locked -p hvs-tests --example sample_blob -- "$posture" 2 16
 fi
+default_posture="$work/sample-default-9-16-3.bin"
+cargo run --quiet --locked -p hvs-tests --example sample_blob -- "$default_posture" 2 16 default
 default_model="$work/sample-default-4-5-3.bin"
 cargo run --quiet --locked -p hvs-tests --example sample_blob -- "$default_model" 1 default
 cargo build --quiet --locked -p hvs-host
@@ -159,7 +163,8 @@ bench() { # model
 }
 instr_default=$(bench "$default_model")
 instr_small=$(bench "$small")
-bench "$posture" >/dev/null
+instr_posture=$(bench "$posture")
+instr_default_posture=$(bench "$default_posture")
 
 echo "== summary ($(date -u +%Y-%m-%d))"
 for b in board pwm qemu; do
@@ -169,6 +174,7 @@ done
 echo "   stack peak $peak B; static RAM + stack $total B (budget $RAM_BUDGET)"
 echo "   instructions per $(shape "$default_model") $(family "$default_model") inference: $instr_default (default family; budget $INSTR_BUDGET_DEFAULT, issue 14)"
 echo "   instructions per $(shape "$small") $(family "$small") inference: $instr_small (budget $INSTR_BUDGET_THESIS for the thesis family, issue 4)"
+echo "   instructions per $(shape "$posture") $(family "$posture") inference: $instr_posture; $(family "$default_posture"): $instr_default_posture (posture-aware; no budget)"
 # within VALUE BUDGET: whether a (decimal) instruction count is at most the budget.
 within() { [ -n "$1" ] && awk -v v="$1" -v b="$2" 'BEGIN { exit !(v <= b) }'; }
 status=0

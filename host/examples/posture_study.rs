@@ -9,10 +9,13 @@
 //!
 //! Options: `--case N` (1-4, default 3), `--seed S`, `--hidden H` (default 16), `--restarts R`,
 //! `--sweep` (also train 5, 8, 12, 24, 32 hidden neurons and the regular lattice of postures),
-//! `--lattice` (also train the chosen size on the regular lattice of postures),
+//! `--arch A` (family of the posture-aware nets, as `hvs train --arch`; default `thesis`,
+//! `hvs train`'s for a posture-aware set), `--lattice` (also train the chosen size on the regular lattice of postures),
 //! `--quick` (a 2-level training grid and fewer test points: a smoke run), `--out DIR`.
 
 use anyhow::{bail, Context, Result};
+use clap::ValueEnum;
+use hvs_host::cli::train::ArchArg;
 use hvs_host::study::posture::{csv_tables, markdown, run, StudyConfig};
 use std::path::PathBuf;
 
@@ -36,6 +39,12 @@ fn main() -> Result<()> {
             "--seed" => cfg.seed = value("--seed")?.parse().context("--seed")?,
             "--hidden" => cfg.hidden = value("--hidden")?.parse().context("--hidden")?,
             "--restarts" => cfg.restarts = value("--restarts")?.parse().context("--restarts")?,
+            "--arch" => {
+                let v = value("--arch")?;
+                cfg.family = ArchArg::from_str(&v, false)
+                    .map_err(|e| anyhow::anyhow!("--arch: {e}"))?
+                    .family();
+            }
             "--out" => out = Some(PathBuf::from(value("--out")?)),
             "--sweep" => {
                 cfg.sweep = vec![5, 8, 12, 16, 24, 32];

@@ -207,6 +207,18 @@ pub fn sample_posture_model_hidden(generation: u32, seed: u64, hidden: u8) -> Mo
     })
 }
 
+/// [`sample_posture_model_hidden`] in the default family of `hvs train` (inverse depth with a
+/// linear skip term over the nine inputs): the posture-aware net `hvs train` writes, for
+/// `firmware/measure.sh`'s stack workload and instruction count.
+pub fn sample_default_posture_model(generation: u32, seed: u64, hidden: u8) -> ModelBlob {
+    sample(SampleSpec {
+        inputs: InputKind::StereoJoints,
+        hidden,
+        family: Family::INVERSE_DEPTH_SKIP,
+        ..legacy(generation, seed)
+    })
+}
+
 /// One SplitMix64 step (Steele, Lea, Flood 2014): advances `state`, returns the next 64
 /// random bits. The seeded generator of tests, examples and fuzzers (same seed, same bits).
 pub fn splitmix64(state: &mut u64) -> u64 {

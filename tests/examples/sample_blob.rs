@@ -1,7 +1,8 @@
 //! Writes the seeded 4-5-3 sample blob of the QEMU tests to a file (for `firmware/measure.sh`
 //! until a trained model is at hand): `cargo run -p hvs-tests --example sample_blob -- OUT
-//! [GENERATION [POSTURE_HIDDEN | default]]`; with POSTURE_HIDDEN, a posture-aware
-//! 9-POSTURE_HIDDEN-3 one; with `default`, the 4-5-3 in the default family of `hvs train`.
+//! [GENERATION [POSTURE_HIDDEN [default] | default]]`; with POSTURE_HIDDEN, a posture-aware
+//! 9-POSTURE_HIDDEN-3 one (thesis family; with `default` after it, in the default family of
+//! `hvs train`); with `default` alone, the 4-5-3 in the default family.
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -26,7 +27,14 @@ fn main() {
     }) {
         None => hvs_tests::sample_model(generation, 42),
         Some(Ok(0)) => hvs_tests::sample_default_model(generation, 42),
-        Some(Ok(h @ 1..=32)) => hvs_tests::sample_posture_model_hidden(generation, 42, h),
+        Some(Ok(h @ 1..=32)) => match args.next().as_deref() {
+            None => hvs_tests::sample_posture_model_hidden(generation, 42, h),
+            Some("default") => hvs_tests::sample_default_posture_model(generation, 42, h),
+            Some(other) => {
+                eprintln!("error: after POSTURE_HIDDEN only `default`, got {other}");
+                std::process::exit(2);
+            }
+        },
         Some(_) => {
             eprintln!("error: POSTURE_HIDDEN: a hidden unit count 1..=32");
             std::process::exit(2);

@@ -52,7 +52,8 @@ fn parse_int(s: &str) -> Option<u32> {
 }
 
 pub use hvs_shared::test_support::{
-    sample_default_model, sample_model, sample_posture_model, sample_posture_model_hidden,
+    sample_default_model, sample_default_posture_model, sample_model, sample_posture_model,
+    sample_posture_model_hidden,
 };
 
 /// The bytes of `blob` as written into a weight slot (no trailing erased bytes).

@@ -28,7 +28,7 @@ fn posture_long_about() -> String {
     format!(
         "The posture study of issue 8 (hvs_host::study::posture) on thesis case {}: the \
          thesis' 4-5-3 net, trained at the home posture, evaluated at verged and turned \
-         postures; a posture-aware 9-{}-3 net (pixels and the five joint angles) per posture \
+         postures; a posture-aware 9-{}-3 net of family {} (pixels and the five joint angles) per posture \
          band of the working range against the optimal-triangulation floor at the same \
          posture (goal: within {:.0} %); the hidden-neuron count it needs ({}); lens \
          distortion k1 {} to {} for the networks, a DLT fit and the floor. Each part writes a \
@@ -36,6 +36,7 @@ fn posture_long_about() -> String {
          release on 2 cores. Same seed, same CSV bytes.",
         roman(s.case),
         s.hidden,
+        s.family.name(),
         (posture::GOAL_RATIO - 1.0) * 100.0,
         join(&s.sweep, ", "),
         k1(s.k1.first()),

@@ -80,6 +80,14 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     );
     let info = ok(&["info", &dir.p("m.hvsw")]);
     assert!(info.contains("9-8-3"), "{info}");
+    // Without --arch a posture-aware set gets the posture-aware default (thesis), not the
+    // 4-input default.
+    let posture = hvs_host::cli::train::ArchArg::POSTURE_DEFAULT
+        .family()
+        .name();
+    let default = hvs_host::cli::train::ArchArg::DEFAULT.family().name();
+    assert_ne!(posture, default);
+    assert!(info.contains(posture) && !info.contains(default), "{info}");
     let json = ok_line(&format!(
         "eval --model {} --data {} --json",
         dir.p("m.hvsw"),
@@ -99,4 +107,21 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
         dir.p("test.csv")
     ));
     assert_eq!(pred.lines().count(), 1 + 20 * 22);
+}
+
+/// `--arch inverse-depth-skip` trains the 4-input default family on a posture-aware set: a
+/// 9-H-3 net with 27 skip weights.
+#[test]
+fn arch_gives_the_default_family_on_a_posture_aware_set() {
+    let dir = Scratch::new();
+    posture_model(
+        &dir,
+        "--case 3",
+        "--postures grid --posture-levels 1,1,1,1,2",
+        "--postures random --posture-count 4",
+        "--hidden 4 --restarts 1 --arch inverse-depth-skip",
+    );
+    let info = ok(&["info", &dir.p("m.hvsw")]);
+    assert!(info.contains("9-4-3"), "{info}");
+    assert!(info.contains("inverse-depth-skip"), "{info}");
 }

@@ -28,7 +28,7 @@ use crate::sim::sets::{SetKind, SimOptions};
 use crate::study::fmt::{join, pct};
 use crate::train::{train, TrainConfig};
 use anyhow::{bail, Context, Result};
-use hvs_shared::runtime::blob::{InputKind, ModelBlob};
+use hvs_shared::runtime::blob::{Family, InputKind, ModelBlob};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::camera::{Rig, Vec3};
@@ -51,6 +51,13 @@ pub struct StudyConfig {
     pub train_levels: [u8; 5],
     /// Hidden neurons of the posture-aware net.
     pub hidden: usize,
+    /// Model family of the posture-aware nets (part (b) and its sweep): `hvs train`'s
+    /// default for posture-aware sets
+    /// ([`ArchArg::POSTURE_DEFAULT`](crate::cli::train::ArchArg::POSTURE_DEFAULT)) unless
+    /// set. Part (a) always trains the thesis family (it studies the thesis' fixed-posture
+    /// net), and so does part (c) (the thesis' net next to a wider one, a DLT fit and the
+    /// floor).
+    pub family: Family,
     /// Restarts of the posture-aware trainings.
     pub restarts: usize,
     /// Hidden counts of the sweep (empty: no sweep).
@@ -78,6 +85,7 @@ impl Default for StudyConfig {
             seed: 1,
             train_levels: posture::DEFAULT_LEVELS,
             hidden: 16,
+            family: crate::cli::train::ArchArg::POSTURE_DEFAULT.family(),
             restarts: 1,
             sweep: Vec::new(),
             lattice: false,
@@ -246,6 +254,7 @@ pub fn fixed_posture_study(cfg: &StudyConfig) -> Result<(ModelBlob, Vec<FixedRow
         &data,
         &TrainConfig {
             seed: cfg.seed,
+            family: Family::THESIS,
             ..TrainConfig::default()
         },
     )
@@ -502,6 +511,7 @@ pub fn posture_aware_study(cfg: &StudyConfig) -> Result<PostureAware> {
                     hidden,
                     restarts: cfg.restarts,
                     seed: cfg.seed,
+                    family: cfg.family,
                     ..TrainConfig::default()
                 },
             )
@@ -763,6 +773,7 @@ pub fn distortion_study(cfg: &StudyConfig) -> Result<Vec<DistortionRow>> {
                 &TrainConfig {
                     hidden: h,
                     seed: cfg.seed,
+                    family: Family::THESIS,
                     ..TrainConfig::default()
                 },
             )
@@ -833,6 +844,20 @@ pub fn run(cfg: &StudyConfig) -> Result<Report> {
     })
 }
 
+/// The family of the posture-aware nets in words, for the report.
+pub fn family_words(f: Family) -> String {
+    let outputs = if f == Family::THESIS {
+        "outputs X, Y, Z"
+    } else if f == Family::INVERSE_DEPTH {
+        "outputs X/Z, Y/Z, 1/Z"
+    } else if f == Family::INVERSE_DEPTH_SKIP {
+        "outputs X/Z, Y/Z, 1/Z, each the sigmoid net's plus an affine skip term of the nine inputs"
+    } else {
+        "other outputs"
+    };
+    format!("`{}` ({outputs})", f.name())
+}
+
 /// The markdown section of the experiments report: three tables and what they show.
 /// `command` is the command that produced the numbers.
 pub fn markdown(r: &Report, command: &str) -> String {
@@ -872,12 +897,13 @@ pub fn markdown(r: &Report, command: &str) -> String {
     let _ = writeln!(
         s,
         "\n### (b) The posture-aware net over the working range\n\n\
-         Inputs: the four pixels and the five joint angles (degrees); outputs X, Y, Z in the \
-         head frame. Working range: {} degrees. Trained (LM, {} restarts) on the board protocol (72 points) at \
+         Inputs: the four pixels and the five joint angles (degrees); family {}; the model \
+         gives X, Y, Z in the head frame. Working range: {} degrees. Trained (LM, {} restarts) on the board protocol (72 points) at \
          {} postures, one drawn at random in each cell of a {:?} grid: {} rows. Tested on {} \
          random points at {} random postures, and {} points at extreme postures (the four angles \
          in the outer third of their magnitude, e.g. |neck pan| 20-30, and vergence 6.7-10). Bands: thirds of each term's \
          range (by magnitude for the four angles).\n",
+        family_words(c.family),
         report::working_range_words(&PostureRange::WORKING),
         c.restarts,
         a.train_postures,
@@ -1133,6 +1159,34 @@ mod tests {
             distortion_hidden: vec![5],
             ..StudyConfig::default().reduced()
         }
+    }
+
+    /// The posture-aware nets are trained in the configured family (by default `hvs train`'s
+    /// for a posture-aware set); part (a) stays the thesis' net whatever it is.
+    #[test]
+    fn posture_aware_nets_use_the_configured_family() {
+        use crate::cli::train::ArchArg;
+        assert_eq!(
+            StudyConfig::default().family,
+            ArchArg::POSTURE_DEFAULT.family()
+        );
+        let cfg = StudyConfig {
+            train_levels: [1, 1, 1, 1, 2],
+            hidden: 3,
+            test_postures: 10,
+            test_points: 30,
+            extreme_points: 10,
+            fixed_points: 10,
+            family: Family::INVERSE_DEPTH_SKIP,
+            ..StudyConfig::default().reduced()
+        };
+        let aware = posture_aware_study(&cfg).unwrap();
+        assert_eq!(aware.blob.family, Family::INVERSE_DEPTH_SKIP);
+        // 9-3-3: 13 * 3 + 3 net weights and 3 x 9 skip weights.
+        assert_eq!(aware.blob.params.len(), 13 * 3 + 3 + 27);
+        assert_eq!(aware.sweep[0].params, aware.blob.params.len());
+        let (fixed, _) = fixed_posture_study(&cfg).unwrap();
+        assert_eq!(fixed.family, Family::THESIS);
     }
 
     /// (a) and (c) at a small size: what they show must hold even there.

@@ -736,10 +736,11 @@ fn posture_md(run: &PostureRun, total_s: f64) -> Result<String> {
     } else {
         format!(
             "Settings: those of the tables in docs/posture-study.md (the study's defaults \
-             with the example's `--sweep`): seed {}, a 9-{}-3 net trained at {} postures, {} \
-             test points at {} random postures, hidden neurons {}{}.",
+             with the example's `--sweep`): seed {}, a 9-{}-3 net of family `{}` trained at {} \
+             postures, {} test points at {} random postures, hidden neurons {}{}.",
             c.seed,
             c.hidden,
+            c.family.name(),
             r.aware.train_postures,
             c.test_points,
             c.test_postures,
