@@ -281,17 +281,15 @@ fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<(
         oc.restarts.len()
     )?;
     if let Some(n) = oc.synthetic_points {
-        if oc.synthetic_lenses {
-            writeln!(
-                o,
-                "sub-pixel pixels: the net learned {n} synthetic points of two 3x4 cameras with radial lenses fitted to them"
-            )?;
+        let (pixels, cameras) = if oc.synthetic_lenses {
+            ("sub-pixel pixels", "two 3x4 cameras with radial lenses")
         } else {
-            writeln!(
-                o,
-                "integer pixels: the net learned {n} synthetic points of two 3x4 cameras fitted to them"
-            )?;
-        }
+            ("integer pixels", "two 3x4 cameras")
+        };
+        writeln!(
+            o,
+            "{pixels}: the net learned {n} synthetic points of {cameras} fitted to them"
+        )?;
     }
     match &t.fallback {
         Some(f) => writeln!(

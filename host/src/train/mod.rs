@@ -507,16 +507,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     // Precise pixels through lenses (`projective::lens_distilled`) likewise learn from the
     // cameras and lenses fitted to them.
     let distilled = (cfg.family == Family::INVERSE_DEPTH_SKIP && cfg.algo != Algo::Bp)
-        .then(|| {
-            projective::distilled_set(data, cfg.seed)
-                .map(|d| projective::Distilled {
-                    set: d,
-                    selection: projective::SELECTION_POINTS,
-                    polish_iter: projective::POLISH_MAX_ITER,
-                    lenses: false,
-                })
-                .or_else(|| projective::lens_distilled(data, cfg.seed))
-        })
+        .then(|| projective::distilled(data, cfg.seed))
         .flatten();
     // The restarts learn the first `selection` synthetic points; the best one is then fitted
     // to all of them (below).

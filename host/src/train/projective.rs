@@ -333,16 +333,25 @@ impl LensFit {
         q
     }
 
-    fn with_params(&self, q: &[f64; 14]) -> LensFit {
+    /// The fit with parameters `q` as they are (the matrix not renormalised).
+    fn with_raw_params(&self, q: &[f64; 14]) -> LensFit {
         let mut m = self.m;
         for (i, v) in q.iter().take(12).enumerate() {
             m[(i / 4, i % 4)] = *v;
         }
-        let n = m.norm();
         LensFit {
-            m: m / n,
+            m,
             k: [q[12], q[13]],
             scale: self.scale,
+        }
+    }
+
+    /// The fit with parameters `q`, the matrix scaled to unit Frobenius norm.
+    fn with_params(&self, q: &[f64; 14]) -> LensFit {
+        let f = self.with_raw_params(q);
+        LensFit {
+            m: f.m / f.m.norm(),
+            ..f
         }
     }
 
@@ -404,12 +413,7 @@ pub(crate) fn fit_lens_camera(pts: &[[f64; 3]], px: &[[f64; 2]]) -> Option<LensF
             let mut qh = q;
             qh[c] += h;
             // Without the renormalisation: the derivative along the parameter itself.
-            let mut g = fit;
-            for (i, v) in qh.iter().take(12).enumerate() {
-                g.m[(i / 4, i % 4)] = *v;
-            }
-            g.k = [qh[12], qh[13]];
-            let rh = resid(&g)?;
+            let rh = resid(&fit.with_raw_params(&qh))?;
             j.set_column(c, &((rh - &r) / h));
         }
         let jtj = j.transpose() * &j;
@@ -539,6 +543,21 @@ pub(crate) fn lens_distilled(data: &Dataset, seed: u64) -> Option<Distilled> {
         polish_iter: LENS_POLISH_MAX_ITER,
         lenses: true,
     })
+}
+
+/// The synthetic training set of `data`, if one applies: quantised pixels through the
+/// pinhole cameras fitted to them ([`distilled_set`]), otherwise precise pixels through the
+/// fitted lenses ([`lens_distilled`]).
+pub(crate) fn distilled(data: &Dataset, seed: u64) -> Option<Distilled> {
+    match distilled_set(data, seed) {
+        Some(set) => Some(Distilled {
+            set,
+            selection: SELECTION_POINTS,
+            polish_iter: POLISH_MAX_ITER,
+            lenses: false,
+        }),
+        None => lens_distilled(data, seed),
+    }
 }
 
 /// A standard normal draw (Box-Muller).

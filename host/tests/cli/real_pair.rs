@@ -49,12 +49,15 @@ fn motorcycle_1000_points_default_within_goal() {
     let read = |p: &str| read_set(p.as_ref(), Inputs::Stereo, true).unwrap().data;
     let (tr, te) = (read(train), read(test));
     let z = hvs_host::study::accuracy::dlt_depths(&tr, &te).unwrap();
-    let dlt = z
-        .iter()
-        .enumerate()
-        .map(|(n, z)| (z - te.targets[n][2]).abs() / te.targets[n][2])
-        .sum::<f64>()
-        / z.len() as f64
-        * 100.0;
+    let method = hvs_host::evaluate::Method {
+        name: "dlt".into(),
+        z,
+    };
+    let ev = hvs_host::evaluate::evaluate(&te, &[method]);
+    assert_eq!(
+        ev.methods[0].missing, 0,
+        "the DLT triangulates every test point"
+    );
+    let dlt = ev.methods[0].mean.e_ma_pct;
     assert!(dlt < 0.01, "DLT {dlt} %");
 }

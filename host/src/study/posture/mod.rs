@@ -846,16 +846,17 @@ pub fn run(cfg: &StudyConfig) -> Result<Report> {
 
 /// The family of the posture-aware nets in words, for the report.
 pub fn family_words(f: Family) -> String {
-    let outputs = if f == Family::THESIS {
-        "outputs X, Y, Z"
-    } else if f == Family::INVERSE_DEPTH {
-        "outputs X/Z, Y/Z, 1/Z"
-    } else if f == Family::INVERSE_DEPTH_SKIP {
-        "outputs X/Z, Y/Z, 1/Z, each the sigmoid net's plus an affine skip term of the nine inputs"
-    } else {
-        "other outputs"
+    use hvs_shared::runtime::blob::Skip;
+    use hvs_shared::runtime::mlp::OutputMap;
+    let outputs = match f.output_map {
+        OutputMap::Direct => "X, Y, Z",
+        OutputMap::InverseDepth => "X/Z, Y/Z, 1/Z",
     };
-    format!("`{}` ({outputs})", f.name())
+    let skip = match f.skip {
+        Skip::None => "",
+        Skip::Linear => ", each the sigmoid net's plus an affine skip term of the nine inputs",
+    };
+    format!("`{}` (outputs {outputs}{skip})", f.name())
 }
 
 /// The markdown section of the experiments report: three tables and what they show.
