@@ -9,19 +9,23 @@
 //!
 //! Options: `--case N` (1-4, default 3), `--seed S`, `--hidden H` (default 16), `--restarts R`,
 //! `--sweep` (also train 5, 8, 12, 24, 32 hidden neurons and the regular lattice of postures),
-//! `--arch A` (family of the posture-aware nets, as `hvs train --arch`; default `thesis`,
-//! `hvs train`'s for a posture-aware set), `--lattice` (also train the chosen size on the regular lattice of postures),
+//! `--arch A` (family of the posture-aware nets, as `hvs train --arch`; default
+//! `inverse-depth-skip`, `hvs train`'s), `--frame F` (`head` or `eye-platform`, as `hvs train
+//! --frame`; default `hvs train`'s for the family), `--lattice` (also train the chosen size on the regular lattice of postures),
 //! `--quick` (a 2-level training grid and fewer test points: a smoke run), `--out DIR`.
 
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
-use hvs_host::cli::train::ArchArg;
+use hvs_host::cli::train::{ArchArg, FrameArg};
+use hvs_host::train::default_frame;
+use hvs_shared::runtime::blob::InputKind;
 use hvs_host::study::posture::{csv_tables, markdown, run, StudyConfig};
 use std::path::PathBuf;
 
 fn main() -> Result<()> {
     let mut cfg = StudyConfig::default();
     let mut out: Option<PathBuf> = None;
+    let mut frame_set = false;
     let mut args = std::env::args().skip(1);
     let mut command =
         vec!["cargo run --release -p hvs-host --example posture_study --".to_string()];
@@ -44,6 +48,16 @@ fn main() -> Result<()> {
                 cfg.family = ArchArg::from_str(&v, false)
                     .map_err(|e| anyhow::anyhow!("--arch: {e}"))?
                     .family();
+                if !frame_set {
+                    cfg.frame = default_frame(cfg.family, InputKind::StereoJoints);
+                }
+            }
+            "--frame" => {
+                let v = value("--frame")?;
+                cfg.frame = FrameArg::from_str(&v, false)
+                    .map_err(|e| anyhow::anyhow!("--frame: {e}"))?
+                    .frame();
+                frame_set = true;
             }
             "--out" => out = Some(PathBuf::from(value("--out")?)),
             "--sweep" => {

@@ -7,7 +7,7 @@
 //! (joints, degrees).
 
 use crate::runtime::blob::{
-    Algorithm, Family, InputKind, ModelBlob, OutputKind, Topology, TrainingMeta, MAX_INPUTS,
+    Algorithm, Family, InputKind, ModelBlob, OutputFrame, OutputKind, Topology, TrainingMeta, MAX_INPUTS,
     MAX_OUTPUTS, MAX_PARAMS,
 };
 use crate::runtime::mlp::{param_count, Activation, OutputMap};
@@ -46,6 +46,8 @@ pub struct SampleSpec {
     pub fallback: Option<Calibration>,
     /// The model family (how the outputs map to cm).
     pub family: Family,
+    /// The frame of the net's points (eye platform: posture-aware nets only).
+    pub frame: OutputFrame,
 }
 
 impl SampleSpec {
@@ -59,6 +61,7 @@ impl SampleSpec {
         amplitude: 1.0,
         fallback: None,
         family: Family::THESIS,
+        frame: OutputFrame::Head,
     };
 
     spec_setters! {
@@ -72,6 +75,8 @@ impl SampleSpec {
         generation: u32,
         /// This spec in `family`.
         family: Family,
+        /// This spec with its points in `frame`.
+        frame: OutputFrame,
         /// This spec with weights from `seed`.
         seed: u64,
     }
@@ -156,6 +161,7 @@ pub fn sample(spec: SampleSpec) -> ModelBlob {
         fallback: spec.fallback,
         family: spec.family,
         matcher: None,
+        frame: spec.frame,
     }
 }
 
@@ -208,13 +214,15 @@ pub fn sample_posture_model_hidden(generation: u32, seed: u64, hidden: u8) -> Mo
 }
 
 /// [`sample_posture_model_hidden`] in the default family of `hvs train` (inverse depth with a
-/// linear skip term over the nine inputs): the posture-aware net `hvs train` writes, for
-/// `firmware/measure.sh`'s stack workload and instruction count.
+/// linear skip term over the nine inputs) with its points in the eye platform's frame: the
+/// posture-aware net `hvs train` writes, for `firmware/measure.sh`'s stack workload and
+/// instruction count.
 pub fn sample_default_posture_model(generation: u32, seed: u64, hidden: u8) -> ModelBlob {
     sample(SampleSpec {
         inputs: InputKind::StereoJoints,
         hidden,
         family: Family::INVERSE_DEPTH_SKIP,
+        frame: OutputFrame::EyePlatform,
         ..legacy(generation, seed)
     })
 }

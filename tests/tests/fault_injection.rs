@@ -98,7 +98,7 @@ fn check_runs(boot: &Boot, want: &Expect, what: &str) {
                 assert_eq!(e.source, Source::Network);
                 assert_eq!(
                     e.in_range,
-                    blob.in_range(&x) && hvs_shared::runtime::head::outputs_in_range(blob, &y),
+                    blob.in_range(&x) && hvs_shared::runtime::head::outputs_in_range(blob, &x, &y),
                     "{what}"
                 );
             }

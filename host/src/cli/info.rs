@@ -67,6 +67,17 @@ pub fn run(a: Args) -> Result<()> {
         },
         b.family.exp
     )?;
+    writeln!(
+        o,
+        "frame:       {} ({})",
+        b.frame.name(),
+        match b.frame {
+            hvs_shared::runtime::blob::OutputFrame::Head => "the net gives head-frame points",
+            hvs_shared::runtime::blob::OutputFrame::EyePlatform =>
+                "the net gives points in the eye platform's frame (the head frame turned by the \
+                 neck pan, neck tilt and eye tilt inputs); the model turns them into the head frame",
+        }
+    )?;
     if let Some(g) = &b.matcher {
         writeln!(
             o,

@@ -54,8 +54,10 @@ pub fn run(a: Args) -> Result<()> {
     let no = blob.n_outputs();
     let mut far = y
         .chunks_exact(no)
+        .zip(x.chunks_exact(blob.n_inputs()))
         .enumerate()
-        .filter(|(_, o)| !outputs_in_range(blob, o));
+        .filter(|(_, (o, xi))| !outputs_in_range(blob, xi, o))
+        .map(|(r, (o, _))| (r, o));
     if let Some((first, o)) = far.next() {
         let names = model::output_names(blob.topology.outputs);
         let shown: Vec<String> = names

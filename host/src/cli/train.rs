@@ -7,7 +7,7 @@ use crate::data::output::check_not_input;
 use crate::train::fallback::{self, FallbackFit};
 use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
 use anyhow::{bail, Context, Result};
-use hvs_shared::runtime::blob::{Family, ModelBlob, OutputKind, MAX_HIDDEN};
+use hvs_shared::runtime::blob::{Family, InputKind, ModelBlob, OutputFrame, OutputKind, MAX_HIDDEN};
 use hvs_shared::runtime::traditional::Calibration;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -45,16 +45,31 @@ pub enum ArchArg {
     InverseDepthSkip,
 }
 
-impl ArchArg {
-    /// The default of `hvs train` for the four pixel inputs (and of `hvs demo --images`).
-    pub const DEFAULT: ArchArg = ArchArg::InverseDepthSkip;
+/// The frame a posture-aware net gives its points in (command-line form).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FrameArg {
+    /// The head frame (the thesis family's, and every stereo model's).
+    Head,
+    /// The eye platform's frame (the head frame turned by the neck pan, neck tilt and eye
+    /// tilt inputs); the model turns its points back into the head frame.
+    EyePlatform,
+}
 
-    /// The default of `hvs train` for a posture-aware set (the four pixels and the five joint
-    /// angles) and of the posture study's posture-aware nets: the thesis family. The default
-    /// family was measured in the study and is not adopted: overall 1.02x the floor against
-    /// 1.04x, but 1.11x in the worst band (the extreme postures) against 1.09x
-    /// (`docs/posture-study.md`).
-    pub const POSTURE_DEFAULT: ArchArg = ArchArg::Thesis;
+impl FrameArg {
+    /// The blob's frame.
+    pub fn frame(self) -> OutputFrame {
+        match self {
+            FrameArg::Head => OutputFrame::Head,
+            FrameArg::EyePlatform => OutputFrame::EyePlatform,
+        }
+    }
+}
+
+impl ArchArg {
+    /// The default of `hvs train` (four pixel inputs or posture-aware), of `hvs demo --images`
+    /// and of the posture study's posture-aware nets; a posture-aware net of this family gives
+    /// its points in the eye platform's frame ([`crate::train::default_frame`]).
+    pub const DEFAULT: ArchArg = ArchArg::InverseDepthSkip;
 
     /// The blob's family.
     pub fn family(self) -> Family {
@@ -90,10 +105,13 @@ pub struct Args {
     /// Outputs of the net.
     #[arg(long, value_enum, default_value_t = OutputsArg::Xyz)]
     outputs: OutputsArg,
-    /// Model family [default: inverse-depth-skip for the four pixel inputs; thesis for a
-    /// posture-aware set (9 inputs), the family the posture study chose].
+    /// Model family.
+    #[arg(long, value_enum, default_value_t = ArchArg::DEFAULT)]
+    arch: ArchArg,
+    /// Frame of a posture-aware net's points [default: eye-platform for a posture-aware set
+    /// (9 inputs) outside the thesis family; head otherwise].
     #[arg(long, value_enum)]
-    arch: Option<ArchArg>,
+    frame: Option<FrameArg>,
     /// Training algorithm.
     #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]
     algo: AlgoArg,
@@ -221,15 +239,20 @@ pub fn run(a: Args) -> Result<()> {
             max_cycles: a.max_cycles,
         },
         progress: std::io::stderr().is_terminal(),
-        family: ArchArg::DEFAULT.family(),
+        family: a.arch.family(),
+        frame: OutputFrame::Head,
     };
     check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
     let mut config = config;
-    config.family = match a.arch {
-        Some(arch) => arch.family(),
-        None if table.data.n_inputs > 4 => ArchArg::POSTURE_DEFAULT.family(),
-        None => ArchArg::DEFAULT.family(),
+    config.frame = match (a.frame, table.data.input_kind()) {
+        (Some(FrameArg::EyePlatform), Some(InputKind::Stereo)) => bail!(
+            "--frame eye-platform needs a posture-aware set (the five joint columns); {} has only pixels",
+            a.data.display()
+        ),
+        (Some(f), _) => f.frame(),
+        (None, Some(kind)) => train::default_frame(config.family, kind),
+        (None, None) => OutputFrame::Head,
     };
     crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
     let plan = Plan {

@@ -232,6 +232,7 @@ pub(crate) mod tests {
             fallback: None,
             family: hvs_shared::runtime::blob::Family::THESIS,
             matcher: None,
+            frame: hvs_shared::runtime::blob::OutputFrame::Head,
         }
     }
 

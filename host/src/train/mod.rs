@@ -49,7 +49,8 @@ mod rng;
 use crate::data::dataset::Dataset;
 use anyhow::{bail, Result};
 use hvs_shared::runtime::blob::{
-    Algorithm, Family, ModelBlob, OutputKind, Skip, Topology, TrainingMeta, MAX_HIDDEN, MAX_INPUTS,
+    Algorithm, Family, InputKind, ModelBlob, OutputFrame, OutputKind, Skip, Topology, TrainingMeta,
+    MAX_HIDDEN, MAX_INPUTS,
 };
 use hvs_shared::runtime::mlp::{Activation, OutputMap};
 use hvs_shared::sim::metrics::EmaAcc;
@@ -91,21 +92,27 @@ pub const MIN_SKIP_NET_DECAY_FACTOR: f64 = 0.01;
 
 /// LM settings of a family on `data`, for a net with `n_skip` skip weights: the thesis
 /// family's are fixed ([`LM_OPTIONS`]); the inverse-depth families' weight decay follows the
-/// pixel noise of the data (`noise`), times [`SKIP_NET_DECAY_FACTOR`] on the sigmoid net
-/// when there is a skip term and the noise could be estimated (stereo sets).
+/// pixel noise of the data (`noise`; the thesis' [`WEIGHT_DECAY`] where it cannot be
+/// estimated, as on posture-aware sets), times [`SKIP_NET_DECAY_FACTOR`] on the sigmoid net
+/// when there is a skip term.
 fn lm_options(f: Family, data: &Dataset, n_skip: usize) -> lm::LmOptions {
     if f == Family::THESIS {
         return LM_OPTIONS;
     }
     let pixel_noise = noise::pixel_noise(data);
     let decay = noise::decay(pixel_noise.as_ref());
-    // Posture-aware (9-input) sets have no pixel-noise estimate: their net is not held back.
     // A lens that bends the image beyond the pixel noise is what the net is for: its hold
     // shrinks by that excess (`noise::PixelNoise::lens_excess`, 1 for pinhole cameras).
+    // Posture-aware (9-input) sets have no pixel-noise estimate: the net is held with the
+    // thesis' decay times the factor. In the eye platform's frame the map barely depends on
+    // the neck and the eye tilt, so 324 postures of one board are nearly 324 copies of it and
+    // an unheld net fits their pixel rounding (posture study, case III, seed 3: 1.23x the
+    // floor over the working range; held, 1.01x; seeds 1-7 in `docs/posture-study.md`).
     let net = match pixel_noise {
         Some(n) if n_skip > 0 => {
             (SKIP_NET_DECAY_FACTOR / n.lens_excess).max(MIN_SKIP_NET_DECAY_FACTOR) * decay
         }
+        None if n_skip > 0 => SKIP_NET_DECAY_FACTOR * decay,
         _ => decay,
     };
     lm::LmOptions {
@@ -165,6 +172,9 @@ pub struct TrainConfig {
     /// Model family: what the outputs are ([`Family::THESIS`]: X, Y, Z;
     /// [`Family::INVERSE_DEPTH`]: X/Z, Y/Z, 1/Z).
     pub family: Family,
+    /// The frame the net learns its points in ([`OutputFrame::EyePlatform`]: posture-aware
+    /// sets only; the targets are turned into it, the model turns its points back).
+    pub frame: OutputFrame,
 }
 
 impl Default for TrainConfig {
@@ -180,6 +190,7 @@ impl Default for TrainConfig {
             bp: BpParams::default(),
             progress: false,
             family: Family::THESIS,
+            frame: OutputFrame::Head,
         }
     }
 }
@@ -403,6 +414,7 @@ fn export(
         fallback: None,
         family: cfg.family,
         matcher: None,
+        frame: cfg.frame,
     };
     blob.validate().ok()?;
     Some(blob)
@@ -456,6 +468,13 @@ fn check(data: &Dataset, cfg: &TrainConfig) -> Result<()> {
     if cfg.restarts == 0 || cfg.restarts > u16::MAX as usize {
         bail!("restarts must be 1..={}, got {}", u16::MAX, cfg.restarts);
     }
+    if cfg.frame == OutputFrame::EyePlatform
+        && (data.input_kind() != Some(InputKind::StereoJoints) || cfg.outputs != OutputKind::Xyz)
+    {
+        bail!(
+            "the eye-platform frame is for posture-aware sets (pixels and joint angles) with X, Y, Z outputs"
+        );
+    }
     if let Some(t) = cfg.threshold_pct {
         if !(t.is_finite() && t > 0.0) {
             bail!("the threshold must be a positive percentage, got {t}");
@@ -494,14 +513,46 @@ fn check(data: &Dataset, cfg: &TrainConfig) -> Result<()> {
     Ok(())
 }
 
+/// The frame `hvs train` (and the posture study) gives a net of `family` on inputs `kind`:
+/// the eye platform's for a posture-aware set outside the thesis family (which is kept
+/// exactly: head-frame X, Y, Z), the head frame otherwise. Posture study, case III, seed 1,
+/// 9-16-3 inverse-depth-skip: 1.02x the floor overall and 1.11x in the extreme postures in
+/// the head frame, 1.00x and 1.03x in the platform frame (`docs/posture-study.md`).
+pub fn default_frame(family: Family, kind: InputKind) -> OutputFrame {
+    if kind == InputKind::StereoJoints && family != Family::THESIS {
+        OutputFrame::EyePlatform
+    } else {
+        OutputFrame::Head
+    }
+}
+
+/// `data` with its targets turned into `frame` (`None` for the head frame: `data` as it is).
+/// The turn is the f64 twin of the model's f32 one (`OutputFrame::apply`), from the joint
+/// inputs of each row.
+fn in_output_frame(data: &Dataset, frame: OutputFrame) -> Option<Dataset> {
+    if frame == OutputFrame::Head {
+        return None;
+    }
+    let mut out = data.clone();
+    for (n, t) in out.targets.iter_mut().enumerate() {
+        let j = data.row(n);
+        *t = hvs_shared::sim::posture::base_to_platform([j[4], j[5], j[6]], t);
+    }
+    Some(out)
+}
+
 /// Trains a model on `data` as `cfg` says. Errors name the problem: empty data, missing
 /// ground truth, bad settings, or no restart under the threshold.
 pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     let start = Instant::now();
     check(data, cfg)?;
+    // The net learns the targets in its output frame; the restarts are judged (and the error
+    // reported) on `data` itself, through the model's own turn back into the head frame.
+    let in_frame = in_output_frame(data, cfg.frame);
+    let data_for_net = in_frame.as_ref().unwrap_or(data);
     let act = cfg.algo.output_activation();
     let (cols, _) = output_columns(cfg.outputs);
-    let sc = scaling(data, cols, act, cfg.family.output_map);
+    let sc = scaling(data_for_net, cols, act, cfg.family.output_map);
     // Quantised pixels: the skip family learns from the fitted cameras (`projective`); the
     // scaling, the restart choice and the reported error stay those of the measured points.
     // Precise pixels through lenses (`projective::lens_distilled`) likewise learn from the
@@ -514,7 +565,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     let selection = distilled
         .as_ref()
         .map(|d| projective::prefix(&d.set, d.selection));
-    let fit_data = selection.as_ref().unwrap_or(data);
+    let fit_data = selection.as_ref().unwrap_or(data_for_net);
     let prob = problem(fit_data, cfg, &sc);
     let mut lm_opts = lm_options(
         cfg.family,

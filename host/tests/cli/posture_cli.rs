@@ -80,14 +80,11 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     );
     let info = ok(&["info", &dir.p("m.hvsw")]);
     assert!(info.contains("9-8-3"), "{info}");
-    // Without --arch a posture-aware set gets the posture-aware default (thesis), not the
-    // 4-input default.
-    let posture = hvs_host::cli::train::ArchArg::POSTURE_DEFAULT
-        .family()
-        .name();
+    // Without --arch and --frame a posture-aware set gets the default family with its points
+    // in the eye platform's frame.
     let default = hvs_host::cli::train::ArchArg::DEFAULT.family().name();
-    assert_ne!(posture, default);
-    assert!(info.contains(posture) && !info.contains(default), "{info}");
+    assert!(info.contains(&format!("family:      {default} ")), "{info}");
+    assert!(info.contains("frame:       eye-platform"), "{info}");
     let json = ok_line(&format!(
         "eval --model {} --data {} --json",
         dir.p("m.hvsw"),

@@ -157,7 +157,7 @@ fn head_agrees_with_predict(joints: bool) {
         }
         std::fs::write(&pts, out).unwrap();
     }
-    // The default family (a posture-aware set would default to the thesis family).
+    // The default family (and, posture-aware, its default eye-platform frame).
     run(&[
         "train",
         "--data",
@@ -166,11 +166,11 @@ fn head_agrees_with_predict(joints: bool) {
         s(&model),
         "--seed",
         "3",
-        "--arch",
-        "inverse-depth-skip",
     ]);
     let shown = run(&["info", s(&model)]);
     assert!(shown.contains("inverse-depth-skip"), "{shown}");
+    let frame = if joints { "eye-platform" } else { "head" };
+    assert!(shown.contains(&format!("frame:       {frame} ")), "{shown}");
     let predicted = run(&["predict", "--model", s(&model), "--points", s(&pts)]);
 
     let (_emu, connect) = emulate(&model, d);

@@ -5,23 +5,26 @@
 //! | bytes | field |
 //! |---|---|
 //! | 0..4 | [`MAGIC`] `b"HVSW"` |
-//! | 4..6 | format version (u16): [`VERSION`] 2, or 1 (read, never written) |
+//! | 4..6 | format version (u16): [`VERSION`] 3, or 2 or 1 (read, never written) |
 //! | 6..10 | payload length `n` (u32), at most [`MAX_PAYLOAD_LEN`] |
 //! | 10..10+n | payload: [`ModelBlob`] in `postcard` |
 //! | 10+n..14+n | CRC-32 (ISO-HDLC, as zlib) of bytes `0..10+n` |
 //!
-//! The payload is the fields of [`ModelBlob`] in declaration order. Version 2 added the last
-//! two, [`ModelBlob::family`] (how the outputs become cm, which exp the sigmoid uses) and
-//! [`ModelBlob::matcher`] (optional stereo-matcher geometry); a version-1 payload is the same
-//! bytes without them and decodes as the thesis family ([`Family::THESIS`]) with no matcher
-//! geometry: the decoder appends those defaults' encoding (4 bytes) to a stack copy of the
-//! payload, so one deserializer reads both versions.
+//! The payload is the fields of [`ModelBlob`] in declaration order. Version 2 added
+//! [`ModelBlob::family`] (how the outputs become cm, which exp the sigmoid uses) and
+//! [`ModelBlob::matcher`] (optional stereo-matcher geometry); version 3 added the last one,
+//! [`ModelBlob::frame`] (the frame the net gives its points in). An older payload is the same
+//! bytes without the fields its version lacks and decodes with their defaults: the thesis
+//! family ([`Family::THESIS`]), no matcher geometry, the head frame ([`OutputFrame::Head`]).
+//! The decoder appends those defaults' encoding (5 bytes for version 1, 1 for version 2) to
+//! a stack copy of the payload, so one deserializer reads every version.
 //!
 //! Bytes after the CRC are ignored (a flash slot is larger than any blob). Decoding works
 //! from a `&[u8]` with no allocation, checks everything before trusting anything, and returns
 //! a distinct [`BlobError`] for each way a blob can be wrong. A blob whose bytes decode has a
 //! consistent topology, finite parameters and non-zero scales.
 
+use crate::runtime::gaze;
 use crate::runtime::mlp::{self, Activation, FlatMlp, Mlp, MlpError, OutputMap};
 use crate::runtime::traditional::Calibration;
 use heapless::Vec;
@@ -29,13 +32,18 @@ use serde::{Deserialize, Serialize};
 
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"HVSW";
-/// The format version this crate writes (it also reads [`VERSION_1`]).
-pub const VERSION: u16 = 2;
-/// The first format version: no [`ModelBlob::family`] and [`ModelBlob::matcher`] fields.
+/// The format version this crate writes (it also reads [`VERSION_2`] and [`VERSION_1`]).
+pub const VERSION: u16 = 3;
+/// The second format version: no [`ModelBlob::frame`] field.
+pub const VERSION_2: u16 = 2;
+/// The first format version: no [`ModelBlob::family`], [`ModelBlob::matcher`] and
+/// [`ModelBlob::frame`] fields.
 pub const VERSION_1: u16 = 1;
-/// Postcard bytes of `(Family::THESIS, None::<MatcherGeometry>)`: what a version-1 payload
-/// lacks.
-const V1_TAIL: [u8; 4] = [0, 0, 0, 0];
+/// Postcard bytes of `(Family::THESIS, None::<MatcherGeometry>, OutputFrame::Head)`: what a
+/// version-1 payload lacks.
+const V1_TAIL: [u8; 5] = [0, 0, 0, 0, 0];
+/// Postcard bytes of `OutputFrame::Head`: what a version-2 payload lacks.
+const V2_TAIL: [u8; 1] = [0];
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 10;
 /// Bytes of the trailing CRC.
@@ -270,6 +278,62 @@ impl Family {
     }
 }
 
+/// The frame a model's `X, Y, Z` are in before [`ModelBlob::infer`] hands them out (always
+/// in the head frame, the base frame of [`crate::runtime::gaze`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum OutputFrame {
+    /// The net gives head-frame points (every version-1 and -2 blob; every stereo model).
+    Head,
+    /// A posture-aware net gives points in the eye platform's frame: the head frame turned by
+    /// the neck pan, neck tilt and eye tilt of its joint inputs (inputs 5-7, degrees) about the
+    /// baseline's centre ([`gaze::platform_rotation`]). The inference turns them into the head
+    /// frame ([`gaze::platform_to_base`], f32, the same bits on host and head). Those three
+    /// joints turn both cameras together, so in this frame the pixels-to-point map barely
+    /// depends on them and the net is left with the eye pans (vergence, version) and whatever
+    /// the nominal chain misses (a neck centre off the baseline, axis errors), which the joint
+    /// inputs still let it learn. Only for [`InputKind::StereoJoints`] inputs and
+    /// [`OutputKind::Xyz`] outputs.
+    EyePlatform,
+}
+
+impl OutputFrame {
+    /// Turns the outputs `y` (cm, in this frame) of inputs `x` into the head frame, in place.
+    #[inline]
+    pub fn apply(self, x: &[f32], y: &mut [f32]) -> Result<(), MlpError> {
+        match self {
+            OutputFrame::Head => Ok(()),
+            OutputFrame::EyePlatform => {
+                let (Some(j), [a, b, c]) = (x.get(4..7), &mut *y) else {
+                    return Err(MlpError::Shape);
+                };
+                let p = gaze::platform_to_base([j[0], j[1], j[2]], [*a, *b, *c]);
+                if !p.iter().all(|v| v.is_finite()) {
+                    return Err(MlpError::NonFiniteOutput);
+                }
+                [*a, *b, *c] = p;
+                Ok(())
+            }
+        }
+    }
+
+    /// The inverse of [`OutputFrame::apply`]: head-frame `y` of inputs `x` in this frame
+    /// (unchanged for [`OutputFrame::Head`], and for inputs without joint angles).
+    pub fn from_head(self, x: &[f32], y: [f32; 3]) -> [f32; 3] {
+        match (self, x.get(4..7)) {
+            (OutputFrame::EyePlatform, Some(j)) => gaze::base_to_platform([j[0], j[1], j[2]], y),
+            _ => y,
+        }
+    }
+
+    /// Short name (`head`, `eye-platform`), as `hvs train --frame` takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputFrame::Head => "head",
+            OutputFrame::EyePlatform => "eye-platform",
+        }
+    }
+}
+
 /// Geometry for the run-time stereo matcher, fitted to the training correspondences (the
 /// fitting lives with the matcher, not here).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -335,6 +399,9 @@ pub struct ModelBlob {
     pub family: Family,
     /// Stereo-matcher geometry, if fitted (format version 2; `None` for a version-1 blob).
     pub matcher: Option<MatcherGeometry>,
+    /// The frame of the net's points (format version 3; [`OutputFrame::Head`] for older
+    /// blobs).
+    pub frame: OutputFrame,
 }
 
 impl ModelBlob {
@@ -362,6 +429,9 @@ impl ModelBlob {
             || self.out_offset.len() != o
             || self.out_scale.len() != o
             || self.params.len() != mlp::param_count(i, h, o) + self.family.skip_len(i, o)
+            || (self.frame == OutputFrame::EyePlatform
+                && (self.topology.inputs != InputKind::StereoJoints
+                    || self.topology.outputs != OutputKind::Xyz))
         {
             return Err(BlobError::TopologyMismatch);
         }
@@ -411,11 +481,21 @@ impl ModelBlob {
         }
     }
 
-    /// Inference with whatever topology the blob holds, in cm: [`mlp::infer_flat`] (same
-    /// bits as [`Mlp::infer`]) then the family's [`OutputMap`].
+    /// Inference with whatever topology the blob holds, in cm in the head frame:
+    /// [`mlp::infer_flat`] (same bits as [`Mlp::infer`]), the family's [`OutputMap`], then
+    /// the [`OutputFrame`].
     pub fn infer(&self, x: &[f32], out: &mut [f32]) -> Result<(), MlpError> {
         mlp::infer_flat(&self.flat(), x, out)?;
-        self.family.output_map.apply(out)
+        self.finish(x, out)
+    }
+
+    /// What follows the net in [`ModelBlob::infer`]: the family's [`OutputMap`], then the
+    /// [`OutputFrame`] (which reads the joint inputs of `x`). The head's fast path ends with it
+    /// too.
+    #[inline]
+    pub fn finish(&self, x: &[f32], out: &mut [f32]) -> Result<(), MlpError> {
+        self.family.output_map.apply(out)?;
+        self.frame.apply(x, out)
     }
 
     /// Whether every input lies inside the box seen in training.
@@ -492,7 +572,7 @@ pub fn framed_len(bytes: &[u8]) -> Result<usize, BlobError> {
         return Err(BlobError::Truncated);
     }
     let version = u16::from_le_bytes([bytes[4], bytes[5]]);
-    if version != VERSION && version != VERSION_1 {
+    if version != VERSION && version != VERSION_2 && version != VERSION_1 {
         return Err(BlobError::UnsupportedVersion(version));
     }
     let n = u32::from_le_bytes([bytes[6], bytes[7], bytes[8], bytes[9]]) as usize;
@@ -532,26 +612,32 @@ pub fn decode_into(bytes: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
         return Err(BlobError::BadCrc);
     }
     let payload = &bytes[HEADER_LEN..body];
-    if u16::from_le_bytes([bytes[4], bytes[5]]) == VERSION_1 {
-        decode_v1_payload_into(payload, out)?;
-    } else {
-        payload_into(payload, out)?;
+    match u16::from_le_bytes([bytes[4], bytes[5]]) {
+        VERSION_1 => decode_old_payload_into(payload, &V1_TAIL, out)?,
+        VERSION_2 => decode_old_payload_into(payload, &V2_TAIL, out)?,
+        _ => payload_into(payload, out)?,
     }
     out.validate()
 }
 
-/// A version-1 payload is the version-2 one without its last two fields: it is read with their
-/// defaults ([`V1_TAIL`]: the thesis family, no matcher geometry) appended. Kept out of line,
-/// so the widened copy is on the stack only while a v1 blob is read.
+/// An older payload is the current one without the fields its version lacks: it is read
+/// with their defaults' encoding (`tail`: [`V1_TAIL`] or [`V2_TAIL`]) appended. Kept out of
+/// line, so the widened copy is on the stack only while an old blob is read.
 #[inline(never)]
-fn decode_v1_payload_into(payload: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
+fn decode_old_payload_into(
+    payload: &[u8],
+    tail: &[u8],
+    out: &mut ModelBlob,
+) -> Result<(), BlobError> {
     let mut widened = [0u8; MAX_PAYLOAD_LEN + V1_TAIL.len()];
+    let n = payload.len() + tail.len();
     widened[..payload.len()].copy_from_slice(payload);
-    widened[payload.len()..payload.len() + V1_TAIL.len()].copy_from_slice(&V1_TAIL);
-    payload_into(&widened[..payload.len() + V1_TAIL.len()], out)?;
-    // A version-1 payload with bytes after its last field could have read them as a family
-    // or matcher: it is malformed.
-    if out.family != Family::THESIS || out.matcher.is_some() {
+    widened[payload.len()..n].copy_from_slice(tail);
+    payload_into(&widened[..n], out)?;
+    // An old payload with bytes after its last field could have read them as a newer field:
+    // it is malformed. (A version-2 payload may hold any family and matcher.)
+    let v1_fields = tail.len() < V1_TAIL.len() || (out.family == Family::THESIS && out.matcher.is_none());
+    if !v1_fields || out.frame != OutputFrame::Head {
         return Err(BlobError::Malformed);
     }
     Ok(())
@@ -596,6 +682,7 @@ pub fn placeholder() -> ModelBlob {
         fallback: None,
         family: Family::THESIS,
         matcher: None,
+        frame: OutputFrame::Head,
     }
 }
 
@@ -647,6 +734,7 @@ mod tests {
             }),
             family: Family::THESIS,
             matcher: None,
+            frame: OutputFrame::Head,
         }
     }
 
@@ -692,25 +780,127 @@ mod tests {
     }
 
     #[test]
-    fn v1_tail_is_the_encoding_of_the_defaults() {
+    fn old_tails_are_the_encoding_of_the_defaults() {
         let mut buf = [0u8; 8];
-        let n = postcard::to_slice(&(Family::THESIS, None::<MatcherGeometry>), &mut buf)
+        let n = postcard::to_slice(
+            &(Family::THESIS, None::<MatcherGeometry>, OutputFrame::Head),
+            &mut buf,
+        )
+        .unwrap()
+        .len();
+        assert_eq!(buf[..n], V1_TAIL);
+        let n = postcard::to_slice(&OutputFrame::Head, &mut buf)
             .unwrap()
             .len();
-        assert_eq!(buf[..n], V1_TAIL);
+        assert_eq!(buf[..n], V2_TAIL);
     }
 
-    /// The v1 framing of `b` (a thesis-family blob without matcher geometry): the v2 payload
-    /// minus its tail, version 1, fresh CRC.
-    fn as_v1(b: &ModelBlob) -> StdVec<u8> {
-        let v2 = bytes(b);
-        let n = v2.len() - HEADER_LEN - CRC_LEN - V1_TAIL.len();
-        let mut v = StdVec::from(&v2[..HEADER_LEN + n]);
-        v[4..6].copy_from_slice(&VERSION_1.to_le_bytes());
+    /// The framing of `b` as format `version` (1 or 2): the current payload minus the tail
+    /// that version lacks (`b` must hold its defaults), fresh CRC.
+    fn as_old(b: &ModelBlob, version: u16) -> StdVec<u8> {
+        let tail = if version == VERSION_1 {
+            V1_TAIL.len()
+        } else {
+            V2_TAIL.len()
+        };
+        let v3 = bytes(b);
+        let n = v3.len() - HEADER_LEN - CRC_LEN - tail;
+        let mut v = StdVec::from(&v3[..HEADER_LEN + n]);
+        v[4..6].copy_from_slice(&version.to_le_bytes());
         v[6..10].copy_from_slice(&(n as u32).to_le_bytes());
         let crc = crc32(&v);
         v.extend_from_slice(&crc.to_le_bytes());
         v
+    }
+
+    fn as_v1(b: &ModelBlob) -> StdVec<u8> {
+        as_old(b, VERSION_1)
+    }
+
+    /// `v` with `extra` bytes appended to its payload (length and CRC fixed).
+    fn with_extra(v: &[u8], extra: &[u8]) -> StdVec<u8> {
+        let mut out = StdVec::from(&v[..v.len() - CRC_LEN]);
+        let n = out.len() - HEADER_LEN + extra.len();
+        out[6..10].copy_from_slice(&(n as u32).to_le_bytes());
+        out.extend_from_slice(extra);
+        let crc = crc32(&out);
+        out.extend_from_slice(&crc.to_le_bytes());
+        out
+    }
+
+    #[test]
+    fn version_2_decodes_in_the_head_frame_with_its_family_and_matcher() {
+        let mut b = sample(5, 9);
+        b.family = Family::INVERSE_DEPTH_SKIP;
+        b.params
+            .extend_from_slice(&[0.01; 12])
+            .expect("room for the skip weights");
+        b.matcher = Some(MatcherGeometry {
+            fundamental: [[0.0, -1e-5, 2e-3], [1e-5, 0.0, -0.3], [-2e-3, 0.3, 1.0]],
+            out_min: [-3.0, -2.0, 65.0],
+            out_max: [3.0, 2.0, 165.0],
+            disparity: [10.5, 46.0],
+            right_scale: [1.25, 1.25],
+        });
+        let v2 = as_old(&b, VERSION_2);
+        assert_eq!(u16::from_le_bytes([v2[4], v2[5]]), 2);
+        assert_eq!(decode(&v2).unwrap(), b);
+        // A byte after a v2 payload's last field (which would read as a frame) is malformed.
+        assert_eq!(
+            decode(&with_extra(&v2, &[1])),
+            Err(BlobError::Malformed)
+        );
+        assert_eq!(
+            decode(&with_extra(&v2, &[0])),
+            Err(BlobError::Malformed)
+        );
+    }
+
+    #[test]
+    fn eye_platform_frame_turns_the_points_and_needs_joint_inputs() {
+        use crate::test_support::SampleSpec;
+        let spec = SampleSpec::THESIS
+            .inputs(InputKind::StereoJoints)
+            .hidden(6)
+            .family(Family::INVERSE_DEPTH_SKIP);
+        let head = spec.build();
+        let platform = spec.frame(OutputFrame::EyePlatform).build();
+        let v = bytes(&platform);
+        assert_eq!(u16::from_le_bytes([v[4], v[5]]), VERSION);
+        assert_eq!(decode(&v).unwrap(), platform);
+        let x = [340.0, 240.0, 300.0, 241.0, 12.0, -7.5, 4.0, 3.0, 6.0];
+        let (mut y_head, mut y) = ([0.0f32; 3], [0.0f32; 3]);
+        head.infer(&x, &mut y_head).unwrap();
+        platform.infer(&x, &mut y).unwrap();
+        assert_eq!(y, gaze::platform_to_base([12.0, -7.5, 4.0], y_head));
+        assert_ne!(y, y_head);
+        // Only the neck pan, neck tilt and eye tilt turn the frame.
+        let mut x2 = x;
+        x2[7] = -3.0;
+        let (mut a, mut b) = ([0.0f32; 3], [0.0f32; 3]);
+        head.infer(&x2, &mut a).unwrap();
+        platform.infer(&x2, &mut b).unwrap();
+        assert_eq!(b, gaze::platform_to_base([12.0, -7.5, 4.0], a));
+        // The turn back (the range check's) undoes it to rounding.
+        let back = OutputFrame::EyePlatform.from_head(&x, y);
+        for k in 0..3 {
+            assert!((back[k] - y_head[k]).abs() <= 1e-4 * y_head[k].abs().max(1.0));
+        }
+        // A stereo model or a Z-only model cannot be in the platform frame.
+        let mut stereo = sample(5, 2);
+        stereo.frame = OutputFrame::EyePlatform;
+        assert_eq!(stereo.validate(), Err(BlobError::TopologyMismatch));
+        let z_only = spec
+            .outputs(OutputKind::Z)
+            .frame(OutputFrame::EyePlatform)
+            .build();
+        assert_eq!(z_only.validate(), Err(BlobError::TopologyMismatch));
+        // Too few inputs for the frame is a shape error, not a panic.
+        let mut y3 = [1.0f32, 2.0, 3.0];
+        assert_eq!(
+            OutputFrame::EyePlatform.apply(&x[..4], &mut y3),
+            Err(MlpError::Shape)
+        );
     }
 
     #[test]
@@ -871,8 +1061,8 @@ mod tests {
         assert_eq!(decode(&[0u8; 64]), Err(BlobError::BadMagic));
         assert_eq!(decode(&[0xFFu8; 64]), Err(BlobError::BadMagic));
         let mut m = v.clone();
-        m[4] = 3;
-        assert_eq!(decode(&m), Err(BlobError::UnsupportedVersion(3)));
+        m[4] = 4;
+        assert_eq!(decode(&m), Err(BlobError::UnsupportedVersion(4)));
         assert_eq!(decode(&v[..v.len() - 1]), Err(BlobError::Truncated));
         assert_eq!(decode(&v[..2]), Err(BlobError::Truncated));
         let mut m = v.clone();

@@ -530,6 +530,28 @@ fn eye_angles(geometry: &HeadGeometry, neck_pan: f32, neck_tilt: f32, p: [f32; 3
     [tilt * RAD_TO_DEG, left * RAD_TO_DEG, right * RAD_TO_DEG]
 }
 
+/// The active rotation of the eye platform in the base frame at neck pan, neck tilt and eye
+/// tilt `angles_deg` (degrees): `Pan(neck pan) Tilt(neck tilt) Tilt(eye tilt)`, the part of
+/// the chain that turns both cameras together. Its frame (the **platform frame**, about the
+/// baseline's centre whatever the neck centre) is where a posture-aware model of
+/// [`crate::runtime::blob::OutputFrame::EyePlatform`] gives its points.
+pub fn platform_rotation(angles_deg: [f32; 3]) -> [[f32; 3]; 3] {
+    mat_mul(
+        &neck_rotation(angles_deg[0], angles_deg[1]),
+        &rot_tilt(angles_deg[2] * DEG_TO_RAD),
+    )
+}
+
+/// A platform-frame point `p` in the base frame: `R p` with `R` = [`platform_rotation`].
+pub fn platform_to_base(angles_deg: [f32; 3], p: [f32; 3]) -> [f32; 3] {
+    mat_vec(&platform_rotation(angles_deg), p)
+}
+
+/// A base-frame point `p` in the platform frame: `R^T p`, the inverse of [`platform_to_base`].
+pub fn base_to_platform(angles_deg: [f32; 3], p: [f32; 3]) -> [f32; 3] {
+    mat_t_vec(&platform_rotation(angles_deg), p)
+}
+
 /// Active rotation of the head in the base frame: pan (outer) then tilt (inner).
 fn neck_rotation(pan_deg: f32, tilt_deg: f32) -> [[f32; 3]; 3] {
     mat_mul(

@@ -125,12 +125,14 @@ impl Network {
                 &mut y,
                 mlp::sigmoid,
             )?;
+            self.blob.finish(px, &mut y)?;
         } else {
-            // `ModelBlob::infer`'s two steps, the output map shared with the fast path.
+            // `ModelBlob::infer`'s two steps, the output map and frame shared with the fast
+            // path.
             let (x, n) = self.inputs(px, joints);
             mlp::infer_flat(&flat, &x[..n], &mut y)?;
+            self.blob.finish(&x[..n], &mut y)?;
         }
-        self.blob.family.output_map.apply(&mut y)?;
         Ok(y)
     }
 
@@ -150,22 +152,27 @@ pub const OUTPUT_MARGIN: f32 = 4.0;
 /// train` refuses ground truth beyond it).
 pub const PLAUSIBLE_CM: f32 = 1e5;
 
-/// Whether the outputs `y` of `blob` (in its output order, cm) lie within [`OUTPUT_MARGIN`]
-/// output scales of the box seen in training, and within [`PLAUSIBLE_CM`]. A damaged but
+/// Whether the outputs `y` of `blob` for inputs `x` (in its output order, cm, head frame) lie
+/// within [`OUTPUT_MARGIN`] output scales of the box seen in training, and within
+/// [`PLAUSIBLE_CM`]. A damaged but
 /// CRC-valid blob (a weight of 3.4e38) gives estimates far outside it. The blob keeps the
 /// output normalisation (`out_offset`, `out_scale`, in the family's output space: X, Y, Z for
 /// the thesis family, X/Z, Y/Z, 1/Z for inverse depth), not the training output box itself;
 /// the box derived from it holds the training outputs for linear and sigmoid outputs, and the
-/// estimate is taken back to that space to be compared.
-pub fn outputs_in_range(blob: &ModelBlob, y: &[f32]) -> bool {
+/// estimate is taken back to that space (and to the model's [`OutputFrame`]) to be compared.
+pub fn outputs_in_range(blob: &ModelBlob, x: &[f32], y: &[f32]) -> bool {
     if y.len() != blob.out_offset.len() || !y.iter().all(|v| libm::fabsf(*v) <= PLAUSIBLE_CM) {
         return false;
     }
-    let inv;
-    let o: &[f32] = match (blob.family.output_map, y) {
-        (mlp::OutputMap::InverseDepth, [x, yy, z]) => {
-            inv = [*x / *z, *yy / *z, 1.0 / *z];
-            &inv
+    let back: [f32; 3];
+    let o: &[f32] = match y {
+        [a, b, c] => {
+            let [a, b, c] = blob.frame.from_head(x, [*a, *b, *c]);
+            back = match blob.family.output_map {
+                mlp::OutputMap::InverseDepth => [a / c, b / c, 1.0 / c],
+                mlp::OutputMap::Direct => [a, b, c],
+            };
+            &back
         }
         _ => y,
     };
@@ -506,8 +513,9 @@ impl Estimator {
                     MlpError::NonFiniteInput => ErrorCode::NonFinite,
                     MlpError::NonFiniteOutput | MlpError::Shape => ErrorCode::NoSolution,
                 })?;
-                let in_range =
-                    n.in_range(&x, joints) && outputs_in_range(&n.blob, &[x_cm, y_cm, z_cm]);
+                let (inputs, k) = n.inputs(&x, joints);
+                let in_range = n.blob.in_range(&inputs[..k])
+                    && outputs_in_range(&n.blob, &inputs[..k], &[x_cm, y_cm, z_cm]);
                 Ok(EstimateData {
                     x: x_cm,
                     y: y_cm,
@@ -798,8 +806,23 @@ mod tests {
 
     #[test]
     fn posture_aware_net_is_fed_the_current_setpoints() {
-        let blob = sample_joints(9, 3, 11);
-        let mut h = head(boot(&bytes(&blob), &[]));
+        // The thesis family, and the default family with its points in the eye platform's
+        // frame (turned into the head frame by the joints the head feeds).
+        let platform = SampleSpec::THESIS
+            .inputs(InputKind::StereoJoints)
+            .hidden(9)
+            .generation(3)
+            .seed(11)
+            .family(blob::Family::INVERSE_DEPTH_SKIP)
+            .frame(blob::OutputFrame::EyePlatform)
+            .build();
+        for blob in [sample_joints(9, 3, 11), platform] {
+            fed_the_current_setpoints(&blob);
+        }
+    }
+
+    fn fed_the_current_setpoints(blob: &ModelBlob) {
+        let mut h = head(boot(&bytes(blob), &[]));
         let infer = |joints: &Joints| {
             let mut x = std::vec::Vec::from(P.to_array());
             x.extend_from_slice(&joints.0);
@@ -830,6 +853,20 @@ mod tests {
         assert_ne!([e.x, e.y, e.z], [at_home.x, at_home.y, at_home.z]);
         // Boot alone (no gaze controller) answers as at home.
         assert_eq!(h.boot.estimate(&P).unwrap(), at_home);
+        // The eye-platform frame: the net's point turned by the neck pan, neck tilt and eye
+        // tilt the head fed.
+        if blob.frame == blob::OutputFrame::EyePlatform {
+            let mut head_frame = blob.clone();
+            head_frame.frame = blob::OutputFrame::Head;
+            let mut x = std::vec::Vec::from(P.to_array());
+            x.extend_from_slice(&look.target.0);
+            let mut y = [0.0f32; 3];
+            head_frame.infer(&x, &mut y).unwrap();
+            let j = look.target.0;
+            assert_ne!([j[0], j[1], j[2]], [0.0; 3]);
+            let turned = gaze::platform_to_base([j[0], j[1], j[2]], y);
+            assert_eq!([e.x, e.y, e.z].map(f32::to_bits), turned.map(f32::to_bits));
+        }
     }
 
     #[test]
@@ -850,7 +887,8 @@ mod tests {
                 [e.x.to_bits(), e.y.to_bits(), e.z.to_bits()],
                 want.map(f32::to_bits)
             );
-            let in_range = blob.in_range(&p.to_array()) && outputs_in_range(&blob, &want);
+            let in_range =
+                blob.in_range(&p.to_array()) && outputs_in_range(&blob, &p.to_array(), &want);
             assert_eq!(e.in_range, in_range, "{p:?}");
             assert_eq!(e.source, Source::Network);
         }
@@ -905,11 +943,12 @@ mod tests {
         }
         // The box: offset +- 4 scales; x has offset 0, scale 3.
         let y = |x: f32| [x, 0.0, 115.0];
-        assert!(outputs_in_range(&good, &y(12.0)));
-        assert!(outputs_in_range(&good, &y(-12.0)));
-        assert!(!outputs_in_range(&good, &y(12.01)));
-        assert!(!outputs_in_range(&good, &y(f32::NAN)));
-        assert!(!outputs_in_range(&good, &[0.0, 0.0]));
+        let x = p.to_array();
+        assert!(outputs_in_range(&good, &x, &y(12.0)));
+        assert!(outputs_in_range(&good, &x, &y(-12.0)));
+        assert!(!outputs_in_range(&good, &x, &y(12.01)));
+        assert!(!outputs_in_range(&good, &x, &y(f32::NAN)));
+        assert!(!outputs_in_range(&good, &x, &[0.0, 0.0]));
     }
 
     #[test]

@@ -60,6 +60,23 @@ fn eye_in_head(j: &Joints, pan_deg: f32) -> Mat3 {
     )
 }
 
+/// The eye platform's active rotation in the head frame at neck pan, neck tilt and eye tilt
+/// `angles_deg`: `Pan(neck) Tilt(neck) Tilt(eye)`, the `f64` twin of
+/// [`crate::runtime::gaze::platform_rotation`].
+pub fn platform_rotation(angles_deg: [f64; 3]) -> Mat3 {
+    mat_mul(
+        &mat_mul(&rot_pan(angles_deg[0] * DEG), &rot_tilt(angles_deg[1] * DEG)),
+        &rot_tilt(angles_deg[2] * DEG),
+    )
+}
+
+/// A head-frame point in the eye platform's frame: `R^T p`, `R` = [`platform_rotation`]
+/// (what a posture-aware net of `OutputFrame::EyePlatform` learns).
+pub fn base_to_platform(angles_deg: [f64; 3], p: &Vec3) -> Vec3 {
+    let r = platform_rotation(angles_deg);
+    core::array::from_fn(|k| r[0][k] * p[0] + r[1][k] * p[1] + r[2][k] * p[2])
+}
+
 /// The neck's active rotation `Pan(neck pan) Tilt(neck tilt)` of the head in the head frame.
 pub fn neck_rotation(j: &Joints) -> Mat3 {
     mat_mul(

@@ -26,9 +26,9 @@ use crate::data::dataset::Dataset;
 use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::sim::sets::{SetKind, SimOptions};
 use crate::study::fmt::{join, pct};
-use crate::train::{train, TrainConfig};
+use crate::train::{default_frame, train, TrainConfig};
 use anyhow::{bail, Context, Result};
-use hvs_shared::runtime::blob::{Family, InputKind, ModelBlob};
+use hvs_shared::runtime::blob::{Family, InputKind, ModelBlob, OutputFrame};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::camera::{Rig, Vec3};
@@ -53,11 +53,14 @@ pub struct StudyConfig {
     pub hidden: usize,
     /// Model family of the posture-aware nets (part (b) and its sweep): `hvs train`'s
     /// default for posture-aware sets
-    /// ([`ArchArg::POSTURE_DEFAULT`](crate::cli::train::ArchArg::POSTURE_DEFAULT)) unless
+    /// ([`ArchArg::DEFAULT`](crate::cli::train::ArchArg::DEFAULT)) unless
     /// set. Part (a) always trains the thesis family (it studies the thesis' fixed-posture
     /// net), and so does part (c) (the thesis' net next to a wider one, a DLT fit and the
     /// floor).
     pub family: Family,
+    /// Frame of the posture-aware nets' points: `hvs train`'s default for the family
+    /// ([`default_frame`]) unless set.
+    pub frame: OutputFrame,
     /// Restarts of the posture-aware trainings.
     pub restarts: usize,
     /// Hidden counts of the sweep (empty: no sweep).
@@ -85,7 +88,11 @@ impl Default for StudyConfig {
             seed: 1,
             train_levels: posture::DEFAULT_LEVELS,
             hidden: 16,
-            family: crate::cli::train::ArchArg::POSTURE_DEFAULT.family(),
+            family: crate::cli::train::ArchArg::DEFAULT.family(),
+            frame: default_frame(
+                crate::cli::train::ArchArg::DEFAULT.family(),
+                InputKind::StereoJoints,
+            ),
             restarts: 1,
             sweep: Vec::new(),
             lattice: false,
@@ -512,6 +519,7 @@ pub fn posture_aware_study(cfg: &StudyConfig) -> Result<PostureAware> {
                     restarts: cfg.restarts,
                     seed: cfg.seed,
                     family: cfg.family,
+                    frame: cfg.frame,
                     ..TrainConfig::default()
                 },
             )
@@ -845,7 +853,7 @@ pub fn run(cfg: &StudyConfig) -> Result<Report> {
 }
 
 /// The family of the posture-aware nets in words, for the report.
-pub fn family_words(f: Family) -> String {
+pub fn family_words(f: Family, frame: OutputFrame) -> String {
     use hvs_shared::runtime::blob::Skip;
     use hvs_shared::runtime::mlp::OutputMap;
     let outputs = match f.output_map {
@@ -856,7 +864,14 @@ pub fn family_words(f: Family) -> String {
         Skip::None => "",
         Skip::Linear => ", each the sigmoid net's plus an affine skip term of the nine inputs",
     };
-    format!("`{}` (outputs {outputs}{skip})", f.name())
+    let frame = match frame {
+        OutputFrame::Head => "",
+        OutputFrame::EyePlatform => {
+            ", in the eye platform's frame (the head frame turned by the neck pan, neck tilt and \
+             eye tilt inputs), turned back into the head frame by the model"
+        }
+    };
+    format!("`{}` (outputs {outputs}{skip}{frame})", f.name())
 }
 
 /// The markdown section of the experiments report: three tables and what they show.
@@ -904,7 +919,7 @@ pub fn markdown(r: &Report, command: &str) -> String {
          random points at {} random postures, and {} points at extreme postures (the four angles \
          in the outer third of their magnitude, e.g. |neck pan| 20-30, and vergence 6.7-10). Bands: thirds of each term's \
          range (by magnitude for the four angles).\n",
-        family_words(c.family),
+        family_words(c.family, c.frame),
         report::working_range_words(&PostureRange::WORKING),
         c.restarts,
         a.train_postures,
@@ -1162,15 +1177,13 @@ mod tests {
         }
     }
 
-    /// The posture-aware nets are trained in the configured family (by default `hvs train`'s
-    /// for a posture-aware set); part (a) stays the thesis' net whatever it is.
+    /// The posture-aware nets are trained in the configured family and frame (by default
+    /// `hvs train`'s for a posture-aware set); part (a) stays the thesis' net whatever it is.
     #[test]
     fn posture_aware_nets_use_the_configured_family() {
         use crate::cli::train::ArchArg;
-        assert_eq!(
-            StudyConfig::default().family,
-            ArchArg::POSTURE_DEFAULT.family()
-        );
+        assert_eq!(StudyConfig::default().family, ArchArg::DEFAULT.family());
+        assert_eq!(StudyConfig::default().frame, OutputFrame::EyePlatform);
         let cfg = StudyConfig {
             train_levels: [1, 1, 1, 1, 2],
             hidden: 3,
@@ -1183,6 +1196,7 @@ mod tests {
         };
         let aware = posture_aware_study(&cfg).unwrap();
         assert_eq!(aware.blob.family, Family::INVERSE_DEPTH_SKIP);
+        assert_eq!(aware.blob.frame, OutputFrame::EyePlatform);
         // 9-3-3: 13 * 3 + 3 net weights and 3 x 9 skip weights.
         assert_eq!(aware.blob.params.len(), 13 * 3 + 3 + 27);
         assert_eq!(aware.sweep[0].params, aware.blob.params.len());
