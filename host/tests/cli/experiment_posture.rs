@@ -89,8 +89,13 @@ fn check_invariants(run: &PostureRun) {
         .collect();
     assert_eq!(lattice, vec![c.hidden]);
     for h in sweep {
-        // 9-H-3: 9H + H weights and biases into the hidden layer, 3H + 3 out.
-        assert_eq!(h.params, 13 * h.hidden + 3, "{h:?}");
+        // 9-H-3: 9H + H weights and biases into the hidden layer, 3H + 3 out, and the
+        // family's skip weights (3 x 9 for the default family).
+        assert_eq!(
+            h.params,
+            13 * h.hidden + 3 + c.family.skip_len(9, 3),
+            "{h:?}"
+        );
         assert!(h.train_pct.is_finite() && h.test.z_pct.is_finite(), "{h:?}");
         assert!(h.worst_band_ratio >= h.test.z_pct / h.floor.z_pct, "{h:?}");
         assert_eq!(h.floor, bands[0].floor);
