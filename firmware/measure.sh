@@ -9,9 +9,9 @@
 #   - instructions per inference, counted in QEMU with `-icount shift=0` (1 instruction = 1 ns of
 #     virtual time; SysTick counts at 168 MHz), from the `bench` build's Bench request (2000
 #     inferences, minus an empty loop): the default family's 4-5-3 net (inverse-depth-skip),
-#     the thesis family's 4-5-3 net, and a 9-16-3 posture-aware net in the thesis family (what
-#     `hvs train` writes for a posture set) and in the default family (`--arch
-#     inverse-depth-skip`).
+#     the thesis family's 4-5-3 net, and a 9-16-3 posture-aware net in the thesis family
+#     (`--arch thesis`) and in the default family with its points in the eye platform's frame
+#     (what `hvs train` writes for a posture set).
 # Budgets: whole-image flash <= 24 KiB for every board build and static RAM + stack peak
 # <= 16 KiB (issue 17); <= 1,200 instructions per inference of the default family's 4-5-3 net
 # (issue 14); <= 900 per inference of the thesis family's 4-5-3 net (issue 4). Exits 1 if a

@@ -286,8 +286,8 @@ pub enum OutputFrame {
     Head,
     /// A posture-aware net gives points in the eye platform's frame: the head frame turned by
     /// the neck pan, neck tilt and eye tilt of its joint inputs (inputs 5-7, degrees) about the
-    /// baseline's centre ([`gaze::platform_rotation`]). The inference turns them into the head
-    /// frame ([`gaze::platform_to_base`], f32, the same bits on host and head). Those three
+    /// baseline's centre. The inference turns them into the head frame
+    /// ([`gaze::platform_to_base`], f32, the same bits on host and head). Those three
     /// joints turn both cameras together, so in this frame the pixels-to-point map barely
     /// depends on them and the net is left with the eye pans (vergence, version) and whatever
     /// the nominal chain misses (a neck centre off the baseline, axis errors), which the joint

@@ -530,26 +530,28 @@ fn eye_angles(geometry: &HeadGeometry, neck_pan: f32, neck_tilt: f32, p: [f32; 3
     [tilt * RAD_TO_DEG, left * RAD_TO_DEG, right * RAD_TO_DEG]
 }
 
-/// The active rotation of the eye platform in the base frame at neck pan, neck tilt and eye
-/// tilt `angles_deg` (degrees): `Pan(neck pan) Tilt(neck tilt) Tilt(eye tilt)`, the part of
-/// the chain that turns both cameras together. Its frame (the **platform frame**, about the
-/// baseline's centre whatever the neck centre) is where a posture-aware model of
-/// [`crate::runtime::blob::OutputFrame::EyePlatform`] gives its points.
-pub fn platform_rotation(angles_deg: [f32; 3]) -> [[f32; 3]; 3] {
-    mat_mul(
-        &neck_rotation(angles_deg[0], angles_deg[1]),
-        &rot_tilt(angles_deg[2] * DEG_TO_RAD),
-    )
-}
-
-/// A platform-frame point `p` in the base frame: `R p` with `R` = [`platform_rotation`].
+/// A point `p` of the eye platform's frame in the base frame, at neck pan, neck tilt and eye
+/// tilt `angles_deg` (degrees): `Pan(neck pan) Tilt(neck tilt) Tilt(eye tilt) p`, the part of
+/// the chain that turns both cameras together. The platform frame turns about the baseline's
+/// centre whatever the neck centre; it is where a posture-aware model of
+/// [`crate::runtime::blob::OutputFrame::EyePlatform`] gives its points. The two tilts share
+/// their axis, so they are applied as one tilt by their sum: two plane rotations, in `f32`.
 pub fn platform_to_base(angles_deg: [f32; 3], p: [f32; 3]) -> [f32; 3] {
-    mat_vec(&platform_rotation(angles_deg), p)
+    let (st, ct) = sin_cos((angles_deg[1] + angles_deg[2]) * DEG_TO_RAD);
+    let (sp, cp) = sin_cos(angles_deg[0] * DEG_TO_RAD);
+    // Tilt (about X), then pan (about Y), as `rot_tilt` and `rot_pan`.
+    let y = ct * p[1] + st * p[2];
+    let z = ct * p[2] - st * p[1];
+    [cp * p[0] - sp * z, y, sp * p[0] + cp * z]
 }
 
-/// A base-frame point `p` in the platform frame: `R^T p`, the inverse of [`platform_to_base`].
+/// A base-frame point `p` in the eye platform's frame: the inverse of [`platform_to_base`].
 pub fn base_to_platform(angles_deg: [f32; 3], p: [f32; 3]) -> [f32; 3] {
-    mat_t_vec(&platform_rotation(angles_deg), p)
+    let (st, ct) = sin_cos((angles_deg[1] + angles_deg[2]) * DEG_TO_RAD);
+    let (sp, cp) = sin_cos(angles_deg[0] * DEG_TO_RAD);
+    let x = cp * p[0] + sp * p[2];
+    let z = cp * p[2] - sp * p[0];
+    [x, ct * p[1] - st * z, ct * z + st * p[1]]
 }
 
 /// Active rotation of the head in the base frame: pan (outer) then tilt (inner).
@@ -655,6 +657,38 @@ mod tests {
     extern crate std;
     use libm::{cosf, sinf};
     use proptest::prelude::*;
+
+    #[test]
+    fn platform_frame_is_the_chain_of_neck_pan_neck_tilt_eye_tilt() {
+        for (k, angles) in [
+            [0.0f32, 0.0, 0.0],
+            [30.0, -20.0, 15.0],
+            [-12.6, 7.2, -9.0],
+            [-30.0, 20.0, -15.0],
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let p = [12.0 - k as f32, -7.0 + 2.0 * k as f32, 80.0 + 20.0 * k as f32];
+            // The chain as matrices: Pan(neck pan) Tilt(neck tilt) Tilt(eye tilt).
+            let r = mat_mul(
+                &neck_rotation(angles[0], angles[1]),
+                &rot_tilt(angles[2] * DEG_TO_RAD),
+            );
+            let want = mat_vec(&r, p);
+            let got = platform_to_base(angles, p);
+            let back = base_to_platform(angles, got);
+            for i in 0..3 {
+                assert!((got[i] - want[i]).abs() < 1e-4, "{angles:?}: {got:?} {want:?}");
+                assert!((back[i] - p[i]).abs() < 1e-4, "{angles:?}: {back:?} {p:?}");
+            }
+            if angles == [0.0; 3] {
+                // Home: the identity, bit for bit.
+                assert_eq!(got, p);
+                assert_eq!(back, p);
+            }
+        }
+    }
 
     #[test]
     fn sin_cos_matches_libm() {

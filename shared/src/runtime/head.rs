@@ -118,6 +118,7 @@ impl Network {
     ) -> Result<[f32; NET_OUTPUTS], MlpError> {
         let mut y = [0.0f32; NET_OUTPUTS];
         let flat = self.blob.flat();
+        let (x, n) = self.inputs(px, joints);
         if self.fast {
             mlp::infer_fixed_into::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(
                 &flat,
@@ -125,14 +126,12 @@ impl Network {
                 &mut y,
                 mlp::sigmoid,
             )?;
-            self.blob.finish(px, &mut y)?;
         } else {
             // `ModelBlob::infer`'s two steps, the output map and frame shared with the fast
             // path.
-            let (x, n) = self.inputs(px, joints);
             mlp::infer_flat(&flat, &x[..n], &mut y)?;
-            self.blob.finish(&x[..n], &mut y)?;
         }
+        self.blob.finish(&x[..n], &mut y)?;
         Ok(y)
     }
 

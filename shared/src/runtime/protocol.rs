@@ -245,7 +245,7 @@ pub enum Source {
 }
 
 /// Answer to [`RequestBody::Estimate`]: a point in the head frame (cm).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 pub struct EstimateData {
     /// X (cm).
     pub x: f32,
@@ -259,6 +259,26 @@ pub struct EstimateData {
     /// pixels lie outside the image the built-in calibration describes (fallback: `0 <= u <=
     /// 2 u0`, `0 <= v <= 2 v0`).
     pub in_range: bool,
+}
+
+/// The derive's encoding with one `f32` serializer (as `Calibration`'s): in a compact format
+/// (postcard, the wire) the fields in order, the derive's bytes, with `x, y, z` from a loop
+/// over an array; in a human-readable one the derive's map.
+impl Serialize for EstimateData {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() {
+            use serde::ser::SerializeStruct;
+            let mut st = s.serialize_struct("EstimateData", 5)?;
+            st.serialize_field("x", &self.x)?;
+            st.serialize_field("y", &self.y)?;
+            st.serialize_field("z", &self.z)?;
+            st.serialize_field("source", &self.source)?;
+            st.serialize_field("in_range", &self.in_range)?;
+            st.end()
+        } else {
+            ([self.x, self.y, self.z], self.source, self.in_range).serialize(s)
+        }
+    }
 }
 
 /// Answer to [`RequestBody::Look`]: the estimate and the joint targets the head now moves to.

@@ -62,7 +62,7 @@ fn eye_in_head(j: &Joints, pan_deg: f32) -> Mat3 {
 
 /// The eye platform's active rotation in the head frame at neck pan, neck tilt and eye tilt
 /// `angles_deg`: `Pan(neck) Tilt(neck) Tilt(eye)`, the `f64` twin of
-/// [`crate::runtime::gaze::platform_rotation`].
+/// [`crate::runtime::gaze::platform_to_base`].
 pub fn platform_rotation(angles_deg: [f64; 3]) -> Mat3 {
     mat_mul(
         &mat_mul(&rot_pan(angles_deg[0] * DEG), &rot_tilt(angles_deg[1] * DEG)),
