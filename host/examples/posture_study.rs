@@ -17,9 +17,9 @@
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
 use hvs_host::cli::train::{ArchArg, FrameArg};
+use hvs_host::study::posture::{csv_tables, markdown, run, StudyConfig};
 use hvs_host::train::default_frame;
 use hvs_shared::runtime::blob::InputKind;
-use hvs_host::study::posture::{csv_tables, markdown, run, StudyConfig};
 use std::path::PathBuf;
 
 fn main() -> Result<()> {

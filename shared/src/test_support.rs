@@ -7,8 +7,8 @@
 //! (joints, degrees).
 
 use crate::runtime::blob::{
-    Algorithm, Family, InputKind, ModelBlob, OutputFrame, OutputKind, Topology, TrainingMeta, MAX_INPUTS,
-    MAX_OUTPUTS, MAX_PARAMS,
+    Algorithm, Family, InputKind, ModelBlob, OutputFrame, OutputKind, Topology, TrainingMeta,
+    MAX_INPUTS, MAX_OUTPUTS, MAX_PARAMS,
 };
 use crate::runtime::mlp::{param_count, Activation, OutputMap};
 use crate::runtime::traditional::Calibration;

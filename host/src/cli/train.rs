@@ -7,7 +7,9 @@ use crate::data::output::check_not_input;
 use crate::train::fallback::{self, FallbackFit};
 use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
 use anyhow::{bail, Context, Result};
-use hvs_shared::runtime::blob::{Family, InputKind, ModelBlob, OutputFrame, OutputKind, MAX_HIDDEN};
+use hvs_shared::runtime::blob::{
+    Family, InputKind, ModelBlob, OutputFrame, OutputKind, MAX_HIDDEN,
+};
 use hvs_shared::runtime::traditional::Calibration;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};

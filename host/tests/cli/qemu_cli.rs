@@ -158,15 +158,7 @@ fn head_agrees_with_predict(joints: bool) {
         std::fs::write(&pts, out).unwrap();
     }
     // The default family (and, posture-aware, its default eye-platform frame).
-    run(&[
-        "train",
-        "--data",
-        s(&train),
-        "-o",
-        s(&model),
-        "--seed",
-        "3",
-    ]);
+    run(&["train", "--data", s(&train), "-o", s(&model), "--seed", "3"]);
     let shown = run(&["info", s(&model)]);
     assert!(shown.contains("inverse-depth-skip"), "{shown}");
     let frame = if joints { "eye-platform" } else { "head" };

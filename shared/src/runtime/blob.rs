@@ -636,7 +636,8 @@ fn decode_old_payload_into(
     payload_into(&widened[..n], out)?;
     // An old payload with bytes after its last field could have read them as a newer field:
     // it is malformed. (A version-2 payload may hold any family and matcher.)
-    let v1_fields = tail.len() < V1_TAIL.len() || (out.family == Family::THESIS && out.matcher.is_none());
+    let v1_fields =
+        tail.len() < V1_TAIL.len() || (out.family == Family::THESIS && out.matcher.is_none());
     if !v1_fields || out.frame != OutputFrame::Head {
         return Err(BlobError::Malformed);
     }
@@ -846,14 +847,8 @@ mod tests {
         assert_eq!(u16::from_le_bytes([v2[4], v2[5]]), 2);
         assert_eq!(decode(&v2).unwrap(), b);
         // A byte after a v2 payload's last field (which would read as a frame) is malformed.
-        assert_eq!(
-            decode(&with_extra(&v2, &[1])),
-            Err(BlobError::Malformed)
-        );
-        assert_eq!(
-            decode(&with_extra(&v2, &[0])),
-            Err(BlobError::Malformed)
-        );
+        assert_eq!(decode(&with_extra(&v2, &[1])), Err(BlobError::Malformed));
+        assert_eq!(decode(&with_extra(&v2, &[0])), Err(BlobError::Malformed));
     }
 
     #[test]

@@ -669,7 +669,11 @@ mod tests {
         .into_iter()
         .enumerate()
         {
-            let p = [12.0 - k as f32, -7.0 + 2.0 * k as f32, 80.0 + 20.0 * k as f32];
+            let p = [
+                12.0 - k as f32,
+                -7.0 + 2.0 * k as f32,
+                80.0 + 20.0 * k as f32,
+            ];
             // The chain as matrices: Pan(neck pan) Tilt(neck tilt) Tilt(eye tilt).
             let r = mat_mul(
                 &neck_rotation(angles[0], angles[1]),
@@ -679,7 +683,10 @@ mod tests {
             let got = platform_to_base(angles, p);
             let back = base_to_platform(angles, got);
             for i in 0..3 {
-                assert!((got[i] - want[i]).abs() < 1e-4, "{angles:?}: {got:?} {want:?}");
+                assert!(
+                    (got[i] - want[i]).abs() < 1e-4,
+                    "{angles:?}: {got:?} {want:?}"
+                );
                 assert!((back[i] - p[i]).abs() < 1e-4, "{angles:?}: {back:?} {p:?}");
             }
             if angles == [0.0; 3] {

@@ -65,7 +65,10 @@ fn eye_in_head(j: &Joints, pan_deg: f32) -> Mat3 {
 /// [`crate::runtime::gaze::platform_to_base`].
 pub fn platform_rotation(angles_deg: [f64; 3]) -> Mat3 {
     mat_mul(
-        &mat_mul(&rot_pan(angles_deg[0] * DEG), &rot_tilt(angles_deg[1] * DEG)),
+        &mat_mul(
+            &rot_pan(angles_deg[0] * DEG),
+            &rot_tilt(angles_deg[1] * DEG),
+        ),
         &rot_tilt(angles_deg[2] * DEG),
     )
 }
