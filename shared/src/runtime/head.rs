@@ -158,7 +158,7 @@ pub const PLAUSIBLE_CM: f32 = 1e5;
 /// output normalisation (`out_offset`, `out_scale`, in the family's output space: X, Y, Z for
 /// the thesis family, X/Z, Y/Z, 1/Z for inverse depth), not the training output box itself;
 /// the box derived from it holds the training outputs for linear and sigmoid outputs, and the
-/// estimate is taken back to that space (and to the model's [`OutputFrame`]) to be compared.
+/// estimate is taken back to that space (and to the model's [`blob::OutputFrame`]) to be compared.
 pub fn outputs_in_range(blob: &ModelBlob, x: &[f32], y: &[f32]) -> bool {
     if y.len() != blob.out_offset.len() || !y.iter().all(|v| libm::fabsf(*v) <= PLAUSIBLE_CM) {
         return false;
