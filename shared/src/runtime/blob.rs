@@ -739,6 +739,15 @@ mod tests {
         }
     }
 
+    /// A valid matcher geometry.
+    const MATCHER: MatcherGeometry = MatcherGeometry {
+        fundamental: [[0.0, -1e-5, 2e-3], [1e-5, 0.0, -0.3], [-2e-3, 0.3, 1.0]],
+        out_min: [-3.0, -2.0, 65.0],
+        out_max: [3.0, 2.0, 165.0],
+        disparity: [10.5, 46.0],
+        right_scale: [1.25, 1.25],
+    };
+
     /// A point inside [`sample`]'s input box.
     const X: [f32; 4] = [330.0, 235.0, 300.0, 238.0];
 
@@ -836,13 +845,7 @@ mod tests {
         b.params
             .extend_from_slice(&[0.01; 12])
             .expect("room for the skip weights");
-        b.matcher = Some(MatcherGeometry {
-            fundamental: [[0.0, -1e-5, 2e-3], [1e-5, 0.0, -0.3], [-2e-3, 0.3, 1.0]],
-            out_min: [-3.0, -2.0, 65.0],
-            out_max: [3.0, 2.0, 165.0],
-            disparity: [10.5, 46.0],
-            right_scale: [1.25, 1.25],
-        });
+        b.matcher = Some(MATCHER);
         let v2 = as_old(&b, VERSION_2);
         assert_eq!(u16::from_le_bytes([v2[4], v2[5]]), 2);
         assert_eq!(decode(&v2).unwrap(), b);
@@ -914,13 +917,7 @@ mod tests {
         assert_eq!(decode(&extra), Err(BlobError::Malformed));
         let mut m = b.clone();
         m.family = Family::INVERSE_DEPTH;
-        m.matcher = Some(MatcherGeometry {
-            fundamental: [[0.0, -1e-5, 2e-3], [1e-5, 0.0, -0.3], [-2e-3, 0.3, 1.0]],
-            out_min: [-3.0, -2.0, 65.0],
-            out_max: [3.0, 2.0, 165.0],
-            disparity: [10.5, 46.0],
-            right_scale: [1.25, 1.25],
-        });
+        m.matcher = Some(MATCHER);
         let v = bytes(&m);
         assert_eq!(u16::from_le_bytes([v[4], v[5]]), VERSION);
         assert_eq!(decode(&v).unwrap(), m);
