@@ -1,7 +1,7 @@
 //! `hvs simulate --postures/--distortion` driven from outside: columns, sizes, determinism,
 //! a posture-aware model trained and evaluated through the CLI, and the bad-flag errors.
 
-use crate::common::{fails, ok, ok_line, posture_model, Scratch};
+use crate::common::{fails, ok, ok_line, posture_model, simulate_into, Scratch};
 
 #[test]
 fn posture_sets_have_joint_columns_and_are_seeded() {
@@ -106,8 +106,9 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     assert_eq!(pred.lines().count(), 1 + 20 * 22);
 }
 
-/// `--arch inverse-depth-skip` trains the 4-input default family on a posture-aware set: a
-/// 9-H-3 net with 27 skip weights.
+/// `--arch inverse-depth-skip --frame head`: the default family on a posture-aware set with
+/// its points in the head frame (the frame the default would not choose), a 9-H-3 net with 27
+/// skip weights.
 #[test]
 fn arch_gives_the_default_family_on_a_posture_aware_set() {
     let dir = Scratch::new();
@@ -116,9 +117,33 @@ fn arch_gives_the_default_family_on_a_posture_aware_set() {
         "--case 3",
         "--postures grid --posture-levels 1,1,1,1,2",
         "--postures random --posture-count 4",
-        "--hidden 4 --restarts 1 --arch inverse-depth-skip",
+        "--hidden 4 --restarts 1 --arch inverse-depth-skip --frame head",
     );
     let info = ok(&["info", &dir.p("m.hvsw")]);
     assert!(info.contains("9-4-3"), "{info}");
     assert!(info.contains("inverse-depth-skip"), "{info}");
+    assert!(info.contains("frame:       head "), "{info}");
+}
+
+/// `--frame eye-platform` needs the joint columns: on a stereo set it is one clear error
+/// naming the file, and no model is written.
+#[test]
+fn eye_platform_frame_on_a_stereo_set_is_refused() {
+    let dir = Scratch::new();
+    let (train, model) = (dir.p("train.csv"), dir.p("m.hvsw"));
+    simulate_into("--case 1 --set train", &train);
+    let err = fails(
+        &[
+            "train",
+            "--data",
+            &train,
+            "-o",
+            &model,
+            "--frame",
+            "eye-platform",
+        ],
+        "eye-platform frame is for posture-aware sets",
+    );
+    assert!(err.contains("train.csv"), "{err}");
+    assert!(!std::path::Path::new(&model).exists());
 }

@@ -135,10 +135,16 @@ impl Network {
         Ok(y)
     }
 
-    /// Whether the inputs lie inside the box seen in training.
-    pub fn in_range(&self, px: &[f32; NET_INPUTS], joints: &Joints) -> bool {
+    /// Whether the inputs lie inside the box seen in training and the estimate `y` (cm, head
+    /// frame) inside the output box ([`outputs_in_range`]).
+    pub fn in_range(
+        &self,
+        px: &[f32; NET_INPUTS],
+        joints: &Joints,
+        y: &[f32; NET_OUTPUTS],
+    ) -> bool {
         let (x, n) = self.inputs(px, joints);
-        self.blob.in_range(&x[..n])
+        self.blob.in_range(&x[..n]) && outputs_in_range(&self.blob, &x[..n], y)
     }
 }
 
@@ -512,9 +518,7 @@ impl Estimator {
                     MlpError::NonFiniteInput => ErrorCode::NonFinite,
                     MlpError::NonFiniteOutput | MlpError::Shape => ErrorCode::NoSolution,
                 })?;
-                let (inputs, k) = n.inputs(&x, joints);
-                let in_range = n.blob.in_range(&inputs[..k])
-                    && outputs_in_range(&n.blob, &inputs[..k], &[x_cm, y_cm, z_cm]);
+                let in_range = n.in_range(&x, joints, &[x_cm, y_cm, z_cm]);
                 Ok(EstimateData {
                     x: x_cm,
                     y: y_cm,
