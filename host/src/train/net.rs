@@ -130,17 +130,32 @@ pub(crate) struct Activations {
     y: Vec<f64>,
 }
 
+/// Sets of at least this many samples have their normal equations summed in two fixed
+/// halves side by side (rayon), then added: the split depends on the sample count alone, so
+/// the result does not depend on the number of threads. Smaller sets (the restarts of a
+/// 4-input training, 72-300 points) are summed in one pass, as before.
+pub(crate) const SPLIT_MIN_SAMPLES: usize = 1024;
+
 /// Scratch of [`Problem::normal_equations`] for one problem, allocated once per fit.
 #[derive(Debug, Clone)]
 pub(crate) struct NormalWorkspace {
     /// Row `n` (`nx` values): the packed upper triangle of `x~ x~^T` (constant over a fit).
     xpk: Vec<f64>,
+    /// One accumulator per part of the samples (two for [`SPLIT_MIN_SAMPLES`] or more).
+    parts: Vec<Part>,
+}
+
+/// The sums of [`Problem::normal_equations`] over one range of samples, with its scratch.
+#[derive(Debug, Clone)]
+struct Part {
     /// `nu x nx`, row-major: the packed first-layer block `sum_n U_n (x) X_n`.
     m: Vec<f64>,
     /// `(no nh) x (ni1 nh1)`, row-major: the cross blocks.
     cross: Vec<f64>,
     /// Packed `sum_n g_k^2 h~ h~^T` per output.
     w2w2: Vec<f64>,
+    /// `J^T r` of the range.
+    jtr: Vec<f64>,
     /// Per sample: packed `U_n`, `g_k^2 u_k` stacked, `x~ (x) h~`.
     upk: Vec<f64>,
     a: Vec<f64>,
@@ -151,12 +166,44 @@ pub(crate) struct NormalWorkspace {
     rb: Vec<f64>,
 }
 
+impl Part {
+    fn new(s: &Shape) -> Self {
+        let (ni1, ne) = (s.ni + 1, s.ne());
+        let (nu, nx) = (s.nh * (s.nh + 1) / 2, ni1 * (ni1 + 1) / 2);
+        Part {
+            m: vec![0.0; nu * nx],
+            cross: vec![0.0; s.no * s.nh * ni1 * ne],
+            w2w2: vec![0.0; s.no * ne * (ne + 1) / 2],
+            jtr: vec![0.0; s.n_params()],
+            upk: vec![0.0; nu],
+            a: vec![0.0; s.no * s.nh],
+            b: vec![0.0; ni1 * ne],
+            ht: vec![0.0; ne],
+            y: vec![0.0; s.no],
+            gu: vec![0.0; s.nh],
+            rb: vec![0.0; s.nh],
+        }
+    }
+
+    /// Adds `other`'s sums to this part's.
+    fn add(&mut self, other: &Part) {
+        for (a, b) in [
+            (&mut self.m, &other.m),
+            (&mut self.cross, &other.cross),
+            (&mut self.w2w2, &other.w2w2),
+            (&mut self.jtr, &other.jtr),
+        ] {
+            axpy(a, 1.0, b);
+        }
+    }
+}
+
 impl NormalWorkspace {
     /// Scratch for `prob`.
     pub(crate) fn new(prob: &Problem) -> Self {
         let s = &prob.shape;
-        let (ni1, ne, n) = (s.ni + 1, s.ne(), prob.n);
-        let (nu, nx) = (s.nh * (s.nh + 1) / 2, ni1 * (ni1 + 1) / 2);
+        let (ni1, n) = (s.ni + 1, prob.n);
+        let nx = ni1 * (ni1 + 1) / 2;
         let mut xpk = Vec::with_capacity(n * nx);
         for r in 0..n {
             let x = &prob.x[r * s.ni..(r + 1) * s.ni];
@@ -167,18 +214,10 @@ impl NormalWorkspace {
                 }
             }
         }
+        let parts = if n >= SPLIT_MIN_SAMPLES { 2 } else { 1 };
         NormalWorkspace {
             xpk,
-            m: vec![0.0; nu * nx],
-            cross: vec![0.0; s.no * s.nh * ni1 * ne],
-            w2w2: vec![0.0; s.no * ne * (ne + 1) / 2],
-            upk: vec![0.0; nu],
-            a: vec![0.0; s.no * s.nh],
-            b: vec![0.0; ni1 * ne],
-            ht: vec![0.0; ne],
-            y: vec![0.0; s.no],
-            gu: vec![0.0; s.nh],
-            rb: vec![0.0; s.nh],
+            parts: vec![Part::new(s); parts],
         }
     }
 }
@@ -243,14 +282,33 @@ impl Problem {
     }
 
     /// Forward pass of every sample at `p` into `act`; returns the cost `1/2 sum r^2`.
+    /// Like the normal equations, a set of [`SPLIT_MIN_SAMPLES`] or more is run in two fixed
+    /// halves side by side and their sums added.
     pub(crate) fn evaluate(&self, p: &[f64], act: &mut Activations) -> f64 {
         let s = &self.shape;
+        if self.n < SPLIT_MIN_SAMPLES {
+            return 0.5 * self.forward_range(p, 0, &mut act.h, &mut act.y);
+        }
+        let mid = self.n / 2;
+        let (h0, h1) = act.h.split_at_mut(mid * s.nh);
+        let (y0, y1) = act.y.split_at_mut(mid * s.no);
+        let (c0, c1) = rayon::join(
+            || self.forward_range(p, 0, h0, y0),
+            || self.forward_range(p, mid, h1, y1),
+        );
+        0.5 * (c0 + c1)
+    }
+
+    /// The forward pass of the samples from `first` on into `h` and `y` (as many as they
+    /// hold); returns their sum of squared residuals.
+    fn forward_range(&self, p: &[f64], first: usize, h: &mut [f64], y: &mut [f64]) -> f64 {
+        let s = &self.shape;
         let mut cost = 0.0;
-        for ((n, h), y) in act
-            .h
+        for ((n, h), y) in h
             .chunks_exact_mut(s.nh)
             .enumerate()
-            .zip(act.y.chunks_exact_mut(s.no))
+            .map(|(i, h)| (first + i, h))
+            .zip(y.chunks_exact_mut(s.no))
         {
             forward(s, self.output, p, &self.x[n * s.ni..(n + 1) * s.ni], h, y);
             for k in 0..s.no {
@@ -259,7 +317,7 @@ impl Problem {
                 cost += v * v;
             }
         }
-        0.5 * cost
+        cost
     }
 
     /// Half the weighted squared error at `p`.
@@ -340,14 +398,93 @@ impl Problem {
     ) -> f64 {
         let s = &self.shape;
         let (ni1, ne, np) = (s.ni + 1, s.ne(), s.n_params());
-        let nx = ni1 * (ni1 + 1) / 2;
         let nw2 = ne * (ne + 1) / 2;
         let nb = ni1 * ne;
-        let NormalWorkspace {
-            xpk,
+        let xpk = &ws.xpk;
+        let cost = match ws.parts.as_mut_slice() {
+            [one] => self.accumulate(p, act, xpk, 0..self.n, one),
+            [first, second] => {
+                let mid = self.n / 2;
+                let (c0, c1) = rayon::join(
+                    || self.accumulate(p, act, xpk, 0..mid, first),
+                    || self.accumulate(p, act, xpk, mid..self.n, second),
+                );
+                first.add(second);
+                c0 + c1
+            }
+            _ => unreachable!("a workspace has one or two parts"),
+        };
+        let Part {
             m,
             cross,
             w2w2,
+            jtr: sums,
+            ..
+        } = &ws.parts[0];
+        jtr.copy_from_slice(sums);
+        let nx = ni1 * (ni1 + 1) / 2;
+
+        // Expand into the full matrix.
+        let pack = |a: usize, b: usize, dim: usize| {
+            let (a, b) = if a <= b { (a, b) } else { (b, a) };
+            a * dim - a * (a + 1) / 2 + b
+        };
+        for j in 0..s.nh {
+            for j2 in 0..s.nh {
+                let u = pack(j, j2, s.nh);
+                for i in 0..ni1 {
+                    for i2 in 0..ni1 {
+                        jtj[s.w1(j, i) * np + s.w1(j2, i2)] = m[u * nx + pack(i, i2, ni1)];
+                    }
+                }
+            }
+        }
+        for k in 0..s.no {
+            for k2 in 0..s.no {
+                for j2 in 0..ne {
+                    for j3 in 0..ne {
+                        jtj[s.w2e(k, j2) * np + s.w2e(k2, j3)] = if k2 == k {
+                            w2w2[k * nw2 + pack(j2, j3, ne)]
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+            }
+            for j in 0..s.nh {
+                for i in 0..ni1 {
+                    for j2 in 0..ne {
+                        let v = cross[(k * s.nh + j) * nb + i * ne + j2];
+                        let e = s.w2e(k, j2);
+                        jtj[s.w1(j, i) * np + e] = v;
+                        jtj[e * np + s.w1(j, i)] = v;
+                    }
+                }
+            }
+        }
+        0.5 * cost
+    }
+
+    /// The sums of [`Problem::normal_equations`] over the samples `range` into `part` (its
+    /// blocks and `J^T r`, zeroed first); returns the sum of squared residuals there.
+    fn accumulate(
+        &self,
+        p: &[f64],
+        act: &Activations,
+        xpk: &[f64],
+        range: std::ops::Range<usize>,
+        part: &mut Part,
+    ) -> f64 {
+        let s = &self.shape;
+        let (ni1, ne) = (s.ni + 1, s.ne());
+        let nx = ni1 * (ni1 + 1) / 2;
+        let nw2 = ne * (ne + 1) / 2;
+        let nb = ni1 * ne;
+        let Part {
+            m,
+            cross,
+            w2w2,
+            jtr,
             upk,
             a,
             b,
@@ -355,14 +492,14 @@ impl Problem {
             y,
             gu,
             rb,
-        } = ws;
+        } = part;
         m.iter_mut().for_each(|v| *v = 0.0);
         cross.iter_mut().for_each(|v| *v = 0.0);
         w2w2.iter_mut().for_each(|v| *v = 0.0);
         jtr.iter_mut().for_each(|v| *v = 0.0);
         ht[s.nh] = 1.0;
         let mut cost = 0.0;
-        for n in 0..self.n {
+        for n in range {
             let x = &self.x[n * s.ni..(n + 1) * s.ni];
             ht[..s.nh].copy_from_slice(&act.h[n * s.nh..(n + 1) * s.nh]);
             if s.skip {
@@ -424,46 +561,7 @@ impl Problem {
                 axpy(row, *av, b);
             }
         }
-
-        // Expand into the full matrix.
-        let pack = |a: usize, b: usize, dim: usize| {
-            let (a, b) = if a <= b { (a, b) } else { (b, a) };
-            a * dim - a * (a + 1) / 2 + b
-        };
-        for j in 0..s.nh {
-            for j2 in 0..s.nh {
-                let u = pack(j, j2, s.nh);
-                for i in 0..ni1 {
-                    for i2 in 0..ni1 {
-                        jtj[s.w1(j, i) * np + s.w1(j2, i2)] = m[u * nx + pack(i, i2, ni1)];
-                    }
-                }
-            }
-        }
-        for k in 0..s.no {
-            for k2 in 0..s.no {
-                for j2 in 0..ne {
-                    for j3 in 0..ne {
-                        jtj[s.w2e(k, j2) * np + s.w2e(k2, j3)] = if k2 == k {
-                            w2w2[k * nw2 + pack(j2, j3, ne)]
-                        } else {
-                            0.0
-                        };
-                    }
-                }
-            }
-            for j in 0..s.nh {
-                for i in 0..ni1 {
-                    for j2 in 0..ne {
-                        let v = cross[(k * s.nh + j) * nb + i * ne + j2];
-                        let e = s.w2e(k, j2);
-                        jtj[s.w1(j, i) * np + e] = v;
-                        jtj[e * np + s.w1(j, i)] = v;
-                    }
-                }
-            }
-        }
-        0.5 * cost
+        cost
     }
 
     /// Gradient of the cost into `grad` by back-propagation; returns the cost.
@@ -615,12 +713,17 @@ pub(crate) mod tests {
 
     #[test]
     fn structured_normal_equations_equal_the_explicit_ones() {
-        for (shape, act) in NORMAL_EQUATION_NETS {
-            let (prob, p, r, jac, cost) = explicit_jacobian(shape, act, 13, [4, 8]);
+        // A small set (one pass) and one summed in two halves side by side.
+        for ((shape, act), n) in NORMAL_EQUATION_NETS
+            .into_iter()
+            .flat_map(|net| [(net, 13), (net, SPLIT_MIN_SAMPLES + 7)])
+        {
+            let (prob, p, r, jac, cost) = explicit_jacobian(shape, act, n, [4, 8]);
             let (nr, np) = (prob.n_res(), shape.n_params());
             let mut jtj = vec![f64::NAN; np * np];
             let mut jtr = vec![f64::NAN; np];
             let mut ws = NormalWorkspace::new(&prob);
+            assert_eq!(ws.parts.len(), if n < SPLIT_MIN_SAMPLES { 1 } else { 2 });
             let mut act = prob.activations();
             assert!((cost - prob.evaluate(&p, &mut act)).abs() <= 1e-12 * cost);
             // Twice, to check that the workspace is reset between calls.
