@@ -9,7 +9,8 @@ mod common;
 
 use common::board_set;
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
-use hvs_host::study::thesis::{self as experiment, Quiet};
+use hvs_host::study::engine::Quiet;
+use hvs_host::study::thesis as experiment;
 use hvs_host::train::{train, TrainConfig};
 use std::hint::black_box;
 use std::time::Duration;

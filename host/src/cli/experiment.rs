@@ -7,14 +7,14 @@
 //! pixel regime ([`crate::study::accuracy`]) and writes `ACCURACY.md`.
 
 use crate::study::accuracy::{self as accuracy, AccuracyConfig};
+use crate::study::engine::{self, Bars, Study};
 use crate::study::fmt::{join, roman};
 use crate::study::posture::report::{self as posture, PostureConfig};
-use crate::study::thesis::{self as experiment, report, Bars, Config};
-use anyhow::{Context, Result};
+use crate::study::thesis::Config;
+use anyhow::Result;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::LazyLock;
-use std::time::Instant;
 
 /// The long help of `hvs experiment posture`, written from the settings the command runs
 /// (case, net size, hidden-neuron sweep, goal, lenses), so it cannot drift from them.
@@ -162,16 +162,7 @@ fn accuracy_study(a: AccuracyArgs) -> Result<()> {
         seed_base: a.seed_base,
         quick: a.quick,
     };
-    study(
-        &a.output,
-        format!(
-            "{} parts: CSV; 2 plots: SVG, PNG; timing.csv; ACCURACY.md",
-            accuracy::report::STEMS.len()
-        ),
-        "ACCURACY.md",
-        |bars| accuracy::run(&cfg, bars).map(|r| (r.threads, r)),
-        accuracy::report::write,
-    )
+    study(&cfg, &a.output)
 }
 
 fn posture_study(a: PostureArgs) -> Result<()> {
@@ -179,16 +170,7 @@ fn posture_study(a: PostureArgs) -> Result<()> {
         seed: a.seed,
         quick: a.quick,
     };
-    study(
-        &a.output,
-        format!(
-            "{} parts: CSV, SVG, PNG; timing.csv, POSTURE.md",
-            posture::STEMS.len()
-        ),
-        "POSTURE.md",
-        |bars| posture::run(&cfg, bars).map(|r| (r.threads, r)),
-        posture::write,
-    )
+    study(&cfg, &a.output)
 }
 
 fn thesis(a: ThesisArgs) -> Result<()> {
@@ -196,41 +178,23 @@ fn thesis(a: ThesisArgs) -> Result<()> {
         seed: a.seed,
         quick: a.quick,
     };
-    study(
-        &a.output,
-        format!(
-            "{} experiments: CSV, SVG, PNG; RESULTS.md",
-            report::STEMS.len()
-        ),
-        "RESULTS.md",
-        |bars| experiment::run(&cfg, bars).map(|t| (t.threads, t)),
-        report::write,
-    )
+    study(&cfg, &a.output)
 }
 
-/// Runs a study into `output` (created if missing) with progress bars on a terminal, writes
-/// its files with the run's wall time, and says what it wrote (`what`) and where the report
-/// is. `run` returns the worker threads it used and the results.
-fn study<R>(
-    output: &Path,
-    what: String,
-    report_name: &str,
-    run: impl FnOnce(&Bars) -> Result<(usize, R)>,
-    write: impl FnOnce(&Path, &R, f64) -> Result<Vec<String>>,
-) -> Result<()> {
-    let start = Instant::now();
-    std::fs::create_dir_all(output)
-        .with_context(|| format!("{}: cannot create the directory", output.display()))?;
+/// Runs a study into `output` with progress bars on a terminal and says what it wrote and
+/// where its page is.
+fn study<S: Study>(s: &S, output: &Path) -> Result<()> {
     let bars = Bars::new(std::io::stderr().is_terminal());
-    let (threads, r) = run(&bars)?;
-    let files = write(output, &r, start.elapsed().as_secs_f64())?;
+    let ran = engine::run(s, output, &bars)?;
     crate::cli::say(format_args!(
-        "wrote {} files ({what}) to {} in {:.1} s with {threads} threads",
-        files.len(),
+        "wrote {} files ({}) to {} in {:.1} s with {} threads",
+        ran.files.len(),
+        s.what(),
         output.display(),
-        start.elapsed().as_secs_f64(),
+        ran.seconds,
+        ran.threads,
     ))?;
-    crate::cli::say(format_args!("see {}", output.join(report_name).display()))
+    crate::cli::say(format_args!("see {}", output.join(s.page()).display()))
 }
 
 #[cfg(test)]

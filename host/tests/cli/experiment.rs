@@ -5,8 +5,9 @@
 use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok};
 
 use assert_cmd::Command;
+use hvs_host::study::engine::{Files, Quiet};
 use hvs_host::study::thesis::{
-    e_ma_hn, hidden_counts, report, run, Config, Quiet, Thesis, FEWER_DEPTHS, PHI_DEPTHS,
+    e_ma_hn, hidden_counts, report, run, Config, Thesis, FEWER_DEPTHS, PHI_DEPTHS,
 };
 use hvs_host::train::Algo;
 use hvs_shared::runtime::blob::OutputKind;
@@ -195,7 +196,9 @@ fn quick_run_invariants_files_and_determinism() {
     let t = run(&cfg, &Quiet).unwrap();
     check_invariants(&t);
     let lib_dir = tempfile::tempdir().unwrap();
-    let written = report::write(lib_dir.path(), &t, 0.0).unwrap();
+    let mut files = Files::new(lib_dir.path()).unwrap();
+    report::write(&mut files, &t, 0.0).unwrap();
+    let written = files.into_written();
     assert_eq!(written.len(), 3 * report::STEMS.len() + 2);
 
     let (stdout, _) = wait_ok(cli.child);

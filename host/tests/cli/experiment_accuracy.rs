@@ -7,7 +7,7 @@ use crate::common::{read, spawn_quick_experiment, wait_ok, QuickExperiment};
 use hvs_host::cli::train::ArchArg;
 use hvs_host::study::accuracy::report::{csv_tables, write, STEMS, SUBDIR};
 use hvs_host::study::accuracy::{self as accuracy, AccuracyConfig, BOARDS, REGIMES};
-use hvs_host::study::thesis::Quiet;
+use hvs_host::study::engine::{Files, Quiet};
 
 #[test]
 fn quick_run_files_facts_and_determinism() {
@@ -27,8 +27,9 @@ fn quick_run_files_facts_and_determinism() {
         assert_eq!(String::from_utf8(got).unwrap(), text, "{stem}.csv");
     }
     let lib = dir.path().join("lib");
-    std::fs::create_dir_all(&lib).unwrap();
-    let files = write(&lib, &run, 1.0).unwrap();
+    let mut writer = Files::new(&lib).unwrap();
+    write(&mut writer, &run, 1.0).unwrap();
+    let files = writer.into_written();
     assert_eq!(files.len(), STEMS.len() + 2 * 2 + 2);
     for f in &files {
         if f.ends_with(".svg") || f.ends_with(".png") {

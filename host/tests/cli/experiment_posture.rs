@@ -5,11 +5,11 @@
 use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok};
 
 use hvs_host::data::dataset::JOINT_COLUMNS;
+use hvs_host::study::engine::{Files, Quiet};
 use hvs_host::study::posture::fixed_postures;
 use hvs_host::study::posture::report::{
     self as posture, PostureConfig, PostureRun, HIDDEN_SWEEP_QUICK, STEMS,
 };
-use hvs_host::study::thesis::Quiet;
 
 fn check_invariants(run: &PostureRun) {
     let r = &run.report;
@@ -146,7 +146,9 @@ fn quick_run_invariants_files_and_determinism() {
     let run = posture::run(&cfg, &Quiet).unwrap();
     check_invariants(&run);
     let lib_dir = tempfile::tempdir().unwrap();
-    let written = posture::write(lib_dir.path(), &run, 0.0).unwrap();
+    let mut files = Files::new(lib_dir.path()).unwrap();
+    posture::write(&mut files, &run, 0.0).unwrap();
+    let written = files.into_written();
     assert_eq!(written.len(), 3 * STEMS.len() + 2);
 
     let (stdout, stderr) = wait_ok(cli.child);

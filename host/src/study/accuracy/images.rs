@@ -12,7 +12,7 @@
 
 use super::{case_rig, estimate, mean_scores, set_seed, AccuracyConfig, Scores, SWEEP_CASE};
 use crate::data::dataset::Dataset;
-use crate::study::thesis::Progress;
+use crate::study::engine::Progress;
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::gaze::Joints;

@@ -8,14 +8,12 @@ use super::{
     SweepRow, BIG_BOARD, BOARDS, HELD_OUT_SEED_BASE, LENS_SWEEP_PIXELS, METHODS, REGIMES,
     SWEEP_CASE,
 };
-use crate::data::csv::write_bytes;
 use crate::sim::board::{Board, Pixels};
+use crate::study::engine::{Files, Progress, Study};
 use crate::study::fmt::{files_line, join, num, pct, roman, stages, times};
-use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
-use crate::study::template::fill;
-use anyhow::{Context, Result};
+use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
+use anyhow::Result;
 use std::fmt::Write as _;
-use std::path::Path;
 
 /// The CSV stems in `DIR/accuracy/` (`noise` and `lens` also as `.svg`, `.png`).
 pub const STEMS: [&str; 6] = [
@@ -240,14 +238,10 @@ fn board_words(b: &Board) -> String {
 /// Writes the CSVs, plots, `timing.csv` (in `dir/accuracy/`) and `ACCURACY.md` (in `dir`,
 /// which must exist); `total_s` is the run's wall time. Returns the files written, relative
 /// to `dir`.
-pub fn write(dir: &Path, a: &Accuracy, total_s: f64) -> Result<Vec<String>> {
-    let sub = dir.join(SUBDIR);
-    std::fs::create_dir_all(&sub)
-        .with_context(|| format!("{}: cannot create the directory", sub.display()))?;
-    let mut written = Vec::new();
+pub fn write(files: &mut Files, a: &Accuracy, total_s: f64) -> Result<()> {
+    let mut sub = files.sub(SUBDIR)?;
     for (stem, text) in csv_tables(a) {
-        write_bytes(&sub.join(format!("{stem}.csv")), text.as_bytes())?;
-        written.push(format!("{SUBDIR}/{stem}.csv"));
+        sub.bytes(&format!("{stem}.csv"), text.as_bytes())?;
     }
     let figures = [
         (
@@ -279,23 +273,35 @@ pub fn write(dir: &Path, a: &Accuracy, total_s: f64) -> Result<Vec<String>> {
         ),
     ];
     for (stem, fig) in &figures {
-        for name in plot::write_figure(&sub, stem, fig)? {
-            written.push(format!("{SUBDIR}/{name}"));
-        }
+        sub.figure(stem, fig)?;
     }
     let mut timing = String::from("stage,wall_s\n");
     for (name, s) in a.stage_s.iter().chain([("total", total_s)].iter()) {
         let _ = writeln!(timing, "{name},{s:.3}");
     }
-    write_bytes(&sub.join("timing.csv"), timing.as_bytes())?;
-    written.push(format!("{SUBDIR}/timing.csv"));
-    let dir_name = dir.display().to_string();
-    write_bytes(
-        &dir.join("ACCURACY.md"),
-        accuracy_md(a, total_s, &dir_name)?.as_bytes(),
-    )?;
-    written.push("ACCURACY.md".into());
-    Ok(written)
+    sub.bytes("timing.csv", timing.as_bytes())?;
+    files.absorb(sub);
+    let values = accuracy_values(a, total_s, &files.dir().display().to_string());
+    files.page("ACCURACY.md", "accuracy.md", TEMPLATE, &values)
+}
+
+impl Study for AccuracyConfig {
+    type Results = Accuracy;
+    fn page(&self) -> &'static str {
+        "ACCURACY.md"
+    }
+    fn what(&self) -> String {
+        format!(
+            "{} parts: CSV; 2 plots: SVG, PNG; timing.csv; ACCURACY.md",
+            STEMS.len()
+        )
+    }
+    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Accuracy)> {
+        super::run(self, progress).map(|r| (r.threads, r))
+    }
+    fn write(&self, files: &mut Files, a: &Accuracy, total_s: f64) -> Result<()> {
+        write(files, a, total_s)
+    }
 }
 
 /// A table cell for method `m` of the worst over cases: `1.08 x (II)`, or the e_ma in an
@@ -523,14 +529,17 @@ fn commands(a: &Accuracy) -> String {
     s
 }
 
-fn accuracy_md(a: &Accuracy, total_s: f64, dir: &str) -> Result<String> {
+/// The prose of `ACCURACY.md`.
+const TEMPLATE: &str = include_str!("../../../templates/accuracy.md");
+
+fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, String)> {
     let cfg = &a.config;
     let t = method_titles(cfg);
     let (pd, pdc) = protocol_worst(a, 3);
     let (pt, ptc) = protocol_worst(a, 2);
     let (pl, plc) = protocol_worst(a, 1);
     let files = |stem: &str| files_line(&format!("{SUBDIR}/{stem}"));
-    let values: Vec<(&str, String)> = vec![
+    vec![
         ("command", command(cfg, dir)),
         ("total_s", format!("{total_s:.1}")),
         ("threads", a.threads.to_string()),
@@ -575,10 +584,5 @@ fn accuracy_md(a: &Accuracy, total_s: f64, dir: &str) -> Result<String> {
         ("files_real_pair", format!("[CSV]({SUBDIR}/real_pair.csv)")),
         ("real_pair_table", real_pair_table(a)),
         ("commands", commands(a)),
-    ];
-    fill(
-        "accuracy.md",
-        include_str!("../../../templates/accuracy.md"),
-        &values,
-    )
+    ]
 }

@@ -22,16 +22,14 @@ use super::{
     csv_tables, distortion_study, fixed_posture_study, markdown, posture_aware_study, BandRow,
     DistortionRow, Errors, FixedRow, HiddenRow, PostureAware, Report, StudyConfig,
 };
-use crate::data::csv::write_bytes;
+use crate::study::engine::Progress;
+use crate::study::engine::{number_word, Files, Study};
 use crate::study::fmt::{files_line, join, pct, roman, span, stages, times};
-use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
-use crate::study::template::fill;
-use crate::study::thesis::Progress;
+use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::sim::posture::PostureRange;
 use rayon::prelude::*;
 use std::fmt::Write as _;
-use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -236,26 +234,36 @@ pub fn run(cfg: &PostureConfig, progress: &dyn Progress) -> Result<PostureRun> {
 // Files
 
 /// Writes the CSVs (the study's own tables, [`csv_tables`]), one plot per part (SVG and PNG)
-/// and `POSTURE.md` into `dir` (which must exist); `total_s` is the run's wall time. Returns
-/// the names of the files written.
-pub fn write(dir: &Path, r: &PostureRun, total_s: f64) -> Result<Vec<String>> {
-    let mut written = Vec::new();
+/// and `POSTURE.md`; `total_s` is the run's wall time.
+pub fn write(files: &mut Files, r: &PostureRun, total_s: f64) -> Result<()> {
     for (name, text) in csv_tables(&r.report) {
-        write_bytes(&dir.join(name), text.as_bytes())?;
-        written.push(name.to_string());
+        files.bytes(name, text.as_bytes())?;
     }
-    let figures = [
-        ("fixed", fixed_figure(&r.report)),
-        ("bands", bands_figure(&r.report)),
-        ("hidden", hidden_figure(&r.report)),
-        ("distortion", distortion_figure(&r.report)),
-    ];
-    for (stem, fig) in &figures {
-        written.extend(plot::write_figure(dir, stem, fig)?);
+    files.figure("fixed", &fixed_figure(&r.report))?;
+    files.figure("bands", &bands_figure(&r.report))?;
+    files.figure("hidden", &hidden_figure(&r.report))?;
+    files.figure("distortion", &distortion_figure(&r.report))?;
+    let values = posture_values(r, total_s);
+    files.page("POSTURE.md", "host/templates/posture.md", TEMPLATE, &values)
+}
+
+impl Study for PostureConfig {
+    type Results = PostureRun;
+    fn page(&self) -> &'static str {
+        "POSTURE.md"
     }
-    write_bytes(&dir.join("POSTURE.md"), posture_md(r, total_s)?.as_bytes())?;
-    written.push("POSTURE.md".to_string());
-    Ok(written)
+    fn what(&self) -> String {
+        format!(
+            "{} parts: CSV, SVG, PNG; timing.csv, POSTURE.md",
+            STEMS.len()
+        )
+    }
+    fn compute(&self, progress: &dyn Progress) -> Result<(usize, PostureRun)> {
+        run(self, progress).map(|r| (r.threads, r))
+    }
+    fn write(&self, files: &mut Files, r: &PostureRun, total_s: f64) -> Result<()> {
+        write(files, r, total_s)
+    }
 }
 
 const EMA_LABEL: &str = "depth e_ma (% of true depth)";
@@ -716,7 +724,7 @@ fn goal_pct() -> String {
     format!("{:.0} %", (GOAL_RATIO - 1.0) * 100.0)
 }
 
-fn posture_md(run: &PostureRun, total_s: f64) -> Result<String> {
+fn posture_values(run: &PostureRun, total_s: f64) -> Vec<(&'static str, String)> {
     let r = &run.report;
     let c = &r.config;
     let cmd = command(&run.config);
@@ -766,7 +774,7 @@ fn posture_md(run: &PostureRun, total_s: f64) -> Result<String> {
         }),
         "\n",
     );
-    let v: Vec<(&str, String)> = vec![
+    vec![
         ("command", cmd.clone()),
         ("total_s", format!("{total_s:.1}")),
         ("threads", run.threads.to_string()),
@@ -805,16 +813,7 @@ fn posture_md(run: &PostureRun, total_s: f64) -> Result<String> {
         ),
         ("distortion_sentence", distortion_sentence(r)),
         ("tables", tables),
-    ];
-    fill("host/templates/posture.md", TEMPLATE, &v)
-}
-
-/// Small counts as words, as the prose uses them.
-fn number_word(n: usize) -> String {
-    match n {
-        6 => "six".into(),
-        n => n.to_string(),
-    }
+    ]
 }
 
 fn verged_worst(r: &Report) -> Option<(f64, &FixedRow)> {

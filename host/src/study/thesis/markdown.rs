@@ -5,23 +5,26 @@ use super::facts::{
     apart_pct, argmin, board_disparity_px, depth_grid, identical_pixel_depths,
     matches_thesis_traditional, phi_stats, signed_list, worst_depth,
 };
-use super::report::POSTURE_REPORT;
 use super::{
     e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Thesis, FEWER_DEPTHS, GENERAL_CASE, PHI_DEPTHS,
 };
 use crate::sim::sets::training_volume;
+use crate::study::engine::number_word;
 use crate::study::fmt::{files_line, join, mean, pct, pct_value, roman, span, stages};
 use crate::study::reported;
-use crate::study::template::fill;
 use crate::train::{Algo, TrainConfig};
-use anyhow::Result;
 use hvs_shared::runtime::blob::OutputKind;
 use hvs_shared::runtime::traditional::Calibration;
 use hvs_shared::sim::presets::{
     self, LABELS, TEST_DEPTHS, TEST_POINTS_XY, TRAIN_BOARD_X, TRAIN_BOARD_Y, TRAIN_DEPTHS,
 };
 
-const TEMPLATE: &str = include_str!("../../../templates/results.md");
+/// The prose of `RESULTS.md`.
+pub const TEMPLATE: &str = include_str!("../../../templates/results.md");
+
+/// Where `hvs experiment posture` writes its report, relative to the thesis' directory (its
+/// default output is `docs/results/posture`); `RESULTS.md` links it when it is there.
+pub const POSTURE_REPORT: &str = "posture/POSTURE.md";
 
 /// The paragraph of `RESULTS.md` that points to the posture study.
 pub fn posture_link() -> String {
@@ -43,8 +46,9 @@ fn rows(v: impl IntoIterator<Item = String>) -> String {
     join(v, "\n")
 }
 
-/// `RESULTS.md` of a run that took `total_s` seconds; `posture`: link the posture report.
-pub fn results_md(t: &Thesis, total_s: f64, posture: bool) -> Result<String> {
+/// The values of `RESULTS.md`'s placeholders for a run that took `total_s` seconds;
+/// `posture`: link the posture report.
+pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Vec<(&'static str, String)> {
     let cfg = &t.config;
     let case1 = presets::CASE_1;
     let n_board = TRAIN_BOARD_X.len() * TRAIN_BOARD_Y.len();
@@ -112,18 +116,7 @@ pub fn results_md(t: &Thesis, total_s: f64, posture: bool) -> Result<String> {
     fewer_values(&mut v, t);
     algo_values(&mut v, t);
     noise_values(&mut v, t);
-    fill("host/templates/results.md", TEMPLATE, &v)
-}
-
-/// Small counts as words, as the prose uses them.
-fn number_word(n: usize) -> String {
-    match n {
-        2 => "two".into(),
-        3 => "three".into(),
-        4 => "four".into(),
-        6 => "six".into(),
-        _ => n.to_string(),
-    }
+    v
 }
 
 /// The proposed net's shape, `4-5-3`: the default `hvs train` net.

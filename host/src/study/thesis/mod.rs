@@ -34,6 +34,7 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
 use crate::sim::sets::{simulate, Sample, SetKind, SimOptions};
+use crate::study::engine::Progress;
 use crate::train::fallback;
 use crate::train::{train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
@@ -155,76 +156,6 @@ pub fn derive_seed(seed: u64, tag: u64, a: u64, b: u64) -> u64 {
 const TAG_NET: u64 = 1;
 const TAG_NOISE_TRAIN: u64 = 2;
 const TAG_NOISE_TEST: u64 = 3;
-
-/// Where the run reports progress (a terminal's progress bars, or nothing).
-pub trait Progress: Sync {
-    /// A new stage with `units` steps.
-    fn start(&self, name: &str, units: u64);
-    /// One step of the current stage done.
-    fn inc(&self);
-    /// The current stage is done.
-    fn finish(&self);
-}
-
-/// No progress output.
-pub struct Quiet;
-
-impl Progress for Quiet {
-    fn start(&self, _: &str, _: u64) {}
-    fn inc(&self) {}
-    fn finish(&self) {}
-}
-
-/// `indicatif` bars on stderr, one per stage, left on screen when done.
-pub struct Bars {
-    multi: indicatif::MultiProgress,
-    current: std::sync::Mutex<Option<indicatif::ProgressBar>>,
-}
-
-impl Bars {
-    /// Bars drawn on stderr when `visible` (normally: stderr is a terminal), else hidden.
-    pub fn new(visible: bool) -> Self {
-        let target = if visible {
-            indicatif::ProgressDrawTarget::stderr()
-        } else {
-            indicatif::ProgressDrawTarget::hidden()
-        };
-        Bars {
-            multi: indicatif::MultiProgress::with_draw_target(target),
-            current: std::sync::Mutex::new(None),
-        }
-    }
-}
-
-impl Progress for Bars {
-    fn start(&self, name: &str, units: u64) {
-        let b = self.multi.add(indicatif::ProgressBar::new(units));
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{prefix:<26} {bar:30} {pos:>3}/{len:<3} [{elapsed_precise}]",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        b.set_prefix(name.to_string());
-        if let Ok(mut c) = self.current.lock() {
-            *c = Some(b);
-        }
-    }
-    fn inc(&self) {
-        if let Ok(c) = self.current.lock() {
-            if let Some(b) = c.as_ref() {
-                b.inc(1);
-            }
-        }
-    }
-    fn finish(&self) {
-        if let Ok(mut c) = self.current.lock() {
-            if let Some(b) = c.take() {
-                b.finish();
-            }
-        }
-    }
-}
 
 /// Per-depth e_ma of some estimators on the thesis' test set (P1, P2 at the test depths).
 #[derive(Debug, Clone, PartialEq)]

@@ -5,16 +5,17 @@
 //! has no estimate), so equal results give equal bytes; the only file with wall times is
 //! `bp_vs_lm_timing.csv` (and the run time stated in `RESULTS.md`).
 
+use super::markdown::{results_values, POSTURE_REPORT, TEMPLATE};
+use super::Config;
 use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, DepthCurve, Thesis, GENERAL_CASE, PHI_DEPTHS};
-use crate::data::csv::write_bytes;
+use crate::study::engine::{Files, Progress, Study};
 use crate::study::fmt::{join, num, roman};
-use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
+use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use crate::study::reported::NET_BOUND_PCT;
 use crate::train::Algo;
 use anyhow::Result;
 use hvs_shared::runtime::blob::OutputKind;
 use hvs_shared::sim::presets::TEST_DEPTHS;
-use std::path::Path;
 
 fn algo_name(a: Algo) -> &'static str {
     match a {
@@ -28,42 +29,6 @@ fn outputs_name(o: OutputKind) -> &'static str {
     match o {
         OutputKind::Xyz => "xyz",
         OutputKind::Z => "z",
-    }
-}
-
-struct Out<'a> {
-    dir: &'a Path,
-    written: Vec<String>,
-}
-
-impl Out<'_> {
-    /// [`Out::csv`] with one row per item of `items`.
-    fn rows<T>(
-        &mut self,
-        name: &str,
-        header: &str,
-        items: &[T],
-        row: impl Fn(&T) -> Vec<String>,
-    ) -> Result<()> {
-        let rows: Vec<Vec<String>> = items.iter().map(row).collect();
-        self.csv(name, header, &rows)
-    }
-    fn csv(&mut self, name: &str, header: &str, rows: &[Vec<String>]) -> Result<()> {
-        let mut s = String::new();
-        s.push_str(header);
-        s.push('\n');
-        for r in rows {
-            s.push_str(&r.join(","));
-            s.push('\n');
-        }
-        write_bytes(&self.dir.join(name), s.as_bytes())?;
-        self.written.push(name.to_string());
-        Ok(())
-    }
-    fn figure(&mut self, stem: &str, fig: &Figure) -> Result<()> {
-        self.written
-            .extend(plot::write_figure(self.dir, stem, fig)?);
-        Ok(())
     }
 }
 
@@ -94,33 +59,38 @@ pub const STEMS: [&str; 9] = [
     "noise",
 ];
 
-/// Where `hvs experiment posture` writes its report, relative to the thesis' directory (its
-/// default output is `docs/results/posture`); `RESULTS.md` links it when it is there.
-pub const POSTURE_REPORT: &str = "posture/POSTURE.md";
-
-/// Writes every CSV, plot and `RESULTS.md` into `dir` (which must exist); `total_s` is the
-/// run's wall time. Returns the names of the files written.
-pub fn write(dir: &Path, t: &Thesis, total_s: f64) -> Result<Vec<String>> {
-    let mut o = Out {
-        dir,
-        written: Vec::new(),
-    };
-    phi_files(&mut o, t)?;
-    traditional_files(&mut o, t)?;
-    net_case4_files(&mut o, t)?;
-    sweep_files(&mut o, t)?;
-    proposed_files(&mut o, t)?;
-    fewer_files(&mut o, t)?;
-    algo_files(&mut o, t)?;
-    noise_files(&mut o, t)?;
-    let posture = dir.join(POSTURE_REPORT).is_file();
-    let md = super::markdown::results_md(t, total_s, posture)?;
-    write_bytes(&dir.join("RESULTS.md"), md.as_bytes())?;
-    o.written.push("RESULTS.md".to_string());
-    Ok(o.written)
+/// Writes every CSV, plot and `RESULTS.md`; `total_s` is the run's wall time.
+pub fn write(o: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
+    phi_files(o, t)?;
+    traditional_files(o, t)?;
+    net_case4_files(o, t)?;
+    sweep_files(o, t)?;
+    proposed_files(o, t)?;
+    fewer_files(o, t)?;
+    algo_files(o, t)?;
+    noise_files(o, t)?;
+    let posture = o.dir().join(POSTURE_REPORT).is_file();
+    let values = results_values(t, total_s, posture);
+    o.page("RESULTS.md", "host/templates/results.md", TEMPLATE, &values)
 }
 
-fn phi_files(o: &mut Out, t: &Thesis) -> Result<()> {
+impl Study for Config {
+    type Results = Thesis;
+    fn page(&self) -> &'static str {
+        "RESULTS.md"
+    }
+    fn what(&self) -> String {
+        format!("{} experiments: CSV, SVG, PNG; RESULTS.md", STEMS.len())
+    }
+    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Thesis)> {
+        super::run(self, progress).map(|t| (t.threads, t))
+    }
+    fn write(&self, files: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
+        write(files, t, total_s)
+    }
+}
+
+fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.rows(
         "fig4_03_04_phi.csv",
         "case,z_cm,phi_l_px,phi_r_px,true_phi_l_px,true_phi_r_px",
@@ -200,7 +170,7 @@ struct PerCase<'a> {
 }
 
 fn per_case_files(
-    o: &mut Out,
+    o: &mut Files,
     spec: PerCase,
     cases: &[(u8, &DepthCurve, &DepthCurve)],
 ) -> Result<()> {
@@ -259,7 +229,7 @@ fn per_case_files(
     )
 }
 
-fn traditional_files(o: &mut Out, t: &Thesis) -> Result<()> {
+fn traditional_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let cases: Vec<_> = t
         .traditional
         .iter()
@@ -280,7 +250,7 @@ fn traditional_files(o: &mut Out, t: &Thesis) -> Result<()> {
     )
 }
 
-fn net_case4_files(o: &mut Out, t: &Thesis) -> Result<()> {
+fn net_case4_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let p = &t.proposed[(GENERAL_CASE - 1) as usize];
     let rows: Vec<Vec<String>> = p
         .net
@@ -393,7 +363,7 @@ fn net_case4_files(o: &mut Out, t: &Thesis) -> Result<()> {
     )
 }
 
-fn sweep_files(o: &mut Out, t: &Thesis) -> Result<()> {
+fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.rows(
         "fig4_14_15_hidden.csv",
         "outputs,hidden,net,seed,train_pct,test_mean_pct,test_worst_depth_pct",
@@ -491,7 +461,7 @@ fn sweep_files(o: &mut Out, t: &Thesis) -> Result<()> {
     )
 }
 
-fn proposed_files(o: &mut Out, t: &Thesis) -> Result<()> {
+fn proposed_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let cases: Vec<_> = t
         .proposed
         .iter()
@@ -519,7 +489,7 @@ fn proposed_files(o: &mut Out, t: &Thesis) -> Result<()> {
     )
 }
 
-fn fewer_files(o: &mut Out, t: &Thesis) -> Result<()> {
+fn fewer_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let full = &t.proposed[(GENERAL_CASE - 1) as usize];
     let mut rows = Vec::new();
     for f in &t.fewer {
@@ -590,7 +560,7 @@ fn fewer_files(o: &mut Out, t: &Thesis) -> Result<()> {
     )
 }
 
-fn algo_files(o: &mut Out, t: &Thesis) -> Result<()> {
+fn algo_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.rows(
         "bp_vs_lm.csv",
         "case,algorithm,train_pct,test_mean_pct,test_worst_depth_pct",
@@ -681,7 +651,7 @@ fn algo_files(o: &mut Out, t: &Thesis) -> Result<()> {
     )
 }
 
-fn noise_files(o: &mut Out, t: &Thesis) -> Result<()> {
+fn noise_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.rows(
         "noise.csv",
         "case,sigma_px,repeats,traditional_pct,traditional_no_estimate_pct,network_pct,optimal_pct",

@@ -1,0 +1,393 @@
+//! The study engine: what every study (thesis, posture, accuracy, `hvs demo`) shares. A study
+//! ([`Study`]) has its configuration, computes typed results and writes them through one
+//! [`Files`] writer (CSVs, figures, pages from templates, the list of files written); [`run`]
+//! is the one runner (progress, timing); [`table_text`] and [`table_markdown`] the one table
+//! formatter.
+
+use crate::data::csv::write_bytes;
+use crate::study::plot::{self, Figure};
+use crate::study::template::fill;
+use anyhow::{Context, Result};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Where a run reports progress (a terminal's progress bars, or nothing).
+pub trait Progress: Sync {
+    /// A new stage with `units` steps.
+    fn start(&self, name: &str, units: u64);
+    /// One step of the current stage done.
+    fn inc(&self);
+    /// The current stage is done.
+    fn finish(&self);
+}
+
+/// No progress output.
+pub struct Quiet;
+
+impl Progress for Quiet {
+    fn start(&self, _: &str, _: u64) {}
+    fn inc(&self) {}
+    fn finish(&self) {}
+}
+
+/// `indicatif` bars on stderr, one per stage, left on screen when done.
+pub struct Bars {
+    multi: indicatif::MultiProgress,
+    current: std::sync::Mutex<Option<indicatif::ProgressBar>>,
+}
+
+impl Bars {
+    /// Bars drawn on stderr when `visible` (normally: stderr is a terminal), else hidden.
+    pub fn new(visible: bool) -> Self {
+        let target = if visible {
+            indicatif::ProgressDrawTarget::stderr()
+        } else {
+            indicatif::ProgressDrawTarget::hidden()
+        };
+        Bars {
+            multi: indicatif::MultiProgress::with_draw_target(target),
+            current: std::sync::Mutex::new(None),
+        }
+    }
+}
+
+impl Progress for Bars {
+    fn start(&self, name: &str, units: u64) {
+        let b = self.multi.add(indicatif::ProgressBar::new(units));
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{prefix:<26} {bar:30} {pos:>3}/{len:<3} [{elapsed_precise}]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b.set_prefix(name.to_string());
+        if let Ok(mut c) = self.current.lock() {
+            *c = Some(b);
+        }
+    }
+    fn inc(&self) {
+        if let Ok(c) = self.current.lock() {
+            if let Some(b) = c.as_ref() {
+                b.inc(1);
+            }
+        }
+    }
+    fn finish(&self) {
+        if let Ok(mut c) = self.current.lock() {
+            if let Some(b) = c.take() {
+                b.finish();
+            }
+        }
+    }
+}
+
+/// The files of one study's run, written atomically into one directory (created if
+/// missing); remembers the name of each file written, relative to that directory.
+pub struct Files {
+    dir: PathBuf,
+    prefix: String,
+    written: Vec<String>,
+}
+
+impl Files {
+    /// A writer into `dir`, which is created if missing.
+    pub fn new(dir: &Path) -> Result<Self> {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create the directory", dir.display()))?;
+        Ok(Files {
+            dir: dir.to_path_buf(),
+            prefix: String::new(),
+            written: Vec::new(),
+        })
+    }
+
+    /// The directory written into.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// A writer into the subdirectory `sub` (created if missing) whose names are listed as
+    /// `sub/name`; [`Files::absorb`] takes its list back.
+    pub fn sub(&self, sub: &str) -> Result<Self> {
+        let mut f = Files::new(&self.dir.join(sub))?;
+        f.prefix = format!("{}{sub}/", self.prefix);
+        Ok(f)
+    }
+
+    /// Adds the files `sub` wrote to this writer's list.
+    pub fn absorb(&mut self, sub: Files) {
+        self.written.extend(sub.written);
+    }
+
+    /// Writes `name` with `bytes`.
+    pub fn bytes(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
+        write_bytes(&self.dir.join(name), bytes)?;
+        self.written.push(format!("{}{name}", self.prefix));
+        Ok(())
+    }
+
+    /// Writes the CSV `name`: `header`, then each row's cells joined by commas.
+    pub fn csv(&mut self, name: &str, header: &str, rows: &[Vec<String>]) -> Result<()> {
+        let mut s = format!("{header}\n");
+        for r in rows {
+            let _ = writeln!(s, "{}", r.join(","));
+        }
+        self.bytes(name, s.as_bytes())
+    }
+
+    /// [`Files::csv`] with one row per item of `items`.
+    pub fn rows<T>(
+        &mut self,
+        name: &str,
+        header: &str,
+        items: &[T],
+        row: impl Fn(&T) -> Vec<String>,
+    ) -> Result<()> {
+        let rows: Vec<Vec<String>> = items.iter().map(row).collect();
+        self.csv(name, header, &rows)
+    }
+
+    /// Writes `stem.svg` and `stem.png` of `fig`.
+    pub fn figure(&mut self, stem: &str, fig: &Figure) -> Result<()> {
+        for name in plot::write_figure(&self.dir, stem, fig)? {
+            self.written.push(format!("{}{name}", self.prefix));
+        }
+        Ok(())
+    }
+
+    /// Writes the page `name` from `template` (called `template_name` in errors) with every
+    /// placeholder filled from `values` ([`fill`]: a missing or unused value is an error,
+    /// and then nothing is written).
+    pub fn page(
+        &mut self,
+        name: &str,
+        template_name: &str,
+        template: &str,
+        values: &[(&str, String)],
+    ) -> Result<()> {
+        let text = fill(template_name, template, values)?;
+        self.bytes(name, text.as_bytes())
+    }
+
+    /// The names of the files written, in order.
+    pub fn written(&self) -> &[String] {
+        &self.written
+    }
+
+    /// The names of the files written, in order.
+    pub fn into_written(self) -> Vec<String> {
+        self.written
+    }
+}
+
+/// One study as the engine runs it.
+pub trait Study {
+    /// Its typed results.
+    type Results;
+    /// The page [`Study::write`] writes (the report to read first).
+    fn page(&self) -> &'static str;
+    /// What it writes, for the run's summary line (`9 experiments: CSV, SVG, PNG; ...`).
+    fn what(&self) -> String;
+    /// Computes the results; returns the worker threads used too.
+    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Self::Results)>;
+    /// Writes the results' files; `total_s` is the run's wall time so far.
+    fn write(&self, files: &mut Files, results: &Self::Results, total_s: f64) -> Result<()>;
+}
+
+/// What a run did.
+#[derive(Debug, Clone)]
+pub struct Ran {
+    /// The files written, relative to the output directory.
+    pub files: Vec<String>,
+    /// Worker threads used.
+    pub threads: usize,
+    /// Wall time of the whole run (s).
+    pub seconds: f64,
+}
+
+/// Runs `study` into `output` (created if missing), reporting progress to `progress`, and
+/// writes its files with the run's wall time.
+pub fn run<S: Study>(study: &S, output: &Path, progress: &dyn Progress) -> Result<Ran> {
+    let start = Instant::now();
+    let mut files = Files::new(output)?;
+    let (threads, results) = study.compute(progress)?;
+    study.write(&mut files, &results, start.elapsed().as_secs_f64())?;
+    Ok(Ran {
+        files: files.into_written(),
+        threads,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Alignment of a markdown table's column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Align {
+    /// `---`
+    Left,
+    /// `---:`
+    Right,
+}
+
+/// A markdown table: the head, the alignment line (`align[k]`, left where missing), then one
+/// row a line, every line ending in a newline.
+pub fn table_markdown(head: &[&str], align: &[Align], rows: &[Vec<String>]) -> String {
+    let mut s = format!("| {} |\n|", head.join(" | "));
+    for k in 0..head.len() {
+        s.push_str(match align.get(k) {
+            Some(Align::Right) => "---:|",
+            _ => "---|",
+        });
+    }
+    s.push('\n');
+    for r in rows {
+        let _ = writeln!(s, "| {} |", r.join(" | "));
+    }
+    s
+}
+
+/// A plain-text table: columns padded to their widest cell, two spaces apart, a dashed line
+/// under the head, trailing spaces trimmed.
+pub fn table_text(head: &[&str], rows: &[Vec<String>]) -> String {
+    let mut w: Vec<usize> = head.iter().map(|h| h.chars().count()).collect();
+    for r in rows {
+        for (k, c) in r.iter().enumerate() {
+            if let Some(x) = w.get_mut(k) {
+                *x = (*x).max(c.chars().count());
+            }
+        }
+    }
+    let mut s = String::new();
+    let mut line = |cells: &mut dyn Iterator<Item = &str>| {
+        let parts: Vec<String> = cells.zip(&w).map(|(c, w)| format!("{c:<w$}")).collect();
+        let _ = writeln!(s, "{}", parts.join("  ").trim_end());
+    };
+    line(&mut head.iter().copied());
+    let dashes: Vec<String> = w.iter().map(|n| "-".repeat(*n)).collect();
+    line(&mut dashes.iter().map(String::as_str));
+    for r in rows {
+        line(&mut r.iter().map(String::as_str));
+    }
+    s
+}
+
+/// Small counts as words, as the prose uses them (two, three, four, six; digits otherwise).
+pub fn number_word(n: usize) -> String {
+    match n {
+        2 => "two".into(),
+        3 => "three".into(),
+        4 => "four".into(),
+        6 => "six".into(),
+        _ => n.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("hvs-engine-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    #[test]
+    fn the_writer_lists_the_files_it_wrote() {
+        let d = tmp("list");
+        let mut f = Files::new(&d).unwrap();
+        f.csv("a.csv", "x,y", &[vec!["1".into(), "2".into()]])
+            .unwrap();
+        let mut s = f.sub("part").unwrap();
+        s.rows("b.csv", "n", &[3, 4], |n| vec![n.to_string()])
+            .unwrap();
+        f.absorb(s);
+        f.page("P.md", "p.md", "n = {n}\n", &[("n", "5".into())])
+            .unwrap();
+        assert_eq!(f.written(), ["a.csv", "part/b.csv", "P.md"]);
+        assert_eq!(
+            std::fs::read_to_string(d.join("a.csv")).unwrap(),
+            "x,y\n1,2\n"
+        );
+        assert_eq!(
+            std::fs::read_to_string(d.join("part/b.csv")).unwrap(),
+            "n\n3\n4\n"
+        );
+        assert_eq!(std::fs::read_to_string(d.join("P.md")).unwrap(), "n = 5\n");
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn a_page_with_an_unfilled_placeholder_fails_and_writes_nothing() {
+        let d = tmp("unfilled");
+        let mut f = Files::new(&d).unwrap();
+        let e = f
+            .page("P.md", "p.md", "{a} and {b}\n", &[("a", "1".into())])
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "template p.md, line 1: no value for {b}");
+        assert!(f.written().is_empty());
+        assert!(!d.join("P.md").exists());
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    struct Count(usize);
+
+    impl Study for Count {
+        type Results = Vec<usize>;
+        fn page(&self) -> &'static str {
+            "COUNT.md"
+        }
+        fn what(&self) -> String {
+            "a count".into()
+        }
+        fn compute(&self, progress: &dyn Progress) -> Result<(usize, Vec<usize>)> {
+            progress.start("count", self.0 as u64);
+            let v = (0..self.0).inspect(|_| progress.inc()).collect();
+            progress.finish();
+            Ok((1, v))
+        }
+        fn write(&self, files: &mut Files, r: &Vec<usize>, _: f64) -> Result<()> {
+            files.rows("count.csv", "k", r, |k| vec![k.to_string()])?;
+            files.page(
+                self.page(),
+                "count.md",
+                "{n} rows\n",
+                &[("n", r.len().to_string())],
+            )
+        }
+    }
+
+    #[test]
+    fn the_runner_computes_then_writes() {
+        let d = tmp("run");
+        let ran = run(&Count(3), &d.join("out"), &Quiet).unwrap();
+        assert_eq!(ran.files, ["count.csv", "COUNT.md"]);
+        assert_eq!(ran.threads, 1);
+        assert_eq!(
+            std::fs::read_to_string(d.join("out/count.csv")).unwrap(),
+            "k\n0\n1\n2\n"
+        );
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn tables() {
+        let rows = vec![
+            vec!["I".to_string(), "1.0 %".to_string()],
+            vec!["IV".to_string(), "12.25 %".to_string()],
+        ];
+        assert_eq!(
+            table_markdown(&["case", "e_ma"], &[Align::Left, Align::Right], &rows),
+            "| case | e_ma |\n|---|---:|\n| I | 1.0 % |\n| IV | 12.25 % |\n"
+        );
+        assert_eq!(
+            table_text(&["case", "e_ma"], &rows),
+            "case  e_ma\n----  -------\nI     1.0 %\nIV    12.25 %\n"
+        );
+        assert_eq!(
+            (number_word(2), number_word(6), number_word(7)),
+            ("two".into(), "six".into(), "7".into())
+        );
+    }
+}
