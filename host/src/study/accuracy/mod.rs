@@ -16,7 +16,7 @@
 //!   ([`crate::evaluate::optimal_depths_lens`]), what no calibration-free method can beat on
 //!   average;
 //! - **DLT**: a 3x4 projection matrix per camera fitted to the training points (normalised
-//!   DLT, [`crate::study::posture::fit_dlt`]), then linear triangulation;
+//!   DLT, [`hvs_vision::geometry::fit_dlt`]), then linear triangulation;
 //! - the **thesis** net: 4-5-3, X, Y, Z outputs, `TrainConfig::default()`;
 //! - the **default** of `hvs train`: the family the caller passes
 //!   ([`AccuracyConfig::default_family`]; the CLI passes its one definition,
@@ -40,7 +40,7 @@ use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths_lens, Evaluation, Method};
 use crate::sim::board::{Board, Pixels};
 use crate::sim::sets::{SetKind, SimOptions};
-use crate::study::posture::{fit_dlt, triangulate_dlt};
+use hvs_vision::geometry::{fit_dlt, triangulate_dlt};
 use crate::study::thesis::Progress;
 use crate::train::{train, TrainConfig};
 use anyhow::{anyhow, Context, Result};
