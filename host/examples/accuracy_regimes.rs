@@ -15,7 +15,7 @@ use hvs_host::study::accuracy::report::{case_table, summary_table};
 use hvs_host::study::accuracy::{
     protocol_rows, regime_rows, Accuracy, AccuracyConfig, HELD_OUT_SEED_BASE,
 };
-use hvs_host::study::fmt::{roman, times};
+use hvs_host::fmt::{roman, times};
 use hvs_host::study::thesis::Quiet;
 
 #[derive(Parser)]

@@ -7,7 +7,7 @@
 //! pixel regime ([`crate::study::accuracy`]) and writes `ACCURACY.md`.
 
 use crate::study::accuracy::{self as accuracy, AccuracyConfig};
-use crate::study::fmt::{join, roman};
+use crate::fmt::{join, roman};
 use crate::study::posture::report::{self as posture, PostureConfig};
 use crate::study::thesis::{self as experiment, report, Bars, Config};
 use anyhow::{Context, Result};

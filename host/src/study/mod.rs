@@ -5,12 +5,10 @@
 //! - [`thesis`]: the thesis' chapter-4 experiments (`hvs experiment thesis`, `RESULTS.md`).
 //! - [`posture`]: the posture study (`hvs experiment posture`, `POSTURE.md`).
 //! - [`plot`]: the figures (SVG and PNG through `plotters`).
-//! - [`fmt`]: the number formats of every report and table.
 //! - [`template`]: report prose from `host/templates/*.md`, placeholders filled by [`template::fill`].
 //! - [`reported`]: the thesis' reported values, the one table our numbers are compared with.
 
 pub mod accuracy;
-pub mod fmt;
 pub mod plot;
 pub mod posture;
 pub mod reported;

@@ -10,7 +10,7 @@ use super::{
 };
 use crate::data::csv::write_bytes;
 use crate::sim::board::{Board, Pixels};
-use crate::study::fmt::{files_line, join, num, pct, roman, stages, times};
+use crate::fmt::{files_line, join, num, pct, roman, stages, times};
 use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use crate::study::template::fill;
 use anyhow::{Context, Result};

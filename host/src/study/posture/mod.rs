@@ -25,7 +25,7 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::sim::sets::{SetKind, SimOptions};
-use crate::study::fmt::{join, pct};
+use crate::fmt::{join, pct};
 use crate::train::{default_frame, train, TrainConfig};
 use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::blob::{Family, InputKind, ModelBlob, OutputFrame};

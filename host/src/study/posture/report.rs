@@ -23,7 +23,7 @@ use super::{
     DistortionRow, Errors, FixedRow, HiddenRow, PostureAware, Report, StudyConfig,
 };
 use crate::data::csv::write_bytes;
-use crate::study::fmt::{files_line, join, pct, roman, span, stages, times};
+use crate::fmt::{files_line, join, pct, roman, span, stages, times};
 use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use crate::study::template::fill;
 use crate::study::thesis::Progress;

@@ -7,7 +7,7 @@
 
 use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, DepthCurve, Thesis, GENERAL_CASE, PHI_DEPTHS};
 use crate::data::csv::write_bytes;
-use crate::study::fmt::{join, num, roman};
+use crate::fmt::{join, num, roman};
 use crate::study::plot::{self, Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use crate::study::reported::NET_BOUND_PCT;
 use crate::train::Algo;
