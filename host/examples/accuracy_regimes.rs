@@ -16,7 +16,7 @@ use hvs_host::study::accuracy::{
     protocol_rows, regime_rows, Accuracy, AccuracyConfig, HELD_OUT_SEED_BASE,
 };
 use hvs_host::study::engine::Quiet;
-use hvs_host::study::fmt::{roman, times};
+use hvs_host::fmt::{roman, times};
 
 #[derive(Parser)]
 struct Args {

@@ -247,7 +247,7 @@ pub fn optimal_depths_lens(rig: &Rig, lens: Distortion, data: &Dataset) -> Vec<f
         .collect()
 }
 
-pub use crate::study::fmt::pct;
+use crate::fmt::pct;
 
 /// Plain-text table of an evaluation: one row per depth, e_ma in cm and % for each method.
 pub fn text_table(ev: &Evaluation) -> String {

@@ -2,6 +2,7 @@
 //! `hvs-shared`; this crate does the host's work around it, in layers (each may use the ones
 //! listed before it, never one after it):
 //!
+//! - [`fmt`]: the number formats of every report and table (CSV numbers, percentages, lists).
 //! - [`data`]: data sets, CSV in and out (errors name file, line, column), rig files, model
 //!   files, and the one atomic writer every output goes through.
 //! - [`sim`]: simulated point sets through a rig: the thesis' board protocol, random volumes,
@@ -21,6 +22,7 @@ pub mod cli;
 pub mod data;
 pub mod device;
 pub mod evaluate;
+pub mod fmt;
 pub mod infer;
 pub mod sim;
 pub mod study;

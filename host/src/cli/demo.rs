@@ -7,10 +7,10 @@ use crate::data::csv::{write_atomically, write_output};
 use crate::data::dataset::Dataset;
 use crate::data::model;
 use crate::evaluate::{
-    evaluate, model_depths, optimal_depths, pct, text_table, traditional_depths, Evaluation, Method,
+    evaluate, model_depths, optimal_depths, text_table, traditional_depths, Evaluation, Method,
 };
 use crate::sim::sets::{simulate, write_csv, Sample, SetKind, SimOptions};
-use crate::study::fmt::roman;
+use crate::fmt::{pct, roman};
 use crate::study::reported::{self, NET_BOUND_PCT};
 use crate::train::TrainConfig;
 use anyhow::{anyhow, Context, Result};

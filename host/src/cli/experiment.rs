@@ -8,7 +8,7 @@
 
 use crate::study::accuracy::{self as accuracy, AccuracyConfig};
 use crate::study::engine::{self, Bars, Study};
-use crate::study::fmt::{join, roman};
+use crate::fmt::{join, roman};
 use crate::study::posture::report::{self as posture, PostureConfig};
 use crate::study::thesis::Config;
 use anyhow::Result;

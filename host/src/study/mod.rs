@@ -6,13 +6,11 @@
 //! - [`posture`]: the posture study (`hvs experiment posture`, `POSTURE.md`).
 //! - [`engine`]: what every study shares: the runner, the file writer, the table formatter.
 //! - [`plot`]: the figures (SVG and PNG through `plotters`).
-//! - [`fmt`]: the number formats of every report and table.
 //! - [`template`]: report prose from `host/templates/*.md`, placeholders filled by [`template::fill`].
 //! - [`reported`]: the thesis' reported values, the one table our numbers are compared with.
 
 pub mod accuracy;
 pub mod engine;
-pub mod fmt;
 pub mod plot;
 pub mod posture;
 pub mod reported;

@@ -2,7 +2,7 @@
 //! inverse-depth family follows it.
 //!
 //! Each camera's pixels are fitted with a 3x4 projection matrix (normalised DLT,
-//! `posture_study::fit_dlt`) from the training targets and a cubic in the image
+//! `hvs_vision::geometry::fit_dlt`) from the training targets and a cubic in the image
 //! coordinates for the lens (the two fitted in turn); the mean squared residual per pixel
 //! coordinate over its degrees of freedom estimates the pixel noise variance (rounding:
 //! about 1/12 px^2; 0.05 px Gaussian noise: 0.0025 px^2; exact pixels: about 0), and the
@@ -15,7 +15,7 @@
 //! thesis family's fixed decay suits rounded pixels, and better pixels deserve a closer fit.
 
 use crate::data::dataset::Dataset;
-use crate::study::posture::fit_dlt;
+use hvs_vision::geometry::fit_dlt;
 use nalgebra::Vector4;
 
 /// Decay per px^2 of estimated pixel noise variance: rounding (1/12 px^2) gets the thesis'

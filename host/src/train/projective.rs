@@ -24,7 +24,7 @@
 
 use super::rng::SplitMix64;
 use crate::data::dataset::Dataset;
-use crate::study::posture::fit_dlt;
+use hvs_vision::geometry::fit_dlt;
 use hvs_shared::runtime::blob::InputKind;
 use nalgebra::{DMatrix, DVector, Matrix3x4, SMatrix, SVector, Vector4};
 

@@ -16,7 +16,7 @@
 //!   ([`crate::evaluate::optimal_depths_lens`]), what no calibration-free method can beat on
 //!   average;
 //! - **DLT**: a 3x4 projection matrix per camera fitted to the training points (normalised
-//!   DLT, [`crate::study::posture::fit_dlt`]), then linear triangulation;
+//!   DLT, [`hvs_vision::geometry::fit_dlt`]), then linear triangulation;
 //! - the **thesis** net: 4-5-3, X, Y, Z outputs, `TrainConfig::default()`;
 //! - the **default** of `hvs train`: the family the caller passes
 //!   ([`AccuracyConfig::default_family`]; the CLI passes its one definition,
@@ -41,7 +41,7 @@ use crate::evaluate::{evaluate, model_depths, optimal_depths_lens, Evaluation, M
 use crate::sim::board::{Board, Pixels};
 use crate::sim::sets::{SetKind, SimOptions};
 use crate::study::engine::Progress;
-use crate::study::posture::{fit_dlt, triangulate_dlt};
+use hvs_vision::geometry::{fit_dlt, triangulate_dlt};
 use crate::train::{train, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{Family, InputKind};
@@ -613,7 +613,7 @@ pub fn worst_over_cases(
 
 /// The range `(min, max)` of the floor's e_ma over the cases of `board` and `regime`.
 pub fn floor_span(rows: &[RegimeRow], board: &Board, regime: &str) -> (f64, f64) {
-    crate::study::fmt::span(
+    crate::fmt::span(
         rows.iter()
             .filter(|r| r.board == *board && r.regime.name == regime)
             .map(|r| r.scores.floor()),

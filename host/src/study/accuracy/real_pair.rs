@@ -10,7 +10,7 @@
 use super::{estimate_with_floor, mean_scores, AccuracyConfig, Scores};
 use crate::data::csv::{read_set_from, Inputs};
 use crate::data::dataset::Dataset;
-use crate::study::posture::triangulate_dlt;
+use hvs_vision::geometry::triangulate_dlt;
 use anyhow::Result;
 use nalgebra::Matrix3x4;
 use std::path::Path;

@@ -10,7 +10,7 @@ use super::{
 };
 use crate::sim::board::{Board, Pixels};
 use crate::study::engine::{Files, Progress, Study};
-use crate::study::fmt::{files_line, join, num, pct, roman, stages, times};
+use crate::fmt::{files_line, join, num, pct, roman, stages, times};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::Result;
 use std::fmt::Write as _;

@@ -25,7 +25,7 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::sim::sets::{SetKind, SimOptions};
-use crate::study::fmt::{join, pct};
+use crate::fmt::{join, pct};
 use crate::train::{default_frame, train, TrainConfig};
 use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::blob::{Family, InputKind, ModelBlob, OutputFrame};
@@ -35,7 +35,7 @@ use hvs_shared::sim::camera::{Rig, Vec3};
 use hvs_shared::sim::metrics::EmaAcc;
 use hvs_shared::sim::posture::{joints_from_gaze, HeadRig, PostureRange};
 use hvs_shared::sim::presets;
-use nalgebra::{DMatrix, Matrix3, Matrix3x4, Matrix4, Vector3, Vector4};
+use hvs_vision::geometry::{fit_dlt, triangulate_dlt};
 use rand::{RngExt, SeedableRng};
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -615,121 +615,6 @@ pub struct DistortionRow {
     pub max_shift_px: f64,
 }
 
-/// A 3x4 projection matrix fitted by the normalised DLT (Hartley-Zisserman) to
-/// world points and their pixels.
-pub fn fit_dlt(points: &[Vec3], pixels: &[[f64; 2]]) -> Result<Matrix3x4<f64>> {
-    let n = points.len();
-    if n < 6 || pixels.len() != n {
-        bail!("the DLT needs at least 6 points with pixels, got {n}");
-    }
-    // Similarity normalisations: centroid to 0, mean distance sqrt(3) (3-D) and sqrt(2) (2-D).
-    let c3 = points
-        .iter()
-        .fold([0.0; 3], |a, p| [a[0] + p[0], a[1] + p[1], a[2] + p[2]]);
-    let c3 = c3.map(|v| v / n as f64);
-    let d3 = points
-        .iter()
-        .map(|p| norm(&[p[0] - c3[0], p[1] - c3[1], p[2] - c3[2]]))
-        .sum::<f64>()
-        / n as f64;
-    let s3 = 3f64.sqrt() / d3;
-    let c2 = pixels
-        .iter()
-        .fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
-    let c2 = c2.map(|v| v / n as f64);
-    let d2 = pixels
-        .iter()
-        .map(|p| ((p[0] - c2[0]).powi(2) + (p[1] - c2[1]).powi(2)).sqrt())
-        .sum::<f64>()
-        / n as f64;
-    let s2 = 2f64.sqrt() / d2;
-    let mut a = DMatrix::<f64>::zeros(2 * n, 12);
-    for (r, (p, x)) in points.iter().zip(pixels).enumerate() {
-        let pw = [
-            (p[0] - c3[0]) * s3,
-            (p[1] - c3[1]) * s3,
-            (p[2] - c3[2]) * s3,
-            1.0,
-        ];
-        let (u, v) = ((x[0] - c2[0]) * s2, (x[1] - c2[1]) * s2);
-        for k in 0..4 {
-            a[(2 * r, k)] = pw[k];
-            a[(2 * r, 8 + k)] = -u * pw[k];
-            a[(2 * r + 1, 4 + k)] = pw[k];
-            a[(2 * r + 1, 8 + k)] = -v * pw[k];
-        }
-    }
-    let svd = a.svd(false, true);
-    let vt = svd.v_t.context("SVD without V")?;
-    let imin = smallest(svd.singular_values.iter());
-    let h = vt.row(imin);
-    let pn = Matrix3x4::from_fn(|r, c| h[4 * r + c]);
-    let t2 = Matrix3::new(s2, 0.0, -s2 * c2[0], 0.0, s2, -s2 * c2[1], 0.0, 0.0, 1.0);
-    let t3 = Matrix4::new(
-        s3,
-        0.0,
-        0.0,
-        -s3 * c3[0],
-        0.0,
-        s3,
-        0.0,
-        -s3 * c3[1],
-        0.0,
-        0.0,
-        s3,
-        -s3 * c3[2],
-        0.0,
-        0.0,
-        0.0,
-        1.0,
-    );
-    let t2i = t2.try_inverse().context("singular pixel normalisation")?;
-    Ok(t2i * pn * t3)
-}
-
-/// Index of the smallest of `values` (the first, on ties; 0 when empty or all NaN): the
-/// singular vector a homogeneous least-squares problem takes.
-fn smallest<'a>(values: impl Iterator<Item = &'a f64>) -> usize {
-    values
-        .enumerate()
-        .fold(
-            (0, f64::INFINITY),
-            |m, (i, s)| if *s < m.1 { (i, *s) } else { m },
-        )
-        .0
-}
-
-/// Linear (DLT) triangulation of one point from two projection matrices and its pixels
-/// `[u_l, v_l, u_r, v_r]`.
-pub fn triangulate_dlt(p: &[Matrix3x4<f64>; 2], px: &[f64; 4]) -> Option<Vec3> {
-    let mut a = Matrix4::<f64>::zeros();
-    for (c, m) in p.iter().enumerate() {
-        let (u, v) = (px[2 * c], px[2 * c + 1]);
-        let r0 = m.row(0);
-        let r1 = m.row(1);
-        let r2 = m.row(2);
-        let eq0 = r2 * u - r0;
-        let eq1 = r2 * v - r1;
-        for (k, eq) in [eq0, eq1].iter().enumerate() {
-            let nrm = eq.norm();
-            for j in 0..4 {
-                a[(2 * c + k, j)] = eq[j] / nrm;
-            }
-        }
-    }
-    let svd = a.svd(false, true);
-    let vt = svd.v_t?;
-    let imin = smallest(svd.singular_values.iter());
-    let x: Vector4<f64> = vt.row(imin).transpose();
-    if x[3].abs() < 1e-300 {
-        return None;
-    }
-    let p3 = Vector3::new(x[0] / x[3], x[1] / x[3], x[2] / x[3]);
-    p3.iter()
-        .all(|v| v.is_finite())
-        .then(|| [p3[0], p3[1], p3[2]])
-}
-
 /// The lens study at the home posture: for each `k1`, the nets (4-H-3, trained on the wide
 /// board at the six training depths, 9x7 points each) and the DLT fit (from the same
 /// training points) against the floor, on random points of the wide board's frustum at
@@ -1112,40 +997,6 @@ pub fn csv_tables(r: &Report) -> Vec<(&'static str, String)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn dlt_recovers_a_projective_camera_and_triangulates_exactly() {
-        let rig = presets::CASE_4;
-        let head = HeadRig::new(rig);
-        let j = hvs_shared::sim::posture::joints_from_gaze(10.0, -5.0, 3.0, 4.0, 6.0);
-        let [l, r] = head.cameras(&j);
-        let mut pts = Vec::new();
-        for z in [60.0, 90.0, 130.0] {
-            for p in wide_board(&rig, z, 4, 3) {
-                pts.push(hvs_shared::sim::posture::to_head(
-                    &hvs_shared::sim::posture::gaze_frame(&j, [0.0; 3], rig.half_baseline),
-                    &p,
-                ));
-            }
-        }
-        let px_l: Vec<[f64; 2]> = pts.iter().map(|p| l.project(p).unwrap()).collect();
-        let px_r: Vec<[f64; 2]> = pts.iter().map(|p| r.project(p).unwrap()).collect();
-        let p = [fit_dlt(&pts, &px_l).unwrap(), fit_dlt(&pts, &px_r).unwrap()];
-        // A new point: its exact pixels reproject and triangulate back.
-        let q = [3.0, -2.0, 100.0];
-        let want = [l.project(&q).unwrap(), r.project(&q).unwrap()];
-        for c in 0..2 {
-            let h = p[c] * Vector4::new(q[0], q[1], q[2], 1.0);
-            assert!((h[0] / h[2] - want[c][0]).abs() < 1e-6, "{h:?} {want:?}");
-            assert!((h[1] / h[2] - want[c][1]).abs() < 1e-6);
-        }
-        let px = [want[0][0], want[0][1], want[1][0], want[1][1]];
-        let t = triangulate_dlt(&p, &px).unwrap();
-        for k in 0..3 {
-            assert!((t[k] - q[k]).abs() < 1e-6, "{t:?}");
-        }
-        assert!(fit_dlt(&pts[..5], &px_l[..5]).is_err());
-    }
 
     #[test]
     fn wide_board_stays_inside_the_image_and_the_lens_fold() {

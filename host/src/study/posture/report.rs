@@ -22,9 +22,8 @@ use super::{
     csv_tables, distortion_study, fixed_posture_study, markdown, posture_aware_study, BandRow,
     DistortionRow, Errors, FixedRow, HiddenRow, PostureAware, Report, StudyConfig,
 };
-use crate::study::engine::Progress;
-use crate::study::engine::{number_word, Files, Study};
-use crate::study::fmt::{files_line, join, pct, roman, span, stages, times};
+use crate::study::engine::{number_word, Files, Progress, Study};
+use crate::fmt::{files_line, join, pct, roman, span, stages, times};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::sim::posture::PostureRange;

@@ -3,7 +3,7 @@
 //! the report's prose.
 
 use super::{DepthCurve, PhiRow};
-use crate::study::fmt::join;
+use crate::fmt::join;
 use crate::study::reported;
 use hvs_shared::sim::camera::Rig;
 

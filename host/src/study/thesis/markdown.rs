@@ -1,5 +1,5 @@
 //! `RESULTS.md`: the prose is `host/templates/results.md`; this module computes every value
-//! it names (through [`super::facts`] and [`crate::study::fmt`]) and fills it in.
+//! it names (through [`super::facts`] and [`crate::fmt`]) and fills it in.
 
 use super::facts::{
     apart_pct, argmin, board_disparity_px, depth_grid, identical_pixel_depths,
@@ -10,7 +10,7 @@ use super::{
 };
 use crate::sim::sets::training_volume;
 use crate::study::engine::number_word;
-use crate::study::fmt::{files_line, join, mean, pct, pct_value, roman, span, stages};
+use crate::fmt::{files_line, join, mean, pct, pct_value, roman, span, stages};
 use crate::study::reported;
 use crate::train::{Algo, TrainConfig};
 use hvs_shared::runtime::blob::OutputKind;
