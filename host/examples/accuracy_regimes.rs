@@ -11,12 +11,12 @@
 
 use clap::Parser;
 use hvs_host::cli::train::ArchArg;
+use hvs_host::fmt::{roman, times};
 use hvs_host::study::accuracy::report::{case_table, summary_table};
 use hvs_host::study::accuracy::{
     protocol_rows, regime_rows, Accuracy, AccuracyConfig, HELD_OUT_SEED_BASE,
 };
 use hvs_host::study::engine::Quiet;
-use hvs_host::fmt::{roman, times};
 
 #[derive(Parser)]
 struct Args {

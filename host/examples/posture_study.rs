@@ -1,5 +1,6 @@
-//! The posture study of `hvs_host::study::posture`, printed as the markdown section of the
-//! experiments report (and, with `--out DIR`, its tables as CSV files).
+//! The posture study of `hvs_host::study::posture` with settings of your own: the one runner
+//! and writer of `hvs experiment posture` write its CSVs, plots and `POSTURE.md` into `--out
+//! DIR` (default `posture-study`), and the page is printed.
 //!
 //! ```sh
 //! cargo run --release -p hvs-host --example posture_study                 # about 1-2 min
@@ -17,26 +18,20 @@
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
 use hvs_host::cli::train::{ArchArg, FrameArg};
-use hvs_host::study::posture::{csv_tables, markdown, run, StudyConfig};
+use hvs_host::study::engine::{self, Quiet, Study};
+use hvs_host::study::posture::StudyConfig;
 use hvs_host::train::default_frame;
 use hvs_shared::runtime::blob::InputKind;
 use std::path::PathBuf;
 
 fn main() -> Result<()> {
     let mut cfg = StudyConfig::default();
-    let mut out: Option<PathBuf> = None;
+    let mut out = PathBuf::from("posture-study");
     let mut frame_set = false;
     let mut args = std::env::args().skip(1);
-    let mut command =
-        vec!["cargo run --release -p hvs-host --example posture_study --".to_string()];
     while let Some(a) = args.next() {
-        command.push(a.clone());
         let mut value = |name: &str| -> Result<String> {
-            let v = args
-                .next()
-                .with_context(|| format!("{name} needs a value"))?;
-            command.push(v.clone());
-            Ok(v)
+            args.next().with_context(|| format!("{name} needs a value"))
         };
         match a.as_str() {
             "--case" => cfg.case = value("--case")?.parse().context("--case")?,
@@ -59,13 +54,14 @@ fn main() -> Result<()> {
                     .frame();
                 frame_set = true;
             }
-            "--out" => out = Some(PathBuf::from(value("--out")?)),
+            "--out" => out = PathBuf::from(value("--out")?),
             "--sweep" => {
                 cfg.sweep = vec![5, 8, 12, 16, 24, 32];
                 cfg.lattice = true;
             }
             "--lattice" => cfg.lattice = true,
             "--quick" => {
+                cfg.quick = true;
                 cfg.train_levels = [2, 2, 2, 2, 2];
                 cfg.hidden = cfg.hidden.min(10);
                 cfg.restarts = 1;
@@ -82,23 +78,10 @@ fn main() -> Result<()> {
             other => bail!("unknown argument {other}"),
         }
     }
-    let report = run(&cfg)?;
-    let command = command.join(" ");
-    print!("{}", markdown(&report, &command));
-    if let Some(dir) = out {
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
-        for (name, text) in csv_tables(&report) {
-            let path = dir.join(name);
-            hvs_host::data::csv::write_output(Some(&path), |w| {
-                w.write_all(text.as_bytes()).context("cannot write")
-            })?;
-        }
-        let md = dir.join("posture.md");
-        hvs_host::data::csv::write_output(Some(&md), |w| {
-            w.write_all(markdown(&report, &command).as_bytes())
-                .context("cannot write")
-        })?;
-    }
+    engine::run(&cfg, &out, &Quiet)?;
+    let page = out.join(cfg.page());
+    let text = std::fs::read_to_string(&page)
+        .with_context(|| format!("{}: cannot read", page.display()))?;
+    print!("{text}");
     Ok(())
 }

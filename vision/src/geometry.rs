@@ -317,9 +317,9 @@ pub fn fit_dlt(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Projection, G
         }
     }
     let svd = a.svd(false, true);
-    let vt = svd
-        .v_t
-        .ok_or(GeomError::Degenerate("the SVD gave no right singular vectors"))?;
+    let vt = svd.v_t.ok_or(GeomError::Degenerate(
+        "the SVD gave no right singular vectors",
+    ))?;
     let imin = smallest(svd.singular_values.iter());
     let h = vt.row(imin);
     let pn = Matrix3x4::from_fn(|r, c| h[4 * r + c]);
@@ -761,7 +761,6 @@ mod tests {
             Err(GeomError::TooFewPoints { need: 6, got: 5 })
         );
     }
-
 
     /// Scene points on three boards at different poses (non-planar overall), projected exactly.
     fn exact_pairs(rig: &Rig, offset: f64) -> Vec<([f64; 2], [f64; 2])> {

@@ -9,8 +9,8 @@ use crate::data::model;
 use crate::evaluate::{
     evaluate, model_depths, optimal_depths, text_table, traditional_depths, Evaluation, Method,
 };
-use crate::sim::sets::{simulate, write_csv, Sample, SetKind, SimOptions};
 use crate::fmt::{pct, roman};
+use crate::sim::sets::{simulate, write_csv, Sample, SetKind, SimOptions};
 use crate::study::reported::{self, NET_BOUND_PCT};
 use crate::train::TrainConfig;
 use anyhow::{anyhow, Context, Result};

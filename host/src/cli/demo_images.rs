@@ -5,13 +5,11 @@
 
 use crate::cli::train::{train_model, ArchArg, Plan};
 use crate::data::captures;
-use crate::fmt::pct;
 use crate::data::csv::write_bytes;
 use crate::data::dataset::Dataset;
 use crate::data::model;
-use crate::evaluate::{
-    evaluate, model_depths, optimal_depths, text_table, Evaluation, Method,
-};
+use crate::evaluate::{evaluate, model_depths, optimal_depths, text_table, Evaluation, Method};
+use crate::fmt::pct;
 use crate::vision::{
     detect_set, found_corners, points_csv, write_capture_set, Detection, PairOutcome,
 };

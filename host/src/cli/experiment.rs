@@ -2,14 +2,14 @@
 //! reruns every experiment of the thesis' chapter 4 on the simulated HVS
 //! ([`crate::study::thesis`]) and writes `RESULTS.md` with the thesis' values beside ours;
 //! `hvs experiment posture` runs the posture study of issue 8
-//! ([`crate::study::posture::report`]) and writes `POSTURE.md`; `hvs experiment accuracy`
+//! ([`crate::study::posture`]) and writes `POSTURE.md`; `hvs experiment accuracy`
 //! compares the default of `hvs train` with the thesis net, a DLT fit and the floor in every
 //! pixel regime ([`crate::study::accuracy`]) and writes `ACCURACY.md`.
 
+use crate::fmt::{join, roman};
 use crate::study::accuracy::{self as accuracy, AccuracyConfig};
 use crate::study::engine::{self, Bars, Study};
-use crate::fmt::{join, roman};
-use crate::study::posture::report::{self as posture, PostureConfig};
+use crate::study::posture::{self, StudyConfig};
 use crate::study::thesis::Config;
 use anyhow::Result;
 use std::io::IsTerminal;
@@ -19,11 +19,7 @@ use std::sync::LazyLock;
 /// The long help of `hvs experiment posture`, written from the settings the command runs
 /// (case, net size, hidden-neuron sweep, goal, lenses), so it cannot drift from them.
 fn posture_long_about() -> String {
-    let s = PostureConfig {
-        seed: posture::DEFAULT_SEED,
-        quick: false,
-    }
-    .study();
+    let s = StudyConfig::experiment(posture::DEFAULT_SEED, false);
     let k1 = |v: Option<&f64>| v.map_or("-".to_string(), |k| k.to_string());
     format!(
         "The posture study of issue 8 (hvs_host::study::posture) on thesis case {}: the \
@@ -166,11 +162,7 @@ fn accuracy_study(a: AccuracyArgs) -> Result<()> {
 }
 
 fn posture_study(a: PostureArgs) -> Result<()> {
-    let cfg = PostureConfig {
-        seed: a.seed,
-        quick: a.quick,
-    };
-    study(&cfg, &a.output)
+    study(&StudyConfig::experiment(a.seed, a.quick), &a.output)
 }
 
 fn thesis(a: ThesisArgs) -> Result<()> {

@@ -24,8 +24,8 @@
 
 use super::rng::SplitMix64;
 use crate::data::dataset::Dataset;
-use hvs_vision::geometry::fit_dlt;
 use hvs_shared::runtime::blob::InputKind;
+use hvs_vision::geometry::fit_dlt;
 use nalgebra::{DMatrix, DVector, Matrix3x4, SMatrix, SVector, Vector4};
 
 /// Exponent of the residual cost of the camera fit (reached through 2, 4, 8, 16). On the

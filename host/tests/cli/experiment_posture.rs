@@ -6,15 +6,14 @@ use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok};
 
 use hvs_host::data::dataset::JOINT_COLUMNS;
 use hvs_host::study::engine::{Files, Quiet};
-use hvs_host::study::posture::fixed_postures;
-use hvs_host::study::posture::report::{
-    self as posture, PostureConfig, PostureRun, HIDDEN_SWEEP_QUICK, STEMS,
+use hvs_host::study::posture::page::{self as posture, STEMS};
+use hvs_host::study::posture::{
+    fixed_postures, run as posture_run, Posture, StudyConfig, HIDDEN_SWEEP_QUICK,
 };
 
-fn check_invariants(run: &PostureRun) {
-    let r = &run.report;
+fn check_invariants(r: &Posture) {
     let c = &r.config;
-    assert!(run.config.quick);
+    assert!(c.quick);
 
     // (a) Every posture of the study once, home first. At home the thesis net is at the
     // floor; verged 10 degrees it is off by over 100 % (tens of times the floor); turning
@@ -135,15 +134,12 @@ fn csv_rows(text: &str) -> Vec<Vec<String>> {
 
 #[test]
 fn quick_run_invariants_files_and_determinism() {
-    let cfg = PostureConfig {
-        seed: 1,
-        quick: true,
-    };
+    let cfg = StudyConfig::experiment(1, true);
     // The command (same seed, one worker thread) runs while the library run does.
     let cli = spawn_quick_experiment("posture", &["--seed", "1"]);
     let out = cli.out.clone();
 
-    let run = posture::run(&cfg, &Quiet).unwrap();
+    let run = posture_run(&cfg, &Quiet).unwrap();
     check_invariants(&run);
     let lib_dir = tempfile::tempdir().unwrap();
     let mut files = Files::new(lib_dir.path()).unwrap();
@@ -156,7 +152,7 @@ fn quick_run_invariants_files_and_determinism() {
     // Not a terminal: no progress bars.
     assert!(stderr.is_empty(), "{stderr:?}");
 
-    let r = &run.report;
+    let r = &run;
     let headers = [
         (
             "fixed",

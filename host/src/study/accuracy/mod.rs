@@ -41,7 +41,6 @@ use crate::evaluate::{evaluate, model_depths, optimal_depths_lens, Evaluation, M
 use crate::sim::board::{Board, Pixels};
 use crate::sim::sets::{SetKind, SimOptions};
 use crate::study::engine::Progress;
-use hvs_vision::geometry::{fit_dlt, triangulate_dlt};
 use crate::train::{train, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{Family, InputKind};
@@ -49,6 +48,7 @@ use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::{Distortion, Rig};
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
+use hvs_vision::geometry::{fit_dlt, triangulate_dlt};
 use rayon::prelude::*;
 use std::time::Instant;
 

@@ -10,8 +10,8 @@
 use super::{estimate_with_floor, mean_scores, AccuracyConfig, Scores};
 use crate::data::csv::{read_set_from, Inputs};
 use crate::data::dataset::Dataset;
-use hvs_vision::geometry::triangulate_dlt;
 use anyhow::Result;
+use hvs_vision::geometry::triangulate_dlt;
 use nalgebra::Matrix3x4;
 use std::path::Path;
 

@@ -8,9 +8,9 @@ use super::{
     SweepRow, BIG_BOARD, BOARDS, HELD_OUT_SEED_BASE, LENS_SWEEP_PIXELS, METHODS, REGIMES,
     SWEEP_CASE,
 };
+use crate::fmt::{files_line, join, num, pct, roman, stages, times};
 use crate::sim::board::{Board, Pixels};
 use crate::study::engine::{Files, Progress, Study};
-use crate::fmt::{files_line, join, num, pct, roman, stages, times};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::Result;
 use std::fmt::Write as _;

@@ -8,9 +8,9 @@ use super::facts::{
 use super::{
     e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Thesis, FEWER_DEPTHS, GENERAL_CASE, PHI_DEPTHS,
 };
+use crate::fmt::{files_line, join, mean, pct, pct_value, roman, span, stages};
 use crate::sim::sets::training_volume;
 use crate::study::engine::number_word;
-use crate::fmt::{files_line, join, mean, pct, pct_value, roman, span, stages};
 use crate::study::reported;
 use crate::train::{Algo, TrainConfig};
 use hvs_shared::runtime::blob::OutputKind;

@@ -8,8 +8,8 @@
 use super::markdown::{results_values, POSTURE_REPORT, TEMPLATE};
 use super::Config;
 use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, DepthCurve, Thesis, GENERAL_CASE, PHI_DEPTHS};
-use crate::study::engine::{Files, Progress, Study};
 use crate::fmt::{join, num, roman};
+use crate::study::engine::{Files, Progress, Study};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use crate::study::reported::NET_BOUND_PCT;
 use crate::train::Algo;

@@ -1,253 +1,49 @@
-//! `hvs experiment posture`: the posture study of issue 8 ([`crate::study::posture`]) as one
-//! command, written like the thesis experiments: a CSV and a plot (SVG and PNG) per part and
-//! `POSTURE.md` with our numbers, the goal and one sentence per plot.
+//! The files of `hvs experiment posture` ([`crate::study::posture`]): a CSV and a plot (SVG
+//! and PNG) per part and `POSTURE.md` from `host/templates/posture.md`.
 //!
-//! | stem | part | study function |
-//! |---|---|---|
-//! | `fixed` | the thesis' 4-5-3 net, trained at home, at verged and turned postures, vs. the floor | [`fixed_posture_study`] |
-//! | `bands` | the posture-aware 9-H-3 net per posture band vs. the floor (goal: within 20 %) | [`posture_aware_study`] |
-//! | `hidden` | the hidden-neuron count the posture-aware net needs | [`posture_aware_study`] |
-//! | `distortion` | lens distortion `k1` 0 to -0.5: the networks, a DLT fit, the floor | [`distortion_study`] |
+//! | stem | part |
+//! |---|---|
+//! | `fixed` | the thesis' 4-5-3 net, trained at home, at verged and turned postures, vs. the floor |
+//! | `bands` | the posture-aware 9-H-3 net per posture band vs. the floor |
+//! | `hidden` | the hidden-neuron count the posture-aware net needs |
+//! | `distortion` | lens distortion `k1` 0 to -0.5: the networks, a DLT fit, the floor |
 //!
-//! The study's own functions compute everything; this module only schedules them and writes
-//! the files. The trainings of the hidden-neuron sweep and the lens study are independent, so
-//! they run side by side on the rayon pool (longest first), each one call of the library
-//! (`posture_aware_study` with one hidden count and no sweep, the chosen count with the
-//! lattice-trained net; `distortion_study`); every training takes the study's seed, so the
-//! numbers are those of one sequential [`crate::study::posture::run`] with the same sweep,
-//! whatever the thread count. Wall times are the exception and go to `timing.csv` and
-//! `POSTURE.md` only.
+//! Wall times go to `timing.csv` and `POSTURE.md` only.
 
 use super::{
-    csv_tables, distortion_study, fixed_posture_study, markdown, posture_aware_study, BandRow,
-    DistortionRow, Errors, FixedRow, HiddenRow, PostureAware, Report, StudyConfig,
+    csv_tables, family_words, run, BandRow, DistortionRow, Errors, FixedRow, HiddenRow, Posture,
+    StudyConfig, GOAL_RATIO, WIDE_BOARD_U, WIDE_BOARD_V,
 };
-use crate::study::engine::{number_word, Files, Progress, Study};
 use crate::fmt::{files_line, join, pct, roman, span, stages, times};
+use crate::study::engine::{number_word, table_markdown, Align, Files, Progress, Study};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
-use anyhow::{anyhow, Context, Result};
+use anyhow::Result;
 use hvs_shared::sim::posture::PostureRange;
-use rayon::prelude::*;
 use std::fmt::Write as _;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
-use std::time::Instant;
 
-/// Seed of the default run: the one of `docs/posture-study.md`'s tables.
-pub const DEFAULT_SEED: u64 = 1;
-/// The goal of issue 8: the posture-aware net within 20 % of the floor in every band.
-pub const GOAL_RATIO: f64 = 1.2;
-/// Hidden-neuron counts of the full run's sweep (the chosen size, 16, among them): those of
-/// the example's `--sweep`, which produced `docs/posture-study.md`'s tables.
-pub const HIDDEN_SWEEP: [usize; 6] = [5, 8, 12, 16, 24, 32];
-/// Hidden neurons of the posture-aware net of the full run.
-pub const HIDDEN: usize = 16;
-/// Hidden-neuron counts of the quick run's sweep.
-pub const HIDDEN_SWEEP_QUICK: [usize; 2] = [3, 6];
-/// Hidden neurons of the quick run's posture-aware net.
-pub const HIDDEN_QUICK: usize = 6;
 /// The stems of the files [`write()`] produces (each as `.csv`, `.svg`, `.png`), besides
 /// `timing.csv` and `POSTURE.md`.
 pub const STEMS: [&str; 4] = ["fixed", "bands", "hidden", "distortion"];
-
-/// What to run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct PostureConfig {
-    /// Seed of every random step.
-    pub seed: u64,
-    /// Reduced run (for tests): a coarse training grid, small nets, few test points.
-    pub quick: bool,
-}
-
-impl PostureConfig {
-    /// The study's configuration: [`StudyConfig::default`] with the sweep [`HIDDEN_SWEEP`]
-    /// and the lattice-trained net (the example's `--sweep`, the settings of
-    /// `docs/posture-study.md`'s tables); when quick, a 2x1x1x2x2 grid
-    /// of training postures (8 postures, 576 rows), 9-6-3 nets, 3 and 6 hidden neurons,
-    /// 300 test points, two lenses (k1 0 and -0.5) and a 4-4-3 lens net.
-    pub fn study(&self) -> StudyConfig {
-        let full = StudyConfig {
-            seed: self.seed,
-            hidden: HIDDEN,
-            sweep: HIDDEN_SWEEP.to_vec(),
-            lattice: true,
-            ..StudyConfig::default()
-        };
-        if !self.quick {
-            return full;
-        }
-        StudyConfig {
-            train_levels: [2, 1, 1, 2, 2],
-            hidden: HIDDEN_QUICK,
-            sweep: HIDDEN_SWEEP_QUICK.to_vec(),
-            distortion_hidden: vec![4],
-            ..full.reduced()
-        }
-    }
-}
-
-/// Everything [`run`] measured.
-#[derive(Debug, Clone)]
-pub struct PostureRun {
-    /// The configuration.
-    pub config: PostureConfig,
-    /// The study's results, as [`crate::study::posture::run`] returns them (its `seconds`:
-    /// part (a); the sum of the posture-aware trainings' wall times, which overlap; the lens
-    /// study's wall time).
-    pub report: Report,
-    /// Wall time of each stage (s), in run order; not deterministic.
-    pub stage_s: Vec<(&'static str, f64)>,
-    /// Worker threads used.
-    pub threads: usize,
-}
-
-enum Job {
-    Aware(usize),
-    Lens,
-}
-
-impl Job {
-    /// Rough relative cost, for the order of the queue (a training's time grows about
-    /// linearly with the hidden count at this size; the lens study costs about as much as an
-    /// 8-neuron net; the chosen count also trains the lattice net).
-    fn cost(&self, study: &StudyConfig) -> usize {
-        match self {
-            Job::Aware(h) if *h == study.hidden && study.lattice => 2 * h,
-            Job::Aware(h) => *h,
-            Job::Lens => 8,
-        }
-    }
-}
-
-enum Done {
-    Aware(usize, Box<PostureAware>, f64),
-    Lens(Vec<DistortionRow>, f64),
-}
-
-/// Runs the study: part (a) first, then the posture-aware nets of the sweep and the lens
-/// study side by side.
-pub fn run(cfg: &PostureConfig, progress: &dyn Progress) -> Result<PostureRun> {
-    let study = cfg.study();
-    let mut stage_s = Vec::new();
-
-    progress.start("fixed-posture 4-5-3 net", 1);
-    let t = Instant::now();
-    let (_, fixed) = fixed_posture_study(&study)?;
-    let fixed_s = t.elapsed().as_secs_f64();
-    progress.inc();
-    progress.finish();
-    stage_s.push(("fixed-posture net", fixed_s));
-
-    // Longest first.
-    let mut hidden: Vec<usize> = study.sweep.clone();
-    if !hidden.contains(&study.hidden) {
-        hidden.push(study.hidden);
-    }
-    hidden.sort_unstable();
-    hidden.dedup();
-    let mut jobs: Vec<Job> = hidden.iter().map(|&h| Job::Aware(h)).collect();
-    jobs.push(Job::Lens);
-    jobs.sort_by_key(|j| std::cmp::Reverse(j.cost(&study)));
-
-    progress.start("posture-aware nets, lens", jobs.len() as u64);
-    let t = Instant::now();
-    let next = AtomicUsize::new(0);
-    let results: Mutex<Vec<Option<Result<Done>>>> =
-        Mutex::new((0..jobs.len()).map(|_| None).collect());
-    let threads = rayon::current_num_threads().min(jobs.len()).max(1);
-    (0..threads).into_par_iter().for_each(|_| loop {
-        let k = next.fetch_add(1, Ordering::SeqCst);
-        let Some(job) = jobs.get(k) else { break };
-        let t0 = Instant::now();
-        let done = match job {
-            Job::Aware(h) => posture_aware_study(&StudyConfig {
-                hidden: *h,
-                sweep: Vec::new(),
-                lattice: study.lattice && *h == study.hidden,
-                ..study.clone()
-            })
-            .map(|a| Done::Aware(*h, Box::new(a), t0.elapsed().as_secs_f64()))
-            .with_context(|| format!("the posture-aware 9-{h}-3 net")),
-            Job::Lens => distortion_study(&study)
-                .map(|d| Done::Lens(d, t0.elapsed().as_secs_f64()))
-                .context("the lens study"),
-        };
-        progress.inc();
-        if done.is_err() {
-            // No point in the rest: the first error is the run's.
-            next.store(jobs.len(), Ordering::SeqCst);
-        }
-        if let Ok(mut r) = results.lock() {
-            r[k] = Some(done);
-        }
-    });
-    progress.finish();
-    stage_s.push(("posture-aware nets and lens", t.elapsed().as_secs_f64()));
-
-    let mut results = results
-        .into_inner()
-        .map_err(|_| anyhow!("a worker of the posture study panicked"))?;
-    if let Some(k) = results.iter().position(|r| matches!(r, Some(Err(_)))) {
-        if let Some(Some(Err(e))) = results.get_mut(k).map(Option::take) {
-            return Err(e);
-        }
-    }
-    let mut chosen: Option<PostureAware> = None;
-    let mut sweep: Vec<HiddenRow> = Vec::new();
-    let mut distortion = Vec::new();
-    let (mut aware_s, mut lens_s) = (0.0, 0.0);
-    for r in results {
-        match r.ok_or_else(|| anyhow!("a job of the posture study did not run"))?? {
-            Done::Aware(h, a, s) => {
-                aware_s += s;
-                sweep.extend(a.sweep.iter().cloned());
-                if h == study.hidden {
-                    chosen = Some(*a);
-                }
-            }
-            Done::Lens(d, s) => {
-                distortion = d;
-                lens_s = s;
-            }
-        }
-    }
-    let mut aware = chosen.ok_or_else(|| anyhow!("no posture-aware net of the chosen size"))?;
-    // As the library orders its sweep.
-    sweep.sort_by(|a, b| (a.postures, a.hidden).cmp(&(b.postures, b.hidden)));
-    aware.sweep = sweep;
-    Ok(PostureRun {
-        config: *cfg,
-        report: Report {
-            config: study,
-            fixed,
-            aware,
-            distortion,
-            seconds: [fixed_s, aware_s, lens_s],
-        },
-        stage_s,
-        threads,
-    })
-}
 
 // ---------------------------------------------------------------------------------------
 // Files
 
 /// Writes the CSVs (the study's own tables, [`csv_tables`]), one plot per part (SVG and PNG)
 /// and `POSTURE.md`; `total_s` is the run's wall time.
-pub fn write(files: &mut Files, r: &PostureRun, total_s: f64) -> Result<()> {
-    for (name, text) in csv_tables(&r.report) {
+pub fn write(files: &mut Files, r: &Posture, total_s: f64) -> Result<()> {
+    for (name, text) in csv_tables(r) {
         files.bytes(name, text.as_bytes())?;
     }
-    files.figure("fixed", &fixed_figure(&r.report))?;
-    files.figure("bands", &bands_figure(&r.report))?;
-    files.figure("hidden", &hidden_figure(&r.report))?;
-    files.figure("distortion", &distortion_figure(&r.report))?;
+    files.figure("fixed", &fixed_figure(r))?;
+    files.figure("bands", &bands_figure(r))?;
+    files.figure("hidden", &hidden_figure(r))?;
+    files.figure("distortion", &distortion_figure(r))?;
     let values = posture_values(r, total_s);
     files.page("POSTURE.md", "host/templates/posture.md", TEMPLATE, &values)
 }
 
-impl Study for PostureConfig {
-    type Results = PostureRun;
+impl Study for StudyConfig {
+    type Results = Posture;
     fn page(&self) -> &'static str {
         "POSTURE.md"
     }
@@ -257,10 +53,10 @@ impl Study for PostureConfig {
             STEMS.len()
         )
     }
-    fn compute(&self, progress: &dyn Progress) -> Result<(usize, PostureRun)> {
+    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Posture)> {
         run(self, progress).map(|r| (r.threads, r))
     }
-    fn write(&self, files: &mut Files, r: &PostureRun, total_s: f64) -> Result<()> {
+    fn write(&self, files: &mut Files, r: &Posture, total_s: f64) -> Result<()> {
         write(files, r, total_s)
     }
 }
@@ -291,7 +87,7 @@ const TURNS: [(usize, &str, usize); 4] = [
     (1, "neck tilt", 4),
 ];
 
-fn fixed_figure(r: &Report) -> Figure {
+fn fixed_figure(r: &Posture) -> Figure {
     let verg = single_term(&r.fixed, 4);
     let x: Vec<f64> = verg.iter().map(|v| v.0).collect();
     let y = |f: &dyn Fn(&FixedRow) -> f64| -> Vec<f64> { verg.iter().map(|v| f(v.1)).collect() };
@@ -401,7 +197,7 @@ const TERMS: [(&str, usize); 5] = [
     ("vergence", 6),
 ];
 
-fn bands_figure(r: &Report) -> Figure {
+fn bands_figure(r: &Posture) -> Figure {
     let bands = &r.aware.bands;
     let mut ratio_series: Vec<Series> = TERMS
         .iter()
@@ -497,7 +293,7 @@ fn bands_figure(r: &Report) -> Figure {
     }
 }
 
-fn grid_sweep(r: &Report) -> Vec<&HiddenRow> {
+fn grid_sweep(r: &Posture) -> Vec<&HiddenRow> {
     r.aware
         .sweep
         .iter()
@@ -505,7 +301,7 @@ fn grid_sweep(r: &Report) -> Vec<&HiddenRow> {
         .collect()
 }
 
-fn hidden_figure(r: &Report) -> Figure {
+fn hidden_figure(r: &Posture) -> Figure {
     let rows = grid_sweep(r);
     let x: Vec<f64> = rows.iter().map(|h| h.hidden as f64).collect();
     let y = |f: fn(&HiddenRow) -> f64| -> Vec<f64> { rows.iter().map(|h| f(h)).collect() };
@@ -614,7 +410,7 @@ fn hidden_figure(r: &Report) -> Figure {
 
 const NET_COLORS: [usize; 3] = [0, 2, 4];
 
-fn distortion_figure(r: &Report) -> Figure {
+fn distortion_figure(r: &Posture) -> Figure {
     let d = &r.distortion;
     let x: Vec<f64> = d.iter().map(|d| d.k1).collect();
     let mut series = Vec::new();
@@ -685,8 +481,13 @@ fn distortion_figure(r: &Report) -> Figure {
 // ---------------------------------------------------------------------------------------
 // POSTURE.md
 
-/// The command that reproduces a run.
-pub fn command(cfg: &PostureConfig) -> String {
+/// The command that reproduces a run of `hvs experiment posture`'s settings
+/// ([`StudyConfig::experiment`]); other settings come from the example.
+pub fn command(cfg: &StudyConfig) -> String {
+    if *cfg != StudyConfig::experiment(cfg.seed, cfg.quick) {
+        return "cargo run --release -p hvs-host --example posture_study -- (custom settings)"
+            .into();
+    }
     format!(
         "hvs experiment posture --seed {}{}",
         cfg.seed,
@@ -695,7 +496,7 @@ pub fn command(cfg: &PostureConfig) -> String {
 }
 
 /// The smallest hidden count whose worst band is within the goal (grid postures).
-pub fn smallest_within_goal(r: &Report) -> Option<&HiddenRow> {
+pub fn smallest_within_goal(r: &Posture) -> Option<&HiddenRow> {
     grid_sweep(r)
         .into_iter()
         .find(|h| h.worst_band_ratio <= GOAL_RATIO)
@@ -723,12 +524,11 @@ fn goal_pct() -> String {
     format!("{:.0} %", (GOAL_RATIO - 1.0) * 100.0)
 }
 
-fn posture_values(run: &PostureRun, total_s: f64) -> Vec<(&'static str, String)> {
-    let r = &run.report;
+fn posture_values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
     let c = &r.config;
-    let cmd = command(&run.config);
+    let cmd = command(c);
     let sweep: Vec<String> = grid_sweep(r).iter().map(|h| h.hidden.to_string()).collect();
-    let settings = if run.config.quick {
+    let settings = if c.quick {
         format!(
             "**Reduced run (`--quick`, for tests):** {} training postures ({:?} cells per \
              gaze term), a 9-{}-3 net, hidden neurons {}, {} test points; the numbers show the \
@@ -762,24 +562,13 @@ fn posture_values(run: &PostureRun, total_s: f64) -> Vec<(&'static str, String)>
             }
         )
     };
-    // The study's own tables, one heading level down.
-    let tables = join(
-        markdown(r, &cmd).lines().map(|line| {
-            if line.starts_with('#') {
-                format!("#{line}")
-            } else {
-                line.to_string()
-            }
-        }),
-        "\n",
-    );
     vec![
         ("command", cmd.clone()),
         ("total_s", format!("{total_s:.1}")),
-        ("threads", run.threads.to_string()),
+        ("threads", r.threads.to_string()),
         ("case", roman(c.case).to_string()),
         ("settings", settings),
-        ("stage_times", stages(&run.stage_s)),
+        ("stage_times", stages(&r.stage_s)),
         ("glance_rows", at_a_glance(r)),
         ("files_fixed", files_line("fixed")),
         ("files_bands", files_line("bands")),
@@ -811,25 +600,166 @@ fn posture_values(run: &PostureRun, total_s: f64) -> Vec<(&'static str, String)>
             number_word(hvs_shared::sim::presets::TRAIN_DEPTHS.len()),
         ),
         ("distortion_sentence", distortion_sentence(r)),
-        ("tables", tables),
+        ("case_number", c.case.to_string()),
+        ("family", family_words(c.family, c.frame)),
+        ("restarts_count", c.restarts.to_string()),
+        ("params", r.aware.blob.params.len().to_string()),
+        ("weight_bytes", (r.aware.blob.params.len() * 4).to_string()),
+        (
+            "worst_band",
+            format!(
+                "{:.2}",
+                r.aware.bands.iter().map(BandRow::ratio).fold(0.0, f64::max)
+            ),
+        ),
+        ("goal_ratio", format!("{GOAL_RATIO:.2}")),
+        ("board_width_pct", format!("{:.0}", WIDE_BOARD_U * 100.0)),
+        (
+            "board_height_pct",
+            format!("{:.0}", WIDE_BOARD_V * 100.0 * 320.0 / 240.0),
+        ),
+        ("fixed_table", fixed_table(r)),
+        ("bands_table", bands_table(r)),
+        ("sweep_table", sweep_table(r)),
+        ("distortion_table", distortion_table(r)),
+        ("seconds_a", format!("{:.1}", r.seconds[0])),
+        ("seconds_b", format!("{:.1}", r.seconds[1])),
+        ("seconds_c", format!("{:.1}", r.seconds[2])),
     ]
 }
 
-fn verged_worst(r: &Report) -> Option<(f64, &FixedRow)> {
+/// Table (a): the home-trained net at each posture.
+fn fixed_table(r: &Posture) -> String {
+    let rows: Vec<Vec<String>> = r
+        .fixed
+        .iter()
+        .map(|f| {
+            vec![
+                f.label.clone(),
+                pct(f.net.z_pct),
+                pct(f.net.d3_pct),
+                pct(f.floor.z_pct),
+                format!("{:.1}", f.net.z_pct / f.floor.z_pct),
+            ]
+        })
+        .collect();
+    let head = [
+        "posture",
+        "net depth e_ma",
+        "net 3-D",
+        "floor depth e_ma",
+        "net / floor",
+    ];
+    table_markdown(&head, &right_after(1, head.len()), &rows)
+}
+
+/// Columns left-aligned up to `left`, right-aligned after.
+fn right_after(left: usize, n: usize) -> Vec<Align> {
+    (0..n)
+        .map(|k| if k < left { Align::Left } else { Align::Right })
+        .collect()
+}
+
+/// Table (b): the posture-aware net per band.
+fn bands_table(r: &Posture) -> String {
+    let rows: Vec<Vec<String>> = r
+        .aware
+        .bands
+        .iter()
+        .map(|b| {
+            vec![
+                b.term.to_string(),
+                b.band.clone(),
+                b.net.points.to_string(),
+                pct(b.net.z_pct),
+                pct(b.floor.z_pct),
+                format!("{:.2}", b.ratio()),
+                pct(b.net.d3_pct),
+                pct(b.floor.d3_pct),
+            ]
+        })
+        .collect();
+    let head = [
+        "term",
+        "band (deg)",
+        "points",
+        "net depth e_ma",
+        "floor depth e_ma",
+        "net / floor",
+        "net 3-D",
+        "floor 3-D",
+    ];
+    table_markdown(&head, &right_after(2, head.len()), &rows)
+}
+
+/// Table (b), second: the hidden-neuron sweep.
+fn sweep_table(r: &Posture) -> String {
+    let rows: Vec<Vec<String>> = r
+        .aware
+        .sweep
+        .iter()
+        .map(|h| {
+            vec![
+                h.postures.to_string(),
+                h.hidden.to_string(),
+                h.params.to_string(),
+                pct(h.train_pct),
+                pct(h.test.z_pct),
+                format!("{:.2}", h.test.z_pct / h.floor.z_pct),
+                format!("{:.2}", h.worst_band_ratio),
+                format!("{:.0} s", h.seconds),
+            ]
+        })
+        .collect();
+    let head = [
+        "training postures",
+        "hidden",
+        "parameters",
+        "train e_ma",
+        "test e_ma",
+        "net / floor",
+        "worst band / floor",
+        "training time",
+    ];
+    table_markdown(&head, &right_after(1, head.len()), &rows)
+}
+
+/// Table (c): every estimator per lens.
+fn distortion_table(r: &Posture) -> String {
+    let nets: Vec<String> = r.distortion.first().map_or(Vec::new(), |d| {
+        d.nets.iter().map(|(h, _)| format!("net 4-{h}-3")).collect()
+    });
+    let mut head = vec!["k1", "largest shift"];
+    head.extend(nets.iter().map(String::as_str));
+    head.extend(["DLT", "floor"]);
+    let rows: Vec<Vec<String>> = r
+        .distortion
+        .iter()
+        .map(|d| {
+            let mut row = vec![format!("{:.1}", d.k1), format!("{:.1} px", d.max_shift_px)];
+            row.extend(d.nets.iter().map(|(_, e)| pct(e.z_pct)));
+            row.extend([pct(d.dlt.z_pct), pct(d.floor.z_pct)]);
+            row
+        })
+        .collect();
+    table_markdown(&head, &right_after(0, head.len()), &rows)
+}
+
+fn verged_worst(r: &Posture) -> Option<(f64, &FixedRow)> {
     single_term(&r.fixed, 4)
         .into_iter()
         .filter(|v| v.0 > 0.0)
         .max_by(|a, b| a.0.total_cmp(&b.0))
 }
 
-fn worst_band(r: &Report) -> Option<&BandRow> {
+fn worst_band(r: &Posture) -> Option<&BandRow> {
     r.aware
         .bands
         .iter()
         .max_by(|a, b| a.ratio().total_cmp(&b.ratio()))
 }
 
-fn at_a_glance(r: &Report) -> String {
+fn at_a_glance(r: &Posture) -> String {
     let mut rows = Vec::new();
     if let Some((v, row)) = verged_worst(r) {
         rows.push(format!(
@@ -889,7 +819,7 @@ fn best_net(d: &DistortionRow) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-fn fixed_sentence(r: &Report) -> String {
+fn fixed_sentence(r: &Posture) -> String {
     let home = r.fixed.iter().find(|f| f.label == "home");
     let turned: Vec<&FixedRow> = TURNS
         .iter()
@@ -927,7 +857,7 @@ fn fixed_sentence(r: &Report) -> String {
     }
 }
 
-fn bands_sentence(r: &Report) -> String {
+fn bands_sentence(r: &Posture) -> String {
     let bands = &r.aware.bands;
     let (lo, hi) = span(bands.iter().map(BandRow::ratio));
     let (flo, fhi) = span(bands.iter().map(|b| b.floor.z_pct));
@@ -953,7 +883,7 @@ fn bands_sentence(r: &Report) -> String {
     )
 }
 
-fn hidden_sentence(r: &Report) -> String {
+fn hidden_sentence(r: &Posture) -> String {
     let rows = grid_sweep(r);
     let Some(best) = rows
         .iter()
@@ -1048,7 +978,7 @@ fn hidden_sentence(r: &Report) -> String {
     sentence
 }
 
-fn distortion_sentence(r: &Report) -> String {
+fn distortion_sentence(r: &Posture) -> String {
     let (Some(d0), Some(d1)) = (r.distortion.first(), r.distortion.last()) else {
         return "The run has no lens study.".to_string();
     };
@@ -1092,11 +1022,7 @@ mod tests {
 
     #[test]
     fn quick_and_full_settings() {
-        let full = PostureConfig {
-            seed: DEFAULT_SEED,
-            quick: false,
-        }
-        .study();
+        let full = StudyConfig::experiment(super::super::DEFAULT_SEED, false);
         let d = StudyConfig::default();
         // The settings of docs/posture-study.md's tables: the defaults and the example's
         // `--sweep`.
@@ -1109,15 +1035,14 @@ mod tests {
             (d.test_postures, d.test_points, d.k1.clone())
         );
         assert_eq!(full.sweep, vec![5, 8, 12, 16, 24, 32]);
-        assert!(full.lattice && full.sweep.contains(&full.hidden));
-        let quick = PostureConfig {
-            seed: 4,
-            quick: true,
-        }
-        .study();
+        assert!(full.lattice && full.sweep.contains(&full.hidden) && !full.quick);
+        assert_eq!(command(&full), "hvs experiment posture --seed 1");
+        let quick = StudyConfig::experiment(4, true);
         assert_eq!(quick.seed, 4);
-        assert!(quick.sweep.contains(&quick.hidden));
+        assert!(quick.sweep.contains(&quick.hidden) && quick.quick);
         assert_eq!(quick.k1.first(), Some(&0.0));
         assert_eq!(quick.k1.last(), Some(&-0.5));
+        assert_eq!(command(&quick), "hvs experiment posture --seed 4 --quick");
+        assert!(command(&StudyConfig::default()).contains("--example posture_study"));
     }
 }
