@@ -10,7 +10,7 @@ use super::{
 };
 use crate::fmt::{files_line, join, num, pct, roman, stages, times};
 use crate::sim::board::{Board, Pixels};
-use crate::study::engine::{Files, Progress, Study};
+use crate::study::engine::{table_markdown, Files, Progress, Study};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::Result;
 use std::fmt::Write as _;
@@ -331,41 +331,42 @@ pub fn small_pct(v: f64) -> String {
 /// The summary table: per board and regime, the floor's range and each method's worst.
 pub fn summary_table(a: &Accuracy) -> String {
     let t = method_titles(&a.config);
-    let mut s = format!(
-        "| board | regime | floor e_ma (range over cases) | {} | {} | {} |\n|---|---|---|---|---|---|\n",
-        t[1], t[2], t[3]
-    );
+    let head = [
+        "board",
+        "regime",
+        "floor e_ma (range over cases)",
+        t[1].as_str(),
+        t[2].as_str(),
+        t[3].as_str(),
+    ];
+    let mut rows = Vec::new();
     for board in &BOARDS {
         for r in &REGIMES {
             let (lo, hi) = floor_span(&a.regimes, board, r.name);
             if lo > hi {
                 continue;
             }
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} to {} | {} | {} | {} |",
+            let mut row = vec![
                 board.name(),
-                r.name,
-                small_pct(lo),
-                small_pct(hi),
-                worst_cell(&a.regimes, board, r.name, 1),
-                worst_cell(&a.regimes, board, r.name, 2),
-                worst_cell(&a.regimes, board, r.name, 3)
-            );
+                r.name.to_string(),
+                format!("{} to {}", small_pct(lo), small_pct(hi)),
+            ];
+            row.extend((1..4).map(|m| worst_cell(&a.regimes, board, r.name, m)));
+            rows.push(row);
         }
     }
-    s
+    table_markdown(&head, &[], &rows)
 }
 
-fn score_cells(s: &Scores, exact: bool) -> String {
+fn score_cells(s: &Scores, exact: bool) -> Vec<String> {
     let r = s.ratios();
-    let mut out = small_pct(s.floor());
+    let mut out = vec![small_pct(s.floor())];
     for m in 1..4 {
-        if exact {
-            let _ = write!(out, " | {}", small_pct(s.0[m]));
+        out.push(if exact {
+            small_pct(s.0[m])
         } else {
-            let _ = write!(out, " | {} ({})", small_pct(s.0[m]), times(r[m - 1]));
-        }
+            format!("{} ({})", small_pct(s.0[m]), times(r[m - 1]))
+        });
     }
     out
 }
@@ -383,16 +384,13 @@ fn method_table<'a>(
         .copied()
         .chain(["floor", &t[1], &t[2], &t[3]])
         .collect();
-    let mut s = format!("| {} |\n|{}\n", head.join(" | "), "---|".repeat(head.len()));
-    for (cells, scores, exact) in rows {
-        let _ = writeln!(
-            s,
-            "| {} | {} |",
-            cells.join(" | "),
-            score_cells(scores, exact)
-        );
-    }
-    s
+    let rows: Vec<Vec<String>> = rows
+        .map(|(mut cells, scores, exact)| {
+            cells.extend(score_cells(scores, exact));
+            cells
+        })
+        .collect();
+    table_markdown(&head, &[], &rows)
 }
 
 /// Every case: e_ma (ratio to the floor).
