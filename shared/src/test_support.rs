@@ -162,6 +162,8 @@ pub fn sample(spec: SampleSpec) -> ModelBlob {
         family: spec.family,
         matcher: None,
         frame: spec.frame,
+        image_size: None,
+        parent: None,
     }
 }
 

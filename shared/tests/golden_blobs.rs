@@ -1,11 +1,13 @@
 //! Golden blobs of earlier format versions: files written by `hvs train` of format version 1
 //! (a 4-5-3 net on the case I boards, `--seed 7`, and a posture-aware 9-8-3 net) and of version
-//! 2 (the same two in the inverse-depth-skip family) still decode, with their family and the
-//! head output frame, and predict the exact f32 bits `hvs predict` printed for them then
+//! 2 (the same two in the inverse-depth-skip family) and of version 3 (the same two again, the
+//! posture-aware one in the eye platform's frame) still decode, with their family and output
+//! frame, and predict the exact f32 bits `hvs predict` printed for them then
 //! (`*_predict.csv`, written by that version's code on volume points). `golden/README.md` has
-//! the commands.
+//! the commands. Version 4's files (the same two, no images, no parent) and a sample blob with
+//! both version-4 fields set pin the current encoding.
 
-use hvs_shared::runtime::blob::{self, Family, OutputFrame, OutputKind};
+use hvs_shared::runtime::blob::{self, Family, ModelBlob, OutputFrame, OutputKind, Parent};
 use std::path::PathBuf;
 
 fn golden(name: &str) -> PathBuf {
@@ -21,7 +23,8 @@ fn check(
     n_inputs: usize,
     hidden: u8,
     family: Family,
-) {
+    frame: OutputFrame,
+) -> ModelBlob {
     let bytes = std::fs::read(golden(model)).unwrap();
     assert_eq!(&bytes[0..4], b"HVSW");
     assert_eq!(
@@ -31,7 +34,7 @@ fn check(
     );
     let b = blob::decode(&bytes).unwrap();
     assert_eq!(b.family, family);
-    assert_eq!(b.frame, OutputFrame::Head);
+    assert_eq!(b.frame, frame);
     assert_eq!(b.n_inputs(), n_inputs);
     assert_eq!(b.topology.hidden, hidden);
     assert_eq!(b.topology.outputs, OutputKind::Xyz);
@@ -53,6 +56,10 @@ fn check(
         rows += 1;
     }
     assert_eq!(rows, 20);
+    if version < 4 {
+        assert_eq!((b.image_size(), b.parent()), (None, None));
+    }
+    b
 }
 
 #[test]
@@ -64,6 +71,7 @@ fn v1_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
         4,
         5,
         Family::THESIS,
+        OutputFrame::Head,
     );
 }
 
@@ -76,6 +84,7 @@ fn v1_posture_9_8_3_decodes_and_predicts_the_recorded_bits() {
         9,
         8,
         Family::THESIS,
+        OutputFrame::Head,
     );
 }
 
@@ -88,6 +97,7 @@ fn v2_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
         4,
         5,
         Family::INVERSE_DEPTH_SKIP,
+        OutputFrame::Head,
     );
 }
 
@@ -100,5 +110,91 @@ fn v2_posture_9_8_3_decodes_and_predicts_the_recorded_bits() {
         9,
         8,
         Family::INVERSE_DEPTH_SKIP,
+        OutputFrame::Head,
+    );
+}
+
+#[test]
+fn v3_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
+    check(
+        "v3_4_5_3.hvsw",
+        "v3_4_5_3_predict.csv",
+        3,
+        4,
+        5,
+        Family::INVERSE_DEPTH_SKIP,
+        OutputFrame::Head,
+    );
+}
+
+#[test]
+fn v3_posture_9_8_3_in_the_eye_platform_frame_decodes_and_predicts_the_recorded_bits() {
+    check(
+        "v3_9_8_3.hvsw",
+        "v3_9_8_3_predict.csv",
+        3,
+        9,
+        8,
+        Family::INVERSE_DEPTH_SKIP,
+        OutputFrame::EyePlatform,
+    );
+}
+
+#[test]
+fn v4_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
+    let b = check(
+        "v4_4_5_3.hvsw",
+        "v4_4_5_3_predict.csv",
+        4,
+        4,
+        5,
+        Family::INVERSE_DEPTH_SKIP,
+        OutputFrame::Head,
+    );
+    assert_eq!((b.image_size(), b.parent()), (None, None));
+}
+
+#[test]
+fn v4_posture_9_8_3_in_the_eye_platform_frame_decodes_and_predicts_the_recorded_bits() {
+    let b = check(
+        "v4_9_8_3.hvsw",
+        "v4_9_8_3_predict.csv",
+        4,
+        9,
+        8,
+        Family::INVERSE_DEPTH_SKIP,
+        OutputFrame::EyePlatform,
+    );
+    assert_eq!((b.image_size(), b.parent()), (None, None));
+}
+
+/// The model of `v4_image_size_parent.hvsw`: `v4_4_5_3.hvsw` at generation 7 with 640x480
+/// training images, updated from generation 6 of a blob with CRC 0x89ab_cdef.
+fn with_image_size_and_parent() -> ModelBlob {
+    let mut b = blob::decode(&std::fs::read(golden("v4_4_5_3.hvsw")).unwrap()).unwrap();
+    b.generation = 7;
+    b.set_image_size(Some((640, 480)));
+    b.set_parent(Some(Parent {
+        crc: 0x89ab_cdef,
+        generation: 6,
+    }));
+    b
+}
+
+#[test]
+fn v4_image_size_and_parent_have_the_recorded_bytes() {
+    let golden = std::fs::read(golden("v4_image_size_parent.hvsw")).unwrap();
+    let b = blob::decode(&golden).unwrap();
+    assert_eq!(b, with_image_size_and_parent());
+    assert_eq!(b.image_size(), Some((640, 480)));
+    assert_eq!(b.parent(), Some((0x89ab_cdef, 6)));
+    let mut buf = [0u8; blob::MAX_BLOB_LEN];
+    let n = b.encode(&mut buf).unwrap();
+    assert_eq!(&buf[..n], &golden[..], "the encoding changed");
+    // The two fields are the payload's last bytes: Some, 640, 480, Some, CRC, 6 (varints).
+    let payload_end = n - blob::CRC_LEN;
+    assert_eq!(
+        &golden[payload_end - 12..payload_end],
+        &[0x01, 0x80, 0x05, 0xE0, 0x03, 0x01, 0xEF, 0x9B, 0xAF, 0xCD, 0x08, 0x06]
     );
 }

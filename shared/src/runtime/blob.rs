@@ -5,19 +5,25 @@
 //! | bytes | field |
 //! |---|---|
 //! | 0..4 | [`MAGIC`] `b"HVSW"` |
-//! | 4..6 | format version (u16): [`VERSION`] 3, or 2 or 1 (read, never written) |
+//! | 4..6 | format version (u16): [`VERSION`] 4, or 3, 2 or 1 (read, never written) |
 //! | 6..10 | payload length `n` (u32), at most [`MAX_PAYLOAD_LEN`] |
 //! | 10..10+n | payload: [`ModelBlob`] in `postcard` |
 //! | 10+n..14+n | CRC-32 (ISO-HDLC, as zlib) of bytes `0..10+n` |
 //!
 //! The payload is the fields of [`ModelBlob`] in declaration order. Version 2 added
 //! [`ModelBlob::family`] (how the outputs become cm, which exp the sigmoid uses) and
-//! [`ModelBlob::matcher`] (optional stereo-matcher geometry); version 3 added the last one,
-//! [`ModelBlob::frame`] (the frame the net gives its points in). An older payload is the same
-//! bytes without the fields its version lacks and decodes with their defaults: the thesis
-//! family ([`Family::THESIS`]), no matcher geometry, the head frame ([`OutputFrame::Head`]).
-//! The decoder appends those defaults' encoding (5 bytes for version 1, 1 for version 2) to
-//! a stack copy of the payload, so one deserializer reads every version.
+//! [`ModelBlob::matcher`] (optional stereo-matcher geometry); version 3 added
+//! [`ModelBlob::frame`] (the frame the net gives its points in); version 4 added the last two,
+//! [`ModelBlob::image_size`] (the training images' size) and [`ModelBlob::parent`] (the model
+//! this one was updated from). An older payload is the same bytes without the fields its
+//! version lacks and decodes with their defaults: the thesis family ([`Family::THESIS`]), no
+//! matcher geometry, the head frame ([`OutputFrame::Head`]), no image size, no parent. The
+//! fields up to the frame go through serde: for versions 1 and 2 the decoder appends their
+//! defaults' encoding (zeros: 5 bytes for version 1, 1 for version 2) to a stack copy of the
+//! payload, so one deserializer reads every version. The two version-4 fields are postcard
+//! bytes too (`Option`s of varint structs) but are written and read by hand
+//! ([`ModelBlob::encode`], [`decode_into`]): serde's code for them cost the head's flash
+//! more than it had to spare.
 //!
 //! Bytes after the CRC are ignored (a flash slot is larger than any blob). Decoding works
 //! from a `&[u8]` with no allocation, checks everything before trusting anything, and returns
@@ -32,18 +38,30 @@ use serde::{Deserialize, Serialize};
 
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"HVSW";
-/// The format version this crate writes (it also reads [`VERSION_2`] and [`VERSION_1`]).
-pub const VERSION: u16 = 3;
-/// The second format version: no [`ModelBlob::frame`] field.
+/// The format version this crate writes (it also reads [`VERSION_3`], [`VERSION_2`] and
+/// [`VERSION_1`]).
+pub const VERSION: u16 = 4;
+/// The third format version: no [`ModelBlob::image_size`] and [`ModelBlob::parent`] fields.
+pub const VERSION_3: u16 = 3;
+/// The second format version: no [`ModelBlob::frame`] field either.
 pub const VERSION_2: u16 = 2;
-/// The first format version: no [`ModelBlob::family`], [`ModelBlob::matcher`] and
-/// [`ModelBlob::frame`] fields.
+/// The first format version: no [`ModelBlob::family`] and [`ModelBlob::matcher`] fields
+/// either.
 pub const VERSION_1: u16 = 1;
-/// Postcard bytes of `(Family::THESIS, None::<MatcherGeometry>, OutputFrame::Head)`: what a
-/// version-1 payload lacks.
-const V1_TAIL: [u8; 5] = [0, 0, 0, 0, 0];
-/// Postcard bytes of `OutputFrame::Head`: what a version-2 payload lacks.
-const V2_TAIL: [u8; 1] = [0];
+/// Postcard bytes of `(Family::THESIS, None::<MatcherGeometry>, OutputFrame::Head)`: the
+/// defaults of the serde fields added after version 1, all zeros. A payload of format `v`
+/// lacks the last [`tail_len`]`(v)` of them.
+const TAIL: [u8; 5] = [0; 5];
+
+/// Bytes of [`TAIL`] a payload of format `version` lacks (0 from version 3 on, whose serde
+/// fields are the current ones).
+const fn tail_len(version: u16) -> usize {
+    match version {
+        VERSION_1 => 5,
+        VERSION_2 => 1,
+        _ => 0,
+    }
+}
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 10;
 /// Bytes of the trailing CRC.
@@ -368,6 +386,44 @@ impl MatcherGeometry {
     }
 }
 
+/// The size in pixels of the images a model was trained on (every image of a capture set has
+/// it): a pair of another size does not fit the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ImageSize {
+    /// Width in pixels.
+    pub width: u16,
+    /// Height in pixels.
+    pub height: u16,
+}
+
+/// The model a model was updated from: its blob's CRC-32 (the 4 bytes after its payload) and
+/// its generation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Parent {
+    /// The parent blob's CRC-32.
+    pub crc: u32,
+    /// The parent's generation.
+    pub generation: u32,
+}
+
+impl Parent {
+    /// The parent record of the valid blob at the start of `bytes` (decoded and checked).
+    pub fn of(bytes: &[u8]) -> Result<Parent, BlobError> {
+        let b = decode(bytes)?;
+        let end = framed_len(bytes)?;
+        let crc = u32::from_le_bytes([
+            bytes[end - 4],
+            bytes[end - 3],
+            bytes[end - 2],
+            bytes[end - 1],
+        ]);
+        Ok(Parent {
+            crc,
+            generation: b.generation,
+        })
+    }
+}
+
 /// A model as stored: the decoded payload of a blob.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ModelBlob {
@@ -402,6 +458,14 @@ pub struct ModelBlob {
     /// The frame of the net's points (format version 3; [`OutputFrame::Head`] for older
     /// blobs).
     pub frame: OutputFrame,
+    /// The size of the training images (format version 4; `None` for a model trained from
+    /// points without images, and for older blobs). Encoded by hand, after the serde fields.
+    #[serde(skip)]
+    pub image_size: Option<ImageSize>,
+    /// The model this one was updated from (format version 4; `None` for a model trained
+    /// from scratch, and for older blobs). Encoded by hand, last.
+    #[serde(skip)]
+    pub parent: Option<Parent>,
 }
 
 impl ModelBlob {
@@ -498,6 +562,27 @@ impl ModelBlob {
         self.frame.apply(x, out)
     }
 
+    /// The training images' size as `(width, height)` pixels, if the model was trained from
+    /// images.
+    pub fn image_size(&self) -> Option<(u16, u16)> {
+        self.image_size.map(|s| (s.width, s.height))
+    }
+
+    /// Records the training images' size (`None`: trained from points without images).
+    pub fn set_image_size(&mut self, size: Option<(u16, u16)>) {
+        self.image_size = size.map(|(width, height)| ImageSize { width, height });
+    }
+
+    /// The `(crc, generation)` of the model this one was updated from, if any.
+    pub fn parent(&self) -> Option<(u32, u32)> {
+        self.parent.map(|p| (p.crc, p.generation))
+    }
+
+    /// Records the parent model (`None`: trained from scratch).
+    pub fn set_parent(&mut self, parent: Option<Parent>) {
+        self.parent = parent;
+    }
+
     /// Whether every input lies inside the box seen in training.
     pub fn in_range(&self, x: &[f32]) -> bool {
         x.len() == self.in_min.len()
@@ -546,6 +631,7 @@ impl ModelBlob {
         let n = postcard::to_slice(self, &mut buf[HEADER_LEN..limit])
             .map_err(|_| BlobError::BufferTooSmall)?
             .len();
+        let n = n + write_v4_fields(self, &mut buf[HEADER_LEN + n..limit])?;
         buf[0..4].copy_from_slice(&MAGIC);
         buf[4..6].copy_from_slice(&VERSION.to_le_bytes());
         buf[6..10].copy_from_slice(&(n as u32).to_le_bytes());
@@ -572,7 +658,7 @@ pub fn framed_len(bytes: &[u8]) -> Result<usize, BlobError> {
         return Err(BlobError::Truncated);
     }
     let version = u16::from_le_bytes([bytes[4], bytes[5]]);
-    if version != VERSION && version != VERSION_2 && version != VERSION_1 {
+    if !(VERSION_1..=VERSION).contains(&version) {
         return Err(BlobError::UnsupportedVersion(version));
     }
     let n = u32::from_le_bytes([bytes[6], bytes[7], bytes[8], bytes[9]]) as usize;
@@ -612,47 +698,152 @@ pub fn decode_into(bytes: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
         return Err(BlobError::BadCrc);
     }
     let payload = &bytes[HEADER_LEN..body];
-    match u16::from_le_bytes([bytes[4], bytes[5]]) {
-        VERSION_1 => decode_old_payload_into(payload, &V1_TAIL, out)?,
-        VERSION_2 => decode_old_payload_into(payload, &V2_TAIL, out)?,
-        _ => payload_into(payload, out)?,
+    let version = u16::from_le_bytes([bytes[4], bytes[5]]);
+    match tail_len(version) {
+        0 => {
+            let rest = payload_into(payload, out)?;
+            if version == VERSION {
+                read_v4_fields(rest, out)?;
+            } else if !rest.is_empty() {
+                return Err(BlobError::Malformed);
+            }
+        }
+        tail => decode_old_payload_into(payload, tail, out)?,
     }
     out.validate()
 }
 
+/// Writes [`ModelBlob::image_size`] and [`ModelBlob::parent`] as postcard would (a `0`/`1`
+/// option byte, then the fields as LEB128 varints) into `buf`; returns the bytes written.
+fn write_v4_fields(b: &ModelBlob, buf: &mut [u8]) -> Result<usize, BlobError> {
+    let mut tmp = [0u8; 1 + 2 * 3 + 1 + 2 * 5];
+    let mut n = 0;
+    let mut put = |v: u32, tmp: &mut [u8]| {
+        let mut v = v;
+        while v >= 0x80 {
+            tmp[n] = (v as u8) | 0x80;
+            v >>= 7;
+            n += 1;
+        }
+        tmp[n] = v as u8;
+        n += 1;
+    };
+    match b.image_size {
+        Some(s) => {
+            put(1, &mut tmp);
+            put(s.width.into(), &mut tmp);
+            put(s.height.into(), &mut tmp);
+        }
+        None => put(0, &mut tmp),
+    }
+    match b.parent {
+        Some(p) => {
+            put(1, &mut tmp);
+            put(p.crc, &mut tmp);
+            put(p.generation, &mut tmp);
+        }
+        None => put(0, &mut tmp),
+    }
+    buf.get_mut(..n)
+        .ok_or(BlobError::BufferTooSmall)?
+        .copy_from_slice(&tmp[..n]);
+    Ok(n)
+}
+
+/// Reads what [`write_v4_fields`] writes, accepting exactly what postcard's decoder of
+/// `(Option<ImageSize>, Option<Parent>)` accepts, and nothing after it.
+fn read_v4_fields(bytes: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
+    let mut at = Bytes(bytes);
+    out.image_size = None;
+    out.parent = None;
+    if at.some()? {
+        let width = at.varint(16)? as u16;
+        let height = at.varint(16)? as u16;
+        out.image_size = Some(ImageSize { width, height });
+    }
+    if at.some()? {
+        let crc = at.varint(32)?;
+        let generation = at.varint(32)?;
+        out.parent = Some(Parent { crc, generation });
+    }
+    if at.0.is_empty() {
+        Ok(())
+    } else {
+        Err(BlobError::Malformed)
+    }
+}
+
+/// The bytes of [`read_v4_fields`] not read yet.
+struct Bytes<'a>(&'a [u8]);
+
+impl Bytes<'_> {
+    fn byte(&mut self) -> Result<u8, BlobError> {
+        let (&b, rest) = self.0.split_first().ok_or(BlobError::Malformed)?;
+        self.0 = rest;
+        Ok(b)
+    }
+
+    /// A postcard option tag.
+    fn some(&mut self) -> Result<bool, BlobError> {
+        match self.byte()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            _ => Err(BlobError::Malformed),
+        }
+    }
+
+    /// A postcard varint of a `bits`-bit unsigned integer (16 or 32): at most 3 or 5 bytes,
+    /// nothing above the top bit. One copy for every field (the head's flash).
+    #[inline(never)]
+    fn varint(&mut self, bits: u32) -> Result<u32, BlobError> {
+        let (mut v, mut shift) = (0u32, 0u32);
+        loop {
+            let b = self.byte()?;
+            let part = u32::from(b & 0x7F);
+            if shift > 0 && part >> (bits - shift) != 0 {
+                return Err(BlobError::Malformed);
+            }
+            v |= part << shift;
+            if b & 0x80 == 0 {
+                return Ok(v);
+            }
+            shift += 7;
+            if shift >= bits {
+                return Err(BlobError::Malformed);
+            }
+        }
+    }
+}
+
 /// An older payload is the current one without the fields its version lacks: it is read
-/// with their defaults' encoding (`tail`: [`V1_TAIL`] or [`V2_TAIL`]) appended. Kept out of
+/// with the last `tail` bytes of [`TAIL`] (their defaults' encoding) appended. Kept out of
 /// line, so the widened copy is on the stack only while an old blob is read.
 #[inline(never)]
 fn decode_old_payload_into(
     payload: &[u8],
-    tail: &[u8],
+    tail: usize,
     out: &mut ModelBlob,
 ) -> Result<(), BlobError> {
-    let mut widened = [0u8; MAX_PAYLOAD_LEN + V1_TAIL.len()];
-    let n = payload.len() + tail.len();
+    let mut widened = [0u8; MAX_PAYLOAD_LEN + TAIL.len()];
+    let n = payload.len() + tail;
     widened[..payload.len()].copy_from_slice(payload);
-    widened[payload.len()..n].copy_from_slice(tail);
-    payload_into(&widened[..n], out)?;
+    let rest = payload_into(&widened[..n], out)?;
     // An old payload with bytes after its last field could have read them as a newer field:
     // it is malformed. (A version-2 payload may hold any family and matcher.)
     let v1_fields =
-        tail.len() < V1_TAIL.len() || (out.family == Family::THESIS && out.matcher.is_none());
-    if !v1_fields || out.frame != OutputFrame::Head {
+        tail < tail_len(VERSION_1) || (out.family == Family::THESIS && out.matcher.is_none());
+    if !rest.is_empty() || !v1_fields || out.frame != OutputFrame::Head {
         return Err(BlobError::Malformed);
     }
     Ok(())
 }
 
-fn payload_into(payload: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
+/// Deserializes the serde fields of `payload` into `out` (the version-4 fields become
+/// `None`); returns the bytes after them.
+fn payload_into<'a>(payload: &'a [u8], out: &mut ModelBlob) -> Result<&'a [u8], BlobError> {
     let mut de = postcard::Deserializer::from_bytes(payload);
     ModelBlob::deserialize_in_place(&mut de, out).map_err(|_| BlobError::Malformed)?;
-    let rest = de.finalize().map_err(|_| BlobError::Malformed)?;
-    if rest.is_empty() {
-        Ok(())
-    } else {
-        Err(BlobError::Malformed)
-    }
+    de.finalize().map_err(|_| BlobError::Malformed)
 }
 
 /// A blob with no parameters (it does not validate): a place to [`decode_into`].
@@ -684,6 +875,8 @@ pub fn placeholder() -> ModelBlob {
         family: Family::THESIS,
         matcher: None,
         frame: OutputFrame::Head,
+        image_size: None,
+        parent: None,
     }
 }
 
@@ -736,6 +929,8 @@ mod tests {
             family: Family::THESIS,
             matcher: None,
             frame: OutputFrame::Head,
+            image_size: None,
+            parent: None,
         }
     }
 
@@ -791,31 +986,86 @@ mod tests {
 
     #[test]
     fn old_tails_are_the_encoding_of_the_defaults() {
-        let mut buf = [0u8; 8];
+        let mut buf = [0u8; 16];
         let n = postcard::to_slice(
             &(Family::THESIS, None::<MatcherGeometry>, OutputFrame::Head),
             &mut buf,
         )
         .unwrap()
         .len();
-        assert_eq!(buf[..n], V1_TAIL);
+        assert_eq!(buf[..n], TAIL);
+        assert_eq!(n, tail_len(VERSION_1));
         let n = postcard::to_slice(&OutputFrame::Head, &mut buf)
             .unwrap()
             .len();
-        assert_eq!(buf[..n], V2_TAIL);
+        assert_eq!(n, tail_len(VERSION_2));
+        assert_eq!((tail_len(VERSION_3), tail_len(VERSION)), (0, 0));
     }
 
-    /// The framing of `b` as format `version` (1 or 2): the current payload minus the tail
+    /// The postcard encoding of the two version-4 fields.
+    fn v4_fields_by_postcard(size: Option<ImageSize>, parent: Option<Parent>) -> StdVec<u8> {
+        postcard::to_allocvec(&(size, parent)).unwrap()
+    }
+
+    /// What [`read_v4_fields`] makes of `bytes`.
+    fn v4_fields_by_hand(bytes: &[u8]) -> Result<(Option<ImageSize>, Option<Parent>), BlobError> {
+        let mut b = placeholder();
+        read_v4_fields(bytes, &mut b)?;
+        Ok((b.image_size, b.parent))
+    }
+
+    #[test]
+    fn v4_fields_by_hand_are_postcard_bytes() {
+        let cases = [
+            (None, None),
+            (
+                Some(ImageSize {
+                    width: 640,
+                    height: 480,
+                }),
+                None,
+            ),
+            (
+                None,
+                Some(Parent {
+                    crc: u32::MAX,
+                    generation: 0,
+                }),
+            ),
+            (
+                Some(ImageSize {
+                    width: u16::MAX,
+                    height: 0,
+                }),
+                Some(Parent {
+                    crc: 0x89ab_cdef,
+                    generation: 127,
+                }),
+            ),
+        ];
+        for (size, parent) in cases {
+            let mut b = sample(5, 1);
+            b.image_size = size;
+            b.parent = parent;
+            let mut buf = [0u8; 32];
+            let n = write_v4_fields(&b, &mut buf).unwrap();
+            assert_eq!(buf[..n], v4_fields_by_postcard(size, parent)[..]);
+            assert_eq!(v4_fields_by_hand(&buf[..n]), Ok((size, parent)));
+            assert_eq!(
+                write_v4_fields(&b, &mut buf[..n - 1]),
+                Err(BlobError::BufferTooSmall)
+            );
+        }
+    }
+
+    /// The framing of `b` as format `version` (1, 2 or 3): the current payload minus the tail
     /// that version lacks (`b` must hold its defaults), fresh CRC.
     fn as_old(b: &ModelBlob, version: u16) -> StdVec<u8> {
-        let tail = if version == VERSION_1 {
-            V1_TAIL.len()
-        } else {
-            V2_TAIL.len()
-        };
-        let v3 = bytes(b);
-        let n = v3.len() - HEADER_LEN - CRC_LEN - tail;
-        let mut v = StdVec::from(&v3[..HEADER_LEN + n]);
+        // The serde fields it lacks, and the two `None` bytes of the version-4 fields.
+        let tail = tail_len(version) + 2;
+        let now = bytes(b);
+        let n = now.len() - HEADER_LEN - CRC_LEN - tail;
+        let mut v = StdVec::from(&now[..HEADER_LEN + n]);
         v[4..6].copy_from_slice(&version.to_le_bytes());
         v[6..10].copy_from_slice(&(n as u32).to_le_bytes());
         let crc = crc32(&v);
@@ -852,6 +1102,60 @@ mod tests {
         // A byte after a v2 payload's last field (which would read as a frame) is malformed.
         assert_eq!(decode(&with_extra(&v2, &[1])), Err(BlobError::Malformed));
         assert_eq!(decode(&with_extra(&v2, &[0])), Err(BlobError::Malformed));
+    }
+
+    #[test]
+    fn version_3_decodes_without_image_size_and_parent_and_v4_keeps_them() {
+        use crate::test_support::SampleSpec;
+        let b = SampleSpec::THESIS
+            .inputs(InputKind::StereoJoints)
+            .hidden(6)
+            .family(Family::INVERSE_DEPTH_SKIP)
+            .frame(OutputFrame::EyePlatform)
+            .build();
+        let v3 = as_old(&b, VERSION_3);
+        assert_eq!(u16::from_le_bytes([v3[4], v3[5]]), 3);
+        let d = decode(&v3).unwrap();
+        assert_eq!(d, b);
+        assert_eq!((d.image_size(), d.parent()), (None, None));
+        // Bytes after a v3 payload's last field (which would read as an image size) are
+        // malformed, zeros or not.
+        for extra in [&[0u8][..], &[1, 128, 5, 224, 3], &[0, 1, 7, 2]] {
+            assert_eq!(decode(&with_extra(&v3, extra)), Err(BlobError::Malformed));
+        }
+        // Version 4 stores both, and they are part of the bytes the CRC covers.
+        let mut m = b.clone();
+        m.set_image_size(Some((640, 480)));
+        let parent = Parent::of(&bytes(&b)).unwrap();
+        let v = bytes(&b);
+        assert_eq!(
+            parent,
+            Parent {
+                crc: u32::from_le_bytes(v[v.len() - 4..].try_into().unwrap()),
+                generation: b.generation,
+            }
+        );
+        m.set_parent(Some(parent));
+        m.generation = b.generation + 1;
+        let w = bytes(&m);
+        assert_eq!(u16::from_le_bytes([w[4], w[5]]), VERSION);
+        let d = decode(&w).unwrap();
+        assert_eq!(d, m);
+        assert_eq!(d.image_size(), Some((640, 480)));
+        assert_eq!(d.parent(), Some((parent.crc, b.generation)));
+        // Postcard varints: `Some` + 640 + 480 (2 bytes each) and `Some` + CRC + generation 2,
+        // (parent generation 1) where the two `None` bytes were.
+        let crc_len = (32 - parent.crc.leading_zeros()).div_ceil(7).max(1) as usize;
+        assert_eq!(w.len(), v.len() + 4 + crc_len + 1);
+        assert_eq!(w[w.len() - CRC_LEN - 1], 1, "the parent's generation last");
+        // A v3 header on a payload that holds them is malformed.
+        let mut as3 = w.clone();
+        as3[4..6].copy_from_slice(&VERSION_3.to_le_bytes());
+        let crc = crc32(&as3[..as3.len() - CRC_LEN]);
+        let k = as3.len() - CRC_LEN;
+        as3[k..].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&as3), Err(BlobError::Malformed));
+        assert_eq!(Parent::of(&v3[..v3.len() - 1]), Err(BlobError::Truncated));
     }
 
     #[test]
@@ -1053,8 +1357,10 @@ mod tests {
         assert_eq!(decode(&[0u8; 64]), Err(BlobError::BadMagic));
         assert_eq!(decode(&[0xFFu8; 64]), Err(BlobError::BadMagic));
         let mut m = v.clone();
-        m[4] = 4;
-        assert_eq!(decode(&m), Err(BlobError::UnsupportedVersion(4)));
+        m[4] = 5;
+        assert_eq!(decode(&m), Err(BlobError::UnsupportedVersion(5)));
+        m[4] = 0;
+        assert_eq!(decode(&m), Err(BlobError::UnsupportedVersion(0)));
         assert_eq!(decode(&v[..v.len() - 1]), Err(BlobError::Truncated));
         assert_eq!(decode(&v[..2]), Err(BlobError::Truncated));
         let mut m = v.clone();
@@ -1118,6 +1424,15 @@ mod tests {
             }
             let v = bytes(&b);
             prop_assert_eq!(decode(&v).unwrap(), b);
+        }
+
+        #[test]
+        fn v4_fields_by_hand_accept_what_postcard_accepts(v in proptest::collection::vec(any::<u8>(), 0..16)) {
+            let by_postcard = postcard::take_from_bytes::<(Option<ImageSize>, Option<Parent>)>(&v)
+                .ok()
+                .filter(|(_, rest)| rest.is_empty())
+                .map(|(fields, _)| fields);
+            prop_assert_eq!(v4_fields_by_hand(&v).ok(), by_postcard);
         }
 
         #[test]
