@@ -7,9 +7,8 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use hvs_shared::sim::presets;
 use hvs_shared::sim::triangulate;
-use hvs_vision::matching::{
-    model_disparity_interval, pinhole_fundamental, MatchParams, Matcher, Query,
-};
+use hvs_vision::geometry::pinhole_fundamental;
+use hvs_vision::matching::{model_disparity_interval, MatchParams, Matcher, Query};
 use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use std::hint::black_box;
 

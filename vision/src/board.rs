@@ -106,7 +106,8 @@ impl Board {
     /// Parse a board description from JSON text.
     pub fn from_json(text: &str) -> Result<Board, BoardError> {
         let f: BoardFile =
-            serde_json::from_str(text).map_err(|e| BoardError::Json(e.to_string()))?;
+            // A field name may hold a line break: the message stays one line.
+            serde_json::from_str(text).map_err(|e| BoardError::Json(e.to_string().replace('\n', "\\n")))?;
         let mut b = Board::new(f.inner_corners[0], f.inner_corners[1], f.square_cm)?;
         b.pattern = f.pattern;
         Ok(b)

@@ -92,6 +92,35 @@ pub enum DetectError {
     },
     /// A geometric fit failed.
     Geometry(GeomError),
+    /// The corner detector found more candidates than detection goes through (a texture
+    /// of corners, not a board): refused before the grid is built, so that time stays
+    /// bounded.
+    TooManyCorners {
+        /// Corner candidates found.
+        found: usize,
+        /// [`MAX_CORNER_CANDIDATES`].
+        limit: usize,
+    },
+    /// The board has more corners than detection handles ([`MAX_BOARD_CORNERS`]).
+    BoardTooLarge(usize),
+    /// Another chessboard grid lies beside the board (its corner count, its centre).
+    SeveralBoards {
+        /// Corners of the other grid.
+        corners: usize,
+        /// Where it lies (px).
+        at: [f64; 2],
+    },
+    /// The board's `i` axis (its `cols` corners) runs down the image: its labels cannot
+    /// follow the convention ((0, 0) top left, `i` to the right); the description has
+    /// `cols` and `rows` swapped, or the board is held turned by a quarter.
+    Turned {
+        /// The description's `cols`.
+        cols: u32,
+        /// The description's `rows`.
+        rows: u32,
+        /// The `i` axis' angle from `+u` (degrees).
+        roll_deg: f64,
+    },
 }
 
 impl core::fmt::Display for DetectError {
@@ -137,6 +166,27 @@ impl core::fmt::Display for DetectError {
                 "left and right labels disagree: the board's i axis is at {left_deg:.1} degrees in the left image and {right_deg:.1} in the right (limit {MAX_ROLL_DIFF_DEG:.0} apart)"
             ),
             DetectError::Geometry(e) => write!(f, "geometry: {e}"),
+            DetectError::TooManyCorners { found, limit } => write!(
+                f,
+                "{found} corner candidates, more than the {limit} detection goes through: the image is a texture of corners, not one board in view"
+            ),
+            DetectError::BoardTooLarge(n) => write!(
+                f,
+                "the board has {n} inner corners, more than the {MAX_BOARD_CORNERS} detection handles"
+            ),
+            DetectError::SeveralBoards { corners, at } => write!(
+                f,
+                "several boards in view: another chessboard grid of {corners} corners lies around ({:.0}, {:.0}); show one board per image",
+                at[0], at[1]
+            ),
+            DetectError::Turned {
+                cols,
+                rows,
+                roll_deg,
+            } => write!(
+                f,
+                "the labels cannot follow the board convention: the board's {cols}-corner side (inner_corners[0]) runs down the image ({roll_deg:.0} degrees from +u), so (0, 0) could not be the top-left corner with i to the right; if the board shows {rows} corners across and {cols} down, describe it as \"inner_corners\": [{rows}, {cols}] (else hold it with its {cols}-corner side across)"
+            ),
         }
     }
 }
@@ -253,23 +303,57 @@ pub fn detect_image(img: &DynamicImage, board: &Board) -> Result<Corners, Detect
     detect(&to_grey(img), board)
 }
 
+/// The most corner candidates an image may give before the grid is built: the grid builder's
+/// time grows faster than the candidate count, so a texture of corners (a 6000 x 6000
+/// checker has 89,000) is refused here, and detection time grows at most linearly with the
+/// pixels. A board photo gives its own corners plus some clutter.
+pub const MAX_CORNER_CANDIDATES: usize = 8_000;
+
+/// The largest board (inner corners) detection takes: half of [`MAX_CORNER_CANDIDATES`].
+pub const MAX_BOARD_CORNERS: usize = MAX_CORNER_CANDIDATES / 2;
+
 /// Detect `board` in one grey image: exactly `cols x rows` corners, labelled, sub-pixel.
+/// Refused: too many corner candidates ([`MAX_CORNER_CANDIDATES`]), and a second
+/// chessboard grid of at least half the board's corners beside the first (several boards).
 pub fn detect(img: &GrayImage, board: &Board) -> Result<Corners, DetectError> {
     let (w, h) = img.dimensions();
     if w < 16 || h < 16 {
         return Err(DetectError::ImageTooSmall(w, h));
     }
+    if board.corner_count() > MAX_BOARD_CORNERS {
+        return Err(DetectError::BoardTooLarge(board.corner_count()));
+    }
     let frame = calib_targets::chessboard::detect_corner_frame(
         &calib_targets::detect::gray_view(img),
         &corner_config(),
     );
+    if frame.corners.len() > MAX_CORNER_CANDIDATES {
+        return Err(DetectError::TooManyCorners {
+            found: frame.corners.len(),
+            limit: MAX_CORNER_CANDIDATES,
+        });
+    }
     let mut params = ChessboardParams::default();
     params.min_labeled_corners = board.corner_count().min(8);
     let detector = ChessboardDetector::new(params)
         .map_err(|e| DetectError::InconsistentGrid(format!("detector parameters: {e}")))?;
-    let det = detector
-        .detect(&frame.corners)
-        .ok_or(DetectError::BoardNotFound)?;
+    let mut all = detector.detect_all(&frame.corners).into_iter();
+    let det = all.next().ok_or(DetectError::BoardNotFound)?;
+    let positions = |d: &calib_targets::chessboard::ChessboardDetection| -> Vec<[f64; 2]> {
+        d.corners
+            .iter()
+            .map(|c| [c.position.x as f64, c.position.y as f64])
+            .collect()
+    };
+    let first = positions(&det);
+    for other in all {
+        if let Some(at) = separate_grid(&first, &positions(&other), board.corner_count()) {
+            return Err(DetectError::SeveralBoards {
+                corners: other.corners.len(),
+                at,
+            });
+        }
+    }
     let labelled: Vec<((i32, i32), [f64; 2])> = det
         .corners
         .iter()
@@ -286,6 +370,50 @@ pub fn detect(img: &GrayImage, board: &Board) -> Result<Corners, DetectError> {
         .map(|c| [c.position.x as f64, c.position.y as f64])
         .collect();
     label_grid(&labelled, &raw, board, w, h)
+}
+
+/// The centre of `other` when it is a second board beside `first`: at least half the board's
+/// corners (and 8), most of them outside `first`'s bounding box widened by a tenth. A piece of
+/// the same board (split by an occlusion) lies inside it.
+fn separate_grid(first: &[[f64; 2]], other: &[[f64; 2]], board_corners: usize) -> Option<[f64; 2]> {
+    if other.len() < (board_corners / 2).max(8) || first.is_empty() {
+        return None;
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in first {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let pad = [0.1 * (hi[0] - lo[0]), 0.1 * (hi[1] - lo[1])];
+    let inside = |p: &[f64; 2]| (0..2).all(|k| p[k] >= lo[k] - pad[k] && p[k] <= hi[k] + pad[k]);
+    let outside = other.iter().filter(|p| !inside(p)).count();
+    if 2 * outside <= other.len() {
+        return None;
+    }
+    let n = other.len() as f64;
+    let sum = other
+        .iter()
+        .fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
+    Some([sum[0] / n, sum[1] / n])
+}
+
+/// Refuses a labelled board whose `i` axis runs down the image ([`DetectError::Turned`]): on a
+/// board with `cols != rows`, the side with `cols` corners is the one that must run across
+/// (within [`PORTRAIT_DEG`] of `+u`) for `(0, 0)` to be the top-left corner and `i` to grow
+/// to the right, as the labelling convention of [`crate::board`] says. (A square board is
+/// always labelled along the axis nearer `+u`.) `hvs board detect` checks both images of every
+/// pair; [`detect`] alone does not, so that turned boards can still be looked at.
+pub fn check_upright(c: &Corners) -> Result<(), DetectError> {
+    if c.board.cols != c.board.rows && c.roll_deg.abs() > PORTRAIT_DEG {
+        return Err(DetectError::Turned {
+            cols: c.board.cols,
+            rows: c.board.rows,
+            roll_deg: c.roll_deg,
+        });
+    }
+    Ok(())
 }
 
 /// Turn the detector's labelled corners into this crate's labelling, validating the grid.
@@ -760,6 +888,165 @@ fn lr_check(left: &Corners, right: &Corners) -> Result<f64, DetectError> {
     Ok(fit.rms)
 }
 
+impl StereoCorners {
+    /// The median disparity `u_l - u_r` over the corners (px).
+    pub fn median_disparity(&self) -> f64 {
+        let mut d: Vec<f64> = self.pairs().iter().map(|(l, r)| l[0] - r[0]).collect();
+        d.sort_by(f64::total_cmp);
+        d.get(d.len() / 2).copied().unwrap_or(f64::NAN)
+    }
+
+    /// True when every corner sits at the same pixel in both images (within
+    /// [`SAME_IMAGE_PX`]): one image given as both.
+    pub fn same_in_both(&self) -> bool {
+        self.pairs().iter().all(|(l, r)| {
+            (l[0] - r[0]).abs() < SAME_IMAGE_PX && (l[1] - r[1]).abs() < SAME_IMAGE_PX
+        })
+    }
+}
+
+/// Corners closer than this (px, in `u` and in `v`) in the two images of a pair are "the same
+/// place": every corner so is one image given twice.
+pub const SAME_IMAGE_PX: f64 = 0.5;
+
+/// A disparity whose sign disagrees with the other pairs' is only called wrong when both it and
+/// the expected one are at least this large (px): near the depth where the eyes' lines of sight
+/// cross, disparities are small and of either sign.
+pub const MIN_SIGN_DISPARITY_PX: f64 = 2.0;
+
+/// Why a pair's disparities cannot be right, per pair of a capture set: `disparity[k]` is pair
+/// `k`'s median `u_l - u_r` ([`StereoCorners::median_disparity`]), `same[k]` whether it shows
+/// the same image twice, `z[k]` its board depth when known.
+///
+/// - Same image twice (every corner at the same place): refused.
+/// - The disparity of a board square-on at depth `z` is about `a + b / z` with `b > 0` (the
+///   right camera sits to the right of the left one). With depths of at least two distinct
+///   values, a fit over all pairs with `b <= 0` means the whole set has left and right
+///   swapped (or mirrored, or turned 180 degrees): every pair is refused.
+/// - A pair whose disparity has the opposite sign of what the other pairs give at its depth
+///   (their `a + b / z` fit, or with fewer than two other depths the sign most of them have),
+///   both at least [`MIN_SIGN_DISPARITY_PX`], is refused: that pair is swapped, mirrored or
+///   turned.
+pub fn disparity_faults(
+    disparity: &[f64],
+    same: &[bool],
+    z: &[Option<f64>],
+) -> Vec<Option<String>> {
+    let n = disparity.len();
+    let mut out: Vec<Option<String>> = (0..n)
+        .map(|k| {
+            same[k].then(|| {
+                "every corner is at the same pixel in both images (zero disparity): the same image given as left and right?".to_string()
+            })
+        })
+        .collect();
+    let usable: Vec<usize> = (0..n)
+        .filter(|&k| out[k].is_none() && disparity[k].is_finite())
+        .collect();
+    let fit = |idx: &[usize]| -> Option<(f64, f64)> {
+        let pts: Vec<(f64, f64)> = idx
+            .iter()
+            .filter_map(|&k| {
+                z[k].filter(|z| z.is_finite() && *z > 0.0)
+                    .map(|z| (1.0 / z, disparity[k]))
+            })
+            .collect();
+        let m = pts.len() as f64;
+        if pts.len() < 2 {
+            return None;
+        }
+        let (sx, sy) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+        let (mx, my) = (sx / m, sy / m);
+        let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+        let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+        // Distinct depths: the spread of 1/z must be more than rounding.
+        if sxx <= 1e-12 * mx * mx * m {
+            return None;
+        }
+        let b = sxy / sxx;
+        Some((my - b * mx, b))
+    };
+    if let Some((_, b)) = fit(&usable) {
+        let all_same_sign = usable.iter().all(|&k| disparity[k] < 0.0)
+            || usable.iter().all(|&k| disparity[k] > 0.0);
+        if b <= 0.0 && all_same_sign {
+            for &k in &usable {
+                out[k] = Some(format!(
+                    "the disparities grow with the board depth (this pair: {:.1} px): left and right swapped, or the images mirrored or turned 180 degrees",
+                    disparity[k]
+                ));
+            }
+            return out;
+        }
+    }
+    // The worst pair against the others' expectation is refused, then the rest checked
+    // again without it (one bad pair drags the others' fit off).
+    let mut usable = usable;
+    let mut wrong = Vec::new();
+    loop {
+        let positive = usable.iter().filter(|&&k| disparity[k] > 0.0).count();
+        let negative = usable.len() - positive;
+        let minority = |d: f64| {
+            if d > 0.0 {
+                positive < negative
+            } else {
+                negative < positive
+            }
+        };
+        let mut worst: Option<(usize, f64)> = None;
+        for &k in &usable {
+            let others: Vec<usize> = usable.iter().copied().filter(|&m| m != k).collect();
+            let expected = match (fit(&others), z[k]) {
+                (Some((a, b)), Some(zk)) if zk > 0.0 && b > 0.0 => Some(a + b / zk),
+                _ => {
+                    let pos = others
+                        .iter()
+                        .filter(|&&m| disparity[m] >= MIN_SIGN_DISPARITY_PX)
+                        .count();
+                    let neg = others
+                        .iter()
+                        .filter(|&&m| disparity[m] <= -MIN_SIGN_DISPARITY_PX)
+                        .count();
+                    let mut med: Vec<f64> = others.iter().map(|&m| disparity[m]).collect();
+                    med.sort_by(f64::total_cmp);
+                    let median = med.get(med.len() / 2).copied();
+                    // Only when the others agree on one sign.
+                    ((pos >= 1 && neg == 0) || (neg >= 1 && pos == 0))
+                        .then_some(median)
+                        .flatten()
+                }
+            };
+            let d = disparity[k];
+            if let Some(e) = expected {
+                if e.abs() >= MIN_SIGN_DISPARITY_PX
+                    && d.abs() >= MIN_SIGN_DISPARITY_PX
+                    && e.signum() != d.signum()
+                    && worst.is_none_or(|(w, we)| {
+                        // A pair of the minority sign first (with three pairs, each two
+                        // fit a line exactly), then the one furthest off.
+                        let key =
+                            |k: usize, e: f64| (minority(disparity[k]), (disparity[k] - e).abs());
+                        let (a, b) = (key(k, e), key(w, we));
+                        (a.0 && !b.0) || (a.0 == b.0 && a.1 > b.1)
+                    })
+                {
+                    worst = Some((k, e));
+                }
+            }
+        }
+        let Some((k, e)) = worst else { break };
+        wrong.push((k, e));
+        usable.retain(|&m| m != k);
+    }
+    for (k, e) in wrong {
+        out[k] = Some(format!(
+            "its disparity is {:.1} px where the other pairs give {e:+.1} px: left and right swapped, or both images mirrored or turned 180 degrees",
+            disparity[k]
+        ));
+    }
+    out
+}
+
 /// One fundamental matrix over a whole capture set, with each pair's residuals.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SetCheck {
@@ -933,6 +1220,28 @@ mod tests {
         let l = label_grid(&rot, &[], &board, 640, 480).unwrap();
         assert!(l.roll_deg.abs() > PORTRAIT_DEG && l.roll_deg.abs() <= 90.0);
         assert!(l.at(8, 0)[0] > l.at(0, 0)[0], "i grows with u");
+        // Such labels cannot follow the convention: refused, naming the swapped description.
+        let e = check_upright(&l).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                DetectError::Turned {
+                    cols: 9,
+                    rows: 6,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("[6, 9]"), "{e}");
+        check_upright(&label_grid(&synthetic(&board), &[], &board, 640, 480).unwrap()).unwrap();
+        // A square board is labelled along the axis nearer +u, whichever way it is turned.
+        let square = Board::new(6, 6, 6.0).unwrap();
+        let sq: Vec<_> = synthetic(&square)
+            .into_iter()
+            .map(|(l, p)| (l, [400.0 - p[1], p[0]]))
+            .collect();
+        check_upright(&label_grid(&sq, &[], &square, 640, 480).unwrap()).unwrap();
         // The right image resolved the portrait board the other way: turned to agree.
         let mut r = l.clone();
         r.points.reverse();
@@ -968,5 +1277,65 @@ mod tests {
             pair_corners(l, small),
             Err(DetectError::SizeMismatch { .. })
         ));
+    }
+
+    #[test]
+    fn wrong_or_zero_disparities_are_refused() {
+        let z = |v: &[f64]| v.iter().map(|&z| Some(z)).collect::<Vec<_>>();
+        // d = 5 + 2000 / z at 65, 85, 105, 125 cm.
+        let depths = [65.0, 85.0, 105.0, 125.0];
+        let good: Vec<f64> = depths.iter().map(|z| 5.0 + 2000.0 / z).collect();
+        let none = vec![false; 4];
+        assert!(disparity_faults(&good, &none, &z(&depths))
+            .iter()
+            .all(Option::is_none));
+        // One pair swapped (or mirrored, or turned): its disparity is negated.
+        let mut one = good.clone();
+        one[2] = -one[2];
+        let f = disparity_faults(&one, &none, &z(&depths));
+        assert!(f[2].as_ref().unwrap().contains("swapped"), "{f:?}");
+        assert!(f[0].is_none() && f[1].is_none() && f[3].is_none(), "{f:?}");
+        // Three pairs, the middle one turned: the odd sign out, not an end of the line.
+        let three = [good[0], -good[2], good[3]];
+        let f = disparity_faults(&three, &[false; 3], &z(&[65.0, 105.0, 125.0]));
+        assert!(f[1].is_some() && f[0].is_none() && f[2].is_none(), "{f:?}");
+        // The whole set swapped: every pair refused.
+        let all: Vec<f64> = good.iter().map(|d| -d).collect();
+        let f = disparity_faults(&all, &none, &z(&depths));
+        assert!(
+            f.iter()
+                .all(|m| m.as_ref().is_some_and(|m| m.contains("grow with"))),
+            "{f:?}"
+        );
+        // The same image twice.
+        let f = disparity_faults(&good, &[false, true, false, false], &z(&depths));
+        assert!(f[1].as_ref().unwrap().contains("same image"), "{f:?}");
+        // Verged eyes: disparities cross zero with depth (a < 0), and that is fine.
+        let verged: Vec<f64> = depths.iter().map(|z| -20.0 + 2000.0 / z).collect();
+        assert!(verged.iter().any(|d| *d < 0.0) && verged.iter().any(|d| *d > 0.0));
+        assert!(disparity_faults(&verged, &none, &z(&depths))
+            .iter()
+            .all(Option::is_none));
+        // Without depths: the sign most other pairs agree on.
+        let f = disparity_faults(&one, &none, &[None; 4]);
+        assert!(
+            f[2].is_some() && f.iter().filter(|m| m.is_some()).count() == 1,
+            "{f:?}"
+        );
+    }
+
+    #[test]
+    fn a_second_grid_beside_the_board_is_another_board() {
+        let grid = |x0: f64| -> Vec<[f64; 2]> {
+            (0..54)
+                .map(|k| [x0 + (k % 9) as f64 * 20.0, 100.0 + (k / 9) as f64 * 20.0])
+                .collect()
+        };
+        let first = grid(50.0);
+        let at = separate_grid(&first, &grid(400.0), 54).unwrap();
+        assert!((at[0] - 480.0).abs() < 1e-9 && (at[1] - 150.0).abs() < 1e-9);
+        // A piece of the same board, or a small grid of clutter, is not.
+        assert!(separate_grid(&first, &grid(60.0)[..30], 54).is_none());
+        assert!(separate_grid(&first, &grid(400.0)[..10], 54).is_none());
     }
 }

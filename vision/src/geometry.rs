@@ -10,6 +10,7 @@
 //! point by `r~^T F l~ = 0` (`~`: homogeneous `[u, v, 1]`): `F l~` is the epipolar line of `l` in
 //! the right image.
 
+use hvs_shared::sim::camera::Camera;
 use nalgebra::{DMatrix, Matrix3, Matrix3x4, Matrix4, Vector3, Vector4};
 
 /// A 3x3 matrix, rows first.
@@ -707,6 +708,61 @@ fn refine_sampson(f0: &Fundamental, pairs: &[([f64; 2], [f64; 2])]) -> (Fundamen
     }
 }
 
+/// The fundamental matrix of two pinhole cameras (no lens): `r~^T F l~ = 0`, unit Frobenius
+/// norm. For a thesis rig at home: `pinhole_fundamental(&rig.left(), &rig.right())`.
+pub fn pinhole_fundamental(left: &Camera, right: &Camera) -> Fundamental {
+    // Right-camera coordinates of a left ray point: R (x - c_r) with x = c_l + R_l^T y.
+    let rl = left.rotation;
+    let rr = right.rotation;
+    // R = R_r R_l^T, t = R_r (c_l - c_r).
+    let mut rot = [[0.0; 3]; 3];
+    for (i, row) in rot.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = (0..3).map(|k| rr[i][k] * rl[j][k]).sum();
+        }
+    }
+    let dc = [
+        left.center[0] - right.center[0],
+        left.center[1] - right.center[1],
+        left.center[2] - right.center[2],
+    ];
+    let t: [f64; 3] = core::array::from_fn(|i| (0..3).map(|k| rr[i][k] * dc[k]).sum());
+    let tx = [[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]];
+    let mut e = [[0.0; 3]; 3];
+    for (i, row) in e.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = (0..3).map(|k| tx[i][k] * rot[k][j]).sum();
+        }
+    }
+    // K^-1 = [[1/fu, 0, -u0/fu], [0, 1/fv, -v0/fv], [0, 0, 1]].
+    let kinv = |c: &Camera| {
+        [
+            [1.0 / c.phi_u, 0.0, -c.u0 / c.phi_u],
+            [0.0, 1.0 / c.phi_v, -c.v0 / c.phi_v],
+            [0.0, 0.0, 1.0],
+        ]
+    };
+    let (kl, kr) = (kinv(left), kinv(right));
+    // F = Kr^-T E Kl^-1.
+    let mut tmp = [[0.0; 3]; 3];
+    for (i, row) in tmp.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = (0..3).map(|k| e[i][k] * kl[k][j]).sum();
+        }
+    }
+    let mut f = [[0.0; 3]; 3];
+    for (i, row) in f.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = (0..3).map(|k| kr[k][i] * tmp[k][j]).sum();
+        }
+    }
+    let norm = f.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+    if norm > 0.0 {
+        f.iter_mut().flatten().for_each(|x| *x /= norm);
+    }
+    Fundamental { m: f }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -927,5 +983,18 @@ mod tests {
             .collect();
         p[2].0[1] = f64::INFINITY;
         assert_eq!(fit_homography(&p), Err(GeomError::NonFinite { index: 2 }));
+    }
+
+    #[test]
+    fn pinhole_fundamental_holds_for_projected_points() {
+        for n in 1..=4 {
+            let rig = hvs_shared::sim::presets::case(n).unwrap();
+            let f = pinhole_fundamental(&rig.left(), &rig.right());
+            for p in [[-20.0, -10.0, 65.0], [15.0, 12.0, 165.0], [0.0, 0.0, 100.0]] {
+                let px = rig.project(&p).unwrap();
+                let d = f.distance_in_right([px[0], px[1]], [px[2], px[3]]);
+                assert!(d < 1e-9, "case {n}: {d}");
+            }
+        }
     }
 }

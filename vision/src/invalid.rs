@@ -30,7 +30,7 @@ impl fmt::Display for InvalidField {
 
 impl std::error::Error for InvalidField {}
 
-/// `value` must lie in `lo..=hi` ("must be lo..=hi, got value").
+/// `value` must lie in `lo..=hi` ("must be from lo to hi, got value").
 pub(crate) fn in_range<T: PartialOrd + fmt::Display>(
     field: &'static str,
     value: T,
@@ -40,13 +40,13 @@ pub(crate) fn in_range<T: PartialOrd + fmt::Display>(
     if value < lo || value > hi {
         return Err(InvalidField::new(
             field,
-            format!("must be {lo}..={hi}, got {value}"),
+            format!("must be from {lo} to {hi}, got {value}"),
         ));
     }
     Ok(())
 }
 
-/// `value` must be finite and in `lo..=hi` ("must be a finite number in lo..=hi, got value").
+/// `value` must be finite and in `lo..=hi` ("must be a number from lo to hi, got value").
 pub(crate) fn finite_in(
     field: &'static str,
     value: f64,
@@ -56,7 +56,7 @@ pub(crate) fn finite_in(
     if !(value.is_finite() && (lo..=hi).contains(&value)) {
         return Err(InvalidField::new(
             field,
-            format!("must be a finite number in {lo}..={hi}, got {value}"),
+            format!("must be a number from {lo} to {hi}, got {value}"),
         ));
     }
     Ok(())

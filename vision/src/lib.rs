@@ -2,7 +2,9 @@
 //!
 //! - [`board`]: board descriptions (`BOARD.json`) and the corner labelling convention.
 //! - [`detect`]: chessboard corners in a stereo pair, sub-pixel, validated and labelled.
-//! - [`geometry`]: homographies and the fundamental matrix (normalised 8-point + refinement).
+//! - [`image_file`]: image files in: PNG and JPEG only, one pixel limit checked before decoding.
+//! - [`geometry`]: homographies and the fundamental matrix (normalised 8-point + refinement,
+//!   or from two pinhole cameras).
 //! - [`render`]: stereo images of a board through a rig, with exact corner truth.
 //! - [`matching`]: one point of the left image found in the right one (ZNCC on the epipolar line).
 //! - [`overlay`]: drawing what was found, for a user to look at.
@@ -12,6 +14,7 @@
 pub mod board;
 pub mod detect;
 pub mod geometry;
+pub mod image_file;
 pub mod invalid;
 pub mod matching;
 pub mod overlay;

@@ -288,10 +288,13 @@ pub fn render_pair(
         return Err(invalid("centre", format!("must be finite, got {centre:?}")));
     }
     let (w, h) = (head.rig.width, head.rig.height);
-    if w == 0 || h == 0 || u64::from(w) * u64::from(h) > 64_000_000 {
+    if w == 0 || h == 0 || u64::from(w) * u64::from(h) > crate::image_file::MAX_PIXELS {
         return Err(invalid(
             "rig.width/height",
-            format!("image must have 1..=64e6 pixels, got {w}x{h}"),
+            format!(
+                "the image must have from 1 to {} pixels (the limit of every image input), got {w}x{h}",
+                crate::image_file::MAX_PIXELS
+            ),
         ));
     }
     if !head.distortion.iter().all(|d| d.is_finite()) {

@@ -10,8 +10,9 @@ use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
 use hvs_shared::sim::triangulate;
+use hvs_vision::geometry::pinhole_fundamental;
 use hvs_vision::matching::{
-    model_disparity_interval, pinhole_fundamental, pinhole_right_scale, MatchParams, Matcher, Query,
+    model_disparity_interval, pinhole_right_scale, MatchParams, Matcher, Query,
 };
 use hvs_vision::render::{corner_truth, opencv_board, render_rig, Board, RenderOptions};
 use match_common::Rates;

@@ -1,10 +1,9 @@
 //! The matcher's refusals: each status where it belongs, and errors naming the field.
 
 use hvs_shared::sim::presets;
+use hvs_vision::geometry::pinhole_fundamental;
 use hvs_vision::geometry::Fundamental;
-use hvs_vision::matching::{
-    match_points, pinhole_fundamental, MatchParams, MatchStatus, Matcher, Query,
-};
+use hvs_vision::matching::{match_points, MatchParams, MatchStatus, Matcher, Query};
 use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use image::GrayImage;
 

@@ -2,7 +2,8 @@
 #![allow(dead_code)]
 
 use hvs_shared::sim::presets;
-use hvs_vision::matching::{pinhole_fundamental, Match, MatchParams, MatchStatus, Matcher, Query};
+use hvs_vision::geometry::pinhole_fundamental;
+use hvs_vision::matching::{Match, MatchParams, MatchStatus, Matcher, Query};
 use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use rand::{RngExt, SeedableRng};
 use std::collections::BTreeMap;

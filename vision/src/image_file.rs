@@ -1,0 +1,243 @@
+//! Image files in: which formats are read and how large an image may be, the same for every
+//! command that reads an image (`hvs board detect`, `hvs locate`, `hvs head look`,
+//! `hvs demo --images`).
+//!
+//! - **Formats**: PNG and JPEG, told by the file's first bytes (not by its name). Other formats
+//!   the decoder happens to know (BMP, TIFF, WebP, GIF, ...) are refused, naming the format.
+//! - **Size**: at most [`MAX_PIXELS`] pixels (width x height), read from the header and
+//!   refused before anything is decoded, so a small file claiming a huge image (a
+//!   "decompression bomb") costs nothing. The decoder's own allocations are capped too.
+//!
+//! [`crate::render`] refuses to render images above the same limit, so that everything it
+//! writes can be read back.
+
+use image::{GrayImage, ImageFormat, ImageReader};
+use std::path::Path;
+
+/// The most pixels (width x height) an image may have: 16 million (e.g. 4,896 x 3,264, a
+/// 16-megapixel camera). Above it a pair of images, decoded, detected or matched, would no
+/// longer fit the 1 GB and 10 s every command keeps to; scale larger photos down first.
+pub const MAX_PIXELS: u64 = 16_000_000;
+
+/// The largest single allocation the decoder may make: the limit at 16-bit RGBA.
+const MAX_ALLOC: u64 = MAX_PIXELS * 8 + (1 << 20);
+
+/// Why an image file was not read. Its `Display` is one line naming the file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ImageFileError {
+    /// The file could not be opened or read (path, OS message).
+    Io(String, String),
+    /// The file is not PNG or JPEG (path, what it looks like, if known).
+    Format(String, Option<String>),
+    /// The header gives more than [`MAX_PIXELS`] pixels (path, width, height).
+    TooLarge(String, u32, u32),
+    /// The header gives an empty image (path, width, height).
+    Empty(String, u32, u32),
+    /// The image data are damaged or truncated (path, decoder message).
+    Decode(String, String),
+}
+
+impl core::fmt::Display for ImageFileError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ImageFileError::Io(p, e) => write!(f, "{p}: cannot read: {e}"),
+            ImageFileError::Format(p, Some(k)) => write!(
+                f,
+                "{p}: a {k} file; hvs reads PNG and JPEG images only (convert it first)"
+            ),
+            ImageFileError::Format(p, None) => write!(
+                f,
+                "{p}: not a PNG or JPEG image (hvs reads PNG and JPEG images only)"
+            ),
+            ImageFileError::TooLarge(p, w, h) => write!(
+                f,
+                "{p}: {w}x{h} is {} pixels, more than the {MAX_PIXELS} an image may have (scale it down)",
+                u64::from(*w) * u64::from(*h)
+            ),
+            ImageFileError::Empty(p, w, h) => write!(f, "{p}: the image is {w}x{h}: empty"),
+            ImageFileError::Decode(p, e) => {
+                write!(f, "{p}: damaged or truncated image data ({e})")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ImageFileError {}
+
+/// The name of a format for a message.
+fn format_name(f: ImageFormat) -> String {
+    f.extensions_str()
+        .first()
+        .map_or_else(|| format!("{f:?}"), |e| e.to_uppercase())
+}
+
+/// A decoder message fit for one line: the decoder's text when it is prose, a plain
+/// description when it carries Rust debug output (braces, paths).
+fn plain(e: &image::ImageError) -> String {
+    let text = e.to_string();
+    let debug_like = text.contains(['{', '}']) || text.contains("::") || text.contains('\n');
+    if debug_like {
+        match e {
+            image::ImageError::Limits(_) => "the decoder would need too much memory".into(),
+            image::ImageError::Unsupported(_) => "an unsupported variant of the format".into(),
+            _ => "the decoder could not read it".into(),
+        }
+    } else {
+        text
+    }
+}
+
+fn reader(
+    path: &Path,
+    shown: &str,
+) -> Result<ImageReader<std::io::BufReader<std::fs::File>>, ImageFileError> {
+    let io = |e: std::io::Error| ImageFileError::Io(shown.to_string(), e.to_string());
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if meta.is_dir() {
+        return Err(ImageFileError::Io(
+            shown.to_string(),
+            "is a directory".into(),
+        ));
+    }
+    ImageReader::open(path)
+        .map_err(io)?
+        .with_guessed_format()
+        .map_err(io)
+}
+
+/// The format and size of an image file, read from its header only, checked against the
+/// formats and [`MAX_PIXELS`].
+pub fn probe(path: &Path) -> Result<(ImageFormat, u32, u32), ImageFileError> {
+    let shown = path.display().to_string();
+    let r = reader(path, &shown)?;
+    let format = match r.format() {
+        Some(f @ (ImageFormat::Png | ImageFormat::Jpeg)) => f,
+        Some(other) => return Err(ImageFileError::Format(shown, Some(format_name(other)))),
+        None => return Err(ImageFileError::Format(shown, None)),
+    };
+    let (w, h) = r
+        .into_dimensions()
+        .map_err(|e| ImageFileError::Decode(shown.clone(), plain(&e)))?;
+    check_size(&shown, w, h)?;
+    Ok((format, w, h))
+}
+
+/// Fails unless `w x h` is a non-empty image of at most [`MAX_PIXELS`] (`shown` names it).
+pub fn check_size(shown: &str, w: u32, h: u32) -> Result<(), ImageFileError> {
+    if w == 0 || h == 0 {
+        return Err(ImageFileError::Empty(shown.to_string(), w, h));
+    }
+    if u64::from(w) * u64::from(h) > MAX_PIXELS {
+        return Err(ImageFileError::TooLarge(shown.to_string(), w, h));
+    }
+    Ok(())
+}
+
+/// Reads a PNG or JPEG file (any colour type, any bit depth) as grey levels (Rec. 709 luma),
+/// after [`probe`]: refused before decoding when too large or of another format.
+pub fn read_grey(path: &Path) -> Result<GrayImage, ImageFileError> {
+    let shown = path.display().to_string();
+    let (format, w, h) = probe(path)?;
+    let mut r = reader(path, &shown)?;
+    r.set_format(format);
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(w);
+    limits.max_image_height = Some(h);
+    limits.max_alloc = Some(MAX_ALLOC);
+    r.limits(limits);
+    let img = r
+        .decode()
+        .map_err(|e| ImageFileError::Decode(shown.clone(), plain(&e)))?;
+    Ok(img.to_luma8())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn png_header(w: u32, h: u32) -> Vec<u8> {
+        // Signature + an IHDR chunk (8-bit grey) with its CRC; no image data.
+        let mut ihdr = b"IHDR".to_vec();
+        ihdr.extend_from_slice(&w.to_be_bytes());
+        ihdr.extend_from_slice(&h.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+        let crc = crc32(&ihdr);
+        let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+        out.extend_from_slice(&13u32.to_be_bytes());
+        out.extend_from_slice(&ihdr);
+        out.extend_from_slice(&crc.to_be_bytes());
+        // The start of an IDAT chunk (the header ends where the data begin).
+        let idat = b"IDAT\x78\x01";
+        out.extend_from_slice(&2u32.to_be_bytes());
+        out.extend_from_slice(idat);
+        out.extend_from_slice(&crc32(idat).to_be_bytes());
+        out
+    }
+
+    fn crc32(data: &[u8]) -> u32 {
+        let mut c = 0xFFFF_FFFFu32;
+        for b in data {
+            c ^= u32::from(*b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+
+    #[test]
+    fn formats_and_sizes_are_checked_before_decoding() {
+        let dir = tempfile::tempdir().unwrap();
+        let ok = dir.path().join("ok.png");
+        GrayImage::from_pixel(40, 30, image::Luma([7]))
+            .save(&ok)
+            .unwrap();
+        let g = read_grey(&ok).unwrap();
+        assert_eq!((g.width(), g.height(), g[(3, 4)][0]), (40, 30, 7));
+
+        let bomb = dir.path().join("bomb.png");
+        std::fs::write(&bomb, png_header(20_000, 20_000)).unwrap();
+        let e = read_grey(&bomb).unwrap_err();
+        assert!(
+            matches!(e, ImageFileError::TooLarge(_, 20_000, 20_000)),
+            "{e}"
+        );
+        assert!(e.to_string().contains("20000x20000"), "{e}");
+        // At the limit the header passes (the data are missing: a decode error, not a size one).
+        let edge = dir.path().join("edge.png");
+        std::fs::write(&edge, png_header(4000, 4000)).unwrap();
+        assert!(matches!(read_grey(&edge), Err(ImageFileError::Decode(..))));
+
+        let bmp = dir.path().join("x.png");
+        std::fs::write(&bmp, b"BM\x3a\0\0\0\0\0\0\0\x36\0\0\0\x28\0\0\0").unwrap();
+        let e = read_grey(&bmp).unwrap_err().to_string();
+        assert!(
+            e.contains("a BMP file") && e.contains("PNG and JPEG"),
+            "{e}"
+        );
+        let text = dir.path().join("t.txt");
+        std::fs::write(&text, "not an image").unwrap();
+        assert!(matches!(
+            read_grey(&text),
+            Err(ImageFileError::Format(_, None))
+        ));
+        let e = read_grey(&dir.path().join("missing.png")).unwrap_err();
+        assert!(matches!(e, ImageFileError::Io(..)), "{e}");
+        assert!(matches!(read_grey(dir.path()), Err(ImageFileError::Io(..))));
+
+        // A damaged chunk: one line, no Rust debug output.
+        let mut bytes = std::fs::read(&ok).unwrap();
+        let n = bytes.len();
+        bytes[n - 20] ^= 0xFF;
+        bytes.truncate(n - 8);
+        let broken = dir.path().join("broken.png");
+        std::fs::write(&broken, &bytes).unwrap();
+        let e = read_grey(&broken).unwrap_err().to_string();
+        assert!(!e.contains('{') && !e.contains('\n'), "{e}");
+        assert!(e.starts_with(&broken.display().to_string()), "{e}");
+    }
+}

@@ -1,0 +1,78 @@
+//! The disparity interval a trained model allows for a left pixel, and the right window's
+//! scale for two pinhole cameras.
+
+use hvs_shared::sim::camera::Camera;
+
+/// Steps of the disparity scan of [`model_disparity_interval`] (px).
+pub const MODEL_SCAN_STEP_PX: f64 = 0.25;
+
+/// Share of the training depth span allowed beyond either end by
+/// [`model_disparity_interval`].
+pub const MODEL_Z_MARGIN: f64 = 0.05;
+
+/// The disparity interval a trained model allows for left pixel `(ul, vl)`: the candidate
+/// right points on the epipolar line `line` (`a u + b v + c = 0` in the right image, e.g.
+/// [`Fundamental::line_in_right`](crate::geometry::Fundamental::line_in_right)) at every disparity `d = ul - u_r` of `d_range` (the
+/// training set's whole disparity range, px), [`MODEL_SCAN_STEP_PX`] apart, are fed to
+/// `predict` (`[u_l, v_l, u_r, v_r]` to `[X, Y, Z]` cm, `None` when the model has no answer);
+/// those whose `Z` lies inside the training depths `z_range` (cm), widened by
+/// [`MODEL_Z_MARGIN`] of its span on each side, are kept. Returns the smallest and largest
+/// kept disparity, each widened by one scan step and clipped to `d_range`, or `None` when
+/// none is kept, an input is not finite or out of order, or the line is steeper than
+/// 45 degrees (no `v` per `u`). The model is a closure so that this crate need not know the
+/// model's format: the CLI passes `|x| blob.infer(&x)`.
+pub fn model_disparity_interval(
+    predict: impl Fn([f32; 4]) -> Option<[f32; 3]>,
+    ul: f64,
+    vl: f64,
+    line: [f64; 3],
+    z_range: [f64; 2],
+    d_range: [f64; 2],
+) -> Option<(f64, f64)> {
+    let [a, b, c] = line;
+    let finite = [
+        ul, vl, a, b, c, z_range[0], z_range[1], d_range[0], d_range[1],
+    ]
+    .iter()
+    .all(|x| x.is_finite());
+    if !finite || z_range[0] > z_range[1] || d_range[0] > d_range[1] || b.abs() < a.abs() {
+        return None;
+    }
+    // At most 100 000 model calls per point.
+    let n = ((d_range[1] - d_range[0]) / MODEL_SCAN_STEP_PX).ceil();
+    if n > 100_000.0 {
+        return None;
+    }
+    let n = n as usize;
+    let margin = MODEL_Z_MARGIN * (z_range[1] - z_range[0]);
+    let (z_lo, z_hi) = (z_range[0] - margin, z_range[1] + margin);
+    let mut kept: Option<(f64, f64)> = None;
+    for k in 0..=n {
+        let d = (d_range[0] + k as f64 * MODEL_SCAN_STEP_PX).min(d_range[1]);
+        let ur = ul - d;
+        let vr = -(a * ur + c) / b;
+        let Some(xyz) = predict([ul as f32, vl as f32, ur as f32, vr as f32]) else {
+            continue;
+        };
+        let z = f64::from(xyz[2]);
+        if z >= z_lo && z <= z_hi {
+            kept = Some(match kept {
+                None => (d, d),
+                Some((lo, hi)) => (lo.min(d), hi.max(d)),
+            });
+        }
+    }
+    kept.map(|(lo, hi)| {
+        (
+            (lo - MODEL_SCAN_STEP_PX).max(d_range[0]),
+            (hi + MODEL_SCAN_STEP_PX).min(d_range[1]),
+        )
+    })
+}
+
+/// The right window's scale for two pinhole cameras: `[phi_u_right / phi_u_left,
+/// phi_v_right / phi_v_left]` (for [`MatchParams::right_scale`](super::MatchParams::right_scale); exact for a fronto-parallel
+/// patch with parallel axes, close enough with the thesis' small deflections).
+pub fn pinhole_right_scale(left: &Camera, right: &Camera) -> [f64; 2] {
+    [right.phi_u / left.phi_u, right.phi_v / left.phi_v]
+}
