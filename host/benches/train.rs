@@ -1,16 +1,15 @@
 //! Criterion benchmark of the training `hvs train` runs (4-5-3, 10 restarts,
-//! Levenberg-Marquardt): the default family (`ArchArg::DEFAULT`, the CLI's one definition)
+//! Levenberg-Marquardt): the default family (`hvs_host::train::DEFAULT_FAMILY`, the one definition)
 //! side by side with the thesis family, on the thesis' case-IV board set (72 points) and on
 //! the 9x6 board at 6 cm (324 points, `hvs simulate --board 9x6:6`); and the thesis'
 //! back-propagation on the 72 points. `cargo bench -p hvs-host --bench train`.
-//! Goals (issue 14) for the whole `hvs train` command: under 0.1 s wall on 72 points and
+//! Goals for the whole `hvs train` command: under 0.1 s wall on 72 points and
 //! under 1 s on 324 on the project's 2-core machine.
 
 mod common;
 
 use common::{board_set, grid_board_set};
 use criterion::{criterion_group, criterion_main, Criterion};
-use hvs_host::cli::train::ArchArg;
 use hvs_host::sim::board::Board;
 use hvs_host::train::{train, Algo, TrainConfig};
 use hvs_shared::runtime::blob::Family;
@@ -30,7 +29,7 @@ fn bench(c: &mut Criterion) {
         ),
     ];
     let families = [
-        ("default", ArchArg::DEFAULT.family()),
+        ("default", hvs_host::train::DEFAULT_FAMILY),
         ("thesis", Family::THESIS),
     ];
     let mut g = c.benchmark_group("train");

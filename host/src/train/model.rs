@@ -1,0 +1,60 @@
+//! A complete model from a training set: the net ([`super::train`]), the traditional
+//! method's fallback calibration ([`super::fallback`]) and the run-time matcher's geometry
+//! ([`super::matcher`]) in one blob, as `hvs train` writes it.
+
+use super::fallback::{self, FallbackFit};
+use super::{TrainConfig, TrainOutcome};
+use crate::data::dataset::Dataset;
+use anyhow::Result;
+use hvs_shared::runtime::blob::ModelBlob;
+use hvs_shared::runtime::traditional::Calibration;
+
+/// Everything needed to train a complete model (`hvs train`, both demos).
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Engine configuration.
+    pub config: TrainConfig,
+    /// Half baseline and principal point for the fallback.
+    pub half_baseline: f64,
+    /// Principal point u0 (px).
+    pub u0: f64,
+    /// Principal point v0 (px).
+    pub v0: f64,
+}
+
+impl Default for Plan {
+    fn default() -> Self {
+        Plan {
+            config: TrainConfig::default(),
+            half_baseline: Calibration::BUILT_IN.half_baseline as f64,
+            u0: Calibration::BUILT_IN.u0 as f64,
+            v0: Calibration::BUILT_IN.v0 as f64,
+        }
+    }
+}
+
+/// A trained model ready to write, with how it came about.
+#[derive(Debug, Clone)]
+pub struct Trained {
+    /// The blob (generation 1, fallback set when fitted).
+    pub blob: ModelBlob,
+    /// The engine's report.
+    pub outcome: TrainOutcome,
+    /// The fallback fit, if the data allowed one.
+    pub fallback: Option<FallbackFit>,
+}
+
+/// Trains on `data` and completes the blob: fallback calibration and generation 1.
+pub fn train_model(data: &Dataset, plan: &Plan) -> Result<Trained> {
+    let outcome = super::train(data, &plan.config)?;
+    let fit = fallback::fit(data, plan.half_baseline, plan.u0, plan.v0);
+    let mut blob = outcome.blob.clone();
+    blob.fallback = fit.map(|f| f.calibration);
+    blob.matcher = super::matcher::matcher_geometry(data);
+    blob.generation = 1;
+    Ok(Trained {
+        blob,
+        outcome,
+        fallback: fit,
+    })
+}
