@@ -469,6 +469,7 @@ pub fn seeds() -> Vec<Seed> {
     let at = dup.len() - 2;
     dup.splice(at..at, b", \"u0\": 1".iter().copied());
     out.push(("rig_json", "duplicate_key", dup));
+    out.extend(image_seeds());
     out
 }
 
@@ -533,4 +534,239 @@ pub fn rig_json(data: &[u8]) {
     let again = hvs_host::data::rig::parse(&flat, None)
         .unwrap_or_else(|e| panic!("the accepted rig written back is refused: {e:#}: {flat}"));
     assert_eq!(again, rig, "{flat}");
+}
+
+/// Splits `data` into `N` parts: each but the last is prefixed by its length (`u32`, little
+/// endian, cut to what is left); the last part is the rest.
+fn parts<const N: usize>(data: &[u8]) -> [&[u8]; N] {
+    let mut out = [&data[..0]; N];
+    let mut rest = data;
+    for p in out.iter_mut().take(N - 1) {
+        let (len, tail) = match rest {
+            [a, b, c, d, tail @ ..] => (u32::from_le_bytes([*a, *b, *c, *d]) as usize, tail),
+            _ => (0, &rest[rest.len()..]),
+        };
+        let len = len.min(tail.len());
+        *p = &tail[..len];
+        rest = &tail[len..];
+    }
+    out[N - 1] = rest;
+    out
+}
+
+/// `N` parts joined as [`parts`] splits them.
+fn joined(parts: &[&[u8]]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for (k, p) in parts.iter().enumerate() {
+        if k + 1 < parts.len() {
+            out.extend_from_slice(&(p.len() as u32).to_le_bytes());
+        }
+        out.extend_from_slice(p);
+    }
+    out
+}
+
+/// An error message must be one line and never Rust debug output of a panic.
+fn one_line(msg: &str) {
+    assert!(!msg.contains('\n'), "a multi-line error: {msg}");
+    assert!(!msg.contains("panicked"), "{msg}");
+}
+
+/// `capture_set`: the path of `hvs board detect`. The input is four parts ([`parts`]): a
+/// board JSON, a captures CSV and two image files, written as `board.json`, `captures.csv`,
+/// `l.png` and `r.png` in a fresh folder. Reading the board and the captures, detecting every
+/// pair (images read through `hvs_vision::image_file`: PNG or JPEG, at most 16 Mpx) and
+/// writing `POINTS.csv` must return, never panic; an error is one line; the points file has
+/// the header `capture,i,j,u_l,v_l,u_r,v_r` and one row per corner of every found pair, each
+/// with the header's field count.
+pub fn capture_set(data: &[u8]) {
+    let [board, captures, left, right] = parts::<4>(data);
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    for (name, bytes) in [
+        ("board.json", board),
+        ("captures.csv", captures),
+        ("l.png", left),
+        ("r.png", right),
+    ] {
+        std::fs::write(dir.path().join(name), bytes).expect("written");
+    }
+    let board = match hvs_vision::board::Board::from_path(&dir.path().join("board.json")) {
+        Ok(b) => b,
+        Err(e) => return one_line(&e.to_string()),
+    };
+    let set = match hvs_host::data::captures::read(&dir.path().join("captures.csv")) {
+        Ok(s) => s,
+        Err(e) => return one_line(&format!("{e:#}")),
+    };
+    // Images named in the CSV may be anything: only the folder's own files are read.
+    if set
+        .captures
+        .iter()
+        .any(|c| !c.left.starts_with(dir.path()) || !c.right.starts_with(dir.path()))
+    {
+        return;
+    }
+    let det = match hvs_host::vision::detect_set(&board, &set, &|| {}) {
+        Ok(d) => d,
+        Err(e) => return one_line(&format!("{e:#}")),
+    };
+    assert_eq!(det.outcomes.len(), set.captures.len());
+    for o in &det.outcomes {
+        if let hvs_host::vision::PairOutcome::Skipped(why) = o {
+            one_line(why);
+        }
+    }
+    let text = hvs_host::vision::points_csv(&board, &set, &det);
+    let mut lines = text.lines();
+    let header = lines.next().expect("a header");
+    assert!(
+        header.starts_with("capture,i,j,u_l,v_l,u_r,v_r"),
+        "{header}"
+    );
+    let fields = csv_fields(header);
+    let found = det
+        .outcomes
+        .iter()
+        .filter(|o| matches!(o, hvs_host::vision::PairOutcome::Found(_)))
+        .count();
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), found * board.corner_count());
+    for r in rows {
+        assert_eq!(csv_fields(r), fields, "{r}");
+    }
+}
+
+/// Fields of one CSV line (quoted fields may hold commas).
+fn csv_fields(line: &str) -> usize {
+    let mut rdr = ::csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_reader(line.as_bytes());
+    rdr.records().next().map_or(0, |r| r.map_or(0, |r| r.len()))
+}
+
+/// `locate`: the path of `hvs locate`. The input is four parts ([`parts`]): a model file, two
+/// image files and a pixels CSV. Loading the model, reading both images, reading the pixels
+/// and locating them must return, never panic; errors are one line; every point gets one
+/// result with a known status, an `ok` one with a right pixel inside the right image and a
+/// finite X, Y, Z, the others without.
+pub fn locate(data: &[u8]) {
+    let [model, left, right, points] = parts::<4>(data);
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let path = |n: &str| dir.path().join(n);
+    for (name, bytes) in [
+        ("m.hvsw", model),
+        ("l.png", left),
+        ("r.png", right),
+        ("p.csv", points),
+    ] {
+        std::fs::write(path(name), bytes).expect("written");
+    }
+    let pixels = match hvs_host::cli::locate::read_pixels(&path("p.csv")) {
+        Ok(p) => p,
+        Err(e) => return one_line(&format!("{e:#}")),
+    };
+    let m = match hvs_host::data::model::load(&path("m.hvsw")) {
+        Ok(m) => m,
+        Err(e) => return one_line(&format!("{e:#}")),
+    };
+    let (l, r) = match (
+        hvs_host::vision::read_grey(&path("l.png")),
+        hvs_host::vision::read_grey(&path("r.png")),
+    ) {
+        (Ok(l), Ok(r)) => (l, r),
+        (Err(e), _) | (_, Err(e)) => return one_line(&format!("{e:#}")),
+    };
+    if m.blob.n_inputs() != 4 || l.dimensions() != r.dimensions() {
+        return;
+    }
+    let found = match hvs_host::vision::locate(&m.blob, &l, &r, &pixels.points) {
+        Ok(f) => f,
+        Err(e) => return one_line(&format!("{e:#}")),
+    };
+    assert_eq!(found.len(), pixels.points.len());
+    let known = [
+        "ok",
+        "outside",
+        "no_texture",
+        "ambiguous",
+        "lr_check_failed",
+        "no_candidate",
+        "out_of_depth_range",
+        "nan_input",
+        "no_estimate",
+    ];
+    let (w, h) = (f64::from(r.width()), f64::from(r.height()));
+    for f in &found {
+        assert!(known.contains(&f.status), "{}", f.status);
+        if f.status == "ok" {
+            let rp = f.right.expect("an ok match has a right pixel");
+            assert!(
+                rp[0] > -1.0 && rp[0] < w && rp[1] > -1.0 && rp[1] < h,
+                "{rp:?}"
+            );
+            assert!(f.xyz.expect("an estimate").iter().all(|v| v.is_finite()));
+        } else {
+            assert!(f.xyz.is_none(), "{f:?}");
+        }
+    }
+}
+
+/// The seeds of `capture_set` and `locate`: two rendered pairs of case I (a 5x4 board, so
+/// that the fuzzer's runs stay short) with their board and captures; a sample model with a
+/// matcher geometry of parallel cameras, a pair and two pixels.
+pub fn image_seeds() -> Vec<Seed> {
+    use hvs_shared::sim::posture::HeadRig;
+    use hvs_vision::render;
+    let board = render::Board::new(5, 4, 6.0).expect("a board");
+    let set = render::render_capture_set(
+        &HeadRig::new(hvs_shared::sim::presets::CASE_1),
+        &hvs_shared::runtime::gaze::Joints::HOME,
+        &board,
+        [0.0, 0.0],
+        &[65.0, 85.0],
+        &render::RenderOptions::default(),
+        7,
+    )
+    .expect("rendered");
+    let png = |img: &image::GrayImage| hvs_host::vision::png_bytes(img).expect("a PNG");
+    let (l0, r0) = (
+        png(&set.captures[0].render.left),
+        png(&set.captures[0].render.right),
+    );
+    let board_json = set.board_json();
+    let mut out: Vec<Seed> = vec![(
+        "capture_set",
+        "one_pair",
+        joined(&[
+            board_json.as_bytes(),
+            b"left,right,z\nl.png,r.png,65\n",
+            &l0,
+            &r0,
+        ]),
+    )];
+    out.push((
+        "capture_set",
+        "same_image_twice",
+        joined(&[
+            board_json.as_bytes(),
+            b"left,right,z,x,y,note\nl.png,r.png,65,1,-2,a\nl.png,l.png,85,0,0,b\n",
+            &l0,
+            &r0,
+        ]),
+    ));
+    let mut blob = crate::sample_model(3, 42);
+    blob.matcher = Some(hvs_shared::runtime::blob::MatcherGeometry {
+        fundamental: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+        out_min: [-30.0, -20.0, 65.0],
+        out_max: [30.0, 20.0, 165.0],
+        disparity: [10.0, 60.0],
+        right_scale: [1.0, 1.0],
+    });
+    let model = crate::blob_bytes(&blob);
+    out.push((
+        "locate",
+        "two_points",
+        joined(&[&model, &l0, &r0, b"u_l,v_l,note\n320,240,a\nnan,3,b\n"]),
+    ));
+    out
 }

@@ -51,13 +51,15 @@ type Check = fn(&[u8]);
 
 /// Every fuzz target, the function it runs, and the least number of inputs (seeds and kept
 /// regressions) its replay must find.
-const TARGETS: [(&str, Check, usize); 5] = [
+const TARGETS: [(&str, Check, usize); 7] = [
     // Two seeds and the overlong-varint crash.
     ("blob_decode", fuzz::blob_decode, 3),
     ("frame_decode", fuzz::frame_decode, 7),
     ("rig_json", fuzz::rig_json, 3),
     ("head_stream", fuzz::head_stream, 4),
     ("csv_read", fuzz::csv_read, 3),
+    ("capture_set", fuzz::capture_set, 2),
+    ("locate", fuzz::locate, 1),
 ];
 
 #[test]

@@ -1,0 +1,8 @@
+//! Fuzz target `capture_set`: the check is `hvs_tests::fuzz::capture_set` (documented there), shared with the
+//! replay of kept inputs in `tests/tests/fuzz_regressions.rs`.
+//! Run: `cd fuzz && cargo +nightly fuzz run capture_set -- -max_total_time=60` (see docs/ROBUSTNESS.md).
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| hvs_tests::fuzz::capture_set(data));
