@@ -68,7 +68,7 @@ fn main() {
         }
         let msg = format!("{e:#}").replace('\n', " ");
         eprintln!("error: {msg}");
-        std::process::exit(1);
+        std::process::exit(cmd::exit_code(&e));
     }
 }
 

@@ -5,9 +5,8 @@
 
 use crate::data::captures::{Capture, CaptureSet};
 use crate::data::csv::write_bytes;
-use crate::data::dataset::{Dataset, JOINT_COLUMNS};
+use crate::data::dataset::JOINT_COLUMNS;
 use anyhow::{anyhow, bail, Context, Result};
-use hvs_shared::runtime::blob::MatcherGeometry;
 use hvs_shared::runtime::blob::ModelBlob;
 use hvs_shared::runtime::gaze::Joints;
 use hvs_vision::board::Board;
@@ -21,15 +20,11 @@ use std::fmt::Write as _;
 use std::io::Cursor;
 use std::path::Path;
 
-/// Reads an image file (PNG or JPEG, any colour type) as grey levels; errors name the file.
+/// Reads an image file (PNG or JPEG, any colour type) as grey levels, through
+/// [`hvs_vision::image_file`]: other formats and images over
+/// [`hvs_vision::image_file::MAX_PIXELS`] are refused before decoding; errors name the file.
 pub fn read_grey(path: &Path) -> Result<GrayImage> {
-    let img = image::ImageReader::open(path)
-        .with_context(|| format!("{}: cannot open", path.display()))?
-        .with_guessed_format()
-        .with_context(|| format!("{}: cannot read", path.display()))?
-        .decode()
-        .map_err(|e| anyhow!("{}: not a readable image: {e}", path.display()))?;
-    Ok(img.to_luma8())
+    hvs_vision::image_file::read_grey(path).map_err(|e| anyhow!("{e}"))
 }
 
 /// PNG bytes of an image (written with the one atomic writer by the caller).
@@ -151,6 +146,27 @@ fn detect_all(
         outcomes.push(outcome);
         progress();
     }
+    // Disparities that cannot be right (the same image twice; a pair swapped, mirrored or
+    // turned): one fundamental matrix fits those too, so they are looked at first.
+    let found: Vec<usize> = (0..outcomes.len())
+        .filter(|&k| matches!(outcomes[k], PairOutcome::Found(_)))
+        .collect();
+    let (mut disparity, mut same, mut depth) = (Vec::new(), Vec::new(), Vec::new());
+    for &k in &found {
+        if let PairOutcome::Found(p) = &outcomes[k] {
+            disparity.push(p.median_disparity());
+            same.push(p.same_in_both());
+            depth.push(set.captures[k].z);
+        }
+    }
+    for (&k, fault) in found
+        .iter()
+        .zip(detect::disparity_faults(&disparity, &same, &depth))
+    {
+        if let Some(why) = fault {
+            outcomes[k] = PairOutcome::Skipped(why);
+        }
+    }
     let fit = |outcomes: &[PairOutcome]| -> Option<SetCheck> {
         let pairs: Vec<StereoCorners> = outcomes
             .iter()
@@ -197,7 +213,16 @@ fn detect_capture(board: &Board, c: &Capture) -> (PairOutcome, PairImages) {
         (Ok(l), Ok(r)) => (l, r),
         (Err(e), _) | (_, Err(e)) => return (PairOutcome::Skipped(e), None),
     };
-    let outcome = match detect::detect_pair(&l, &r, board) {
+    // The labels must follow the board convention in both images (POINTS.csv's i, j and the
+    // corner positions depend on it).
+    let upright = |p: detect::StereoCorners| -> Result<detect::StereoCorners, detect::DetectError> {
+        detect::check_upright(&p.left)
+            .map_err(|e| detect::DetectError::InImage(detect::Side::Left, Box::new(e)))?;
+        detect::check_upright(&p.right)
+            .map_err(|e| detect::DetectError::InImage(detect::Side::Right, Box::new(e)))?;
+        Ok(p)
+    };
+    let outcome = match detect::detect_pair(&l, &r, board).and_then(upright) {
         Ok(p) => PairOutcome::Found(Box::new(p)),
         Err(e) => PairOutcome::Skipped(e.to_string()),
     };
@@ -208,7 +233,7 @@ fn detect_capture(board: &Board, c: &Capture) -> (PairOutcome, PairImages) {
 /// `x,y,z` when the captures give `z`, then the passed-through columns. `capture` is the
 /// 1-based number of the pair in `CAPTURES.csv`. Pixels in shortest round-trip form.
 pub fn points_csv(board: &Board, set: &CaptureSet, det: &Detection) -> String {
-    let mut s = String::from("capture,i,j,u_l,v_l,u_r,v_r");
+    let mut s = crate::data::captures::DETECTED_COLUMNS.join(",");
     if set.has_z {
         s.push_str(",x,y,z");
     }
@@ -306,70 +331,6 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-/// What the run-time matcher (`hvs locate`) needs, learned from a training set's pixels alone:
-/// one fundamental matrix fitted to the training correspondences (normalised 8-point, then
-/// Levenberg-Marquardt on the Sampson error) and the box of the training targets (the depth
-/// range the matcher searches). `None` for a set that cannot give one: fewer than 8 rows, no
-/// targets, joint inputs (the epipolar geometry moves with the eyes), or a degenerate fit.
-pub fn matcher_geometry(data: &Dataset) -> Option<MatcherGeometry> {
-    if data.n_inputs != 4 || !data.has_targets() || data.len() < 8 {
-        return None;
-    }
-    let pairs: Vec<([f64; 2], [f64; 2])> = (0..data.len())
-        .map(|i| {
-            let r = data.row(i);
-            ([r[0], r[1]], [r[2], r[3]])
-        })
-        .collect();
-    let f = hvs_vision::geometry::fit_fundamental(&pairs).ok()?;
-    let mut out_min = [f32::INFINITY; 3];
-    let mut out_max = [f32::NEG_INFINITY; 3];
-    for t in &data.targets {
-        for k in 0..3 {
-            out_min[k] = out_min[k].min(t[k] as f32);
-            out_max[k] = out_max[k].max(t[k] as f32);
-        }
-    }
-    let mut disparity = [f32::INFINITY, f32::NEG_INFINITY];
-    for (l, r) in &pairs {
-        let d = (l[0] - r[0]) as f32;
-        disparity = [disparity[0].min(d), disparity[1].max(d)];
-    }
-    let g = MatcherGeometry {
-        fundamental: {
-            let big = f.m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
-            f.m.map(|r| r.map(|v| (v / big) as f32))
-        },
-        out_min,
-        out_max,
-        disparity,
-        right_scale: right_scale(data)?,
-    };
-    g.is_valid().then_some(g)
-}
-
-/// How much larger the right image shows a patch than the left one, per axis: the ratio of
-/// the two cameras' image scales, read off the training set. Each camera's `u` is fitted as
-/// `a X/Z + b / Z + c` (and `v` with `Y/Z`) by least squares over the training points;
-/// `[a_right / a_left]` per axis is the scale (1 for equal focal lengths).
-fn right_scale(data: &Dataset) -> Option<[f32; 2]> {
-    let fit = |col: usize, along: usize| -> Option<f64> {
-        let mut ata = nalgebra::Matrix3::<f64>::zeros();
-        let mut atb = nalgebra::Vector3::<f64>::zeros();
-        for (i, t) in data.targets.iter().enumerate() {
-            let a = nalgebra::Vector3::new(t[along] / t[2], 1.0 / t[2], 1.0);
-            ata += a * a.transpose();
-            atb += a * data.row(i)[col];
-        }
-        let x = ata.cholesky()?.solve(&atb);
-        x[0].is_finite().then_some(x[0])
-    };
-    let su = fit(2, 0)? / fit(0, 0)?;
-    let sv = fit(3, 1)? / fit(1, 1)?;
-    let ok = |s: f64| s.is_finite() && (0.25..=4.0).contains(&s);
-    (ok(su) && ok(sv)).then_some([su as f32, sv as f32])
-}
-
 /// One point located in the right image and triangulated by the model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Located {
@@ -393,7 +354,7 @@ pub const DISPARITY_SLACK: f64 = 0.1;
 /// Finds each left pixel of `points` in the right image along its epipolar line, inside the
 /// disparities the model maps into its training depths at that pixel, and gives the model's
 /// X, Y, Z of every trustworthy match. Everything comes from the model
-/// ([`MatcherGeometry`]: learned at training time from the training pixels); the images must
+/// ([`MatcherGeometry`](hvs_shared::runtime::blob::MatcherGeometry): learned at training time from the training pixels); the images must
 /// have the same size.
 pub fn locate(
     blob: &ModelBlob,
@@ -403,9 +364,10 @@ pub fn locate(
 ) -> Result<Vec<Located>> {
     let g = blob.matcher.ok_or_else(|| {
         anyhow!(
-            "the model has no matcher geometry (written by an older hvs, blob format v1, or \
-             trained on a posture-aware or tiny set): retrain it with `hvs train` on board \
-             points seen at one head posture"
+            "the model has no matcher geometry: its training set could not give one (fewer \
+             than 8 rows, joint columns, or no fundamental matrix fits its pixels, e.g. all \
+             on one board plane), or it was written before blob format v2: retrain it with \
+             `hvs train` on board points seen at one head posture, at two or more depths"
         )
     })?;
     if left.dimensions() != right.dimensions() {
@@ -488,6 +450,37 @@ pub fn locate(
         .collect())
 }
 
+/// Loads the model and both images, then locates `points`.
+pub fn locate_files(
+    model_path: &Path,
+    left: &Path,
+    right: &Path,
+    points: &[[f64; 2]],
+) -> Result<(Vec<Located>, image::GrayImage, image::GrayImage)> {
+    let m = crate::data::model::load(model_path)?;
+    if m.blob.n_inputs() != 4 {
+        bail!(
+            "{}: a posture-aware model (9 inputs) cannot locate from images alone: its epipolar geometry moves with the eyes",
+            model_path.display()
+        );
+    }
+    let (l, r) = (read_grey(left)?, read_grey(right)?);
+    if l.dimensions() != r.dimensions() {
+        bail!(
+            "{} and {}: the images differ in size ({}x{} and {}x{})",
+            left.display(),
+            right.display(),
+            l.width(),
+            l.height(),
+            r.width(),
+            r.height()
+        );
+    }
+    let found =
+        locate(&m.blob, &l, &r, points).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))?;
+    Ok((found, l, r))
+}
+
 /// The two images side by side, each located point drawn in both (a cross, a line between
 /// them, its row number) in green, refused ones as a red cross in the left image only.
 pub fn locate_overlay(left: &GrayImage, right: &GrayImage, found: &[Located]) -> RgbImage {
@@ -525,7 +518,6 @@ pub fn locate_overlay(left: &GrayImage, right: &GrayImage, found: &[Located]) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::sets::{simulate, SetKind, SimOptions};
     use hvs_shared::sim::presets;
 
     /// Two clean pairs of the OpenCV board at (1, -2, 65 | 85) cm through case I at home.
@@ -585,48 +577,5 @@ mod tests {
         let err = write_capture_set(&blocked, &set, None).unwrap_err();
         let err = format!("{err:#}");
         assert!(err.contains(&blocked.display().to_string()), "{err}");
-    }
-
-    #[test]
-    fn matcher_geometry_is_the_rigs_epipolar_geometry() {
-        let rig = presets::CASE_2;
-        let opt = SimOptions {
-            points: 300,
-            noise_px: 0.0,
-            seed: 5,
-            ..SimOptions::default()
-        };
-        let mut d = Dataset::new(hvs_shared::runtime::blob::InputKind::Stereo);
-        for s in simulate(&rig, SetKind::Volume, &opt).unwrap() {
-            d.push(&s.px, Some(s.xyz));
-        }
-        let g = matcher_geometry(&d).unwrap();
-        assert!(g.out_min[2] >= 65.0 && g.out_max[2] <= 165.0 && g.out_min[2] < g.out_max[2]);
-        // Case II's right camera has the longer focal length: the right image is larger.
-        let want = [
-            rig.phi_u_right / rig.phi_u_left,
-            rig.phi_v_right / rig.phi_v_left,
-        ];
-        for (got, want) in g.right_scale.iter().zip(want) {
-            let got = f64::from(*got);
-            assert!((got / want - 1.0).abs() < 0.01, "{got} vs {want}");
-        }
-        assert!(g.disparity[0] > 0.0 && g.disparity[0] < g.disparity[1]);
-        // Points the fit never saw lie on their epipolar lines (rounded pixels: within ~1 px).
-        let f = hvs_vision::geometry::Fundamental {
-            m: g.fundamental.map(|r| r.map(f64::from)),
-        };
-        let test = simulate(&rig, SetKind::Test, &SimOptions::default()).unwrap();
-        for s in &test {
-            let d = f.distance_in_right([s.px[0], s.px[1]], [s.px[2], s.px[3]]);
-            assert!(d < 1.5, "{d} px");
-        }
-        // No geometry from too few rows or without targets.
-        let mut few = Dataset::new(hvs_shared::runtime::blob::InputKind::Stereo);
-        for i in 0..7 {
-            let r = d.row(i).to_vec();
-            few.push(&r, Some(d.targets[i]));
-        }
-        assert!(matcher_geometry(&few).is_none());
     }
 }

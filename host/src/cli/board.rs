@@ -3,6 +3,7 @@
 
 use crate::data::captures;
 use crate::data::csv::write_bytes;
+use crate::data::output::{check_dir_output, check_outputs};
 use crate::vision::{detect_set, detect_set_with_images, png_bytes, points_csv, PairOutcome};
 use anyhow::{bail, Context, Result};
 use hvs_vision::board::Board;
@@ -54,8 +55,37 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn detect(a: &DetectArgs) -> Result<()> {
+    if let Some(dir) = &a.overlays {
+        check_dir_output("--overlays", dir)?;
+    }
     let board = Board::from_path(&a.board).map_err(|e| anyhow::anyhow!("{e}"))?;
     let set = captures::read(&a.captures)?;
+    // Every output is checked against every input (the board, the captures, each image) and
+    // against the others before any work; they are written last.
+    let overlay_names: Vec<PathBuf> = match &a.overlays {
+        Some(dir) => set
+            .captures
+            .iter()
+            .enumerate()
+            .flat_map(|(k, c)| {
+                [
+                    overlay_path(dir, k + 1, "left", &c.left_name),
+                    overlay_path(dir, k + 1, "right", &c.right_name),
+                ]
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let mut inputs: Vec<(&str, &Path)> = vec![("--board", &a.board), ("--captures", &a.captures)];
+    for c in &set.captures {
+        inputs.push(("--captures image", &c.left));
+        inputs.push(("--captures image", &c.right));
+    }
+    let mut outputs: Vec<(&str, &Path)> = vec![("-o", &a.output)];
+    if a.overlays.as_deref().is_some_and(Path::is_dir) {
+        outputs.extend(overlay_names.iter().map(|p| ("--overlays", p.as_path())));
+    }
+    check_outputs(&outputs, &inputs)?;
     let bar = std::io::stderr().is_terminal().then(|| {
         let b = indicatif::ProgressBar::new(set.captures.len() as u64);
         b.set_style(
@@ -123,30 +153,40 @@ fn detect(a: &DetectArgs) -> Result<()> {
             usable * n
         ),
     }
-    write_bytes(&a.output, points_csv(&board, &set, &det).as_bytes())?;
+    // Overlays first, the points last: a failure leaves the old points file as it was.
     if let Some(dir) = &a.overlays {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
-        for ((c, out), pair) in set.captures.iter().zip(&det.outcomes).zip(&images) {
+        let mut pngs = Vec::new();
+        for ((out, pair), names) in det
+            .outcomes
+            .iter()
+            .zip(&images)
+            .zip(overlay_names.chunks(2))
+        {
             let (PairOutcome::Found(p), Some([left, right])) = (out, pair) else {
                 continue;
             };
-            for (image, name, corners) in [
-                (left, &c.left_name, &p.left),
-                (right, &c.right_name, &p.right),
-            ] {
+            for ((image, corners), path) in
+                [(left, &p.left), (right, &p.right)].into_iter().zip(names)
+            {
                 let img = hvs_vision::overlay::draw_corners(image, corners);
-                write_bytes(&overlay_path(dir, name), &png_bytes(&img)?)?;
+                pngs.push((path.clone(), png_bytes(&img)?));
             }
         }
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("--overlays {}: cannot create the folder", dir.display()))?;
+        for (path, bytes) in &pngs {
+            write_bytes(path, bytes)?;
+        }
     }
+    write_bytes(&a.output, points_csv(&board, &set, &det).as_bytes())?;
     Ok(())
 }
 
-/// `DIR/<image stem>.overlay.png`.
-fn overlay_path(dir: &Path, image: &str) -> PathBuf {
+/// `DIR/NN-SIDE-<image stem>.overlay.png`: the capture's number (from 1) and side keep two
+/// images of one stem (`a/img.png` and `b/img.png`, `x.png` and `x.jpg`) apart.
+fn overlay_path(dir: &Path, capture: usize, side: &str, image: &str) -> PathBuf {
     let stem = Path::new(image)
         .file_stem()
         .map_or_else(|| image.to_string(), |s| s.to_string_lossy().into_owned());
-    dir.join(format!("{stem}.overlay.png"))
+    dir.join(format!("{capture:02}-{side}-{stem}.overlay.png"))
 }

@@ -2,7 +2,8 @@
 //! camera cases, train the default net on each, evaluate it next to the traditional method,
 //! print the comparison with the thesis' own numbers and write models, data and a report.
 
-use crate::cli::train::{train_model, Plan};
+pub mod images;
+
 use crate::data::csv::{write_atomically, write_output};
 use crate::data::dataset::Dataset;
 use crate::data::model;
@@ -12,6 +13,7 @@ use crate::study::demo::{
     self, volume_test_seed, volume_train_seed, CaseResult, Demo, VOLUME_POINTS, VOLUME_TRAIN_POINTS,
 };
 use crate::study::engine::Files;
+use crate::train::model::{train_model, Plan};
 use crate::train::TrainConfig;
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::InputKind;
@@ -167,13 +169,20 @@ pub fn run_case(n: u8, dir: &Path, seed: u64, restarts: usize) -> Result<CaseRes
 /// Runs `hvs demo`.
 pub fn run(a: Args) -> Result<()> {
     let start = Instant::now();
-    if a.restarts == 0 {
-        anyhow::bail!("--restarts must be at least 1");
+    // Every argument is checked before any work (a bad one found after case I would leave a
+    // partial folder).
+    if a.restarts == 0 || a.restarts > usize::from(u16::MAX) {
+        return Err(crate::cli::usage(format!(
+            "--restarts must be from 1 to {}, got {}",
+            u16::MAX,
+            a.restarts
+        )));
     }
+    crate::data::output::check_dir_output("-o", &a.output)?;
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create the directory", a.output.display()))?;
     if a.images {
-        return super::demo_images::run(&a.output, a.seed, a.restarts);
+        return images::run(&a.output, a.seed, a.restarts);
     }
     // Cases run in parallel; each is deterministic on its own, so the output does not
     // depend on the scheduling.

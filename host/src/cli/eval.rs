@@ -42,7 +42,7 @@ pub struct Args {
     floor: RigArgs,
     // The true lenses of the floor's rig (as the set was simulated); needs --case or --rig.
     #[command(flatten)]
-    lens: crate::cli::simulate::LensArgs,
+    lens: crate::cli::LensArgs,
 }
 
 /// What `--json` prints.
@@ -69,7 +69,7 @@ pub fn run(a: Args) -> Result<()> {
     let m = model::load(&a.model)?;
     let blob = &m.blob;
     let table = read_set(&a.data, blob.topology.inputs.into(), true)?;
-    let (_, y) = crate::cli::predict::infer_table(blob, &table)?;
+    let (_, y) = crate::infer::infer_table(blob, &table)?;
     let no = blob.n_outputs();
     let mut methods = vec![Method {
         name: "network".into(),

@@ -1,7 +1,7 @@
 //! `hvs experiment`: regenerates studies as CSV, plots and a report. `hvs experiment thesis`
 //! reruns every experiment of the thesis' chapter 4 on the simulated HVS
 //! ([`crate::study::thesis`]) and writes `RESULTS.md` with the thesis' values beside ours;
-//! `hvs experiment posture` runs the posture study of issue 8
+//! `hvs experiment posture` runs the posture study
 //! ([`crate::study::posture`]) and writes `POSTURE.md`; `hvs experiment accuracy`
 //! compares the default of `hvs train` with the thesis net, a DLT fit and the floor in every
 //! pixel regime ([`crate::study::accuracy`]) and writes `ACCURACY.md`.
@@ -22,7 +22,7 @@ fn posture_long_about() -> String {
     let s = StudyConfig::experiment(posture::DEFAULT_SEED, false);
     let k1 = |v: Option<&f64>| v.map_or("-".to_string(), |k| k.to_string());
     format!(
-        "The posture study of issue 8 (hvs_host::study::posture) on thesis case {}: the \
+        "The posture study (hvs_host::study::posture) on thesis case {}: the \
          thesis' 4-5-3 net, trained at the home posture, evaluated at verged and turned \
          postures; a posture-aware 9-{}-3 net of family {} (pixels and the five joint angles) per posture \
          band of the working range against the optimal-triangulation floor at the same \
@@ -73,7 +73,7 @@ enum Which {
     /// in every pixel regime (rounded, sub-pixel, exact, barrel lens; thesis and 9x6 boards),
     /// against pixel noise and lens distortion, and on corners detected in rendered images.
     #[command(
-        long_about = "Depth accuracy in every pixel regime (issue 14): for each training board \
+        long_about = "Depth accuracy in every pixel regime: for each training board \
         (the thesis' 4x3 at 2 cm, a 9x6 board at 6 cm), pixel regime (int: rounded; sub: \
         Gaussian 0.05 px, unrounded; exact; barrel: rounded through k1 = -0.1 lenses) and thesis \
         case I-IV, the e_ma on random volume points of the floor (optimal triangulation with the \
@@ -154,7 +154,7 @@ pub fn run(a: Args) -> Result<()> {
 
 fn accuracy_study(a: AccuracyArgs) -> Result<()> {
     let cfg = AccuracyConfig {
-        default_family: crate::cli::train::ArchArg::DEFAULT.family(),
+        default_family: crate::train::DEFAULT_FAMILY,
         seed_base: a.seed_base,
         quick: a.quick,
     };

@@ -132,8 +132,8 @@ pub fn run(args: &Args) -> Result<()> {
             at: Some(at),
             ..
         } => {
-            let p = crate::cli::locate::parse_at(at)?;
-            let (found, _, _) = crate::cli::locate::locate_files(m, l, r, &[p])?;
+            let p = crate::cli::parse_at(at)?;
+            let (found, _, _) = crate::vision::locate_files(m, l, r, &[p])?;
             let f = found[0];
             let Some(rp) = f.right else {
                 bail!(
@@ -176,6 +176,14 @@ pub fn run(args: &Args) -> Result<()> {
         _ => None,
     };
     let mut link = connect(&endpoint, timeout)?;
+    // The pixels were found with --model's geometry: the head must run that model.
+    if let HeadCommand::Look { model: Some(m), .. } = &args.command {
+        let info = expect(link.request(RequestBody::Info)?, "Info", |b| match b {
+            ResponseBody::Info(i) => Some(i),
+            _ => None,
+        })?;
+        check_runs(m, &info)?;
+    }
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match &args.command {
@@ -279,6 +287,44 @@ pub fn run(args: &Args) -> Result<()> {
                 per * 1e9 / b.tick_hz as f64
             )?;
         }
+    }
+    Ok(())
+}
+
+/// Refuses a `look --model M` when the head runs another model (or the fallback): the
+/// model's metadata (shape, seed, training-set hash and size, training error) against the
+/// head's `Info`.
+fn check_runs(
+    model_path: &std::path::Path,
+    info: &hvs_shared::runtime::protocol::InfoData,
+) -> Result<()> {
+    let blob = crate::data::model::load(model_path)?.blob;
+    let m = &blob.meta;
+    let Some(h) = info.model else {
+        bail!(
+            "--model {}: the head runs no model (fallback mode): flash it first (hvs flash)",
+            model_path.display()
+        );
+    };
+    let same = usize::from(h.inputs) == blob.n_inputs()
+        && h.hidden == u16::from(blob.topology.hidden)
+        && usize::from(h.outputs) == blob.n_outputs()
+        && h.seed == m.seed
+        && h.train_hash == m.train_hash
+        && h.train_points == m.train_points
+        && h.train_error_pct.to_bits() == m.train_error_pct.to_bits();
+    if !same {
+        bail!(
+            "--model {} is not the model the head runs (head: generation {}, seed {}, training set {:016x} of {} points; file: seed {}, training set {:016x} of {} points): give the model the head runs, or flash this one",
+            model_path.display(),
+            info.generation,
+            h.seed,
+            h.train_hash,
+            h.train_points,
+            m.seed,
+            m.train_hash,
+            m.train_points
+        );
     }
     Ok(())
 }

@@ -78,6 +78,20 @@ pub fn run(a: Args) -> Result<()> {
                  neck pan, neck tilt and eye tilt inputs); the model turns them into the head frame",
         }
     )?;
+    match b.image_size() {
+        Some((w, h)) => writeln!(o, "images:      {w}x{h} px (the training images' size)"),
+        None => writeln!(
+            o,
+            "images:      none recorded (trained from points, not images)"
+        ),
+    }?;
+    match b.parent() {
+        Some((crc, generation)) => writeln!(
+            o,
+            "parent:      updated from the model with CRC {crc:#010x}, generation {generation}"
+        ),
+        None => writeln!(o, "parent:      none (trained from scratch)"),
+    }?;
     if let Some(g) = &b.matcher {
         writeln!(
             o,
@@ -89,7 +103,7 @@ pub fn run(a: Args) -> Result<()> {
     writeln!(
         o,
         "training:    {}, seed {}, {} restarts, {} points (set hash {:#018x}), train e_ma {} %",
-        crate::cli::train::algo_name(m.algorithm),
+        crate::train::algo_name(m.algorithm),
         m.seed,
         m.restarts,
         m.train_points,

@@ -5,9 +5,8 @@ use crate::data::csv::{
     check_row_len, check_unique_names, csv_error, csv_reader, missing_column, write_bytes,
     write_output, LineCounter,
 };
-use crate::data::model;
-use crate::data::output::check_not_input;
-use crate::vision::{locate, locate_overlay, png_bytes, read_grey, Located};
+use crate::data::output::check_outputs;
+use crate::vision::{locate_files, locate_overlay, png_bytes, Located};
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::{Path, PathBuf};
 
@@ -46,23 +45,12 @@ pub struct Args {
     #[arg(long, value_name = "U,V", allow_hyphen_values = true)]
     pub at: Option<String>,
     /// Output CSV: u_l,v_l,u_r,v_r,x,y,z,score,status then the passed-through columns
-    /// (default: standard output).
-    #[arg(short = 'o', long, value_name = "OUT.csv")]
+    /// (default: standard output). Not with --at, which prints its one point.
+    #[arg(short = 'o', long, value_name = "OUT.csv", conflicts_with = "at")]
     pub output: Option<PathBuf>,
     /// The two images side by side with each match drawn and labelled by its row number.
     #[arg(long, value_name = "OUT.png")]
     pub overlay: Option<PathBuf>,
-}
-
-/// `U,V` -> `[u, v]`.
-pub fn parse_at(s: &str) -> Result<[f64; 2]> {
-    let bad = || anyhow!("--at: {s:?} is not U,V (two pixel coordinates, e.g. 320.5,240)");
-    let (u, v) = s.split_once(',').ok_or_else(bad)?;
-    let (u, v): (f64, f64) = (
-        u.trim().parse().map_err(|_| bad())?,
-        v.trim().parse().map_err(|_| bad())?,
-    );
-    Ok([u, v])
 }
 
 /// The pixels of a `PIXELS.csv` (`u_l,v_l`, `NaN` allowed: it gets the status `nan_input`),
@@ -151,37 +139,6 @@ pub fn row(l: &Located) -> String {
     )
 }
 
-/// Loads the model and both images, then locates `points`.
-pub fn locate_files(
-    model_path: &Path,
-    left: &Path,
-    right: &Path,
-    points: &[[f64; 2]],
-) -> Result<(Vec<Located>, image::GrayImage, image::GrayImage)> {
-    let m = model::load(model_path)?;
-    if m.blob.n_inputs() != 4 {
-        bail!(
-            "{}: a posture-aware model (9 inputs) cannot locate from images alone: its epipolar geometry moves with the eyes",
-            model_path.display()
-        );
-    }
-    let (l, r) = (read_grey(left)?, read_grey(right)?);
-    if l.dimensions() != r.dimensions() {
-        bail!(
-            "{} and {}: the images differ in size ({}x{} and {}x{})",
-            left.display(),
-            right.display(),
-            l.width(),
-            l.height(),
-            r.width(),
-            r.height()
-        );
-    }
-    let found =
-        locate(&m.blob, &l, &r, points).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))?;
-    Ok((found, l, r))
-}
-
 /// `hvs locate`.
 pub fn run(a: Args) -> Result<()> {
     let mut inputs: Vec<(&str, &Path)> = vec![
@@ -192,25 +149,19 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(p) = &a.points {
         inputs.push(("--points", p));
     }
-    for out in [a.output.as_deref(), a.overlay.as_deref()]
-        .into_iter()
-        .flatten()
-    {
-        check_not_input(
-            if Some(out) == a.overlay.as_deref() {
-                "--overlay"
-            } else {
-                "-o"
-            },
-            out,
-            &inputs,
-        )?;
+    let mut outputs: Vec<(&str, &Path)> = Vec::new();
+    if let Some(o) = &a.output {
+        outputs.push(("-o", o));
     }
+    if let Some(o) = &a.overlay {
+        outputs.push(("--overlay", o));
+    }
+    check_outputs(&outputs, &inputs)?;
     let pixels = match (&a.points, &a.at) {
         (Some(p), _) => read_pixels(p)?,
         (None, Some(at)) => Pixels {
             extra_names: Vec::new(),
-            points: vec![parse_at(at)?],
+            points: vec![crate::cli::parse_at(at)?],
             extra: vec![Vec::new()],
         },
         (None, None) => bail!("give --points PIXELS.csv or --at U,V"),
@@ -249,17 +200,4 @@ pub fn run(a: Args) -> Result<()> {
     let ok = found.iter().filter(|f| f.status == "ok").count();
     eprintln!("{ok} of {} points located", found.len());
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn at_takes_two_numbers() {
-        assert_eq!(parse_at("320.5,-2").unwrap(), [320.5, -2.0]);
-        for bad in ["", "3", "a,b", "1,2,3"] {
-            assert!(parse_at(bad).is_err(), "{bad}");
-        }
-    }
 }

@@ -5,7 +5,6 @@
 
 pub mod board;
 pub mod demo;
-pub mod demo_images;
 pub mod emulate;
 pub mod eval;
 pub mod experiment;
@@ -18,8 +17,10 @@ pub mod predict;
 pub mod render;
 pub mod simulate;
 pub mod train;
+pub mod train_update;
 
 use anyhow::{bail, Result};
+use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::camera::Rig;
 use std::path::PathBuf;
 
@@ -57,6 +58,61 @@ impl RigArgs {
             (None, None) => "no rig".to_string(),
         }
     }
+}
+
+/// `--distortion K1[,K2]` (`hvs simulate`, `hvs eval`).
+#[derive(Debug, clap::Args)]
+pub struct LensArgs {
+    /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
+    #[arg(
+        long,
+        value_name = "K1[,K2]",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    distortion: Option<Vec<f64>>,
+}
+
+impl LensArgs {
+    /// Whether `--distortion` was given.
+    pub fn given(&self) -> bool {
+        self.distortion.is_some()
+    }
+    /// The lens: none when absent; one or two finite coefficients.
+    pub fn lens(&self) -> Result<Distortion> {
+        distortion_arg(self.distortion.as_deref())
+    }
+}
+
+fn distortion_arg(v: Option<&[f64]>) -> Result<Distortion> {
+    let d = match v {
+        None => Distortion::NONE,
+        Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
+        Some([k1, k2]) => Distortion { k1: *k1, k2: *k2 },
+        Some(v) => bail!("--distortion takes K1 or K1,K2, got {} values", v.len()),
+    };
+    if !d.is_finite() {
+        bail!("--distortion coefficients must be finite numbers");
+    }
+    Ok(d)
+}
+
+/// `U,V` -> `[u, v]`, two finite numbers; anything else is bad usage (exit 2).
+pub fn parse_at(s: &str) -> Result<[f64; 2]> {
+    let bad = || {
+        usage(format!(
+            "--at: {s:?} is not U,V (two finite pixel coordinates, e.g. 320.5,240)"
+        ))
+    };
+    let (u, v) = s.split_once(',').ok_or_else(bad)?;
+    let (u, v): (f64, f64) = (
+        u.trim().parse().map_err(|_| bad())?,
+        v.trim().parse().map_err(|_| bad())?,
+    );
+    if !(u.is_finite() && v.is_finite()) {
+        return Err(bad());
+    }
+    Ok([u, v])
 }
 
 /// clap value parsers of whole numbers: `-5` or `1e99` gets the accepted range, not clap's
@@ -114,4 +170,46 @@ pub fn say(line: std::fmt::Arguments) -> Result<()> {
     writeln!(o, "{line}")
         .and_then(|()| o.flush())
         .map_err(|e| anyhow::Error::new(e).context("cannot write to stdout"))
+}
+
+/// Bad usage: a malformed or out-of-range argument value. `hvs` exits with 2 for it (as for
+/// every error clap finds), 1 for every other error. The one rule: what the arguments alone
+/// show to be wrong is bad usage.
+#[derive(Debug)]
+pub struct Usage(pub String);
+
+impl std::fmt::Display for Usage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Usage {}
+
+/// A [`Usage`] error with `msg`.
+pub fn usage(msg: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(Usage(msg.into()))
+}
+
+/// The exit code of a failed command: 2 for bad usage ([`Usage`] anywhere in the chain), 1
+/// otherwise.
+pub fn exit_code(e: &anyhow::Error) -> i32 {
+    if e.chain().any(|c| c.downcast_ref::<Usage>().is_some()) {
+        2
+    } else {
+        1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn at_takes_two_numbers() {
+        assert_eq!(parse_at("320.5,-2").unwrap(), [320.5, -2.0]);
+        for bad in ["", "3", "a,b", "1,2,3", "inf,240", "NaN,3"] {
+            assert!(parse_at(bad).is_err(), "{bad}");
+        }
+    }
 }

@@ -1,10 +1,10 @@
 //! `hvs predict`: run a model over a CSV of matched pixels.
 
-use crate::data::csv::{read_set, write_output, Table};
+use crate::data::csv::{read_set, write_output};
 use crate::data::model::{self, input_names};
 use crate::data::output::check_not_input;
-use crate::infer::{to_f32, PointError, Predictor};
-use anyhow::{anyhow, Context, Result};
+use crate::infer::infer_table;
+use anyhow::{Context, Result};
 use hvs_shared::runtime::blob::{ModelBlob, OutputKind};
 use hvs_shared::runtime::head::outputs_in_range;
 use std::io::Write;
@@ -76,29 +76,6 @@ pub fn run(a: Args) -> Result<()> {
     write_output(a.output.as_deref(), |w| {
         write_rows(w, blob, &x, &y).context("cannot write the CSV")
     })
-}
-
-/// Runs the model on every row of `table`: the f32 inputs and the outputs, row-major.
-/// Errors name the file, line and (for range errors) the column.
-pub fn infer_table(blob: &ModelBlob, table: &Table) -> Result<(Vec<f32>, Vec<f32>)> {
-    let ni = blob.n_inputs();
-    let names = input_names(blob.topology.inputs);
-    let x = to_f32(&table.data.inputs, ni).map_err(|(r, c)| {
-        anyhow!(
-            "{}: column \"{}\": {} does not fit the f32 the model computes in",
-            table.at(r),
-            names.get(c).copied().unwrap_or("?"),
-            table.data.inputs[r * ni + c]
-        )
-    })?;
-    let p = Predictor::new(blob);
-    let y = p.predict(&x).map_err(|PointError { index, error }| {
-        anyhow!(
-            "{}: the model cannot estimate this point: {error}",
-            table.at(index)
-        )
-    })?;
-    Ok((x, y))
 }
 
 fn write_rows(w: &mut dyn Write, blob: &ModelBlob, x: &[f32], y: &[f32]) -> std::io::Result<()> {

@@ -3,7 +3,7 @@
 
 use super::RigArgs;
 use crate::vision::write_capture_set;
-use anyhow::{anyhow, bail, Result};
+use anyhow::{anyhow, Result};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::posture::HeadRig;
@@ -78,7 +78,8 @@ pub fn run(a: Args) -> Result<()> {
     let rig = a
         .rig
         .rig()?
-        .ok_or_else(|| anyhow!("choose a rig with --case N or --rig FILE.json"))?;
+        .ok_or_else(|| crate::cli::usage("choose a rig with --case N or --rig FILE.json"))?;
+    crate::data::output::check_dir_output("-o", &a.output)?;
     let (cols, rows) = parse_size(&a.inner_corners)?;
     let board =
         hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| anyhow!("{e}"))?;
@@ -89,25 +90,39 @@ pub fn run(a: Args) -> Result<()> {
         noise_sigma: a.noise,
         ..RenderOptions::default()
     };
+    // Checked here so the message names the flag, not the library's field.
+    opt.validate().map_err(|e| match e {
+        render::RenderError::Invalid(f) => {
+            let flag = match f.field {
+                "supersample" => "--supersample",
+                "blur_sigma_px" => "--blur",
+                "noise_sigma" => "--noise",
+                "margin_cm" => "--square-cm",
+                other => other,
+            };
+            crate::cli::usage(format!("{flag}: {}", f.reason))
+        }
+        other => anyhow!("{other}"),
+    })?;
     let distortion = match a.distortion.as_deref() {
         None => Distortion::NONE,
         Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
         Some([k1, k2]) => Distortion { k1: *k1, k2: *k2 },
-        Some(_) => bail!("--distortion takes K1 or K1,K2"),
+        Some(_) => return Err(crate::cli::usage("--distortion takes K1 or K1,K2")),
     };
     if !distortion.is_finite() {
-        bail!("--distortion must be finite");
+        return Err(crate::cli::usage("--distortion must be finite"));
     }
     let joints = match a.joints.as_deref() {
         None => None,
         Some(j) if j.len() == 5 && j.iter().all(|v| v.is_finite()) => {
             Some(Joints([j[0], j[1], j[2], j[3], j[4]]))
         }
-        Some(_) => bail!("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan"),
+        Some(_) => return Err(crate::cli::usage("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")),
     };
     let [x, y] = match a.centre.as_slice() {
         [x, y] if x.is_finite() && y.is_finite() => [*x, *y],
-        _ => bail!("--centre takes X,Y (cm)"),
+        _ => return Err(crate::cli::usage("--centre takes X,Y (cm)")),
     };
     let depths = a
         .depths
@@ -155,14 +170,20 @@ pub fn run(a: Args) -> Result<()> {
 
 /// `9x6` -> (9, 6).
 fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let bad = || anyhow!("--inner-corners: {s:?} is not COLSxROWS (e.g. 9x6)");
+    let bad = || {
+        crate::cli::usage(format!(
+            "--inner-corners: {s:?} is not COLSxROWS (e.g. 9x6)"
+        ))
+    };
     let (c, r) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let (c, r): (u32, u32) = (
         c.trim().parse().map_err(|_| bad())?,
         r.trim().parse().map_err(|_| bad())?,
     );
     if c < 2 || r < 2 || c > 100 || r > 100 {
-        bail!("--inner-corners: {c}x{r} must be 2..=100 in each direction");
+        return Err(crate::cli::usage(format!(
+            "--inner-corners: {c}x{r}: each side must be from 2 to 100 corners"
+        )));
     }
     Ok((c, r))
 }

@@ -41,8 +41,8 @@ value_enum! {
         Random,
     }
 }
+use crate::cli::LensArgs;
 use anyhow::{anyhow, bail, Context, Result};
-use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::posture::HeadRig;
 use std::path::PathBuf;
 
@@ -168,43 +168,6 @@ pub fn run(a: Args) -> Result<()> {
     write_output(a.output.as_deref(), |w| {
         write_csv(w, &samples).context("cannot write the CSV")
     })
-}
-
-/// `--distortion K1[,K2]` (`hvs simulate`, `hvs eval`).
-#[derive(Debug, clap::Args)]
-pub struct LensArgs {
-    /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
-    #[arg(
-        long,
-        value_name = "K1[,K2]",
-        value_delimiter = ',',
-        allow_hyphen_values = true
-    )]
-    distortion: Option<Vec<f64>>,
-}
-
-impl LensArgs {
-    /// Whether `--distortion` was given.
-    pub fn given(&self) -> bool {
-        self.distortion.is_some()
-    }
-    /// The lens: none when absent; one or two finite coefficients.
-    pub fn lens(&self) -> Result<Distortion> {
-        distortion_arg(self.distortion.as_deref())
-    }
-}
-
-fn distortion_arg(v: Option<&[f64]>) -> Result<Distortion> {
-    let d = match v {
-        None => Distortion::NONE,
-        Some([k1]) => Distortion { k1: *k1, k2: 0.0 },
-        Some([k1, k2]) => Distortion { k1: *k1, k2: *k2 },
-        Some(v) => bail!("--distortion takes K1 or K1,K2, got {} values", v.len()),
-    };
-    if !d.is_finite() {
-        bail!("--distortion coefficients must be finite numbers");
-    }
-    Ok(d)
 }
 
 /// `hvs simulate` with `--postures` and/or `--distortion`.

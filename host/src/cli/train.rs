@@ -4,10 +4,10 @@
 use crate::data::csv::{read_set, Inputs};
 use crate::data::model;
 use crate::data::output::check_not_input;
-use crate::train::fallback::{self, FallbackFit};
-use crate::train::{self, Algo, BpParams, TrainConfig, TrainOutcome};
+use crate::train::model::{train_model, Plan, Trained};
+use crate::train::{self, Algo, BpParams, TrainConfig};
 use anyhow::{bail, Context, Result};
-use hvs_shared::runtime::blob::{Family, ModelBlob, OutputFrame, OutputKind, MAX_HIDDEN};
+use hvs_shared::runtime::blob::{Family, OutputFrame, OutputKind, MAX_HIDDEN};
 use hvs_shared::runtime::traditional::Calibration;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -66,10 +66,21 @@ impl FrameArg {
 }
 
 impl ArchArg {
-    /// The default of `hvs train` (four pixel inputs or posture-aware), of `hvs demo --images`
-    /// and of the posture study's posture-aware nets; a posture-aware net of this family gives
-    /// its points in the eye platform's frame ([`crate::train::default_frame`]).
-    pub const DEFAULT: ArchArg = ArchArg::InverseDepthSkip;
+    /// `--arch`'s default: [`train::DEFAULT_FAMILY`].
+    pub const DEFAULT: ArchArg = match ArchArg::of(train::DEFAULT_FAMILY) {
+        Some(a) => a,
+        None => panic!("the default family has no --arch value"),
+    };
+
+    /// The `--arch` value of a family, if it has one.
+    pub const fn of(f: Family) -> Option<ArchArg> {
+        match f {
+            Family::THESIS => Some(ArchArg::Thesis),
+            Family::INVERSE_DEPTH => Some(ArchArg::InverseDepth),
+            Family::INVERSE_DEPTH_SKIP => Some(ArchArg::InverseDepthSkip),
+            _ => None,
+        }
+    }
 
     /// The blob's family.
     pub fn family(self) -> Family {
@@ -93,28 +104,34 @@ impl ArchArg {
     the nearest board of the data that is symmetric about X = 0, if there is one."
 )]
 pub struct Args {
-    /// Training CSV.
+    /// Training CSV (with --from: the new points).
     #[arg(long, value_name = "FILE.csv")]
     data: PathBuf,
+    /// Update this model with the points of --data instead of training from nothing: its
+    /// weights, family, topology, inputs and scaling are kept (any of --hidden, --outputs,
+    /// --arch, --frame, --algo given must match it); one board at one depth is enough.
+    /// --restarts, --threshold and the back-propagation options do not apply.
+    #[arg(long, value_name = "OLD.hvsw")]
+    from: Option<PathBuf>,
     /// Model file to write (atomically).
     #[arg(short = 'o', long, value_name = "MODEL")]
     output: PathBuf,
-    /// Hidden units.
-    #[arg(long, value_name = "H", default_value_t = 5, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
-    hidden: usize,
-    /// Outputs of the net.
-    #[arg(long, value_enum, default_value_t = OutputsArg::Xyz)]
-    outputs: OutputsArg,
-    /// Model family.
-    #[arg(long, value_enum, default_value_t = ArchArg::DEFAULT)]
-    arch: ArchArg,
+    /// Hidden units [default: 5].
+    #[arg(long, value_name = "H", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
+    hidden: Option<usize>,
+    /// Outputs of the net [default: xyz].
+    #[arg(long, value_enum)]
+    outputs: Option<OutputsArg>,
+    /// Model family [default: inverse-depth-skip].
+    #[arg(long, value_enum)]
+    arch: Option<ArchArg>,
     /// Frame of a posture-aware net's points [default: eye-platform for a posture-aware set
     /// (9 inputs) outside the thesis family; head otherwise].
     #[arg(long, value_enum)]
     frame: Option<FrameArg>,
-    /// Training algorithm.
-    #[arg(long, value_enum, default_value_t = AlgoArg::Lm)]
-    algo: AlgoArg,
+    /// Training algorithm [default: lm].
+    #[arg(long, value_enum)]
+    algo: Option<AlgoArg>,
     /// Restarts from random starts.
     #[arg(long, value_name = "R", default_value_t = 10, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     restarts: usize,
@@ -144,60 +161,35 @@ pub struct Args {
     v0: f64,
 }
 
-/// Everything needed to train, independent of the command line (the demo uses it too).
-#[derive(Debug, Clone)]
-pub struct Plan {
-    /// Engine configuration.
-    pub config: TrainConfig,
-    /// Half baseline and principal point for the fallback.
-    pub half_baseline: f64,
-    /// Principal point u0 (px).
-    pub u0: f64,
-    /// Principal point v0 (px).
-    pub v0: f64,
-}
-
-impl Default for Plan {
-    fn default() -> Self {
-        Plan {
-            config: TrainConfig::default(),
-            half_baseline: Calibration::BUILT_IN.half_baseline as f64,
-            u0: Calibration::BUILT_IN.u0 as f64,
-            v0: Calibration::BUILT_IN.v0 as f64,
+impl Args {
+    /// The arguments of an update from the model `from`.
+    fn update_args(&self, from: &Path) -> super::train_update::UpdateArgs {
+        super::train_update::UpdateArgs {
+            data: self.data.clone(),
+            from: from.to_path_buf(),
+            output: self.output.clone(),
+            seed: self.seed,
+            hidden: self.hidden,
+            outputs: self.outputs.map(|o| match o {
+                OutputsArg::Xyz => OutputKind::Xyz,
+                OutputsArg::Z => OutputKind::Z,
+            }),
+            family: self.arch.map(ArchArg::family),
+            frame: self.frame.map(FrameArg::frame),
+            algo: self.algo,
+            fallback: (self.half_baseline, self.u0, self.v0),
         }
     }
 }
 
-/// A trained model ready to write, with how it came about.
-#[derive(Debug, Clone)]
-pub struct Trained {
-    /// The blob (generation 1, fallback set when fitted).
-    pub blob: ModelBlob,
-    /// The engine's report.
-    pub outcome: TrainOutcome,
-    /// The fallback fit, if the data allowed one.
-    pub fallback: Option<FallbackFit>,
-}
-
-/// Trains on `data` and completes the blob: fallback calibration and generation 1.
-pub fn train_model(data: &crate::data::dataset::Dataset, plan: &Plan) -> Result<Trained> {
-    let outcome = train::train(data, &plan.config)?;
-    let fit = fallback::fit(data, plan.half_baseline, plan.u0, plan.v0);
-    let mut blob = outcome.blob.clone();
-    blob.fallback = fit.map(|f| f.calibration);
-    blob.matcher = crate::vision::matcher_geometry(data);
-    blob.generation = 1;
-    Ok(Trained {
-        blob,
-        outcome,
-        fallback: fit,
-    })
-}
-
 /// Runs `hvs train`.
 pub fn run(a: Args) -> Result<()> {
-    if a.hidden == 0 || a.hidden > MAX_HIDDEN {
-        bail!("--hidden must be 1..={MAX_HIDDEN}, got {}", a.hidden);
+    if let Some(from) = &a.from {
+        return super::train_update::run(&a.update_args(from));
+    }
+    let hidden = a.hidden.unwrap_or(5);
+    if hidden == 0 || hidden > MAX_HIDDEN {
+        bail!("--hidden must be 1..={MAX_HIDDEN}, got {hidden}");
     }
     if a.restarts == 0 {
         bail!("--restarts must be at least 1");
@@ -220,12 +212,12 @@ pub fn run(a: Args) -> Result<()> {
         bail!("--u0 and --v0 must be finite");
     }
     let config = TrainConfig {
-        hidden: a.hidden,
-        outputs: match a.outputs {
+        hidden,
+        outputs: match a.outputs.unwrap_or(OutputsArg::Xyz) {
             OutputsArg::Xyz => OutputKind::Xyz,
             OutputsArg::Z => OutputKind::Z,
         },
-        algo: match a.algo {
+        algo: match a.algo.unwrap_or(AlgoArg::Lm) {
             AlgoArg::Lm => Algo::Lm,
             AlgoArg::Bp => Algo::Bp,
             AlgoArg::Adam => Algo::Adam,
@@ -239,7 +231,7 @@ pub fn run(a: Args) -> Result<()> {
             max_cycles: a.max_cycles,
         },
         progress: std::io::stderr().is_terminal(),
-        family: a.arch.family(),
+        family: a.arch.unwrap_or(ArchArg::DEFAULT).family(),
         frame: OutputFrame::Head,
     };
     check_not_input("-o", &a.output, &[("--data", &a.data)])?;
@@ -269,17 +261,6 @@ pub fn run(a: Args) -> Result<()> {
     })
 }
 
-/// The algorithm as `--algo` spells it.
-pub fn algo_name(a: hvs_shared::runtime::blob::Algorithm) -> &'static str {
-    use hvs_shared::runtime::blob::Algorithm;
-    match a {
-        Algorithm::Lm => "lm",
-        Algorithm::Bp => "bp",
-        Algorithm::Adam => "adam",
-        Algorithm::Other => "other",
-    }
-}
-
 fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<()> {
     let mut o = std::io::stdout().lock();
     let oc = &t.outcome;
@@ -289,7 +270,7 @@ fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<(
         "trained {} {} ({}) on {} points of {} in {:.3} s",
         model::shape(&t.blob),
         t.blob.family.name(),
-        algo_name(t.blob.meta.algorithm),
+        train::algo_name(t.blob.meta.algorithm),
         t.blob.meta.train_points,
         data.display(),
         oc.elapsed.as_secs_f64()

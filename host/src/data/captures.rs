@@ -55,6 +55,10 @@ impl CaptureSet {
     }
 }
 
+/// The columns `hvs board detect` writes before the capture's own (`POINTS.csv`): a
+/// captures column of one of these names would be passed through as a duplicate.
+pub const DETECTED_COLUMNS: [&str; 7] = ["capture", "i", "j", "u_l", "v_l", "u_r", "v_r"];
+
 const OWN: [&str; 5] = ["left", "right", "z", "x", "y"];
 
 /// Reads `path`.
@@ -80,6 +84,17 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
     let (li, ri) = (need("left")?, need("right")?);
     let (zi, xi, yi) = (find("z"), find("x"), find("y"));
     let present_joints = joint_columns_present(&file, hl, find)?;
+    if let Some((k, n)) = names
+        .iter()
+        .enumerate()
+        .find(|(_, n)| DETECTED_COLUMNS.contains(&n.as_str()))
+    {
+        bail!(
+            "{file}:{hl}: column {} \"{n}\": hvs board detect writes a column of that name itself ({}); rename or drop it",
+            k + 1,
+            DETECTED_COLUMNS.join(",")
+        );
+    }
     let mut extra_columns: Vec<String> = present_joints.iter().map(|s| s.to_string()).collect();
     for n in &names {
         if !OWN.contains(&n.as_str()) && !JOINT_COLUMNS.contains(&n.as_str()) && !n.is_empty() {

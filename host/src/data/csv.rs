@@ -266,7 +266,8 @@ pub(crate) fn check_unique_names(
 pub(crate) fn missing_column(file: &str, hl: u64, c: &str, names: &[String]) -> anyhow::Error {
     anyhow!(
         "{file}:{hl}: missing column \"{c}\" (the header has: {})",
-        names.join(",")
+        // A quoted name may hold a line break: the message stays one line.
+        names.join(",").replace(['\n', '\r'], " ")
     )
 }
 
@@ -403,7 +404,15 @@ where
         .open(path)
         .with_context(|| format!("{}: cannot open for writing", path.display()))?;
     let mut w = BufWriter::new(f);
-    body(&mut w).with_context(|| format!("{}: cannot write", path.display()))?;
+    // The body may already name the file (write_bytes does): name it once.
+    let shown = path.display().to_string();
+    body(&mut w).map_err(|e| {
+        if e.to_string().starts_with(&shown) {
+            e
+        } else {
+            e.context(format!("{shown}: cannot write"))
+        }
+    })?;
     w.flush()
         .with_context(|| format!("{}: cannot write", path.display()))?;
     Ok(())

@@ -19,7 +19,7 @@ pub struct ModelFile {
     pub blob_len: usize,
     /// The CRC-32 stored in (and matching) the blob.
     pub crc: u32,
-    /// The file's blob format version (1 or 2).
+    /// The file's blob format version (1 to `blob::VERSION`).
     pub version: u16,
 }
 

@@ -4,12 +4,15 @@
 //! - [`Target`]: a regular file (or a name not yet taken) is written through a temporary file
 //!   renamed into place; anything else that exists (a FIFO, a character device such as
 //!   `/dev/null`, a terminal, `/dev/stdout`) is written in place and never renamed over, as
-//!   `cp`, `sed -i` and `sponge` do. A symbolic link is followed, so the link stays a link.
+//!   `cp`, `sed -i` and `sponge` do. A symbolic link is followed, so the link stays a link,
+//!   also a dangling one (the file it names is created).
 //! - Temporary files are named `.<name>.hvs-<pid>.<random>.tmp`. SIGINT, SIGTERM and SIGHUP
 //!   remove the ones being written before the process dies of the signal; after a SIGKILL the
 //!   next write into the same directory removes the ones whose process is gone.
 //! - [`check_not_input`]: an output that is one of the inputs (same device and inode) is
-//!   refused before any work.
+//!   refused before any work; [`check_distinct`]: two outputs of one command on one file (the
+//!   same name through links, `sub/../` or `./`, or the same inode) are refused too. Every
+//!   command that writes checks both before it reads anything else.
 
 use anyhow::{bail, Result};
 use std::ffi::CString;
@@ -42,6 +45,11 @@ pub fn target(path: &Path) -> Result<Target> {
         return Ok(Target::Stdout);
     }
     let link = std::fs::symlink_metadata(path).ok();
+    if link.as_ref().is_some_and(|l| l.file_type().is_symlink()) && std::fs::metadata(path).is_err()
+    {
+        // A dangling link: create the file it names, keep the link.
+        return Ok(Target::Atomic(link_target(path)?));
+    }
     match std::fs::metadata(path) {
         Ok(m) if m.is_dir() => bail!("{}: is a directory", path.display()),
         Ok(m) if !m.is_file() => Ok(Target::InPlace(path.to_path_buf())),
@@ -51,6 +59,124 @@ pub fn target(path: &Path) -> Result<Target> {
         }
         _ => Ok(Target::Atomic(path.to_path_buf())),
     }
+}
+
+/// Where the (possibly dangling) symbolic link `path` points, followed to its end.
+fn link_target(path: &Path) -> Result<PathBuf> {
+    let mut at = path.to_path_buf();
+    for _ in 0..40 {
+        let next = std::fs::read_link(&at)
+            .map_err(|e| anyhow::anyhow!("{}: cannot read the link: {e}", path.display()))?;
+        let next = match at.parent() {
+            Some(dir) if next.is_relative() => dir.join(next),
+            _ => next,
+        };
+        match std::fs::symlink_metadata(&next) {
+            Ok(m) if m.file_type().is_symlink() => at = next,
+            _ => return Ok(next),
+        }
+    }
+    bail!("{}: too many levels of symbolic links", path.display())
+}
+
+/// The file an output path names, for comparing outputs: the link target for a symbolic
+/// link, the directory made canonical (`sub/../`, `./` and links in it resolved), `None` for
+/// what is not written as a file (standard output, a device).
+fn resolved(path: &Path) -> Option<PathBuf> {
+    let p = match target(path).ok()? {
+        Target::Atomic(p) => p,
+        Target::InPlace(_) | Target::Stdout => return None,
+    };
+    let name = p.file_name()?;
+    let dir = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    Some(std::fs::canonicalize(dir).ok()?.join(name))
+}
+
+/// Refuses two outputs of one command that name one file: `(flag, path)` each. Compared by
+/// the name they resolve to ([`target`]'s link following, the directory made canonical) and,
+/// for files that exist, by device and inode. Standard output and devices may be shared.
+pub fn check_distinct(outputs: &[(&str, &Path)]) -> Result<()> {
+    for (k, (fa, a)) in outputs.iter().enumerate() {
+        for (fb, b) in &outputs[k + 1..] {
+            let (Some(ra), Some(rb)) = (resolved(a), resolved(b)) else {
+                continue;
+            };
+            let same_inode = match (std::fs::metadata(&ra), std::fs::metadata(&rb)) {
+                (Ok(ma), Ok(mb)) => same_file(&ma, &mb),
+                _ => false,
+            };
+            if ra == rb || same_inode {
+                bail!(
+                    "{fa} {} and {fb} {} are the same file (one would overwrite the other); give two different files",
+                    a.display(),
+                    b.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// [`check_distinct`] over the outputs, then [`check_not_input`] for each: what every
+/// command that writes calls before any work.
+pub fn check_outputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> {
+    check_distinct(outputs)?;
+    for (flag, out) in outputs {
+        check_not_input(flag, out, inputs)?;
+    }
+    Ok(())
+}
+
+/// Refuses a folder output (`flag`, e.g. `--overlays`) that cannot be a folder to write in:
+/// an existing file or device, a read-only folder, or a new folder whose parent does not
+/// exist or is read-only. Checked before any work; the folder is created when written.
+pub fn check_dir_output(flag: &str, dir: &Path) -> Result<()> {
+    let shown = dir.display();
+    match std::fs::metadata(dir) {
+        Ok(m) if !m.is_dir() => bail!("{flag} {shown}: exists and is not a directory"),
+        Ok(_) => {
+            if !writable(dir) {
+                bail!("{flag} {shown}: the folder is not writable");
+            }
+        }
+        Err(_) => {
+            let parent = match dir.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p,
+                _ => Path::new("."),
+            };
+            if !parent.is_dir() {
+                bail!(
+                    "{flag} {shown}: cannot create the folder: {} does not exist",
+                    parent.display()
+                );
+            }
+            if !writable(parent) {
+                bail!(
+                    "{flag} {shown}: cannot create the folder: {} is not writable",
+                    parent.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn writable(dir: &Path) -> bool {
+    use std::os::unix::ffi::OsStrExt;
+    let Ok(c) = std::ffi::CString::new(dir.as_os_str().as_bytes()) else {
+        return false;
+    };
+    // SAFETY: access only reads the NUL-terminated path.
+    unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) == 0 }
+}
+
+#[cfg(not(unix))]
+fn writable(_: &Path) -> bool {
+    true
 }
 
 /// Fails unless the directory `path` would be written in exists, so that a command can
@@ -76,7 +202,10 @@ pub fn check_dir(path: &Path) -> Result<()> {
 /// existing regular file (`-o /dev/stdout` next to `--points /dev/stdin` is fine). Also
 /// fails when the output's directory does not exist ([`check_dir`]).
 pub fn check_not_input(out_flag: &str, output: &Path, inputs: &[(&str, &Path)]) -> Result<()> {
-    check_dir(output)?;
+    match target(output)? {
+        Target::Atomic(p) => check_dir(&p)?,
+        Target::InPlace(_) | Target::Stdout => return Ok(()),
+    }
     let Ok(om) = std::fs::metadata(output) else {
         return Ok(());
     };
@@ -319,6 +448,43 @@ mod tests {
             let real = std::fs::canonicalize(&f).unwrap();
             assert_eq!(target(&l).unwrap(), Target::Atomic(real));
         }
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_dangling_link_stays_a_link_and_outputs_are_distinct() {
+        let dir = tempfile::tempdir().unwrap();
+        let l = dir.path().join("l.csv");
+        std::os::unix::fs::symlink("real.csv", &l).unwrap();
+        assert_eq!(
+            target(&l).unwrap(),
+            Target::Atomic(dir.path().join("real.csv"))
+        );
+        let sub = dir.path().join("sub");
+        std::fs::create_dir(&sub).unwrap();
+        let a = dir.path().join("a.csv");
+        let via = sub.join("..").join("a.csv");
+        let e = check_distinct(&[("-o", &a), ("--overlay", &via)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("are the same file"), "{e}");
+        // Through a (dangling) link to the same name, not yet written.
+        let e = check_distinct(&[("-o", &l), ("--x", &dir.path().join("real.csv"))])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("are the same file"), "{e}");
+        check_distinct(&[("-o", &a), ("--overlay", &dir.path().join("b.csv"))]).unwrap();
+        check_distinct(&[
+            ("-o", Path::new("/dev/null")),
+            ("--x", Path::new("/dev/null")),
+        ])
+        .unwrap();
+        // An input reached through sub/../ is refused as an output.
+        std::fs::write(&a, "x").unwrap();
+        let e = check_outputs(&[("-o", &via)], &[("--captures", &a)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("is also the --captures input"), "{e}");
     }
 
     #[test]

@@ -16,9 +16,38 @@ pub const MAX_ABS_DEG: f64 = 360.0;
 
 /// Checks `table` as the training set of a net with `hidden` units and `outputs` outputs.
 pub fn training_set(table: &Table, hidden: usize, outputs: usize) -> Result<()> {
+    plausible_values(table)?;
     let d = &table.data;
     let file = table.path.display();
     let ni = d.n_inputs;
+    let params = param_count(ni, hidden, outputs);
+    let equations = d.len() * outputs;
+    if equations < params {
+        bail!(
+            "{file}: {} rows x {outputs} outputs = {equations} equations cannot determine the \
+             {ni}-{hidden}-{outputs} net's {params} parameters; give at least {} rows (or fewer --hidden units)",
+            d.len(),
+            params.div_ceil(outputs)
+        );
+    }
+    let z0 = d.targets.first().map(|t| t[2]);
+    if let Some(z0) = z0 {
+        if d.targets.iter().all(|t| t[2] == z0) {
+            bail!(
+                "{file}: all {} rows lie at one depth (z = {z0} cm): a net cannot learn depth \
+                 from one depth; give boards at two or more depths",
+                d.len()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Checks that every pixel, joint angle and position of `table` is a value a camera head
+/// produces (the value checks of [`training_set`], without its row counts: `hvs train --from`
+/// takes one board at one depth).
+pub fn plausible_values(table: &Table) -> Result<()> {
+    let d = &table.data;
     for r in 0..d.len() {
         for (c, &v) in d.row(r).iter().enumerate() {
             let (name, limit, unit) = if c < PIXEL_COLUMNS.len() {
@@ -48,26 +77,6 @@ pub fn training_set(table: &Table, hidden: usize, outputs: usize) -> Result<()> 
                     );
                 }
             }
-        }
-    }
-    let params = param_count(ni, hidden, outputs);
-    let equations = d.len() * outputs;
-    if equations < params {
-        bail!(
-            "{file}: {} rows x {outputs} outputs = {equations} equations cannot determine the \
-             {ni}-{hidden}-{outputs} net's {params} parameters; give at least {} rows (or fewer --hidden units)",
-            d.len(),
-            params.div_ceil(outputs)
-        );
-    }
-    let z0 = d.targets.first().map(|t| t[2]);
-    if let Some(z0) = z0 {
-        if d.targets.iter().all(|t| t[2] == z0) {
-            bail!(
-                "{file}: all {} rows lie at one depth (z = {z0} cm): a net cannot learn depth \
-                 from one depth; give boards at two or more depths",
-                d.len()
-            );
         }
     }
     Ok(())

@@ -9,6 +9,9 @@
 //! are split into chunks run in parallel with `rayon`; the result does not depend on the
 //! thread count.
 
+use crate::data::csv::Table;
+use crate::data::model::input_names;
+use anyhow::{anyhow, Result};
 use hvs_shared::runtime::blob::ModelBlob;
 use hvs_shared::runtime::mlp::{Mlp, MlpError, OutputMap};
 use rayon::prelude::*;
@@ -188,6 +191,29 @@ pub fn to_f32(inputs: &[f64], n_inputs: usize) -> Result<Vec<f32>, (usize, usize
     }
 }
 
+/// Runs the model on every row of `table`: the f32 inputs and the outputs, row-major.
+/// Errors name the file, line and (for range errors) the column.
+pub fn infer_table(blob: &ModelBlob, table: &Table) -> Result<(Vec<f32>, Vec<f32>)> {
+    let ni = blob.n_inputs();
+    let names = input_names(blob.topology.inputs);
+    let x = to_f32(&table.data.inputs, ni).map_err(|(r, c)| {
+        anyhow!(
+            "{}: column \"{}\": {} does not fit the f32 the model computes in",
+            table.at(r),
+            names.get(c).copied().unwrap_or("?"),
+            table.data.inputs[r * ni + c]
+        )
+    })?;
+    let p = Predictor::new(blob);
+    let y = p.predict(&x).map_err(|PointError { index, error }| {
+        anyhow!(
+            "{}: the model cannot estimate this point: {error}",
+            table.at(index)
+        )
+    })?;
+    Ok((x, y))
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -233,6 +259,8 @@ pub(crate) mod tests {
             family: hvs_shared::runtime::blob::Family::THESIS,
             matcher: None,
             frame: hvs_shared::runtime::blob::OutputFrame::Head,
+            image_size: None,
+            parent: None,
         }
     }
 

@@ -4,7 +4,6 @@
 
 use crate::common::{read, spawn_quick_experiment, wait_ok, QuickExperiment};
 
-use hvs_host::cli::train::ArchArg;
 use hvs_host::study::accuracy::report::{csv_tables, write, STEMS, SUBDIR};
 use hvs_host::study::accuracy::{self as accuracy, AccuracyConfig, BOARDS, REGIMES};
 use hvs_host::study::engine::{Files, Quiet};
@@ -13,7 +12,7 @@ use hvs_host::study::engine::{Files, Quiet};
 fn quick_run_files_facts_and_determinism() {
     let QuickExperiment { dir, out, child } = spawn_quick_experiment("accuracy", &[]);
     let cfg = AccuracyConfig {
-        default_family: ArchArg::DEFAULT.family(),
+        default_family: hvs_host::train::DEFAULT_FAMILY,
         seed_base: accuracy::HELD_OUT_SEED_BASE,
         quick: true,
     };
@@ -70,7 +69,7 @@ fn quick_run_files_facts_and_determinism() {
     assert!(im.corner_error_px < 0.1, "{im:?}");
     assert!(im.scores.floor() < 0.5, "{im:?}");
     // The real pair: the floor and the DLT are exact (projective ground truth); the default
-    // within issue 14's 0.15 % even with the quick run's 2 restarts, the thesis net not.
+    // within the 0.15 % goal even with the quick run's 2 restarts, the thesis net not.
     let rp = run.real_pair.as_ref().expect("the real pair ran");
     assert_eq!((rp.train_points, rp.test_points), (1000, 2000));
     let [floor, dlt, thesis, default] = rp.scores.0;
@@ -81,7 +80,7 @@ fn quick_run_files_facts_and_determinism() {
     // commands.
     let md = String::from_utf8(read(&out.join("ACCURACY.md"))).unwrap();
     for want in [
-        ArchArg::DEFAULT.family().name(),
+        hvs_host::train::DEFAULT_FAMILY.name(),
         "seed base 1000000 (the held-out base",
         "![noise](accuracy/noise.png)",
         "![lens](accuracy/lens.png)",

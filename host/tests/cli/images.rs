@@ -98,7 +98,7 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
         }
     }
     assert!(worst < 0.1, "worst corner error {worst} px");
-    for f in ["left01.overlay.png", "right03.overlay.png"] {
+    for f in ["01-left-left01.overlay.png", "03-right-right03.overlay.png"] {
         assert!(ov.join(f).is_file(), "{f}");
     }
     // hvs train takes it as it is.

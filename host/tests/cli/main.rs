@@ -8,15 +8,17 @@
 #[path = "../common/mod.rs"]
 mod common;
 
-mod accuracy_cli;
 mod cli;
 mod eval_posture;
 mod experiment;
 mod experiment_accuracy;
 mod experiment_posture;
 mod flash;
+mod image_safety;
 mod images;
+mod pixel_regimes;
 mod posture_cli;
 mod qemu_cli;
 mod real_pair;
-mod reliability;
+mod safe_outputs_and_strict_inputs;
+mod train_update;

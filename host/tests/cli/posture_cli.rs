@@ -82,7 +82,7 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     assert!(info.contains("9-8-3"), "{info}");
     // Without --arch and --frame a posture-aware set gets the default family with its points
     // in the eye platform's frame.
-    let default = hvs_host::cli::train::ArchArg::DEFAULT.family().name();
+    let default = hvs_host::train::DEFAULT_FAMILY.name();
     assert!(info.contains(&format!("family:      {default} ")), "{info}");
     assert!(info.contains("frame:       eye-platform"), "{info}");
     let json = ok_line(&format!(

@@ -1,4 +1,4 @@
-//! Issue 14's real-pair goal: a real stereo pair with ground truth (Middlebury 2014
+//! The real-pair goal: a real stereo pair with ground truth (Middlebury 2014
 //! Motorcycle, tests/fixtures/motorcycle), 1000 training points: the default family within
 //! 0.15 % e_ma on 2000 other pixels; the thesis net, which cannot follow sub-pixel pixels,
 //! stays at about 0.33 %. The data is projective (the depths come from the same disparities),

@@ -19,8 +19,8 @@
 //!   DLT, [`hvs_vision::geometry::fit_dlt`]), then linear triangulation;
 //! - the **thesis** net: 4-5-3, X, Y, Z outputs, `TrainConfig::default()`;
 //! - the **default** of `hvs train`: the family the caller passes
-//!   ([`AccuracyConfig::default_family`]; the CLI passes its one definition,
-//!   `cli::train::ArchArg::DEFAULT`), otherwise `hvs train`'s settings (4-5-3, LM,
+//!   ([`AccuracyConfig::default_family`]; the CLI passes
+//!   [`crate::train::DEFAULT_FAMILY`]), otherwise `hvs train`'s settings (4-5-3, LM,
 //!   10 restarts, seed [`TRAIN_SEED`]).
 //!
 //! Sets are made by the functions behind `hvs simulate` ([`crate::sim::sets::simulate`], and
@@ -139,7 +139,7 @@ pub const METHODS: [&str; 4] = ["floor", "dlt", "thesis", "default"];
 /// What to run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AccuracyConfig {
-    /// The family of the default net (the CLI passes `ArchArg::DEFAULT`'s).
+    /// The family of the default net (the CLI passes [`crate::train::DEFAULT_FAMILY`]).
     pub default_family: Family,
     /// Base of every set's seed ([`HELD_OUT_SEED_BASE`] for the page).
     pub seed_base: u64,

@@ -71,7 +71,7 @@ pub struct StudyConfig {
     pub hidden: usize,
     /// Model family of the posture-aware nets (part (b) and its sweep): `hvs train`'s
     /// default for posture-aware sets
-    /// ([`ArchArg::DEFAULT`](crate::cli::train::ArchArg::DEFAULT)) unless
+    /// ([`crate::train::DEFAULT_FAMILY`]) unless
     /// set. Part (a) always trains the thesis family (it studies the thesis' fixed-posture
     /// net), and so does part (c) (the thesis' net next to a wider one, a DLT fit and the
     /// floor).
@@ -108,11 +108,8 @@ impl Default for StudyConfig {
             seed: 1,
             train_levels: posture::DEFAULT_LEVELS,
             hidden: 16,
-            family: crate::cli::train::ArchArg::DEFAULT.family(),
-            frame: default_frame(
-                crate::cli::train::ArchArg::DEFAULT.family(),
-                InputKind::StereoJoints,
-            ),
+            family: crate::train::DEFAULT_FAMILY,
+            frame: default_frame(crate::train::DEFAULT_FAMILY, InputKind::StereoJoints),
             restarts: 1,
             sweep: Vec::new(),
             lattice: false,
@@ -1033,8 +1030,7 @@ mod tests {
     /// `hvs train`'s for a posture-aware set); part (a) stays the thesis' net whatever it is.
     #[test]
     fn posture_aware_nets_use_the_configured_family() {
-        use crate::cli::train::ArchArg;
-        assert_eq!(StudyConfig::default().family, ArchArg::DEFAULT.family());
+        assert_eq!(StudyConfig::default().family, crate::train::DEFAULT_FAMILY);
         assert_eq!(StudyConfig::default().frame, OutputFrame::EyePlatform);
         let cfg = StudyConfig {
             train_levels: [1, 1, 1, 1, 2],

@@ -1,4 +1,4 @@
-//! Reliability (issue 13): outputs never destroy inputs, interrupted runs leave nothing,
+//! Reliability: outputs never destroy inputs, interrupted runs leave nothing,
 //! strict input checks everywhere. Each test drives the built `hvs` binary.
 
 use crate::common::{fails, hvs, ok, read, s, stderr_with_code};

@@ -1,4 +1,4 @@
-//! Data for every regime (issue 14): `hvs simulate --pixels exact|rounded`, `--noise-px` with
+//! Data for every pixel regime: `hvs simulate --pixels exact|rounded`, `--noise-px` with
 //! both, `--board NXxNY:PITCH`, their errors; `hvs eval --case N [--distortion K1]` gives the
 //! floor on such sets (zero on exact pixels, through the true lenses on a barrel set).
 

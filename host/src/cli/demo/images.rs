@@ -3,13 +3,13 @@
 //! corners, render and detect test boards at other positions, predict, and compare the depth
 //! error with the floor (optimal triangulation with the true rig on the same detected corners).
 
-use crate::cli::train::{train_model, ArchArg, Plan};
 use crate::data::captures;
 use crate::data::csv::write_bytes;
 use crate::data::dataset::Dataset;
 use crate::data::model;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, text_table, Evaluation, Method};
 use crate::fmt::pct;
+use crate::train::model::{train_model, Plan};
 use crate::vision::{
     detect_set, found_corners, points_csv, write_capture_set, Detection, PairOutcome,
 };
@@ -111,7 +111,7 @@ pub fn run_case(case: u8, dir: &Path, seed: u64, restarts: usize) -> Result<Imag
     }
     let corner_error_px = err / (4 * truth.len()) as f64;
     let mut plan = Plan::default();
-    plan.config.family = ArchArg::DEFAULT.family();
+    plan.config.family = crate::train::DEFAULT_FAMILY;
     plan.config.restarts = restarts;
     plan.config.seed = seed;
     let trained = train_model(&train, &plan)?;
