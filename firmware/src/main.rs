@@ -38,8 +38,8 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use hvs_shared::runtime::blob::MAX_BLOB_LEN;
-use hvs_shared::runtime::gaze::{GazeConfig, Joints};
-use hvs_shared::runtime::head::{self, Boot, Estimator, Head};
+use hvs_shared::runtime::gaze::GazeConfig;
+use hvs_shared::runtime::head::{self, Boot, Estimator, Head, MainLoop};
 use hvs_shared::runtime::layout::{SLOT_A_ADDR, SLOT_B_ADDR};
 use hvs_shared::runtime::protocol::{
     self, ErrorCode, FirmwareVersion, FrameAccumulator, Request, RequestBody, Response,
@@ -140,19 +140,18 @@ fn main() -> ! {
     );
 
     let mut acc = FrameAccumulator::<MAX_FRAME_LEN>::new();
-    // The servos are left alone until the first Look or Home: their position at power-up is
-    // unknown, and commanding home unasked could swing the head.
-    let mut armed = false;
+    // The servos are left alone until the first Look or Home (the loop's arming rule).
+    let mut main_loop = MainLoop::new();
     let mut ticks_done = TICKS.load(Ordering::Relaxed);
     loop {
         // Control ticks first (every one, so the per-tick rate limit holds on the wire too).
         let now = TICKS.load(Ordering::Relaxed);
         while ticks_done != now {
             ticks_done = ticks_done.wrapping_add(1);
-            let setpoint: Joints = head.tick();
-            if armed {
+            let tick = main_loop.tick(head);
+            if tick.command {
                 // A transport error loses this tick's commands; the next tick resends.
-                let _ = servos.command(&setpoint);
+                let _ = servos.command(&tick.setpoint);
             }
         }
         let Some(byte) = link::pop() else {
@@ -161,12 +160,8 @@ fn main() -> ! {
         };
         let resp = match acc.push(byte) {
             None => continue,
-            Some(frame) => match head::read_frame(frame) {
-                Ok(req) => {
-                    let r = answer(head, &req, tick_hz);
-                    armed |= matches!(r.body, ResponseBody::Look(_) | ResponseBody::Home);
-                    r
-                }
+            Some(frame) => match main_loop.frame(frame, |req| answer(head, req, tick_hz)) {
+                Ok(r) => r,
                 Err(error) => {
                     log!("protocol error: {}", defmt::Debug2Format(&error.body));
                     error

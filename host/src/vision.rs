@@ -4,8 +4,8 @@
 //! turns the crate's results into the project's CSV rows.
 
 use crate::data::captures::{Capture, CaptureSet};
-use crate::data::csv::write_bytes;
 use crate::data::dataset::JOINT_COLUMNS;
+use crate::data::output::write_bytes;
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::ModelBlob;
 use hvs_shared::runtime::gaze::Joints;
@@ -338,7 +338,7 @@ pub struct Located {
     pub left: [f64; 2],
     /// The match in the right image, when trustworthy.
     pub right: Option<[f64; 2]>,
-    /// The model's X, Y, Z (cm) of the matched pair.
+    /// The model's X, Y, Z (cm) of the matched pair (X and Y NaN for a Z-only model).
     pub xyz: Option<[f32; 3]>,
     /// Zero-mean normalised cross-correlation of the match (NaN when none was scored).
     pub score: f64,
@@ -393,10 +393,19 @@ pub fn locate(
         f64::from(g.disparity[1]) + DISPARITY_SLACK * span,
     ];
     let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
+    // A Z-only model (`hvs train --outputs z`) gives Z, and X, Y as NaN.
+    let n_out = blob.n_outputs();
     let predict = |x: [f32; 4]| -> Option<[f32; 3]> {
         let mut out = [0.0f32; 3];
-        blob.infer(&x, &mut out).ok()?;
-        out.iter().all(|v| v.is_finite()).then_some(out)
+        blob.infer(&x, &mut out[..n_out]).ok()?;
+        if !out[..n_out].iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        Some(if n_out == 1 {
+            [f32::NAN, f32::NAN, out[0]]
+        } else {
+            out
+        })
     };
     Ok(points
         .par_iter()

@@ -12,7 +12,7 @@
 //!   - [`runtime::layout`]: flash addresses of the weight slots (`memory.x` agrees, tested).
 //!   - [`runtime::slots`]: pure rules: which slot boots, which one a new model is written to.
 //!   - [`runtime::head`]: the head controller's logic without I/O (slot classification, boot,
-//!     estimates, `Look`, `Info`).
+//!     estimates, `Look`, `Info`, and `MainLoop`: the main loop's step the firmware runs).
 //!   - [`runtime::protocol`]: the wire protocol (postcard messages in COBS frames).
 //!   - [`runtime::traditional`]: the traditional depth (eqs. 3.1-16, 3.1-17, 4.1-3), the
 //!     head's fallback without a model.

@@ -1,9 +1,10 @@
-//! A software head for robustness tests: the firmware's main loop (`firmware/src/main.rs`) over
-//! the same `hvs-shared` pieces, with every safety rule checked on every tick.
+//! A software head for robustness tests: the firmware's loop step ([`MainLoop`], which
+//! `firmware/src/main.rs` runs too) over the same `hvs-shared` pieces, with every safety rule
+//! checked on every tick.
 //!
-//! Bytes go through [`FrameAccumulator`] and [`head::read_frame`] into [`Head::respond`], as
+//! Bytes go through [`FrameAccumulator`] and [`MainLoop::frame`] into [`Head::respond`], as
 //! on the head; every response must encode into one [`MAX_FRAME_LEN`] frame. Each control
-//! tick is [`Head::tick`]; once armed (first `Look` or `Home`, as the firmware) each setpoint
+//! tick is [`MainLoop::tick`]; once armed (first `Look` or `Home`, as the firmware) each setpoint
 //! also goes through the MCDC and PWM conversions the firmware sends to the servos. A tick
 //! fails the run ([`Violation`]) if a setpoint leaves its joint limits, leaves the 0.18° grid,
 //! moves an axis by more than its per-tick step limit, or if an MCDC line or PWM pulse would
@@ -11,7 +12,7 @@
 //! fault-injection tests and the `head_stream` fuzz target all drive this one harness.
 
 use hvs_shared::runtime::gaze::{self, Axis, GazeConfig, JointLimits, Joints};
-use hvs_shared::runtime::head::{self, Boot, Head};
+use hvs_shared::runtime::head::{self, Boot, Head, MainLoop};
 use hvs_shared::runtime::protocol::{
     self, ErrorCode, FirmwareVersion, FrameAccumulator, Request, RequestBody, Response,
     ResponseBody, MAX_FRAME_LEN, UNSOLICITED_ID,
@@ -51,8 +52,9 @@ pub struct SimHead {
     /// The head logic (boot result, gaze settings, trajectories).
     pub head: Head,
     acc: FrameAccumulator<MAX_FRAME_LEN>,
-    /// True once a `Look` or `Home` was answered: the servos are commanded from then on.
-    pub armed: bool,
+    /// The firmware's loop step (its arming rule: the servos are commanded from the first
+    /// `Look` or `Home` on).
+    pub main_loop: MainLoop,
     last_steps: [i32; 5],
     last_counts: Option<[i32; 5]>,
     /// Ticks run so far.
@@ -91,7 +93,7 @@ impl SimHead {
         Ok(SimHead {
             head,
             acc: FrameAccumulator::new(),
-            armed: false,
+            main_loop: MainLoop::new(),
             last_steps,
             last_counts: None,
             ticks: 0,
@@ -112,16 +114,18 @@ impl SimHead {
             let Some(frame) = self.acc.push(b) else {
                 continue;
             };
-            let resp = match head::read_frame(frame) {
-                Ok(req) => {
-                    let r = self.head.respond(&req, VERSION);
+            let head = &mut self.head;
+            let mut asked = None;
+            let resp = match self.main_loop.frame(frame, |req| {
+                asked = Some(req.id);
+                head.respond(req, VERSION)
+            }) {
+                Ok(r) => {
                     ensure!(
-                        r.id == req.id,
-                        "request {} answered with id {}",
-                        req.id,
+                        asked == Some(r.id),
+                        "request {asked:?} answered with id {}",
                         r.id
                     );
-                    self.armed |= matches!(r.body, ResponseBody::Look(_) | ResponseBody::Home);
                     r
                 }
                 Err(e) => {
@@ -158,14 +162,14 @@ impl SimHead {
     /// Runs `n` control ticks, checking every setpoint and servo command.
     pub fn tick(&mut self, n: u32) -> Result<(), Violation> {
         for _ in 0..n {
-            let sp = self.head.tick();
+            let tick = self.main_loop.tick(&mut self.head);
             self.ticks += 1;
-            self.check(&sp)?;
+            self.check(&tick.setpoint, tick.command)?;
         }
         Ok(())
     }
 
-    fn check(&mut self, sp: &Joints) -> Result<(), Violation> {
+    fn check(&mut self, sp: &Joints, commanded: bool) -> Result<(), Violation> {
         let limits = self.limits();
         let t = self.ticks;
         ensure!(
@@ -189,7 +193,7 @@ impl SimHead {
             );
         }
         self.last_steps = steps;
-        if !self.armed {
+        if !commanded {
             return Ok(());
         }
         // What goes on the MCDC wire: LA then M per axis, counts within the limits, and

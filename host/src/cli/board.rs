@@ -2,7 +2,7 @@
 //! (sub-pixel corners found in both images), through [`crate::vision`] and `hvs-vision`.
 
 use crate::data::captures;
-use crate::data::csv::write_bytes;
+use crate::data::output::write_bytes;
 use crate::data::output::{check_dir_output, check_outputs};
 use crate::vision::{detect_set, detect_set_with_images, png_bytes, points_csv, PairOutcome};
 use anyhow::{bail, Context, Result};

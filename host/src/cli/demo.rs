@@ -4,9 +4,9 @@
 
 pub mod images;
 
-use crate::data::csv::{write_atomically, write_output};
 use crate::data::dataset::Dataset;
 use crate::data::model;
+use crate::data::output::{write_atomically, write_output};
 use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
 use crate::sim::sets::{simulate, write_csv, Sample, SetKind, SimOptions};
 use crate::study::demo::{
@@ -69,9 +69,10 @@ fn write_set(dir: &Path, name: &str, samples: &[Sample]) -> Result<()> {
     })
 }
 
-/// The training plan of every net of the demo.
+/// The training plan of every net of the demo: `hvs train`'s default family.
 fn plan(seed: u64, restarts: usize) -> Plan {
     let mut plan = Plan::default();
+    plan.config.family = crate::train::DEFAULT_FAMILY;
     plan.config.seed = seed;
     plan.config.progress = false;
     plan.config.restarts = restarts;

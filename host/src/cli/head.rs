@@ -4,8 +4,9 @@
 //! `u_l,v_l,u_r,v_r,x,y,z,source,in_range`, floats in shortest round-trip form so the bits can
 //! be compared with host inference), `look U_L V_L U_R V_R`, `home`, `bench`.
 
-use crate::data::csv::{read_stereo_points, write_bytes};
+use crate::data::csv::read_stereo_points;
 use crate::data::output::check_not_input;
+use crate::data::output::write_bytes;
 use crate::device::client::{connect, error_text, estimate_row, expect, write_info};
 use crate::device::link::Endpoint;
 use anyhow::{bail, Result};

@@ -2,8 +2,8 @@
 //! other flashers ([`crate::device::probe`]).
 
 use super::value_enum;
-use crate::data::csv::write_bytes;
 use crate::data::output::check_not_input;
+use crate::data::output::write_bytes;
 use crate::device::probe::{image, read_model, ImageFormat};
 use anyhow::Result;
 use hvs_shared::runtime::layout::Slot;

@@ -2,10 +2,9 @@
 //! model, with nothing but the model and the two images ([`crate::vision::locate`]).
 
 use crate::data::csv::{
-    check_row_len, check_unique_names, csv_error, csv_reader, missing_column, write_bytes,
-    write_output, LineCounter,
+    check_row_len, check_unique_names, csv_error, csv_reader, missing_column, LineCounter,
 };
-use crate::data::output::check_outputs;
+use crate::data::output::{check_outputs, write_bytes, write_output};
 use crate::vision::{locate_files, locate_overlay, png_bytes, Located};
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::{Path, PathBuf};
@@ -21,7 +20,7 @@ use std::path::{Path, PathBuf};
     search needs, learned from its training pixels (`hvs train` stores it); no camera parameter \
     is used. A point without a trustworthy match keeps u_r..z empty and says why in `status`: \
     outside, no_texture, ambiguous, lr_check_failed, no_candidate, out_of_depth_range, \
-    nan_input, no_estimate."
+    no_estimate. A Z-only model gives z and leaves x, y empty."
 )]
 pub struct Args {
     /// The model (from `hvs train`, with its matcher geometry).
@@ -95,13 +94,13 @@ pub fn read_pixels(path: &Path) -> Result<Pixels> {
         check_row_len(&file, line, rec.len(), header.len())?;
         let num = |k: usize, c: &str| -> Result<f64> {
             let t = &rec[k];
-            if t.eq_ignore_ascii_case("nan") {
-                return Ok(f64::NAN);
-            }
+            // One rule with every CSV input: NaN and infinities are refused alike.
             t.parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| anyhow!("{file}:{line}: column \"{c}\": {t:?} is not a number"))
+                .ok_or_else(|| {
+                    anyhow!("{file}:{line}: column \"{c}\": {t:?} is not a finite number")
+                })
         };
         out.points.push([num(ui, "u_l")?, num(vi, "v_l")?]);
         out.extra
@@ -127,8 +126,8 @@ pub fn row(l: &Located) -> String {
         l.left[1],
         opt(r.map(|r| r[0] as f32)),
         opt(r.map(|r| r[1] as f32)),
-        opt(x.map(|x| x[0])),
-        opt(x.map(|x| x[1])),
+        opt(x.map(|x| x[0]).filter(|v| v.is_finite())),
+        opt(x.map(|x| x[1]).filter(|v| v.is_finite())),
         opt(x.map(|x| x[2])),
         if l.score.is_finite() {
             format!("{:.4}", l.score)
@@ -173,6 +172,10 @@ pub fn run(a: Args) -> Result<()> {
     if a.points.is_none() {
         let f = &found[0];
         let text = match (f.right, f.xyz) {
+            (Some(rp), Some(x)) if !x[0].is_finite() => format!(
+                "u_r={} v_r={} z={} cm (score {:.3})",
+                rp[0] as f32, rp[1] as f32, x[2], f.score
+            ),
             (Some(rp), Some(x)) => format!(
                 "u_r={} v_r={} x={} y={} z={} cm (score {:.3})",
                 rp[0] as f32, rp[1] as f32, x[0], x[1], x[2], f.score

@@ -1,8 +1,9 @@
 //! `hvs predict`: run a model over a CSV of matched pixels.
 
-use crate::data::csv::{read_set, write_output};
+use crate::data::csv::read_set;
 use crate::data::model::{self, input_names};
 use crate::data::output::check_not_input;
+use crate::data::output::write_output;
 use crate::infer::infer_table;
 use anyhow::{Context, Result};
 use hvs_shared::runtime::blob::{ModelBlob, OutputKind};

@@ -2,8 +2,8 @@
 
 use super::value_enum;
 use crate::cli::RigArgs;
-use crate::data::csv::write_output;
 use crate::data::output::check_not_input;
+use crate::data::output::write_output;
 use crate::sim::board::{Board, Pixels};
 use crate::sim::posture::{self, postures, PostureOptions, Sampling};
 use crate::sim::sets::{simulate, write_csv, SetKind, SimOptions};

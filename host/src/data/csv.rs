@@ -8,11 +8,10 @@
 //! ignored. Surrounding spaces are trimmed; blank lines are skipped.
 
 use crate::data::dataset::{Dataset, JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
-use crate::data::output;
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::protocol::StereoPoint;
-use std::io::{BufWriter, Read, Write};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// Which input columns to read.
@@ -321,131 +320,10 @@ pub(crate) fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {
     }
 }
 
-/// Writes to `path` atomically: everything goes to a temporary file in the same directory,
-/// which replaces `path` only after `body` succeeded and the data reached the disk. On any
-/// error the temporary file is removed and `path` is untouched.
-///
-/// Only regular files (and names not yet taken) are replaced so; an existing FIFO or device
-/// (`/dev/null`, a terminal) is written in place, `/dev/stdout` is standard output, and a
-/// symbolic link stays a link to the file it names ([`crate::data::output::target`]).
-pub fn write_atomically<F>(path: &Path, body: F) -> Result<()>
-where
-    F: FnOnce(&mut dyn Write) -> Result<()>,
-{
-    let path = match output::target(path)? {
-        output::Target::Stdout => return write_output(None, body),
-        output::Target::InPlace(p) => return write_in_place(&p, body),
-        output::Target::Atomic(p) => p,
-    };
-    let path = path.as_path();
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let fname = path
-        .file_name()
-        .ok_or_else(|| anyhow!("{}: not a file name", path.display()))?;
-    let prefix = output::temp_prefix(&fname.to_string_lossy());
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(".tmp");
-    if !dir.is_dir() {
-        bail!(
-            "{}: the directory {} does not exist",
-            path.display(),
-            dir.display()
-        );
-    }
-    output::remove_stale(&dir);
-    // Registered for removal by SIGINT/SIGTERM/SIGHUP *before* it is created (a signal
-    // between creating and registering would leave it behind); unregistered after the
-    // rename. Created like any new file (0666 less the umask), not tempfile's private 0600.
-    let mut pending = None;
-    let tmp = builder
-        .make_in(&dir, |p| {
-            pending = Some(output::Pending::register(p));
-            let mut o = std::fs::OpenOptions::new();
-            o.write(true).create_new(true);
-            #[cfg(unix)]
-            std::os::unix::fs::OpenOptionsExt::mode(&mut o, 0o666);
-            o.open(p)
-        })
-        // The error names the output and its directory, not the temporary file's random
-        // name (tempfile's message would).
-        .map_err(|e| {
-            anyhow!(
-                "{}: cannot create a file in {}: {}",
-                path.display(),
-                dir.display(),
-                std::io::Error::from(e.kind())
-            )
-        })?;
-    let _pending = pending;
-    let mut w = BufWriter::new(tmp);
-    body(&mut w)?;
-    let tmp = w
-        .into_inner()
-        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error()))?;
-    tmp.as_file()
-        .sync_all()
-        .with_context(|| format!("{}: cannot write", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))?;
-    Ok(())
-}
-
-/// Writes into an existing file that is not a regular file (FIFO, device), without
-/// replacing it.
-fn write_in_place<F>(path: &Path, body: F) -> Result<()>
-where
-    F: FnOnce(&mut dyn Write) -> Result<()>,
-{
-    let f = std::fs::OpenOptions::new()
-        .write(true)
-        .open(path)
-        .with_context(|| format!("{}: cannot open for writing", path.display()))?;
-    let mut w = BufWriter::new(f);
-    // The body may already name the file (write_bytes does): name it once.
-    let shown = path.display().to_string();
-    body(&mut w).map_err(|e| {
-        if e.to_string().starts_with(&shown) {
-            e
-        } else {
-            e.context(format!("{shown}: cannot write"))
-        }
-    })?;
-    w.flush()
-        .with_context(|| format!("{}: cannot write", path.display()))?;
-    Ok(())
-}
-
-/// Writes to `path` atomically ([`write_atomically`]), or to stdout when `path` is `None`.
-pub fn write_output<F>(path: Option<&Path>, body: F) -> Result<()>
-where
-    F: FnOnce(&mut dyn Write) -> Result<()>,
-{
-    match path {
-        Some(p) => write_atomically(p, body),
-        None => {
-            let stdout = std::io::stdout();
-            let mut w = BufWriter::new(stdout.lock());
-            body(&mut w).context("cannot write to stdout")?;
-            w.flush().context("cannot write to stdout")?;
-            Ok(())
-        }
-    }
-}
-
-/// Writes bytes to `path` atomically.
-pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomically(path, |w| {
-        w.write_all(bytes)
-            .with_context(|| format!("{}: cannot write", path.display()))
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::output::write_atomically;
 
     fn read(text: &str, inputs: Inputs, targets: bool) -> Result<Table> {
         read_set_from(Path::new("d.csv"), text.as_bytes(), inputs, targets)

@@ -1,7 +1,7 @@
 //! Model files on disk: the `hvs_shared::runtime::blob` format read with a precise account of what is
 //! wrong with a damaged file, and written atomically.
 
-use crate::data::csv::write_bytes;
+use crate::data::output::write_bytes;
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{
     self, BlobError, InputKind, ModelBlob, OutputKind, CRC_LEN, MAX_BLOB_LEN,

@@ -1,5 +1,5 @@
-//! Where an output goes, and what is left behind when a run stops: the machinery behind
-//! [`crate::data::csv::write_atomically`].
+//! Where an output goes, and what is left behind when a run stops: [`write_atomically`] (and
+//! [`write_output`], [`write_bytes`] over it), the one writer of every file the commands make.
 //!
 //! - [`Target`]: a regular file (or a name not yet taken) is written through a temporary file
 //!   renamed into place; anything else that exists (a FIFO, a character device such as
@@ -14,8 +14,9 @@
 //!   same name through links, `sub/../` or `./`, or the same inode) are refused too. Every
 //!   command that writes checks both before it reads anything else.
 
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use std::ffi::CString;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicPtr, Ordering};
 
@@ -404,6 +405,128 @@ fn install_handlers() {
 
 #[cfg(not(unix))]
 fn install_handlers() {}
+
+/// Writes to `path` atomically: everything goes to a temporary file in the same directory,
+/// which replaces `path` only after `body` succeeded and the data reached the disk. On any
+/// error the temporary file is removed and `path` is untouched.
+///
+/// Only regular files (and names not yet taken) are replaced so; an existing FIFO or device
+/// (`/dev/null`, a terminal) is written in place, `/dev/stdout` is standard output, and a
+/// symbolic link stays a link to the file it names ([`target`]).
+pub fn write_atomically<F>(path: &Path, body: F) -> Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> Result<()>,
+{
+    let path = match target(path)? {
+        Target::Stdout => return write_output(None, body),
+        Target::InPlace(p) => return write_in_place(&p, body),
+        Target::Atomic(p) => p,
+    };
+    let path = path.as_path();
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let fname = path
+        .file_name()
+        .ok_or_else(|| anyhow!("{}: not a file name", path.display()))?;
+    let prefix = temp_prefix(&fname.to_string_lossy());
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".tmp");
+    if !dir.is_dir() {
+        bail!(
+            "{}: the directory {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    remove_stale(&dir);
+    // Registered for removal by SIGINT/SIGTERM/SIGHUP *before* it is created (a signal
+    // between creating and registering would leave it behind); unregistered after the
+    // rename. Created like any new file (0666 less the umask), not tempfile's private 0600.
+    let mut pending = None;
+    let tmp = builder
+        .make_in(&dir, |p| {
+            pending = Some(Pending::register(p));
+            let mut o = std::fs::OpenOptions::new();
+            o.write(true).create_new(true);
+            #[cfg(unix)]
+            std::os::unix::fs::OpenOptionsExt::mode(&mut o, 0o666);
+            o.open(p)
+        })
+        // The error names the output and its directory, not the temporary file's random
+        // name (tempfile's message would).
+        .map_err(|e| {
+            anyhow!(
+                "{}: cannot create a file in {}: {}",
+                path.display(),
+                dir.display(),
+                std::io::Error::from(e.kind())
+            )
+        })?;
+    let _pending = pending;
+    let mut w = BufWriter::new(tmp);
+    body(&mut w)?;
+    let tmp = w
+        .into_inner()
+        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error()))?;
+    tmp.as_file()
+        .sync_all()
+        .with_context(|| format!("{}: cannot write", path.display()))?;
+    tmp.persist(path)
+        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))?;
+    Ok(())
+}
+
+/// Writes into an existing file that is not a regular file (FIFO, device), without
+/// replacing it.
+fn write_in_place<F>(path: &Path, body: F) -> Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> Result<()>,
+{
+    let f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .with_context(|| format!("{}: cannot open for writing", path.display()))?;
+    let mut w = BufWriter::new(f);
+    // The body may already name the file (write_bytes does): name it once.
+    let shown = path.display().to_string();
+    body(&mut w).map_err(|e| {
+        if e.to_string().starts_with(&shown) {
+            e
+        } else {
+            e.context(format!("{shown}: cannot write"))
+        }
+    })?;
+    w.flush()
+        .with_context(|| format!("{}: cannot write", path.display()))?;
+    Ok(())
+}
+
+/// Writes to `path` atomically ([`write_atomically`]), or to stdout when `path` is `None`.
+pub fn write_output<F>(path: Option<&Path>, body: F) -> Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> Result<()>,
+{
+    match path {
+        Some(p) => write_atomically(p, body),
+        None => {
+            let stdout = std::io::stdout();
+            let mut w = BufWriter::new(stdout.lock());
+            body(&mut w).context("cannot write to stdout")?;
+            w.flush().context("cannot write to stdout")?;
+            Ok(())
+        }
+    }
+}
+
+/// Writes bytes to `path` atomically.
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomically(path, |w| {
+        w.write_all(bytes)
+            .with_context(|| format!("{}: cannot write", path.display()))
+    })
+}
 
 #[cfg(test)]
 mod tests {

@@ -4,7 +4,7 @@
 //! is the one runner (progress, timing); [`table_text`] and [`table_markdown`] the one table
 //! formatter.
 
-use crate::data::csv::write_bytes;
+use crate::data::output::write_bytes;
 use crate::study::plot::{self, Figure};
 use crate::study::template::fill;
 use anyhow::{Context, Result};

@@ -139,9 +139,9 @@ pub fn write_figure(dir: &std::path::Path, stem: &str, fig: &Figure) -> Result<[
     use anyhow::Context;
     let names = [format!("{stem}.svg"), format!("{stem}.png")];
     let svg = svg(fig).with_context(|| names[0].clone())?;
-    crate::data::csv::write_bytes(&dir.join(&names[0]), svg.as_bytes())?;
+    crate::data::output::write_bytes(&dir.join(&names[0]), svg.as_bytes())?;
     let png = png(fig).with_context(|| names[1].clone())?;
-    crate::data::csv::write_bytes(&dir.join(&names[1]), &png)?;
+    crate::data::output::write_bytes(&dir.join(&names[1]), &png)?;
     Ok(names)
 }
 

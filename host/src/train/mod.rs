@@ -15,7 +15,7 @@
 //!   (`mean(|Z - Z^| / Z) * 100`, `hvs_shared::sim::metrics`) computed with `ModelBlob::infer`,
 //!   i.e. exactly what the head computes. Restarts above the threshold are not enrolled (as
 //!   in the thesis); the best enrolled one (lowest e_ma, then lowest index) is returned.
-//! - Quantised pixels (`projective`): on a stereo set of integer pixels that a pinhole camera
+//! - Quantised pixels (`synthetic`): on a stereo set of integer pixels that a pinhole camera
 //!   per side explains within rounding, the inverse-depth-skip family is fitted to synthetic
 //!   points of the two cameras fitted to the data (3x4 matrices, residuals bounded rather than
 //!   averaged), with one rounding step of uniform pixel noise; the restarts are still judged
@@ -39,14 +39,14 @@
 
 mod adam;
 mod bp;
+mod decay;
 pub mod fallback;
 mod lm;
 pub mod matcher;
 pub mod model;
 mod net;
-mod noise;
-mod projective;
 mod rng;
+mod synthetic;
 pub mod update;
 
 use crate::data::dataset::Dataset;
@@ -81,13 +81,13 @@ const LM_OPTIONS: lm::LmOptions = lm::LmOptions {
 };
 
 /// Weight decay of the sigmoid net of a family with a linear skip term, per unit of the
-/// noise-adaptive decay (`noise::decay`); the skip weights get the plain noise-adaptive decay.
+/// noise-adaptive decay (`decay::decay`); the skip weights get the plain noise-adaptive decay.
 /// The affine part carries the map, so the net only has to model what it misses (vergence,
 /// distortion) and is held close to zero unless the pixels are precise: on the dev seeds
 /// (`accuracy_regimes`, base 0) 10 overfits rounded thesis boards (1.18x the floor), 300
 /// underfits the 9x6 board (1.34x), 30 is near the affine fit's ratio on both (1.12x, 1.02x)
 /// and keeps exact pixels below 0.01 %. Not applied when the net learns the synthetic points
-/// of quantised pixels (`projective`): 2,000 points do not overfit.
+/// of quantised pixels (`synthetic`): 2,000 points do not overfit.
 pub const SKIP_NET_DECAY_FACTOR: f64 = 30.0;
 
 /// The smallest factor the lens excess can bring [`SKIP_NET_DECAY_FACTOR`] down to.
@@ -95,17 +95,17 @@ pub const MIN_SKIP_NET_DECAY_FACTOR: f64 = 0.01;
 
 /// LM settings of a family on `data`, for a net with `n_skip` skip weights: the thesis
 /// family's are fixed ([`LM_OPTIONS`]); the inverse-depth families' weight decay follows the
-/// pixel noise of the data (`noise`; the thesis' [`WEIGHT_DECAY`] where it cannot be
+/// pixel noise of the data (`decay`; the thesis' [`WEIGHT_DECAY`] where it cannot be
 /// estimated, as on posture-aware sets), times [`SKIP_NET_DECAY_FACTOR`] on the sigmoid net
 /// when there is a skip term.
 fn lm_options(f: Family, data: &Dataset, n_skip: usize) -> lm::LmOptions {
     if f == Family::THESIS {
         return LM_OPTIONS;
     }
-    let pixel_noise = noise::pixel_noise(data);
-    let decay = noise::decay(pixel_noise.as_ref());
+    let pixel_noise = decay::pixel_noise(data);
+    let decay = decay::decay(pixel_noise.as_ref());
     // A lens that bends the image beyond the pixel noise is what the net is for: its hold
-    // shrinks by that excess (`noise::PixelNoise::lens_excess`, 1 for pinhole cameras).
+    // shrinks by that excess (`decay::PixelNoise::lens_excess`, 1 for pinhole cameras).
     // Posture-aware (9-input) sets have no pixel-noise estimate: the net is held with the
     // thesis' decay times the factor. In the eye platform's frame the map barely depends on
     // the neck and the eye tilt, so 324 postures of one board are nearly 324 copies of it and
@@ -227,7 +227,7 @@ pub struct TrainOutcome {
     /// learned from instead of the measured points (`None`: the measured points).
     pub synthetic_points: Option<usize>,
     /// Whether those synthetic points came from cameras with fitted radial lenses (sub-pixel
-    /// pixels, `projective::lens_distilled`) rather than from pinhole cameras fitted to
+    /// pixels, `synthetic::lens_distilled`) rather than from pinhole cameras fitted to
     /// integer pixels.
     pub synthetic_lenses: bool,
 }
@@ -574,18 +574,18 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     let act = cfg.algo.output_activation();
     let (cols, _) = output_columns(cfg.outputs);
     let sc = scaling(data_for_net, cols, act, cfg.family.output_map);
-    // Quantised pixels: the skip family learns from the fitted cameras (`projective`); the
+    // Quantised pixels: the skip family learns from the fitted cameras (`synthetic`); the
     // scaling, the restart choice and the reported error stay those of the measured points.
-    // Precise pixels through lenses (`projective::lens_distilled`) likewise learn from the
+    // Precise pixels through lenses (`synthetic::lens_distilled`) likewise learn from the
     // cameras and lenses fitted to them.
     let distilled = (cfg.family == Family::INVERSE_DEPTH_SKIP && cfg.algo != Algo::Bp)
-        .then(|| projective::distilled(data, cfg.seed))
+        .then(|| synthetic::distilled(data, cfg.seed))
         .flatten();
     // The restarts learn the first `selection` synthetic points; the best one is then fitted
     // to all of them (below).
     let selection = distilled
         .as_ref()
-        .map(|d| projective::prefix(&d.set, d.selection));
+        .map(|d| synthetic::prefix(&d.set, d.selection));
     let fit_data = selection.as_ref().unwrap_or(data_for_net);
     let prob = problem(fit_data, cfg, &sc);
     let mut lm_opts = lm_options(
@@ -647,7 +647,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
 
     // Quantised pixels: the best restart, fitted to every synthetic point; kept when it
     // exports and its training e_ma on the measured points is finite.
-    let polish = |all: &projective::Distilled, p: &[f64]| -> Option<(f64, ModelBlob)> {
+    let polish = |all: &synthetic::Distilled, p: &[f64]| -> Option<(f64, ModelBlob)> {
         let opts = lm::LmOptions {
             max_iter: all.polish_iter,
             ..lm_opts
@@ -802,7 +802,7 @@ mod tests {
         // Rounded pixels, the thesis protocol (two test points per depth): the worst test depth
         // of every case against optimal triangulation with the true rig. Measured (seed 7):
         // 1.06, 0.99, 1.05, 1.01 times the floor for cases I-IV with the projective fit of
-        // quantised pixels (`projective`; 1.51, 1.20, 1.14, 1.08 without it; the goal is
+        // quantised pixels (`synthetic`; 1.51, 1.20, 1.14, 1.08 without it; the goal is
         // for 1.25; the thesis family gives 1.39, 1.00, 1.39, 1.09).
         let cfg = TrainConfig {
             family: Family::INVERSE_DEPTH_SKIP,
@@ -878,7 +878,7 @@ mod tests {
             ..TrainConfig::default()
         };
         let out = train(&train_set, &cfg).unwrap();
-        assert_eq!(out.synthetic_points, Some(projective::SYNTHETIC_POINTS));
+        assert_eq!(out.synthetic_points, Some(synthetic::SYNTHETIC_POINTS));
         assert!(out.synthetic_lenses);
         let ema = |z: &[f64]| {
             let mut acc = EmaAcc::default();
@@ -893,7 +893,7 @@ mod tests {
         assert!(net <= 1.03 * floor, "net {net} % vs floor {floor} %");
         // Pinhole pixels of a sub-pixel set take the same path (no lens fitted: k = 0 fits).
         let out = train(&set(Distortion::NONE, 0.05, SetKind::Train, 13), &cfg).unwrap();
-        assert_eq!(out.synthetic_points, Some(projective::SYNTHETIC_POINTS));
+        assert_eq!(out.synthetic_points, Some(synthetic::SYNTHETIC_POINTS));
     }
 
     #[test]

@@ -446,3 +446,70 @@ fn locate_checks_its_outputs_usage_and_image_sizes() {
         err(&o)
     );
 }
+
+#[test]
+fn a_z_only_model_locates_and_predicts_without_false_alarms() {
+    let dir = tempfile::tempdir().unwrap();
+    let shots = shots(dir.path());
+    let points = dir.path().join("points.csv");
+    let o = detect(&shots, "captures.csv", &points, &[]);
+    assert!(o.status.success(), "{}", err(&o));
+    let model = dir.path().join("z.hvsw");
+    crate::common::ok(&[
+        "train",
+        "--data",
+        s(&points),
+        "-o",
+        s(&model),
+        "--outputs",
+        "z",
+        "--restarts",
+        "1",
+    ]);
+    // `hvs predict` on its own training points: no "damaged" or out-of-range warning.
+    let o = hvs()
+        .args(["predict", "--model", s(&model), "--points", s(&points)])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", err(&o));
+    assert!(!err(&o).contains("warning"), "{}", err(&o));
+    // `hvs locate` at a detected corner of the 85 cm pair: a match and its depth, no X or Y.
+    let text = std::fs::read_to_string(&points).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let row: Vec<&str> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .find(|r| r[col("z")].parse::<f64>().unwrap() == 85.0)
+        .unwrap();
+    let at = format!("{},{}", row[col("u_l")], row[col("v_l")]);
+    let (l, r) = (shots.join("left02.png"), shots.join("right02.png"));
+    let o = hvs()
+        .args([
+            "locate",
+            "--model",
+            s(&model),
+            "--left",
+            s(&l),
+            "--right",
+            s(&r),
+            "--at",
+            &at,
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", err(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(!out.contains("x=") && out.contains(" z="), "{out}");
+    let z: f64 = out
+        .split(" z=")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((z - 85.0).abs() < 1.0, "{out}");
+}

@@ -199,7 +199,7 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
         &test,
         &["--seed", "7", "--depths", "95", "--centre", "-3,2"],
     );
-    // The test pair's true corners, plus a NaN row and a point outside the image.
+    // The test pair's true corners, plus a point outside the image.
     let truth = std::fs::read_to_string(test.join("truth.csv")).unwrap();
     let mut px = String::from("u_l,v_l,tag,true_u_r,true_v_r\n");
     for l in truth.lines().skip(1) {
@@ -209,7 +209,7 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
             f[6], f[7], f[1], f[2], f[8], f[9]
         ));
     }
-    px.push_str("NaN,10,nan,0,0\n-50,10,off,0,0\n");
+    px.push_str("-50,10,off,0,0\n");
     let pix = d.join("px.csv");
     std::fs::write(&pix, px).unwrap();
     let (l, r) = (test.join("left01.png"), test.join("right01.png"));
@@ -230,7 +230,7 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
         Some("u_l,v_l,u_r,v_r,x,y,z,score,status,tag,true_u_r,true_v_r")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    assert_eq!(rows.len(), 54 + 2);
+    assert_eq!(rows.len(), 54 + 1);
     let (mut okc, mut good) = (0, 0);
     for f in &rows[..54] {
         if f[8] == "ok" {
@@ -250,8 +250,27 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     }
     assert!(okc >= 40, "{okc} of 54 returned");
     assert_eq!(good, okc, "every returned corner within 0.5 px");
-    assert_eq!(rows[54][8], "nan_input");
-    assert_eq!(rows[55][8], "outside");
+    assert_eq!(rows[54][8], "outside");
+    // NaN is refused as infinities are (one rule with every CSV input), naming the line.
+    for bad in ["NaN", "inf"] {
+        std::fs::write(&pix, format!("u_l,v_l\n300,200\n{bad},10\n")).unwrap();
+        let o = crate::common::hvs()
+            .args(locate_args(
+                &["locate"],
+                &model,
+                &l,
+                &r,
+                &["--points", s(&pix)],
+            ))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1));
+        let e = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(
+            e.contains(":3: column \"u_l\"") && e.contains("is not a finite number"),
+            "{e}"
+        );
+    }
     // One point, printed.
     let one = ok(&locate_args(
         &["locate"],

@@ -170,6 +170,7 @@ pub fn outputs_in_range(blob: &ModelBlob, x: &[f32], y: &[f32]) -> bool {
         return false;
     }
     let back: [f32; 3];
+    let back_z: [f32; 1];
     let o: &[f32] = match y {
         [a, b, c] => {
             let [a, b, c] = blob.frame.from_head(x, [*a, *b, *c]);
@@ -178,6 +179,14 @@ pub fn outputs_in_range(blob: &ModelBlob, x: &[f32], y: &[f32]) -> bool {
                 mlp::OutputMap::Direct => [a, b, c],
             };
             &back
+        }
+        // A Z-only net: its one output is 1/Z for the inverse-depth family.
+        [z] => {
+            back_z = match blob.family.output_map {
+                mlp::OutputMap::InverseDepth => [1.0 / *z],
+                mlp::OutputMap::Direct => [*z],
+            };
+            &back_z
         }
         _ => y,
     };
@@ -501,6 +510,61 @@ impl Head {
     /// One control tick: the next setpoint (degrees) for the servos.
     pub fn tick(&mut self) -> Joints {
         self.controller.tick()
+    }
+}
+
+/// The head's main loop without its I/O: what the firmware's `main` does between the USART,
+/// the control clock and the servos, and what every simulated head does, so both run one
+/// definition of the arming rule.
+///
+/// The servos are left alone until the first `Look` or `Home` is answered: their position at
+/// power-up is unknown, and commanding home unasked could swing the head. From then on every
+/// control tick's setpoint goes to them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MainLoop {
+    armed: bool,
+}
+
+/// One control tick of [`MainLoop::tick`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tick {
+    /// The setpoint of this tick (degrees, within the limits, on the step grid).
+    pub setpoint: Joints,
+    /// Whether it goes to the servos (the loop is armed).
+    pub command: bool,
+}
+
+impl MainLoop {
+    /// A loop at power-up: not armed.
+    pub const fn new() -> MainLoop {
+        MainLoop { armed: false }
+    }
+
+    /// True once a `Look` or `Home` was answered.
+    pub const fn armed(&self) -> bool {
+        self.armed
+    }
+
+    /// One control tick of `head`: its next setpoint, and whether to command it.
+    pub fn tick(&self, head: &mut Head) -> Tick {
+        Tick {
+            setpoint: head.tick(),
+            command: self.armed,
+        }
+    }
+
+    /// A received frame (from [`crate::runtime::protocol::FrameAccumulator::push`]): `Ok` with
+    /// `answer`'s response to a well-formed request (the first `Look` or `Home` answered arms
+    /// the loop), or `Err` with the error response to send for a bad frame.
+    pub fn frame(
+        &mut self,
+        frame: Result<&mut [u8], ProtocolError>,
+        answer: impl FnOnce(&Request) -> Response,
+    ) -> Result<Response, Response> {
+        let req = read_frame(frame)?;
+        let resp = answer(&req);
+        self.armed |= matches!(resp.body, ResponseBody::Look(_) | ResponseBody::Home);
+        Ok(resp)
     }
 }
 
@@ -1099,6 +1163,45 @@ mod tests {
             frame_error(ErrorCode::Malformed).id,
             protocol::UNSOLICITED_ID
         );
+    }
+
+    #[test]
+    fn main_loop_commands_nothing_until_a_look_or_home_is_answered() {
+        let mut h = head(boot(&[], &[]));
+        let mut l = MainLoop::new();
+        let encoded = |r: &Request| {
+            let mut buf = [0u8; protocol::MAX_FRAME_LEN];
+            let n = protocol::encode_request(r, &mut buf).unwrap().len();
+            (buf, n - 1)
+        };
+        // Ticks before any request, an Info, a bad frame and a failed Look: not armed.
+        assert!(!l.tick(&mut h).command);
+        let (mut b, n) = encoded(&req(1, RequestBody::Info));
+        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V)).unwrap();
+        assert_eq!(r.id, 1);
+        assert_eq!(
+            l.frame(Ok(&mut [0x03, 0x07]), |_| unreachable!()),
+            Err(frame_error(ErrorCode::Malformed))
+        );
+        let nan = StereoPoint { u_l: f32::NAN, ..P };
+        let (mut b, n) = encoded(&req(2, RequestBody::Look(nan)));
+        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V)).unwrap();
+        assert!(matches!(r.body, ResponseBody::Error(_)), "{r:?}");
+        assert!(!l.armed() && !l.tick(&mut h).command);
+        // A Look answered arms it; the tick's setpoint is the head's.
+        let (mut b, n) = encoded(&req(3, RequestBody::Look(P)));
+        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V)).unwrap();
+        assert!(matches!(r.body, ResponseBody::Look(_)), "{r:?}");
+        assert!(l.armed());
+        let mut twin = h.clone();
+        let t = l.tick(&mut h);
+        assert!(t.command);
+        assert_eq!(t.setpoint, twin.tick());
+        // So does a Home, from a fresh loop.
+        let mut l = MainLoop::new();
+        let (mut b, n) = encoded(&req(4, RequestBody::Home));
+        l.frame(Ok(&mut b[..n]), |q| h.respond(q, V)).unwrap();
+        assert!(l.armed());
     }
 
     fn any_f32() -> impl proptest::strategy::Strategy<Value = f32> {

@@ -4,9 +4,9 @@
 //! error with the floor (optimal triangulation with the true rig on the same detected corners).
 
 use crate::data::captures;
-use crate::data::csv::write_bytes;
 use crate::data::dataset::Dataset;
 use crate::data::model;
+use crate::data::output::write_bytes;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, text_table, Evaluation, Method};
 use crate::fmt::pct;
 use crate::train::model::{train_model, Plan};

@@ -1,5 +1,5 @@
 //! `hvs experiment accuracy`: the depth accuracy of the learned models against the floor in
-//! every pixel regime (issue 14). [`run`] computes; [`report::write`] writes the CSVs, two
+//! every pixel regime. [`run`] computes; [`report::write`] writes the CSVs, two
 //! plots (SVG and PNG) and `ACCURACY.md`.
 //!
 //! | part | what | function |
@@ -28,7 +28,7 @@
 //! is one `hvs simulate` command away ([`simulate_command`]). Seeds: every set draws from
 //! `seed_base + ...` ([`set_seed`]); the page's run uses [`HELD_OUT_SEED_BASE`], the held-out
 //! base of `examples/accuracy_regimes.rs --eval`: no setting of the families was chosen on
-//! these draws. The nets train with seed [`TRAIN_SEED`] (issue 14's `hvs train --seed 7`). Results are collected in a fixed
+//! these draws. The nets train with seed [`TRAIN_SEED`] (`hvs train --seed 7`). Results are collected in a fixed
 //! order and the trainer's result does not depend on the thread count: the same config gives
 //! the same CSV bytes; wall times go to `timing.csv` and the page only.
 
@@ -84,7 +84,7 @@ impl Regime {
     }
 }
 
-/// The four regimes of issue 14: rounded pixels (the thesis), sub-pixel noise of 0.05 px
+/// The four pixel regimes: rounded pixels (the thesis), sub-pixel noise of 0.05 px
 /// without rounding, exact pixels, rounded pixels through barrel lenses (k1 = -0.1).
 pub const REGIMES: [Regime; 4] = [
     Regime {
@@ -130,7 +130,7 @@ pub const BOARDS: [Board; 2] = [Board::Thesis, BIG_BOARD];
 /// The case of the sweeps and the images: IV, the thesis' general case.
 pub const SWEEP_CASE: u8 = 4;
 
-/// The training seed of both nets: issue 14 measures `hvs train --seed 7`.
+/// The training seed of both nets, as `hvs train --seed 7` sets it.
 pub const TRAIN_SEED: u64 = 7;
 
 /// The four estimators, in column order.

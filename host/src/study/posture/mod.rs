@@ -46,7 +46,7 @@ use std::time::Instant;
 
 /// Seed of the default run: the one of `docs/posture-study.md`'s tables.
 pub const DEFAULT_SEED: u64 = 1;
-/// The goal of issue 8: the posture-aware net within 20 % of the floor in every band.
+/// The posture study's goal: the posture-aware net within 20 % of the floor in every band.
 pub const GOAL_RATIO: f64 = 1.2;
 /// Hidden-neuron counts of the full run's sweep (the chosen size, 16, among them): those of
 /// the example's `--sweep`, which produced `docs/posture-study.md`'s tables.

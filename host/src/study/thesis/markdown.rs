@@ -29,7 +29,7 @@ pub const POSTURE_REPORT: &str = "posture/POSTURE.md";
 /// The paragraph of `RESULTS.md` that points to the posture study.
 pub fn posture_link() -> String {
     format!(
-        "**Depth while the eyes move** (issue 8): the thesis' 4-5-3 net at verged and turned \
+        "**Depth while the eyes move**: the thesis' 4-5-3 net at verged and turned \
          head postures, a posture-aware net per posture band against the floor at the same \
          posture, the hidden neurons it needs, and lens distortion, in \
          [{POSTURE_REPORT}]({POSTURE_REPORT}) (`hvs experiment posture`)."

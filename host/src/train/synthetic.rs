@@ -514,7 +514,7 @@ pub(crate) const LENS_SELECTION_POINTS: usize = 300;
 /// Most LM iterations of the polish on lens-distilled sets (200 changed nothing).
 pub(crate) const LENS_POLISH_MAX_ITER: usize = 100;
 /// The lens fit is trusted when its residual variance is at most this times the pixel
-/// noise variance that `noise` reads off the data (a smooth cubic per coordinate): a
+/// noise variance that `decay` reads off the data (a smooth cubic per coordinate): a
 /// radial lens about the principal point then explains the image as well as the cubic.
 pub(crate) const LENS_MAX_VAR_RATIO: f64 = 2.0;
 /// Fewest training points for a lens fit to be distilled. The thesis' 4x3 board at 2 cm (72
@@ -532,7 +532,7 @@ pub(crate) fn lens_distilled(data: &Dataset, seed: u64) -> Option<Distilled> {
     if quantised(data) || data.len() < LENS_MIN_POINTS {
         return None;
     }
-    let noise = super::noise::pixel_noise(data)?;
+    let noise = super::decay::pixel_noise(data)?;
     let (cams, var) = fit_lens_cameras(data)?;
     if var.is_nan() || var > LENS_MAX_VAR_RATIO * noise.var {
         return None;
