@@ -101,6 +101,9 @@ pub struct Detection {
     /// One fundamental matrix over all usable pairs (at least two), with per-pair residuals
     /// (indexed like the usable pairs, in capture order).
     pub set: Option<SetCheck>,
+    /// The size (width, height) of the images of every usable pair (a pair of another size
+    /// than the first usable one is skipped: a model is for one image size).
+    pub image_size: Option<(u32, u32)>,
 }
 
 /// A pair whose corners lie this far (median, px) from the epipolar lines of the fundamental
@@ -138,8 +141,22 @@ fn detect_all(
 ) -> Result<(Detection, Vec<PairImages>)> {
     let mut images = Vec::new();
     let mut outcomes: Vec<PairOutcome> = Vec::with_capacity(set.captures.len());
+    let mut image_size = None;
     for c in &set.captures {
-        let (outcome, pair) = detect_capture(board, c);
+        let (mut outcome, pair) = detect_capture(board, c);
+        if let (PairOutcome::Found(_), Some([l, _])) = (&outcome, &pair) {
+            let size = l.dimensions();
+            match image_size {
+                None => image_size = Some(size),
+                Some(first) if first != size => {
+                    outcome = PairOutcome::Skipped(format!(
+                        "its images are {}x{} px, the set's first usable pair's {}x{}: a model is for one image size",
+                        size.0, size.1, first.0, first.1
+                    ));
+                }
+                Some(_) => {}
+            }
+        }
         if keep {
             images.push(pair);
         }
@@ -203,6 +220,7 @@ fn detect_all(
     let det = Detection {
         outcomes,
         set: check,
+        image_size,
     };
     Ok((det, images))
 }
@@ -229,8 +247,22 @@ fn detect_capture(board: &Board, c: &Capture) -> (PairOutcome, PairImages) {
     (outcome, Some([l, r]))
 }
 
+/// Refuses images of another size than the model's training images (when the model records
+/// it: `hvs train` on `hvs board detect`'s points): its geometry and depths are for that size.
+pub fn check_image_size(blob: &ModelBlob, (w, h): (u32, u32)) -> Result<()> {
+    match blob.image_size() {
+        Some((mw, mh)) if (u32::from(mw), u32::from(mh)) != (w, h) => bail!(
+            "the images are {w}x{h} px, the model was trained on {mw}x{mh} px images: its \
+             matcher geometry and depths hold for that size only (resize the images, or train \
+             on points found in images of this size)"
+        ),
+        _ => Ok(()),
+    }
+}
+
 /// `POINTS.csv`: one row per corner found in both images, `capture,i,j,u_l,v_l,u_r,v_r`, then
-/// `x,y,z` when the captures give `z`, then the passed-through columns. `capture` is the
+/// `x,y,z` when the captures give `z`, then the passed-through columns, then `image_width,image_height`
+/// (the images' size, [`Detection::image_size`]). `capture` is the
 /// 1-based number of the pair in `CAPTURES.csv`. Pixels in shortest round-trip form.
 pub fn points_csv(board: &Board, set: &CaptureSet, det: &Detection) -> String {
     let mut s = crate::data::captures::DETECTED_COLUMNS.join(",");
@@ -240,6 +272,15 @@ pub fn points_csv(board: &Board, set: &CaptureSet, det: &Detection) -> String {
     for c in &set.extra_columns {
         s.push(',');
         s.push_str(&csv_field(c));
+    }
+    // The images' size, for `hvs train` to record in the model (at most 65535 px a side: the
+    // pixel limit of every image input keeps them far below).
+    let size = det
+        .image_size
+        .and_then(|(w, h)| Some((u16::try_from(w).ok()?, u16::try_from(h).ok()?)));
+    if size.is_some() {
+        s.push(',');
+        s.push_str(&crate::data::csv::IMAGE_SIZE_COLUMNS.join(","));
     }
     s.push('\n');
     for c in found_corners(board, set, det) {
@@ -258,6 +299,9 @@ pub fn points_csv(board: &Board, set: &CaptureSet, det: &Detection) -> String {
         for e in &set.captures[c.capture].extra {
             s.push(',');
             s.push_str(&csv_field(e));
+        }
+        if let Some((w, h)) = size {
+            s.push_str(&format!(",{w},{h}"));
         }
         s.push('\n');
     }
@@ -379,6 +423,7 @@ pub fn locate(
             right.height()
         );
     }
+    check_image_size(blob, left.dimensions())?;
     let f = Fundamental {
         m: g.fundamental.map(|r| r.map(f64::from)),
     };

@@ -250,8 +250,9 @@ pub fn run(a: Args) -> Result<()> {
         u0: a.u0,
         v0: a.v0,
     };
-    let t = train_model(&table.data, &plan)
+    let mut t = train_model(&table.data, &plan)
         .with_context(|| format!("{}: training failed", a.data.display()))?;
+    t.blob.set_image_size(table.image_size);
     let n = model::save(&a.output, &t.blob)?;
     print_summary(&a.data, &a.output, n, &t).with_context(|| {
         format!(

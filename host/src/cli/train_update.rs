@@ -82,6 +82,18 @@ pub fn run(a: &UpdateArgs) -> Result<()> {
     }
     let table = read_set(&a.data, Inputs::Auto, true)?;
     crate::data::validate::plausible_values(&table)?;
+    if let (Some(new), Some(old)) = (table.image_size, b.image_size()) {
+        if new != old {
+            bail!(
+                "{}: its points come from {}x{} px images, {from} was trained on {}x{}: an update keeps the image size",
+                a.data.display(),
+                new.0,
+                new.1,
+                old.0,
+                old.1
+            );
+        }
+    }
     let up = update(b, &table.data, a.seed).with_context(|| {
         format!(
             "{}: cannot update {from} with these points",
@@ -95,7 +107,7 @@ pub fn run(a: &UpdateArgs) -> Result<()> {
         crc: old.crc,
         generation: b.generation,
     }));
-    blob.set_image_size(b.image_size());
+    blob.set_image_size(b.image_size().or(table.image_size));
     blob.matcher = crate::train::matcher::matcher_geometry(&up.learned).or(b.matcher);
     let (half_baseline, u0, v0) = a.fallback;
     // The traditional method's calibration follows a camera that moved; otherwise it stays.

@@ -84,15 +84,15 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
     let (li, ri) = (need("left")?, need("right")?);
     let (zi, xi, yi) = (find("z"), find("x"), find("y"));
     let present_joints = joint_columns_present(&file, hl, find)?;
-    if let Some((k, n)) = names
-        .iter()
-        .enumerate()
-        .find(|(_, n)| DETECTED_COLUMNS.contains(&n.as_str()))
-    {
+    if let Some((k, n)) = names.iter().enumerate().find(|(_, n)| {
+        DETECTED_COLUMNS.contains(&n.as_str())
+            || super::csv::IMAGE_SIZE_COLUMNS.contains(&n.as_str())
+    }) {
         bail!(
-            "{file}:{hl}: column {} \"{n}\": hvs board detect writes a column of that name itself ({}); rename or drop it",
+            "{file}:{hl}: column {} \"{n}\": hvs board detect writes a column of that name itself ({},{}); rename or drop it",
             k + 1,
-            DETECTED_COLUMNS.join(",")
+            DETECTED_COLUMNS.join(","),
+            super::csv::IMAGE_SIZE_COLUMNS.join(",")
         );
     }
     let mut extra_columns: Vec<String> = present_joints.iter().map(|s| s.to_string()).collect();

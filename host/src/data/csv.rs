@@ -1,11 +1,12 @@
-//! CSV in and out: reading point sets with errors that name file, line and column, and
-//! writing any output atomically (a temporary file in the target directory, renamed into
-//! place only when complete) or to stdout.
+//! CSV in: reading point sets with errors that name file, line and column (outputs are written
+//! by [`crate::data::output`]).
 //!
 //! Input format: a header row, then one row per point. Columns are found by name in any
 //! order (`u_l,v_l,u_r,v_r`; `x,y,z` where ground truth is needed; the five joint-angle
 //! columns of [`crate::data::dataset::JOINT_COLUMNS`] for posture-aware sets); other columns are
-//! ignored. Surrounding spaces are trimmed; blank lines are skipped.
+//! ignored, but for `image_width,image_height` ([`IMAGE_SIZE_COLUMNS`], which `hvs board
+//! detect` writes): the size of the images the pixels come from, the same in every row
+//! ([`Table::image_size`]). Surrounding spaces are trimmed; blank lines are skipped.
 
 use crate::data::dataset::{Dataset, JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
 use anyhow::{anyhow, bail, Context, Result};
@@ -44,7 +45,13 @@ pub struct Table {
     pub data: Dataset,
     /// 1-based line number of each row in the file.
     pub lines: Vec<u64>,
+    /// The size (width, height) of the images the pixels were found in, when the file says
+    /// ([`IMAGE_SIZE_COLUMNS`]).
+    pub image_size: Option<(u16, u16)>,
 }
+
+/// The columns that give the size of the images a point set's pixels come from.
+pub const IMAGE_SIZE_COLUMNS: [&str; 2] = ["image_width", "image_height"];
 
 impl Table {
     /// `file:line` of row `i`, for messages.
@@ -124,6 +131,15 @@ pub fn read_set_from<R: Read>(
             in_cols.push((require(c)?, c));
         }
     }
+    let size_cols = match IMAGE_SIZE_COLUMNS.map(find) {
+        [Some(w), Some(h)] => Some([w, h]),
+        [None, None] => None,
+        _ => bail!(
+            "{file}:{hl}: the columns {} go together: give both or neither",
+            IMAGE_SIZE_COLUMNS.join(" and ")
+        ),
+    };
+    let mut image_size: Option<(u16, u16)> = None;
     let mut tgt_cols: Vec<(usize, &str)> = Vec::new();
     if targets {
         for c in TARGET_COLUMNS {
@@ -165,6 +181,27 @@ pub fn read_set_from<R: Read>(
         } else {
             None
         };
+        if let Some(cols) = size_cols {
+            let [w, h] = [0, 1].map(|k| {
+                let (c, name) = (cols[k], IMAGE_SIZE_COLUMNS[k]);
+                let t = String::from_utf8_lossy(&rec[c]);
+                t.parse::<u16>().ok().filter(|v| *v > 0).ok_or_else(|| {
+                    anyhow!("{file}:{line}: column \"{name}\": {t:?} is not an image size in pixels (1 to 65535)")
+                })
+            });
+            let size = (w?, h?);
+            match image_size {
+                Some(first) if first != size => bail!(
+                    "{file}:{line}: images of {}x{} px, where line {} has {}x{}: one point set comes from images of one size",
+                    size.0,
+                    size.1,
+                    lines[0],
+                    first.0,
+                    first.1
+                ),
+                _ => image_size = Some(size),
+            }
+        }
         data.push(&row, target);
         lines.push(line);
     }
@@ -175,6 +212,7 @@ pub fn read_set_from<R: Read>(
         path: name.to_path_buf(),
         data,
         lines,
+        image_size,
     })
 }
 

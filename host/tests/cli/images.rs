@@ -77,13 +77,13 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     let text = std::fs::read_to_string(&points).unwrap();
     assert_eq!(
         text.lines().next(),
-        Some("capture,i,j,u_l,v_l,u_r,v_r,x,y,z")
+        Some("capture,i,j,u_l,v_l,u_r,v_r,x,y,z,image_width,image_height")
     );
     assert_eq!(text.lines().count(), 1 + 3 * 54);
     // Board coordinates of the convention: (0, 0) top-left, 6 cm squares, centred on the axis.
     let row1: Vec<&str> = text.lines().nth(1).unwrap().split(',').collect();
     assert_eq!(&row1[..3], ["1", "0", "0"]);
-    assert_eq!(&row1[7..], ["-24", "-15", "65"]);
+    assert_eq!(&row1[7..], ["-24", "-15", "65", "640", "480"]);
     // Every detected corner is within 0.1 px of the exact one, under the same label.
     let got = corners(&points);
     let truth = corners(&shots.join("truth.csv"));
@@ -106,6 +106,25 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     train_restarts(&points, &model, "2");
     let info = ok(&["info", s(&model)]);
     assert!(info.contains("matcher"), "{info}");
+    assert!(
+        info.contains("640x480"),
+        "the images' size is recorded: {info}"
+    );
+    // ... and a pair of another size is refused by locate, naming both sizes.
+    let half = dir.path().join("half.png");
+    image::imageops::resize(
+        &image::open(shots.join("left01.png")).unwrap().to_luma8(),
+        320,
+        240,
+        image::imageops::FilterType::Triangle,
+    )
+    .save(&half)
+    .unwrap();
+    let e = stderr_with_code(
+        locate_args(&["locate"], &model, &half, &half, &["--at", "160,120"]),
+        1,
+    );
+    assert!(e.contains("320x240") && e.contains("640x480"), "{e}");
 }
 
 /// Runs `board detect` expecting exit 1; returns stderr.
