@@ -39,6 +39,7 @@
 
 mod adam;
 mod bp;
+pub mod describe;
 pub mod fallback;
 mod lm;
 pub mod matcher;
