@@ -483,3 +483,196 @@ fn screenshot_dir() -> PathBuf {
     d
 }
 
+
+/// A chromedriver started on a free port, killed when dropped.
+struct Driver {
+    child: Child,
+    url: String,
+    _profile: tempfile::TempDir,
+}
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn chromedriver() -> Driver {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let child = Command::new("/usr/bin/chromedriver")
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("/usr/bin/chromedriver (apt-get install chromium chromium-driver)");
+    let t0 = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(t0.elapsed() < Duration::from_secs(20), "chromedriver does not listen");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Driver {
+        child,
+        url: format!("http://127.0.0.1:{port}"),
+        _profile: tempfile::tempdir().unwrap(),
+    }
+}
+
+async fn browser(d: &Driver) -> fantoccini::Client {
+    let profile = format!("--user-data-dir={}", d._profile.path().display());
+    let args = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--window-size=1400,1000",
+        profile.as_str(),
+    ];
+    let mut caps = serde_json::Map::new();
+    caps.insert(
+        "goog:chromeOptions".into(),
+        serde_json::json!({"binary": "/usr/bin/chromium", "args": args}),
+    );
+    fantoccini::ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
+        .capabilities(caps)
+        .connect(&d.url)
+        .await
+        .expect("a chromium session")
+}
+
+/// Polls `js` (an expression) until it is truthy; returns its value.
+async fn wait_js(c: &fantoccini::Client, js: &str) -> Value {
+    let t0 = Instant::now();
+    loop {
+        let v = c.execute(&format!("return {js};"), vec![]).await.unwrap();
+        if !(v.is_null() || v == false || v == "" || v == 0) {
+            return v;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(60), "waited 60 s for {js}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+async fn text(c: &fantoccini::Client, id: &str) -> String {
+    c.find(fantoccini::Locator::Id(id)).await.unwrap().text().await.unwrap()
+}
+
+async fn shot(c: &fantoccini::Client, name: &str) {
+    let png = c.screenshot().await.unwrap();
+    let p = screenshot_dir().join(name);
+    std::fs::write(&p, png).unwrap();
+    eprintln!("screenshot: {}", p.display());
+}
+
+/// Clicks the left image at pixel `(u, v)` (shown at its natural size) with the mouse.
+async fn click_left(c: &fantoccini::Client, u: i64, v: i64) {
+    use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+    let img = c.find(fantoccini::Locator::Id("left")).await.unwrap();
+    let size = c
+        .execute(
+            "const i = document.getElementById('left'); return [i.naturalWidth, i.naturalHeight, i.clientWidth, i.clientHeight];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    let n: Vec<f64> = size.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!((n[0], n[1]), (n[2], n[3]), "the left image is shown at its natural size");
+    let mouse = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: img,
+            duration: None,
+            x: u as f64 + 0.5 - n[0] / 2.0,
+            y: v as f64 + 0.5 - n[1] / 2.0,
+        })
+        .then(PointerAction::Down { button: MOUSE_BUTTON_LEFT })
+        .then(PointerAction::Up { button: MOUSE_BUTTON_LEFT });
+    c.perform_actions(mouse).await.unwrap();
+}
+
+/// The real browser: frames shown, a click answered with `hvs locate --at`'s numbers, and a
+/// capture set's summary changed by unticking a pair. Screenshots in target/view-screenshots/.
+#[test]
+#[ignore]
+fn browser_click_and_retrain_in_chromium() {
+    let f = fixture();
+    let driver = chromedriver();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let c = browser(&driver).await;
+        // A still pair: frames, then clicks on three board corners.
+        let sv = start_pair();
+        c.goto(&sv.url).await.unwrap();
+        wait_js(&c, "document.getElementById('frames-status').dataset.loaded").await;
+        wait_js(&c, "document.getElementById('left').naturalWidth > 0 && document.getElementById('right').naturalWidth > 0").await;
+        assert!(text(&c, "model-info").await.contains("topology:"));
+        let mut oks = 0;
+        for (k, &[u, v]) in f.corners.iter().step_by(11).take(3).enumerate() {
+            click_left(&c, u, v).await;
+            wait_js(&c, &format!("Number(document.getElementById('point').dataset.answered || 0) >= {}", k + 1)).await;
+            let at = text(&c, "at").await;
+            assert_eq!(at, format!("{u},{v}"), "the page asked for the pixel clicked");
+            let line = locate_at(u, v);
+            assert_eq!(text(&c, "line").await, line);
+            let status = text(&c, "status").await;
+            if status == "ok" {
+                oks += 1;
+                let shown = format!(
+                    "u_r={} v_r={} x={} y={} z={} cm (score {})",
+                    text(&c, "u_r").await,
+                    text(&c, "v_r").await,
+                    text(&c, "x").await,
+                    text(&c, "y").await,
+                    text(&c, "z").await,
+                    text(&c, "score").await
+                );
+                assert_eq!(shown, line, "X, Y, Z read off the page");
+            }
+            eprintln!("clicked {u},{v}: {line}; {}", text(&c, "ms").await);
+        }
+        assert!(oks >= 2, "{oks} of 3 corners located");
+        shot(&c, "pair-click.png").await;
+        drop(sv);
+        // A capture set: untick a pair, retrain, the summary changes.
+        let sv = start(&[
+            "--model",
+            s(&f.model),
+            "--board",
+            s(&f.shots.join("board.json")),
+            "--captures",
+            s(&f.shots.join("captures.csv")),
+            "--restarts",
+            "1",
+        ]);
+        c.goto(&sv.url).await.unwrap();
+        wait_js(&c, "document.querySelectorAll('input.use').length === 3").await;
+        wait_js(&c, "document.getElementById('frames-status').dataset.loaded").await;
+        c.find(fantoccini::Locator::Id("retrain")).await.unwrap().click().await.unwrap();
+        wait_js(&c, "document.getElementById('summary').dataset.runs === '1'").await;
+        let first = text(&c, "summary").await;
+        assert!(first.starts_with("3 pairs, 162 points"), "{first}");
+        c.find(fantoccini::Locator::Css("input.use[data-k='1']"))
+            .await
+            .unwrap()
+            .click()
+            .await
+            .unwrap();
+        c.find(fantoccini::Locator::Id("retrain")).await.unwrap().click().await.unwrap();
+        wait_js(&c, "document.getElementById('summary').dataset.runs === '2'").await;
+        let second = text(&c, "summary").await;
+        assert!(second.starts_with("2 pairs, 108 points"), "{second}");
+        assert_ne!(first, second);
+        assert_eq!(text(&c, "summary-before").await, first);
+        c.find(fantoccini::Locator::Id("show-corners")).await.unwrap().click().await.unwrap();
+        wait_js(&c, "document.getElementById('left').src.includes('left-corners') && document.getElementById('left').complete").await;
+        shot(&c, "captures-retrain.png").await;
+        c.close().await.unwrap();
+    });
+}
