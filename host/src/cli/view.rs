@@ -31,7 +31,12 @@ pub struct Args {
     #[arg(long, value_name = "R.png", requires = "left")]
     pub right: Option<PathBuf>,
     /// The board of a capture set (as `hvs board detect`).
-    #[arg(long, value_name = "BOARD.json", requires = "captures", conflicts_with = "left")]
+    #[arg(
+        long,
+        value_name = "BOARD.json",
+        requires = "captures",
+        conflicts_with = "left"
+    )]
     pub board: Option<PathBuf>,
     /// The capture set (as `hvs board detect`).
     #[arg(long, value_name = "CAPTURES.csv", requires = "board")]

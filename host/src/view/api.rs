@@ -101,9 +101,9 @@ pub fn captures(s: &Session) -> Option<Value> {
         .enumerate()
         .map(|(k, (cap, o))| match o {
             PairOutcome::Found(p) => {
-                let epi = det.set.as_ref().map(|s| {
-                    json!({"median_px": s.pair_median_px[slot], "max_px": s.pair_max_px[slot]})
-                });
+                let epi = det.set.as_ref().map(
+                    |s| json!({"median_px": s.pair_median_px[slot], "max_px": s.pair_max_px[slot]}),
+                );
                 slot += 1;
                 json!({
                     "index": k,

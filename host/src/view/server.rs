@@ -65,7 +65,11 @@ pub fn needs_token(addr: &SocketAddr) -> bool {
 
 /// Serves `session` on `addr` until SIGINT or SIGTERM. `started` gets the page's URL (the
 /// real port when `addr` asks for port 0; the token when one is needed) once it listens.
-pub fn serve(session: Session, addr: SocketAddr, started: impl FnOnce(&str) -> Result<()>) -> Result<()> {
+pub fn serve(
+    session: Session,
+    addr: SocketAddr,
+    started: impl FnOnce(&str) -> Result<()>,
+) -> Result<()> {
     let token = if needs_token(&addr) {
         Some(random_token()?)
     } else {
@@ -85,7 +89,9 @@ pub fn serve(session: Session, addr: SocketAddr, started: impl FnOnce(&str) -> R
         let listener = tokio::net::TcpListener::bind(addr)
             .await
             .with_context(|| format!("--listen {addr}: cannot listen"))?;
-        let real = listener.local_addr().context("cannot read the bound address")?;
+        let real = listener
+            .local_addr()
+            .context("cannot read the bound address")?;
         let query = app
             .token
             .as_ref()
@@ -114,8 +120,14 @@ async fn stop_signal() -> Result<()> {
 fn router(app: Shared) -> Router {
     Router::new()
         .route("/", get(index))
-        .route("/app.js", get(|| async { asset("text/javascript", assets::APP_JS) }))
-        .route("/style.css", get(|| async { asset("text/css", assets::STYLE_CSS) }))
+        .route(
+            "/app.js",
+            get(|| async { asset("text/javascript", assets::APP_JS) }),
+        )
+        .route(
+            "/style.css",
+            get(|| async { asset("text/css", assets::STYLE_CSS) }),
+        )
         .route("/api/session", get(session))
         .route("/api/frame/{pair}/{view}", get(frame))
         .route("/api/locate", post(locate))

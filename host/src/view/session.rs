@@ -181,11 +181,12 @@ impl Session {
             return Err(Refused::Unprocessable(why.clone()));
         }
         let (l, r) = self.frames.grey(pair).ok_or_else(|| {
-            Refused::Bad(format!("pair {pair}: no such pair, or its images are unreadable"))
+            Refused::Bad(format!(
+                "pair {pair}: no such pair, or its images are unreadable"
+            ))
         })?;
         let (w, h) = (f64::from(l.width()), f64::from(l.height()));
-        if !(u.is_finite() && v.is_finite() && u > -0.5 && v > -0.5 && u < w - 0.5 && v < h - 0.5)
-        {
+        if !(u.is_finite() && v.is_finite() && u > -0.5 && v > -0.5 && u < w - 0.5 && v < h - 0.5) {
             return Err(Refused::Bad(format!(
                 "pixel ({u}, {v}) is outside the {}x{} left image",
                 l.width(),
@@ -261,6 +262,8 @@ impl Session {
 }
 
 fn file_name(p: &Path) -> String {
-    p.file_name()
-        .map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+    p.file_name().map_or_else(
+        || p.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
 }
