@@ -142,3 +142,49 @@ pub fn retrained(r: &Retrained, ms: f64) -> Value {
         "ms": ms,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_located_point_has_the_numbers_of_its_line() {
+        let l = Located {
+            left: [300.0, 200.0],
+            right: Some([273.985_883_685_464_2, 200.074_643_045_317_7]),
+            xyz: Some([-13.298719, -16.096615, 115.02975]),
+            score: 0.99912,
+            status: "ok",
+        };
+        let v = located(0, &l, 1.0);
+        assert_eq!(
+            v["line"],
+            "u_r=273.98587 v_r=200.07465 x=-13.298719 y=-16.096615 z=115.02975 cm (score 0.999)"
+        );
+        assert_eq!(
+            (v["u_r"].as_str(), v["z"].as_str()),
+            (Some("273.98587"), Some("115.02975"))
+        );
+        assert_eq!(v["score"], "0.999");
+        let none = Located {
+            right: None,
+            xyz: None,
+            status: "ambiguous",
+            ..l
+        };
+        let v = located(0, &none, 1.0);
+        assert_eq!(v["line"], "no trustworthy match: ambiguous");
+        assert!(v["x"].is_null() && v["right"].is_null());
+        // Requests are strict.
+        assert!(serde_json::from_str::<LocateRequest>(r#"{"pair":0,"u":1,"v":2}"#).is_ok());
+        for bad in [
+            r#"{"pair":0,"u":1}"#,
+            r#"{"pair":0,"u":1,"v":2,"x":0}"#,
+            r#"{"pair":-1,"u":1,"v":2}"#,
+        ] {
+            assert!(serde_json::from_str::<LocateRequest>(bad).is_err(), "{bad}");
+        }
+        assert!(serde_json::from_str::<RetrainRequest>(r#"{"use":[true,false]}"#).is_ok());
+        assert!(serde_json::from_str::<RetrainRequest>(r#"{"use":[1]}"#).is_err());
+    }
+}

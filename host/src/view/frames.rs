@@ -134,3 +134,31 @@ impl FrameSource for StillFrames {
         self.pairs.get(pair)?.grey.clone()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn still_frames_are_the_images_and_nothing_else() {
+        let l = GrayImage::from_fn(8, 6, |x, y| image::Luma([(x * 20 + y) as u8]));
+        let r = GrayImage::from_pixel(8, 6, image::Luma([7]));
+        let f = StillFrames::new(vec![
+            StillPair::new(Some([l.clone(), r.clone()]), None),
+            StillPair::new(None, None),
+        ]);
+        assert_eq!((f.len(), f.live()), (2, false));
+        let png = f.frame(0, View::Left).unwrap();
+        assert_eq!(image::load_from_memory(&png.png).unwrap().to_luma8(), l);
+        let png = f.frame(0, View::Right).unwrap();
+        assert_eq!(image::load_from_memory(&png.png).unwrap().to_luma8(), r);
+        // No corners detected, an unreadable pair, no such pair, no such view.
+        assert!(f.frame(0, View::LeftCorners).is_none());
+        assert!(f.frame(1, View::Left).is_none() && f.grey(1).is_none());
+        assert!(f.frame(2, View::Left).is_none());
+        assert_eq!(View::parse("right-corners"), Some(View::RightCorners));
+        for bad in ["", "LEFT", "../left", "left/"] {
+            assert_eq!(View::parse(bad), None, "{bad}");
+        }
+    }
+}

@@ -247,3 +247,28 @@ async fn retrain(
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     Ok(Json(api::retrained(&r, ms)).into_response())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tokens_are_needed_off_loopback_only_and_compared_whole() {
+        for (a, need) in [
+            ("127.0.0.1:8080", false),
+            ("[::1]:0", false),
+            ("0.0.0.0:0", true),
+            ("192.168.1.5:8080", true),
+            ("[::]:8080", true),
+        ] {
+            assert_eq!(needs_token(&a.parse().unwrap()), need, "{a}");
+        }
+        let t = random_token().unwrap();
+        assert_eq!(t.len(), 32);
+        assert_ne!(t, random_token().unwrap());
+        assert!(same(t.as_bytes(), t.clone().as_bytes()));
+        assert!(!same(t.as_bytes(), &t.as_bytes()[..31]));
+        assert!(!same(b"abcd", b"abce"));
+        assert!(!same(b"", b"a"));
+    }
+}
