@@ -16,6 +16,7 @@
 //! - [`vision`]: image files around `hvs-vision` (board photos into a training set).
 //! - [`device`]: the head as a device: the protocol link (TCP or serial), the client of its
 //!   requests, QEMU emulation, and flash images / probe-rs.
+//! - [`view`]: `hvs view`'s local web page (axum on tokio) over the libraries above.
 //! - [`cli`]: one module per `hvs` subcommand, clap `Args` + `run`; the only place clap is used.
 
 pub mod cli;
@@ -27,4 +28,5 @@ pub mod infer;
 pub mod sim;
 pub mod study;
 pub mod train;
+pub mod view;
 pub mod vision;

@@ -41,6 +41,7 @@ enum Command {
     Image(cmd::image::Args),
     /// Write a model into the head's idle weight slot through a debug probe (probe-rs).
     Flash(cmd::flash::Args),
+    View(cmd::view::Args),
 }
 
 fn main() {
@@ -60,6 +61,7 @@ fn main() {
         Command::Head(a) => cmd::head::run(&a),
         Command::Image(a) => cmd::image::run(&a),
         Command::Flash(a) => cmd::flash::run(&a),
+        Command::View(a) => cmd::view::run(a),
     };
     if let Err(e) = result {
         if is_broken_pipe(&e) {

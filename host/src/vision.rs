@@ -391,6 +391,46 @@ pub struct Located {
     pub status: &'static str,
 }
 
+impl Located {
+    /// The numbers `hvs locate --at` prints for a trustworthy match, as it prints them:
+    /// `[u_r, v_r, x, y, z, score]` (the right pixel as an `f32`, X, Y, Z in shortest
+    /// round-trip form, the score with 3 decimals); `None` without one.
+    pub fn texts(&self) -> Option<[String; 6]> {
+        let (rp, x) = (self.right?, self.xyz?);
+        Some([
+            (rp[0] as f32).to_string(),
+            (rp[1] as f32).to_string(),
+            // A Z-only model gives no X, Y: empty, as in `hvs locate`'s CSV.
+            if x[0].is_finite() {
+                x[0].to_string()
+            } else {
+                String::new()
+            },
+            if x[1].is_finite() {
+                x[1].to_string()
+            } else {
+                String::new()
+            },
+            x[2].to_string(),
+            format!("{:.3}", self.score),
+        ])
+    }
+
+    /// The line `hvs locate --at` prints for this point (and `hvs view` shows): the match,
+    /// X, Y, Z and the score ([`Located::texts`]), or why there is none.
+    pub fn line(&self) -> String {
+        match self.texts() {
+            Some([ur, vr, x, _, z, score]) if x.is_empty() => {
+                format!("u_r={ur} v_r={vr} z={z} cm (score {score})")
+            }
+            Some([ur, vr, x, y, z, score]) => {
+                format!("u_r={ur} v_r={vr} x={x} y={y} z={z} cm (score {score})")
+            }
+            None => format!("no trustworthy match: {}", self.status),
+        }
+    }
+}
+
 /// The training set's disparities widened by this share of their span on each side, as the
 /// search range the model's depth range is looked for in.
 pub const DISPARITY_SLACK: f64 = 0.1;
@@ -504,13 +544,8 @@ pub fn locate(
         .collect())
 }
 
-/// Loads the model and both images, then locates `points`.
-pub fn locate_files(
-    model_path: &Path,
-    left: &Path,
-    right: &Path,
-    points: &[[f64; 2]],
-) -> Result<(Vec<Located>, image::GrayImage, image::GrayImage)> {
+/// Loads a model that can locate from an image pair alone (4 inputs: u_l, v_l, u_r, v_r).
+pub fn load_stereo_model(model_path: &Path) -> Result<crate::data::model::ModelFile> {
     let m = crate::data::model::load(model_path)?;
     if m.blob.n_inputs() != 4 {
         bail!(
@@ -518,6 +553,11 @@ pub fn locate_files(
             model_path.display()
         );
     }
+    Ok(m)
+}
+
+/// Reads a left and a right image of the same size as grey levels.
+pub fn read_pair(left: &Path, right: &Path) -> Result<(GrayImage, GrayImage)> {
     let (l, r) = (read_grey(left)?, read_grey(right)?);
     if l.dimensions() != r.dimensions() {
         bail!(
@@ -530,8 +570,30 @@ pub fn locate_files(
             r.height()
         );
     }
-    let found =
-        locate(&m.blob, &l, &r, points).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))?;
+    Ok((l, r))
+}
+
+/// [`locate`] with a model read from `model_path`: its errors name the file.
+pub fn locate_with(
+    model_path: &Path,
+    blob: &ModelBlob,
+    left: &GrayImage,
+    right: &GrayImage,
+    points: &[[f64; 2]],
+) -> Result<Vec<Located>> {
+    locate(blob, left, right, points).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))
+}
+
+/// Loads the model and both images, then locates `points` (`hvs locate`).
+pub fn locate_files(
+    model_path: &Path,
+    left: &Path,
+    right: &Path,
+    points: &[[f64; 2]],
+) -> Result<(Vec<Located>, image::GrayImage, image::GrayImage)> {
+    let m = load_stereo_model(model_path)?;
+    let (l, r) = read_pair(left, right)?;
+    let found = locate_with(model_path, &m.blob, &l, &r, points)?;
     Ok((found, l, r))
 }
 

@@ -170,18 +170,7 @@ pub fn run(a: Args) -> Result<()> {
         write_bytes(p, &png_bytes(&locate_overlay(&l, &r, &found))?)?;
     }
     if a.points.is_none() {
-        let f = &found[0];
-        let text = match (f.right, f.xyz) {
-            (Some(rp), Some(x)) if !x[0].is_finite() => format!(
-                "u_r={} v_r={} z={} cm (score {:.3})",
-                rp[0] as f32, rp[1] as f32, x[2], f.score
-            ),
-            (Some(rp), Some(x)) => format!(
-                "u_r={} v_r={} x={} y={} z={} cm (score {:.3})",
-                rp[0] as f32, rp[1] as f32, x[0], x[1], x[2], f.score
-            ),
-            _ => format!("no trustworthy match: {}", f.status),
-        };
+        let text = found[0].line();
         return crate::cli::say(format_args!("{text}"));
     }
     let mut header = String::from("u_l,v_l,u_r,v_r,x,y,z,score,status");

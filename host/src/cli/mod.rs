@@ -18,6 +18,7 @@ pub mod render;
 pub mod simulate;
 pub mod train;
 pub mod train_update;
+pub mod view;
 
 use anyhow::{bail, Result};
 use hvs_shared::sim::camera::Distortion;

@@ -264,46 +264,7 @@ pub fn run(a: Args) -> Result<()> {
 
 fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<()> {
     let mut o = std::io::stdout().lock();
-    let oc = &t.outcome;
-    let enrolled = oc.restarts.iter().filter(|r| r.enrolled).count();
-    writeln!(
-        o,
-        "trained {} {} ({}) on {} points of {} in {:.3} s",
-        model::shape(&t.blob),
-        t.blob.family.name(),
-        train::algo_name(t.blob.meta.algorithm),
-        t.blob.meta.train_points,
-        data.display(),
-        oc.elapsed.as_secs_f64()
-    )?;
-    writeln!(
-        o,
-        "training e_ma {:.4} % (f32 model), best of {} restarts, {enrolled} enrolled",
-        oc.train_error_pct,
-        oc.restarts.len()
-    )?;
-    if let Some(n) = oc.synthetic_points {
-        let (pixels, cameras) = if oc.synthetic_lenses {
-            ("sub-pixel pixels", "two 3x4 cameras with radial lenses")
-        } else {
-            ("integer pixels", "two 3x4 cameras")
-        };
-        writeln!(
-            o,
-            "{pixels}: the net learned {n} synthetic points of {cameras} fitted to them"
-        )?;
-    }
-    match &t.fallback {
-        Some(f) => writeln!(
-            o,
-            "fallback: Phi = {:.4} px (eq. 4.1-3, {} symmetric points at Z = {} cm)",
-            f.phi, f.points, f.depth
-        ),
-        None => writeln!(
-            o,
-            "fallback: none (no board symmetric about X = 0 in the data)"
-        ),
-    }?;
+    o.write_all(crate::train::model::summary(&data.display().to_string(), t).as_bytes())?;
     writeln!(
         o,
         "wrote {} ({bytes} bytes, generation {})",

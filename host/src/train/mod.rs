@@ -40,6 +40,7 @@
 mod adam;
 mod bp;
 mod decay;
+pub mod describe;
 pub mod fallback;
 mod lm;
 pub mod matcher;

@@ -58,3 +58,51 @@ pub fn train_model(data: &Dataset, plan: &Plan) -> Result<Trained> {
         fallback: fit,
     })
 }
+
+/// What `hvs train` prints about a trained model (`data` names the training set), without the
+/// line about the file written; `hvs view` shows the same after a retrain.
+pub fn summary(data: &str, t: &Trained) -> String {
+    use std::fmt::Write as _;
+    let mut o = String::new();
+    let oc = &t.outcome;
+    let enrolled = oc.restarts.iter().filter(|r| r.enrolled).count();
+    let _ = writeln!(
+        o,
+        "trained {} {} ({}) on {} points of {} in {:.3} s",
+        crate::data::model::shape(&t.blob),
+        t.blob.family.name(),
+        super::algo_name(t.blob.meta.algorithm),
+        t.blob.meta.train_points,
+        data,
+        oc.elapsed.as_secs_f64()
+    );
+    let _ = writeln!(
+        o,
+        "training e_ma {:.4} % (f32 model), best of {} restarts, {enrolled} enrolled",
+        oc.train_error_pct,
+        oc.restarts.len()
+    );
+    if let Some(n) = oc.synthetic_points {
+        let (pixels, cameras) = if oc.synthetic_lenses {
+            ("sub-pixel pixels", "two 3x4 cameras with radial lenses")
+        } else {
+            ("integer pixels", "two 3x4 cameras")
+        };
+        let _ = writeln!(
+            o,
+            "{pixels}: the net learned {n} synthetic points of {cameras} fitted to them"
+        );
+    }
+    let _ = match &t.fallback {
+        Some(f) => writeln!(
+            o,
+            "fallback: Phi = {:.4} px (eq. 4.1-3, {} symmetric points at Z = {} cm)",
+            f.phi, f.points, f.depth
+        ),
+        None => writeln!(
+            o,
+            "fallback: none (no board symmetric about X = 0 in the data)"
+        ),
+    };
+    o
+}

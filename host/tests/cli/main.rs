@@ -22,3 +22,4 @@ mod qemu_cli;
 mod real_pair;
 mod safe_outputs_and_strict_inputs;
 mod train_update;
+mod view;

@@ -1,0 +1,79 @@
+//! `hvs view`: a local page that shows what the head sees ([`crate::view`]): a still pair
+//! (click a pixel: `hvs locate --at`) or a capture set (detected corners, residuals, untick
+//! pairs and retrain), and the model.
+
+use crate::view::{serve, RetrainOptions, Session, Source};
+use anyhow::{bail, Result};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+/// Arguments of `hvs view`.
+#[derive(Debug, clap::Args)]
+#[command(
+    about = "Serve a local page showing a stereo pair or a capture set and the model",
+    long_about = "Serve a local page (HTML, JavaScript and CSS inside the binary) that shows a \
+    stereo pair (--left/--right: click a left pixel to see its match, X, Y, Z, status and \
+    score, the numbers of `hvs locate --at`) or a capture set (--board/--captures: every pair \
+    with its detected corners, homography and epipolar residuals; untick pairs and retrain as \
+    `hvs train` does), and the model (what `hvs info` prints). It listens on 127.0.0.1 unless \
+    --listen names another address, and then every request needs the token in the printed URL. \
+    Ctrl-C stops it.",
+    group(clap::ArgGroup::new("source").required(true).args(["left", "board"]))
+)]
+pub struct Args {
+    /// The model (from `hvs train`).
+    #[arg(long, value_name = "M.hvsw")]
+    pub model: PathBuf,
+    /// The left image of a still pair (PNG or JPEG).
+    #[arg(long, value_name = "L.png", requires = "right")]
+    pub left: Option<PathBuf>,
+    /// The right image, the same size.
+    #[arg(long, value_name = "R.png", requires = "left")]
+    pub right: Option<PathBuf>,
+    /// The board of a capture set (as `hvs board detect`).
+    #[arg(
+        long,
+        value_name = "BOARD.json",
+        requires = "captures",
+        conflicts_with = "left"
+    )]
+    pub board: Option<PathBuf>,
+    /// The capture set (as `hvs board detect`).
+    #[arg(long, value_name = "CAPTURES.csv", requires = "board")]
+    pub captures: Option<PathBuf>,
+    /// Address to listen on; port 0 picks a free one (the URL printed says which).
+    #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8080")]
+    pub listen: String,
+    /// Restarts of a retrain (`hvs train --restarts`).
+    #[arg(long, value_name = "R", default_value_t = 10, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
+    pub restarts: usize,
+    /// Seed of a retrain (`hvs train --seed`).
+    #[arg(long, value_name = "S", default_value_t = 0, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
+    pub seed: u64,
+}
+
+/// `hvs view`.
+pub fn run(a: Args) -> Result<()> {
+    let listen: SocketAddr = a.listen.parse().map_err(|_| {
+        crate::cli::usage(format!(
+            "--listen: {:?} is not ADDR:PORT (e.g. 127.0.0.1:8080, 0.0.0.0:0, [::1]:8080)",
+            a.listen
+        ))
+    })?;
+    if a.restarts == 0 {
+        bail!("--restarts must be at least 1");
+    }
+    let source = match (a.left, a.right, a.board, a.captures) {
+        (Some(left), Some(right), None, None) => Source::Pair { left, right },
+        (None, None, Some(board), Some(captures)) => Source::Captures { board, captures },
+        _ => bail!("give --left L --right R, or --board BOARD.json --captures CAPTURES.csv"),
+    };
+    let options = RetrainOptions {
+        restarts: a.restarts,
+        seed: a.seed,
+    };
+    let session = Session::open(&a.model, &source, options)?;
+    serve(session, listen, |url| {
+        crate::cli::say(format_args!("hvs view: serving {url}"))
+    })
+}

@@ -1,0 +1,190 @@
+//! The JSON `hvs view`'s page reads and sends: the request bodies (strict: unknown fields
+//! are refused) and the answers, built from the session's values with the CLI's own
+//! formatting (`hvs locate --at`'s digits, `hvs info`'s and `hvs train`'s text).
+
+use super::session::{Retrained, Session};
+use crate::vision::{Located, PairOutcome};
+use serde::Deserialize;
+use serde_json::{json, Value};
+
+/// `POST /api/locate`: a left pixel of a pair.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocateRequest {
+    /// The pair (0-based).
+    pub pair: usize,
+    /// Column (px, pixel-centre convention).
+    pub u: f64,
+    /// Row (px).
+    pub v: f64,
+}
+
+/// `POST /api/retrain`: which pairs to train on.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RetrainRequest {
+    /// One tick per pair of the capture set.
+    #[serde(rename = "use")]
+    pub ticked: Vec<bool>,
+}
+
+/// `GET /api/session`: the model panel, the pairs, and what the page can do.
+pub fn session(s: &Session) -> Value {
+    let b = &s.model.blob;
+    let m = &b.meta;
+    let matcher = b.matcher.map(|g| {
+        json!({
+            "fundamental": g.fundamental,
+            "box_min_cm": g.out_min,
+            "box_max_cm": g.out_max,
+            "disparity_px": g.disparity,
+            "right_scale": g.right_scale,
+        })
+    });
+    let pairs: Vec<Value> = s
+        .pairs
+        .iter()
+        .enumerate()
+        .map(|(k, p)| json!({"index": k, "name": p.name, "z": p.z}))
+        .collect();
+    json!({
+        "model": {
+            "file": s.model_path.display().to_string(),
+            "info": s.info,
+            "topology": crate::data::model::shape(b),
+            "family": b.family.name(),
+            "train_points": m.train_points,
+            "train_error_pct": m.train_error_pct,
+            "matcher": matcher,
+        },
+        "live": s.frames.live(),
+        "pairs": pairs,
+        "locate_refused": s.locate_refused,
+        "captures": s.captures.is_some(),
+    })
+}
+
+/// `POST /api/locate`'s answer: the pixel asked for, and what `hvs locate --at` prints for
+/// it, field by field and as its line.
+pub fn located(pair: usize, l: &Located, ms: f64) -> Value {
+    let t = l.texts();
+    let field = |k: usize| t.as_ref().map(|t| t[k].clone());
+    json!({
+        "pair": pair,
+        "u": l.left[0],
+        "v": l.left[1],
+        "status": l.status,
+        "u_r": field(0),
+        "v_r": field(1),
+        "x": field(2),
+        "y": field(3),
+        "z": field(4),
+        "score": field(5),
+        "right": l.right,
+        "line": l.line(),
+        "ms": ms,
+    })
+}
+
+/// `GET /api/captures`: per pair what `hvs board detect` reports (corners, square size,
+/// homography residuals, epipolar residuals) or why it was skipped.
+pub fn captures(s: &Session) -> Option<Value> {
+    let c = s.captures.as_ref()?;
+    let det = &c.detection;
+    let n = c.board.corner_count();
+    let mut slot = 0usize;
+    let pairs: Vec<Value> = c
+        .set
+        .captures
+        .iter()
+        .zip(&det.outcomes)
+        .enumerate()
+        .map(|(k, (cap, o))| match o {
+            PairOutcome::Found(p) => {
+                let epi = det.set.as_ref().map(
+                    |s| json!({"median_px": s.pair_median_px[slot], "max_px": s.pair_max_px[slot]}),
+                );
+                slot += 1;
+                json!({
+                    "index": k,
+                    "name": format!("{} ({}, {})", c.set.at(cap), cap.left_name, cap.right_name),
+                    "z": cap.z,
+                    "found": true,
+                    "corners": n,
+                    "square_px": p.left.square_px,
+                    "homography_rms_px": [p.left.homography_rms, p.right.homography_rms],
+                    "epipolar": epi,
+                })
+            }
+            PairOutcome::Skipped(why) => json!({
+                "index": k,
+                "name": format!("{} ({}, {})", c.set.at(cap), cap.left_name, cap.right_name),
+                "z": cap.z,
+                "found": false,
+                "skipped": why,
+            }),
+        })
+        .collect();
+    Some(json!({
+        "board": format!("{}x{} inner corners", c.board.cols, c.board.rows),
+        "sampson_rms_px": det.set.as_ref().map(|s| s.fit.rms_sampson),
+        "pairs": pairs,
+    }))
+}
+
+/// `POST /api/retrain`'s answer.
+pub fn retrained(r: &Retrained, ms: f64) -> Value {
+    json!({
+        "pairs": r.pairs,
+        "points": r.points,
+        "train_error_pct": r.train_error_pct,
+        "summary": r.summary,
+        "ms": ms,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_located_point_has_the_numbers_of_its_line() {
+        let l = Located {
+            left: [300.0, 200.0],
+            right: Some([273.985_883_685_464_2, 200.074_643_045_317_7]),
+            xyz: Some([-13.298719, -16.096615, 115.02975]),
+            score: 0.99912,
+            status: "ok",
+        };
+        let v = located(0, &l, 1.0);
+        assert_eq!(
+            v["line"],
+            "u_r=273.98587 v_r=200.07465 x=-13.298719 y=-16.096615 z=115.02975 cm (score 0.999)"
+        );
+        assert_eq!(
+            (v["u_r"].as_str(), v["z"].as_str()),
+            (Some("273.98587"), Some("115.02975"))
+        );
+        assert_eq!(v["score"], "0.999");
+        let none = Located {
+            right: None,
+            xyz: None,
+            status: "ambiguous",
+            ..l
+        };
+        let v = located(0, &none, 1.0);
+        assert_eq!(v["line"], "no trustworthy match: ambiguous");
+        assert!(v["x"].is_null() && v["right"].is_null());
+        // Requests are strict.
+        assert!(serde_json::from_str::<LocateRequest>(r#"{"pair":0,"u":1,"v":2}"#).is_ok());
+        for bad in [
+            r#"{"pair":0,"u":1}"#,
+            r#"{"pair":0,"u":1,"v":2,"x":0}"#,
+            r#"{"pair":-1,"u":1,"v":2}"#,
+        ] {
+            assert!(serde_json::from_str::<LocateRequest>(bad).is_err(), "{bad}");
+        }
+        assert!(serde_json::from_str::<RetrainRequest>(r#"{"use":[true,false]}"#).is_ok());
+        assert!(serde_json::from_str::<RetrainRequest>(r#"{"use":[1]}"#).is_err());
+    }
+}

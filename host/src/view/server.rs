@@ -1,0 +1,274 @@
+//! `hvs view`'s HTTP server (`axum` on `tokio`): the embedded page, the frames and the JSON
+//! API of [`super::api`] over a [`Session`]. Only fixed routes exist (no request path
+//! reaches the file system); bodies are capped at [`MAX_BODY`] bytes; every malformed
+//! request gets a 4xx and the server carries on. Off loopback every request must carry the
+//! token printed at start (`?token=`, as Jupyter does). SIGINT or SIGTERM stop it at once.
+
+use super::api::{self, LocateRequest, RetrainRequest};
+use super::assets;
+use super::frames::View;
+use super::session::{Refused, Session};
+use anyhow::{Context, Result};
+use axum::body::Body;
+use axum::extract::{DefaultBodyLimit, Path, Request, State};
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use serde_json::json;
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The largest request body accepted (bytes): a click or a list of ticks is far smaller.
+pub const MAX_BODY: usize = 64 * 1024;
+
+struct App {
+    session: Session,
+    token: Option<String>,
+    training: AtomicBool,
+}
+
+type Shared = Arc<App>;
+
+/// An error answer: a status and a one-line message, as JSON `{"error": ...}`.
+struct ApiError(StatusCode, String);
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.0, Json(json!({"error": self.1}))).into_response()
+    }
+}
+
+impl From<Refused> for ApiError {
+    fn from(r: Refused) -> ApiError {
+        match r {
+            Refused::Bad(m) => ApiError(StatusCode::BAD_REQUEST, m),
+            Refused::Unprocessable(m) => ApiError(StatusCode::UNPROCESSABLE_ENTITY, m),
+        }
+    }
+}
+
+/// A random token of 32 hex digits from the operating system's randomness.
+pub fn random_token() -> Result<String> {
+    let mut b = [0u8; 16];
+    getrandom::fill(&mut b).map_err(|e| anyhow::anyhow!("no OS randomness for the token: {e}"))?;
+    Ok(b.iter().map(|x| format!("{x:02x}")).collect())
+}
+
+/// Whether `addr` needs a token: anything but a loopback address.
+pub fn needs_token(addr: &SocketAddr) -> bool {
+    !addr.ip().is_loopback()
+}
+
+/// Serves `session` on `addr` until SIGINT or SIGTERM. `started` gets the page's URL (the
+/// real port when `addr` asks for port 0; the token when one is needed) once it listens.
+pub fn serve(
+    session: Session,
+    addr: SocketAddr,
+    started: impl FnOnce(&str) -> Result<()>,
+) -> Result<()> {
+    let token = if needs_token(&addr) {
+        Some(random_token()?)
+    } else {
+        None
+    };
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    let app = Arc::new(App {
+        session,
+        token,
+        training: AtomicBool::new(false),
+    });
+    let result = rt.block_on(async move {
+        let listener = tokio::net::TcpListener::bind(addr)
+            .await
+            .with_context(|| format!("--listen {addr}: cannot listen"))?;
+        let real = listener
+            .local_addr()
+            .context("cannot read the bound address")?;
+        let query = app
+            .token
+            .as_ref()
+            .map_or_else(String::new, |t| format!("?token={t}"));
+        started(&format!("http://{real}/{query}"))?;
+        let router = router(app);
+        tokio::select! {
+            r = axum::serve(listener, router) => r.context("the server stopped"),
+            r = stop_signal() => r,
+        }
+    });
+    // Requests still running (a retrain) are not waited for.
+    rt.shutdown_background();
+    result
+}
+
+async fn stop_signal() -> Result<()> {
+    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .context("cannot watch SIGTERM")?;
+    tokio::select! {
+        r = tokio::signal::ctrl_c() => r.context("cannot watch SIGINT"),
+        _ = term.recv() => Ok(()),
+    }
+}
+
+fn router(app: Shared) -> Router {
+    Router::new()
+        .route("/", get(index))
+        .route(
+            "/app.js",
+            get(|| async { asset("text/javascript", assets::APP_JS) }),
+        )
+        .route(
+            "/style.css",
+            get(|| async { asset("text/css", assets::STYLE_CSS) }),
+        )
+        .route("/api/session", get(session))
+        .route("/api/frame/{pair}/{view}", get(frame))
+        .route("/api/locate", post(locate))
+        .route("/api/captures", get(captures))
+        .route("/api/retrain", post(retrain))
+        .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
+        .layer(DefaultBodyLimit::max(MAX_BODY))
+        .layer(middleware::from_fn_with_state(app.clone(), check_token))
+        .with_state(app)
+}
+
+fn asset(kind: &'static str, text: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static(kind)),
+            (header::CACHE_CONTROL, HeaderValue::from_static("no-cache")),
+        ],
+        text,
+    )
+        .into_response()
+}
+
+async fn index() -> Response {
+    asset("text/html; charset=utf-8", assets::INDEX_HTML)
+}
+
+/// Off loopback, every request needs `token=<the token>` in its query.
+async fn check_token(State(app): State<Shared>, req: Request, next: Next) -> Response {
+    if let Some(want) = &app.token {
+        let given = req
+            .uri()
+            .query()
+            .unwrap_or("")
+            .split('&')
+            .find_map(|kv| kv.strip_prefix("token="));
+        if !given.is_some_and(|g| same(g.as_bytes(), want.as_bytes())) {
+            return ApiError(
+                StatusCode::FORBIDDEN,
+                "this server needs its token: open the URL hvs view printed".into(),
+            )
+            .into_response();
+        }
+    }
+    next.run(req).await
+}
+
+/// Compares in time independent of where the strings differ.
+fn same(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+async fn session(State(app): State<Shared>) -> Response {
+    Json(api::session(&app.session)).into_response()
+}
+
+async fn frame(
+    State(app): State<Shared>,
+    Path((pair, view)): Path<(usize, String)>,
+) -> Result<Response, ApiError> {
+    let view = View::parse(&view).ok_or_else(|| {
+        ApiError(
+            StatusCode::NOT_FOUND,
+            format!("{view:?}: not a view (left, right, left-corners, right-corners)"),
+        )
+    })?;
+    let frames = app.session.frames.clone();
+    let f = tokio::task::spawn_blocking(move || frames.frame(pair, view))
+        .await
+        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
+        .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("pair {pair}: no such frame")))?;
+    let mut r = Response::new(Body::from((*f.png).clone()));
+    let h = r.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static("image/png"));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    h.insert("x-frame-seq", HeaderValue::from(f.seq));
+    Ok(r)
+}
+
+async fn locate(
+    State(app): State<Shared>,
+    Json(q): Json<LocateRequest>,
+) -> Result<Response, ApiError> {
+    let t0 = Instant::now();
+    let a = app.clone();
+    let found = tokio::task::spawn_blocking(move || a.session.locate(q.pair, q.u, q.v))
+        .await
+        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))??;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    Ok(Json(api::located(q.pair, &found, ms)).into_response())
+}
+
+async fn captures(State(app): State<Shared>) -> Result<Response, ApiError> {
+    api::captures(&app.session)
+        .map(|v| Json(v).into_response())
+        .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, "not a capture set".into()))
+}
+
+async fn retrain(
+    State(app): State<Shared>,
+    Json(q): Json<RetrainRequest>,
+) -> Result<Response, ApiError> {
+    if app.training.swap(true, Ordering::SeqCst) {
+        return Err(ApiError(
+            StatusCode::CONFLICT,
+            "a retrain is already running".into(),
+        ));
+    }
+    let t0 = Instant::now();
+    let a = app.clone();
+    let r = tokio::task::spawn_blocking(move || {
+        let r = a.session.retrain(&q.ticked);
+        a.training.store(false, Ordering::SeqCst);
+        r
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))??;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    Ok(Json(api::retrained(&r, ms)).into_response())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tokens_are_needed_off_loopback_only_and_compared_whole() {
+        for (a, need) in [
+            ("127.0.0.1:8080", false),
+            ("[::1]:0", false),
+            ("0.0.0.0:0", true),
+            ("192.168.1.5:8080", true),
+            ("[::]:8080", true),
+        ] {
+            assert_eq!(needs_token(&a.parse().unwrap()), need, "{a}");
+        }
+        let t = random_token().unwrap();
+        assert_eq!(t.len(), 32);
+        assert_ne!(t, random_token().unwrap());
+        assert!(same(t.as_bytes(), t.clone().as_bytes()));
+        assert!(!same(t.as_bytes(), &t.as_bytes()[..31]));
+        assert!(!same(b"abcd", b"abce"));
+        assert!(!same(b"", b"a"));
+    }
+}

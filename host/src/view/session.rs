@@ -1,0 +1,269 @@
+//! What one `hvs view` serves: the model (with what `hvs info` says about it), the frames
+//! ([`super::frames`]) and, for a capture set, its detection; and the two actions the page
+//! asks for, each a call of the function the CLI uses: [`Session::locate`] is
+//! `hvs locate --at` ([`crate::vision::locate_with`]), [`Session::retrain`] is
+//! `hvs board detect` + `hvs train` on the ticked pairs ([`crate::train::model::train_model`]).
+
+use super::frames::{FrameSource, StillFrames, StillPair};
+use crate::data::captures::{self, CaptureSet};
+use crate::data::csv::{read_set_from, Inputs};
+use crate::data::model::ModelFile;
+use crate::train::model::{train_model, Plan};
+use crate::train::{self, TrainConfig};
+use crate::vision::{self, Detection, Located, PairOutcome};
+use anyhow::{anyhow, Result};
+use hvs_vision::board::Board;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// What to show.
+#[derive(Debug, Clone)]
+pub enum Source {
+    /// One still stereo pair (`--left L --right R`).
+    Pair {
+        /// The left image.
+        left: PathBuf,
+        /// The right image.
+        right: PathBuf,
+    },
+    /// A capture set (`--board BOARD.json --captures CAPTURES.csv`).
+    Captures {
+        /// The board.
+        board: PathBuf,
+        /// The captures.
+        captures: PathBuf,
+    },
+}
+
+/// How a retrain trains (the `hvs train` options it takes; the rest are its defaults).
+#[derive(Debug, Clone, Copy)]
+pub struct RetrainOptions {
+    /// Restarts (`hvs train --restarts`).
+    pub restarts: usize,
+    /// Seed (`hvs train --seed`).
+    pub seed: u64,
+}
+
+/// One pair as the page lists it.
+#[derive(Debug, Clone)]
+pub struct PairMeta {
+    /// A short name: the image file names.
+    pub name: String,
+    /// The board depth (cm) a capture gives.
+    pub z: Option<f64>,
+}
+
+/// A capture set and its detection.
+pub struct CaptureData {
+    /// The board.
+    pub board: Board,
+    /// The captures, as read.
+    pub set: CaptureSet,
+    /// What `hvs board detect` found.
+    pub detection: Detection,
+}
+
+/// Everything `hvs view` serves.
+pub struct Session {
+    /// The model file, as given.
+    pub model_path: PathBuf,
+    /// The model.
+    pub model: ModelFile,
+    /// What `hvs info` prints about it.
+    pub info: String,
+    /// Why a click cannot be located (a posture-aware model), if it cannot.
+    pub locate_refused: Option<String>,
+    /// The pictures.
+    pub frames: Arc<dyn FrameSource>,
+    /// The pairs, in order.
+    pub pairs: Vec<PairMeta>,
+    /// The capture set, with `--captures`.
+    pub captures: Option<CaptureData>,
+    /// How a retrain trains.
+    pub retrain: RetrainOptions,
+}
+
+/// What a retrain gave.
+#[derive(Debug, Clone)]
+pub struct Retrained {
+    /// Pairs trained on (ticked and detected).
+    pub pairs: usize,
+    /// Training points.
+    pub points: usize,
+    /// Training e_ma (%).
+    pub train_error_pct: f64,
+    /// What `hvs train` prints ([`crate::train::model::summary`]).
+    pub summary: String,
+}
+
+/// Why an action was refused: the request (`Bad`, 4xx) or the inputs (`Unprocessable`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Refused {
+    /// No such pair, a bad pixel, a ticked list of the wrong length.
+    Bad(String),
+    /// The request is well formed but cannot be done with these inputs.
+    Unprocessable(String),
+}
+
+impl Session {
+    /// Reads the model and the source (and detects the board in a capture set). Errors name
+    /// the file.
+    pub fn open(model_path: &Path, source: &Source, retrain: RetrainOptions) -> Result<Session> {
+        let (model, locate_refused) = match vision::load_stereo_model(model_path) {
+            Ok(m) => (m, None),
+            Err(e) => (
+                crate::data::model::load(model_path)?,
+                Some(format!("{e:#}")),
+            ),
+        };
+        let info = train::describe::describe(model_path, &model);
+        let (frames, pairs, captures) = match source {
+            Source::Pair { left, right } => {
+                let (l, r) = vision::read_pair(left, right)?;
+                let name = format!("{} | {}", file_name(left), file_name(right));
+                (
+                    vec![StillPair::new(Some([l, r]), None)],
+                    vec![PairMeta { name, z: None }],
+                    None,
+                )
+            }
+            Source::Captures { board, captures } => {
+                let b = Board::from_path(board).map_err(|e| anyhow!("{e}"))?;
+                let set = captures::read(captures)?;
+                let (detection, images) = vision::detect_set_with_images(&b, &set, &|| {})?;
+                let frames = detection
+                    .outcomes
+                    .iter()
+                    .zip(images)
+                    .map(|(o, img)| {
+                        let corners = match o {
+                            PairOutcome::Found(p) => Some(p.clone()),
+                            PairOutcome::Skipped(_) => None,
+                        };
+                        StillPair::new(img, corners)
+                    })
+                    .collect();
+                let pairs = set
+                    .captures
+                    .iter()
+                    .map(|c| PairMeta {
+                        name: format!("{} | {}", c.left_name, c.right_name),
+                        z: c.z,
+                    })
+                    .collect();
+                (
+                    frames,
+                    pairs,
+                    Some(CaptureData {
+                        board: b,
+                        set,
+                        detection,
+                    }),
+                )
+            }
+        };
+        Ok(Session {
+            model_path: model_path.to_path_buf(),
+            model,
+            info,
+            locate_refused,
+            frames: Arc::new(StillFrames::new(frames)),
+            pairs,
+            captures,
+            retrain,
+        })
+    }
+
+    /// `hvs locate --at U,V` on pair `pair`: the left pixel `(u, v)` found in the right image
+    /// and turned into X, Y, Z by the model.
+    pub fn locate(&self, pair: usize, u: f64, v: f64) -> Result<Located, Refused> {
+        if let Some(why) = &self.locate_refused {
+            return Err(Refused::Unprocessable(why.clone()));
+        }
+        let (l, r) = self.frames.grey(pair).ok_or_else(|| {
+            Refused::Bad(format!(
+                "pair {pair}: no such pair, or its images are unreadable"
+            ))
+        })?;
+        let (w, h) = (f64::from(l.width()), f64::from(l.height()));
+        if !(u.is_finite() && v.is_finite() && u > -0.5 && v > -0.5 && u < w - 0.5 && v < h - 0.5) {
+            return Err(Refused::Bad(format!(
+                "pixel ({u}, {v}) is outside the {}x{} left image",
+                l.width(),
+                l.height()
+            )));
+        }
+        let found = vision::locate_with(&self.model_path, &self.model.blob, &l, &r, &[[u, v]])
+            .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
+        found
+            .into_iter()
+            .next()
+            .ok_or_else(|| Refused::Unprocessable("no result".into()))
+    }
+
+    /// `hvs board detect` + `hvs train` (its defaults, [`RetrainOptions`]) on the pairs of the
+    /// capture set whose `ticked` entry is true: the detection is the one made at start (its
+    /// set-wide checks included); unticked pairs are left out of the points.
+    pub fn retrain(&self, ticked: &[bool]) -> Result<Retrained, Refused> {
+        let c = self.captures.as_ref().ok_or_else(|| {
+            Refused::Bad("not a capture set: start hvs view with --board and --captures".into())
+        })?;
+        if ticked.len() != c.set.captures.len() {
+            return Err(Refused::Bad(format!(
+                "{} ticks for {} pairs",
+                ticked.len(),
+                c.set.captures.len()
+            )));
+        }
+        let mut det = c.detection.clone();
+        for (o, &t) in det.outcomes.iter_mut().zip(ticked) {
+            if !t {
+                *o = PairOutcome::Skipped("unticked".into());
+            }
+        }
+        let pairs = det
+            .outcomes
+            .iter()
+            .filter(|o| matches!(o, PairOutcome::Found(_)))
+            .count();
+        if pairs == 0 {
+            return Err(Refused::Unprocessable(
+                "no ticked pair has detected corners".into(),
+            ));
+        }
+        let name = format!("{} (ticked pairs)", c.set.path.display());
+        let points = vision::points_csv(&c.board, &c.set, &det);
+        let table = read_set_from(Path::new(&name), points.as_bytes(), Inputs::Auto, true)
+            .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
+        let mut config = TrainConfig {
+            family: train::DEFAULT_FAMILY,
+            restarts: self.retrain.restarts,
+            seed: self.retrain.seed,
+            ..TrainConfig::default()
+        };
+        if let Some(kind) = table.data.input_kind() {
+            config.frame = train::default_frame(config.family, kind);
+        }
+        crate::data::validate::training_set(&table, config.hidden, config.outputs.len())
+            .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
+        let plan = Plan {
+            config,
+            ..Plan::default()
+        };
+        let t = train_model(&table.data, &plan)
+            .map_err(|e| Refused::Unprocessable(format!("{name}: training failed: {e:#}")))?;
+        Ok(Retrained {
+            pairs,
+            points: table.data.len(),
+            train_error_pct: t.outcome.train_error_pct,
+            summary: crate::train::model::summary(&name, &t),
+        })
+    }
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name().map_or_else(
+        || p.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}

@@ -1,0 +1,933 @@
+//! `hvs view` over HTTP: the page and its assets, a click answered with `hvs locate --at`'s
+//! own line, the model panel with `hvs info`'s text, a capture set retrained on the ticked
+//! pairs, bad requests refused with a 4xx while the server stays up, the token off loopback,
+//! Ctrl-C. `browser_*` (ignored) drive Debian's chromium through chromedriver; `load_*`
+//! (ignored) measure click latency and 20 polling clients.
+
+use crate::common::{hvs, ok, s};
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+/// A rendered capture set (case 1, three depths), its points, a model trained on them and
+/// one test pair with its true corners.
+struct Fixture {
+    _dir: tempfile::TempDir,
+    shots: PathBuf,
+    model: PathBuf,
+    left: PathBuf,
+    right: PathBuf,
+    /// Left pixels of true board corners of the test pair, rounded.
+    corners: Vec<[i64; 2]>,
+}
+
+fn fixture() -> &'static Fixture {
+    static F: OnceLock<Fixture> = OnceLock::new();
+    F.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let shots = d.join("shots");
+        ok(&[
+            "render",
+            "--case",
+            "1",
+            "-o",
+            s(&shots),
+            "--seed",
+            "6",
+            "--depths",
+            "65,115,165",
+        ]);
+        let points = d.join("points.csv");
+        ok(&crate::common::detect_args(
+            &shots.join("board.json"),
+            &shots.join("captures.csv"),
+            &points,
+        ));
+        let model = d.join("m.hvsw");
+        crate::common::train_restarts(&points, &model, "2");
+        let test = d.join("test");
+        ok(&[
+            "render",
+            "--case",
+            "1",
+            "-o",
+            s(&test),
+            "--seed",
+            "7",
+            "--depths",
+            "95",
+            "--centre",
+            "-3,2",
+        ]);
+        let truth = std::fs::read_to_string(test.join("truth.csv")).unwrap();
+        let corners = truth
+            .lines()
+            .skip(1)
+            .map(|l| {
+                let f: Vec<&str> = l.split(',').collect();
+                [
+                    f[6].parse::<f64>().unwrap().round() as i64,
+                    f[7].parse::<f64>().unwrap().round() as i64,
+                ]
+            })
+            .collect();
+        Fixture {
+            shots,
+            model,
+            left: test.join("left01.png"),
+            right: test.join("right01.png"),
+            corners,
+            _dir: dir,
+        }
+    })
+}
+
+/// A running `hvs view`, killed when dropped.
+pub struct Server {
+    child: Child,
+    /// `127.0.0.1:PORT`.
+    pub addr: String,
+    /// The printed URL.
+    pub url: String,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts `hvs view` with `args` (and `--listen 127.0.0.1:0` unless given) and waits for its
+/// address line.
+pub fn start(args: &[&str]) -> Server {
+    let mut all: Vec<&str> = vec!["view"];
+    all.extend_from_slice(args);
+    if !args.contains(&"--listen") {
+        all.extend(["--listen", "127.0.0.1:0"]);
+    }
+    let mut child = Command::new(assert_cmd::cargo::cargo_bin("hvs"))
+        .args(&all)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("hvs view starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let url = line
+        .trim()
+        .strip_prefix("hvs view: serving ")
+        .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+        .to_string();
+    let port = url
+        .strip_prefix("http://")
+        .and_then(|r| r.split('/').next())
+        .and_then(|h| h.rsplit(':').next())
+        .unwrap()
+        .to_string();
+    Server {
+        child,
+        addr: format!("127.0.0.1:{port}"),
+        url,
+    }
+}
+
+/// A view of the fixture's test pair.
+pub fn start_pair() -> Server {
+    let f = fixture();
+    start(&[
+        "--model",
+        s(&f.model),
+        "--left",
+        s(&f.left),
+        "--right",
+        s(&f.right),
+    ])
+}
+
+/// One HTTP/1.1 request (`Connection: close`): the status and the body.
+pub fn http(addr: &str, method: &str, path: &str, body: Option<&[u8]>) -> (u16, Vec<u8>) {
+    let mut c = TcpStream::connect(addr).unwrap();
+    c.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    if let Some(b) = body {
+        req.push_str(&format!(
+            "Content-Type: application/json\r\nContent-Length: {}\r\n",
+            b.len()
+        ));
+    }
+    req.push_str("\r\n");
+    c.write_all(req.as_bytes()).unwrap();
+    if let Some(b) = body {
+        // The server may answer (413) and close before reading all of a large body.
+        let _ = c.write_all(b);
+    }
+    raw_response(c)
+}
+
+fn raw_response(mut c: TcpStream) -> (u16, Vec<u8>) {
+    let mut all = Vec::new();
+    let _ = c.read_to_end(&mut all);
+    let end = all
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .unwrap_or_else(|| panic!("no response head in {:?}", String::from_utf8_lossy(&all)));
+    let head = String::from_utf8_lossy(&all[..end]).to_string();
+    let status = head
+        .split_whitespace()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("bad status line in {head:?}"));
+    let body = all[end + 4..].to_vec();
+    if head
+        .to_ascii_lowercase()
+        .contains("transfer-encoding: chunked")
+    {
+        return (status, unchunk(&body));
+    }
+    (status, body)
+}
+
+fn unchunk(mut b: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let nl = b.windows(2).position(|w| w == b"\r\n").unwrap();
+        let n = usize::from_str_radix(std::str::from_utf8(&b[..nl]).unwrap().trim(), 16).unwrap();
+        if n == 0 {
+            return out;
+        }
+        out.extend_from_slice(&b[nl + 2..nl + 2 + n]);
+        b = &b[nl + 4 + n..];
+    }
+}
+
+/// A JSON answer with `want` status.
+pub fn json(addr: &str, method: &str, path: &str, body: Option<&str>, want: u16) -> Value {
+    let (st, b) = http(addr, method, path, body.map(str::as_bytes));
+    let text = String::from_utf8_lossy(&b).to_string();
+    assert_eq!(st, want, "{method} {path} {body:?}: {text}");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{method} {path}: {e}: {text}"))
+}
+
+/// What `hvs locate --at u,v` prints for the fixture's pair.
+fn locate_at(u: i64, v: i64) -> String {
+    let f = fixture();
+    let at = format!("{u},{v}");
+    ok(&crate::common::locate_args(
+        &["locate"],
+        &f.model,
+        &f.left,
+        &f.right,
+        &["--at", &at],
+    ))
+    .trim()
+    .to_string()
+}
+
+#[test]
+fn view_answers_a_click_with_the_numbers_of_locate_at() {
+    let f = fixture();
+    let sv = start_pair();
+    let (st, page) = http(&sv.addr, "GET", "/", None);
+    assert_eq!(st, 200);
+    let page = String::from_utf8(page).unwrap();
+    assert!(
+        page.contains("<title>hvs view</title>") && page.contains("app.js"),
+        "{page}"
+    );
+    for asset in ["/app.js", "/style.css"] {
+        let (st, b) = http(&sv.addr, "GET", asset, None);
+        assert_eq!(st, 200, "{asset}");
+        assert!(b.len() > 500, "{asset}");
+    }
+    // The model panel is `hvs info`'s text.
+    let session = json(&sv.addr, "GET", "/api/session", None, 200);
+    assert_eq!(
+        session["model"]["info"].as_str().unwrap(),
+        ok(&["info", s(&f.model)])
+    );
+    assert_eq!(session["pairs"].as_array().unwrap().len(), 1);
+    assert_eq!(session["live"], false);
+    assert!(session["locate_refused"].is_null());
+    // Frames are the images, as PNG.
+    for side in ["left", "right"] {
+        let (st, png) = http(&sv.addr, "GET", &format!("/api/frame/0/{side}"), None);
+        assert_eq!(st, 200);
+        let img = image::load_from_memory(&png).unwrap().to_luma8();
+        let file = image::open(if side == "left" { &f.left } else { &f.right })
+            .unwrap()
+            .to_luma8();
+        assert_eq!(img, file, "{side}");
+    }
+    // Clicks on board corners and on a flat corner of the image: the same line as `hvs
+    // locate --at`, and the fields are its numbers.
+    let mut oks = 0;
+    let picks: Vec<[i64; 2]> = f
+        .corners
+        .iter()
+        .step_by(7)
+        .copied()
+        .chain([[3, 3]])
+        .collect();
+    for [u, v] in picks {
+        let r = json(
+            &sv.addr,
+            "POST",
+            "/api/locate",
+            Some(&format!(r#"{{"pair":0,"u":{u},"v":{v}}}"#)),
+            200,
+        );
+        let line = locate_at(u, v);
+        assert_eq!(r["line"].as_str().unwrap(), line, "at {u},{v}");
+        assert_eq!(
+            (r["u"].as_f64(), r["v"].as_f64()),
+            (Some(u as f64), Some(v as f64))
+        );
+        if r["status"] == "ok" {
+            oks += 1;
+            let want = format!(
+                "u_r={} v_r={} x={} y={} z={} cm (score {})",
+                r["u_r"].as_str().unwrap(),
+                r["v_r"].as_str().unwrap(),
+                r["x"].as_str().unwrap(),
+                r["y"].as_str().unwrap(),
+                r["z"].as_str().unwrap(),
+                r["score"].as_str().unwrap()
+            );
+            assert_eq!(want, line);
+            let z: f64 = r["z"].as_str().unwrap().parse().unwrap();
+            assert!((z - 95.0).abs() < 1.0, "{r}");
+        } else {
+            assert!(r["z"].is_null(), "{r}");
+            assert_eq!(
+                line,
+                format!("no trustworthy match: {}", r["status"].as_str().unwrap())
+            );
+        }
+    }
+    assert!(oks >= 4, "{oks} board corners located");
+}
+
+/// Every request in `bad` gets its 4xx; the server answers normally after each.
+#[test]
+fn view_refuses_bad_requests_and_stays_up() {
+    let sv = start_pair();
+    let big = format!(
+        r#"{{"pair":0,"u":1,"v":1,"pad":"{}"}}"#,
+        "x".repeat(200_000)
+    );
+    let bad: Vec<(&str, &str, Option<&str>, u16)> = vec![
+        ("POST", "/api/locate", Some("{not json"), 400),
+        (
+            "POST",
+            "/api/locate",
+            Some(r#"{"pair":0,"u":"a","v":1}"#),
+            422,
+        ),
+        ("POST", "/api/locate", Some(r#"{"pair":0,"u":1}"#), 422),
+        (
+            "POST",
+            "/api/locate",
+            Some(r#"{"pair":0,"u":1,"v":2,"w":3}"#),
+            422,
+        ),
+        (
+            "POST",
+            "/api/locate",
+            Some(r#"{"pair":-1,"u":1,"v":2}"#),
+            422,
+        ),
+        (
+            "POST",
+            "/api/locate",
+            Some(r#"{"pair":0,"u":1e999,"v":2}"#),
+            400,
+        ),
+        (
+            "POST",
+            "/api/locate",
+            Some(r#"{"pair":0,"u":-5,"v":2}"#),
+            400,
+        ),
+        (
+            "POST",
+            "/api/locate",
+            Some(r#"{"pair":0,"u":100000,"v":2}"#),
+            400,
+        ),
+        (
+            "POST",
+            "/api/locate",
+            Some(r#"{"pair":3,"u":1,"v":2}"#),
+            400,
+        ),
+        ("POST", "/api/locate", Some(&big), 413),
+        ("GET", "/api/locate", None, 405),
+        ("POST", "/api/retrain", Some(r#"{"use":[true]}"#), 400),
+        ("GET", "/api/captures", None, 404),
+        ("GET", "/api/frame/1/left", None, 404),
+        ("GET", "/api/frame/0/top", None, 404),
+        ("GET", "/api/frame/x/left", None, 400),
+        ("GET", "/api/frame/0/..%2f..%2fCargo.toml", None, 404),
+        ("GET", "/../../Cargo.toml", None, 404),
+        ("GET", "/etc/passwd", None, 404),
+        ("GET", "/app.js/../../Cargo.toml", None, 404),
+    ];
+    for (method, path, body, want) in bad {
+        let (st, b) = http(&sv.addr, method, path, body.map(str::as_bytes));
+        let text = String::from_utf8_lossy(&b);
+        assert_eq!(
+            st,
+            want,
+            "{method} {path}: {}",
+            &text[..text.len().min(300)]
+        );
+        assert!(
+            !text.contains("[package]") && !text.contains("root:"),
+            "{path}"
+        );
+        json(&sv.addr, "GET", "/api/session", None, 200);
+    }
+    // Not HTTP at all.
+    let mut c = TcpStream::connect(&sv.addr).unwrap();
+    c.write_all(b"\x00\x01garbage\r\n\r\n").unwrap();
+    let (st, _) = raw_response(c);
+    assert_eq!(st, 400);
+    // A body sent without a JSON content type.
+    let mut c = TcpStream::connect(&sv.addr).unwrap();
+    c.write_all(
+        b"POST /api/locate HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 2\r\n\r\n{}",
+    )
+    .unwrap();
+    assert_eq!(raw_response(c).0, 415);
+    json(&sv.addr, "GET", "/api/session", None, 200);
+}
+
+#[test]
+fn view_needs_the_token_off_loopback() {
+    let f = fixture();
+    let sv = start(&[
+        "--model",
+        s(&f.model),
+        "--left",
+        s(&f.left),
+        "--right",
+        s(&f.right),
+        "--listen",
+        "0.0.0.0:0",
+    ]);
+    let token = sv
+        .url
+        .split("?token=")
+        .nth(1)
+        .expect("a token in the URL")
+        .to_string();
+    assert_eq!(token.len(), 32);
+    assert!(token.bytes().all(|b| b.is_ascii_hexdigit()), "{token}");
+    for path in ["/", "/app.js", "/api/session", "/api/frame/0/left"] {
+        assert_eq!(
+            http(&sv.addr, "GET", path, None).0,
+            403,
+            "{path} without a token"
+        );
+        let wrong = format!("{path}?token={}", "0".repeat(32));
+        assert_eq!(
+            http(&sv.addr, "GET", &wrong, None).0,
+            403,
+            "{path} with a wrong token"
+        );
+        let right = format!("{path}?token={token}");
+        assert_eq!(
+            http(&sv.addr, "GET", &right, None).0,
+            200,
+            "{path} with the token"
+        );
+    }
+    let body = r#"{"pair":0,"u":3,"v":3}"#;
+    assert_eq!(
+        http(&sv.addr, "POST", "/api/locate", Some(body.as_bytes())).0,
+        403
+    );
+    json(
+        &sv.addr,
+        "POST",
+        &format!("/api/locate?token={token}"),
+        Some(body),
+        200,
+    );
+    // Another start, another token; loopback needs none.
+    let again = start(&[
+        "--model",
+        s(&f.model),
+        "--left",
+        s(&f.left),
+        "--right",
+        s(&f.right),
+        "--listen",
+        "0.0.0.0:0",
+    ]);
+    assert!(!again.url.contains(&token));
+    let local = start_pair();
+    assert!(!local.url.contains("token"), "{}", local.url);
+}
+
+#[test]
+fn view_retrains_a_capture_set_on_the_ticked_pairs() {
+    let f = fixture();
+    let sv = start(&[
+        "--model",
+        s(&f.model),
+        "--board",
+        s(&f.shots.join("board.json")),
+        "--captures",
+        s(&f.shots.join("captures.csv")),
+        "--restarts",
+        "1",
+    ]);
+    let session = json(&sv.addr, "GET", "/api/session", None, 200);
+    assert_eq!(session["captures"], true);
+    let c = json(&sv.addr, "GET", "/api/captures", None, 200);
+    let pairs = c["pairs"].as_array().unwrap();
+    assert_eq!(pairs.len(), 3);
+    for p in pairs {
+        assert_eq!(p["found"], true, "{p}");
+        assert_eq!(p["corners"], 54);
+        let h = p["homography_rms_px"].as_array().unwrap();
+        assert!(h.iter().all(|v| v.as_f64().unwrap() < 0.5), "{p}");
+        assert!(p["epipolar"]["median_px"].as_f64().unwrap() < 0.5, "{p}");
+    }
+    assert!(c["sampson_rms_px"].as_f64().unwrap() < 0.5);
+    // The corners drawn on a pair.
+    let (st, png) = http(&sv.addr, "GET", "/api/frame/1/left-corners", None);
+    assert_eq!(st, 200);
+    let drawn = image::load_from_memory(&png).unwrap().to_rgb8();
+    assert!(
+        drawn.pixels().any(|p| p[0] != p[1] || p[1] != p[2]),
+        "colour marks drawn"
+    );
+    let all = json(
+        &sv.addr,
+        "POST",
+        "/api/retrain",
+        Some(r#"{"use":[true,true,true]}"#),
+        200,
+    );
+    assert_eq!(
+        (all["pairs"].as_u64(), all["points"].as_u64()),
+        (Some(3), Some(162))
+    );
+    let two = json(
+        &sv.addr,
+        "POST",
+        "/api/retrain",
+        Some(r#"{"use":[true,false,true]}"#),
+        200,
+    );
+    assert_eq!(
+        (two["pairs"].as_u64(), two["points"].as_u64()),
+        (Some(2), Some(108))
+    );
+    let (s3, s2) = (
+        all["summary"].as_str().unwrap(),
+        two["summary"].as_str().unwrap(),
+    );
+    assert!(
+        s3.contains("on 162 points") && s2.contains("on 108 points"),
+        "{s3}\n{s2}"
+    );
+    assert_ne!(all["train_error_pct"], two["train_error_pct"]);
+    // The same ticks, the same summary numbers (seeded).
+    let again = json(
+        &sv.addr,
+        "POST",
+        "/api/retrain",
+        Some(r#"{"use":[true,false,true]}"#),
+        200,
+    );
+    assert_eq!(again["train_error_pct"], two["train_error_pct"]);
+    json(
+        &sv.addr,
+        "POST",
+        "/api/retrain",
+        Some(r#"{"use":[true]}"#),
+        400,
+    );
+    json(
+        &sv.addr,
+        "POST",
+        "/api/retrain",
+        Some(r#"{"use":[false,false,false]}"#),
+        422,
+    );
+    // Clicks work on a capture pair too.
+    let r = json(
+        &sv.addr,
+        "POST",
+        "/api/locate",
+        Some(r#"{"pair":2,"u":3,"v":3}"#),
+        200,
+    );
+    assert!(r["line"].as_str().is_some());
+}
+
+#[test]
+fn view_names_bad_inputs_and_stops_on_ctrl_c() {
+    let f = fixture();
+    let missing = f.shots.join("nope.png");
+    let err = crate::common::stderr_with_code(
+        [
+            "view",
+            "--model",
+            s(&f.model),
+            "--left",
+            s(&missing),
+            "--right",
+            s(&f.right),
+            "--listen",
+            "127.0.0.1:0",
+        ],
+        1,
+    );
+    assert!(
+        err.starts_with("error: ") && err.contains("nope.png"),
+        "{err}"
+    );
+    let err = crate::common::stderr_with_code(
+        [
+            "view",
+            "--model",
+            s(&f.model),
+            "--left",
+            s(&f.left),
+            "--right",
+            s(&f.right),
+            "--listen",
+            "here",
+        ],
+        2,
+    );
+    assert!(err.contains("--listen"), "{err}");
+    hvs()
+        .args(["view", "--model", s(&f.model)])
+        .assert()
+        .code(2);
+    // SIGINT stops it at once, even with a client connected.
+    let mut sv = start_pair();
+    let _idle = TcpStream::connect(&sv.addr).unwrap();
+    let t0 = Instant::now();
+    unsafe { libc::kill(sv.child.id() as i32, libc::SIGINT) };
+    loop {
+        if let Some(st) = sv.child.try_wait().unwrap() {
+            assert!(st.success(), "{st:?}");
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(3),
+            "still running after SIGINT"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Measurement, not a check of speed: click-to-answer latency over HTTP and 20 clients
+/// polling frames (`HVS_VIEW_LOAD_SECS`, default 60 s), with the server's memory.
+/// `cargo test --release -p hvs-host --test cli load_view -- --ignored --nocapture`
+#[test]
+#[ignore]
+fn load_view_click_latency_and_20_polling_clients() {
+    let f = fixture();
+    let sv = start_pair();
+    let mut ms = Vec::new();
+    for (k, [u, v]) in f.corners.iter().cycle().take(100).enumerate() {
+        let body = format!(r#"{{"pair":0,"u":{},"v":{}}}"#, u + (k as i64 % 3), v);
+        let t0 = Instant::now();
+        json(&sv.addr, "POST", "/api/locate", Some(&body), 200);
+        ms.push(t0.elapsed().as_secs_f64() * 1e3);
+    }
+    ms.sort_by(f64::total_cmp);
+    println!(
+        "click to answer over HTTP (100 clicks): median {:.2} ms, 95th percentile {:.2} ms, max {:.2} ms",
+        ms[50], ms[95], ms[99]
+    );
+    let secs: u64 = std::env::var("HVS_VIEW_LOAD_SECS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(60);
+    let rss = || {
+        let st = std::fs::read_to_string(format!("/proc/{}/status", sv.child.id())).unwrap();
+        st.lines()
+            .find_map(|l| l.strip_prefix("VmRSS:"))
+            .map(|v| v.trim().to_string())
+            .unwrap()
+    };
+    println!("server memory before: {}", rss());
+    let end = Instant::now() + Duration::from_secs(secs);
+    let clients: Vec<_> = (0..20)
+        .map(|_| {
+            let addr = sv.addr.clone();
+            std::thread::spawn(move || {
+                let mut frames = 0u64;
+                while Instant::now() < end {
+                    for side in ["left", "right"] {
+                        let (st, b) = http(&addr, "GET", &format!("/api/frame/0/{side}"), None);
+                        assert!(st == 200 && b.len() > 1000);
+                    }
+                    frames += 1;
+                }
+                frames
+            })
+        })
+        .collect();
+    let mut mid = String::new();
+    std::thread::sleep(Duration::from_secs(secs / 2));
+    mid.push_str(&rss());
+    let frames: Vec<u64> = clients.into_iter().map(|c| c.join().unwrap()).collect();
+    let rates: Vec<f64> = frames.iter().map(|&n| n as f64 / secs as f64).collect();
+    let min = rates.iter().copied().fold(f64::INFINITY, f64::min);
+    let mean = rates.iter().sum::<f64>() / rates.len() as f64;
+    println!(
+        "20 clients polling both frames for {secs} s: {:.1} to {:.1} pairs/s per client (mean {mean:.1}); memory at half time {mid}, at the end {}",
+        min,
+        rates.iter().copied().fold(0.0, f64::max),
+        rss()
+    );
+}
+
+/// Where the browser test leaves its screenshots.
+fn screenshot_dir() -> PathBuf {
+    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/view-screenshots");
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A chromedriver started on a free port, killed when dropped.
+struct Driver {
+    child: Child,
+    url: String,
+    _profile: tempfile::TempDir,
+}
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn chromedriver() -> Driver {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let child = Command::new("/usr/bin/chromedriver")
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("/usr/bin/chromedriver (apt-get install chromium chromium-driver)");
+    let t0 = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "chromedriver does not listen"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Driver {
+        child,
+        url: format!("http://127.0.0.1:{port}"),
+        _profile: tempfile::tempdir().unwrap(),
+    }
+}
+
+async fn browser(d: &Driver) -> fantoccini::Client {
+    let profile = format!("--user-data-dir={}", d._profile.path().display());
+    let args = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--window-size=1400,1000",
+        profile.as_str(),
+    ];
+    let mut caps = serde_json::Map::new();
+    caps.insert(
+        "goog:chromeOptions".into(),
+        serde_json::json!({"binary": "/usr/bin/chromium", "args": args}),
+    );
+    fantoccini::ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
+        .capabilities(caps)
+        .connect(&d.url)
+        .await
+        .expect("a chromium session")
+}
+
+/// Polls `js` (an expression) until it is truthy; returns its value.
+async fn wait_js(c: &fantoccini::Client, js: &str) -> Value {
+    let t0 = Instant::now();
+    loop {
+        let v = c.execute(&format!("return {js};"), vec![]).await.unwrap();
+        if !(v.is_null() || v == false || v == "" || v == 0) {
+            return v;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "waited 60 s for {js}"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+async fn text(c: &fantoccini::Client, id: &str) -> String {
+    c.find(fantoccini::Locator::Id(id))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap()
+}
+
+async fn shot(c: &fantoccini::Client, name: &str) {
+    let png = c.screenshot().await.unwrap();
+    let p = screenshot_dir().join(name);
+    std::fs::write(&p, png).unwrap();
+    eprintln!("screenshot: {}", p.display());
+}
+
+/// Clicks the left image at pixel `(u, v)` (shown at its natural size) with the mouse.
+async fn click_left(c: &fantoccini::Client, u: i64, v: i64) {
+    use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+    let img = c.find(fantoccini::Locator::Id("left")).await.unwrap();
+    let size = c
+        .execute(
+            "const i = document.getElementById('left'); return [i.naturalWidth, i.naturalHeight, i.clientWidth, i.clientHeight];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    let n: Vec<f64> = size
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(
+        (n[0], n[1]),
+        (n[2], n[3]),
+        "the left image is shown at its natural size"
+    );
+    let mouse = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: img,
+            duration: None,
+            x: (u as f64 + 0.5 - n[0] / 2.0).round(),
+            y: (v as f64 + 0.5 - n[1] / 2.0).round(),
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    c.perform_actions(mouse).await.unwrap();
+}
+
+/// The real browser: frames shown, a click answered with `hvs locate --at`'s numbers, and a
+/// capture set's summary changed by unticking a pair. Screenshots in target/view-screenshots/.
+#[test]
+#[ignore]
+fn browser_click_and_retrain_in_chromium() {
+    let f = fixture();
+    let driver = chromedriver();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let c = browser(&driver).await;
+        // A still pair: frames, then clicks on three board corners.
+        let sv = start_pair();
+        c.goto(&sv.url).await.unwrap();
+        wait_js(&c, "document.getElementById('frames-status').dataset.loaded").await;
+        wait_js(&c, "document.getElementById('left').naturalWidth > 0 && document.getElementById('right').naturalWidth > 0").await;
+        assert!(text(&c, "model-info").await.contains("topology:"));
+        let mut oks = 0;
+        for (k, &[u, v]) in f.corners.iter().step_by(11).take(3).enumerate() {
+            click_left(&c, u, v).await;
+            wait_js(&c, &format!("Number(document.getElementById('point').dataset.answered || 0) >= {}", k + 1)).await;
+            // The pixel the page asked for (WebDriver moves the mouse by whole CSS pixels
+            // from the element's centre): within a pixel of the one aimed at.
+            let at = text(&c, "at").await;
+            let (pu, pv) = at.split_once(',').unwrap();
+            let (pu, pv): (i64, i64) = (pu.parse().unwrap(), pv.parse().unwrap());
+            assert!((pu - u).abs() <= 1 && (pv - v).abs() <= 1, "aimed at {u},{v}, the page asked for {at}");
+            let line = locate_at(pu, pv);
+            assert_eq!(text(&c, "line").await, line);
+            let status = text(&c, "status").await;
+            if status == "ok" {
+                oks += 1;
+                let shown = format!(
+                    "u_r={} v_r={} x={} y={} z={} cm (score {})",
+                    text(&c, "u_r").await,
+                    text(&c, "v_r").await,
+                    text(&c, "x").await,
+                    text(&c, "y").await,
+                    text(&c, "z").await,
+                    text(&c, "score").await
+                );
+                assert_eq!(shown, line, "X, Y, Z read off the page");
+            }
+            eprintln!("clicked {at}: {line}; {}", text(&c, "ms").await);
+        }
+        assert!(oks >= 2, "{oks} of 3 corners located");
+        shot(&c, "pair-click.png").await;
+        drop(sv);
+        // A capture set: untick a pair, retrain, the summary changes.
+        let sv = start(&[
+            "--model",
+            s(&f.model),
+            "--board",
+            s(&f.shots.join("board.json")),
+            "--captures",
+            s(&f.shots.join("captures.csv")),
+            "--restarts",
+            "1",
+        ]);
+        c.goto(&sv.url).await.unwrap();
+        wait_js(&c, "document.querySelectorAll('input.use').length === 3").await;
+        wait_js(&c, "document.getElementById('frames-status').dataset.loaded").await;
+        c.find(fantoccini::Locator::Id("retrain")).await.unwrap().click().await.unwrap();
+        wait_js(&c, "document.getElementById('summary').dataset.runs === '1'").await;
+        let first = text(&c, "summary").await;
+        assert!(first.starts_with("3 pairs, 162 points"), "{first}");
+        c.find(fantoccini::Locator::Css("input.use[data-k='1']"))
+            .await
+            .unwrap()
+            .click()
+            .await
+            .unwrap();
+        c.find(fantoccini::Locator::Id("retrain")).await.unwrap().click().await.unwrap();
+        wait_js(&c, "document.getElementById('summary').dataset.runs === '2'").await;
+        let second = text(&c, "summary").await;
+        assert!(second.starts_with("2 pairs, 108 points"), "{second}");
+        assert_ne!(first, second);
+        assert_eq!(text(&c, "summary-before").await, first);
+        c.find(fantoccini::Locator::Id("show-corners")).await.unwrap().click().await.unwrap();
+        wait_js(&c, "document.getElementById('left').src.includes('left-corners') && document.getElementById('left').complete").await;
+        shot(&c, "captures-retrain.png").await;
+        c.execute("document.getElementById('summary').scrollIntoView({block: 'end'});", vec![])
+            .await
+            .unwrap();
+        shot(&c, "captures-table.png").await;
+        c.close().await.unwrap();
+    });
+}
