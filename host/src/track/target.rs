@@ -25,8 +25,10 @@ use image::GrayImage;
 pub const MIN_CLUSTER: usize = 3;
 /// Spacing of the dense matches in the target's region (px).
 pub const DENSE_STEP: i32 = 3;
-/// Spacing of the coarse grid (full-resolution px).
-const GRID_STEP: i32 = 16;
+/// Spacing of the coarse grid (full-resolution px): a 40th of the image width, at least 4.
+fn grid_step(w: i32) -> i32 {
+    (w / 40).max(4)
+}
 /// Share of the image width and height, around the centre, searched for the nearest object.
 const FRONT_SHARE: f64 = 0.7;
 /// Largest |disparity| searched at half resolution (half-resolution px).
@@ -250,8 +252,21 @@ fn depth_of(est: &Estimator, joints: &Joints, l: [i32; 2], r: [f64; 2]) -> Optio
         u_r: r[0] as f32,
         v_r: r[1] as f32,
     };
+    // Only estimates inside the model's training box: far outside it (the wall behind the
+    // objects) a net extrapolates to anything, nearer than the nearest object included.
+    // (The outputs only: the pixels of a board protocol cover a small box of the image.)
     let e = est.estimate(&p, joints).ok()?;
-    (e.z.is_finite() && e.z > 0.0).then_some(e.z)
+    let plausible = match est {
+        Estimator::Network(n) => {
+            let mut x = [0.0f32; 9];
+            x[..4].copy_from_slice(&p.to_array());
+            x[4..].copy_from_slice(&joints.0);
+            let k = n.blob.n_inputs().min(9);
+            hvs_shared::runtime::head::outputs_in_range(&n.blob, &x[..k], &[e.x, e.y, e.z])
+        }
+        Estimator::Fallback(_) => true,
+    };
+    (plausible && e.z.is_finite() && e.z > 0.0).then_some(e.z)
 }
 
 fn in_band(z: f32, zc: f32) -> bool {
@@ -362,9 +377,9 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
             if let Some(p) = coarse_match_in(&lh, &rh, l, r, [x, y], joints, est) {
                 pts.push(p);
             }
-            x += GRID_STEP;
+            x += grid_step(l.w);
         }
-        y += GRID_STEP;
+        y += grid_step(l.w);
     }
     pts.sort_by(|a, b| a.z.total_cmp(&b.z));
     for p in &pts {
@@ -391,7 +406,7 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
                 centre: [cu, cv],
                 offset: [du, dv],
                 z: median(members.iter().map(|q| q.z).collect()),
-                extent: extent + f64::from(GRID_STEP),
+                extent: extent + f64::from(grid_step(l.w)),
             });
         }
     }
