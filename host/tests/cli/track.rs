@@ -95,17 +95,10 @@ fn track_refuses_bad_input_with_one_clear_line() {
     let bad = scene(&dir, r#", "colour": 3"#);
     let log = dir.p("log.csv");
     let base = |sc: &str, extra: &[&str]| {
-        let mut v = vec![
-            "track",
-            "--model",
-            &m,
-            "--scene",
-            sc,
-            "--seconds",
-            "0.1",
-            "--log",
-            &log,
-        ];
+        let mut v = vec!["track", "--model", &m, "--scene", sc, "--log", &log];
+        if !extra.contains(&"--seconds") {
+            v.extend(["--seconds", "0.1"]);
+        }
         v.extend_from_slice(extra);
         v.into_iter().map(String::from).collect::<Vec<_>>()
     };
