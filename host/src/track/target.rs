@@ -120,8 +120,7 @@ impl Plane {
 /// ZNCC of the left window at `(cl, rl)` and the right one at `(cr, rr)`.
 fn zncc(
     l: &Plane,
-    cl: i32,
-    rl: i32,
+    (cl, rl): (i32, i32),
     stats_l: (f32, f32),
     r: &Plane,
     cr: i32,
@@ -176,7 +175,7 @@ fn search(
     for x in c0..=c1 {
         let mut col = -2.0f32;
         for y in r0..=r1 {
-            let s = zncc(l, cl, rl, st, r, x, y, rad);
+            let s = zncc(l, (cl, rl), st, r, x, y, rad);
             col = col.max(s);
             if s > best.0 {
                 best = (s, x, y);
@@ -206,14 +205,14 @@ fn search(
         }
     };
     let sx = sub(
-        zncc(l, cl, rl, st, r, x - 1, y, rad),
+        zncc(l, (cl, rl), st, r, x - 1, y, rad),
         s,
-        zncc(l, cl, rl, st, r, x + 1, y, rad),
+        zncc(l, (cl, rl), st, r, x + 1, y, rad),
     );
     let sy = sub(
-        zncc(l, cl, rl, st, r, x, y - 1, rad),
+        zncc(l, (cl, rl), st, r, x, y - 1, rad),
         s,
-        zncc(l, cl, rl, st, r, x, y + 1, rad),
+        zncc(l, (cl, rl), st, r, x, y + 1, rad),
     );
     Some((
         f64::from(x) + f64::from(sx),
