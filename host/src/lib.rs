@@ -14,6 +14,8 @@
 //! - [`study`]: the thesis' chapter-4 experiments and the posture study: facts computed and
 //!   unit-tested, plots (`plotters`), and the reports written from templates.
 //! - [`vision`]: image files around `hvs-vision` (board photos into a training set).
+//! - [`track`]: the head in the loop: scene files, the simulated head and its virtual
+//!   cameras, target finding, the loop of `hvs track`.
 //! - [`device`]: the head as a device: the protocol link (TCP or serial), the client of its
 //!   requests, QEMU emulation, and flash images / probe-rs.
 //! - [`view`]: `hvs view`'s local web page (axum on tokio) over the libraries above.
@@ -27,6 +29,7 @@ pub mod fmt;
 pub mod infer;
 pub mod sim;
 pub mod study;
+pub mod track;
 pub mod train;
 pub mod view;
 pub mod vision;

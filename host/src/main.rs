@@ -30,6 +30,8 @@ enum Command {
     Experiment(cmd::experiment::Args),
     /// Stereo photos of a chessboard through a rig, with exact corner truth.
     Render(cmd::render::Args),
+    /// The head in the loop on a virtual scene: keeps a target in the middle of both eyes.
+    Track(cmd::track::Args),
     /// Board photos into a training set (`hvs board detect`).
     Board(cmd::board::Args),
     Locate(cmd::locate::Args),
@@ -55,6 +57,7 @@ fn main() {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Experiment(a) => cmd::experiment::run(a),
         Command::Render(a) => cmd::render::run(a),
+        Command::Track(a) => cmd::track::run(a),
         Command::Board(a) => cmd::board::run(a),
         Command::Locate(a) => cmd::locate::run(a),
         Command::Emulate(a) => cmd::emulate::run(&a),

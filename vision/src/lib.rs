@@ -6,6 +6,8 @@
 //! - [`geometry`]: homographies and the fundamental matrix (normalised 8-point + refinement,
 //!   or from two pinhole cameras).
 //! - [`render`]: stereo images of a board through a rig, with exact corner truth.
+//! - [`scene`]: textured objects in front of a wall, moving in time, rendered with per-pixel
+//!   truth (depth, object, the true match of a left pixel).
 //! - [`matching`]: one point of the left image found in the right one (ZNCC on the epipolar line).
 //! - [`overlay`]: drawing what was found, for a user to look at.
 //! - [`invalid`]: the out-of-range parameter error of [`matching`] and [`render`].
@@ -19,3 +21,4 @@ pub mod invalid;
 pub mod matching;
 pub mod overlay;
 pub mod render;
+pub mod scene;

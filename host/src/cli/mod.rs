@@ -16,6 +16,7 @@ pub mod locate;
 pub mod predict;
 pub mod render;
 pub mod simulate;
+pub mod track;
 pub mod train;
 pub mod train_update;
 pub mod view;

@@ -21,5 +21,6 @@ mod posture_cli;
 mod qemu_cli;
 mod real_pair;
 mod safe_outputs_and_strict_inputs;
+mod track;
 mod train_update;
 mod view;

@@ -3,10 +3,12 @@
 //!
 //! Nothing here depends on [`crate::sim`]; the dependencies inside run one way:
 //! `mlp` <- `blob` <- `head`; `gaze` <- `trajectory`, `servo`, `head`; `slots` and `layout` are
-//! pure rules that `head` (boot) and the host (`hvs flash`) share.
+//! pure rules that `head` (boot) and the host (`hvs flash`) share; `head` and `gaze` <- `fixation`
+//! (the closed loop's step: pixels and joints to joint targets).
 
 pub mod activation;
 pub mod blob;
+pub mod fixation;
 pub mod gaze;
 pub mod head;
 pub mod layout;

@@ -1,0 +1,185 @@
+//! `hvs track`: the head in the loop on a virtual scene (`host::track`): keeps the nearest
+//! object (or the one under a pixel) in the middle of both eyes, one log row per frame.
+
+use crate::data::csv::{write_atomically, write_bytes};
+use crate::track::{self, frames::VirtualCameras, head_sim::VirtualHead, target::TargetMode};
+use anyhow::{anyhow, bail, Result};
+use hvs_shared::runtime::trajectory::ControllerConfig;
+use hvs_shared::sim::posture::HeadRig;
+use hvs_vision::render::RenderOptions;
+use std::path::PathBuf;
+
+/// Where the loop's logic runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum HeadKind {
+    /// The `shared::runtime` logic on the host.
+    Emulate,
+    /// The firmware in QEMU (not yet).
+    Qemu,
+}
+
+/// Arguments of `hvs track`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The model (.hvsw): a stereo or posture-aware net.
+    #[arg(long, value_name = "M.hvsw")]
+    pub model: PathBuf,
+    /// The scene (JSON: rig, camera_fps, background, objects; see README).
+    #[arg(long, value_name = "SCENE.json")]
+    pub scene: PathBuf,
+    /// Simulated time (s).
+    #[arg(long, value_name = "S")]
+    pub seconds: f64,
+    /// The log: one row per frame.
+    #[arg(long, value_name = "LOG.csv")]
+    pub log: PathBuf,
+    /// Where the loop runs.
+    #[arg(long, value_enum, default_value = "emulate")]
+    pub head: HeadKind,
+    /// `nearest` (the nearest object in the front region) or `U,V` (the object under this left
+    /// pixel at the start, then followed).
+    #[arg(long, value_name = "nearest|U,V", default_value = "nearest")]
+    pub target: String,
+    /// Writes every frame (leftNNNN.png, rightNNNN.png) and CAPTURES.csv with the joint columns.
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
+    /// Share of the kinematics' measured miss taken into the correction per frame (0 = the
+    /// kinematics alone, no image correction).
+    #[arg(long, value_name = "G", default_value_t = 0.5)]
+    pub correction_gain: f32,
+    /// Seed of the cameras' sensor noise (same seed, same log bytes).
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    pub seed: u64,
+}
+
+fn parse_target(s: &str) -> Result<TargetMode> {
+    if s == "nearest" {
+        return Ok(TargetMode::Nearest);
+    }
+    let p: Vec<&str> = s.split(',').collect();
+    match p.as_slice() {
+        [u, v] => {
+            let (u, v) = (u.trim().parse::<f64>(), v.trim().parse::<f64>());
+            match (u, v) {
+                (Ok(u), Ok(v)) if u.is_finite() && v.is_finite() => Ok(TargetMode::Pixel([u, v])),
+                _ => Err(crate::cli::usage(format!(
+                    "--target: expected nearest or U,V (two numbers), got {s:?}"
+                ))),
+            }
+        }
+        _ => Err(crate::cli::usage(format!(
+            "--target: expected nearest or U,V, got {s:?}"
+        ))),
+    }
+}
+
+/// `hvs track`.
+pub fn run(a: Args) -> Result<()> {
+    if a.head == HeadKind::Qemu {
+        bail!("--head qemu: not yet (the protocol has no posture command yet); use --head emulate");
+    }
+    if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
+        return Err(crate::cli::usage(format!(
+            "--seconds: must be > 0 and at most 3600, got {}",
+            a.seconds
+        )));
+    }
+    if !(a.correction_gain.is_finite() && (0.0..=1.0).contains(&a.correction_gain)) {
+        return Err(crate::cli::usage(format!(
+            "--correction-gain: must be from 0 to 1, got {}",
+            a.correction_gain
+        )));
+    }
+    let target = parse_target(&a.target)?;
+    let mut inputs = vec![
+        ("--model", a.model.as_path()),
+        ("--scene", a.scene.as_path()),
+    ];
+    crate::data::output::check_outputs(&[("--log", a.log.as_path())], &inputs)?;
+    if let Some(dir) = &a.record {
+        crate::data::output::check_dir_output("--record", dir)?;
+        inputs.push(("--log", a.log.as_path()));
+    }
+    let model = crate::data::model::load(&a.model)?;
+    let estimator =
+        track::estimator_of(model.blob).map_err(|e| anyhow!("{}: {e}", a.model.display()))?;
+    let loaded = track::scene_file::load(&a.scene)?;
+    let (w, h) = (loaded.rig.width, loaded.rig.height);
+    if let TargetMode::Pixel([u, v]) = target {
+        if !(u >= 0.0 && v >= 0.0 && u <= f64::from(w) - 1.0 && v <= f64::from(h) - 1.0) {
+            return Err(crate::cli::usage(format!(
+                "--target: {u},{v} is outside the {w}x{h} left image"
+            )));
+        }
+    }
+    let cfg = track::TrackConfig {
+        seconds: a.seconds,
+        fps: loaded.scene.camera_fps,
+        target,
+        loop_cfg: track::loop_config(&loaded.rig, a.correction_gain),
+    };
+    let opt = RenderOptions {
+        supersample: 4,
+        ..RenderOptions::default()
+    };
+    let mut cameras = VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, opt, a.seed);
+    let mut head = VirtualHead::new(&ControllerConfig::DEFAULT)?;
+    let stop = track::stop_on_interrupt();
+    let mut recorded = Vec::new();
+    let record = a.record.is_some();
+    let rows = track::run(
+        &mut cameras,
+        &mut head,
+        &estimator,
+        &cfg,
+        stop,
+        |frame, row| {
+            if record {
+                recorded.push((
+                    crate::vision::png_bytes(&frame.left)?,
+                    crate::vision::png_bytes(&frame.right)?,
+                    row.joints,
+                    frame
+                        .truth
+                        .as_ref()
+                        .and_then(|t| t.scene.objects.first().map(|o| o.centre)),
+                ));
+            }
+            Ok(())
+        },
+    )?;
+    let text = track::log_csv(&rows);
+    write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
+    if let Some(dir) = &a.record {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
+        let mut csv = String::from("left,right,z,x,y,");
+        csv.push_str(&crate::data::dataset::JOINT_COLUMNS.join(","));
+        csv.push('\n');
+        for (k, (l, r, joints, centre)) in recorded.iter().enumerate() {
+            let (ln, rn) = (format!("left{k:04}.png"), format!("right{k:04}.png"));
+            write_bytes(&dir.join(&ln), l)?;
+            write_bytes(&dir.join(&rn), r)?;
+            let [x, y, z] = centre.unwrap_or([f64::NAN; 3]);
+            csv.push_str(&format!("{ln},{rn},{z},{x},{y}"));
+            for j in joints.0 {
+                csv.push_str(&format!(",{j}"));
+            }
+            csv.push('\n');
+        }
+        write_bytes(&dir.join("CAPTURES.csv"), csv.as_bytes())?;
+    }
+    let tracked = rows.iter().filter(|r| r.status == "tracking").count();
+    eprintln!(
+        "{} frames ({} tracking) -> {}{}",
+        rows.len(),
+        tracked,
+        a.log.display(),
+        if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            " (interrupted)"
+        } else {
+            ""
+        }
+    );
+    Ok(())
+}

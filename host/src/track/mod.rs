@@ -1,0 +1,231 @@
+//! The head in the loop: frames -> target -> X, Y, Z -> joint targets -> servos -> frames.
+//!
+//! - [`scene_file`]: scene files (the `hvs_vision::scene` JSON with its rig).
+//! - [`head_sim`]: the simulated head (servos following the commanded trajectories).
+//! - [`frames`]: the [`frames::FrameSource`] interface and the virtual cameras.
+//! - [`target`]: finding the target (nearest object, or the object under a pixel, followed).
+//!
+//! [`run`] is the loop of `hvs track --head emulate`: at each camera frame (time
+//! `k / camera_fps`) the servos' posture is read, the pair grabbed, the target found, and
+//! [`hvs_shared::runtime::fixation::step`] (the same step the head runs) gives the joint
+//! targets the servos then follow until the next frame. One [`LogRow`] per frame.
+
+pub mod frames;
+pub mod head_sim;
+pub mod scene_file;
+pub mod target;
+
+use anyhow::Result;
+use frames::{Frame, FrameSource};
+use head_sim::VirtualHead;
+use hvs_shared::runtime::fixation::{self, LoopConfig, LoopState, LoopStatus, Observation};
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::runtime::head::Estimator;
+use hvs_shared::runtime::protocol::StereoPoint;
+use std::fmt::Write as _;
+use std::sync::atomic::{AtomicBool, Ordering};
+use target::{Finder, TargetMode};
+
+/// The columns of `LOG.csv`.
+pub const LOG_HEADER: &str = "t_s,frame,status,u_l,v_l,u_r,v_r,x,y,z,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan,err_l_px,err_r_px";
+
+/// One frame of the loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogRow {
+    /// Time of the frame (s).
+    pub t_s: f64,
+    /// Frame number from 0.
+    pub frame: u64,
+    /// `tracking`, `image_only` or `lost`.
+    pub status: &'static str,
+    /// The target's pixels as found.
+    pub px: Option<[f64; 4]>,
+    /// The estimate (cm, head frame).
+    pub xyz: Option<[f32; 3]>,
+    /// The joints when the frame was taken (degrees).
+    pub joints: Joints,
+    /// With a virtual scene: distance from each image's centre `(u0, v0)` to the projection
+    /// of the tracked object's true centre (px).
+    pub err_px: Option<[f64; 2]>,
+}
+
+/// `LOG.csv` of `rows`.
+pub fn log_csv(rows: &[LogRow]) -> String {
+    let mut s = String::with_capacity(160 * (rows.len() + 1));
+    s.push_str(LOG_HEADER);
+    s.push('\n');
+    let opt = |s: &mut String, v: Option<f64>| {
+        s.push(',');
+        if let Some(v) = v {
+            let _ = write!(s, "{v:.3}");
+        }
+    };
+    for r in rows {
+        let _ = write!(s, "{:.4},{},{}", r.t_s, r.frame, r.status);
+        for k in 0..4 {
+            opt(&mut s, r.px.map(|p| p[k]));
+        }
+        for k in 0..3 {
+            opt(&mut s, r.xyz.map(|p| f64::from(p[k])));
+        }
+        for j in r.joints.0 {
+            let _ = write!(s, ",{j:.2}");
+        }
+        for k in 0..2 {
+            opt(&mut s, r.err_px.map(|e| e[k]));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// Settings of one run.
+#[derive(Debug, Clone, Copy)]
+pub struct TrackConfig {
+    /// Simulated time (s).
+    pub seconds: f64,
+    /// Camera frame rate.
+    pub fps: f64,
+    /// Which target.
+    pub target: TargetMode,
+    /// The loop step's settings.
+    pub loop_cfg: LoopConfig,
+}
+
+/// The tracked object's true error in each image, from the frame's truth: the object most of
+/// the target's points lie on, its centre projected by the true cameras, against `centre`.
+fn true_error(frame: &Frame, found: &target::Found, centre: [f64; 2]) -> Option<[f64; 2]> {
+    let r = frame.truth.as_ref()?;
+    let mut counts = std::collections::BTreeMap::new();
+    for p in &found.points {
+        if let Some((_, id)) = r.truth_left.hit(p[0] as u32, p[1] as u32) {
+            *counts.entry(id).or_insert(0usize) += 1;
+        }
+    }
+    let (&id, _) = counts
+        .iter()
+        .max_by_key(|(id, n)| (**n, std::cmp::Reverse(**id)))?;
+    if id == hvs_vision::scene::BACKGROUND || id == hvs_vision::scene::NONE {
+        return None;
+    }
+    let c = r.scene.objects.get(usize::from(id) - 1)?.centre;
+    let e = |cam: usize| {
+        let p = r.cameras[cam].project(&c)?;
+        Some((p[0] - centre[0]).hypot(p[1] - centre[1]))
+    };
+    Some([e(0)?, e(1)?])
+}
+
+/// Runs the loop for `cfg.seconds` (or until `stop` is set): the rows of the log. Frame
+/// errors end the run with the error (the rows so far are lost only to the caller that
+/// drops them: `on_row` sees each row as it is made).
+pub fn run(
+    source: &mut dyn FrameSource,
+    head: &mut VirtualHead,
+    estimator: &Estimator,
+    cfg: &TrackConfig,
+    stop: &AtomicBool,
+    mut on_row: impl FnMut(&Frame, &LogRow) -> Result<()>,
+) -> Result<Vec<LogRow>> {
+    let frames = (cfg.seconds * cfg.fps).floor() as u64;
+    let mut finder = Finder::new(cfg.target);
+    let mut state = LoopState::default();
+    let mut rows = Vec::with_capacity(frames as usize);
+    for k in 0..frames {
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+        let t = k as f64 / cfg.fps;
+        head.advance_to(t);
+        let joints = head.joints();
+        let frame = source.grab(t, &joints)?;
+        let found = finder.find(&frame.left, &frame.right, &joints, estimator);
+        let obs = Observation {
+            target: found.as_ref().map(|f| StereoPoint {
+                u_l: f.px[0] as f32,
+                v_l: f.px[1] as f32,
+                u_r: f.px[2] as f32,
+                v_r: f.px[3] as f32,
+            }),
+            joints,
+        };
+        let (next, cmd) = fixation::step(&cfg.loop_cfg, estimator, &state, &obs);
+        state = next;
+        head.command(&cmd.joints);
+        let centre = cfg.loop_cfg.centre_px.map(f64::from);
+        let row = LogRow {
+            t_s: t,
+            frame: k,
+            status: match cmd.status {
+                LoopStatus::Tracking => "tracking",
+                LoopStatus::ImageOnly => "image_only",
+                LoopStatus::Lost => "lost",
+            },
+            px: found.as_ref().map(|f| f.px),
+            xyz: cmd.estimate,
+            joints,
+            err_px: found.as_ref().and_then(|f| true_error(&frame, f, centre)),
+        };
+        on_row(&frame, &row)?;
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+/// The head's estimator for a model: its network (a stereo or posture-aware net giving X,
+/// Y, Z), as the head would run it.
+pub fn estimator_of(blob: hvs_shared::runtime::blob::ModelBlob) -> Result<Estimator> {
+    hvs_shared::runtime::head::Network::new(hvs_shared::runtime::layout::Slot::A, blob)
+        .map(Estimator::Network)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "the head cannot run this model: it needs the four pixels (and optionally the \
+                 five joints) in and X, Y, Z out"
+            )
+        })
+}
+
+/// The loop's settings for a rig's nominal cameras (image centre and focal lengths: what the
+/// image correction converts pixels to angles with) and the gain (0 = the kinematics alone).
+pub fn loop_config(rig: &hvs_shared::sim::camera::Rig, gain: f32) -> LoopConfig {
+    LoopConfig {
+        centre_px: [rig.u0 as f32, rig.v0 as f32],
+        focal_px: [
+            rig.phi_u_left as f32,
+            rig.phi_v_left as f32,
+            rig.phi_u_right as f32,
+            rig.phi_v_right as f32,
+        ],
+        gain,
+        ..LoopConfig::DEFAULT
+    }
+}
+
+static STOP: AtomicBool = AtomicBool::new(false);
+
+#[cfg(unix)]
+extern "C" fn on_interrupt(_: libc::c_int) {
+    STOP.store(true, Ordering::SeqCst);
+}
+
+/// A flag set by SIGINT and SIGTERM (installed on the first call): the loop checks it every
+/// frame and ends, so the log of the frames so far is still written in full. Output writers
+/// installed later (`data::output`) take the signals over while they write.
+pub fn stop_on_interrupt() -> &'static AtomicBool {
+    #[cfg(unix)]
+    {
+        static ONCE: std::sync::Once = std::sync::Once::new();
+        ONCE.call_once(|| {
+            for sig in [libc::SIGINT, libc::SIGTERM] {
+                // SAFETY: plain sigaction calls; the handler only stores to an atomic.
+                unsafe {
+                    let mut act: libc::sigaction = std::mem::zeroed();
+                    act.sa_sigaction = on_interrupt as extern "C" fn(libc::c_int) as usize;
+                    libc::sigemptyset(&mut act.sa_mask);
+                    libc::sigaction(sig, &act, std::ptr::null_mut());
+                }
+            }
+        });
+    }
+    &STOP
+}

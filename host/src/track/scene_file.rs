@@ -1,0 +1,50 @@
+//! Scene files of the virtual head: the JSON of [`hvs_vision::scene`], with its `rig` read as
+//! `hvs simulate` reads rigs (`{"case": N}` or a rig object, [`crate::data::rig`]).
+
+use anyhow::{anyhow, bail, Context, Result};
+use hvs_shared::sim::camera::Rig;
+use hvs_vision::scene::{Scene, SceneFile};
+use std::path::Path;
+
+/// A scene file, checked: the rig and the scene.
+#[derive(Debug, Clone)]
+pub struct LoadedScene {
+    /// The cameras' rig.
+    pub rig: Rig,
+    /// The objects and the wall.
+    pub scene: Scene,
+}
+
+/// The rig of a scene file's `rig` value.
+pub fn rig_of(v: &serde_json::Value) -> Result<Rig> {
+    let obj = v
+        .as_object()
+        .ok_or_else(|| anyhow!("rig: expected {{\"case\": N}} or a rig object"))?;
+    if obj.contains_key("case") {
+        if obj.len() != 1 {
+            bail!("rig: {{\"case\": N}} takes no other field");
+        }
+        let n = obj["case"]
+            .as_u64()
+            .filter(|n| (1..=4).contains(n))
+            .ok_or_else(|| anyhow!("rig.case: must be 1-4, got {}", obj["case"]))?;
+        return hvs_shared::sim::presets::case(n as u8)
+            .ok_or_else(|| anyhow!("rig.case: must be 1-4, got {n}"));
+    }
+    crate::data::rig::parse(&v.to_string(), None).map_err(|e| anyhow!("rig: {e:#}"))
+}
+
+/// Parses a scene file's text (errors name the field).
+pub fn parse(text: &str) -> Result<LoadedScene> {
+    let file = SceneFile::parse(text).map_err(|e| anyhow!("{e}"))?;
+    let rig = rig_of(&file.rig)?;
+    let scene = file.scene().map_err(|e| anyhow!("{e}"))?;
+    Ok(LoadedScene { rig, scene })
+}
+
+/// Reads a scene file; the error names the file.
+pub fn load(path: &Path) -> Result<LoadedScene> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    parse(&text).map_err(|e| anyhow!("{}: {e:#}", path.display()))
+}

@@ -1,0 +1,520 @@
+//! Finding the target in a stereo pair: the nearest object in the front region, or the
+//! object under a left pixel at the start, then followed.
+//!
+//! The head's epipolar geometry changes with every posture (vergence, the case's camera
+//! errors), and a posture-aware model carries no fundamental matrix, so points are matched by
+//! a small 2-D ZNCC search: along the row within a disparity range and a few rows up and
+//! down (the vertical offset of deflected cameras), first at half resolution on a coarse grid
+//! of the front region, then refined to a sub-pixel match at full resolution.
+//!
+//! - **Nearest**: every grid point that matches is estimated (X, Y, Z by the model at the
+//!   current posture); the nearest depth cluster (at least [`MIN_CLUSTER`] points within a
+//!   few percent of one depth) is the target; its region is then matched densely (every
+//!   [`DENSE_STEP`] px) and the target's pixels are the centroid of the matched points at that
+//!   depth, in the left and in the right image.
+//! - **Pixel `(U, V)`**: the first frame matches `(U, V)` and grows the region of its depth
+//!   around it; later frames look for the same depth band around the last centroid
+//!   (followed).
+
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::runtime::head::Estimator;
+use hvs_shared::runtime::protocol::StereoPoint;
+use image::GrayImage;
+
+/// Fewest matched points that make an object.
+pub const MIN_CLUSTER: usize = 3;
+/// Spacing of the dense matches in the target's region (px).
+pub const DENSE_STEP: i32 = 3;
+/// Spacing of the coarse grid (full-resolution px): a 40th of the image width, at least 4.
+fn grid_step(w: i32) -> i32 {
+    (w / 40).max(4)
+}
+/// Share of the image width and height, around the centre, searched for the nearest object.
+const FRONT_SHARE: f64 = 0.7;
+/// Largest |disparity| searched at half resolution (half-resolution px).
+const HALF_DISPARITY: i32 = 48;
+/// Rows searched above and below at half resolution.
+const HALF_ROWS: i32 = 4;
+/// Smallest accepted ZNCC.
+const MIN_SCORE: f32 = 0.85;
+/// A second peak (more than 2 px away) within this of the best makes a match ambiguous.
+const UNIQUENESS: f32 = 0.05;
+/// Largest radius of a target's region (px).
+const MAX_EXTENT: f64 = 60.0;
+/// Smallest grey-level standard deviation of a window worth matching.
+const MIN_STD: f32 = 4.0;
+/// Relative depth band of one object (plus 1 cm).
+const DEPTH_BAND: f32 = 0.06;
+
+/// Which target to hold.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TargetMode {
+    /// The nearest object in the front region.
+    Nearest,
+    /// The object under this left pixel at the start.
+    Pixel([f64; 2]),
+}
+
+/// The target found in one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Found {
+    /// Its pixels: the centroids of its matched points, left and right.
+    pub px: [f64; 4],
+    /// Its depth (the median of its points' estimates, cm).
+    pub z: f32,
+    /// The matched left pixels of its region (for the log's truth lookup).
+    pub points: Vec<[i32; 2]>,
+}
+
+/// A grey image as `f32`, with its size.
+struct Plane {
+    w: i32,
+    h: i32,
+    p: Vec<f32>,
+}
+
+impl Plane {
+    fn new(img: &GrayImage) -> Plane {
+        Plane {
+            w: img.width() as i32,
+            h: img.height() as i32,
+            p: img.as_raw().iter().map(|&x| f32::from(x)).collect(),
+        }
+    }
+
+    /// Half resolution: 2 x 2 means.
+    fn half(&self) -> Plane {
+        let (w, h) = (self.w / 2, self.h / 2);
+        let mut p = Vec::with_capacity((w * h) as usize);
+        for r in 0..h {
+            for c in 0..w {
+                let k = (2 * r * self.w + 2 * c) as usize;
+                let wu = self.w as usize;
+                p.push(0.25 * (self.p[k] + self.p[k + 1] + self.p[k + wu] + self.p[k + wu + 1]));
+            }
+        }
+        Plane { w, h, p }
+    }
+
+    fn inside(&self, c: i32, r: i32, rad: i32) -> bool {
+        c - rad >= 0 && r - rad >= 0 && c + rad < self.w && r + rad < self.h
+    }
+
+    /// Mean and centred norm of the window of radius `rad` at `(c, r)`.
+    fn stats(&self, c: i32, r: i32, rad: i32) -> (f32, f32) {
+        let (mut s, mut s2) = (0.0f32, 0.0f32);
+        for y in r - rad..=r + rad {
+            let row = (y * self.w) as usize;
+            for x in c - rad..=c + rad {
+                let v = self.p[row + x as usize];
+                s += v;
+                s2 += v * v;
+            }
+        }
+        let n = ((2 * rad + 1) * (2 * rad + 1)) as f32;
+        let mean = s / n;
+        (mean, (s2 - n * mean * mean).max(0.0).sqrt())
+    }
+}
+
+/// ZNCC of the left window at `(cl, rl)` and the right one at `(cr, rr)`.
+fn zncc(
+    l: &Plane,
+    (cl, rl): (i32, i32),
+    stats_l: (f32, f32),
+    r: &Plane,
+    cr: i32,
+    rr: i32,
+    rad: i32,
+) -> f32 {
+    let (ml, nl) = stats_l;
+    let (mr, nr) = r.stats(cr, rr, rad);
+    if nl <= 0.0 || nr <= 0.0 {
+        return -1.0;
+    }
+    let mut acc = 0.0f32;
+    for dy in -rad..=rad {
+        let a = ((rl + dy) * l.w) as usize;
+        let b = ((rr + dy) * r.w) as usize;
+        for dx in -rad..=rad {
+            acc += (l.p[a + (cl + dx) as usize] - ml) * (r.p[b + (cr + dx) as usize] - mr);
+        }
+    }
+    acc / (nl * nr)
+}
+
+/// The best right window for the left window at `(cl, rl)` over columns `cols` and rows
+/// `rows` (inclusive), with a parabola's sub-pixel offset on each axis: `(u, v, score)`.
+fn search(
+    l: &Plane,
+    r: &Plane,
+    cl: i32,
+    rl: i32,
+    cols: [i32; 2],
+    rows: [i32; 2],
+    rad: i32,
+) -> Option<(f64, f64, f32)> {
+    if !l.inside(cl, rl, rad) {
+        return None;
+    }
+    let st = l.stats(cl, rl, rad);
+    let n = (2 * rad + 1) as f32;
+    if st.1 / n < MIN_STD {
+        return None;
+    }
+    let c0 = cols[0].max(rad + 1);
+    let c1 = cols[1].min(r.w - rad - 2);
+    let r0 = rows[0].max(rad + 1);
+    let r1 = rows[1].min(r.h - rad - 2);
+    if c0 > c1 || r0 > r1 {
+        return None;
+    }
+    // The best score per column, then the best column and the best other column.
+    let mut best = (-2.0f32, 0, 0);
+    let mut per_col = Vec::with_capacity((c1 - c0 + 1) as usize);
+    for x in c0..=c1 {
+        let mut col = -2.0f32;
+        for y in r0..=r1 {
+            let s = zncc(l, (cl, rl), st, r, x, y, rad);
+            col = col.max(s);
+            if s > best.0 {
+                best = (s, x, y);
+            }
+        }
+        per_col.push(col);
+    }
+    let (s, x, y) = best;
+    if s < MIN_SCORE {
+        return None;
+    }
+    let second = per_col
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| (c0 + *k as i32 - x).abs() > 2)
+        .map(|(_, v)| *v)
+        .fold(-2.0f32, f32::max);
+    if second > s - UNIQUENESS {
+        return None;
+    }
+    let sub = |a: f32, b: f32, c: f32| {
+        let d = a - 2.0 * b + c;
+        if d < 0.0 {
+            (0.5 * (a - c) / d).clamp(-0.5, 0.5)
+        } else {
+            0.0
+        }
+    };
+    let sx = sub(
+        zncc(l, (cl, rl), st, r, x - 1, y, rad),
+        s,
+        zncc(l, (cl, rl), st, r, x + 1, y, rad),
+    );
+    let sy = sub(
+        zncc(l, (cl, rl), st, r, x, y - 1, rad),
+        s,
+        zncc(l, (cl, rl), st, r, x, y + 1, rad),
+    );
+    Some((
+        f64::from(x) + f64::from(sx),
+        f64::from(y) + f64::from(sy),
+        s,
+    ))
+}
+
+/// One matched point: left pixel, right pixel (sub-pixel), depth.
+#[derive(Debug, Clone, Copy)]
+struct Pt {
+    l: [i32; 2],
+    r: [f64; 2],
+    z: f32,
+}
+
+/// What the finder remembers.
+#[derive(Debug, Clone, PartialEq)]
+struct Last {
+    centre: [f64; 2],
+    offset: [f64; 2],
+    z: f32,
+    extent: f64,
+}
+
+/// The target finder of one run.
+pub struct Finder {
+    mode: TargetMode,
+    last: Option<Last>,
+}
+
+fn depth_of(est: &Estimator, joints: &Joints, l: [i32; 2], r: [f64; 2]) -> Option<f32> {
+    let p = StereoPoint {
+        u_l: l[0] as f32,
+        v_l: l[1] as f32,
+        u_r: r[0] as f32,
+        v_r: r[1] as f32,
+    };
+    // Only estimates inside the model's training box: far outside it (the wall behind the
+    // objects) a net extrapolates to anything, nearer than the nearest object included.
+    // (The outputs only: the pixels of a board protocol cover a small box of the image.)
+    let e = est.estimate(&p, joints).ok()?;
+    let plausible = match est {
+        Estimator::Network(n) => {
+            let mut x = [0.0f32; 9];
+            x[..4].copy_from_slice(&p.to_array());
+            x[4..].copy_from_slice(&joints.0);
+            let k = n.blob.n_inputs().min(9);
+            hvs_shared::runtime::head::outputs_in_range(&n.blob, &x[..k], &[e.x, e.y, e.z])
+        }
+        Estimator::Fallback(_) => true,
+    };
+    (plausible && e.z.is_finite() && e.z > 0.0).then_some(e.z)
+}
+
+fn in_band(z: f32, zc: f32) -> bool {
+    (z - zc).abs() <= DEPTH_BAND * zc + 1.0
+}
+
+fn median(mut v: Vec<f32>) -> f32 {
+    v.sort_by(f32::total_cmp);
+    v[v.len() / 2]
+}
+
+impl Finder {
+    /// A finder for `mode`.
+    pub fn new(mode: TargetMode) -> Finder {
+        Finder { mode, last: None }
+    }
+
+    /// Forgets the target (it is found afresh in the next frame).
+    pub fn reset(&mut self) {
+        self.last = None;
+    }
+
+    /// The target in `left`/`right` seen at posture `joints`, or `None`.
+    pub fn find(
+        &mut self,
+        left: &GrayImage,
+        right: &GrayImage,
+        joints: &Joints,
+        est: &Estimator,
+    ) -> Option<Found> {
+        if left.dimensions() != right.dimensions() || left.width() < 32 || left.height() < 32 {
+            return None;
+        }
+        let (l, r) = (Plane::new(left), Plane::new(right));
+        let seed = match (self.mode, &self.last) {
+            (TargetMode::Pixel(_), Some(last)) => Some(last.clone()),
+            (TargetMode::Pixel([u, v]), None) => {
+                let c = [u.round() as i32, v.round() as i32];
+                let p = coarse_match(&l, &r, c, joints, est)?;
+                Some(Last {
+                    centre: [f64::from(c[0]), f64::from(c[1])],
+                    offset: [f64::from(c[0]) - p.r[0], f64::from(c[1]) - p.r[1]],
+                    z: p.z,
+                    extent: 40.0,
+                })
+            }
+            (TargetMode::Nearest, _) => nearest_seed(&l, &r, joints, est),
+        };
+        let found = seed.and_then(|s| dense(&l, &r, &s, joints, est));
+        self.last = found.as_ref().map(|(f, extent)| Last {
+            centre: [f.px[0], f.px[1]],
+            offset: [f.px[0] - f.px[2], f.px[1] - f.px[3]],
+            z: f.z,
+            extent: extent.min(MAX_EXTENT),
+        });
+        found.map(|(f, _)| f)
+    }
+}
+
+/// The half-resolution match of full-resolution left pixel `c`, refined at full resolution.
+fn coarse_match(l: &Plane, r: &Plane, c: [i32; 2], joints: &Joints, est: &Estimator) -> Option<Pt> {
+    let (lh, rh) = (l.half(), r.half());
+    coarse_match_in(&lh, &rh, l, r, c, joints, est)
+}
+
+fn coarse_match_in(
+    lh: &Plane,
+    rh: &Plane,
+    l: &Plane,
+    r: &Plane,
+    c: [i32; 2],
+    joints: &Joints,
+    est: &Estimator,
+) -> Option<Pt> {
+    let (ch, rw) = (c[0] / 2, c[1] / 2);
+    let (u, v, _) = search(
+        lh,
+        rh,
+        ch,
+        rw,
+        [ch - HALF_DISPARITY, ch + HALF_DISPARITY],
+        [rw - HALF_ROWS, rw + HALF_ROWS],
+        3,
+    )?;
+    let (u2, v2) = ((2.0 * u).round() as i32, (2.0 * v).round() as i32);
+    let (ur, vr, _) = search(l, r, c[0], c[1], [u2 - 2, u2 + 2], [v2 - 2, v2 + 2], 5)?;
+    let z = depth_of(est, joints, c, [ur, vr])?;
+    Some(Pt {
+        l: c,
+        r: [ur, vr],
+        z,
+    })
+}
+
+/// The nearest depth cluster on the coarse grid of the front region.
+fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Option<Last> {
+    let (lh, rh) = (l.half(), r.half());
+    let (w, h) = (f64::from(l.w), f64::from(l.h));
+    let (mx, my) = (
+        (0.5 * (1.0 - FRONT_SHARE) * w) as i32,
+        (0.5 * (1.0 - FRONT_SHARE) * h) as i32,
+    );
+    let mut pts = Vec::new();
+    let mut y = my;
+    while y < l.h - my {
+        let mut x = mx;
+        while x < l.w - mx {
+            if let Some(p) = coarse_match_in(&lh, &rh, l, r, [x, y], joints, est) {
+                pts.push(p);
+            }
+            x += grid_step(l.w);
+        }
+        y += grid_step(l.w);
+    }
+    pts.sort_by(|a, b| a.z.total_cmp(&b.z));
+    for p in &pts {
+        let members: Vec<&Pt> = pts.iter().filter(|q| in_band(q.z, p.z)).collect();
+        if members.len() >= MIN_CLUSTER {
+            let n = members.len() as f64;
+            let cu = members.iter().map(|q| f64::from(q.l[0])).sum::<f64>() / n;
+            let cv = members.iter().map(|q| f64::from(q.l[1])).sum::<f64>() / n;
+            let du = members
+                .iter()
+                .map(|q| f64::from(q.l[0]) - q.r[0])
+                .sum::<f64>()
+                / n;
+            let dv = members
+                .iter()
+                .map(|q| f64::from(q.l[1]) - q.r[1])
+                .sum::<f64>()
+                / n;
+            let extent = members
+                .iter()
+                .map(|q| (f64::from(q.l[0]) - cu).hypot(f64::from(q.l[1]) - cv))
+                .fold(0.0, f64::max);
+            return Some(Last {
+                centre: [cu, cv],
+                offset: [du, dv],
+                z: median(members.iter().map(|q| q.z).collect()),
+                extent: extent + f64::from(grid_step(l.w)),
+            });
+        }
+    }
+    None
+}
+
+/// The dense matches of the region around `s` at its depth: the target and its extent.
+fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Option<(Found, f64)> {
+    let ext = (s.extent + 12.0).min(MAX_EXTENT);
+    let (c0, c1) = (
+        (s.centre[0] - ext).floor() as i32,
+        (s.centre[0] + ext).ceil() as i32,
+    );
+    let (r0, r1) = (
+        (s.centre[1] - ext).floor() as i32,
+        (s.centre[1] + ext).ceil() as i32,
+    );
+    let mut pts = Vec::new();
+    let mut y = r0;
+    while y <= r1 {
+        let mut x = c0;
+        while x <= c1 {
+            let ur = f64::from(x) - s.offset[0];
+            let vr = f64::from(y) - s.offset[1];
+            let (uc, vc) = (ur.round() as i32, vr.round() as i32);
+            if let Some((u, v, _)) = search(l, r, x, y, [uc - 5, uc + 5], [vc - 2, vc + 2], 4) {
+                if let Some(z) = depth_of(est, joints, [x, y], [u, v]) {
+                    if in_band(z, s.z) {
+                        pts.push(Pt {
+                            l: [x, y],
+                            r: [u, v],
+                            z,
+                        });
+                    }
+                }
+            }
+            x += DENSE_STEP;
+        }
+        y += DENSE_STEP;
+    }
+    if pts.len() < MIN_CLUSTER {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let mean = |f: &dyn Fn(&Pt) -> f64| pts.iter().map(f).sum::<f64>() / n;
+    let px = [
+        mean(&|p| f64::from(p.l[0])),
+        mean(&|p| f64::from(p.l[1])),
+        mean(&|p| p.r[0]),
+        mean(&|p| p.r[1]),
+    ];
+    let extent = pts
+        .iter()
+        .map(|p| (f64::from(p.l[0]) - px[0]).hypot(f64::from(p.l[1]) - px[1]))
+        .fold(0.0, f64::max);
+    let z = median(pts.iter().map(|p| p.z).collect());
+    Some((
+        Found {
+            px,
+            z,
+            points: pts.iter().map(|p| p.l).collect(),
+        },
+        extent,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hvs_shared::runtime::traditional::Calibration;
+    use hvs_shared::sim::posture::HeadRig;
+    use hvs_shared::sim::presets;
+    use hvs_vision::render::RenderOptions;
+    use hvs_vision::scene::{render_scene, SceneFile};
+
+    const SCENE: &str = r#"{ "rig": {"case": 1}, "camera_fps": 30,
+      "background": {"z_cm": 300, "texture_seed": 1},
+      "objects": [ {"shape": "sphere", "radius_cm": 8, "centre_cm": [10, -5, 90], "texture_seed": 2} ] }"#;
+
+    #[test]
+    fn matches_are_true_and_the_nearest_is_the_sphere() {
+        // Case I at home: the traditional method's depth is right, so this checks the
+        // matcher and the clustering alone.
+        let scene = SceneFile::parse(SCENE).unwrap().scene().unwrap().at(0.0);
+        let head = HeadRig::new(presets::CASE_1);
+        let r = render_scene(&head, &Joints::HOME, &scene, &RenderOptions::default(), 3).unwrap();
+        let (l, rr) = (Plane::new(&r.left), Plane::new(&r.right));
+        let est = Estimator::Fallback(Calibration::BUILT_IN);
+        let (mut n, mut bad) = (0, 0);
+        for y in (100..380).step_by(40) {
+            for x in (100..540).step_by(40) {
+                if let Some(p) = coarse_match(&l, &rr, [x, y], &Joints::HOME, &est) {
+                    n += 1;
+                    if let Some(t) = r.true_match(x as u32, y as u32) {
+                        if (t[0] - p.r[0]).abs() > 1.0 || (t[1] - p.r[1]).abs() > 1.0 {
+                            bad += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(n > 40 && bad * 20 <= n, "{bad} wrong of {n}");
+        let mut f = Finder::new(TargetMode::Nearest);
+        let found = f
+            .find(&r.left, &r.right, &Joints::HOME, &est)
+            .expect("a target");
+        let truth = head.project(&Joints::HOME, &[10.0, -5.0, 90.0]).unwrap();
+        let e = (found.px[0] - truth[0]).hypot(found.px[1] - truth[1]);
+        assert!(e < 3.0, "centroid {:?} vs {:?}", found.px, truth);
+        assert!((found.z - 82.0).abs() < 6.0, "z {}", found.z);
+    }
+}

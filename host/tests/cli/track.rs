@@ -1,0 +1,153 @@
+//! `hvs track` driven from outside: the log's columns and rows, the same log bytes for the
+//! same scene and seed, `--record`, and the refusals (bad scene field, bad flags, qemu).
+
+use crate::common::{fails, ok, stderr_with_code, Scratch};
+use std::fs;
+
+/// A quarter-size case I rig (160 x 120), so the test renders and matches quickly.
+const RIG: &str = r#"{"phi_u_left": 71.459, "phi_u_right": 71.459, "alpha_left": 0, "alpha_right": 0,
+  "beta0": 0, "phi0": 0, "u0": 80, "v0": 60, "width": 160, "height": 120}"#;
+
+fn scene(dir: &Scratch, extra: &str) -> String {
+    let text = format!(
+        r#"{{ "rig": {RIG}, "camera_fps": 30 {extra},
+  "background": {{"z_cm": 300, "texture_seed": 1}},
+  "objects": [ {{"shape": "sphere", "radius_cm": 8, "centre_cm": [10, -5, 90],
+                "velocity_cm_s": [5, 0, 0], "texture_seed": 2}} ] }}"#
+    );
+    let p = dir.p("scene.json");
+    fs::write(&p, text).unwrap();
+    p
+}
+
+/// A stereo model of the small rig (the thesis board protocol through it).
+fn model(dir: &Scratch) -> String {
+    let rig = dir.p("rig.json");
+    fs::write(&rig, RIG).unwrap();
+    let (data, m) = (dir.p("train.csv"), dir.p("m.hvsw"));
+    ok(&["simulate", "--rig", &rig, "--set", "train", "-o", &data]);
+    ok(&["train", "--data", &data, "-o", &m, "--restarts", "1"]);
+    m
+}
+
+#[test]
+fn track_logs_every_frame_and_repeats_its_bytes() {
+    let dir = Scratch::new();
+    let (m, sc) = (model(&dir), scene(&dir, ""));
+    let (a, b) = (dir.p("a.csv"), dir.p("b.csv"));
+    let rec = dir.p("rec");
+    let args = |log: &str| {
+        vec![
+            "track",
+            "--model",
+            &m,
+            "--scene",
+            &sc,
+            "--seconds",
+            "0.2",
+            "--log",
+            log,
+            "--seed",
+            "4",
+        ]
+        .into_iter()
+        .map(String::from)
+        .collect::<Vec<_>>()
+    };
+    let mut first = args(&a);
+    first.extend(["--record".to_string(), rec.clone()]);
+    ok(&first.iter().map(String::as_str).collect::<Vec<_>>());
+    ok(&args(&b).iter().map(String::as_str).collect::<Vec<_>>());
+    let (ta, tb) = (
+        fs::read_to_string(&a).unwrap(),
+        fs::read_to_string(&b).unwrap(),
+    );
+    assert_eq!(ta, tb, "same scene and seed, same log bytes");
+    let mut lines = ta.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t_s,frame,status,u_l,v_l,u_r,v_r,x,y,z,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan,err_l_px,err_r_px")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 6, "0.2 s at 30 fps");
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r.len(), 17);
+        assert_eq!(r[1], k.to_string());
+        assert!(["tracking", "image_only", "lost"].contains(&r[2]), "{r:?}");
+        for j in &r[10..15] {
+            let j: f64 = j.parse().unwrap();
+            assert!(j.abs() <= 60.0);
+        }
+    }
+    // The recording: six pairs and their joint columns.
+    let caps = fs::read_to_string(format!("{rec}/CAPTURES.csv")).unwrap();
+    assert!(caps
+        .starts_with("left,right,z,x,y,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan\n"));
+    assert_eq!(caps.lines().count(), 7);
+    assert!(fs::metadata(format!("{rec}/left0005.png")).is_ok());
+}
+
+#[test]
+fn track_refuses_bad_input_with_one_clear_line() {
+    let dir = Scratch::new();
+    let m = dir.p("m.hvsw");
+    fs::write(&m, b"not a model").unwrap();
+    let bad = scene(&dir, r#", "colour": 3"#);
+    let log = dir.p("log.csv");
+    let base = |sc: &str, extra: &[&str]| {
+        let mut v = vec!["track", "--model", &m, "--scene", sc, "--log", &log];
+        if !extra.contains(&"--seconds") {
+            v.extend(["--seconds", "0.1"]);
+        }
+        v.extend_from_slice(extra);
+        v.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run = |v: Vec<String>, want: &str| {
+        fails(&v.iter().map(String::as_str).collect::<Vec<_>>(), want);
+    };
+    // Bad usage: exit code 2, the flag named.
+    let usage = |v: Vec<String>, want: &str| {
+        let e = stderr_with_code(&v, 2);
+        assert!(e.contains(want) && e.lines().count() == 1, "{e}");
+    };
+    run(base(&bad, &[]), "m.hvsw");
+    run(base(&bad, &["--head", "qemu"]), "not yet");
+    usage(base(&bad, &["--seconds", "0"]), "--seconds");
+    usage(base(&bad, &["--target", "1,x"]), "--target");
+    // With a valid model the scene's unknown field is named.
+    let good = model(&dir);
+    let v: Vec<String> = vec![
+        "track",
+        "--model",
+        &good,
+        "--scene",
+        &bad,
+        "--seconds",
+        "0.1",
+        "--log",
+        &log,
+    ]
+    .into_iter()
+    .map(String::from)
+    .collect();
+    run(v, "unknown field `colour`");
+    let sc = scene(&dir, "");
+    let v: Vec<String> = vec![
+        "track",
+        "--model",
+        &good,
+        "--scene",
+        &sc,
+        "--seconds",
+        "0.1",
+        "--log",
+        &log,
+        "--target",
+        "500,10",
+    ]
+    .into_iter()
+    .map(String::from)
+    .collect();
+    usage(v, "outside the 160x120 left image");
+    assert!(fs::metadata(&log).is_err(), "no log written on refusal");
+}

@@ -1,0 +1,357 @@
+//! The closed loop's step: from the target's pixels in both images and the current joint
+//! positions to the joint targets that keep the target in the middle of both eyes.
+//!
+//! One [`step`] per camera frame, pure and allocation-free (the firmware and every simulated
+//! head call the same function):
+//!
+//! 1. **Estimate** X, Y, Z of the target with the head's estimator
+//!    ([`Estimator::estimate`], posture-aware nets get the five joints as extra inputs).
+//! 2. **Kinematics**: [`gaze::fixate`] of the estimate (neck/eye split, limits).
+//! 3. **Image correction**: with the case's camera errors the nominal kinematics miss; what
+//!    the images show corrects it. The angle by which each eye misses the target at the
+//!    current posture (`atan((u - u0) / phi)` per eye for the pans, the mean over both eyes of
+//!    `atan((v - v0) / phi)` for the conjugate tilt) added to the current joints is where the
+//!    eyes should be; its difference with the kinematic fixation of the same frame is the
+//!    kinematics' miss. The state keeps a low-pass filtered miss (the integral part, gain
+//!    [`LoopConfig::gain`], never more than [`LoopConfig::max_correction_deg`]) and adds it to
+//!    the fixation; the proportional part is the fresh fixation itself.
+//! 4. The result is quantised to the drives' 0.18 degree steps and clamped to the limits:
+//!    whatever the input (NaN, infinities, huge pixels), the command is within the limits.
+//!
+//! Without a target (lost), the head holds the last command; without an estimate (the
+//! estimator refused the pixels) it servos on the image alone (current joints + the miss).
+
+use crate::runtime::gaze::{self, Axis, GazeConfig, Joints};
+use crate::runtime::head::Estimator;
+use crate::runtime::protocol::StereoPoint;
+
+/// Settings of the loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoopConfig {
+    /// Fixation settings (neck/eye split, limits).
+    pub gaze: GazeConfig,
+    /// Image centre `(u0, v0)` (px): where the target should be seen.
+    pub centre_px: [f32; 2],
+    /// Focal lengths `[phi_u_left, phi_v_left, phi_u_right, phi_v_right]` (px), nominal.
+    pub focal_px: [f32; 4],
+    /// Share of the newly measured kinematic miss taken into the correction each frame
+    /// (0 = no image correction, the kinematics alone; 1 = the last frame's miss).
+    pub gain: f32,
+    /// Largest correction of any eye axis (degrees).
+    pub max_correction_deg: f32,
+}
+
+impl LoopConfig {
+    /// Default gaze settings, the thesis' 640 x 480 cameras (`phi` 285.8 px), gain 0.5, at
+    /// most 10 degrees of correction.
+    pub const DEFAULT: LoopConfig = LoopConfig {
+        gaze: GazeConfig::DEFAULT,
+        centre_px: [320.0, 240.0],
+        focal_px: [285.836; 4],
+        gain: 0.5,
+        max_correction_deg: 10.0,
+    };
+}
+
+/// What the loop remembers between frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LoopState {
+    /// The filtered kinematic miss: `[eye tilt, left eye pan, right eye pan]` (degrees).
+    pub correction_deg: [f32; 3],
+    /// The last command (held when the target is lost).
+    pub last: Joints,
+}
+
+/// One frame's input.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Observation {
+    /// The target's pixels `(u_l, v_l, u_r, v_r)`, `None` when not found in this frame.
+    pub target: Option<StereoPoint>,
+    /// Where the joints are (degrees) when the frame was taken.
+    pub joints: Joints,
+}
+
+/// How the frame went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoopStatus {
+    /// Estimated, fixated and corrected.
+    Tracking,
+    /// The estimator refused the pixels: the image correction alone moved the eyes.
+    ImageOnly,
+    /// No target in this frame: the last command is held.
+    Lost,
+}
+
+/// One frame's output.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Command {
+    /// Joint targets (degrees): on the step grid, within the limits.
+    pub joints: Joints,
+    /// The estimate (cm, head frame), `None` without one.
+    pub estimate: Option<[f32; 3]>,
+    /// How the frame went.
+    pub status: LoopStatus,
+}
+
+/// The eye axes the image corrects, in the order of [`LoopState::correction_deg`].
+const EYE_AXES: [Axis; 3] = [Axis::EyeTilt, Axis::LeftEyePan, Axis::RightEyePan];
+
+const RAD_TO_DEG: f32 = 180.0 / core::f32::consts::PI;
+
+/// The angles (degrees) by which the eyes miss the target at pixels `p`:
+/// `[tilt, left pan, right pan]` to add to the joints. `None` if not finite.
+fn image_miss(cfg: &LoopConfig, p: &StereoPoint) -> Option<[f32; 3]> {
+    let [u0, v0] = cfg.centre_px;
+    let [fu_l, fv_l, fu_r, fv_r] = cfg.focal_px;
+    let ang = |e: f32, f: f32| libm::atanf(e / f) * RAD_TO_DEG;
+    // A positive tilt turns the optic axis down (+v); a positive pan to the left (-u).
+    let tilt = 0.5 * (ang(p.v_l - v0, fv_l) + ang(p.v_r - v0, fv_r));
+    let m = [tilt, -ang(p.u_l - u0, fu_l), -ang(p.u_r - u0, fu_r)];
+    m.iter().all(|x| x.is_finite()).then_some(m)
+}
+
+/// `x` clamped to `+-bound` (NaN gives 0; written out so that a NaN bound gives 0).
+fn clamp_abs(x: f32, bound: f32) -> f32 {
+    if bound.is_nan() || bound < 0.0 || x.is_nan() {
+        0.0
+    } else if x > bound {
+        bound
+    } else if x < -bound {
+        -bound
+    } else {
+        x
+    }
+}
+
+/// Joints on the step grid within the limits (NaN goes home).
+fn safe(cfg: &GazeConfig, j: &Joints) -> Joints {
+    let limits = &cfg.limits;
+    Joints(Axis::ALL.map(|axis| {
+        let (lo, hi) = limits.step_range(axis);
+        gaze::from_steps(gaze::to_steps(limits.clamp_axis(axis, j[axis])).clamp(lo, hi))
+    }))
+}
+
+/// One frame of the loop (see the module documentation).
+pub fn step(
+    cfg: &LoopConfig,
+    estimator: &Estimator,
+    state: &LoopState,
+    obs: &Observation,
+) -> (LoopState, Command) {
+    let mut next = *state;
+    // A state from elsewhere may hold anything: keep the correction bounded and finite.
+    for c in next.correction_deg.iter_mut() {
+        *c = clamp_abs(*c, cfg.max_correction_deg);
+    }
+    next.last = safe(&cfg.gaze, &next.last);
+    let Some(p) = obs.target else {
+        return (
+            next,
+            Command {
+                joints: next.last,
+                estimate: None,
+                status: LoopStatus::Lost,
+            },
+        );
+    };
+    let now = safe(&cfg.gaze, &obs.joints);
+    let miss = image_miss(cfg, &p);
+    let estimate = estimator
+        .estimate(&p, &now)
+        .ok()
+        .map(|e| [e.x, e.y, e.z])
+        .filter(|e| e.iter().all(|x| x.is_finite()));
+    let fix = estimate.and_then(|e| gaze::fixate(&cfg.gaze, e).ok());
+    let gain = if cfg.gain > 0.0 {
+        cfg.gain.min(1.0)
+    } else {
+        0.0
+    };
+    let (target, status) = match (fix, miss) {
+        (Some(f), miss) => {
+            if let Some(m) = miss {
+                // The kinematics' miss at this frame: where the eyes should be minus where
+                // the kinematics would put them.
+                for (k, axis) in EYE_AXES.iter().enumerate() {
+                    let seen = now[*axis] + m[k] - f.joints[*axis];
+                    if seen.is_finite() {
+                        let c = next.correction_deg[k] + gain * (seen - next.correction_deg[k]);
+                        next.correction_deg[k] = clamp_abs(c, cfg.max_correction_deg);
+                    }
+                }
+            }
+            let mut j = f.joints;
+            for (k, axis) in EYE_AXES.iter().enumerate() {
+                j[*axis] += next.correction_deg[k];
+            }
+            (j, LoopStatus::Tracking)
+        }
+        (None, Some(m)) => {
+            let mut j = now;
+            for (k, axis) in EYE_AXES.iter().enumerate() {
+                j[*axis] += gain * m[k];
+            }
+            (j, LoopStatus::ImageOnly)
+        }
+        (None, None) => (next.last, LoopStatus::Lost),
+    };
+    next.last = safe(&cfg.gaze, &target);
+    (
+        next,
+        Command {
+            joints: next.last,
+            estimate: if status == LoopStatus::Tracking {
+                estimate
+            } else {
+                None
+            },
+            status,
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runtime::traditional::Calibration;
+    use proptest::prelude::*;
+
+    fn fallback() -> Estimator {
+        Estimator::Fallback(Calibration::BUILT_IN)
+    }
+
+    fn point(p: [f32; 4]) -> StereoPoint {
+        StereoPoint {
+            u_l: p[0],
+            v_l: p[1],
+            u_r: p[2],
+            v_r: p[3],
+        }
+    }
+
+    #[test]
+    fn a_consistent_view_needs_no_correction_and_lost_holds() {
+        // 20 px of disparity: about 150 cm straight ahead. At home the fallback's estimate
+        // and the images agree, so the kinematics need no correction.
+        let cfg = LoopConfig::DEFAULT;
+        let obs = Observation {
+            target: Some(point([330.0, 240.0, 310.0, 240.0])),
+            joints: Joints::HOME,
+        };
+        let (s, c) = step(&cfg, &fallback(), &LoopState::default(), &obs);
+        assert_eq!(c.status, LoopStatus::Tracking);
+        let z = c.estimate.unwrap()[2];
+        assert!((140.0..160.0).contains(&z), "z {z}");
+        assert!(
+            s.correction_deg.iter().all(|c| c.abs() < 0.05),
+            "{:?}",
+            s.correction_deg
+        );
+        // Converging eyes: left turns right (negative pan), right turns left.
+        assert!(c.joints[Axis::LeftEyePan] < -1.0 && c.joints[Axis::RightEyePan] > 1.0);
+        assert!(cfg.gaze.limits.contains(&c.joints));
+        let lost = Observation {
+            target: None,
+            joints: Joints::HOME,
+        };
+        let (_, c2) = step(&cfg, &fallback(), &s, &lost);
+        assert_eq!(c2.status, LoopStatus::Lost);
+        assert_eq!(c2.joints, c.joints);
+    }
+
+    #[test]
+    fn a_target_to_the_right_and_below_turns_the_eyes_there() {
+        let cfg = LoopConfig {
+            gain: 1.0,
+            ..LoopConfig::DEFAULT
+        };
+        // From home, a target right of and below the centre in both images.
+        let obs = Observation {
+            target: Some(point([360.0, 270.0, 350.0, 270.0])),
+            joints: Joints::HOME,
+        };
+        let (_, c) = step(&cfg, &fallback(), &LoopState::default(), &obs);
+        let j = c.joints;
+        assert!(
+            j[Axis::LeftEyePan] < 0.0 && j[Axis::RightEyePan] < 0.0,
+            "{j:?}"
+        );
+        assert!(j[Axis::EyeTilt] + j[Axis::NeckTilt] > 0.0, "{j:?}");
+    }
+
+    #[test]
+    fn the_correction_learns_a_constant_miss() {
+        // The eyes are panned 1 degree to the left of where the (posture-blind) estimate
+        // says they are: the image shows the target where it would be at home. The
+        // kinematics miss by 1 degree on both pans; the correction learns it.
+        let cfg = LoopConfig::DEFAULT;
+        let mut s = LoopState::default();
+        let obs = Observation {
+            target: Some(point([330.0, 240.0, 310.0, 240.0])),
+            joints: Joints([0.0, 0.0, 0.0, 0.9, 0.9]),
+        };
+        for _ in 0..20 {
+            s = step(&cfg, &fallback(), &s, &obs).0;
+        }
+        for k in [1, 2] {
+            assert!(
+                (s.correction_deg[k] - 0.9).abs() < 0.01,
+                "{:?}",
+                s.correction_deg
+            );
+        }
+        assert!(s.correction_deg[0].abs() < 1e-3);
+        let (_, c) = step(&cfg, &fallback(), &s, &obs);
+        // The command is the kinematics plus the learnt miss (on the step grid).
+        let (_, plain) = step(
+            &LoopConfig { gain: 0.0, ..cfg },
+            &fallback(),
+            &LoopState::default(),
+            &obs,
+        );
+        let d = c.joints[Axis::LeftEyePan] - plain.joints[Axis::LeftEyePan];
+        assert!((d - 0.9).abs() < 0.1, "{d}");
+    }
+
+    fn any_f32() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(f32::NEG_INFINITY),
+            Just(f32::MAX),
+            Just(-f32::MAX),
+            -1.0e6f32..1.0e6,
+            -1000.0f32..1000.0,
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn never_outside_limits(
+            px in proptest::array::uniform4(any_f32()),
+            joints in proptest::array::uniform5(any_f32()),
+            corr in proptest::array::uniform3(any_f32()),
+            last in proptest::array::uniform5(any_f32()),
+            gain in any_f32(),
+            seen in any::<bool>(),
+        ) {
+            let cfg = LoopConfig { gain, ..LoopConfig::DEFAULT };
+            let state = LoopState { correction_deg: corr, last: Joints(last) };
+            let obs = Observation {
+                target: seen.then(|| point(px)),
+                joints: Joints(joints),
+            };
+            let (s, c) = step(&cfg, &fallback(), &state, &obs);
+            prop_assert!(cfg.gaze.limits.contains(&c.joints), "{:?}", c.joints);
+            for a in Axis::ALL {
+                let steps = c.joints[a] / gaze::STEP_DEG;
+                prop_assert!((steps - libm::roundf(steps)).abs() < 1e-3);
+            }
+            prop_assert!(s.correction_deg.iter().all(|x| x.is_finite() && x.abs() <= cfg.max_correction_deg));
+            // And again from the returned state.
+            let (_, c2) = step(&cfg, &fallback(), &s, &obs);
+            prop_assert!(cfg.gaze.limits.contains(&c2.joints));
+        }
+    }
+}
