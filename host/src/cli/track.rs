@@ -1,7 +1,7 @@
 //! `hvs track`: the head in the loop on a virtual scene (`host::track`): keeps the nearest
 //! object (or the one under a pixel) in the middle of both eyes, one log row per frame.
 
-use crate::data::csv::{write_atomically, write_bytes};
+use crate::data::output::{write_atomically, write_bytes};
 use crate::track::{self, frames::VirtualCameras, head_sim::VirtualHead, target::TargetMode};
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::trajectory::ControllerConfig;
