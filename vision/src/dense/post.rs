@@ -1,0 +1,267 @@
+//! What follows the aggregation: winner takes all with uniqueness and sub-pixel refinement,
+//! the left-right check, the speckle filter and the confidence of each kept pixel.
+
+use super::{DenseMap, Geo};
+use rayon::prelude::*;
+
+/// One pixel's winner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Best {
+    /// Sub-pixel disparity `u_l - u_r` (px).
+    pub disparity: f32,
+    /// The smallest aggregated cost.
+    pub s1: i32,
+    /// The smallest more than one disparity away (`i32::MAX` when there is none).
+    pub s2: i32,
+    /// Disagreement of the left-right check (px).
+    pub lr: f32,
+}
+
+/// The winner of every pixel of `geo`'s reference image (`None`: refused).
+pub(crate) fn winners(geo: &Geo, sum: &[i16], uniqueness: f32) -> Vec<Option<Best>> {
+    let (w, h, d) = (geo.w, geo.h, geo.d);
+    let mut out = vec![None; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let mut valid = vec![false; d];
+        for (x, slot) in row.iter_mut().enumerate() {
+            let Some(line) = geo.line(x, y) else { continue };
+            let s = &sum[(y * w + x) * d..(y * w + x + 1) * d];
+            let mut k1 = usize::MAX;
+            let mut s1 = i32::MAX;
+            for k in 0..d {
+                valid[k] = geo.target(x, line, k).is_some();
+                if valid[k] && i32::from(s[k]) < s1 {
+                    s1 = i32::from(s[k]);
+                    k1 = k;
+                }
+            }
+            // No candidate, or the minimum at an end of the range (or of the image): the
+            // match is not inside the range.
+            if k1 == usize::MAX || k1 == 0 || k1 + 1 >= d || !valid[k1 - 1] || !valid[k1 + 1] {
+                continue;
+            }
+            let s2 = (0..d)
+                .filter(|&k| valid[k] && k.abs_diff(k1) > 1)
+                .map(|k| i32::from(s[k]))
+                .min()
+                .unwrap_or(i32::MAX);
+            if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
+                continue;
+            }
+            let (a, c) = (i32::from(s[k1 - 1]), i32::from(s[k1 + 1]));
+            let denom = a + c - 2 * s1;
+            let offset = if denom > 0 {
+                ((a - c) as f32 / (2 * denom) as f32).clamp(-0.5, 0.5)
+            } else {
+                0.0
+            };
+            *slot = Some(Best {
+                disparity: (geo.d_min as f32) + k1 as f32 + offset,
+                s1,
+                s2,
+                lr: 0.0,
+            });
+        }
+    });
+    out
+}
+
+/// For a rectified pair: the right image's whole disparities read off the left volume
+/// (right pixel `(x, y)` at disparity index `k` is left pixel `(x + d_min + k, y)`).
+pub(crate) fn right_from_left_volume(geo: &Geo, sum: &[i16]) -> Vec<Option<f32>> {
+    let (w, h, d) = (geo.w, geo.h, geo.d);
+    let mut out = vec![None; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (xr, slot) in row.iter_mut().enumerate() {
+            let mut best: Option<(i16, usize)> = None;
+            for k in 0..d {
+                let x = xr as i64 + i64::from(geo.d_min) + k as i64;
+                if x < 0 || x >= w as i64 {
+                    continue;
+                }
+                let v = sum[(y * w + x as usize) * d + k];
+                if best.is_none_or(|(b, _)| v < b) {
+                    best = Some((v, k));
+                }
+            }
+            *slot = best.map(|(_, k)| (geo.d_min as f32) + k as f32);
+        }
+    });
+    out
+}
+
+/// Drops every left winner whose right pixel's disparity (`right`, indexed by right pixel)
+/// differs by more than `tol` px or is missing; records the disagreement of the others.
+pub(crate) fn left_right_check(
+    geo: &Geo,
+    best: &mut [Option<Best>],
+    right: &[Option<f32>],
+    tol: f32,
+) {
+    let w = geo.w;
+    best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, slot) in row.iter_mut().enumerate() {
+            let Some(b) = slot else { continue };
+            let keep = geo.line(x, y).and_then(|(alpha, beta)| {
+                let ur = x as f64 - f64::from(b.disparity);
+                let vr = alpha + beta * ur;
+                let (u, v) = (ur.round(), vr.round());
+                if u < 0.0 || v < 0.0 || u >= w as f64 || v >= geo.h as f64 {
+                    return None;
+                }
+                let dr = right[v as usize * w + u as usize]?;
+                let diff = (b.disparity - dr).abs();
+                (diff <= tol).then_some(diff)
+            });
+            match keep {
+                Some(diff) => b.lr = diff,
+                None => *slot = None,
+            }
+        }
+    });
+}
+
+/// Drops the 4-connected regions (neighbours within `range` px of disparity) of fewer than
+/// `size` pixels.
+pub(crate) fn speckle_filter(
+    w: usize,
+    h: usize,
+    best: &mut [Option<Best>],
+    size: usize,
+    range: f32,
+) {
+    if size == 0 {
+        return;
+    }
+    let mut label = vec![u32::MAX; w * h];
+    let mut stack = Vec::new();
+    let mut members = Vec::new();
+    let mut next = 0u32;
+    for start in 0..w * h {
+        if best[start].is_none() || label[start] != u32::MAX {
+            continue;
+        }
+        label[start] = next;
+        stack.push(start);
+        members.clear();
+        while let Some(p) = stack.pop() {
+            members.push(p);
+            let dp = best[p].map_or(0.0, |b| b.disparity);
+            let (x, y) = (p % w, p / w);
+            let mut visit = |q: usize| {
+                if label[q] == u32::MAX {
+                    if let Some(b) = best[q] {
+                        if (b.disparity - dp).abs() <= range {
+                            label[q] = next;
+                            stack.push(q);
+                        }
+                    }
+                }
+            };
+            if x > 0 {
+                visit(p - 1);
+            }
+            if x + 1 < w {
+                visit(p + 1);
+            }
+            if y > 0 {
+                visit(p - w);
+            }
+            if y + 1 < h {
+                visit(p + w);
+            }
+        }
+        if members.len() < size {
+            for &p in &members {
+                best[p] = None;
+            }
+        }
+        next += 1;
+    }
+}
+
+/// The confidence of a kept pixel in `0..1`: its uniqueness margin `(s2 - s1) / s2` over
+/// 0.2 (capped at 1), times `1 - lr / (2 tol)` (the left-right disagreement `lr` against the
+/// check's tolerance `tol`).
+pub fn confidence(s1: i32, s2: i32, lr: f32, tol: f32) -> f32 {
+    let margin = if s2 == i32::MAX || s2 <= 0 {
+        1.0
+    } else {
+        ((s2 - s1) as f32 / s2 as f32).max(0.0)
+    };
+    let agree = if tol > 0.0 {
+        1.0 - 0.5 * (lr / tol).min(1.0)
+    } else {
+        1.0
+    };
+    ((margin / 0.2).min(1.0) * agree).clamp(0.0, 1.0)
+}
+
+/// The winners as right-image pixels.
+pub(crate) fn to_map(geo: &Geo, best: &[Option<Best>], tol: f32) -> DenseMap {
+    let n = geo.w * geo.h;
+    let (mut ur, mut vr, mut conf) = (
+        vec![f32::INFINITY; n],
+        vec![f32::INFINITY; n],
+        vec![0.0f32; n],
+    );
+    for (p, b) in best.iter().enumerate() {
+        let Some(b) = b else { continue };
+        let (x, y) = (p % geo.w, p / geo.w);
+        let Some((alpha, beta)) = geo.line(x, y) else {
+            continue;
+        };
+        let u = x as f64 - f64::from(b.disparity);
+        ur[p] = u as f32;
+        vr[p] = (alpha + beta * u) as f32;
+        conf[p] = confidence(b.s1, b.s2, b.lr, tol);
+    }
+    DenseMap {
+        width: geo.w as u32,
+        height: geo.h as u32,
+        ur,
+        vr,
+        conf,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn best(d: f32) -> Option<Best> {
+        Some(Best {
+            disparity: d,
+            s1: 1,
+            s2: 10,
+            lr: 0.0,
+        })
+    }
+
+    #[test]
+    fn small_regions_go_and_large_ones_stay() {
+        // 10 x 3: a region of 25 at d = 5 and a speck of 3 at d = 9 in its middle row.
+        let (w, h) = (10, 3);
+        let mut b: Vec<Option<Best>> = (0..w * h).map(|_| best(5.0)).collect();
+        for x in 3..6 {
+            b[w + x] = best(9.0);
+        }
+        b[0] = None;
+        b[1] = best(5.8);
+        speckle_filter(w, h, &mut b, 4, 1.0);
+        assert_eq!(b.iter().filter(|x| x.is_some()).count(), 26);
+        assert!((3..6).all(|x| b[w + x].is_none()));
+        assert!(b[1].is_some());
+        speckle_filter(w, h, &mut b, 27, 1.0);
+        assert!(b.iter().all(|x| x.is_none()));
+    }
+
+    #[test]
+    fn confidence_grows_with_the_margin_and_falls_with_the_lr_disagreement() {
+        assert_eq!(confidence(10, 10, 0.0, 1.0), 0.0);
+        assert!((confidence(90, 100, 0.0, 1.0) - 0.5).abs() < 1e-6);
+        assert_eq!(confidence(50, 100, 0.0, 1.0), 1.0);
+        assert_eq!(confidence(50, 100, 1.0, 1.0), 0.5);
+        assert_eq!(confidence(50, i32::MAX, 0.0, 0.0), 1.0);
+    }
+}
