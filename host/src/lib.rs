@@ -14,12 +14,14 @@
 //! - [`study`]: the thesis' chapter-4 experiments and the posture study: facts computed and
 //!   unit-tested, plots (`plotters`), and the reports written from templates.
 //! - [`vision`]: image files around `hvs-vision` (board photos into a training set).
+//! - [`depth`]: dense depth of a stereo pair through the model (`hvs depth`).
 //! - [`device`]: the head as a device: the protocol link (TCP or serial), the client of its
 //!   requests, QEMU emulation, and flash images / probe-rs.
 //! - [`cli`]: one module per `hvs` subcommand, clap `Args` + `run`; the only place clap is used.
 
 pub mod cli;
 pub mod data;
+pub mod depth;
 pub mod device;
 pub mod evaluate;
 pub mod fmt;

@@ -17,31 +17,39 @@ pub const MAX_COST: u8 = ((2 * HALF_W + 1) * (2 * HALF_H + 1) - 1) as u8;
 pub fn census(img: &GrayImage) -> Vec<u64> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let px = img.as_raw();
+    // The image padded by its border pixels, so the inner loop needs no clamping.
+    let (hw, hh) = (HALF_W as usize, HALF_H as usize);
+    let pw = w + 2 * hw;
+    let mut pad = vec![0u8; pw * (h + 2 * hh)];
+    for (py, row) in pad.chunks_exact_mut(pw).enumerate() {
+        let y = py.saturating_sub(hh).min(h - 1);
+        let src = &px[y * w..(y + 1) * w];
+        for (px_out, x) in row
+            .iter_mut()
+            .zip((0..pw).map(|x| x.saturating_sub(hw).min(w - 1)))
+        {
+            *px_out = src[x];
+        }
+    }
     let mut out = vec![0u64; w * h];
     out.par_chunks_mut(w.max(1))
         .enumerate()
         .for_each(|(y, row)| {
-            let rows: Vec<&[u8]> = (-HALF_H..=HALF_H)
-                .map(|dy| {
-                    let yy = (y as i32 + dy).clamp(0, h as i32 - 1) as usize;
-                    &px[yy * w..(yy + 1) * w]
-                })
-                .collect();
-            let centre = rows[HALF_H as usize];
-            for (x, word) in row.iter_mut().enumerate() {
-                let c = centre[x];
-                let mut bits = 0u64;
-                for (j, r) in rows.iter().enumerate() {
-                    for dx in -HALF_W..=HALF_W {
-                        if j == HALF_H as usize && dx == 0 {
-                            continue;
-                        }
-                        let xx = (x as i32 + dx).clamp(0, w as i32 - 1) as usize;
-                        bits = (bits << 1) | u64::from(r[xx] < c);
+            let centre = &pad[(y + hh) * pw + hw..(y + hh) * pw + hw + w];
+            let mut acc = vec![0u64; w];
+            for j in 0..2 * hh + 1 {
+                let r = &pad[(y + j) * pw..(y + j + 1) * pw];
+                for i in 0..2 * hw + 1 {
+                    if j == hh && i == hw {
+                        continue;
+                    }
+                    let shifted = &r[i..i + w];
+                    for ((a, &n), &c) in acc.iter_mut().zip(shifted).zip(centre) {
+                        *a = (*a << 1) | u64::from(n < c);
                     }
                 }
-                *word = bits;
             }
+            row.copy_from_slice(&acc);
         });
     out
 }

@@ -191,6 +191,15 @@ impl Geo {
         x as i64 + i64::from(self.sign) * (i64::from(self.d_min) + k as i64)
     }
 
+    /// The other image's row at its column `u` on `line`, if inside it (rounded to the
+    /// nearest row).
+    #[inline]
+    pub fn v_at(&self, line: (f64, f64), u: i64) -> Option<usize> {
+        let v = line.0 + line.1 * u as f64 + 0.5;
+        // Truncation is the floor for v >= 0 (no libm call).
+        (v >= 0.0 && v < self.h as f64).then(|| v as usize)
+    }
+
     /// The other image's pixel at disparity index `k`, if inside it.
     #[inline]
     pub fn target(&self, x: usize, line: (f64, f64), k: usize) -> Option<(usize, usize)> {
@@ -198,8 +207,29 @@ impl Geo {
         if u < 0 || u >= self.w as i64 {
             return None;
         }
-        let v = (line.0 + line.1 * u as f64).round();
-        (v >= 0.0 && v < self.h as f64).then_some((u as usize, v as usize))
+        self.v_at(line, u).map(|v| (u as usize, v))
+    }
+
+    /// The disparity indices `k_lo..=k_hi` whose target lies inside the other image (one run:
+    /// `u` and `v` are monotonic in `k`), `None` when there is none.
+    pub fn valid_range(&self, x: usize, line: (f64, f64)) -> Option<(usize, usize)> {
+        // u = x + sign (d_min + k) in 0..w.
+        let (w, d) = (self.w as i64, self.d as i64);
+        let base = x as i64 + i64::from(self.sign) * i64::from(self.d_min);
+        let (mut lo, mut hi) = if self.sign < 0 {
+            (base - (w - 1), base)
+        } else {
+            (-base, w - 1 - base)
+        };
+        lo = lo.max(0);
+        hi = hi.min(d - 1);
+        while lo <= hi && self.target(x, line, lo as usize).is_none() {
+            lo += 1;
+        }
+        while hi >= lo && self.target(x, line, hi as usize).is_none() {
+            hi -= 1;
+        }
+        (lo <= hi).then_some((lo as usize, hi as usize))
     }
 }
 
@@ -212,11 +242,24 @@ fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> Vec<u8> {
     cost.par_chunks_mut(w * d).enumerate().for_each(|(y, row)| {
         for x in 0..w {
             let Some(line) = geo.line(x, y) else { continue };
+            let Some((lo, hi)) = geo.valid_range(x, line) else {
+                continue;
+            };
             let c = reference[y * w + x];
             let cells = &mut row[x * d..(x + 1) * d];
-            for (k, cell) in cells.iter_mut().enumerate() {
-                if let Some((u, v)) = geo.target(x, line, k) {
-                    *cell = (c ^ other[v * w + u]).count_ones() as u8;
+            if line.1 == 0.0 {
+                // Rows: one row of the other image.
+                let Some(v) = geo.v_at(line, 0) else { continue };
+                let other_row = &other[v * w..(v + 1) * w];
+                for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    *cell = (c ^ other_row[geo.u_at(x, k) as usize]).count_ones() as u8;
+                }
+            } else {
+                for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    let u = geo.u_at(x, k);
+                    if let Some(v) = geo.v_at(line, u) {
+                        *cell = (c ^ other[v * w + u as usize]).count_ones() as u8;
+                    }
                 }
             }
         }

@@ -22,29 +22,32 @@ pub(crate) fn winners(geo: &Geo, sum: &[i16], uniqueness: f32) -> Vec<Option<Bes
     let (w, h, d) = (geo.w, geo.h, geo.d);
     let mut out = vec![None; w * h];
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let mut valid = vec![false; d];
         for (x, slot) in row.iter_mut().enumerate() {
             let Some(line) = geo.line(x, y) else { continue };
+            let Some((lo, hi)) = geo.valid_range(x, line) else {
+                continue;
+            };
             let s = &sum[(y * w + x) * d..(y * w + x + 1) * d];
-            let mut k1 = usize::MAX;
-            let mut s1 = i32::MAX;
-            for k in 0..d {
-                valid[k] = geo.target(x, line, k).is_some();
-                if valid[k] && i32::from(s[k]) < s1 {
-                    s1 = i32::from(s[k]);
+            let mut k1 = lo;
+            let mut s1 = i32::from(s[lo]);
+            for (k, &v) in s.iter().enumerate().take(hi + 1).skip(lo + 1) {
+                if i32::from(v) < s1 {
+                    s1 = i32::from(v);
                     k1 = k;
                 }
             }
-            // No candidate, or the minimum at an end of the range (or of the image): the
-            // match is not inside the range.
-            if k1 == usize::MAX || k1 == 0 || k1 + 1 >= d || !valid[k1 - 1] || !valid[k1 + 1] {
+            // The minimum at an end of the range (or of the image): the match is not inside
+            // the range.
+            if k1 == lo || k1 == hi {
                 continue;
             }
-            let s2 = (0..d)
-                .filter(|&k| valid[k] && k.abs_diff(k1) > 1)
-                .map(|k| i32::from(s[k]))
+            let below = s[lo..k1 - 1].iter().copied().min();
+            let above = s.get(k1 + 2..hi + 1).and_then(|r| r.iter().copied().min());
+            let s2 = below
+                .into_iter()
+                .chain(above)
                 .min()
-                .unwrap_or(i32::MAX);
+                .map_or(i32::MAX, i32::from);
             if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
                 continue;
             }
@@ -84,7 +87,23 @@ pub(crate) fn right_from_left_volume(geo: &Geo, sum: &[i16]) -> Vec<Option<f32>>
                     best = Some((v, k));
                 }
             }
-            *slot = best.map(|(_, k)| (geo.d_min as f32) + k as f32);
+            // Sub-pixel by the same parabola as the left winners where both neighbours exist.
+            *slot = best.map(|(s1, k)| {
+                let at = |k: usize| -> Option<i32> {
+                    let x = xr as i64 + i64::from(geo.d_min) + k as i64;
+                    (x >= 0 && x < w as i64).then(|| i32::from(sum[(y * w + x as usize) * d + k]))
+                };
+                let offset = match (
+                    k.checked_sub(1).and_then(at),
+                    (k + 1 < d).then(|| at(k + 1)).flatten(),
+                ) {
+                    (Some(a), Some(c)) if a + c - 2 * i32::from(s1) > 0 => {
+                        ((a - c) as f32 / (2 * (a + c - 2 * i32::from(s1))) as f32).clamp(-0.5, 0.5)
+                    }
+                    _ => 0.0,
+                };
+                (geo.d_min as f32) + k as f32 + offset
+            });
         }
     });
     out

@@ -24,6 +24,7 @@ pub struct Penalties {
 #[inline]
 fn step(prev: &[i16], pmin: i16, c: &[u8], p1: i16, p2: i16, out: &mut [i16]) -> i16 {
     let d = c.len();
+    let (prev, out) = (&prev[..d], &mut out[..d]);
     let cap = pmin + p2;
     if d == 1 {
         out[0] = i16::from(c[0]) + prev[0].min(cap) - pmin;
@@ -31,16 +32,15 @@ fn step(prev: &[i16], pmin: i16, c: &[u8], p1: i16, p2: i16, out: &mut [i16]) ->
     }
     out[0] = i16::from(c[0]) + prev[0].min(prev[1] + p1).min(cap) - pmin;
     out[d - 1] = i16::from(c[d - 1]) + prev[d - 1].min(prev[d - 2] + p1).min(cap) - pmin;
-    let mid = out[1..d - 1].iter_mut().zip(c[1..d - 1].iter()).zip(
-        prev[..d - 2]
-            .iter()
-            .zip(prev[1..d - 1].iter())
-            .zip(&prev[2..]),
-    );
-    for ((o, &cc), ((&a, &b), &e)) in mid {
-        *o = i16::from(cc) + b.min(a.min(e) + p1).min(cap) - pmin;
+    for k in 1..d - 1 {
+        let v = prev[k].min(prev[k - 1].min(prev[k + 1]) + p1).min(cap);
+        out[k] = i16::from(c[k]) + v - pmin;
     }
-    out.iter().copied().fold(i16::MAX, i16::min)
+    let mut m = i16::MAX;
+    for &v in out.iter() {
+        m = m.min(v);
+    }
+    m
 }
 
 /// One pass (forward: rows top to bottom, left to right; backward: the reverse) writing the
