@@ -71,11 +71,11 @@ impl Default for DenseParams {
     fn default() -> Self {
         DenseParams {
             eight_paths: true,
-            p1: 8,
+            p1: 16,
             p2: 96,
-            p2_gamma: 16.0,
+            p2_gamma: 8.0,
             uniqueness: 0.05,
-            lr_tolerance_px: 1.0,
+            lr_tolerance_px: 1.5,
             speckle_size: 100,
             speckle_range_px: 1.0,
         }
