@@ -6,6 +6,8 @@
 //! - [`geometry`]: homographies and the fundamental matrix (normalised 8-point + refinement,
 //!   or from two pinhole cameras).
 //! - [`render`]: stereo images of a board through a rig, with exact corner truth.
+//! - [`scene`]: textured objects in front of a wall, moving in time, rendered with per-pixel
+//!   truth (depth, object, the true match of a left pixel).
 //! - [`matching`]: one point of the left image found in the right one (ZNCC on the epipolar line).
 //! - [`dense`]: every pixel of the left image matched in the right one (census + semi-global
 //!   matching along the epipolar lines).
@@ -25,3 +27,4 @@ pub mod matching;
 pub mod overlay;
 pub mod pfm;
 pub mod render;
+pub mod scene;

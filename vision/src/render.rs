@@ -96,7 +96,7 @@ pub fn opencv_board() -> Board {
 
 /// Colour class of a board point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Class {
+pub(crate) enum Class {
     Black,
     White,
     Background,
@@ -132,7 +132,7 @@ fn validate_margin(board: &Board, margin_cm: f64) -> Result<(), RenderError> {
 
 /// Colour of the point of `board` (white border `margin_cm` wide) at offset `(bx, by)` from
 /// its centre.
-fn class(board: &Board, margin_cm: f64, bx: f64, by: f64) -> Class {
+pub(crate) fn class(board: &Board, margin_cm: f64, bx: f64, by: f64) -> Class {
     let hx = (f64::from(board.cols) + 1.0) * 0.5 * board.square_cm;
     let hy = (f64::from(board.rows) + 1.0) * 0.5 * board.square_cm;
     let fx = bx + hx;
@@ -443,7 +443,7 @@ pub(crate) fn blur(buf: &mut [f32], w: usize, h: usize, sigma: f64) {
 }
 
 /// Adds the sensor noise, rounds half away from zero and clamps to 0..=255.
-fn quantise(
+pub(crate) fn quantise(
     buf: &[f32],
     w: u32,
     h: u32,

@@ -1,0 +1,896 @@
+//! Scenes for the virtual head: textured spheres, boxes and boards in front of a textured wall,
+//! moving in time, rendered through the head's cameras with per-pixel truth.
+//!
+//! # Scene file
+//!
+//! Strict JSON (unknown and duplicate fields refused, the field named in the error);
+//! positions in the head frame of `hvs simulate` (cm, `X` right, `Y` down, `Z` forward):
+//!
+//! ```json
+//! { "rig": {"case": 3}, "camera_fps": 30,
+//!   "background": {"z_cm": 300, "texture_seed": 1},
+//!   "objects": [ {"shape": "sphere", "radius_cm": 5, "centre_cm": [10, -5, 90],
+//!                 "velocity_cm_s": [0, 0, 0], "texture_seed": 2} ] }
+//! ```
+//!
+//! - `rig` is kept as JSON ([`SceneFile::rig`]): the rig parser lives in the host
+//!   (`{"case": N}` or a rig object as `hvs simulate --rig` reads).
+//! - `background`: a wall perpendicular to `Z` at `z_cm`, everywhere behind the objects.
+//! - `objects[k]`: `shape` `sphere` (`radius_cm`), `box` (`size_cm`: `[sx, sy, sz]`, axis
+//!   aligned) or `board` (`board`: a `BOARD.json` object, upright, facing the head, with a white
+//!   border one square wide); its position is either `centre_cm` (+ optional constant
+//!   `velocity_cm_s`) or a `path` of timed waypoints `[{"t_s": 0, "centre_cm": [..]}, ..]`
+//!   (linear between waypoints, held before the first and after the last); `texture_seed`
+//!   (default 0) seeds its texture.
+//!
+//! # Textures
+//!
+//! Spheres, boxes and the wall carry a seeded value-noise texture (two octaves, cells of
+//! 2 cm and 0.8 cm on objects, 6 cm and 2.5 cm on the wall), a function of the surface point
+//! relative to the object's centre: fixed to the surface, high-frequency and non-repetitive
+//! (good for stereo matching). Boards are chessboards (the colours of [`RenderOptions`]).
+//!
+//! # Rendering and truth
+//!
+//! [`render_scene`] casts the ray of every pixel centre ([`LensCamera::ray`]) into the scene at
+//! time `t`; pixels whose object (or board colour) differs from a 4-neighbour's are
+//! supersampled `n x n` ([`RenderOptions::supersample`]); then the blur, noise and 8-bit
+//! rounding of [`crate::render`]. The truth ([`TruthImage`]) is the hit point of each pixel
+//! centre's ray (head frame, so `Z` is the depth) and the object id ([`BACKGROUND`] for the
+//! wall, `k + 1` for `objects[k]`, [`NONE`] for a ray that meets nothing).
+//! [`SceneRender::true_match`] gives, for a left pixel, where the right camera sees the same
+//! point, or `None` when it is occluded or out of the image.
+
+use crate::board::Board;
+use crate::invalid::InvalidField;
+use crate::render::{blur, class, quantise, Class, RenderError, RenderOptions};
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::sim::camera::{LensCamera, Vec3};
+use hvs_shared::sim::posture::HeadRig;
+use image::GrayImage;
+use serde::Deserialize;
+use std::fmt;
+
+/// Object id of the background wall in [`TruthImage::object`].
+pub const BACKGROUND: u16 = 0;
+/// Object id of a ray that meets nothing.
+pub const NONE: u16 = u16::MAX;
+/// Most objects in a scene.
+pub const MAX_OBJECTS: usize = 64;
+
+/// The scene file as read (see the module documentation).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// The rig, as JSON: the host parses it.
+    pub rig: serde_json::Value,
+    /// Camera frame rate (frames per second, 1 to 1000).
+    pub camera_fps: f64,
+    /// The wall behind everything.
+    pub background: Background,
+    /// The objects, id `k + 1` for `objects[k]`.
+    #[serde(default)]
+    pub objects: Vec<ObjectSpec>,
+}
+
+/// The wall behind the objects.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Background {
+    /// Depth of the wall (cm, > 0).
+    pub z_cm: f64,
+    /// Seed of its texture.
+    #[serde(default)]
+    pub texture_seed: u64,
+}
+
+/// Shapes of objects.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ShapeKind {
+    /// A sphere (`radius_cm`).
+    Sphere,
+    /// An axis-aligned box (`size_cm`).
+    Box,
+    /// A chessboard (`board`).
+    Board,
+}
+
+/// One timed waypoint of a path.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Waypoint {
+    /// Time (s).
+    pub t_s: f64,
+    /// Centre at that time (cm).
+    pub centre_cm: Vec3,
+}
+
+/// One object as written in the file (checked by [`SceneFile::scene`]).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSpec {
+    /// The shape.
+    pub shape: ShapeKind,
+    /// Sphere radius (cm).
+    pub radius_cm: Option<f64>,
+    /// Box sides (cm).
+    pub size_cm: Option<Vec3>,
+    /// Board description (a `BOARD.json` object).
+    pub board: Option<serde_json::Value>,
+    /// Centre at `t = 0` (cm).
+    pub centre_cm: Option<Vec3>,
+    /// Constant velocity (cm/s).
+    pub velocity_cm_s: Option<Vec3>,
+    /// Timed waypoints, instead of `centre_cm` and `velocity_cm_s`.
+    pub path: Option<Vec<Waypoint>>,
+    /// Texture seed.
+    #[serde(default)]
+    pub texture_seed: u64,
+}
+
+/// A checked shape.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shape {
+    /// Sphere of this radius (cm).
+    Sphere {
+        /// Radius (cm).
+        radius_cm: f64,
+    },
+    /// Axis-aligned box of these sides (cm).
+    Box {
+        /// Sides (cm).
+        size_cm: Vec3,
+    },
+    /// Chessboard, upright, facing the head, with a white border one square wide.
+    Board {
+        /// The board.
+        board: Board,
+    },
+}
+
+/// How an object moves.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Motion {
+    /// `centre + velocity t`.
+    Linear {
+        /// Centre at `t = 0` (cm).
+        centre_cm: Vec3,
+        /// Velocity (cm/s).
+        velocity_cm_s: Vec3,
+    },
+    /// Linear between waypoints (times increasing), held outside them.
+    Path(Vec<Waypoint>),
+}
+
+impl Motion {
+    /// The centre at time `t` (s).
+    pub fn centre_at(&self, t: f64) -> Vec3 {
+        match self {
+            Motion::Linear {
+                centre_cm,
+                velocity_cm_s,
+            } => core::array::from_fn(|k| centre_cm[k] + velocity_cm_s[k] * t),
+            Motion::Path(w) => {
+                let first = &w[0];
+                if t <= first.t_s {
+                    return first.centre_cm;
+                }
+                for p in w.windows(2) {
+                    if t <= p[1].t_s {
+                        let a = (t - p[0].t_s) / (p[1].t_s - p[0].t_s);
+                        return core::array::from_fn(|k| {
+                            p[0].centre_cm[k] + a * (p[1].centre_cm[k] - p[0].centre_cm[k])
+                        });
+                    }
+                }
+                w[w.len() - 1].centre_cm
+            }
+        }
+    }
+}
+
+/// A checked object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object {
+    /// Its shape.
+    pub shape: Shape,
+    /// Its motion.
+    pub motion: Motion,
+    /// Its texture seed.
+    pub texture_seed: u64,
+}
+
+/// A checked scene (without the rig).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// Camera frame rate (frames per second).
+    pub camera_fps: f64,
+    /// The wall.
+    pub background: Background,
+    /// The objects, id `k + 1` for `objects[k]`.
+    pub objects: Vec<Object>,
+}
+
+/// Why a scene was refused: the field and the reason.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneError(pub String);
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+fn err(field: impl fmt::Display, reason: impl fmt::Display) -> SceneError {
+    SceneError(format!("{field}: {reason}"))
+}
+
+fn check_vec(field: &str, v: &Vec3, bound: f64) -> Result<(), SceneError> {
+    if v.iter().all(|x| x.is_finite() && x.abs() <= bound) {
+        Ok(())
+    } else {
+        Err(err(
+            field,
+            format!("must be three finite numbers within +-{bound}, got {v:?}"),
+        ))
+    }
+}
+
+/// Largest coordinate anywhere (cm).
+const MAX_CM: f64 = 1.0e5;
+
+impl SceneFile {
+    /// Reads a scene file's text strictly (unknown or duplicate fields, wrong types).
+    pub fn parse(text: &str) -> Result<SceneFile, SceneError> {
+        serde_json::from_str(text).map_err(|e| SceneError(format!("invalid scene JSON: {e}")))
+    }
+
+    /// Checks every value (the field named, e.g. `objects[1].radius_cm`).
+    pub fn scene(&self) -> Result<Scene, SceneError> {
+        if !(self.camera_fps.is_finite() && (1.0..=1000.0).contains(&self.camera_fps)) {
+            return Err(err(
+                "camera_fps",
+                format!("must be from 1 to 1000, got {}", self.camera_fps),
+            ));
+        }
+        let b = self.background;
+        if !(b.z_cm.is_finite() && b.z_cm > 0.0 && b.z_cm <= MAX_CM) {
+            return Err(err(
+                "background.z_cm",
+                format!("must be > 0 and at most {MAX_CM}, got {}", b.z_cm),
+            ));
+        }
+        if self.objects.len() > MAX_OBJECTS {
+            return Err(err(
+                "objects",
+                format!("at most {MAX_OBJECTS} objects, got {}", self.objects.len()),
+            ));
+        }
+        let objects = self
+            .objects
+            .iter()
+            .enumerate()
+            .map(|(k, o)| o.check(&format!("objects[{k}]")))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Scene {
+            camera_fps: self.camera_fps,
+            background: b,
+            objects,
+        })
+    }
+}
+
+impl ObjectSpec {
+    fn check(&self, at: &str) -> Result<Object, SceneError> {
+        let field = |f: &str| format!("{at}.{f}");
+        let not_for = |f: &str, present: bool| {
+            if present {
+                Err(err(
+                    field(f),
+                    format!("not a field of a {:?} (remove it)", self.shape).to_lowercase(),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        let positive = |f: &str, x: f64| {
+            if x.is_finite() && x > 0.0 && x <= MAX_CM {
+                Ok(())
+            } else {
+                Err(err(field(f), format!("must be > 0 and finite, got {x}")))
+            }
+        };
+        let shape = match self.shape {
+            ShapeKind::Sphere => {
+                not_for("size_cm", self.size_cm.is_some())?;
+                not_for("board", self.board.is_some())?;
+                let r = self
+                    .radius_cm
+                    .ok_or_else(|| err(field("radius_cm"), "a sphere needs it"))?;
+                positive("radius_cm", r)?;
+                Shape::Sphere { radius_cm: r }
+            }
+            ShapeKind::Box => {
+                not_for("radius_cm", self.radius_cm.is_some())?;
+                not_for("board", self.board.is_some())?;
+                let s = self
+                    .size_cm
+                    .ok_or_else(|| err(field("size_cm"), "a box needs it"))?;
+                for (i, x) in s.iter().enumerate() {
+                    positive(&format!("size_cm[{i}]"), *x)?;
+                }
+                Shape::Box { size_cm: s }
+            }
+            ShapeKind::Board => {
+                not_for("radius_cm", self.radius_cm.is_some())?;
+                not_for("size_cm", self.size_cm.is_some())?;
+                let b = self
+                    .board
+                    .as_ref()
+                    .ok_or_else(|| err(field("board"), "a board needs a BOARD.json object"))?;
+                let board = Board::from_json(&b.to_string()).map_err(|e| err(field("board"), e))?;
+                Shape::Board { board }
+            }
+        };
+        let motion = match (&self.path, self.centre_cm) {
+            (Some(_), Some(_)) => {
+                return Err(err(
+                    field("path"),
+                    "give either centre_cm (+ velocity_cm_s) or a path, not both",
+                ))
+            }
+            (None, None) => return Err(err(field("centre_cm"), "needed (or a path)")),
+            (None, Some(c)) => {
+                check_vec(&field("centre_cm"), &c, MAX_CM)?;
+                let v = self.velocity_cm_s.unwrap_or([0.0; 3]);
+                check_vec(&field("velocity_cm_s"), &v, MAX_CM)?;
+                Motion::Linear {
+                    centre_cm: c,
+                    velocity_cm_s: v,
+                }
+            }
+            (Some(p), None) => {
+                not_for("velocity_cm_s", self.velocity_cm_s.is_some())?;
+                if p.is_empty() || p.len() > 10_000 {
+                    return Err(err(
+                        field("path"),
+                        format!("needs 1 to 10000 waypoints, got {}", p.len()),
+                    ));
+                }
+                for (i, w) in p.iter().enumerate() {
+                    if !(w.t_s.is_finite() && w.t_s.abs() <= 1.0e7) {
+                        return Err(err(
+                            field(&format!("path[{i}].t_s")),
+                            format!("must be finite, got {}", w.t_s),
+                        ));
+                    }
+                    if i > 0 && w.t_s <= p[i - 1].t_s {
+                        return Err(err(
+                            field(&format!("path[{i}].t_s")),
+                            format!("must be later than the waypoint before, got {}", w.t_s),
+                        ));
+                    }
+                    check_vec(
+                        &field(&format!("path[{i}].centre_cm")),
+                        &w.centre_cm,
+                        MAX_CM,
+                    )?;
+                }
+                Motion::Path(p.clone())
+            }
+        };
+        Ok(Object {
+            shape,
+            motion,
+            texture_seed: self.texture_seed,
+        })
+    }
+}
+
+/// One object placed at one time: what a ray meets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placed {
+    /// The shape.
+    pub shape: Shape,
+    /// Its centre (cm).
+    pub centre: Vec3,
+    /// Its texture seed.
+    pub texture_seed: u64,
+}
+
+/// The scene frozen at one time `t`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneAt {
+    /// The time (s).
+    pub t_s: f64,
+    /// The wall.
+    pub background: Background,
+    /// The objects where they are at `t_s`, id `k + 1` for `objects[k]`.
+    pub objects: Vec<Placed>,
+}
+
+impl Scene {
+    /// The scene at time `t_s`.
+    pub fn at(&self, t_s: f64) -> SceneAt {
+        SceneAt {
+            t_s,
+            background: self.background,
+            objects: self
+                .objects
+                .iter()
+                .map(|o| Placed {
+                    shape: o.shape,
+                    centre: o.motion.centre_at(t_s),
+                    texture_seed: o.texture_seed,
+                })
+                .collect(),
+        }
+    }
+}
+
+/// What a ray meets first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Distance along the (unit) ray (cm).
+    pub t: f64,
+    /// The point (head frame, cm).
+    pub point: Vec3,
+    /// The object id ([`BACKGROUND`] or `k + 1`).
+    pub object: u16,
+}
+
+fn dot(a: &Vec3, b: &Vec3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Half sides of a board's rectangle with its one-square border.
+fn board_half(b: &Board) -> [f64; 2] {
+    [
+        (f64::from(b.cols) + 3.0) * 0.5 * b.square_cm,
+        (f64::from(b.rows) + 3.0) * 0.5 * b.square_cm,
+    ]
+}
+
+/// The nearest `t > 0` where the ray `o + t d` meets `p`.
+fn intersect(p: &Placed, o: &Vec3, d: &Vec3) -> Option<f64> {
+    let c = p.centre;
+    match p.shape {
+        Shape::Sphere { radius_cm } => {
+            let oc = [o[0] - c[0], o[1] - c[1], o[2] - c[2]];
+            let b = dot(&oc, d);
+            let q = dot(&oc, &oc) - radius_cm * radius_cm;
+            let disc = b * b - q;
+            if disc.is_nan() || disc < 0.0 {
+                return None;
+            }
+            let s = libm::sqrt(disc);
+            let t0 = -b - s;
+            let t1 = -b + s;
+            if t0 > 0.0 {
+                Some(t0)
+            } else if t1 > 0.0 {
+                Some(t1)
+            } else {
+                None
+            }
+        }
+        Shape::Box { size_cm } => {
+            let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+            for k in 0..3 {
+                let h = 0.5 * size_cm[k];
+                let (a, b) = (c[k] - h - o[k], c[k] + h - o[k]);
+                if d[k] == 0.0 {
+                    if a > 0.0 || b < 0.0 {
+                        return None;
+                    }
+                    continue;
+                }
+                let (t0, t1) = (a / d[k], b / d[k]);
+                let (t0, t1) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
+                lo = lo.max(t0);
+                hi = hi.min(t1);
+            }
+            if lo > hi || hi <= 0.0 {
+                None
+            } else if lo > 0.0 {
+                Some(lo)
+            } else {
+                Some(hi)
+            }
+        }
+        Shape::Board { board } => {
+            if d[2] == 0.0 {
+                return None;
+            }
+            let t = (c[2] - o[2]) / d[2];
+            if t.is_nan() || t <= 0.0 {
+                return None;
+            }
+            let [hx, hy] = board_half(&board);
+            let x = o[0] + t * d[0] - c[0];
+            let y = o[1] + t * d[1] - c[1];
+            (x.abs() < hx && y.abs() < hy).then_some(t)
+        }
+    }
+}
+
+impl SceneAt {
+    /// What the ray from `o` along the unit direction `d` meets first.
+    pub fn cast(&self, o: &Vec3, d: &Vec3) -> Option<Hit> {
+        let mut best: Option<(f64, u16)> = None;
+        if d[2] != 0.0 {
+            let t = (self.background.z_cm - o[2]) / d[2];
+            if t > 0.0 && t.is_finite() {
+                best = Some((t, BACKGROUND));
+            }
+        }
+        for (k, p) in self.objects.iter().enumerate() {
+            if let Some(t) = intersect(p, o, d) {
+                if best.is_none_or(|(b, _)| t < b) {
+                    best = Some((t, k as u16 + 1));
+                }
+            }
+        }
+        let (t, object) = best?;
+        let point = core::array::from_fn(|k| o[k] + t * d[k]);
+        point
+            .iter()
+            .all(|x: &f64| x.is_finite())
+            .then_some(Hit { t, point, object })
+    }
+
+    /// The grey level and colour class of a hit (the class tells edges for anti-aliasing).
+    fn shade(&self, hit: &Hit, opt: &RenderOptions) -> (f32, u8) {
+        if hit.object == BACKGROUND {
+            let p = hit.point;
+            let g = texture(
+                [p[0], p[1], 0.0],
+                self.background.texture_seed,
+                [1.0 / 6.0, 1.0 / 2.5],
+            );
+            return (g, 0);
+        }
+        let o = &self.objects[usize::from(hit.object - 1)];
+        let c = o.centre;
+        let rel = [
+            hit.point[0] - c[0],
+            hit.point[1] - c[1],
+            hit.point[2] - c[2],
+        ];
+        match o.shape {
+            Shape::Board { board } => {
+                let k = class(&board, board.square_cm, rel[0], rel[1]);
+                let level = match k {
+                    Class::Black => opt.black,
+                    Class::White | Class::Background => opt.white,
+                };
+                (f32::from(level), if k == Class::Black { 1 } else { 2 })
+            }
+            _ => (texture(rel, o.texture_seed, [1.0 / 2.0, 1.0 / 0.8]), 0),
+        }
+    }
+}
+
+/// 64-bit mix (splitmix64's finaliser).
+fn mix(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A value in `[0, 1)` for lattice point `(x, y, z)` of `seed`.
+#[inline(always)]
+fn lattice(x: i64, y: i64, z: i64, seed: u64) -> f64 {
+    let h = mix(seed
+        ^ (x as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+        ^ (y as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+        ^ (z as u64).wrapping_mul(0x1656_67b1_9e37_79f9));
+    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// Value noise at `p` (cells of size 1): smooth trilinear interpolation of lattice values.
+fn value_noise(p: Vec3, seed: u64) -> f64 {
+    let (fx, fy, fz) = (p[0].floor(), p[1].floor(), p[2].floor());
+    let (ix, iy, iz) = (fx as i64, fy as i64, fz as i64);
+    let smooth = |x: f64| x * x * (3.0 - 2.0 * x);
+    let (sx, sy, sz) = (smooth(p[0] - fx), smooth(p[1] - fy), smooth(p[2] - fz));
+    let lerp = |a: f64, b: f64, t: f64| a + t * (b - a);
+    let plane = |z: i64| {
+        let a = lerp(lattice(ix, iy, z, seed), lattice(ix + 1, iy, z, seed), sx);
+        let b = lerp(
+            lattice(ix, iy + 1, z, seed),
+            lattice(ix + 1, iy + 1, z, seed),
+            sx,
+        );
+        lerp(a, b, sy)
+    };
+    if sz == 0.0 {
+        // A surface at a whole z (the wall): the four corners of one plane.
+        return plane(iz);
+    }
+    lerp(plane(iz), plane(iz + 1), sz)
+}
+
+/// The grey level of a textured surface at `p` (relative to the object): two octaves of
+/// value noise of frequencies `freq` (1/cm), contrast stretched to about 25..235.
+fn texture(p: Vec3, seed: u64, freq: [f64; 2]) -> f32 {
+    let a = value_noise(p.map(|x| x * freq[0]), seed);
+    let b = value_noise(p.map(|x| x * freq[1]), mix(seed.wrapping_add(1)));
+    let x = 0.6 * a + 0.4 * b; // mean 0.5, mostly 0.2..0.8
+    ((x - 0.5) * 2.2 * 150.0 + 130.0).clamp(10.0, 245.0) as f32
+}
+
+/// Per-pixel truth of one image: the hit point of each pixel centre's ray and its object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TruthImage {
+    /// Width (px).
+    pub width: u32,
+    /// Height (px).
+    pub height: u32,
+    /// Hit point (head frame, cm; `Z` is the depth), row-major; NaN where [`NONE`].
+    pub point: Vec<[f32; 3]>,
+    /// Object id, row-major ([`BACKGROUND`], `k + 1` for `objects[k]`, [`NONE`]).
+    pub object: Vec<u16>,
+}
+
+impl TruthImage {
+    /// The depth `Z` (cm) of pixel `(c, r)`, `None` out of the image or where nothing is hit.
+    pub fn z(&self, c: u32, r: u32) -> Option<f32> {
+        self.hit(c, r).map(|(p, _)| p[2])
+    }
+
+    /// The hit point and object of pixel `(c, r)`.
+    pub fn hit(&self, c: u32, r: u32) -> Option<([f32; 3], u16)> {
+        if c >= self.width || r >= self.height {
+            return None;
+        }
+        let k = (r * self.width + c) as usize;
+        (self.object[k] != NONE).then(|| (self.point[k], self.object[k]))
+    }
+}
+
+/// A rendered pair with its truth, and what is needed to ask it questions.
+#[derive(Debug, Clone)]
+pub struct SceneRender {
+    /// Left image.
+    pub left: GrayImage,
+    /// Right image.
+    pub right: GrayImage,
+    /// Truth of the left image.
+    pub truth_left: TruthImage,
+    /// Truth of the right image.
+    pub truth_right: TruthImage,
+    /// The two cameras at the posture rendered (left, right).
+    pub cameras: [LensCamera; 2],
+    /// The scene at the time rendered.
+    pub scene: SceneAt,
+}
+
+/// Relative distance within which two hits are the same point (visibility test).
+const SAME_POINT_REL: f64 = 1.0e-6;
+
+impl SceneRender {
+    /// Where the right camera sees the point the centre of left pixel `(c, r)` sees:
+    /// unrounded `(u_r, v_r)` (pixel-centre convention of [`crate::render`]), `None` if the left
+    /// pixel sees nothing, the point projects outside the right image, or something stands
+    /// between it and the right camera.
+    pub fn true_match(&self, c: u32, r: u32) -> Option<[f64; 2]> {
+        let k = (r as usize) * (self.truth_left.width as usize) + c as usize;
+        if c >= self.truth_left.width || r >= self.truth_left.height {
+            return None;
+        }
+        if self.truth_left.object[k] == NONE {
+            return None;
+        }
+        // Re-cast the left ray in f64 (the stored point is f32).
+        let (o, d) = self.cameras[0].ray(f64::from(c), f64::from(r))?;
+        let hit = self.scene.cast(&o, &d)?;
+        self.visible_in(1, &hit.point)
+    }
+
+    /// The pixel where camera `cam` (0 left, 1 right) sees head-frame point `p`, `None` when
+    /// outside the image or occluded.
+    pub fn visible_in(&self, cam: usize, p: &Vec3) -> Option<[f64; 2]> {
+        let camera = &self.cameras[cam];
+        let px = camera.project(p)?;
+        let (w, h) = (f64::from(self.left.width()), f64::from(self.left.height()));
+        if !(px[0] >= -0.5 && px[0] < w - 0.5 && px[1] >= -0.5 && px[1] < h - 0.5) {
+            return None;
+        }
+        let o = camera.camera.center;
+        let v = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+        let n = libm::sqrt(dot(&v, &v));
+        if n.is_nan() || n <= 0.0 {
+            return None;
+        }
+        let d = v.map(|x| x / n);
+        let hit = self.scene.cast(&o, &d)?;
+        (hit.t >= n * (1.0 - SAME_POINT_REL) - 1e-6).then_some(px)
+    }
+}
+
+/// Renders the pair of `scene` (at one time) through `head` at `joints`. Sensor noise comes
+/// from a ChaCha8 stream seeded with `seed` (left image first): the same arguments give the
+/// same bytes. `opt.margin_cm` is not used (a board's border is one square).
+pub fn render_scene(
+    head: &HeadRig,
+    joints: &Joints,
+    scene: &SceneAt,
+    opt: &RenderOptions,
+    seed: u64,
+) -> Result<SceneRender, RenderError> {
+    use rand::SeedableRng;
+    opt.validate()?;
+    let (w, h) = (head.rig.width, head.rig.height);
+    if w == 0 || h == 0 || u64::from(w) * u64::from(h) > crate::image_file::MAX_PIXELS {
+        return Err(InvalidField::new(
+            "rig.width/height",
+            format!(
+                "the image must have from 1 to {} pixels, got {w}x{h}",
+                crate::image_file::MAX_PIXELS
+            ),
+        )
+        .into());
+    }
+    if !head.distortion.iter().all(|d| d.is_finite()) {
+        return Err(InvalidField::new("distortion", "k1 and k2 must be finite").into());
+    }
+    if !joints.0.iter().all(|j| j.is_finite()) {
+        return Err(InvalidField::new("joints", format!("must be finite, got {joints:?}")).into());
+    }
+    let cameras = head.cameras(joints);
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
+    let mut out = cameras.iter().map(|cam| {
+        let (mut buf, truth) = shade_camera(cam, scene, opt, w, h);
+        if opt.blur_sigma_px > 0.0 {
+            blur(&mut buf, w as usize, h as usize, opt.blur_sigma_px);
+        }
+        (quantise(&buf, w, h, opt.noise_sigma, &mut rng), truth)
+    });
+    let (left, truth_left) = out.next().expect("two cameras");
+    let (right, truth_right) = out.next().expect("two cameras");
+    Ok(SceneRender {
+        left,
+        right,
+        truth_left,
+        truth_right,
+        cameras,
+        scene: scene.clone(),
+    })
+}
+
+/// Grey levels (row-major `f32`) and truth of one camera.
+fn shade_camera(
+    cam: &LensCamera,
+    scene: &SceneAt,
+    opt: &RenderOptions,
+    w: u32,
+    h: u32,
+) -> (Vec<f32>, TruthImage) {
+    let (wu, hu) = (w as usize, h as usize);
+    let n = wu * hu;
+    let mut grey = Vec::with_capacity(n);
+    let mut key = Vec::with_capacity(n);
+    let mut point = Vec::with_capacity(n);
+    let mut object = Vec::with_capacity(n);
+    let sample = |u: f64, v: f64| -> Option<(Hit, f32, u8)> {
+        let (o, d) = cam.ray(u, v)?;
+        let hit = scene.cast(&o, &d)?;
+        let (g, k) = scene.shade(&hit, opt);
+        Some((hit, g, k))
+    };
+    let background = f32::from(opt.background);
+    for r in 0..hu {
+        for c in 0..wu {
+            match sample(c as f64, r as f64) {
+                Some((hit, g, k)) => {
+                    grey.push(g);
+                    key.push((hit.object, k));
+                    point.push(hit.point.map(|x| x as f32));
+                    object.push(hit.object);
+                }
+                None => {
+                    grey.push(background);
+                    key.push((NONE, 0));
+                    point.push([f32::NAN; 3]);
+                    object.push(NONE);
+                }
+            }
+        }
+    }
+    // Supersample pixels on an edge (object or board colour differs from a 4-neighbour).
+    let ns = opt.supersample as usize;
+    if ns > 1 {
+        let inv = 1.0 / ns as f64;
+        for r in 0..hu {
+            for c in 0..wu {
+                let i = r * wu + c;
+                let k = key[i];
+                let edge = (c > 0 && key[i - 1] != k)
+                    || (c + 1 < wu && key[i + 1] != k)
+                    || (r > 0 && key[i - wu] != k)
+                    || (r + 1 < hu && key[i + wu] != k);
+                if !edge {
+                    continue;
+                }
+                let mut sum = 0.0f32;
+                for sy in 0..ns {
+                    for sx in 0..ns {
+                        let u = c as f64 - 0.5 + (sx as f64 + (sy as f64 + 0.5) * inv) * inv;
+                        let v = r as f64 - 0.5 + (sy as f64 + (sx as f64 + 0.5) * inv) * inv;
+                        sum += sample(u, v).map_or(background, |s| s.1);
+                    }
+                }
+                grey[i] = sum / (ns * ns) as f32;
+            }
+        }
+    }
+    (
+        grey,
+        TruthImage {
+            width: w,
+            height: h,
+            point,
+            object,
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texture_is_fixed_and_varied() {
+        let a = texture([1.0, 2.0, 3.0], 5, [1.0, 2.0]);
+        assert_eq!(a, texture([1.0, 2.0, 3.0], 5, [1.0, 2.0]));
+        let vals: Vec<f32> = (0..200)
+            .map(|i| texture([i as f64 * 0.37, 0.0, 0.0], 5, [1.0, 2.0]))
+            .collect();
+        let mean = vals.iter().sum::<f32>() / 200.0;
+        let sd = (vals.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() / 200.0).sqrt();
+        assert!(sd > 25.0, "texture contrast {sd}");
+        assert_ne!(a, texture([1.0, 2.0, 3.0], 6, [1.0, 2.0]));
+    }
+
+    #[test]
+    fn path_interpolates_and_holds() {
+        let m = Motion::Path(vec![
+            Waypoint {
+                t_s: 0.0,
+                centre_cm: [0.0, 0.0, 100.0],
+            },
+            Waypoint {
+                t_s: 2.0,
+                centre_cm: [20.0, 0.0, 100.0],
+            },
+        ]);
+        assert_eq!(m.centre_at(-1.0), [0.0, 0.0, 100.0]);
+        assert_eq!(m.centre_at(1.0), [10.0, 0.0, 100.0]);
+        assert_eq!(m.centre_at(5.0), [20.0, 0.0, 100.0]);
+    }
+
+    #[test]
+    fn box_and_sphere_intersections() {
+        let s = Placed {
+            shape: Shape::Sphere { radius_cm: 5.0 },
+            centre: [0.0, 0.0, 100.0],
+            texture_seed: 0,
+        };
+        let t = intersect(&s, &[0.0; 3], &[0.0, 0.0, 1.0]).unwrap();
+        assert!((t - 95.0).abs() < 1e-12);
+        let b = Placed {
+            shape: Shape::Box {
+                size_cm: [10.0, 10.0, 10.0],
+            },
+            centre: [0.0, 0.0, 100.0],
+            texture_seed: 0,
+        };
+        let t = intersect(&b, &[0.0; 3], &[0.0, 0.0, 1.0]).unwrap();
+        assert!((t - 95.0).abs() < 1e-12);
+        assert!(intersect(&b, &[20.0, 0.0, 0.0], &[0.0, 0.0, 1.0]).is_none());
+    }
+}
