@@ -16,7 +16,7 @@
 //!    step.
 //! 4. Winner takes all, with a uniqueness ratio against the best disparity more than one
 //!    step away; a minimum at either end of the range is refused (the match lies outside the
-//!    depth box); sub-pixel by a parabola through the three sums around the minimum.
+//!    depth box); sub-pixel by an equiangular fit through the three sums around the minimum.
 //! 5. Left-right check: the same with the right image as reference (`F^T`); for a rectified
 //!    pair (every line is its own row) read off the same aggregated volume, otherwise a
 //!    second aggregation. A left match whose right pixel disagrees by more than

@@ -17,6 +17,17 @@ pub(crate) struct Best {
     pub lr: f32,
 }
 
+/// The sub-pixel offset of a minimum `b` between its neighbours `a` (one disparity less) and
+/// `c` (one more), in `-0.5..=0.5`: the equiangular (symmetric V) fit, which suits the
+/// L1-like census costs better than a parabola (less pull towards whole pixels).
+pub(crate) fn subpixel(a: i32, b: i32, c: i32) -> f32 {
+    let rise = a.max(c) - b;
+    if rise <= 0 {
+        return 0.0;
+    }
+    ((a - c) as f32 / (2 * rise) as f32).clamp(-0.5, 0.5)
+}
+
 /// The winner of every pixel of `geo`'s reference image (`None`: refused).
 pub(crate) fn winners(geo: &Geo, sum: &[i16], uniqueness: f32) -> Vec<Option<Best>> {
     let (w, h, d) = (geo.w, geo.h, geo.d);
@@ -51,13 +62,7 @@ pub(crate) fn winners(geo: &Geo, sum: &[i16], uniqueness: f32) -> Vec<Option<Bes
             if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
                 continue;
             }
-            let (a, c) = (i32::from(s[k1 - 1]), i32::from(s[k1 + 1]));
-            let denom = a + c - 2 * s1;
-            let offset = if denom > 0 {
-                ((a - c) as f32 / (2 * denom) as f32).clamp(-0.5, 0.5)
-            } else {
-                0.0
-            };
+            let offset = subpixel(i32::from(s[k1 - 1]), s1, i32::from(s[k1 + 1]));
             *slot = Some(Best {
                 disparity: (geo.d_min as f32) + k1 as f32 + offset,
                 s1,
@@ -87,7 +92,7 @@ pub(crate) fn right_from_left_volume(geo: &Geo, sum: &[i16]) -> Vec<Option<f32>>
                     best = Some((v, k));
                 }
             }
-            // Sub-pixel by the same parabola as the left winners where both neighbours exist.
+            // Sub-pixel by the same fit as the left winners where both neighbours exist.
             *slot = best.map(|(s1, k)| {
                 let at = |k: usize| -> Option<i32> {
                     let x = xr as i64 + i64::from(geo.d_min) + k as i64;
@@ -97,9 +102,7 @@ pub(crate) fn right_from_left_volume(geo: &Geo, sum: &[i16]) -> Vec<Option<f32>>
                     k.checked_sub(1).and_then(at),
                     (k + 1 < d).then(|| at(k + 1)).flatten(),
                 ) {
-                    (Some(a), Some(c)) if a + c - 2 * i32::from(s1) > 0 => {
-                        ((a - c) as f32 / (2 * (a + c - 2 * i32::from(s1))) as f32).clamp(-0.5, 0.5)
-                    }
+                    (Some(a), Some(c)) => subpixel(a, i32::from(s1), c),
                     _ => 0.0,
                 };
                 (geo.d_min as f32) + k as f32 + offset
@@ -255,6 +258,15 @@ mod tests {
             s2: 10,
             lr: 0.0,
         })
+    }
+
+    #[test]
+    fn equiangular_subpixel_finds_the_v_tip() {
+        // A V with slope 10 and its tip at +0.3: a = 10 * 1.3, b = 10 * 0.3, c = 10 * 0.7.
+        assert!((subpixel(13, 3, 7) - 0.3).abs() < 1e-6);
+        assert!((subpixel(7, 3, 13) + 0.3).abs() < 1e-6);
+        assert_eq!(subpixel(5, 5, 5), 0.0);
+        assert_eq!(subpixel(4, 0, 4), 0.0);
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! optionally slanted, and a fronto-parallel box in front of it), rendered by inverse
 //! mapping, with an optional vertical epipolar offset `v_r = v_l - tilt * u_r - shift` (an
 //! unrectified pair whose epipolar lines are not the image rows).
-#![allow(dead_code)]
+#![allow(dead_code, clippy::too_many_arguments)]
 
 use hvs_shared::test_support::splitmix64;
 use hvs_vision::geometry::Fundamental;
