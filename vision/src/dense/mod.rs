@@ -197,7 +197,7 @@ impl Geo {
     pub fn v_at(&self, line: (f64, f64), u: i64) -> Option<usize> {
         let v = line.0 + line.1 * u as f64 + 0.5;
         // Truncation is the floor for v >= 0 (no libm call).
-        (v >= 0.0 && v < self.h as f64).then(|| v as usize)
+        (v >= 0.0 && v < self.h as f64).then_some(v as usize)
     }
 
     /// The other image's pixel at disparity index `k`, if inside it.
