@@ -202,6 +202,114 @@ pub(crate) fn speckle_filter(
     }
 }
 
+/// Bilinear grey level of `img` (`w x h`, rows first) at `(x, y)`, `None` outside.
+#[inline]
+fn bilinear(img: &[u8], w: usize, h: usize, x: f64, y: f64) -> Option<f64> {
+    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
+        return None;
+    }
+    let (x0, y0) = (x as usize, y as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+    let at = |x: usize, y: usize| f64::from(img[y * w + x]);
+    Some(
+        (at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx) * (1.0 - fy)
+            + (at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx) * fy,
+    )
+}
+
+/// Half size of the window of [`refine`] (5 x 5).
+const REFINE_HALF: i64 = 2;
+
+/// Sub-pixel refinement of every kept winner on the grey levels: two Gauss-Newton steps of a
+/// 5 x 5 window's zero-mean, gain-matched difference along the epipolar line (a 1-D
+/// Lucas-Kanade), which removes most of the pull of the cost fit towards whole pixels. A step
+/// that would move the match by more than half a pixel, or leave the image, is not taken.
+pub(crate) fn refine(geo: &Geo, left: &[u8], right: &[u8], best: &mut [Option<Best>]) {
+    let (w, h) = (geo.w, geo.h);
+    let n = (2 * REFINE_HALF + 1) * (2 * REFINE_HALF + 1);
+    best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let mut lw = vec![0.0f64; n as usize];
+        for (x, slot) in row.iter_mut().enumerate() {
+            let Some(b) = slot else { continue };
+            let Some((alpha, beta)) = geo.line(x, y) else {
+                continue;
+            };
+            let (xi, yi) = (x as i64, y as i64);
+            if xi < REFINE_HALF
+                || yi < REFINE_HALF
+                || xi + REFINE_HALF >= w as i64
+                || yi + REFINE_HALF >= h as i64
+            {
+                continue;
+            }
+            let mut k = 0;
+            for j in -REFINE_HALF..=REFINE_HALF {
+                for i in -REFINE_HALF..=REFINE_HALF {
+                    lw[k] = f64::from(left[(yi + j) as usize * w + (xi + i) as usize]);
+                    k += 1;
+                }
+            }
+            let lmean = lw.iter().sum::<f64>() / n as f64;
+            let lvar = lw.iter().map(|v| (v - lmean).powi(2)).sum::<f64>();
+            if lvar < 1e-6 {
+                continue;
+            }
+            let u0 = x as f64 - f64::from(b.disparity);
+            let mut u = u0;
+            let mut ok = true;
+            for _ in 0..2 {
+                let v = alpha + beta * u;
+                // Right window and its derivative along the line (1, beta).
+                let (mut rw, mut gw) = ([0.0f64; 25], [0.0f64; 25]);
+                let mut k = 0;
+                'win: for j in -REFINE_HALF..=REFINE_HALF {
+                    for i in -REFINE_HALF..=REFINE_HALF {
+                        let (px, py) = (u + i as f64, v + j as f64);
+                        let (Some(c), Some(a), Some(e)) = (
+                            bilinear(right, w, h, px, py),
+                            bilinear(right, w, h, px - 0.5, py - 0.5 * beta),
+                            bilinear(right, w, h, px + 0.5, py + 0.5 * beta),
+                        ) else {
+                            ok = false;
+                            break 'win;
+                        };
+                        rw[k] = c;
+                        gw[k] = e - a;
+                        k += 1;
+                    }
+                }
+                if !ok {
+                    break;
+                }
+                let rmean = rw.iter().sum::<f64>() / n as f64;
+                let gmean = gw.iter().sum::<f64>() / n as f64;
+                let rvar = rw.iter().map(|v| (v - rmean).powi(2)).sum::<f64>();
+                if rvar < 1e-6 {
+                    ok = false;
+                    break;
+                }
+                let gain = (lvar / rvar).sqrt();
+                let (mut num, mut den) = (0.0, 0.0);
+                for k in 0..n as usize {
+                    let e = (lw[k] - lmean) - gain * (rw[k] - rmean);
+                    let g = gain * (gw[k] - gmean);
+                    num += g * e;
+                    den += g * g;
+                }
+                if den <= 1e-9 {
+                    ok = false;
+                    break;
+                }
+                u += (num / den).clamp(-0.5, 0.5);
+            }
+            if ok && (u - u0).abs() <= 0.5 {
+                b.disparity = (x as f64 - u) as f32;
+            }
+        }
+    });
+}
+
 /// The confidence of a kept pixel in `0..1`: its uniqueness margin `(s2 - s1) / s2` over
 /// 0.2 (capped at 1), times `1 - lr / (2 tol)` (the left-right disagreement `lr` against the
 /// check's tolerance `tol`).
