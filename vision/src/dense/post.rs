@@ -291,9 +291,9 @@ pub(crate) fn refine(geo: &Geo, left: &[u8], right: &[u8], best: &mut [Option<Be
                 }
                 let gain = (lvar / rvar).sqrt();
                 let (mut num, mut den) = (0.0, 0.0);
-                for k in 0..n as usize {
-                    let e = (lw[k] - lmean) - gain * (rw[k] - rmean);
-                    let g = gain * (gw[k] - gmean);
+                for ((l, r), gr) in lw.iter().zip(&rw).zip(&gw) {
+                    let e = (l - lmean) - gain * (r - rmean);
+                    let g = gain * (gr - gmean);
                     num += g * e;
                     den += g * g;
                 }
