@@ -16,6 +16,7 @@
 //! - [`vision`]: image files around `hvs-vision` (board photos into a training set).
 //! - [`track`]: the head in the loop: scene files, the simulated head and its virtual
 //!   cameras, target finding, the loop of `hvs track`.
+//! - [`depth`]: dense depth of a stereo pair through the model (`hvs depth`).
 //! - [`device`]: the head as a device: the protocol link (TCP or serial), the client of its
 //!   requests, QEMU emulation, and flash images / probe-rs.
 //! - [`view`]: `hvs view`'s local web page (axum on tokio) over the libraries above.
@@ -23,6 +24,7 @@
 
 pub mod cli;
 pub mod data;
+pub mod depth;
 pub mod device;
 pub mod evaluate;
 pub mod fmt;

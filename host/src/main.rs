@@ -35,6 +35,7 @@ enum Command {
     /// Board photos into a training set (`hvs board detect`).
     Board(cmd::board::Args),
     Locate(cmd::locate::Args),
+    Depth(cmd::depth::Args),
     /// Boot the head firmware in QEMU with a model in slot A.
     Emulate(cmd::emulate::Args),
     /// Talk to a head (QEMU over TCP, or a serial port).
@@ -60,6 +61,7 @@ fn main() {
         Command::Track(a) => cmd::track::run(a),
         Command::Board(a) => cmd::board::run(a),
         Command::Locate(a) => cmd::locate::run(a),
+        Command::Depth(a) => cmd::depth::run(a),
         Command::Emulate(a) => cmd::emulate::run(&a),
         Command::Head(a) => cmd::head::run(&a),
         Command::Image(a) => cmd::image::run(&a),

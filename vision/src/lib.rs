@@ -9,16 +9,22 @@
 //! - [`scene`]: textured objects in front of a wall, moving in time, rendered with per-pixel
 //!   truth (depth, object, the true match of a left pixel).
 //! - [`matching`]: one point of the left image found in the right one (ZNCC on the epipolar line).
+//! - [`dense`]: every pixel of the left image matched in the right one (census + semi-global
+//!   matching along the epipolar lines).
+//! - [`pfm`]: depth files out: PFM (Middlebury's float images), binary PLY point clouds and a
+//!   colour-mapped depth image with a legend.
 //! - [`overlay`]: drawing what was found, for a user to look at.
 //! - [`invalid`]: the out-of-range parameter error of [`matching`] and [`render`].
 #![forbid(unsafe_code)]
 
 pub mod board;
+pub mod dense;
 pub mod detect;
 pub mod geometry;
 pub mod image_file;
 pub mod invalid;
 pub mod matching;
 pub mod overlay;
+pub mod pfm;
 pub mod render;
 pub mod scene;

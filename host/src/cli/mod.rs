@@ -5,6 +5,7 @@
 
 pub mod board;
 pub mod demo;
+pub mod depth;
 pub mod emulate;
 pub mod eval;
 pub mod experiment;

@@ -9,6 +9,7 @@
 mod common;
 
 mod cli;
+mod depth;
 mod eval_posture;
 mod experiment;
 mod experiment_accuracy;

@@ -1,0 +1,123 @@
+//! `hvs depth`: every pixel of a stereo pair to X, Y, Z by the model
+//! ([`crate::depth::depth_files`]), written as PFM images, a colour-mapped PNG and a PLY cloud.
+
+use crate::data::csv::write_bytes;
+use crate::data::output::check_outputs;
+use crate::depth::{depth_files, Depth};
+use crate::vision::png_bytes;
+use anyhow::Result;
+use hvs_vision::pfm::{colour_depth, pfm_bytes, ply_bytes, FloatImage};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `hvs depth`.
+#[derive(Debug, clap::Args)]
+#[command(
+    about = "Depth of every pixel of a stereo pair (dense matching + the model)",
+    long_about = "Match every pixel of the left image in the right one (census costs, \
+    semi-global matching along the model's epipolar lines, inside the disparities its depth \
+    box allows, with uniqueness, left-right and speckle checks) and give the model's Z (and \
+    X, Y) of each confident match. Unknown pixels are +inf (Middlebury's convention). A blank \
+    or saturated image gives all +inf and a warning, with exit status 0."
+)]
+pub struct Args {
+    /// The model (from `hvs train`, with its matcher geometry).
+    #[arg(long, value_name = "M.hvsw")]
+    pub model: PathBuf,
+    /// The left image (PNG or JPEG).
+    #[arg(long, value_name = "L.png")]
+    pub left: PathBuf,
+    /// The right image, the same size.
+    #[arg(long, value_name = "R.png")]
+    pub right: PathBuf,
+    /// Depth: one-channel PFM (little-endian, bottom row first), Z in cm per left pixel.
+    #[arg(short = 'o', long, value_name = "DEPTH.pfm")]
+    pub output: PathBuf,
+    /// Matches: three-channel PFM, u_r, v_r and a confidence 0..1 (+inf, +inf, 0 where none).
+    #[arg(long, value_name = "MATCHES.pfm")]
+    pub matches: Option<PathBuf>,
+    /// X, Y, Z in cm: three-channel PFM.
+    #[arg(long, value_name = "XYZ.pfm")]
+    pub xyz: Option<PathBuf>,
+    /// A colour-mapped depth image with a legend in cm (the model's depth box).
+    #[arg(long, value_name = "DEPTH.png")]
+    pub colour: Option<PathBuf>,
+    /// A point cloud: binary PLY, X Y Z in cm with the left image's grey levels.
+    #[arg(long, value_name = "CLOUD.ply")]
+    pub ply: Option<PathBuf>,
+}
+
+fn image(d: &Depth, channels: u8, data: Vec<f32>) -> FloatImage {
+    FloatImage {
+        width: d.matches.width,
+        height: d.matches.height,
+        channels,
+        data,
+    }
+}
+
+/// `hvs depth`.
+pub fn run(a: Args) -> Result<()> {
+    let inputs: Vec<(&str, &Path)> = vec![
+        ("--model", &a.model),
+        ("--left", &a.left),
+        ("--right", &a.right),
+    ];
+    let mut outputs: Vec<(&str, &Path)> = vec![("-o", &a.output)];
+    for (flag, p) in [
+        ("--matches", &a.matches),
+        ("--xyz", &a.xyz),
+        ("--colour", &a.colour),
+        ("--ply", &a.ply),
+    ] {
+        if let Some(p) = p {
+            outputs.push((flag, p));
+        }
+    }
+    check_outputs(&outputs, &inputs)?;
+    let (d, left) = depth_files(&a.model, &a.left, &a.right)?;
+    // Every output in memory first, then each written atomically.
+    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
+    let z: Vec<f32> = d.xyz.iter().map(|p| p[2]).collect();
+    files.push((&a.output, pfm_bytes(&image(&d, 1, z.clone()))));
+    if let Some(p) = &a.matches {
+        let m = &d.matches;
+        let data = (0..m.ur.len())
+            .flat_map(|k| [m.ur[k], m.vr[k], m.conf[k]])
+            .collect();
+        files.push((p, pfm_bytes(&image(&d, 3, data))));
+    }
+    if let Some(p) = &a.xyz {
+        let data = d.xyz.iter().flatten().copied().collect();
+        files.push((p, pfm_bytes(&image(&d, 3, data))));
+    }
+    if let Some(p) = &a.colour {
+        let img = colour_depth(d.matches.width, d.matches.height, &z, d.z_box);
+        files.push((p, png_bytes(&img)?));
+    }
+    if let Some(p) = &a.ply {
+        let (pts, grey): (Vec<[f32; 3]>, Vec<u8>) = d
+            .xyz
+            .iter()
+            .zip(left.as_raw())
+            .filter(|(p, _)| p[2].is_finite())
+            .map(|(p, &g)| (*p, g))
+            .unzip();
+        files.push((p, ply_bytes(&pts, &grey)));
+    }
+    for (p, bytes) in &files {
+        write_bytes(p, bytes)?;
+    }
+    for w in &d.warnings {
+        eprintln!("warning: {w}");
+    }
+    let n = d.xyz.len();
+    eprintln!(
+        "{} of {n} pixels ({:.1} %) with a depth, disparities {}..{} px searched; {} warning(s)",
+        d.returned(),
+        100.0 * d.returned() as f64 / n.max(1) as f64,
+        d.d_range[0],
+        d.d_range[1],
+        d.warnings.len()
+    );
+    Ok(())
+}

@@ -1,0 +1,252 @@
+//! Dense depth of a stereo pair through the model (`hvs depth`, and a library call for the
+//! viewer and the tracker): both images matched pixel by pixel by
+//! [`hvs_vision::dense`] (census + semi-global matching along the model's epipolar lines,
+//! inside the disparities its depth box allows), then every matched `(u_l, v_l, u_r, v_r)`
+//! through the model (the same bits as `hvs predict`: [`crate::infer`]) into X, Y, Z.
+//! Nothing but the model and the two images is used.
+
+use crate::infer::Predictor;
+use anyhow::{anyhow, bail, Result};
+use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
+use hvs_vision::dense::{dense_match, DenseMap, DenseParams};
+use hvs_vision::geometry::Fundamental;
+use hvs_vision::matching::model_disparity_interval;
+use image::GrayImage;
+use std::path::Path;
+
+/// The training set's disparities widened by this share of their span on each side, as the
+/// range the model's depth box is looked for in (as [`crate::vision::DISPARITY_SLACK`]).
+pub const DISPARITY_SLACK: f64 = crate::vision::DISPARITY_SLACK;
+
+/// Left pixels per side of the grid on which the model's disparity interval is sampled to
+/// bound the whole image's disparity range.
+pub const RANGE_GRID: usize = 9;
+
+/// The dense depth of a pair.
+#[derive(Debug, Clone)]
+pub struct Depth {
+    /// Every left pixel's match (right pixel and confidence; `+inf`/0 where none).
+    pub matches: DenseMap,
+    /// X, Y, Z (cm) by the model per left pixel, rows first (`+inf` where none).
+    pub xyz: Vec<[f32; 3]>,
+    /// The whole disparities searched (`u_l - u_r`, px).
+    pub d_range: [i32; 2],
+    /// The model's training depths (cm).
+    pub z_box: [f32; 2],
+    /// Things a user should know (a blank or saturated image, matches the model has no
+    /// estimate for), one line each.
+    pub warnings: Vec<String>,
+}
+
+impl Depth {
+    /// Pixels with a depth.
+    pub fn returned(&self) -> usize {
+        self.xyz.iter().filter(|p| p[2].is_finite()).count()
+    }
+}
+
+/// The model's matcher geometry, or the error every image command gives without it.
+pub fn matcher_geometry(blob: &ModelBlob) -> Result<MatcherGeometry> {
+    blob.matcher.ok_or_else(|| {
+        anyhow!(
+            "the model has no matcher geometry: its training set could not give one (fewer \
+             than 8 rows, joint columns, or no fundamental matrix fits its pixels, e.g. all \
+             on one board plane), or it was written before blob format v2: retrain it with \
+             `hvs train` on board points seen at one head posture, at two or more depths"
+        )
+    })
+}
+
+/// The whole disparities the model allows anywhere in a `w x h` left image: the union of
+/// [`model_disparity_interval`] on a [`RANGE_GRID`]-square grid of pixels, widened by one
+/// pixel; the training disparities (widened by [`DISPARITY_SLACK`]) when no grid pixel has
+/// an interval.
+pub fn disparity_range(
+    g: &MatcherGeometry,
+    predict: &dyn Fn([f32; 4]) -> Option<[f32; 3]>,
+    w: u32,
+    h: u32,
+) -> [i32; 2] {
+    let f = Fundamental {
+        m: g.fundamental.map(|r| r.map(f64::from)),
+    };
+    let span = f64::from(g.disparity[1] - g.disparity[0]);
+    let d_range = [
+        f64::from(g.disparity[0]) - DISPARITY_SLACK * span,
+        f64::from(g.disparity[1]) + DISPARITY_SLACK * span,
+    ];
+    let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let n = RANGE_GRID;
+    for i in 0..n {
+        for j in 0..n {
+            let ul = (f64::from(w) - 1.0) * i as f64 / (n - 1) as f64;
+            let vl = (f64::from(h) - 1.0) * j as f64 / (n - 1) as f64;
+            let line = f.line_in_right([ul, vl]);
+            if let Some((a, b)) = model_disparity_interval(predict, ul, vl, line, z_range, d_range)
+            {
+                lo = lo.min(a);
+                hi = hi.max(b);
+            }
+        }
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        (lo, hi) = (d_range[0], d_range[1]);
+    }
+    [(lo.floor() as i32) - 1, (hi.ceil() as i32) + 1]
+}
+
+/// Why an image cannot give depth: blank (one grey level, or nearly) or saturated (most
+/// pixels black or white); `None` for an image with something to match.
+pub fn image_warning(img: &GrayImage) -> Option<&'static str> {
+    let px = img.as_raw();
+    let n = px.len().max(1) as f64;
+    let mean = px.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+    let var = px
+        .iter()
+        .map(|&v| (f64::from(v) - mean).powi(2))
+        .sum::<f64>()
+        / n;
+    let clipped = px.iter().filter(|&&v| v == 0 || v == 255).count() as f64 / n;
+    if var.sqrt() < 1.0 {
+        Some("is blank (one grey level): nothing to match")
+    } else if clipped > 0.9 {
+        Some("is saturated (over 90 % of its pixels black or white): little to match")
+    } else {
+        None
+    }
+}
+
+/// Dense depth of `left` and `right` by `blob` with `params`. The images must be the model's
+/// size (when the model records it) and each other's; the model needs matcher geometry and 4
+/// inputs.
+pub fn depth(
+    blob: &ModelBlob,
+    left: &GrayImage,
+    right: &GrayImage,
+    params: &DenseParams,
+) -> Result<Depth> {
+    if blob.n_inputs() != 4 {
+        bail!("a posture-aware model (9 inputs) cannot give depth from images alone: its epipolar geometry moves with the eyes");
+    }
+    let g = matcher_geometry(blob)?;
+    if left.dimensions() != right.dimensions() {
+        bail!(
+            "the images differ in size: left {}x{}, right {}x{}",
+            left.width(),
+            left.height(),
+            right.width(),
+            right.height()
+        );
+    }
+    if let Some((mw, mh)) = blob.image_size() {
+        if (u32::from(mw), u32::from(mh)) != left.dimensions() {
+            bail!(
+                "the images are {}x{}, the model was trained on {mw}x{mh} images (its matcher geometry holds for that size only)",
+                left.width(),
+                left.height()
+            );
+        }
+    }
+    let predict = |x: [f32; 4]| -> Option<[f32; 3]> {
+        let mut out = [0.0f32; 3];
+        blob.infer(&x, &mut out).ok()?;
+        out.iter().all(|v| v.is_finite()).then_some(out)
+    };
+    let (w, h) = left.dimensions();
+    let d_range = disparity_range(&g, &predict, w, h);
+    let f = Fundamental {
+        m: g.fundamental.map(|r| r.map(f64::from)),
+    };
+    let matches = dense_match(left, right, &f, d_range, params).map_err(|e| anyhow!("{e}"))?;
+    let mut warnings = Vec::new();
+    for (side, img) in [("left", left), ("right", right)] {
+        if let Some(why) = image_warning(img) {
+            warnings.push(format!("the {side} image {why}"));
+        }
+    }
+    // Every match through the model, in parallel batches (bit-identical to `hvs predict`).
+    let idx: Vec<usize> = (0..matches.ur.len())
+        .filter(|&p| matches.ur[p].is_finite())
+        .collect();
+    let mut inputs = Vec::with_capacity(idx.len() * 4);
+    for &p in &idx {
+        let (x, y) = (p as u32 % w, p as u32 / w);
+        inputs.extend_from_slice(&[x as f32, y as f32, matches.ur[p], matches.vr[p]]);
+    }
+    let mut out = vec![0.0f32; idx.len() * 3];
+    let predictor = Predictor::new(blob);
+    if predictor.run(&inputs, &mut out).is_err() {
+        // Some point has no estimate: point by point, keeping the others.
+        for (x, o) in inputs.chunks_exact(4).zip(out.chunks_exact_mut(3)) {
+            if blob.infer(x, o).is_err() {
+                o.fill(f32::INFINITY);
+            }
+        }
+    }
+    let mut xyz = vec![[f32::INFINITY; 3]; matches.ur.len()];
+    let mut matches = matches;
+    let mut no_estimate = 0usize;
+    for (&p, o) in idx.iter().zip(out.chunks_exact(3)) {
+        if o.iter().all(|v| v.is_finite()) {
+            xyz[p] = [o[0], o[1], o[2]];
+        } else {
+            no_estimate += 1;
+            matches.ur[p] = f32::INFINITY;
+            matches.vr[p] = f32::INFINITY;
+            matches.conf[p] = 0.0;
+        }
+    }
+    if no_estimate > 0 {
+        warnings.push(format!(
+            "{no_estimate} matched pixels have no estimate from the model (left +inf)"
+        ));
+    }
+    Ok(Depth {
+        matches,
+        xyz,
+        d_range,
+        z_box: [g.out_min[2], g.out_max[2]],
+        warnings,
+    })
+}
+
+/// Loads the model and both images (PNG or JPEG, checked by [`hvs_vision::image_file`]),
+/// then [`depth`] with the default parameters. Errors name the file at fault. Returns the
+/// left image too (the grey levels of a point cloud).
+pub fn depth_files(model_path: &Path, left: &Path, right: &Path) -> Result<(Depth, GrayImage)> {
+    let m = crate::data::model::load(model_path)?;
+    if m.blob.n_inputs() == 4 {
+        matcher_geometry(&m.blob).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))?;
+    }
+    let (l, r) = (
+        crate::vision::read_grey(left)?,
+        crate::vision::read_grey(right)?,
+    );
+    if l.dimensions() != r.dimensions() {
+        bail!(
+            "{} and {}: the images differ in size ({}x{} and {}x{})",
+            left.display(),
+            right.display(),
+            l.width(),
+            l.height(),
+            r.width(),
+            r.height()
+        );
+    }
+    if let Some((mw, mh)) = m.blob.image_size() {
+        if (u32::from(mw), u32::from(mh)) != l.dimensions() {
+            bail!(
+                "{}: the image is {}x{}, the model {} was trained on {mw}x{mh} images",
+                left.display(),
+                l.width(),
+                l.height(),
+                model_path.display()
+            );
+        }
+    }
+    let d = depth(&m.blob, &l, &r, &DenseParams::default())
+        .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))?;
+    Ok((d, l))
+}

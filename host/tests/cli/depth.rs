@@ -1,0 +1,335 @@
+//! `hvs depth` through the binary: a model trained on a synthetic rectified pinhole pair
+//! (f = 200 px, baseline 10 cm, 160 x 120 images, depths 100-300 cm), images of a textured
+//! wall at 250 cm with a box at 150 cm in front of it; the outputs' formats, their depths, and
+//! bad input (another size, no matcher geometry, a posture model, blank images, an output
+//! onto an input).
+
+use crate::common::{fails, ok, s, stderr_with_code, train_restarts};
+use hvs_shared::runtime::blob::{self, MAX_BLOB_LEN};
+use hvs_shared::test_support::splitmix64;
+use hvs_vision::pfm::read_pfm;
+use image::GrayImage;
+use std::path::Path;
+
+const W: u32 = 160;
+const H: u32 = 120;
+const FOCAL: f64 = 200.0;
+const BASE: f64 = 10.0;
+const C: [f64; 2] = [80.0, 60.0];
+const Z_WALL: f64 = 250.0;
+const Z_BOX: f64 = 150.0;
+
+/// Training points of the rectified pair: `u_l,v_l,u_r,v_r,x,y,z`.
+fn training_csv(path: &Path) {
+    let mut st = 5u64;
+    let mut uni = || (splitmix64(&mut st) >> 11) as f64 / (1u64 << 53) as f64;
+    let mut out = String::from("u_l,v_l,u_r,v_r,x,y,z\n");
+    let mut n = 0;
+    while n < 300 {
+        let z = 100.0 + 200.0 * uni();
+        let (ul, vl) = (160.0 * uni(), 120.0 * uni());
+        let x = (ul - C[0]) * z / FOCAL;
+        let y = (vl - C[1]) * z / FOCAL;
+        let ur = ul - FOCAL * BASE / z;
+        if ur < 0.0 {
+            continue;
+        }
+        out.push_str(&format!("{ul},{vl},{ur},{vl},{x},{y},{z}\n"));
+        n += 1;
+    }
+    std::fs::write(path, out).unwrap();
+}
+
+/// A smooth seeded texture, read bilinearly.
+fn texture(seed: u64) -> impl Fn(f64, f64) -> f64 {
+    let (tw, th) = (W as usize + 64, H as usize);
+    let mut st = seed;
+    let mut g: Vec<f64> = (0..tw * th)
+        .map(|_| (splitmix64(&mut st) >> 56) as f64)
+        .collect();
+    for _ in 0..2 {
+        let src = g.clone();
+        for y in 0..th {
+            for x in 0..tw {
+                let mut a = 0.0;
+                for dy in -1i64..=1 {
+                    for dx in -1i64..=1 {
+                        let xx = (x as i64 + dx).clamp(0, tw as i64 - 1) as usize;
+                        let yy = (y as i64 + dy).clamp(0, th as i64 - 1) as usize;
+                        a += src[yy * tw + xx];
+                    }
+                }
+                g[y * tw + x] = a / 9.0;
+            }
+        }
+    }
+    move |x: f64, y: f64| {
+        let x = (x + 32.0).clamp(0.0, (tw - 1) as f64);
+        let y = y.clamp(0.0, (th - 1) as f64);
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(tw - 1), (y0 + 1).min(th - 1));
+        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+        let at = |x: usize, y: usize| g[y * tw + x];
+        let v = (at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx) * (1.0 - fy)
+            + (at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx) * fy;
+        (128.0 + 3.0 * (v - 127.5)).clamp(0.0, 255.0)
+    }
+}
+
+/// Is left pixel `(x, y)` on the box?
+fn on_box(x: f64, y: f64) -> bool {
+    (60.0..100.0).contains(&x) && (40.0..80.0).contains(&y)
+}
+
+/// The wall and the box, both textured (the texture is fixed to the scene: left `x`).
+fn pair(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let t = texture(9);
+    let (dw, db) = (FOCAL * BASE / Z_WALL, FOCAL * BASE / Z_BOX);
+    let left = GrayImage::from_fn(W, H, |x, y| {
+        image::Luma([t(f64::from(x), f64::from(y)).round() as u8])
+    });
+    let right = GrayImage::from_fn(W, H, |u, v| {
+        let (u, v) = (f64::from(u), f64::from(v));
+        let x = if on_box(u + db, v) { u + db } else { u + dw };
+        image::Luma([t(x, v).round() as u8])
+    });
+    let (l, r) = (dir.join("l.png"), dir.join("r.png"));
+    left.save(&l).unwrap();
+    right.save(&r).unwrap();
+    (l, r)
+}
+
+fn median(mut v: Vec<f32>) -> f32 {
+    v.sort_by(f32::total_cmp);
+    v[v.len() / 2]
+}
+
+#[test]
+fn depth_of_a_wall_and_a_box_and_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (data, model) = (d.join("train.csv"), d.join("m.hvsw"));
+    training_csv(&data);
+    train_restarts(&data, &model, "1");
+    let (l, r) = pair(d);
+    let out = |n: &str| d.join(n);
+    let (depth, matches, xyz, colour, ply) = (
+        out("d.pfm"),
+        out("m.pfm"),
+        out("xyz.pfm"),
+        out("d.png"),
+        out("c.ply"),
+    );
+    let args = [
+        "depth",
+        "--model",
+        s(&model),
+        "--left",
+        s(&l),
+        "--right",
+        s(&r),
+        "-o",
+        s(&depth),
+        "--matches",
+        s(&matches),
+        "--xyz",
+        s(&xyz),
+        "--colour",
+        s(&colour),
+        "--ply",
+        s(&ply),
+    ];
+    let err = stderr_with_code(args, 0);
+    assert!(
+        err.contains("pixels") && err.contains("0 warning(s)"),
+        "{err}"
+    );
+    let bytes = std::fs::read(&depth).unwrap();
+    assert!(
+        bytes.starts_with(b"Pf\n160 120\n-1\n"),
+        "{:?}",
+        &bytes[..16]
+    );
+    let z = read_pfm(&bytes, "d.pfm").unwrap();
+    assert_eq!((z.width, z.height, z.channels), (W, H, 1));
+    let (mut wall, mut boxed) = (Vec::new(), Vec::new());
+    for y in 0..H {
+        for x in 20..W - 4 {
+            let v = z.data[(y * W + x) as usize];
+            let (xf, yf) = (f64::from(x), f64::from(y));
+            if !v.is_finite() {
+                continue;
+            }
+            if on_box(xf, yf) && on_box(xf - 3.0, yf - 3.0) && on_box(xf + 3.0, yf + 3.0) {
+                boxed.push(v);
+            } else if !on_box(xf - 20.0, yf)
+                && !on_box(xf + 10.0, yf)
+                && !on_box(xf, yf + 5.0)
+                && !on_box(xf, yf - 5.0)
+            {
+                wall.push(v);
+            }
+        }
+    }
+    let returned = z.data.iter().filter(|v| v.is_finite()).count();
+    assert!(
+        returned as f64 > 0.85 * f64::from(W * H),
+        "{returned} returned"
+    );
+    let (mw, mb) = (median(wall.clone()), median(boxed.clone()));
+    eprintln!(
+        "median depth: wall {mw} cm ({} px), box {mb} cm ({} px)",
+        wall.len(),
+        boxed.len()
+    );
+    assert!((f64::from(mw) - Z_WALL).abs() < 0.01 * Z_WALL, "wall {mw}");
+    assert!((f64::from(mb) - Z_BOX).abs() < 0.01 * Z_BOX, "box {mb}");
+    // Matches: u_r, v_r, confidence; +inf, +inf, 0 exactly where the depth is +inf.
+    let m = read_pfm(&std::fs::read(&matches).unwrap(), "m.pfm").unwrap();
+    assert_eq!(m.channels, 3);
+    for (k, zk) in z.data.iter().enumerate() {
+        let (ur, vr, c) = (m.data[3 * k], m.data[3 * k + 1], m.data[3 * k + 2]);
+        if zk.is_finite() {
+            assert!(
+                ur.is_finite() && (vr - (k as u32 / W) as f32).abs() < 0.5 && c > 0.0 && c <= 1.0
+            );
+        } else {
+            assert_eq!((ur, vr, c), (f32::INFINITY, f32::INFINITY, 0.0));
+        }
+    }
+    let p = read_pfm(&std::fs::read(&xyz).unwrap(), "xyz.pfm").unwrap();
+    assert!(z
+        .data
+        .iter()
+        .zip(p.data.chunks_exact(3))
+        .all(|(a, b)| a.to_bits() == b[2].to_bits()));
+    let png = image::open(&colour).unwrap();
+    assert_eq!(png.width(), W);
+    assert!(png.height() > H);
+    let cloud = std::fs::read(&ply).unwrap();
+    let head = format!("element vertex {returned}\n");
+    assert!(cloud.windows(head.len()).any(|w| w == head.as_bytes()));
+    let end = cloud
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    assert_eq!(cloud.len() - end, 15 * returned);
+
+    // Blank images: every pixel +inf, exit 0, a warning.
+    let blank = d.join("blank.png");
+    GrayImage::from_pixel(W, H, image::Luma([200]))
+        .save(&blank)
+        .unwrap();
+    let bd = d.join("blank.pfm");
+    let err = stderr_with_code(
+        [
+            "depth",
+            "--model",
+            s(&model),
+            "--left",
+            s(&blank),
+            "--right",
+            s(&blank),
+            "-o",
+            s(&bd),
+        ],
+        0,
+    );
+    assert!(
+        err.contains("warning: the left image is blank") && err.contains("2 warning(s)"),
+        "{err}"
+    );
+    let bz = read_pfm(&std::fs::read(&bd).unwrap(), "blank.pfm").unwrap();
+    assert!(bz.data.iter().all(|v| *v == f32::INFINITY));
+
+    // Another size than the other image, than the model's.
+    let small = d.join("small.png");
+    GrayImage::from_pixel(100, 80, image::Luma([9]))
+        .save(&small)
+        .unwrap();
+    let no = d.join("no.pfm");
+    fails(
+        &[
+            "depth",
+            "--model",
+            s(&model),
+            "--left",
+            s(&l),
+            "--right",
+            s(&small),
+            "-o",
+            s(&no),
+        ],
+        "differ in size",
+    );
+    let mut b = blob::decode(&std::fs::read(&model).unwrap()).unwrap();
+    b.set_image_size(Some((320, 240)));
+    let mut buf = [0u8; MAX_BLOB_LEN];
+    let n = b.encode(&mut buf).unwrap();
+    let sized = d.join("sized.hvsw");
+    std::fs::write(&sized, &buf[..n]).unwrap();
+    fails(
+        &[
+            "depth",
+            "--model",
+            s(&sized),
+            "--left",
+            s(&l),
+            "--right",
+            s(&r),
+            "-o",
+            s(&no),
+        ],
+        "trained on 320x240 images",
+    );
+    // No matcher geometry; a posture model.
+    for (k, (m, want)) in [
+        (
+            hvs_shared::test_support::sample_model(1, 3),
+            "no matcher geometry",
+        ),
+        (
+            hvs_shared::test_support::sample_posture_model(1, 3),
+            "posture-aware",
+        ),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let n = m.encode(&mut buf).unwrap();
+        let p = d.join(format!("bare{k}.hvsw"));
+        std::fs::write(&p, &buf[..n]).unwrap();
+        fails(
+            &[
+                "depth",
+                "--model",
+                s(&p),
+                "--left",
+                s(&l),
+                "--right",
+                s(&r),
+                "-o",
+                s(&no),
+            ],
+            want,
+        );
+    }
+    // An output onto an input.
+    fails(
+        &[
+            "depth",
+            "--model",
+            s(&model),
+            "--left",
+            s(&l),
+            "--right",
+            s(&r),
+            "-o",
+            s(&l),
+        ],
+        "--left",
+    );
+    assert!(!no.exists());
+    let _ = ok(&["depth", "--help"]);
+}

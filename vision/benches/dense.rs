@@ -1,0 +1,57 @@
+//! Dense matching speed: [`dense_match`] on a 741 x 500 pair with 66 disparities (the
+//! Motorcycle pair's size and its model's disparity range 2..=67), 8 paths. Run with
+//! `RAYON_NUM_THREADS=1` for one core. With `HVS_MOTORCYCLE_DIR` set (see
+//! `vision/tests/dense_real.rs`) the real pair is used, PNG decoding included; else a
+//! synthetic textured pair of the same size.
+
+#[path = "../tests/dense_common/mod.rs"]
+mod dense_common;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use hvs_vision::dense::{dense_match, DenseParams};
+use hvs_vision::geometry::Fundamental;
+use std::hint::black_box;
+
+fn rectified() -> Fundamental {
+    Fundamental {
+        m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let f = rectified();
+    let d_range = [2, 67];
+    let mut g = c.benchmark_group("dense");
+    g.sample_size(10);
+    if let Ok(dir) = std::env::var("HVS_MOTORCYCLE_DIR") {
+        let dir = std::path::PathBuf::from(dir);
+        let (l, r) = (
+            dir.join("motorcycle_left.png"),
+            dir.join("motorcycle_right.png"),
+        );
+        g.bench_function("motorcycle_741x500_decode_and_match", |b| {
+            b.iter(|| {
+                let left = hvs_vision::image_file::read_grey(&l).unwrap();
+                let right = hvs_vision::image_file::read_grey(&r).unwrap();
+                black_box(dense_match(&left, &right, &f, d_range, &DenseParams::default()).unwrap())
+            })
+        });
+    }
+    let pair = dense_common::scene(741, 500, 20.0, 20.0, 55.0, 1, 0.0, 0.0);
+    for (name, eight) in [
+        ("synthetic_741x500_8_paths", true),
+        ("synthetic_741x500_4_paths", false),
+    ] {
+        let p = DenseParams {
+            eight_paths: eight,
+            ..DenseParams::default()
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(dense_match(&pair.left, &pair.right, &f, d_range, &p).unwrap()))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,432 @@
+//! Dense matching: every pixel of the left image found in the right one by semi-global
+//! matching on census costs, in the original (unrectified) images.
+//!
+//! # Method
+//!
+//! 1. [`census`]: a 9 x 7 census word per pixel of both images.
+//! 2. Cost volume: for left pixel `(x, y)` and each whole disparity `d` of the range
+//!    (`d = u_l - u_r`, bounded by the caller, e.g. from the model's depth box), the candidate
+//!    is the right pixel on the epipolar line `F (x, y, 1)^T` at `u_r = x - d`, `v_r` rounded
+//!    to the nearest row; the cost is the Hamming distance of the two census words
+//!    ([`census::MAX_COST`] at most). Sampling along the epipolar line instead of rectifying
+//!    first leaves the images unresampled and gives matches in the original pixel
+//!    coordinates directly; lines steeper than 45 degrees are refused, like
+//!    [`crate::matching`] does.
+//! 3. [`sgm`]: semi-global aggregation along 8 (or 4) paths, `P2` adaptive to the grey-level
+//!    step.
+//! 4. Winner takes all, with a uniqueness ratio against the best disparity more than one
+//!    step away; a minimum at either end of the range is refused (the match lies outside the
+//!    depth box); sub-pixel by an equiangular fit through the three sums around the minimum.
+//! 5. Left-right check: the same with the right image as reference (`F^T`); for a rectified
+//!    pair (every line is its own row) read off the same aggregated volume, otherwise a
+//!    second aggregation. A left match whose right pixel disagrees by more than
+//!    [`DenseParams::lr_tolerance_px`] is dropped.
+//! 6. Speckle filter: connected regions of similar disparity smaller than
+//!    [`DenseParams::speckle_size`] pixels are dropped.
+//! 7. Sub-pixel refinement on the grey levels: a 1-D Lucas-Kanade step of a 5 x 5 window
+//!    along the epipolar line (zero-mean, gain-matched), at most half a pixel.
+//! 8. A confidence in `0..1` per kept pixel ([`confidence`]).
+//!
+//! Memory: 5 bytes per cell of the volume (`u8` costs, two `i16` sums while the two passes
+//! run); [`MAX_CELLS`] bounds it.
+
+pub mod census;
+mod post;
+pub mod sgm;
+
+use crate::geometry::Fundamental;
+use crate::invalid::InvalidField;
+use image::GrayImage;
+use rayon::prelude::*;
+
+pub use post::confidence;
+
+/// The most cells (`width * height * disparities`) a volume may have: 48 million, 240 MB.
+pub const MAX_CELLS: u64 = 48_000_000;
+
+/// The knobs of [`dense_match`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DenseParams {
+    /// 8 aggregation paths (`true`) or 4.
+    pub eight_paths: bool,
+    /// Penalty of a 1-px disparity step (census cost units, 0..62 per pixel).
+    pub p1: u16,
+    /// Penalty of a larger jump where the grey level does not change.
+    pub p2: u16,
+    /// `P2` falls as `p2 * g / (g + |dI|)` with the grey-level step `dI`, never below
+    /// `p1 + 1`; `0` keeps `P2` constant.
+    pub p2_gamma: f32,
+    /// The best sum must be below `(1 - uniqueness)` times the best one more than one
+    /// disparity away.
+    pub uniqueness: f32,
+    /// Most disagreement (px) of the left-right check.
+    pub lr_tolerance_px: f32,
+    /// Regions of fewer pixels than this are dropped by the speckle filter (0: no filter).
+    pub speckle_size: usize,
+    /// Most disparity step (px) between neighbours of one speckle region.
+    pub speckle_range_px: f32,
+}
+
+impl Default for DenseParams {
+    /// Chosen on the synthetic pairs of the tests and on the Motorcycle pair (see the README's
+    /// `hvs depth` section for the measurement).
+    fn default() -> Self {
+        DenseParams {
+            eight_paths: true,
+            p1: 16,
+            p2: 96,
+            p2_gamma: 8.0,
+            uniqueness: 0.05,
+            lr_tolerance_px: 1.5,
+            speckle_size: 100,
+            speckle_range_px: 1.0,
+        }
+    }
+}
+
+impl DenseParams {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        use crate::invalid::in_range;
+        for (field, v) in [
+            ("params.p2_gamma", self.p2_gamma),
+            ("params.uniqueness", self.uniqueness),
+            ("params.lr_tolerance_px", self.lr_tolerance_px),
+            ("params.speckle_range_px", self.speckle_range_px),
+        ] {
+            if !v.is_finite() {
+                return Err(InvalidField::new(field, format!("must be finite, got {v}")));
+            }
+        }
+        in_range("params.p1", self.p1, 1, 500)?;
+        in_range("params.p2", self.p2, self.p1, 2000)?;
+        in_range("params.p2_gamma", self.p2_gamma, 0.0, 255.0)?;
+        in_range("params.uniqueness", self.uniqueness, 0.0, 0.99)?;
+        in_range("params.lr_tolerance_px", self.lr_tolerance_px, 0.0, 100.0)?;
+        in_range("params.speckle_range_px", self.speckle_range_px, 0.0, 100.0)?;
+        Ok(())
+    }
+}
+
+/// Why [`dense_match`] did not run.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DenseError {
+    /// A parameter or input is out of range.
+    Invalid(InvalidField),
+    /// The volume would have more than [`MAX_CELLS`] cells (width, height, disparities).
+    TooLarge(u32, u32, usize),
+}
+
+impl std::fmt::Display for DenseError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DenseError::Invalid(e) => write!(f, "{e}"),
+            DenseError::TooLarge(w, h, d) => write!(
+                f,
+                "{w}x{h} pixels x {d} disparities is {} cells, more than the {MAX_CELLS} the cost volume may have (scale the images down or narrow the depth range)",
+                u64::from(*w) * u64::from(*h) * *d as u64
+            ),
+        }
+    }
+}
+
+impl std::error::Error for DenseError {}
+
+impl From<InvalidField> for DenseError {
+    fn from(e: InvalidField) -> Self {
+        DenseError::Invalid(e)
+    }
+}
+
+/// Every left pixel's match. Vectors are rows first, `width * height` long.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DenseMap {
+    /// Image width (px).
+    pub width: u32,
+    /// Image height (px).
+    pub height: u32,
+    /// Right `u` of each left pixel's match (`+inf` where none).
+    pub ur: Vec<f32>,
+    /// Right `v`, on the epipolar line (`+inf` where none).
+    pub vr: Vec<f32>,
+    /// Confidence `0..1` (`0` where none).
+    pub conf: Vec<f32>,
+}
+
+impl DenseMap {
+    /// How many pixels have a match.
+    pub fn matched(&self) -> usize {
+        self.ur.iter().filter(|u| u.is_finite()).count()
+    }
+}
+
+/// The epipolar geometry of one reference image: the line in the other image is
+/// `m (x, y, 1)^T`, the other image's `u` is `x + sign * d`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Geo {
+    pub m: [[f64; 3]; 3],
+    pub sign: i32,
+    pub d_min: i32,
+    pub d: usize,
+    pub w: usize,
+    pub h: usize,
+}
+
+impl Geo {
+    /// `v = alpha + beta u` of the line of `(x, y)` in the other image, `None` when it is
+    /// steeper than 45 degrees or not finite.
+    #[inline]
+    pub fn line(&self, x: usize, y: usize) -> Option<(f64, f64)> {
+        let (x, y) = (x as f64, y as f64);
+        let l: [f64; 3] =
+            core::array::from_fn(|i| self.m[i][0] * x + self.m[i][1] * y + self.m[i][2]);
+        if !(l[1].abs() >= l[0].abs() && l[1] != 0.0) {
+            return None;
+        }
+        let (alpha, beta) = (-l[2] / l[1], -l[0] / l[1]);
+        (alpha.is_finite() && beta.is_finite()).then_some((alpha, beta))
+    }
+
+    /// The other image's `u` at disparity index `k`.
+    #[inline]
+    pub fn u_at(&self, x: usize, k: usize) -> i64 {
+        x as i64 + i64::from(self.sign) * (i64::from(self.d_min) + k as i64)
+    }
+
+    /// The other image's row at its column `u` on `line`, if inside it (rounded to the
+    /// nearest row).
+    #[inline]
+    pub fn v_at(&self, line: (f64, f64), u: i64) -> Option<usize> {
+        let v = line.0 + line.1 * u as f64 + 0.5;
+        // Truncation is the floor for v >= 0 (no libm call).
+        (v >= 0.0 && v < self.h as f64).then_some(v as usize)
+    }
+
+    /// The other image's pixel at disparity index `k`, if inside it.
+    #[inline]
+    pub fn target(&self, x: usize, line: (f64, f64), k: usize) -> Option<(usize, usize)> {
+        let u = self.u_at(x, k);
+        if u < 0 || u >= self.w as i64 {
+            return None;
+        }
+        self.v_at(line, u).map(|v| (u as usize, v))
+    }
+
+    /// The disparity indices `k_lo..=k_hi` whose target lies inside the other image (one run:
+    /// `u` and `v` are monotonic in `k`), `None` when there is none.
+    pub fn valid_range(&self, x: usize, line: (f64, f64)) -> Option<(usize, usize)> {
+        // u = x + sign (d_min + k) in 0..w.
+        let (w, d) = (self.w as i64, self.d as i64);
+        let base = x as i64 + i64::from(self.sign) * i64::from(self.d_min);
+        let (mut lo, mut hi) = if self.sign < 0 {
+            (base - (w - 1), base)
+        } else {
+            (-base, w - 1 - base)
+        };
+        lo = lo.max(0);
+        hi = hi.min(d - 1);
+        while lo <= hi && self.target(x, line, lo as usize).is_none() {
+            lo += 1;
+        }
+        while hi >= lo && self.target(x, line, hi as usize).is_none() {
+            hi -= 1;
+        }
+        (lo <= hi).then_some((lo as usize, hi as usize))
+    }
+}
+
+/// The census cost volume of `geo` (`w * h * d`, `u8`): out-of-image candidates cost half
+/// the most, so that the aggregation carries the neighbours' answer across them (they are
+/// never chosen).
+fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> Vec<u8> {
+    let (w, d) = (geo.w, geo.d);
+    let mut cost = vec![census::MAX_COST / 2; w * geo.h * d];
+    cost.par_chunks_mut(w * d).enumerate().for_each(|(y, row)| {
+        for x in 0..w {
+            let Some(line) = geo.line(x, y) else { continue };
+            let Some((lo, hi)) = geo.valid_range(x, line) else {
+                continue;
+            };
+            let c = reference[y * w + x];
+            let cells = &mut row[x * d..(x + 1) * d];
+            if line.1 == 0.0 {
+                // Rows: one row of the other image.
+                let Some(v) = geo.v_at(line, 0) else { continue };
+                let other_row = &other[v * w..(v + 1) * w];
+                for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    *cell = (c ^ other_row[geo.u_at(x, k) as usize]).count_ones() as u8;
+                }
+            } else {
+                for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    let u = geo.u_at(x, k);
+                    if let Some(v) = geo.v_at(line, u) {
+                        *cell = (c ^ other[v * w + u as usize]).count_ones() as u8;
+                    }
+                }
+            }
+        }
+    });
+    cost
+}
+
+/// Whether `f` is a rectified pair's (every left row's line is the same row of the right
+/// image, within 0.01 px, at the four corners).
+fn is_rectified(f: &Fundamental, w: usize, h: usize) -> bool {
+    let (w, h) = (w as f64 - 1.0, h as f64 - 1.0);
+    [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]]
+        .iter()
+        .all(|&[x, y]| {
+            let l = f.line_in_right([x, y]);
+            l[1] != 0.0
+                && (l[0] / l[1]).abs() < 1e-5
+                && [0.0, w]
+                    .iter()
+                    .all(|&u| ((-(l[0] * u + l[2]) / l[1]) - y).abs() < 0.01)
+        })
+}
+
+/// Matches every pixel of `left` in `right` (same size) with `f` (`r^T F l = 0`) over the
+/// whole disparities `d_range[0]..=d_range[1]` (`d = u_l - u_r`, px). See the module
+/// documentation for the method.
+pub fn dense_match(
+    left: &GrayImage,
+    right: &GrayImage,
+    f: &Fundamental,
+    d_range: [i32; 2],
+    params: &DenseParams,
+) -> Result<DenseMap, DenseError> {
+    params.validate()?;
+    if left.dimensions() != right.dimensions() {
+        return Err(InvalidField::new(
+            "right",
+            format!(
+                "image is {}x{}, the left one {}x{}: both must be the same size",
+                right.width(),
+                right.height(),
+                left.width(),
+                left.height()
+            ),
+        )
+        .into());
+    }
+    let (w, h) = (left.width() as usize, left.height() as usize);
+    if w == 0 || h == 0 {
+        return Err(InvalidField::new("left", "image is empty").into());
+    }
+    if !f.m.iter().flatten().all(|x| x.is_finite()) || f.m.iter().flatten().all(|&x| x == 0.0) {
+        return Err(InvalidField::new("fundamental", "must be finite and not all zero").into());
+    }
+    if d_range[0] > d_range[1] {
+        return Err(InvalidField::new(
+            "d_range",
+            format!("{}..{} is empty", d_range[0], d_range[1]),
+        )
+        .into());
+    }
+    let d = (i64::from(d_range[1]) - i64::from(d_range[0]) + 1) as usize;
+    if (w * h) as u64 * d as u64 > MAX_CELLS {
+        return Err(DenseError::TooLarge(left.width(), left.height(), d));
+    }
+    let (cl, cr) = rayon::join(|| census::census(left), || census::census(right));
+    let pen = penalties(params);
+    let lgeo = Geo {
+        m: f.m,
+        sign: -1,
+        d_min: d_range[0],
+        d,
+        w,
+        h,
+    };
+    let cost = cost_volume(&lgeo, &cl, &cr);
+    let sum = sgm::aggregate(&cost, left.as_raw(), w, h, d, &pen);
+    drop(cost);
+    let mut best = post::winners(&lgeo, &sum, params.uniqueness);
+    // The right image's disparities for the left-right check.
+    let right_disp = if is_rectified(f, w, h) {
+        post::right_from_left_volume(&lgeo, &sum)
+    } else {
+        drop(sum);
+        let mt = core::array::from_fn(|i| core::array::from_fn(|j| f.m[j][i]));
+        let rgeo = Geo {
+            m: mt,
+            sign: 1,
+            ..lgeo
+        };
+        let cost = cost_volume(&rgeo, &cr, &cl);
+        let sum = sgm::aggregate(&cost, right.as_raw(), w, h, d, &pen);
+        drop(cost);
+        post::winners(&rgeo, &sum, 0.0)
+            .into_iter()
+            .map(|b| b.map(|b| b.disparity))
+            .collect()
+    };
+    post::left_right_check(&lgeo, &mut best, &right_disp, params.lr_tolerance_px);
+    post::speckle_filter(
+        w,
+        h,
+        &mut best,
+        params.speckle_size,
+        params.speckle_range_px,
+    );
+    post::refine(&lgeo, left.as_raw(), right.as_raw(), &mut best);
+    Ok(post::to_map(&lgeo, &best, params.lr_tolerance_px))
+}
+
+fn penalties(p: &DenseParams) -> sgm::Penalties {
+    let mut p2 = [p.p2 as i16; 256];
+    if p.p2_gamma > 0.0 {
+        for (di, v) in p2.iter_mut().enumerate() {
+            let g = p.p2_gamma;
+            let s = f32::from(p.p2) * g / (g + di as f32);
+            *v = (s.round() as i16).max(p.p1 as i16 + 1);
+        }
+    }
+    sgm::Penalties {
+        p1: p.p1 as i16,
+        p2,
+        eight: p.eight_paths,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_input_is_refused_with_its_field() {
+        let img = GrayImage::new(20, 10);
+        let f = Fundamental {
+            m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+        };
+        let p = DenseParams::default();
+        let e = dense_match(&img, &GrayImage::new(21, 10), &f, [0, 4], &p).unwrap_err();
+        assert!(e.to_string().starts_with("right: image is 21x10"), "{e}");
+        let e = dense_match(&img, &img, &f, [5, 4], &p).unwrap_err();
+        assert!(e.to_string().starts_with("d_range"), "{e}");
+        let e = dense_match(&img, &img, &Fundamental { m: [[0.0; 3]; 3] }, [0, 4], &p).unwrap_err();
+        assert!(e.to_string().starts_with("fundamental"), "{e}");
+        let big = GrayImage::new(4000, 4000);
+        let e = dense_match(&big, &big, &f, [0, 3], &p).unwrap_err();
+        assert_eq!(e, DenseError::TooLarge(4000, 4000, 4));
+        assert!(e.to_string().contains("more than the 48000000"), "{e}");
+        let bad = DenseParams { p2: 1, ..p };
+        let e = dense_match(&img, &img, &f, [0, 4], &bad).unwrap_err();
+        assert!(e.to_string().starts_with("params.p2"), "{e}");
+        // A blank pair: nothing matched, no error.
+        let m = dense_match(&img, &img, &f, [0, 4], &p).unwrap();
+        assert_eq!((m.matched(), m.ur.len()), (0, 200));
+        assert!(m.ur.iter().all(|u| *u == f32::INFINITY) && m.conf.iter().all(|c| *c == 0.0));
+    }
+
+    #[test]
+    fn rectified_pairs_are_recognised() {
+        let f = Fundamental {
+            m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+        };
+        assert!(is_rectified(&f, 100, 80));
+        let shifted = Fundamental {
+            m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 2.0]],
+        };
+        assert!(!is_rectified(&shifted, 100, 80));
+    }
+}

@@ -1,0 +1,406 @@
+//! What follows the aggregation: winner takes all with uniqueness and sub-pixel refinement,
+//! the left-right check, the speckle filter and the confidence of each kept pixel.
+
+use super::{DenseMap, Geo};
+use rayon::prelude::*;
+
+/// One pixel's winner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Best {
+    /// Sub-pixel disparity `u_l - u_r` (px).
+    pub disparity: f32,
+    /// The smallest aggregated cost.
+    pub s1: i32,
+    /// The smallest more than one disparity away (`i32::MAX` when there is none).
+    pub s2: i32,
+    /// Disagreement of the left-right check (px).
+    pub lr: f32,
+}
+
+/// The sub-pixel offset of a minimum `b` between its neighbours `a` (one disparity less) and
+/// `c` (one more), in `-0.5..=0.5`: the equiangular (symmetric V) fit, which suits the
+/// L1-like census costs better than a parabola (less pull towards whole pixels).
+pub(crate) fn subpixel(a: i32, b: i32, c: i32) -> f32 {
+    let rise = a.max(c) - b;
+    if rise <= 0 {
+        return 0.0;
+    }
+    ((a - c) as f32 / (2 * rise) as f32).clamp(-0.5, 0.5)
+}
+
+/// The winner of every pixel of `geo`'s reference image (`None`: refused).
+pub(crate) fn winners(geo: &Geo, sum: &[i16], uniqueness: f32) -> Vec<Option<Best>> {
+    let (w, h, d) = (geo.w, geo.h, geo.d);
+    let mut out = vec![None; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, slot) in row.iter_mut().enumerate() {
+            let Some(line) = geo.line(x, y) else { continue };
+            let Some((lo, hi)) = geo.valid_range(x, line) else {
+                continue;
+            };
+            let s = &sum[(y * w + x) * d..(y * w + x + 1) * d];
+            let mut k1 = lo;
+            let mut s1 = i32::from(s[lo]);
+            for (k, &v) in s.iter().enumerate().take(hi + 1).skip(lo + 1) {
+                if i32::from(v) < s1 {
+                    s1 = i32::from(v);
+                    k1 = k;
+                }
+            }
+            // The minimum at an end of the range (or of the image): the match is not inside
+            // the range.
+            if k1 == lo || k1 == hi {
+                continue;
+            }
+            let below = s[lo..k1 - 1].iter().copied().min();
+            let above = s.get(k1 + 2..hi + 1).and_then(|r| r.iter().copied().min());
+            let s2 = below
+                .into_iter()
+                .chain(above)
+                .min()
+                .map_or(i32::MAX, i32::from);
+            if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
+                continue;
+            }
+            let offset = subpixel(i32::from(s[k1 - 1]), s1, i32::from(s[k1 + 1]));
+            *slot = Some(Best {
+                disparity: (geo.d_min as f32) + k1 as f32 + offset,
+                s1,
+                s2,
+                lr: 0.0,
+            });
+        }
+    });
+    out
+}
+
+/// For a rectified pair: the right image's whole disparities read off the left volume
+/// (right pixel `(x, y)` at disparity index `k` is left pixel `(x + d_min + k, y)`).
+pub(crate) fn right_from_left_volume(geo: &Geo, sum: &[i16]) -> Vec<Option<f32>> {
+    let (w, h, d) = (geo.w, geo.h, geo.d);
+    let mut out = vec![None; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (xr, slot) in row.iter_mut().enumerate() {
+            let mut best: Option<(i16, usize)> = None;
+            for k in 0..d {
+                let x = xr as i64 + i64::from(geo.d_min) + k as i64;
+                if x < 0 || x >= w as i64 {
+                    continue;
+                }
+                let v = sum[(y * w + x as usize) * d + k];
+                if best.is_none_or(|(b, _)| v < b) {
+                    best = Some((v, k));
+                }
+            }
+            // Sub-pixel by the same fit as the left winners where both neighbours exist.
+            *slot = best.map(|(s1, k)| {
+                let at = |k: usize| -> Option<i32> {
+                    let x = xr as i64 + i64::from(geo.d_min) + k as i64;
+                    (x >= 0 && x < w as i64).then(|| i32::from(sum[(y * w + x as usize) * d + k]))
+                };
+                let offset = match (
+                    k.checked_sub(1).and_then(at),
+                    (k + 1 < d).then(|| at(k + 1)).flatten(),
+                ) {
+                    (Some(a), Some(c)) => subpixel(a, i32::from(s1), c),
+                    _ => 0.0,
+                };
+                (geo.d_min as f32) + k as f32 + offset
+            });
+        }
+    });
+    out
+}
+
+/// Drops every left winner whose right pixel's disparity (`right`, indexed by right pixel)
+/// differs by more than `tol` px or is missing; records the disagreement of the others.
+pub(crate) fn left_right_check(
+    geo: &Geo,
+    best: &mut [Option<Best>],
+    right: &[Option<f32>],
+    tol: f32,
+) {
+    let w = geo.w;
+    best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, slot) in row.iter_mut().enumerate() {
+            let Some(b) = slot else { continue };
+            let keep = geo.line(x, y).and_then(|(alpha, beta)| {
+                let ur = x as f64 - f64::from(b.disparity);
+                let vr = alpha + beta * ur;
+                let (u, v) = (ur.round(), vr.round());
+                if u < 0.0 || v < 0.0 || u >= w as f64 || v >= geo.h as f64 {
+                    return None;
+                }
+                let dr = right[v as usize * w + u as usize]?;
+                let diff = (b.disparity - dr).abs();
+                (diff <= tol).then_some(diff)
+            });
+            match keep {
+                Some(diff) => b.lr = diff,
+                None => *slot = None,
+            }
+        }
+    });
+}
+
+/// Drops the 4-connected regions (neighbours within `range` px of disparity) of fewer than
+/// `size` pixels.
+pub(crate) fn speckle_filter(
+    w: usize,
+    h: usize,
+    best: &mut [Option<Best>],
+    size: usize,
+    range: f32,
+) {
+    if size == 0 {
+        return;
+    }
+    let mut label = vec![u32::MAX; w * h];
+    let mut stack = Vec::new();
+    let mut members = Vec::new();
+    let mut next = 0u32;
+    for start in 0..w * h {
+        if best[start].is_none() || label[start] != u32::MAX {
+            continue;
+        }
+        label[start] = next;
+        stack.push(start);
+        members.clear();
+        while let Some(p) = stack.pop() {
+            members.push(p);
+            let dp = best[p].map_or(0.0, |b| b.disparity);
+            let (x, y) = (p % w, p / w);
+            let mut visit = |q: usize| {
+                if label[q] == u32::MAX {
+                    if let Some(b) = best[q] {
+                        if (b.disparity - dp).abs() <= range {
+                            label[q] = next;
+                            stack.push(q);
+                        }
+                    }
+                }
+            };
+            if x > 0 {
+                visit(p - 1);
+            }
+            if x + 1 < w {
+                visit(p + 1);
+            }
+            if y > 0 {
+                visit(p - w);
+            }
+            if y + 1 < h {
+                visit(p + w);
+            }
+        }
+        if members.len() < size {
+            for &p in &members {
+                best[p] = None;
+            }
+        }
+        next += 1;
+    }
+}
+
+/// Bilinear grey level of `img` (`w x h`, rows first) at `(x, y)`, `None` outside.
+#[inline]
+fn bilinear(img: &[u8], w: usize, h: usize, x: f64, y: f64) -> Option<f64> {
+    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
+        return None;
+    }
+    let (x0, y0) = (x as usize, y as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+    let at = |x: usize, y: usize| f64::from(img[y * w + x]);
+    Some(
+        (at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx) * (1.0 - fy)
+            + (at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx) * fy,
+    )
+}
+
+/// Half size of the window of [`refine`] (5 x 5).
+const REFINE_HALF: i64 = 2;
+
+/// Sub-pixel refinement of every kept winner on the grey levels: two Gauss-Newton steps of a
+/// 5 x 5 window's zero-mean, gain-matched difference along the epipolar line (a 1-D
+/// Lucas-Kanade), which removes most of the pull of the cost fit towards whole pixels. A step
+/// that would move the match by more than half a pixel, or leave the image, is not taken.
+pub(crate) fn refine(geo: &Geo, left: &[u8], right: &[u8], best: &mut [Option<Best>]) {
+    let (w, h) = (geo.w, geo.h);
+    let n = (2 * REFINE_HALF + 1) * (2 * REFINE_HALF + 1);
+    best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let mut lw = vec![0.0f64; n as usize];
+        for (x, slot) in row.iter_mut().enumerate() {
+            let Some(b) = slot else { continue };
+            let Some((alpha, beta)) = geo.line(x, y) else {
+                continue;
+            };
+            let (xi, yi) = (x as i64, y as i64);
+            if xi < REFINE_HALF
+                || yi < REFINE_HALF
+                || xi + REFINE_HALF >= w as i64
+                || yi + REFINE_HALF >= h as i64
+            {
+                continue;
+            }
+            let mut k = 0;
+            for j in -REFINE_HALF..=REFINE_HALF {
+                for i in -REFINE_HALF..=REFINE_HALF {
+                    lw[k] = f64::from(left[(yi + j) as usize * w + (xi + i) as usize]);
+                    k += 1;
+                }
+            }
+            let lmean = lw.iter().sum::<f64>() / n as f64;
+            let lvar = lw.iter().map(|v| (v - lmean).powi(2)).sum::<f64>();
+            if lvar < 1e-6 {
+                continue;
+            }
+            let u0 = x as f64 - f64::from(b.disparity);
+            let mut u = u0;
+            let mut ok = true;
+            for _ in 0..2 {
+                let v = alpha + beta * u;
+                // Right window and its derivative along the line (1, beta).
+                let (mut rw, mut gw) = ([0.0f64; 25], [0.0f64; 25]);
+                let mut k = 0;
+                'win: for j in -REFINE_HALF..=REFINE_HALF {
+                    for i in -REFINE_HALF..=REFINE_HALF {
+                        let (px, py) = (u + i as f64, v + j as f64);
+                        let (Some(c), Some(a), Some(e)) = (
+                            bilinear(right, w, h, px, py),
+                            bilinear(right, w, h, px - 0.5, py - 0.5 * beta),
+                            bilinear(right, w, h, px + 0.5, py + 0.5 * beta),
+                        ) else {
+                            ok = false;
+                            break 'win;
+                        };
+                        rw[k] = c;
+                        gw[k] = e - a;
+                        k += 1;
+                    }
+                }
+                if !ok {
+                    break;
+                }
+                let rmean = rw.iter().sum::<f64>() / n as f64;
+                let gmean = gw.iter().sum::<f64>() / n as f64;
+                let rvar = rw.iter().map(|v| (v - rmean).powi(2)).sum::<f64>();
+                if rvar < 1e-6 {
+                    ok = false;
+                    break;
+                }
+                let gain = (lvar / rvar).sqrt();
+                let (mut num, mut den) = (0.0, 0.0);
+                for ((l, r), gr) in lw.iter().zip(&rw).zip(&gw) {
+                    let e = (l - lmean) - gain * (r - rmean);
+                    let g = gain * (gr - gmean);
+                    num += g * e;
+                    den += g * g;
+                }
+                if den <= 1e-9 {
+                    ok = false;
+                    break;
+                }
+                u += (num / den).clamp(-0.5, 0.5);
+            }
+            if ok && (u - u0).abs() <= 0.5 {
+                b.disparity = (x as f64 - u) as f32;
+            }
+        }
+    });
+}
+
+/// The confidence of a kept pixel in `0..1`: its uniqueness margin `(s2 - s1) / s2` over
+/// 0.2 (capped at 1), times `1 - lr / (2 tol)` (the left-right disagreement `lr` against the
+/// check's tolerance `tol`).
+pub fn confidence(s1: i32, s2: i32, lr: f32, tol: f32) -> f32 {
+    let margin = if s2 == i32::MAX || s2 <= 0 {
+        1.0
+    } else {
+        ((s2 - s1) as f32 / s2 as f32).max(0.0)
+    };
+    let agree = if tol > 0.0 {
+        1.0 - 0.5 * (lr / tol).min(1.0)
+    } else {
+        1.0
+    };
+    ((margin / 0.2).min(1.0) * agree).clamp(0.0, 1.0)
+}
+
+/// The winners as right-image pixels.
+pub(crate) fn to_map(geo: &Geo, best: &[Option<Best>], tol: f32) -> DenseMap {
+    let n = geo.w * geo.h;
+    let (mut ur, mut vr, mut conf) = (
+        vec![f32::INFINITY; n],
+        vec![f32::INFINITY; n],
+        vec![0.0f32; n],
+    );
+    for (p, b) in best.iter().enumerate() {
+        let Some(b) = b else { continue };
+        let (x, y) = (p % geo.w, p / geo.w);
+        let Some((alpha, beta)) = geo.line(x, y) else {
+            continue;
+        };
+        let u = x as f64 - f64::from(b.disparity);
+        ur[p] = u as f32;
+        vr[p] = (alpha + beta * u) as f32;
+        conf[p] = confidence(b.s1, b.s2, b.lr, tol);
+    }
+    DenseMap {
+        width: geo.w as u32,
+        height: geo.h as u32,
+        ur,
+        vr,
+        conf,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn best(d: f32) -> Option<Best> {
+        Some(Best {
+            disparity: d,
+            s1: 1,
+            s2: 10,
+            lr: 0.0,
+        })
+    }
+
+    #[test]
+    fn equiangular_subpixel_finds_the_v_tip() {
+        // A V with slope 10 and its tip at +0.3: a = 10 * 1.3, b = 10 * 0.3, c = 10 * 0.7.
+        assert!((subpixel(13, 3, 7) - 0.3).abs() < 1e-6);
+        assert!((subpixel(7, 3, 13) + 0.3).abs() < 1e-6);
+        assert_eq!(subpixel(5, 5, 5), 0.0);
+        assert_eq!(subpixel(4, 0, 4), 0.0);
+    }
+
+    #[test]
+    fn small_regions_go_and_large_ones_stay() {
+        // 10 x 3: a region of 25 at d = 5 and a speck of 3 at d = 9 in its middle row.
+        let (w, h) = (10, 3);
+        let mut b: Vec<Option<Best>> = (0..w * h).map(|_| best(5.0)).collect();
+        for x in 3..6 {
+            b[w + x] = best(9.0);
+        }
+        b[0] = None;
+        b[1] = best(5.8);
+        speckle_filter(w, h, &mut b, 4, 1.0);
+        assert_eq!(b.iter().filter(|x| x.is_some()).count(), 26);
+        assert!((3..6).all(|x| b[w + x].is_none()));
+        assert!(b[1].is_some());
+        speckle_filter(w, h, &mut b, 27, 1.0);
+        assert!(b.iter().all(|x| x.is_none()));
+    }
+
+    #[test]
+    fn confidence_grows_with_the_margin_and_falls_with_the_lr_disagreement() {
+        assert_eq!(confidence(10, 10, 0.0, 1.0), 0.0);
+        assert!((confidence(90, 100, 0.0, 1.0) - 0.5).abs() < 1e-6);
+        assert_eq!(confidence(50, 100, 0.0, 1.0), 1.0);
+        assert_eq!(confidence(50, 100, 1.0, 1.0), 0.5);
+        assert_eq!(confidence(50, i32::MAX, 0.0, 0.0), 1.0);
+    }
+}

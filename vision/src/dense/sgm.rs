@@ -1,0 +1,204 @@
+//! Semi-global aggregation (Hirschmueller 2008) of a cost volume along 8 (or 4) straight
+//! paths: `L_r(p, d) = C(p, d) + min(L_r(p-r, d), L_r(p-r, d+-1) + P1, min_k L_r(p-r, k) + P2)
+//! - min_k L_r(p-r, k)`, summed over the paths. `P2` shrinks where the reference image's grey
+//! level jumps between `p - r` and `p` (depth edges are usually intensity edges).
+//!
+//! The paths are run as two passes, each over the whole image once: top-left to bottom-right
+//! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
+//! bottom-left); with two cores the passes run side by side ([`rayon::join`]). Costs are `u8`,
+//! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`).
+
+/// Penalties of the aggregation.
+#[derive(Debug, Clone, Copy)]
+pub struct Penalties {
+    /// For a 1-px disparity step.
+    pub p1: i16,
+    /// `P2` for every grey-level difference `0..=255` between neighbours.
+    pub p2: [i16; 256],
+    /// 8 paths, or 4 (left, right, top, bottom).
+    pub eight: bool,
+}
+
+/// One path step over the `d` disparities: `out = c + min(prev, prev+-1 + p1, pmin + p2) -
+/// pmin`; returns `min(out)`.
+#[inline]
+fn step(prev: &[i16], pmin: i16, c: &[u8], p1: i16, p2: i16, out: &mut [i16]) -> i16 {
+    let d = c.len();
+    let (prev, out) = (&prev[..d], &mut out[..d]);
+    let cap = pmin + p2;
+    if d == 1 {
+        out[0] = i16::from(c[0]) + prev[0].min(cap) - pmin;
+        return out[0];
+    }
+    out[0] = i16::from(c[0]) + prev[0].min(prev[1] + p1).min(cap) - pmin;
+    out[d - 1] = i16::from(c[d - 1]) + prev[d - 1].min(prev[d - 2] + p1).min(cap) - pmin;
+    for k in 1..d - 1 {
+        let v = prev[k].min(prev[k - 1].min(prev[k + 1]) + p1).min(cap);
+        out[k] = i16::from(c[k]) + v - pmin;
+    }
+    let mut m = i16::MAX;
+    for &v in out.iter() {
+        m = m.min(v);
+    }
+    m
+}
+
+/// One pass (forward: rows top to bottom, left to right; backward: the reverse) writing the
+/// sum of its paths into `sum` (`w * h * d`, overwritten).
+fn pass(
+    cost: &[u8],
+    img: &[u8],
+    (w, h, d): (usize, usize, usize),
+    pen: &Penalties,
+    backward: bool,
+    sum: &mut [i16],
+) {
+    // Row buffers of the three paths that come from the previous row, by iteration column:
+    // slot 0 from the same column, 1 from the column before, 2 from the column after.
+    let slots = if pen.eight { 3 } else { 1 };
+    let mut prev = vec![0i16; slots * w * d];
+    let mut cur = vec![0i16; slots * w * d];
+    let mut prev_min = vec![0i16; slots * w];
+    let mut cur_min = vec![0i16; slots * w];
+    let mut lprev = vec![0i16; d];
+    let mut lcur = vec![0i16; d];
+    let mut lmin = 0i16;
+    let at = |xi: usize, yi: usize| -> usize {
+        if backward {
+            (h - 1 - yi) * w + (w - 1 - xi)
+        } else {
+            yi * w + xi
+        }
+    };
+    let grey_diff = |a: usize, b: usize| -> usize { usize::from(img[a].abs_diff(img[b])) };
+    for yi in 0..h {
+        for xi in 0..w {
+            let p = at(xi, yi);
+            let c = &cost[p * d..(p + 1) * d];
+            // Along the row.
+            if xi == 0 {
+                for (o, &cc) in lcur.iter_mut().zip(c) {
+                    *o = i16::from(cc);
+                }
+                lmin = lcur.iter().copied().fold(i16::MAX, i16::min);
+            } else {
+                let q = at(xi - 1, yi);
+                lmin = step(&lprev, lmin, c, pen.p1, pen.p2[grey_diff(p, q)], &mut lcur);
+            }
+            let s = &mut sum[p * d..(p + 1) * d];
+            s.copy_from_slice(&lcur);
+            std::mem::swap(&mut lprev, &mut lcur);
+            // From the previous row.
+            for slot in 0..slots {
+                let from = match slot {
+                    0 => Some(xi),
+                    1 => xi.checked_sub(1),
+                    _ => (xi + 1 < w).then_some(xi + 1),
+                };
+                let out = &mut cur[(slot * w + xi) * d..(slot * w + xi + 1) * d];
+                let m = match from {
+                    Some(fx) if yi > 0 => {
+                        let q = at(fx, yi - 1);
+                        let pv = &prev[(slot * w + fx) * d..(slot * w + fx + 1) * d];
+                        step(
+                            pv,
+                            prev_min[slot * w + fx],
+                            c,
+                            pen.p1,
+                            pen.p2[grey_diff(p, q)],
+                            out,
+                        )
+                    }
+                    _ => {
+                        for (o, &cc) in out.iter_mut().zip(c) {
+                            *o = i16::from(cc);
+                        }
+                        out.iter().copied().fold(i16::MAX, i16::min)
+                    }
+                };
+                cur_min[slot * w + xi] = m;
+                for (a, &b) in s.iter_mut().zip(out.iter()) {
+                    *a += b;
+                }
+            }
+        }
+        std::mem::swap(&mut prev, &mut cur);
+        std::mem::swap(&mut prev_min, &mut cur_min);
+    }
+}
+
+/// The aggregated cost `S(p, d)` of `cost` (`w * h * d`, rows first, disparities innermost)
+/// with `img` the reference image's grey levels (for the adaptive `P2`).
+pub fn aggregate(
+    cost: &[u8],
+    img: &[u8],
+    w: usize,
+    h: usize,
+    d: usize,
+    pen: &Penalties,
+) -> Vec<i16> {
+    let n = w * h * d;
+    let mut fwd = vec![0i16; n];
+    let mut bwd = vec![0i16; n];
+    rayon::join(
+        || pass(cost, img, (w, h, d), pen, false, &mut fwd),
+        || pass(cost, img, (w, h, d), pen, true, &mut bwd),
+    );
+    use rayon::prelude::*;
+    fwd.par_chunks_mut(1 << 16)
+        .zip(bwd.par_chunks(1 << 16))
+        .for_each(|(a, b)| {
+            for (x, &y) in a.iter_mut().zip(b) {
+                *x += y;
+            }
+        });
+    fwd
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pen(eight: bool) -> Penalties {
+        Penalties {
+            p1: 3,
+            p2: [20; 256],
+            eight,
+        }
+    }
+
+    #[test]
+    fn step_follows_the_recursion() {
+        let prev = [5i16, 0, 9, 30];
+        let c = [1u8, 2, 3, 4];
+        let mut out = [0i16; 4];
+        let m = step(&prev, 0, &c, 3, 20, &mut out);
+        // d0: 1 + min(5, 0+3, 20) = 4; d1: 2 + 0; d2: 3 + min(9, 0+3) = 6; d3: 4 + min(30, 9+3, 20) = 16.
+        assert_eq!(out, [4, 2, 6, 16]);
+        assert_eq!(m, 2);
+    }
+
+    #[test]
+    fn a_lone_wrong_cost_is_outvoted_by_its_neighbours() {
+        // 9 x 9 pixels, 5 disparities: every pixel prefers d = 2 except the centre, which
+        // prefers d = 4 by a small margin; aggregation brings it back to 2.
+        let (w, h, d) = (9, 9, 5);
+        let mut cost = vec![10u8; w * h * d];
+        for p in 0..w * h {
+            cost[p * d + 2] = 0;
+        }
+        let centre = 4 * w + 4;
+        cost[centre * d + 2] = 6;
+        cost[centre * d + 4] = 4;
+        let img = vec![0u8; w * h];
+        for eight in [false, true] {
+            let s = aggregate(&cost, &img, w, h, d, &pen(eight));
+            let best = (0..d).min_by_key(|&k| s[centre * d + k]).unwrap();
+            assert_eq!(best, 2, "eight paths: {eight}");
+            // Four or eight paths, each with the pixel's own cost once.
+            let paths = if eight { 8 } else { 4 };
+            assert_eq!(s[2], 0);
+            assert!(s[0] >= paths * 10, "{}", s[0]);
+        }
+    }
+}
