@@ -140,20 +140,8 @@ pub fn depth(
             right.height()
         );
     }
-    if let Some((mw, mh)) = blob.image_size() {
-        if (u32::from(mw), u32::from(mh)) != left.dimensions() {
-            bail!(
-                "the images are {}x{}, the model was trained on {mw}x{mh} images (its matcher geometry holds for that size only)",
-                left.width(),
-                left.height()
-            );
-        }
-    }
-    let predict = |x: [f32; 4]| -> Option<[f32; 3]> {
-        let mut out = [0.0f32; 3];
-        blob.infer(&x, &mut out).ok()?;
-        out.iter().all(|v| v.is_finite()).then_some(out)
-    };
+    crate::vision::check_image_size(blob, left.dimensions())?;
+    let predict = crate::vision::model_xyz(blob);
     let (w, h) = left.dimensions();
     let d_range = disparity_range(&g, &predict, w, h);
     let f = Fundamental {
@@ -235,17 +223,8 @@ pub fn depth_files(model_path: &Path, left: &Path, right: &Path) -> Result<(Dept
             r.height()
         );
     }
-    if let Some((mw, mh)) = m.blob.image_size() {
-        if (u32::from(mw), u32::from(mh)) != l.dimensions() {
-            bail!(
-                "{}: the image is {}x{}, the model {} was trained on {mw}x{mh} images",
-                left.display(),
-                l.width(),
-                l.height(),
-                model_path.display()
-            );
-        }
-    }
+    crate::vision::check_image_size(&m.blob, l.dimensions())
+        .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))?;
     let d = depth(&m.blob, &l, &r, &DenseParams::default())
         .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))?;
     Ok((d, l))

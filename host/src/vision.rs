@@ -247,6 +247,24 @@ fn detect_capture(board: &Board, c: &Capture) -> (PairOutcome, PairImages) {
     (outcome, Some([l, r]))
 }
 
+/// The model's X, Y, Z (cm) of a stereo pixel pair, `None` where it gives no finite estimate;
+/// a Z-only model (`hvs train --outputs z`) gives Z, and X, Y as NaN.
+pub fn model_xyz(blob: &ModelBlob) -> impl Fn([f32; 4]) -> Option<[f32; 3]> + Sync + '_ {
+    let n_out = blob.n_outputs().min(3);
+    move |x: [f32; 4]| {
+        let mut out = [0.0f32; 3];
+        blob.infer(&x, &mut out[..n_out]).ok()?;
+        if !out[..n_out].iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        Some(if n_out == 1 {
+            [f32::NAN, f32::NAN, out[0]]
+        } else {
+            out
+        })
+    }
+}
+
 /// Refuses images of another size than the model's training images (when the model records
 /// it: `hvs train` on `hvs board detect`'s points): its geometry and depths are for that size.
 pub fn check_image_size(blob: &ModelBlob, (w, h): (u32, u32)) -> Result<()> {
@@ -478,20 +496,7 @@ pub fn locate(
         f64::from(g.disparity[1]) + DISPARITY_SLACK * span,
     ];
     let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
-    // A Z-only model (`hvs train --outputs z`) gives Z, and X, Y as NaN.
-    let n_out = blob.n_outputs();
-    let predict = |x: [f32; 4]| -> Option<[f32; 3]> {
-        let mut out = [0.0f32; 3];
-        blob.infer(&x, &mut out[..n_out]).ok()?;
-        if !out[..n_out].iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        Some(if n_out == 1 {
-            [f32::NAN, f32::NAN, out[0]]
-        } else {
-            out
-        })
-    };
+    let predict = model_xyz(blob);
     Ok(points
         .par_iter()
         .map(|&[ul, vl]| {
@@ -511,7 +516,7 @@ pub fn locate(
             }
             let line = f.line_in_right([ul, vl]);
             let Some((d_min, d_max)) =
-                model_disparity_interval(predict, ul, vl, line, z_range, d_range)
+                model_disparity_interval(&predict, ul, vl, line, z_range, d_range)
             else {
                 return none("out_of_depth_range");
             };

@@ -1,8 +1,8 @@
 //! `hvs depth`: every pixel of a stereo pair to X, Y, Z by the model
 //! ([`crate::depth::depth_files`]), written as PFM images, a colour-mapped PNG and a PLY cloud.
 
-use crate::data::csv::write_bytes;
 use crate::data::output::check_outputs;
+use crate::data::output::write_bytes;
 use crate::depth::{depth_files, Depth};
 use crate::vision::png_bytes;
 use anyhow::Result;
