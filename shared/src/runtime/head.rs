@@ -123,17 +123,20 @@ impl Network {
         joints: &Joints,
     ) -> Result<[f32; NET_OUTPUTS], MlpError> {
         let mut y = [0.0f32; NET_OUTPUTS];
-        if let Some(fixed) = &self.fixed {
+        let inputs;
+        let x: &[f32] = if let Some(fixed) = &self.fixed {
             // Pixels in: the output frame reads no joint inputs.
             fixed.infer_into(px, &mut y)?;
-            self.blob.finish(px, &mut y)?;
+            px
         } else {
             // `ModelBlob::infer`'s two steps, the output map and frame shared with the fast
             // path.
-            let (x, n) = self.inputs(px, joints);
-            mlp::infer_flat(&self.blob.flat(), &x[..n], &mut y)?;
-            self.blob.finish(&x[..n], &mut y)?;
-        }
+            inputs = self.inputs(px, joints);
+            let x = &inputs.0[..inputs.1];
+            mlp::infer_flat(&self.blob.flat(), x, &mut y)?;
+            x
+        };
+        self.blob.finish(x, &mut y)?;
         Ok(y)
     }
 
@@ -246,10 +249,16 @@ fn runnable(blob: &ModelBlob) -> (SlotStatus, SlotState) {
 #[inline(never)]
 /// The fast path's copy of `blob`'s net if `fast` (a 4-5-3 net, see [`Network::check`]).
 fn fixed_of(fast: bool, blob: &ModelBlob) -> Option<HeadFixedMlp> {
-    if fast {
-        FixedMlp::from_flat(&blob.flat()).ok()
-    } else {
-        None
+    let mut f = None;
+    set_fixed(&mut f, fast, blob);
+    f
+}
+
+/// [`fixed_of`] into `place`, copying the net in place (no copy of it on the stack).
+fn set_fixed(place: &mut Option<HeadFixedMlp>, fast: bool, blob: &ModelBlob) {
+    let f = place.insert(FixedMlp::ZERO);
+    if !fast || f.load(&blob.flat()).is_err() {
+        *place = None;
     }
 }
 
@@ -345,7 +354,7 @@ impl Boot {
         match Network::check(&net.blob) {
             Some((fast, model)) => {
                 net.fast = fast;
-                net.fixed = fixed_of(fast, &net.blob);
+                set_fixed(&mut net.fixed, fast, &net.blob);
                 net.slot = slot;
                 net.generation = net.blob.generation;
                 net.model = model;

@@ -52,9 +52,8 @@ pub fn sigmoid(a: f32) -> f32 {
 }
 
 /// [`sigmoid`] (the same function, the same bits), inlined on the host and one out-of-line
-/// copy on the head, where flash is short: the head inlines [`sigmoid`] only in its fast
-/// path's hidden layer ([`FixedMlp`]); the runtime-sized [`infer_flat`] and sigmoid outputs
-/// call this.
+/// copy on the head, where flash is short: every net the head runs ([`FixedMlp`],
+/// [`infer_flat`]) calls this one copy.
 #[cfg_attr(target_os = "none", inline(never))]
 #[cfg_attr(not(target_os = "none"), inline(always))]
 pub fn sigmoid_shared(a: f32) -> f32 {
@@ -120,12 +119,11 @@ pub fn exp_fast(x: f32) -> f32 {
 /// [`exp`] for `|x| >=` [`EXP_FAST_BELOW`] and NaN: infinity above, 0 below, NaN for NaN.
 #[inline(always)]
 pub fn exp_outside(x: f32) -> f32 {
-    if x > 0.0 {
-        f32::INFINITY
-    } else if x < 0.0 {
+    // x * inf: infinity for x > 0, NaN for NaN.
+    if x < 0.0 {
         0.0
     } else {
-        x
+        x * f32::INFINITY
     }
 }
 
@@ -153,23 +151,15 @@ impl OutputMap {
         match self {
             OutputMap::Direct => Ok(()),
             OutputMap::InverseDepth => {
-                // The usual three outputs (and one) written out: the same divisions.
-                let finite = match y {
-                    [x, yy, w] => {
-                        (*x, *yy, *w) = (*x / *w, *yy / *w, 1.0 / *w);
-                        x.is_finite() & yy.is_finite() & w.is_finite()
-                    }
-                    [] => return Err(MlpError::Shape),
-                    [rest @ .., w] => {
-                        let w0 = *w;
-                        for v in rest.iter_mut() {
-                            *v /= w0;
-                        }
-                        *w = 1.0 / w0;
-                        rest.iter().all(|v| v.is_finite()) && w.is_finite()
-                    }
+                let (n, w) = match y.last() {
+                    Some(w) => (y.len(), *w),
+                    None => return Err(MlpError::Shape),
                 };
-                if finite {
+                for v in y[..n - 1].iter_mut() {
+                    *v /= w;
+                }
+                y[n - 1] = 1.0 / w;
+                if y.iter().all(|v| v.is_finite()) {
                     Ok(())
                 } else {
                     Err(MlpError::NonFiniteOutput)
@@ -500,37 +490,11 @@ pub fn infer_fixed_into<const I: usize, const H: usize, const O: usize>(
 /// skip term has 55.
 pub const FIXED_MAX_PARAMS: usize = 64;
 
-/// Calls `f(0)`, ..., `f(N - 1)` in order, written out for `N <= 4` (`N` is a constant, so
-/// the compiler drops the calls past it), a loop beyond: straight-line code at opt-level s,
-/// which keeps counted loops.
-#[inline(always)]
-fn unrolled<const N: usize>(mut f: impl FnMut(usize)) {
-    if N > 4 {
-        for i in 0..N {
-            f(i);
-        }
-        return;
-    }
-    if N > 0 {
-        f(0);
-    }
-    if N > 1 {
-        f(1);
-    }
-    if N > 2 {
-        f(2);
-    }
-    if N > 3 {
-        f(3);
-    }
-}
-
 /// A net known to be `I-H-O` at compile time, its parameters copied once out of a
 /// [`FlatMlp`] (in the blob's layout): the head's fast path for 4-5-3 nets
 /// (`crate::runtime::head::Network` builds it when a slot boots). [`FixedMlp::infer_into`]
 /// does [`infer_flat`]'s arithmetic in its order (identical bits, tested) with every length
-/// and offset a constant: no shape checks and no slicing at inference, the input and output
-/// steps written out.
+/// and offset a constant: no shape checks and no slicing at inference.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FixedMlp<const I: usize, const H: usize, const O: usize> {
     /// The sigmoid net's parameters, then the skip weights (if any), as in the blob.
@@ -557,28 +521,48 @@ impl<const I: usize, const H: usize, const O: usize> FixedMlp<I, H, O> {
     /// Refuses, at compile time, a topology whose parameters do not fit.
     const FITS: () = assert!(param_count(I, H, O) + skip_count(I, O) <= FIXED_MAX_PARAMS);
 
+    /// A net of zeros (outputs `out_offset` = 0), to [`FixedMlp::load`] into.
+    pub const ZERO: Self = FixedMlp {
+        p: [0.0; FIXED_MAX_PARAMS],
+        has_skip: false,
+        output: Activation::Linear,
+        in_offset: [0.0; I],
+        in_scale: [0.0; I],
+        out_offset: [0.0; O],
+        out_scale: [0.0; O],
+    };
+
     /// The fixed-size copy of `m`, or [`MlpError::Shape`] if `m` is not an `I-H-O` net
     /// (with or without a skip term).
     pub fn from_flat(m: &FlatMlp<'_>) -> Result<Self, MlpError> {
+        let mut f = Self::ZERO;
+        f.load(m)?;
+        Ok(f)
+    }
+
+    /// Copies `m` into `self` in place (what [`FixedMlp::from_flat`] returns), or
+    /// [`MlpError::Shape`], leaving `self` as it was, if `m` is not an `I-H-O` net.
+    pub fn load(&mut self, m: &FlatMlp<'_>) -> Result<(), MlpError> {
         let () = Self::FITS;
         if !shaped(m, I, H, O) {
             return Err(MlpError::Shape);
         }
-        // Small loops, no panics: the lengths were checked just above.
-        let (net, skip) = (m.params, m.skip);
-        let at = |v: &[f32], i: usize| v.get(i).copied().unwrap_or(0.0);
-        Ok(FixedMlp {
-            p: core::array::from_fn(|i| match i.checked_sub(net.len()) {
-                None => at(net, i),
-                Some(k) => at(skip, k),
-            }),
-            has_skip: !skip.is_empty(),
-            output: m.output,
-            in_offset: core::array::from_fn(|i| at(m.in_offset, i)),
-            in_scale: core::array::from_fn(|i| at(m.in_scale, i)),
-            out_offset: core::array::from_fn(|i| at(m.out_offset, i)),
-            out_scale: core::array::from_fn(|i| at(m.out_scale, i)),
-        })
+        // Plain copies, no panics: the lengths were checked just above.
+        let copy = |to: &mut [f32], from: &[f32]| {
+            for (t, v) in to.iter_mut().zip(from) {
+                *t = *v;
+            }
+        };
+        let (net, skip) = self.p.split_at_mut(Self::SKIP_ROWS);
+        copy(net, m.params);
+        copy(skip, m.skip);
+        self.has_skip = !m.skip.is_empty();
+        self.output = m.output;
+        copy(&mut self.in_offset, m.in_offset);
+        copy(&mut self.in_scale, m.in_scale);
+        copy(&mut self.out_offset, m.out_offset);
+        copy(&mut self.out_scale, m.out_scale);
+        Ok(())
     }
 
     /// [`infer_flat`] of the net it was built from, into `y` (the outputs before a non-finite
@@ -588,17 +572,17 @@ impl<const I: usize, const H: usize, const O: usize> FixedMlp<I, H, O> {
         let () = Self::FITS;
         let mut xn = [0.0f32; I];
         let mut finite = true;
-        unrolled::<I>(|i| {
+        for i in 0..I {
             finite &= x[i].is_finite();
             xn[i] = (x[i] - self.in_offset[i]) * self.in_scale[i];
-        });
+        }
         if !finite {
             return Err(MlpError::NonFiniteInput);
         }
         let p = &self.p;
         let h: [f32; H] = core::array::from_fn(|j| {
             let row = j * (I + 1);
-            sigmoid(dot4(p[row + I], &p[row..row + I], &xn))
+            sigmoid_shared(dot4(p[row + I], &p[row..row + I], &xn))
         });
         for k in 0..O {
             let row = Self::OUT_ROWS + k * (H + 1);
