@@ -43,9 +43,9 @@ impl Activation {
 /// The logistic sigmoid in f32, eq. 2.1-2: `1 / (1 + e^-a)` over [`exp`].
 ///
 /// Relative error against the exact sigmoid: below 1.5e-7 wherever the exact value is a normal
-/// f32 (`a >= -87.33`; 1.41e-7 on a dense sweep of f32 inputs, see the tests), as for
-/// `1 / (1 + libm::expf(-a))`, the sigmoid every model used before (1.47e-7 measured): an ulp
-/// or so either way; below that the result is 0 or a subnormal, within 2^-126 of the exact
+/// f32 (`a >= -87.33`; 1.48e-7 worst over every f32 in `-87.33..17.5`, beyond which both
+/// round to 1), as for `1 / (1 + libm::expf(-a))`, the sigmoid every model used before (1.54e-7
+/// worst there): an ulp or so either way; below that the result is 0 or a subnormal, within 2^-126 of the exact
 /// value. NaN in, NaN out.
 #[inline(always)]
 pub fn sigmoid(a: f32) -> f32 {
@@ -88,7 +88,7 @@ const E6: f32 = f32::from_bits(0x3ab5_1227); // 0.0013814614
 /// lane-wise kernel (`hvs_host::infer::lanes`) computes both halves with selects (tested bit
 /// for bit).
 ///
-/// Relative error at most 8e-8 for `-87.33 <= x < 88` (a dense sweep of f32 inputs; every f32
+/// Relative error at most 8.2e-8 for `-87.33 <= x < 88` (a dense sweep of f32 inputs; every f32
 /// with the ignored test); 0 for `-88 < x < -87.68` (the exact value is below 2^-126 there, 6e-39 at most) and
 /// `x <= -88`; infinity from 88 on (the exact value overflows from 88.73); NaN for NaN.
 #[inline(always)]
@@ -777,10 +777,10 @@ mod tests {
             .chain(near(1e-30));
         let (we, ws, wl, n) = worst_errors(bits);
         assert!(n > 4_000_000, "{n}");
-        assert!(we <= 8e-8, "exp: worst relative error {we:e}");
+        assert!(we <= 8.2e-8, "exp: worst relative error {we:e}");
         assert!(ws < 1.5e-7, "sigmoid: worst relative error {ws:e}");
         // The sigmoid it replaced is within an ulp too, no better.
-        assert!((1e-7..1.5e-7).contains(&wl), "libm's sigmoid: {wl:e}");
+        assert!((1e-7..1.6e-7).contains(&wl), "libm's sigmoid: {wl:e}");
     }
 
     /// Every f32 (a minute or two in release on two cores; the figures of the docs):
@@ -804,7 +804,7 @@ mod tests {
         std::println!("exp {we:e}, sigmoid {ws:e}, libm sigmoid {wl:e}, {n} finite f32");
         assert_eq!(n, (1u64 << 32) - 2 * (1 << 23));
         assert!(
-            we <= 8e-8 && ws < 1.5e-7 && wl < 1.5e-7,
+            we <= 8.2e-8 && ws < 1.5e-7 && ws <= wl,
             "{we:e} {ws:e} {wl:e}"
         );
     }
