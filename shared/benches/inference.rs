@@ -1,9 +1,10 @@
 //! Inference speed on the host (`cargo bench -p hvs-shared --bench inference`):
 //!
 //! - `one_point/mlp_4_5_3`: the head's 4-5-3 network, `Mlp<4,5,3>::infer`, one point;
-//! - `one_point/head_network_infer`: the head's non-generic `Network::infer` (what the
-//!   firmware's `Estimate` runs);
+//! - `one_point/fixed_mlp_4_5_3`: `FixedMlp<4,5,3>::infer_into`, the head's fast path;
 //! - `one_point/infer_flat_4_5_3`: the runtime-sized `infer_flat` a blob of any topology runs;
+//! - `one_point/sigmoid_x5`: five sigmoids (`mlp::sigmoid`, its polynomial exp), a hidden
+//!   layer's worth; `one_point/sigmoid_libm_x5`: the same over `libm::expf`, the exp before;
 //! - `one_point/fallback_traditional_xyz`: the traditional method the head falls back to;
 //! - `batch_1e6/mlp_4_5_3_one_core`: 10^6 points through `Mlp<4,5,3>::infer` on one core
 //!   (target: at least 10 M points/s per core);
@@ -17,7 +18,9 @@ use cpu_time::ThreadTime;
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use hvs_shared::runtime::head::{NET_HIDDEN, NET_INPUTS, NET_OUTPUTS};
-use hvs_shared::runtime::mlp::{infer_flat, param_count, Activation, FlatMlp, Mlp};
+use hvs_shared::runtime::mlp::{
+    infer_flat, param_count, sigmoid, Activation, FixedMlp, FlatMlp, Mlp,
+};
 use hvs_shared::runtime::traditional::{traditional_xyz, Calibration};
 use std::hint::black_box;
 use std::time::Duration;
@@ -96,6 +99,16 @@ fn inference(c: &mut Criterion) {
     g.bench_function("infer_flat_4_5_3", |b| {
         let mut y = [0.0f32; 3];
         b.iter(|| infer_flat(&flat, black_box(&x), &mut y).map(|_| y))
+    });
+    let fixed = FixedMlp::<4, 5, 3>::from_flat(&flat).expect("a 4-5-3 net");
+    g.bench_function("fixed_mlp_4_5_3", |b| {
+        let mut y = [0.0f32; 3];
+        b.iter(|| fixed.infer_into(black_box(&x), &mut y).map(|_| y))
+    });
+    let a: [f32; 5] = core::array::from_fn(|j| 1.7 * j as f32 - 3.1);
+    g.bench_function("sigmoid_x5", |b| b.iter(|| black_box(&a).map(sigmoid)));
+    g.bench_function("sigmoid_libm_x5", |b| {
+        b.iter(|| black_box(&a).map(|v| 1.0 / (1.0 + libm::expf(-v))))
     });
     g.bench_function("fallback_traditional_xyz", |b| {
         b.iter(|| traditional_xyz(&Calibration::BUILT_IN, black_box(&x)))

@@ -3,8 +3,8 @@
 //!
 //! Common topologies (4 or 9 inputs, 1-10 hidden units, 1 or 3 outputs) run through the
 //! fixed-size `hvs_shared::runtime::mlp::Mlp<I, H, O>` evaluated `lanes::LANES` points at a time by
-//! the auto-vectorised, bit-identical kernel in `lanes` (including a lane-wise
-//! `libm::expf`), then the family's output map (`OutputMap`, per row); anything else through the runtime-sized `infer_flat`. Both give the same
+//! the auto-vectorised, bit-identical kernel in `lanes` (the scalar sigmoid applied lane by
+//! lane), then the family's output map (`OutputMap`, per row); anything else through the runtime-sized `infer_flat`. Both give the same
 //! bits (a property test in `hvs-shared`, and the tests here and in `lanes`). Large batches
 //! are split into chunks run in parallel with `rayon`; the result does not depend on the
 //! thread count.

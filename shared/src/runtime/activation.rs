@@ -1,9 +1,11 @@
 //! Candidate fast hidden activation for the head: the logistic sigmoid over `micromath`'s
 //! `exp` (a 4-term series on the fraction of `x / ln 2`, the exponent set directly) instead of
-//! `libm::expf`. Host and head run this same code, so a model that selects it gives the same
-//! bits on both; it is a *model* property (a net must be trained and evaluated with the
-//! function it runs with). Which activation a blob uses is the blob format's business
-//! (`crate::runtime::blob`): this module only provides the function and an inference over it.
+//! [`crate::runtime::mlp::exp`] (evaluated, and rejected for its error, before that
+//! polynomial replaced `libm::expf`). Host and head run this same code, so a model that
+//! selects it gives the same bits on both; it is a *model* property (a net must be trained
+//! and evaluated with the function it runs with). Which activation a blob uses is the blob
+//! format's business (`crate::runtime::blob`): this module only provides the function and an
+//! inference over it.
 //!
 //! Relative error of [`exp_micromath`] against `libm::expf`: below 3e-3 over -87..88 (tested: 2.4e-3);
 //! the sigmoid's absolute error stays below 5e-4.
@@ -82,7 +84,7 @@ mod tests {
 
     proptest! {
         #[test]
-        fn with_the_libm_sigmoid_it_is_infer_fixed((params, x, output) in fixture::case()) {
+        fn with_the_standard_sigmoid_it_is_infer_fixed((params, x, output) in fixture::case()) {
             let m = fixture::net(&params, output);
             let os = fixture::OUT_SCALE;
             let want = infer_fixed::<4, 5, 3>(&m, &x).unwrap();

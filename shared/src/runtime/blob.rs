@@ -230,7 +230,9 @@ pub struct TrainingMeta {
 /// a new variant (new models only; every variant must give the same bits on host and head).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ExpKind {
-    /// `libm::expf` (libm 0.2), what every model so far uses.
+    /// The exp of [`mlp::sigmoid`], what every model so far uses: `libm::expf` (libm 0.2)
+    /// until issue 29, since then the range-reduced polynomial [`mlp::exp`] (within 8.2e-8 of
+    /// `e^x`; predictions moved by an ulp or so, the variant and the bytes stayed).
     LibmExp,
 }
 

@@ -12,7 +12,8 @@
 //! current setpoints, see [`Head::joints`]), outputs [`OutputKind::Xyz`] (`Look` needs all
 //! three), any hidden count the blob allows. A 4-5-3 net of any family
 //! ([`NET_INPUTS`]-[`NET_HIDDEN`]-[`NET_OUTPUTS`]) runs on the fixed-size fast path
-//! [`crate::runtime::mlp::infer_fixed_into`] over the blob (the arithmetic of [`Mlp`]); every
+//! [`crate::runtime::mlp::FixedMlp`], copied out of the blob at boot (the bits of
+//! [`crate::runtime::mlp::infer_flat`]); every
 //! other runnable topology on the runtime-sized [`crate::runtime::mlp::infer_flat`] (the same
 //! bits as the blob's own [`ModelBlob::infer`]); either way the blob's family maps the outputs to cm
 //! ([`crate::runtime::mlp::OutputMap`]). Anything else counts as not runnable, and with no runnable slot the
@@ -21,7 +22,7 @@
 use crate::runtime::blob::{self, InputKind, ModelBlob, OutputKind};
 use crate::runtime::gaze::{self, Axis, GazeConfig, GazeError, Joints};
 use crate::runtime::layout::Slot;
-use crate::runtime::mlp::{self, Mlp, MlpError};
+use crate::runtime::mlp::{self, FixedMlp, Mlp, MlpError};
 use crate::runtime::protocol::{
     self, ErrorCode, EstimateData, FirmwareVersion, InfoData, LookData, Mode, ModelInfo,
     ProtocolError, Request, RequestBody, Response, ResponseBody, SlotStatus, Source, StereoPoint,
@@ -42,6 +43,8 @@ pub const JOINTS_NET_INPUTS: usize = 9;
 
 /// The thesis' network as a fixed-size [`Mlp`] (the same arithmetic as the head's fast path).
 pub type HeadMlp = Mlp<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>;
+/// The head's fast path: a 4-5-3 net of any family in fixed-size arrays.
+pub type HeadFixedMlp = FixedMlp<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>;
 
 /// A runnable network loaded from a slot, with what `Estimate` and `Info` need of its blob.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,8 +52,10 @@ pub struct Network {
     /// The decoded blob: weights, scaling and training box.
     pub blob: ModelBlob,
     /// Whether the blob is a 4-5-3 net (pixels in, XYZ out, any family), run on the
-    /// fixed-size fast path [`crate::runtime::mlp::infer_fixed_into`].
+    /// fixed-size fast path [`Network::fixed`].
     pub fast: bool,
+    /// The fast path's copy of the blob's net (`Some` exactly when `fast`).
+    pub fixed: Option<HeadFixedMlp>,
     /// The slot it came from.
     pub slot: Slot,
     /// The blob's generation.
@@ -66,6 +71,7 @@ impl Network {
         let (fast, model) = Network::check(&blob)?;
         Some(Network {
             generation: blob.generation,
+            fixed: fixed_of(fast, &blob),
             blob,
             fast,
             slot,
@@ -117,21 +123,20 @@ impl Network {
         joints: &Joints,
     ) -> Result<[f32; NET_OUTPUTS], MlpError> {
         let mut y = [0.0f32; NET_OUTPUTS];
-        let flat = self.blob.flat();
-        let (x, n) = self.inputs(px, joints);
-        if self.fast {
-            mlp::infer_fixed_into::<NET_INPUTS, NET_HIDDEN, NET_OUTPUTS>(
-                &flat,
-                px,
-                &mut y,
-                mlp::sigmoid,
-            )?;
+        let inputs;
+        let x: &[f32] = if let Some(fixed) = &self.fixed {
+            // Pixels in: the output frame reads no joint inputs.
+            fixed.infer_into(px, &mut y)?;
+            px
         } else {
             // `ModelBlob::infer`'s two steps, the output map and frame shared with the fast
             // path.
-            mlp::infer_flat(&flat, &x[..n], &mut y)?;
-        }
-        self.blob.finish(&x[..n], &mut y)?;
+            inputs = self.inputs(px, joints);
+            let x = &inputs.0[..inputs.1];
+            mlp::infer_flat(&self.blob.flat(), x, &mut y)?;
+            x
+        };
+        self.blob.finish(x, &mut y)?;
         Ok(y)
     }
 
@@ -251,11 +256,27 @@ fn runnable(blob: &ModelBlob) -> (SlotStatus, SlotState) {
 /// `est`'s network, made an [`Estimator::Network`] with a placeholder blob if it was not
 /// one: the place boot decodes into.
 #[inline(never)]
+/// The fast path's copy of `blob`'s net if `fast` (a 4-5-3 net, see [`Network::check`]).
+fn fixed_of(fast: bool, blob: &ModelBlob) -> Option<HeadFixedMlp> {
+    let mut f = None;
+    set_fixed(&mut f, fast, blob);
+    f
+}
+
+/// [`fixed_of`] into `place`, copying the net in place (no copy of it on the stack).
+fn set_fixed(place: &mut Option<HeadFixedMlp>, fast: bool, blob: &ModelBlob) {
+    let f = place.insert(FixedMlp::ZERO);
+    if !fast || f.load(&blob.flat()).is_err() {
+        *place = None;
+    }
+}
+
 fn network_place(est: &mut Estimator) -> &mut Network {
     if let Estimator::Fallback(_) = *est {
         *est = Estimator::Network(Network {
             blob: blob::placeholder(),
             fast: false,
+            fixed: None,
             slot: Slot::A,
             generation: 0,
             model: ModelInfo {
@@ -342,6 +363,7 @@ impl Boot {
         match Network::check(&net.blob) {
             Some((fast, model)) => {
                 net.fast = fast;
+                set_fixed(&mut net.fixed, fast, &net.blob);
                 net.slot = slot;
                 net.generation = net.blob.generation;
                 net.model = model;

@@ -3,8 +3,9 @@
 //! The scaling is part of the model: callers pass pixels (and, for posture-aware models,
 //! joint angles) and get centimetres. Inputs are normalised as `(x - in_offset) * in_scale`,
 //! outputs de-normalised as `y * out_scale + out_offset`. Every sum starts from the bias and
-//! adds the products in index order, in plain f32 (no fused multiply-add), with `libm::expf`,
-//! so [`Mlp::infer`] and the runtime-sized [`infer_flat`] give the same bits on the host and on
+//! adds the products in index order, in plain f32 (no fused multiply-add), with the
+//! range-reduced polynomial [`exp`] in the sigmoid (`libm::expf` until issue 29), so
+//! [`Mlp::infer`] and the runtime-sized [`infer_flat`] give the same bits on the host and on
 //! the Cortex-M4F.
 //!
 //! Parameter layout (also the blob's): for each hidden unit `j`, `w1[j][0..I]` then `b1[j]`;
@@ -39,10 +40,92 @@ impl Activation {
     }
 }
 
-/// The logistic sigmoid in f32, eq. 2.1-2.
+/// The logistic sigmoid in f32, eq. 2.1-2: `1 / (1 + e^-a)` over [`exp`].
+///
+/// Relative error against the exact sigmoid: below 1.5e-7 wherever the exact value is a normal
+/// f32 (`a >= -87.33`; 1.48e-7 worst over every f32 in `-87.33..17.5`, beyond which both
+/// round to 1), as for `1 / (1 + libm::expf(-a))`, the sigmoid every model used before (1.54e-7
+/// worst there): an ulp or so either way; below that the result is 0 or a subnormal, within 2^-126 of the exact
+/// value. NaN in, NaN out.
 #[inline(always)]
 pub fn sigmoid(a: f32) -> f32 {
-    1.0 / (1.0 + libm::expf(-a))
+    1.0 / (1.0 + exp(-a))
+}
+
+/// [`sigmoid`] (the same function, the same bits), inlined on the host and one out-of-line
+/// copy on the head, where flash is short: every net the head runs ([`FixedMlp`],
+/// [`infer_flat`]) calls this one copy.
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline(always))]
+pub fn sigmoid_shared(a: f32) -> f32 {
+    sigmoid(a)
+}
+
+/// `|x|` from here on (and NaN): [`exp`] is [`exp_outside`]'s saturated value.
+pub const EXP_FAST_BELOW: f32 = 88.0;
+/// `1 / ln 2`, rounded (libm's `INV_LN2`).
+const INV_LN2: f32 = f32::from_bits(0x3fb8_aa3b);
+/// `ln 2` in two parts (libm's): `k * LN2_HI` is exact for `|k| <= 128`.
+const LN2_HI: f32 = f32::from_bits(0x3f31_7200);
+/// `ln 2 - LN2_HI`.
+const LN2_LO: f32 = f32::from_bits(0x35bf_be8e);
+/// `1.5 * 2^23`: `t + ROUND` rounds `t` (`|t| < 2^22`) to the nearest integer `k` and holds
+/// `k` in its low mantissa bits.
+const ROUND: f32 = 12_582_912.0;
+/// `e^r ~ 1 + r + r^2 (E2 + r (E3 + r (E4 + r (E5 + r E6))))` on `|r| <= ln 2 / 2`: the
+/// minimax fit of the relative error with the first two terms fixed (Remez, 3.1e-9 before
+/// rounding to f32).
+const E2: f32 = f32::from_bits(0x3eff_fffe); // 0.49999994
+const E3: f32 = f32::from_bits(0x3e2a_aa49); // 0.16666521
+const E4: f32 = f32::from_bits(0x3d2a_ac79); // 0.04166839
+const E5: f32 = f32::from_bits(0x3c09_1cea); // 0.00836871
+const E6: f32 = f32::from_bits(0x3ab5_1227); // 0.0013814614
+
+/// `e^x` in f32 for [`sigmoid`]: [`exp_fast`] for `|x| <` [`EXP_FAST_BELOW`], [`exp_outside`]
+/// otherwise (and for NaN). One compare and a branch around a straight polynomial: on the
+/// Cortex-M4F about 25 instructions where `libm::expf` took about 49. Plain f32 multiplies and
+/// adds (no fused multiply-add), so the host and the Cortex-M4F give the same bits; the host's
+/// lane-wise kernel (`hvs_host::infer::lanes`) computes both halves with selects (tested bit
+/// for bit).
+///
+/// Relative error at most 8.2e-8 for `-87.33 <= x < 88` (a dense sweep of f32 inputs; every f32
+/// with the ignored test); 0 for `-88 < x < -87.68` (the exact value is below 2^-126 there, 6e-39 at most) and
+/// `x <= -88`; infinity from 88 on (the exact value overflows from 88.73); NaN for NaN.
+#[inline(always)]
+pub fn exp(x: f32) -> f32 {
+    // NaN fails the comparison.
+    if f32::from_bits(x.to_bits() & 0x7fff_ffff) < EXP_FAST_BELOW {
+        exp_fast(x)
+    } else {
+        exp_outside(x)
+    }
+}
+
+/// [`exp`] for `|x| <` [`EXP_FAST_BELOW`] (any other input gives some value, no panic):
+/// `x = k ln 2 + r` with `k` the nearest integer to `x / ln 2` (Cody-Waite reduction with
+/// libm's two-part `ln 2`), a degree-6 polynomial for `e^r`, then the exact multiply by `2^k`
+/// (`k` in `-127..=127`; `2^-127` is taken as 0) built from `k`'s bits.
+#[inline(always)]
+pub fn exp_fast(x: f32) -> f32 {
+    let s = x * INV_LN2 + ROUND;
+    let kf = s - ROUND;
+    let r = (x - kf * LN2_HI) - kf * LN2_LO;
+    let q = (((E6 * r + E5) * r + E4) * r + E3) * r + E2;
+    let p = 1.0 + (r + (r * r) * q);
+    // s's low mantissa bits hold k; (k + 127) << 23 is 2^k as an f32 (0 for k = -127).
+    let scale = f32::from_bits(s.to_bits().wrapping_add(127) << 23);
+    p * scale
+}
+
+/// [`exp`] for `|x| >=` [`EXP_FAST_BELOW`] and NaN: infinity above, 0 below, NaN for NaN.
+#[inline(always)]
+pub fn exp_outside(x: f32) -> f32 {
+    // x * inf: infinity for x > 0, NaN for NaN.
+    if x < 0.0 {
+        0.0
+    } else {
+        x * f32::INFINITY
+    }
 }
 
 /// How a net's de-normalised outputs become centimetres: the model family's output side.
@@ -358,7 +441,7 @@ pub fn infer_flat(m: &FlatMlp<'_>, x: &[f32], out: &mut [f32]) -> Result<(), Mlp
     }
     let mut xn = [0.0f32; FLAT_MAX_INPUTS];
     let mut hid = [0.0f32; FLAT_MAX_HIDDEN];
-    forward(m, x, &mut xn[..ni], &mut hid[..h], out, sigmoid, dot)
+    forward(m, x, &mut xn[..ni], &mut hid[..h], out, sigmoid_shared, dot)
 }
 
 /// [`infer_flat`] for a model known to be `I-H-O` at compile time: the arithmetic of
@@ -402,6 +485,125 @@ pub fn infer_fixed_into<const I: usize, const H: usize, const O: usize>(
     }
     let (mut xn, mut hid) = ([0.0f32; I], [0.0f32; H]);
     forward(m, x, &mut xn, &mut hid, y, sigmoid, dot4)
+}
+
+/// Most parameters (sigmoid net and skip weights) a [`FixedMlp`] holds: a 4-5-3 net with a
+/// skip term has 55.
+pub const FIXED_MAX_PARAMS: usize = 64;
+
+/// A net known to be `I-H-O` at compile time, its parameters copied once out of a
+/// [`FlatMlp`] (in the blob's layout): the head's fast path for 4-5-3 nets
+/// (`crate::runtime::head::Network` builds it when a slot boots). [`FixedMlp::infer_into`]
+/// does [`infer_flat`]'s arithmetic in its order (identical bits, tested) with every length
+/// and offset a constant: no shape checks and no slicing at inference.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixedMlp<const I: usize, const H: usize, const O: usize> {
+    /// The sigmoid net's parameters, then the skip weights (if any), as in the blob.
+    p: [f32; FIXED_MAX_PARAMS],
+    /// Whether the net has a skip term.
+    has_skip: bool,
+    /// Output activation.
+    output: Activation,
+    /// Input offsets.
+    in_offset: [f32; I],
+    /// Input scales.
+    in_scale: [f32; I],
+    /// Output offsets.
+    out_offset: [f32; O],
+    /// Output scales.
+    out_scale: [f32; O],
+}
+
+impl<const I: usize, const H: usize, const O: usize> FixedMlp<I, H, O> {
+    /// Where the output rows start in `p`.
+    const OUT_ROWS: usize = H * (I + 1);
+    /// Where the skip rows start in `p`.
+    const SKIP_ROWS: usize = param_count(I, H, O);
+    /// Refuses, at compile time, a topology whose parameters do not fit.
+    const FITS: () = assert!(param_count(I, H, O) + skip_count(I, O) <= FIXED_MAX_PARAMS);
+
+    /// A net of zeros (outputs `out_offset` = 0), to [`FixedMlp::load`] into.
+    pub const ZERO: Self = FixedMlp {
+        p: [0.0; FIXED_MAX_PARAMS],
+        has_skip: false,
+        output: Activation::Linear,
+        in_offset: [0.0; I],
+        in_scale: [0.0; I],
+        out_offset: [0.0; O],
+        out_scale: [0.0; O],
+    };
+
+    /// The fixed-size copy of `m`, or [`MlpError::Shape`] if `m` is not an `I-H-O` net
+    /// (with or without a skip term).
+    pub fn from_flat(m: &FlatMlp<'_>) -> Result<Self, MlpError> {
+        let mut f = Self::ZERO;
+        f.load(m)?;
+        Ok(f)
+    }
+
+    /// Copies `m` into `self` in place (what [`FixedMlp::from_flat`] returns), or
+    /// [`MlpError::Shape`], leaving `self` as it was, if `m` is not an `I-H-O` net.
+    pub fn load(&mut self, m: &FlatMlp<'_>) -> Result<(), MlpError> {
+        let () = Self::FITS;
+        if !shaped(m, I, H, O) {
+            return Err(MlpError::Shape);
+        }
+        // Plain copies, no panics: the lengths were checked just above.
+        let copy = |to: &mut [f32], from: &[f32]| {
+            for (t, v) in to.iter_mut().zip(from) {
+                *t = *v;
+            }
+        };
+        let (net, skip) = self.p.split_at_mut(Self::SKIP_ROWS);
+        copy(net, m.params);
+        copy(skip, m.skip);
+        self.has_skip = !m.skip.is_empty();
+        self.output = m.output;
+        copy(&mut self.in_offset, m.in_offset);
+        copy(&mut self.in_scale, m.in_scale);
+        copy(&mut self.out_offset, m.out_offset);
+        copy(&mut self.out_scale, m.out_scale);
+        Ok(())
+    }
+
+    /// [`infer_flat`] of the net it was built from, into `y` (the outputs before a non-finite
+    /// one are written): the same checks, sums and order, hence the same bits.
+    #[inline]
+    pub fn infer_into(&self, x: &[f32; I], y: &mut [f32; O]) -> Result<(), MlpError> {
+        let () = Self::FITS;
+        let mut xn = [0.0f32; I];
+        let mut finite = true;
+        for i in 0..I {
+            finite &= x[i].is_finite();
+            xn[i] = (x[i] - self.in_offset[i]) * self.in_scale[i];
+        }
+        if !finite {
+            return Err(MlpError::NonFiniteInput);
+        }
+        let p = &self.p;
+        let h: [f32; H] = core::array::from_fn(|j| {
+            let row = j * (I + 1);
+            sigmoid_shared(dot4(p[row + I], &p[row..row + I], &xn))
+        });
+        for k in 0..O {
+            let row = Self::OUT_ROWS + k * (H + 1);
+            let mut a = dot4(p[row + H], &p[row..row + H], &h);
+            if self.has_skip {
+                let s = Self::SKIP_ROWS + k * I;
+                a = dot4(a, &p[s..s + I], &xn);
+            }
+            let out = match self.output {
+                Activation::Linear => a,
+                Activation::Sigmoid => sigmoid_shared(a),
+            };
+            let o = out * self.out_scale[k] + self.out_offset[k];
+            if !o.is_finite() {
+                return Err(MlpError::NonFiniteOutput);
+            }
+            y[k] = o;
+        }
+        Ok(())
+    }
 }
 
 /// The 4-5-3 test nets of this module and of `activation`: case I's pixel scaling, outputs
@@ -526,6 +728,114 @@ mod tests {
         assert_eq!(huge.infer(&[0.0]), Err(MlpError::NonFiniteOutput));
     }
 
+    /// The exact sigmoid (f64, `libm::exp`), as f64.
+    fn exact_sigmoid(a: f32) -> f64 {
+        1.0 / (1.0 + libm::exp(-(a as f64)))
+    }
+
+    /// Worst relative errors over the bit patterns `bits`: [`exp`] against the exact `e^x` where
+    /// that is a normal f32 and below the saturation (`-87.33 <= x < 88`), [`sigmoid`]
+    /// and libm's sigmoid against the exact one where it is normal (`a >= -87.33`).
+    /// Returns `(exp, sigmoid, libm sigmoid, patterns)`.
+    fn worst_errors(bits: impl Iterator<Item = u32>) -> (f64, f64, f64, u64) {
+        let (mut we, mut ws, mut wl, mut n) = (0.0f64, 0.0f64, 0.0f64, 0u64);
+        for b in bits {
+            let v = f32::from_bits(b);
+            if !v.is_finite() {
+                continue;
+            }
+            n += 1;
+            if (-87.33..EXP_FAST_BELOW).contains(&v) {
+                let want = libm::exp(v as f64);
+                we = we.max(((exp(v) as f64 - want) / want).abs());
+            }
+            if v >= -87.33 {
+                let want = exact_sigmoid(v);
+                ws = ws.max(((sigmoid(v) as f64 - want) / want).abs());
+                let libm_sigmoid = 1.0 / (1.0 + libm::expf(-v));
+                wl = wl.max(((libm_sigmoid as f64 - want) / want).abs());
+            }
+        }
+        (we, ws, wl, n)
+    }
+
+    /// Every 1021st f32 bit pattern (both signs, every exponent) and 8193 patterns around each
+    /// end of the ranges.
+    #[test]
+    fn exp_and_sigmoid_are_within_their_stated_errors_on_a_dense_sweep() {
+        let near = |v: f32| {
+            let b = v.to_bits();
+            b - 4096..=b + 4096
+        };
+        let bits = (0..=u32::MAX)
+            .step_by(1021)
+            .chain(near(-87.33))
+            .chain(near(-87.68))
+            .chain(near(EXP_FAST_BELOW))
+            .chain(near(-17.33))
+            .chain(near(17.33))
+            .chain(near(1e-30));
+        let (we, ws, wl, n) = worst_errors(bits);
+        assert!(n > 4_000_000, "{n}");
+        assert!(we <= 8.2e-8, "exp: worst relative error {we:e}");
+        assert!(ws < 1.5e-7, "sigmoid: worst relative error {ws:e}");
+        // The sigmoid it replaced is within an ulp too, no better.
+        assert!((1e-7..1.6e-7).contains(&wl), "libm's sigmoid: {wl:e}");
+    }
+
+    /// Every f32 (a minute or two in release on two cores; the figures of the docs):
+    /// `cargo test --release -p hvs-shared --lib runtime::mlp -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn exp_and_sigmoid_are_within_their_stated_errors_on_every_f32() {
+        extern crate std;
+        let parts: std::vec::Vec<_> = (0..4u32)
+            .map(|t| std::thread::spawn(move || worst_errors(t << 30..=(t << 30) | 0x3fff_ffff)))
+            .collect();
+        let (mut we, mut ws, mut wl, mut n) = (0.0f64, 0.0f64, 0.0f64, 0u64);
+        for p in parts {
+            let (e, s, l, c) = p.join().unwrap();
+            (we, ws, wl, n) = (we.max(e), ws.max(s), wl.max(l), n + c);
+        }
+        std::println!("exp {we:e}, sigmoid {ws:e}, libm sigmoid {wl:e}, {n} finite f32");
+        assert_eq!(n, (1u64 << 32) - 2 * (1 << 23));
+        assert!(
+            we <= 8.2e-8 && ws < 1.5e-7 && ws <= wl,
+            "{we:e} {ws:e} {wl:e}"
+        );
+    }
+
+    #[test]
+    fn exp_and_sigmoid_ends_and_non_finite_inputs() {
+        assert_eq!(exp(0.0), 1.0);
+        assert_eq!(exp(-0.0), 1.0);
+        assert_eq!(exp(f32::NEG_INFINITY), 0.0);
+        assert_eq!(exp(-87.7), 0.0);
+        assert_eq!(exp(-1e30), 0.0);
+        assert_eq!(exp(88.0), f32::INFINITY);
+        assert_eq!(exp(-88.0), 0.0);
+        assert_eq!(exp(f32::INFINITY), f32::INFINITY);
+        assert_eq!(exp(f32::MAX), f32::INFINITY);
+        assert!(exp(87.99).is_finite() && exp(87.99) > 1e38);
+        assert!(exp(f32::NAN).is_nan());
+        assert_eq!(sigmoid(0.0), 0.5);
+        assert_eq!(sigmoid(17.4), 1.0);
+        assert_eq!(sigmoid(f32::INFINITY), 1.0);
+        assert_eq!(sigmoid(f32::NEG_INFINITY), 0.0);
+        assert_eq!(sigmoid(-88.0), 0.0);
+        assert!(sigmoid(f32::NAN).is_nan());
+        // Below the normal range the result is 0 or subnormal, within 2^-126 of the exact one.
+        let mut a = -87.33f32;
+        while a > -120.0 {
+            let (got, want) = (sigmoid(a) as f64, exact_sigmoid(a));
+            assert!(
+                (got - want).abs() <= f32::MIN_POSITIVE as f64,
+                "{a}: {got:e} vs {want:e}"
+            );
+            a -= 0.01;
+        }
+    }
+
     proptest! {
         #[test]
         fn dot4_is_dot_bit_for_bit(
@@ -554,6 +864,36 @@ mod tests {
             let c = infer_fixed::<4, 5, 3>(&flat, &x).unwrap();
             prop_assert_eq!(a.map(f32::to_bits), c.map(f32::to_bits));
             prop_assert_eq!(infer_fixed::<4, 6, 3>(&flat, &x), Err(MlpError::Shape));
+        }
+
+        #[test]
+        fn fixed_mlp_gives_the_bits_and_errors_of_infer_flat(
+            params in fixture::params(),
+            skip in proptest::collection::vec(-2.0f32..2.0, skip_count(4, 3)),
+            x in fixture::pixels(),
+            sigmoid_out in any::<bool>(),
+            with_skip in any::<bool>(),
+            bad in 0usize..6,
+        ) {
+            let act = if sigmoid_out { Activation::Sigmoid } else { Activation::Linear };
+            let plain = fixture::net(&params, act);
+            let m = if with_skip { FlatMlp { skip: &skip, ..plain } } else { plain };
+            let f = FixedMlp::<4, 5, 3>::from_flat(&m).unwrap();
+            // Now and then a non-finite input (bad < 4) or a huge one that overflows an output.
+            let mut x = x;
+            if bad < 4 {
+                x[bad] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][bad % 3];
+            } else if bad == 4 {
+                x[0] = f32::MAX;
+            }
+            let (mut want, mut got) = ([f32::MIN; 3], [f32::MIN; 3]);
+            let e_want = infer_flat(&m, &x, &mut want);
+            let e_got = f.infer_into(&x, &mut got);
+            prop_assert_eq!(e_got, e_want);
+            prop_assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits));
+            prop_assert_eq!(FixedMlp::<4, 6, 3>::from_flat(&m), Err(MlpError::Shape));
+            let short = FlatMlp { skip: &skip[..11], ..plain };
+            prop_assert_eq!(FixedMlp::<4, 5, 3>::from_flat(&short), Err(MlpError::Shape));
         }
 
         #[test]
