@@ -208,21 +208,7 @@ pub fn depth_files(model_path: &Path, left: &Path, right: &Path) -> Result<(Dept
     if m.blob.n_inputs() == 4 {
         matcher_geometry(&m.blob).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))?;
     }
-    let (l, r) = (
-        crate::vision::read_grey(left)?,
-        crate::vision::read_grey(right)?,
-    );
-    if l.dimensions() != r.dimensions() {
-        bail!(
-            "{} and {}: the images differ in size ({}x{} and {}x{})",
-            left.display(),
-            right.display(),
-            l.width(),
-            l.height(),
-            r.width(),
-            r.height()
-        );
-    }
+    let (l, r) = crate::vision::read_pair(left, right)?;
     crate::vision::check_image_size(&m.blob, l.dimensions())
         .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))?;
     let d = depth(&m.blob, &l, &r, &DenseParams::default())

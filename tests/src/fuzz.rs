@@ -572,7 +572,7 @@ fn one_line(msg: &str) {
     assert!(!msg.contains("panicked"), "{msg}");
 }
 
-/// `capture_set`: the path of `hvs board detect`. The input is four parts ([`parts`]): a
+/// `capture_set`: the path of `hvs board detect`. The input is four parts (`parts`): a
 /// board JSON, a captures CSV and two image files, written as `board.json`, `captures.csv`,
 /// `l.png` and `r.png` in a fresh folder. Reading the board and the captures, detecting every
 /// pair (images read through `hvs_vision::image_file`: PNG or JPEG, at most 16 Mpx) and
@@ -644,7 +644,7 @@ fn csv_fields(line: &str) -> usize {
     rdr.records().next().map_or(0, |r| r.map_or(0, |r| r.len()))
 }
 
-/// `locate`: the path of `hvs locate`. The input is four parts ([`parts`]): a model file, two
+/// `locate`: the path of `hvs locate`. The input is four parts (`parts`): a model file, two
 /// image files and a pixels CSV. Loading the model, reading both images, reading the pixels
 /// and locating them must return, never panic; errors are one line; every point gets one
 /// result with a known status, an `ok` one with a right pixel inside the right image and a

@@ -281,7 +281,7 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
             "-o",
             s(&no),
         ],
-        "trained on 320x240 images",
+        "trained on 320x240 px images",
     );
     // No matcher geometry; a posture model.
     for (k, (m, want)) in [
