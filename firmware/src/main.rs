@@ -160,13 +160,13 @@ fn main() -> ! {
         };
         let resp = match acc.push(byte) {
             None => continue,
-            Some(frame) => match main_loop.frame(frame, |req| answer(head, req, tick_hz)) {
-                Ok(r) => r,
-                Err(error) => {
-                    log!("protocol error: {}", defmt::Debug2Format(&error.body));
-                    error
+            Some(frame) => {
+                let r = main_loop.frame(frame, |req| answer(head, req, tick_hz));
+                if r.id == UNSOLICITED_ID {
+                    log!("protocol error: {}", defmt::Debug2Format(&r.body));
                 }
-            },
+                r
+            }
         };
         send(&mut tx, &mut out, &resp);
     }

@@ -116,30 +116,25 @@ impl SimHead {
             };
             let head = &mut self.head;
             let mut asked = None;
-            let resp = match self.main_loop.frame(frame, |req| {
+            let resp = self.main_loop.frame(frame, |req| {
                 asked = Some(req.id);
                 head.respond(req, VERSION)
-            }) {
-                Ok(r) => {
-                    ensure!(
-                        asked == Some(r.id),
-                        "request {asked:?} answered with id {}",
-                        r.id
-                    );
-                    r
+            });
+            match asked {
+                Some(id) => {
+                    ensure!(resp.id == id, "request {id} answered with id {}", resp.id);
                 }
-                Err(e) => {
+                None => {
                     ensure!(
-                        e.id == UNSOLICITED_ID
+                        resp.id == UNSOLICITED_ID
                             && matches!(
-                                e.body,
+                                resp.body,
                                 ResponseBody::Error(ErrorCode::Malformed | ErrorCode::Oversize)
                             ),
-                        "a bad frame got {e:?}"
+                        "a bad frame got {resp:?}"
                     );
-                    e
                 }
-            };
+            }
             let mut buf = [0u8; MAX_FRAME_LEN];
             ensure!(
                 protocol::encode_response(&resp, &mut buf).is_ok(),

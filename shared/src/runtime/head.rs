@@ -575,18 +575,22 @@ impl MainLoop {
         }
     }
 
-    /// A received frame (from [`crate::runtime::protocol::FrameAccumulator::push`]): `Ok` with
-    /// `answer`'s response to a well-formed request (the first `Look` or `Home` answered arms
-    /// the loop), or `Err` with the error response to send for a bad frame.
+    /// A received frame (from [`crate::runtime::protocol::FrameAccumulator::push`]): `answer`'s
+    /// response to a well-formed request (the first `Look` or `Home` answered arms the loop),
+    /// or the error response to send for a bad frame (unsolicited: [`frame_error`]).
     pub fn frame(
         &mut self,
         frame: Result<&mut [u8], ProtocolError>,
         answer: impl FnOnce(&Request) -> Response,
-    ) -> Result<Response, Response> {
-        let req = read_frame(frame)?;
-        let resp = answer(&req);
-        self.armed |= matches!(resp.body, ResponseBody::Look(_) | ResponseBody::Home);
-        Ok(resp)
+    ) -> Response {
+        match read_frame(frame) {
+            Ok(req) => {
+                let resp = answer(&req);
+                self.armed |= matches!(resp.body, ResponseBody::Look(_) | ResponseBody::Home);
+                resp
+            }
+            Err(e) => e,
+        }
     }
 }
 
@@ -1199,20 +1203,20 @@ mod tests {
         // Ticks before any request, an Info, a bad frame and a failed Look: not armed.
         assert!(!l.tick(&mut h).command);
         let (mut b, n) = encoded(&req(1, RequestBody::Info));
-        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V)).unwrap();
+        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V));
         assert_eq!(r.id, 1);
         assert_eq!(
             l.frame(Ok(&mut [0x03, 0x07]), |_| unreachable!()),
-            Err(frame_error(ErrorCode::Malformed))
+            frame_error(ErrorCode::Malformed)
         );
         let nan = StereoPoint { u_l: f32::NAN, ..P };
         let (mut b, n) = encoded(&req(2, RequestBody::Look(nan)));
-        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V)).unwrap();
+        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V));
         assert!(matches!(r.body, ResponseBody::Error(_)), "{r:?}");
         assert!(!l.armed() && !l.tick(&mut h).command);
         // A Look answered arms it; the tick's setpoint is the head's.
         let (mut b, n) = encoded(&req(3, RequestBody::Look(P)));
-        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V)).unwrap();
+        let r = l.frame(Ok(&mut b[..n]), |q| h.respond(q, V));
         assert!(matches!(r.body, ResponseBody::Look(_)), "{r:?}");
         assert!(l.armed());
         let mut twin = h.clone();
@@ -1222,7 +1226,7 @@ mod tests {
         // So does a Home, from a fresh loop.
         let mut l = MainLoop::new();
         let (mut b, n) = encoded(&req(4, RequestBody::Home));
-        l.frame(Ok(&mut b[..n]), |q| h.respond(q, V)).unwrap();
+        l.frame(Ok(&mut b[..n]), |q| h.respond(q, V));
         assert!(l.armed());
     }
 
