@@ -96,25 +96,22 @@ pub fn serve(
             .token
             .as_ref()
             .map_or_else(String::new, |t| format!("?token={t}"));
+        // The handlers are installed before the address is printed: a SIGINT right after
+        // it stops the server cleanly, never by the default action.
+        use tokio::signal::unix::{signal, SignalKind};
+        let mut int = signal(SignalKind::interrupt()).context("cannot watch SIGINT")?;
+        let mut term = signal(SignalKind::terminate()).context("cannot watch SIGTERM")?;
         started(&format!("http://{real}/{query}"))?;
         let router = router(app);
         tokio::select! {
             r = axum::serve(listener, router) => r.context("the server stopped"),
-            r = stop_signal() => r,
+            _ = int.recv() => Ok(()),
+            _ = term.recv() => Ok(()),
         }
     });
     // Requests still running (a retrain) are not waited for.
     rt.shutdown_background();
     result
-}
-
-async fn stop_signal() -> Result<()> {
-    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
-        .context("cannot watch SIGTERM")?;
-    tokio::select! {
-        r = tokio::signal::ctrl_c() => r.context("cannot watch SIGINT"),
-        _ = term.recv() => Ok(()),
-    }
 }
 
 fn router(app: Shared) -> Router {
