@@ -131,15 +131,7 @@ pub fn depth(
         bail!("a posture-aware model (9 inputs) cannot give depth from images alone: its epipolar geometry moves with the eyes");
     }
     let g = matcher_geometry(blob)?;
-    if left.dimensions() != right.dimensions() {
-        bail!(
-            "the images differ in size: left {}x{}, right {}x{}",
-            left.width(),
-            left.height(),
-            right.width(),
-            right.height()
-        );
-    }
+    crate::vision::check_same_size(left, right)?;
     crate::vision::check_image_size(blob, left.dimensions())?;
     let predict = crate::vision::model_xyz(blob);
     let (w, h) = left.dimensions();

@@ -265,6 +265,20 @@ pub fn model_xyz(blob: &ModelBlob) -> impl Fn([f32; 4]) -> Option<[f32; 3]> + Sy
     }
 }
 
+/// Refuses a left and a right image of different sizes (every command that matches a pair).
+pub fn check_same_size(left: &GrayImage, right: &GrayImage) -> Result<()> {
+    if left.dimensions() != right.dimensions() {
+        bail!(
+            "the images differ in size: left {}x{}, right {}x{}",
+            left.width(),
+            left.height(),
+            right.width(),
+            right.height()
+        );
+    }
+    Ok(())
+}
+
 /// Refuses images of another size than the model's training images (when the model records
 /// it: `hvs train` on `hvs board detect`'s points): its geometry and depths are for that size.
 pub fn check_image_size(blob: &ModelBlob, (w, h): (u32, u32)) -> Result<()> {
@@ -472,15 +486,7 @@ pub fn locate(
              `hvs train` on board points seen at one head posture, at two or more depths"
         )
     })?;
-    if left.dimensions() != right.dimensions() {
-        bail!(
-            "the images differ in size: left {}x{}, right {}x{}",
-            left.width(),
-            left.height(),
-            right.width(),
-            right.height()
-        );
-    }
+    check_same_size(left, right)?;
     check_image_size(blob, left.dimensions())?;
     let f = Fundamental {
         m: g.fundamental.map(|r| r.map(f64::from)),
