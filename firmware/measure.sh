@@ -91,21 +91,25 @@ build --features bench,qemu; cp "$elf" "$work/bench.elf"
 build --features qemu; cp "$elf" "$work/qemu.elf";  footprint "QEMU (HSI 16 MHz, MCDC)" "$work/qemu.elf"
 echo "   no core::fmt float formatting linked (checked with arm-none-eabi-nm)"
 
+# The host tools are built with the same package selection as the README's `cargo test`
+# (every default member, dev units included), so cargo reuses that build instead of building
+# the dependencies again with other features (on CI a second copy ran the disk full).
+cargo build --quiet --locked --workspace --exclude hvs-firmware --example sample_blob --bin hvs
+sample_blob="$target_dir/debug/examples/sample_blob"
 small=${1:-}
 if [ -z "$small" ]; then
   small="$work/sample-4-5-3.bin"
-  cargo run --quiet --locked -p hvs-tests --example sample_blob -- "$small" 1
+  "$sample_blob" "$small" 1
 fi
 posture=${2:-}
 if [ -z "$posture" ]; then
   posture="$work/sample-9-16-3.bin"
-  cargo run --quiet --locked -p hvs-tests --example sample_blob -- "$posture" 2 16
+  "$sample_blob" "$posture" 2 16
 fi
 default_posture="$work/sample-default-9-16-3.bin"
-cargo run --quiet --locked -p hvs-tests --example sample_blob -- "$default_posture" 2 16 default
+"$sample_blob" "$default_posture" 2 16 default
 default_model="$work/sample-default-4-5-3.bin"
-cargo run --quiet --locked -p hvs-tests --example sample_blob -- "$default_model" 1 default
-cargo build --quiet --locked -p hvs-host
+"$sample_blob" "$default_model" 1 default
 hvs="$target_dir/debug/hvs"
 shape() { "$hvs" info "$1" | sed -n 's/^topology: *\([0-9-]*\).*/\1/p'; }
 family() { "$hvs" info "$1" | sed -n 's/^family: *\([a-z-]*\).*/\1/p'; }
