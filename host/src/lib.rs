@@ -16,6 +16,8 @@
 //! - [`vision`]: image files around `hvs-vision` (board photos into a training set).
 //! - [`track`]: the head in the loop: scene files, the simulated head and its virtual
 //!   cameras, target finding, the loop of `hvs track`.
+//! - [`collect`]: the head collects its own posture-aware training set (`hvs collect`): it
+//!   visits the postures with the board in place and keeps the pairs that see the whole board.
 //! - [`depth`]: dense depth of a stereo pair through the model (`hvs depth`).
 //! - [`device`]: the head as a device: the protocol link (TCP or serial), the client of its
 //!   requests, QEMU emulation, and flash images / probe-rs.
@@ -23,6 +25,7 @@
 //! - [`cli`]: one module per `hvs` subcommand, clap `Args` + `run`; the only place clap is used.
 
 pub mod cli;
+pub mod collect;
 pub mod data;
 pub mod depth;
 pub mod device;

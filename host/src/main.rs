@@ -34,6 +34,7 @@ enum Command {
     Track(cmd::track::Args),
     /// Board photos into a training set (`hvs board detect`).
     Board(cmd::board::Args),
+    Collect(cmd::collect::Args),
     Locate(cmd::locate::Args),
     Depth(cmd::depth::Args),
     /// Boot the head firmware in QEMU with a model in slot A.
@@ -60,6 +61,7 @@ fn main() {
         Command::Render(a) => cmd::render::run(a),
         Command::Track(a) => cmd::track::run(a),
         Command::Board(a) => cmd::board::run(a),
+        Command::Collect(a) => cmd::collect::run(a),
         Command::Locate(a) => cmd::locate::run(a),
         Command::Depth(a) => cmd::depth::run(a),
         Command::Emulate(a) => cmd::emulate::run(&a),

@@ -98,12 +98,25 @@ pub enum PairOutcome {
 pub struct Detection {
     /// Per capture, in order.
     pub outcomes: Vec<PairOutcome>,
-    /// One fundamental matrix over all usable pairs (at least two), with per-pair residuals
-    /// (indexed like the usable pairs, in capture order).
-    pub set: Option<SetCheck>,
+    /// Per capture: the median and largest distance (px) of its right corners from the
+    /// epipolar lines of its group's fundamental matrix; `None` for a skipped pair or one whose
+    /// group has fewer than two usable pairs.
+    pub epipolar: Vec<Option<[f64; 2]>>,
+    /// One fundamental matrix per group of pairs taken at one posture (the whole set when it
+    /// has no joint columns) with at least two usable pairs.
+    pub groups: Vec<GroupFit>,
     /// The size (width, height) of the images of every usable pair (a pair of another size
     /// than the first usable one is skipped: a model is for one image size).
     pub image_size: Option<(u32, u32)>,
+}
+
+/// The fundamental matrix of one group of pairs seen at one posture.
+#[derive(Debug, Clone)]
+pub struct GroupFit {
+    /// Usable pairs in the group.
+    pub pairs: usize,
+    /// The fit's Sampson rms (px).
+    pub rms_sampson: f64,
 }
 
 /// A pair whose corners lie this far (median, px) from the epipolar lines of the fundamental
@@ -111,10 +124,17 @@ pub struct Detection {
 /// flip moves corners by whole squares) and is skipped.
 pub const MAX_HELD_OUT_EPIPOLAR_PX: f64 = 2.0;
 
-/// Detects `board` in every pair of `set` (`progress` is called after each pair), then fits
-/// one fundamental matrix over the usable pairs and skips a pair whose labels disagree with
-/// the others ([`MAX_HELD_OUT_EPIPOLAR_PX`]).
-pub fn detect_set(board: &Board, set: &CaptureSet, progress: &dyn Fn()) -> Result<Detection> {
+/// Detects `board` in every pair of `set` (in parallel; `progress` is called after each
+/// pair), then checks the pairs taken at one posture together: disparities of the wrong sign
+/// for their depth, and one fundamental matrix over the group's usable pairs, skipping a pair
+/// whose labels disagree with the others ([`MAX_HELD_OUT_EPIPOLAR_PX`]). A set without joint
+/// columns is one posture; with them, the pairs of equal joint values form a group (the
+/// epipolar geometry changes with the eyes' pans).
+pub fn detect_set(
+    board: &Board,
+    set: &CaptureSet,
+    progress: &(dyn Fn() + Sync),
+) -> Result<Detection> {
     Ok(detect_all(board, set, progress, false)?.0)
 }
 
@@ -127,23 +147,59 @@ pub type PairImages = Option<[GrayImage; 2]>;
 pub fn detect_set_with_images(
     board: &Board,
     set: &CaptureSet,
-    progress: &dyn Fn(),
+    progress: &(dyn Fn() + Sync),
 ) -> Result<(Detection, Vec<PairImages>)> {
     detect_all(board, set, progress, true)
+}
+
+/// The posture groups of `set`: capture indices with equal joint fields, in order of first
+/// appearance (one group when the set has no joint columns).
+fn posture_groups(set: &CaptureSet) -> Vec<Vec<usize>> {
+    let joints = set
+        .extra_columns
+        .iter()
+        .take_while(|c| JOINT_COLUMNS.contains(&c.as_str()))
+        .count();
+    if joints == 0 {
+        return vec![(0..set.captures.len()).collect()];
+    }
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut index: std::collections::HashMap<Vec<u64>, usize> = Default::default();
+    for (k, c) in set.captures.iter().enumerate() {
+        // The fields were checked as numbers when the set was read; equal values, one group.
+        let key: Vec<u64> = c.extra[..joints]
+            .iter()
+            .map(|f| f.parse::<f64>().map_or(u64::MAX, |v| (v + 0.0).to_bits()))
+            .collect();
+        let g = *index.entry(key).or_insert_with(|| {
+            groups.push(Vec::new());
+            groups.len() - 1
+        });
+        groups[g].push(k);
+    }
+    groups
 }
 
 /// [`detect_set`], keeping the images if `keep` (else the second vector is empty).
 fn detect_all(
     board: &Board,
     set: &CaptureSet,
-    progress: &dyn Fn(),
+    progress: &(dyn Fn() + Sync),
     keep: bool,
 ) -> Result<(Detection, Vec<PairImages>)> {
+    let detected: Vec<(PairOutcome, PairImages)> = set
+        .captures
+        .par_iter()
+        .map(|c| {
+            let out = detect_capture(board, c);
+            progress();
+            out
+        })
+        .collect();
     let mut images = Vec::new();
     let mut outcomes: Vec<PairOutcome> = Vec::with_capacity(set.captures.len());
     let mut image_size = None;
-    for c in &set.captures {
-        let (mut outcome, pair) = detect_capture(board, c);
+    for (mut outcome, pair) in detected {
         if let (PairOutcome::Found(_), Some([l, _])) = (&outcome, &pair) {
             let size = l.dimensions();
             match image_size {
@@ -161,22 +217,50 @@ fn detect_all(
             images.push(pair);
         }
         outcomes.push(outcome);
-        progress();
     }
+    let mut epipolar = vec![None; outcomes.len()];
+    let mut groups = Vec::new();
+    for members in posture_groups(set) {
+        if let Some(fit) = check_group(set, &members, &mut outcomes, &mut epipolar) {
+            groups.push(fit);
+        }
+    }
+    let det = Detection {
+        outcomes,
+        epipolar,
+        groups,
+        image_size,
+    };
+    Ok((det, images))
+}
+
+/// The checks of one posture group (capture indices `members`): skips the pairs that fail
+/// and fills their epipolar residuals; the group's fit if it has two usable pairs.
+fn check_group(
+    set: &CaptureSet,
+    members: &[usize],
+    outcomes: &mut [PairOutcome],
+    epipolar: &mut [Option<[f64; 2]>],
+) -> Option<GroupFit> {
+    let found = |outcomes: &[PairOutcome]| -> Vec<usize> {
+        members
+            .iter()
+            .copied()
+            .filter(|&k| matches!(outcomes[k], PairOutcome::Found(_)))
+            .collect()
+    };
     // Disparities that cannot be right (the same image twice; a pair swapped, mirrored or
     // turned): one fundamental matrix fits those too, so they are looked at first.
-    let found: Vec<usize> = (0..outcomes.len())
-        .filter(|&k| matches!(outcomes[k], PairOutcome::Found(_)))
-        .collect();
+    let usable = found(outcomes);
     let (mut disparity, mut same, mut depth) = (Vec::new(), Vec::new(), Vec::new());
-    for &k in &found {
+    for &k in &usable {
         if let PairOutcome::Found(p) = &outcomes[k] {
             disparity.push(p.median_disparity());
             same.push(p.same_in_both());
             depth.push(set.captures[k].z);
         }
     }
-    for (&k, fault) in found
+    for (&k, fault) in usable
         .iter()
         .zip(detect::disparity_faults(&disparity, &same, &depth))
     {
@@ -184,26 +268,25 @@ fn detect_all(
             outcomes[k] = PairOutcome::Skipped(why);
         }
     }
-    let fit = |outcomes: &[PairOutcome]| -> Option<SetCheck> {
-        let pairs: Vec<StereoCorners> = outcomes
+    let fit = |outcomes: &[PairOutcome]| -> Option<(Vec<usize>, SetCheck)> {
+        let usable = found(outcomes);
+        let pairs: Vec<StereoCorners> = usable
             .iter()
-            .filter_map(|o| match o {
+            .filter_map(|&k| match &outcomes[k] {
                 PairOutcome::Found(p) => Some((**p).clone()),
                 PairOutcome::Skipped(_) => None,
             })
             .collect();
-        (pairs.len() >= 2)
-            .then(|| detect::check_set(&pairs).ok())
-            .flatten()
+        if pairs.len() < 2 {
+            return None;
+        }
+        detect::check_set(&pairs).ok().map(|c| (usable, c))
     };
-    let mut check = fit(&outcomes);
+    let mut check = fit(outcomes);
     // A pair labelled unlike the others is dropped, and the rest refitted (once).
-    if let Some(c) = &check {
-        let found: Vec<usize> = (0..outcomes.len())
-            .filter(|&k| matches!(outcomes[k], PairOutcome::Found(_)))
-            .collect();
+    if let Some((usable, c)) = &check {
         let mut dropped = false;
-        for (slot, &k) in found.iter().enumerate() {
+        for (slot, &k) in usable.iter().enumerate() {
             if let Some(Some(m)) = c.pair_held_out_median_px.get(slot) {
                 if *m > MAX_HELD_OUT_EPIPOLAR_PX {
                     outcomes[k] = PairOutcome::Skipped(format!(
@@ -214,15 +297,17 @@ fn detect_all(
             }
         }
         if dropped {
-            check = fit(&outcomes);
+            check = fit(outcomes);
         }
     }
-    let det = Detection {
-        outcomes,
-        set: check,
-        image_size,
-    };
-    Ok((det, images))
+    let (usable, c) = check?;
+    for (slot, &k) in usable.iter().enumerate() {
+        epipolar[k] = Some([c.pair_median_px[slot], c.pair_max_px[slot]]);
+    }
+    Some(GroupFit {
+        pairs: usable.len(),
+        rms_sampson: c.fit.rms_sampson,
+    })
 }
 
 fn detect_capture(board: &Board, c: &Capture) -> (PairOutcome, PairImages) {

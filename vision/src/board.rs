@@ -126,6 +126,14 @@ impl Board {
         })
     }
 
+    /// The board as a `BOARD.json` text (what [`Board::from_json`] reads), one line.
+    pub fn to_json(&self) -> String {
+        format!(
+            "{{\"pattern\": \"chessboard\", \"inner_corners\": [{}, {}], \"square_cm\": {}}}\n",
+            self.cols, self.rows, self.square_cm
+        )
+    }
+
     /// Number of inner corners, `cols * rows`.
     pub fn corner_count(&self) -> usize {
         self.cols as usize * self.rows as usize

@@ -512,10 +512,7 @@ impl CaptureSet {
 
     /// `board.json` of the board the set shows (what `hvs board detect --board` reads).
     pub fn board_json(&self) -> String {
-        format!(
-            "{{\"pattern\": \"chessboard\", \"inner_corners\": [{}, {}], \"square_cm\": {}}}\n",
-            self.board.cols, self.board.rows, self.board.square_cm
-        )
+        self.board.to_json()
     }
 
     /// The truth table: `left,i,j,x,y,z,u_l,v_l,u_r,v_r,in_image`, the pixels unrounded

@@ -112,23 +112,18 @@ fn detect(a: &DetectArgs) -> Result<()> {
     }
     let n = board.corner_count();
     let mut usable = 0usize;
-    let mut slot = 0usize;
-    for (c, out) in set.captures.iter().zip(&det.outcomes) {
+    for ((c, out), epi) in set.captures.iter().zip(&det.outcomes).zip(&det.epipolar) {
         let name = format!("{} ({}, {})", set.at(c), c.left_name, c.right_name);
         match out {
             PairOutcome::Found(p) => {
-                let epi = det.set.as_ref().map_or(String::new(), |s| {
-                    format!(
-                        ", epipolar median {:.3} px (max {:.3})",
-                        s.pair_median_px[slot], s.pair_max_px[slot]
-                    )
+                let epi = epi.map_or(String::new(), |[median, max]| {
+                    format!(", epipolar median {median:.3} px (max {max:.3})")
                 });
                 eprintln!(
                     "{name}: {n}/{n} corners, {:.1} px squares, homography rms left {:.3} px right {:.3} px{epi}",
                     p.left.square_px, p.left.homography_rms, p.right.homography_rms
                 );
                 usable += 1;
-                slot += 1;
             }
             PairOutcome::Skipped(why) => eprintln!("warning: {name}: skipped: {why}"),
         }
@@ -140,17 +135,26 @@ fn detect(a: &DetectArgs) -> Result<()> {
             set.captures.len()
         );
     }
-    match &det.set {
-        Some(s) => eprintln!(
+    let checked: usize = det.groups.iter().map(|g| g.pairs).sum();
+    match det.groups.as_slice() {
+        [] => eprintln!(
+            "{usable} of {} pairs, {} corners (no two pairs at one posture: no fundamental-matrix check)",
+            set.captures.len(),
+            usable * n
+        ),
+        [g] if g.pairs == usable => eprintln!(
             "{usable} of {} pairs, {} corners; one fundamental matrix over all: Sampson rms {:.3} px",
             set.captures.len(),
             usable * n,
-            s.fit.rms_sampson
+            g.rms_sampson
         ),
-        None => eprintln!(
-            "{usable} of {} pairs, {} corners (one pair: no fundamental-matrix check)",
+        gs => eprintln!(
+            "{usable} of {} pairs, {} corners; one fundamental matrix per posture over {} postures ({checked} pairs): Sampson rms {:.3}-{:.3} px",
             set.captures.len(),
-            usable * n
+            usable * n,
+            gs.len(),
+            gs.iter().map(|g| g.rms_sampson).fold(f64::INFINITY, f64::min),
+            gs.iter().map(|g| g.rms_sampson).fold(0.0, f64::max),
         ),
     }
     // Overlays first, the points last: a failure leaves the old points file as it was.

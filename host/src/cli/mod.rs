@@ -4,6 +4,7 @@
 //! `Command` and one match arm in `main.rs`.
 
 pub mod board;
+pub mod collect;
 pub mod demo;
 pub mod depth;
 pub mod emulate;
@@ -22,6 +23,7 @@ pub mod train;
 pub mod train_update;
 pub mod view;
 
+use crate::sim::posture::Sampling;
 use anyhow::{bail, Result};
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::camera::Rig;
@@ -98,6 +100,120 @@ fn distortion_arg(v: Option<&[f64]>) -> Result<Distortion> {
         bail!("--distortion coefficients must be finite numbers");
     }
     Ok(d)
+}
+
+value_enum! {
+    /// How the postures of a set are chosen.
+    SamplingArg => Sampling {
+        /// One uniform random posture inside every cell of a `levels` grid (stratified).
+        Grid,
+        /// The regular grid: `levels` evenly spaced values per interval, ends included.
+        Lattice,
+        /// `count` uniform random postures.
+        Random,
+    }
+}
+
+/// Which head postures (`hvs simulate --postures`, `hvs collect`).
+#[derive(Debug, clap::Args)]
+pub struct PostureArgs {
+    /// Head postures (adds the five joint columns): grid, lattice or random, from the working
+    /// range (neck pan +-30, neck tilt +-20, eye tilt +-15, version +-15, vergence 0-10
+    /// degrees), every posture quantised to the drives' 0.18 degree steps.
+    #[arg(long, value_enum, value_name = "HOW")]
+    pub postures: Option<SamplingArg>,
+    /// Grid levels of neck pan, neck tilt, eye tilt, version, vergence (grid, lattice)
+    /// [default: 3,3,3,3,4].
+    #[arg(long, value_name = "A,B,C,D,E", value_delimiter = ',')]
+    pub posture_levels: Option<Vec<u8>>,
+    /// Number of random postures (random) [default: 100].
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = whole_usize)]
+    pub posture_count: Option<usize>,
+}
+
+/// Seed of the posture draws: `--seed` mixed with a constant, so that postures and pixel
+/// noise do not share one random stream.
+pub const POSTURE_SEED_MIX: u64 = 0x706f_7374_7572_6573;
+
+impl PostureArgs {
+    /// The postures asked for (drawn with `seed ^ POSTURE_SEED_MIX`), `None` without
+    /// `--postures`; `--posture-levels`/`--posture-count` without it, or with the wrong
+    /// sampling, are errors.
+    pub fn postures(&self, seed: u64) -> Result<Option<Vec<hvs_shared::runtime::gaze::Joints>>> {
+        use crate::sim::posture::{postures, PostureOptions};
+        let Some(sampling) = self.postures else {
+            if self.posture_levels.is_some() || self.posture_count.is_some() {
+                bail!("--posture-levels and --posture-count need --postures");
+            }
+            return Ok(None);
+        };
+        let sampling = Sampling::from(sampling);
+        let mut p = PostureOptions {
+            sampling,
+            ..PostureOptions::default()
+        };
+        if let Some(l) = &self.posture_levels {
+            if sampling == Sampling::Random {
+                bail!("--posture-levels applies to --postures grid or lattice");
+            }
+            p.levels = l.as_slice().try_into().map_err(|_| {
+                anyhow::anyhow!(
+                    "--posture-levels takes five counts (neck pan, neck tilt, eye tilt, version, vergence), got {}",
+                    l.len()
+                )
+            })?;
+        }
+        if let Some(n) = self.posture_count {
+            if sampling != Sampling::Random {
+                bail!("--posture-count applies to --postures random");
+            }
+            p.count = n;
+        }
+        Ok(Some(postures(&p, seed ^ POSTURE_SEED_MIX)?))
+    }
+}
+
+/// The virtual cameras' image formation (`hvs render`, `hvs collect`).
+#[derive(Debug, clap::Args)]
+pub struct RenderArgs {
+    /// Gaussian blur, standard deviation (px).
+    #[arg(long, value_name = "PX", default_value_t = 0.8)]
+    pub blur: f64,
+    /// Sensor noise, standard deviation (grey levels).
+    #[arg(long, value_name = "GREY", default_value_t = 2.0)]
+    pub noise: f64,
+    /// Supersampling of edge pixels (N x N samples, 1-16).
+    #[arg(long, value_name = "N", default_value_t = 8)]
+    pub supersample: u32,
+}
+
+impl RenderArgs {
+    /// The render options (a board border of `margin_cm`), checked: a bad value is bad usage
+    /// naming its flag.
+    pub fn options(&self, margin_cm: f64) -> Result<hvs_vision::render::RenderOptions> {
+        use hvs_vision::render::{RenderError, RenderOptions};
+        let opt = RenderOptions {
+            margin_cm,
+            supersample: self.supersample,
+            blur_sigma_px: self.blur,
+            noise_sigma: self.noise,
+            ..RenderOptions::default()
+        };
+        opt.validate().map_err(|e| match e {
+            RenderError::Invalid(f) => {
+                let flag = match f.field {
+                    "supersample" => "--supersample",
+                    "blur_sigma_px" => "--blur",
+                    "noise_sigma" => "--noise",
+                    "margin_cm" => "--square-cm",
+                    other => other,
+                };
+                usage(format!("{flag}: {}", f.reason))
+            }
+            other => anyhow::anyhow!("{other}"),
+        })?;
+        Ok(opt)
+    }
 }
 
 /// `U,V` -> `[u, v]`, two finite numbers; anything else is bad usage (exit 2).

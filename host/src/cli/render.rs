@@ -1,14 +1,14 @@
 //! `hvs render`: stereo photos of a chessboard through a rig, with exact corner truth
 //! (`hvs_vision::render`), as a capture set `hvs board detect` reads.
 
-use super::RigArgs;
+use super::{RenderArgs, RigArgs};
 use crate::vision::write_capture_set;
 use anyhow::{anyhow, Result};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
-use hvs_vision::render::{self, RenderOptions};
+use hvs_vision::render;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
@@ -59,15 +59,8 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     pub distortion: Option<Vec<f64>>,
-    /// Gaussian blur, standard deviation (px).
-    #[arg(long, value_name = "PX", default_value_t = 0.8)]
-    pub blur: f64,
-    /// Sensor noise, standard deviation (grey levels).
-    #[arg(long, value_name = "GREY", default_value_t = 2.0)]
-    pub noise: f64,
-    /// Supersampling of edge pixels (N x N samples, 1-16).
-    #[arg(long, value_name = "N", default_value_t = 8)]
-    pub supersample: u32,
+    #[command(flatten)]
+    pub camera: RenderArgs,
     /// Seed of the sensor noise (same seed, same bytes).
     #[arg(long, value_name = "S", default_value_t = 0)]
     pub seed: u64,
@@ -83,27 +76,7 @@ pub fn run(a: Args) -> Result<()> {
     let (cols, rows) = parse_size(&a.inner_corners)?;
     let board =
         hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| anyhow!("{e}"))?;
-    let opt = RenderOptions {
-        margin_cm: a.square_cm,
-        supersample: a.supersample,
-        blur_sigma_px: a.blur,
-        noise_sigma: a.noise,
-        ..RenderOptions::default()
-    };
-    // Checked here so the message names the flag, not the library's field.
-    opt.validate().map_err(|e| match e {
-        render::RenderError::Invalid(f) => {
-            let flag = match f.field {
-                "supersample" => "--supersample",
-                "blur_sigma_px" => "--blur",
-                "noise_sigma" => "--noise",
-                "margin_cm" => "--square-cm",
-                other => other,
-            };
-            crate::cli::usage(format!("{flag}: {}", f.reason))
-        }
-        other => anyhow!("{other}"),
-    })?;
+    let opt = a.camera.options(a.square_cm)?;
     let distortion = match a.distortion.as_deref() {
         None => Distortion::NONE,
         Some([k1]) => Distortion { k1: *k1, k2: 0.0 },

@@ -5,7 +5,7 @@ use crate::cli::RigArgs;
 use crate::data::output::check_not_input;
 use crate::data::output::write_output;
 use crate::sim::board::{Board, Pixels};
-use crate::sim::posture::{self, postures, PostureOptions, Sampling};
+use crate::sim::posture;
 use crate::sim::sets::{simulate, write_csv, SetKind, SimOptions};
 
 value_enum! {
@@ -30,18 +30,7 @@ value_enum! {
     }
 }
 
-value_enum! {
-    /// How the postures of a set are chosen.
-    SamplingArg => Sampling {
-        /// One uniform random posture inside every cell of a `levels` grid (stratified).
-        Grid,
-        /// The regular grid: `levels` evenly spaced values per interval, ends included.
-        Lattice,
-        /// `count` uniform random postures.
-        Random,
-    }
-}
-use crate::cli::LensArgs;
+use crate::cli::{LensArgs, PostureArgs};
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::sim::posture::HeadRig;
 use std::path::PathBuf;
@@ -98,16 +87,8 @@ pub struct Args {
     /// Output CSV (written atomically); stdout if absent.
     #[arg(short = 'o', long, value_name = "FILE.csv")]
     output: Option<PathBuf>,
-    /// Repeat the set at many head postures (adds the five joint columns).
-    #[arg(long, value_enum, value_name = "HOW")]
-    postures: Option<SamplingArg>,
-    /// Grid levels of neck pan, neck tilt, eye tilt, version, vergence (grid, lattice)
-    /// [default: 3,3,3,3,4].
-    #[arg(long, value_name = "A,B,C,D,E", value_delimiter = ',')]
-    posture_levels: Option<Vec<u8>>,
-    /// Number of random postures (random) [default: 100].
-    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
-    posture_count: Option<usize>,
+    #[command(flatten)]
+    postures: PostureArgs,
     #[command(flatten)]
     lens: LensArgs,
     /// Rounded (whole pixels, the thesis) or exact (unrounded) pixel coordinates.
@@ -126,10 +107,6 @@ fn parse_board(s: &str) -> Result<Board, String> {
         m.strip_prefix("--board ").unwrap_or(&m).to_string()
     })
 }
-
-/// Seed of the posture draws: `--seed` mixed with a constant, so that postures and pixel
-/// noise do not share one random stream.
-pub const POSTURE_SEED_MIX: u64 = 0x706f_7374_7572_6573;
 
 /// Runs `hvs simulate`.
 pub fn run(a: Args) -> Result<()> {
@@ -158,11 +135,9 @@ pub fn run(a: Args) -> Result<()> {
         board: a.board.unwrap_or(Board::Thesis),
         pixels: a.pixels.into(),
     };
-    if a.postures.is_some() || a.lens.given() {
-        return run_postures(&a, rig, &opt);
-    }
-    if a.posture_levels.is_some() || a.posture_count.is_some() {
-        bail!("--posture-levels and --posture-count need --postures");
+    let postures = a.postures.postures(a.seed)?;
+    if postures.is_some() || a.lens.given() {
+        return run_postures(&a, rig, &opt, postures);
     }
     let samples = simulate(&rig, a.set.into(), &opt).with_context(|| a.rig.label())?;
     write_output(a.output.as_deref(), |w| {
@@ -171,45 +146,18 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 /// `hvs simulate` with `--postures` and/or `--distortion`.
-fn run_postures(a: &Args, rig: hvs_shared::sim::camera::Rig, opt: &SimOptions) -> Result<()> {
+fn run_postures(
+    a: &Args,
+    rig: hvs_shared::sim::camera::Rig,
+    opt: &SimOptions,
+    postures: Option<Vec<hvs_shared::runtime::gaze::Joints>>,
+) -> Result<()> {
     let distortion = a.lens.lens()?;
     let head = HeadRig::new(rig).with_distortion(distortion);
-    let joints = match a.postures {
-        None => {
-            if a.posture_levels.is_some() || a.posture_count.is_some() {
-                bail!("--posture-levels and --posture-count need --postures");
-            }
-            vec![hvs_shared::runtime::gaze::Joints::HOME]
-        }
-        Some(sampling) => {
-            let sampling = Sampling::from(sampling);
-            let mut p = PostureOptions {
-                sampling,
-                ..PostureOptions::default()
-            };
-            if let Some(l) = &a.posture_levels {
-                if sampling == Sampling::Random {
-                    bail!("--posture-levels applies to --postures grid or lattice");
-                }
-                p.levels = l.as_slice().try_into().map_err(|_| {
-                    anyhow!(
-                        "--posture-levels takes five counts (neck pan, neck tilt, eye tilt, version, vergence), got {}",
-                        l.len()
-                    )
-                })?;
-            }
-            if let Some(n) = a.posture_count {
-                if sampling != Sampling::Random {
-                    bail!("--posture-count applies to --postures random");
-                }
-                p.count = n;
-            }
-            postures(&p, a.seed ^ POSTURE_SEED_MIX)?
-        }
-    };
+    let with_joints = postures.is_some();
+    let joints = postures.unwrap_or_else(|| vec![hvs_shared::runtime::gaze::Joints::HOME]);
     let samples =
         posture::simulate(&head, a.set.into(), &joints, opt).with_context(|| a.rig.label())?;
-    let with_joints = a.postures.is_some();
     write_output(a.output.as_deref(), |w| {
         posture::write_csv(w, &samples, with_joints).context("cannot write the CSV")
     })

@@ -6,5 +6,6 @@ pub mod csv;
 pub mod dataset;
 pub mod model;
 pub mod output;
+pub mod positions;
 pub mod rig;
 pub mod validate;

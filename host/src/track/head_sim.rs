@@ -47,6 +47,16 @@ impl VirtualHead {
         self.controller.setpoint()
     }
 
+    /// Whether a move is still under way (the controller's trajectories have not ended).
+    pub fn is_moving(&self) -> bool {
+        self.controller.is_moving()
+    }
+
+    /// Control ticks per second.
+    pub fn control_hz(&self) -> u32 {
+        self.hz
+    }
+
     /// The time of the control clock (s).
     pub fn time_s(&self) -> f64 {
         self.ticks as f64 / f64::from(self.hz)

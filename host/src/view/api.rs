@@ -92,7 +92,6 @@ pub fn captures(s: &Session) -> Option<Value> {
     let c = s.captures.as_ref()?;
     let det = &c.detection;
     let n = c.board.corner_count();
-    let mut slot = 0usize;
     let pairs: Vec<Value> = c
         .set
         .captures
@@ -101,10 +100,8 @@ pub fn captures(s: &Session) -> Option<Value> {
         .enumerate()
         .map(|(k, (cap, o))| match o {
             PairOutcome::Found(p) => {
-                let epi = det.set.as_ref().map(
-                    |s| json!({"median_px": s.pair_median_px[slot], "max_px": s.pair_max_px[slot]}),
-                );
-                slot += 1;
+                let epi = det.epipolar[k]
+                    .map(|[median, max]| json!({"median_px": median, "max_px": max}));
                 json!({
                     "index": k,
                     "name": format!("{} ({}, {})", c.set.at(cap), cap.left_name, cap.right_name),
@@ -127,7 +124,7 @@ pub fn captures(s: &Session) -> Option<Value> {
         .collect();
     Some(json!({
         "board": format!("{}x{} inner corners", c.board.cols, c.board.rows),
-        "sampson_rms_px": det.set.as_ref().map(|s| s.fit.rms_sampson),
+        "sampson_rms_px": det.groups.iter().map(|g| g.rms_sampson).reduce(f64::max),
         "pairs": pairs,
     }))
 }

@@ -9,6 +9,7 @@
 mod common;
 
 mod cli;
+mod collect;
 mod depth;
 mod eval_posture;
 mod experiment;

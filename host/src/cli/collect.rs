@@ -1,0 +1,189 @@
+//! `hvs collect`: the head collects its own posture-aware training set ([`crate::collect`]).
+
+use super::{usage, PostureArgs, RenderArgs};
+use crate::collect::{self, Plan, Shot, Stop};
+use crate::data::output::{check_dir_output, check_not_input, write_bytes};
+use crate::track::head_sim::VirtualHead;
+use crate::vision::png_bytes;
+use anyhow::{anyhow, bail, Result};
+use hvs_shared::runtime::trajectory::ControllerConfig;
+use hvs_shared::sim::posture::HeadRig;
+use hvs_vision::board::Board;
+use rayon::prelude::*;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Arguments of `hvs collect`.
+#[derive(Debug, clap::Args)]
+#[command(
+    about = "The head collects its own posture-aware training set: board photos at many postures",
+    long_about = "The head collects its own posture-aware training set.\n\n\
+    The board stays where the user put it (each row of --positions), the head visits the\n\
+    postures (--postures grid|lattice|random as `hvs simulate --postures`), waits until the\n\
+    servos have settled and takes a pair. Pairs in which both cameras see the whole board are\n\
+    written to DIR with CAPTURES.csv (left,right,x,y,z and the five joint columns the head\n\
+    reports) and board.json; postures that do not see the board are skipped and counted. Then:\n\n\
+    \x20 hvs board detect --board DIR/board.json --captures DIR/CAPTURES.csv -o POINTS.csv\n\
+    \x20 hvs train --data POINTS.csv -o MODEL.hvsw\n\n\
+    --scene: the virtual head (a scene file as `hvs track` reads; the board of --board is put\n\
+    into it at each position). --port/--cameras: a real head with live cameras."
+)]
+pub struct Args {
+    /// The board: {"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 6.0}.
+    #[arg(long, value_name = "BOARD.json")]
+    pub board: PathBuf,
+    /// Board placements: x,y,z per row (board centre, head frame, cm; the board upright and
+    /// facing the head).
+    #[arg(long, value_name = "POSITIONS.csv")]
+    pub positions: PathBuf,
+    #[command(flatten)]
+    pub postures: PostureArgs,
+    /// The virtual head: the scene its cameras see (the rig and the objects; the board is
+    /// added at each position).
+    #[arg(long, value_name = "SCENE.json", conflicts_with_all = ["port", "cameras"])]
+    pub scene: Option<PathBuf>,
+    /// A real head: its serial port.
+    #[arg(long, value_name = "PATH", requires = "cameras")]
+    pub port: Option<PathBuf>,
+    /// A real head: its two cameras, v4l:LEFT,RIGHT (device numbers or paths).
+    #[arg(long, value_name = "v4l:A,B", requires = "port")]
+    pub cameras: Option<String>,
+    /// Output folder (created if missing): the images, CAPTURES.csv and board.json.
+    #[arg(short = 'o', long, value_name = "DIR")]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub camera: RenderArgs,
+    /// Wait after each move has ended before the pair is taken (ms).
+    #[arg(long, value_name = "MS", default_value_t = 100, value_parser = super::whole_u64)]
+    pub settle_ms: u64,
+    /// Seed of the postures (grid, random) and of the sensor noise (same seed, same bytes).
+    #[arg(long, value_name = "S", default_value_t = 0, allow_negative_numbers = true, value_parser = super::whole_u64)]
+    pub seed: u64,
+}
+
+/// What became of one stop.
+enum Outcome {
+    Written,
+    OutOfView,
+    Hidden,
+}
+
+/// `hvs collect`.
+pub fn run(a: Args) -> Result<()> {
+    let Some(scene_path) = &a.scene else {
+        if a.port.is_some() {
+            bail!(
+                "--port/--cameras: collecting with a real head needs live cameras (V4L2), which \
+                 this build of hvs does not have yet; collect with the virtual head (--scene)"
+            );
+        }
+        return Err(usage(
+            "choose the head: --scene SCENE.json (virtual) or --port PATH --cameras v4l:A,B",
+        ));
+    };
+    check_dir_output("-o", &a.output)?;
+    let inputs: [(&str, &Path); 3] = [
+        ("--board", &a.board),
+        ("--positions", &a.positions),
+        ("--scene", scene_path),
+    ];
+    if a.output.is_dir() {
+        // A new folder cannot hold an input; an existing one might.
+        for name in ["CAPTURES.csv", "board.json"] {
+            check_not_input("-o", &a.output.join(name), &inputs)?;
+        }
+    }
+    let board = Board::from_path(&a.board).map_err(|e| anyhow!("{e}"))?;
+    let placements = crate::data::positions::read(&a.positions)?;
+    let postures = a
+        .postures
+        .postures(a.seed)?
+        .ok_or_else(|| usage("choose the postures: --postures grid, lattice or random"))?;
+    let loaded = crate::track::scene_file::load(scene_path)?;
+    let head_rig = HeadRig::new(loaded.rig);
+    let plan = Plan {
+        render: a.camera.options(board.square_cm)?,
+        board,
+        placements,
+        postures,
+        seed: a.seed,
+        settle_s: a.settle_ms as f64 / 1000.0,
+    };
+    let mut head = VirtualHead::new(&ControllerConfig::DEFAULT)?;
+    let stops = collect::visit(&mut head, &plan)?;
+
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let b = indicatif::ProgressBar::new(stops.len() as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "collecting {bar:30} {pos}/{len} postures, {msg} [{elapsed_precise}]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    });
+    let captured_count = AtomicU64::new(0);
+    std::fs::create_dir_all(&a.output)
+        .map_err(|e| anyhow!("-o {}: cannot create the folder: {e}", a.output.display()))?;
+    // Render and write in parallel; the outcomes come back in visit order.
+    let outcomes: Vec<Result<Outcome>> = stops
+        .par_iter()
+        .map(|stop| {
+            let shot = collect::capture(&head_rig, &loaded.scene, &plan, stop)?;
+            let out = match shot {
+                Shot::OutOfView => Outcome::OutOfView,
+                Shot::Hidden => Outcome::Hidden,
+                Shot::Pair(pair) => {
+                    let [l, r] = collect::image_names(stop);
+                    write_bytes(&a.output.join(l), &png_bytes(&pair[0])?)?;
+                    write_bytes(&a.output.join(r), &png_bytes(&pair[1])?)?;
+                    let n = captured_count.fetch_add(1, Ordering::Relaxed) + 1;
+                    if let Some(b) = &bar {
+                        b.set_message(format!("{n} pairs"));
+                    }
+                    Outcome::Written
+                }
+            };
+            if let Some(b) = &bar {
+                b.inc(1);
+            }
+            Ok(out)
+        })
+        .collect();
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let (mut captured, mut out_of_view, mut hidden) = (Vec::<Stop>::new(), 0usize, 0usize);
+    for (stop, o) in stops.iter().zip(outcomes) {
+        match o? {
+            Outcome::Written => captured.push(*stop),
+            Outcome::OutOfView => out_of_view += 1,
+            Outcome::Hidden => hidden += 1,
+        }
+    }
+    if captured.is_empty() {
+        bail!(
+            "no posture saw the whole board with both cameras ({} postures x {} placements; {out_of_view} out of view, {hidden} hidden): place the board nearer the middle of the working range",
+            plan.postures.len(),
+            plan.placements.len()
+        );
+    }
+    write_bytes(
+        &a.output.join("board.json"),
+        plan.board.to_json().as_bytes(),
+    )?;
+    write_bytes(
+        &a.output.join("CAPTURES.csv"),
+        collect::captures_csv(&plan, &captured).as_bytes(),
+    )?;
+    eprintln!(
+        "collected {} pairs into {} ({} placements x {} postures; skipped {out_of_view} where the board was not fully in both images, {hidden} where the scene hid part of it; {:.1} s of head time)",
+        captured.len(),
+        a.output.display(),
+        plan.placements.len(),
+        plan.postures.len(),
+        head.time_s()
+    );
+    Ok(())
+}

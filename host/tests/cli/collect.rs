@@ -1,0 +1,166 @@
+//! `hvs collect` driven from outside: the virtual head visits the postures with the board in
+//! place, keeps the pairs that see the whole board (with the joints it reports), writes a
+//! capture set `hvs board detect` reads, repeats its bytes for the same seed, and refuses bad
+//! input naming the file, line and column.
+
+use crate::common::{fails, ok, stderr_with_code, Scratch};
+use std::fs;
+
+const BOARD: &str = r#"{"pattern": "chessboard", "inner_corners": [7, 5], "square_cm": 4.0}"#;
+
+fn inputs(dir: &Scratch, positions: &str) -> (String, String, String) {
+    let (b, p, s) = (
+        dir.p("board.json"),
+        dir.p("positions.csv"),
+        dir.p("scene.json"),
+    );
+    fs::write(&b, BOARD).unwrap();
+    fs::write(&p, positions).unwrap();
+    fs::write(
+        &s,
+        r#"{"rig": {"case": 3}, "camera_fps": 30, "background": {"z_cm": 300, "texture_seed": 1}}"#,
+    )
+    .unwrap();
+    (b, p, s)
+}
+
+fn collect(b: &str, p: &str, s: &str, out: &str, seed: &str) -> String {
+    ok(&[
+        "collect",
+        "--board",
+        b,
+        "--positions",
+        p,
+        "--postures",
+        "lattice",
+        "--posture-levels",
+        "3,1,1,1,1",
+        "--scene",
+        s,
+        "--supersample",
+        "2",
+        "--seed",
+        seed,
+        "-o",
+        out,
+    ])
+}
+
+#[test]
+fn collect_keeps_the_postures_that_see_the_board_and_board_detect_reads_them() {
+    let dir = Scratch::new();
+    // Near boards (outlines 36 x 28 cm at 45 and 47 cm): the wide case III cameras see them
+    // whole looking ahead, not with the neck turned 30 degrees.
+    let (b, p, s) = inputs(&dir, "x,y,z\n0,0,45\n0,-1,47\n");
+    let (out, again) = (dir.p("set"), dir.p("again"));
+    collect(&b, &p, &s, &out, "3");
+    let text = fs::read_to_string(format!("{out}/CAPTURES.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("left,right,x,y,z,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // Neck pan -30, 0, +30 at each placement (vergence 5 degrees, the middle of its range).
+    assert_eq!(rows.len(), 2, "{text}");
+    for (r, z) in rows.iter().zip(["45", "47"]) {
+        assert_eq!(r[4], z);
+        assert_eq!(
+            &r[5..],
+            ["0", "0", "0", "-2.52", "2.52"],
+            "the joints the head reports"
+        );
+        for img in &r[..2] {
+            assert!(fs::metadata(format!("{out}/{img}")).unwrap().len() > 1000);
+        }
+    }
+    // The same seed gives the same bytes.
+    collect(&b, &p, &s, &again, "3");
+    for f in ["CAPTURES.csv", "board.json", rows[1][0], rows[1][1]] {
+        assert_eq!(
+            fs::read(format!("{out}/{f}")).unwrap(),
+            fs::read(format!("{again}/{f}")).unwrap(),
+            "{f}"
+        );
+    }
+    // board detect turns it into a nine-input training set: every corner of both pairs.
+    let points = dir.p("points.csv");
+    ok(&[
+        "board",
+        "detect",
+        "--board",
+        &format!("{out}/board.json"),
+        "--captures",
+        &format!("{out}/CAPTURES.csv"),
+        "-o",
+        &points,
+    ]);
+    let pts = fs::read_to_string(&points).unwrap();
+    let header = pts.lines().next().unwrap();
+    assert!(
+        header.contains("neck_pan") && header.contains("right_eye_pan"),
+        "{header}"
+    );
+    assert_eq!(pts.lines().count(), 1 + 2 * 35, "{header}");
+}
+
+#[test]
+fn collect_refuses_bad_input_naming_it() {
+    let dir = Scratch::new();
+    let (b, p, s) = inputs(&dir, "x,y,z\n0,0,70\n0,zero,95\n");
+    let out = dir.p("set");
+    let base = |extra: &[&str]| {
+        let mut v = vec!["collect", "--board", &b, "--positions", &p, "-o", &out];
+        v.extend_from_slice(extra);
+        v.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run = |extra: &[&str], want: &str| {
+        let args = base(extra);
+        fails(&args.iter().map(String::as_str).collect::<Vec<_>>(), want)
+    };
+    let e = run(&["--postures", "grid", "--scene", &s], "positions.csv:3");
+    assert!(e.contains("\"y\""), "{e}");
+    let usage = |extra: &[&str], want: &str| {
+        let e = stderr_with_code(base(extra), 2);
+        assert!(e.contains(want), "{e}");
+    };
+    usage(&["--postures", "grid"], "--scene");
+    run(
+        &[
+            "--postures",
+            "grid",
+            "--port",
+            "/dev/null",
+            "--cameras",
+            "v4l:0,1",
+        ],
+        "V4L2",
+    );
+    fs::write(&p, "x,y,z\n0,0,70\n").unwrap();
+    usage(&["--scene", &s], "--postures");
+    run(
+        &[
+            "--postures",
+            "grid",
+            "--posture-levels",
+            "3,3",
+            "--scene",
+            &s,
+        ],
+        "five counts",
+    );
+    // A board far out to the side: no posture sees it, and nothing is written.
+    fs::write(&p, "x,y,z\n500,0,70\n").unwrap();
+    run(
+        &[
+            "--postures",
+            "lattice",
+            "--posture-levels",
+            "1,1,1,1,1",
+            "--scene",
+            &s,
+        ],
+        "no posture saw the whole board",
+    );
+    assert!(!std::path::Path::new(&format!("{out}/CAPTURES.csv")).exists());
+}
