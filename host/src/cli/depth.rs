@@ -5,6 +5,7 @@ use crate::data::output::check_outputs;
 use crate::data::output::write_bytes;
 use crate::depth::{depth_files, Depth};
 use crate::vision::png_bytes;
+use super::StereoArgs;
 use anyhow::Result;
 use hvs_vision::pfm::{colour_depth, pfm_bytes, ply_bytes, FloatImage};
 use std::path::{Path, PathBuf};
@@ -20,15 +21,8 @@ use std::path::{Path, PathBuf};
     or saturated image gives all +inf and a warning, with exit status 0."
 )]
 pub struct Args {
-    /// The model (from `hvs train`, with its matcher geometry).
-    #[arg(long, value_name = "M.hvsw")]
-    pub model: PathBuf,
-    /// The left image (PNG or JPEG).
-    #[arg(long, value_name = "L.png")]
-    pub left: PathBuf,
-    /// The right image, the same size.
-    #[arg(long, value_name = "R.png")]
-    pub right: PathBuf,
+    #[command(flatten)]
+    pub pair: StereoArgs,
     /// Depth: one-channel PFM (little-endian, bottom row first), Z in cm per left pixel.
     #[arg(short = 'o', long, value_name = "DEPTH.pfm")]
     pub output: PathBuf,
@@ -57,11 +51,7 @@ fn image(d: &Depth, channels: u8, data: Vec<f32>) -> FloatImage {
 
 /// `hvs depth`.
 pub fn run(a: Args) -> Result<()> {
-    let inputs: Vec<(&str, &Path)> = vec![
-        ("--model", &a.model),
-        ("--left", &a.left),
-        ("--right", &a.right),
-    ];
+    let inputs: Vec<(&str, &Path)> = a.pair.inputs().to_vec();
     let mut outputs: Vec<(&str, &Path)> = vec![("-o", &a.output)];
     for (flag, p) in [
         ("--matches", &a.matches),
@@ -74,7 +64,7 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     check_outputs(&outputs, &inputs)?;
-    let (d, left) = depth_files(&a.model, &a.left, &a.right)?;
+    let (d, left) = depth_files(&a.pair.model, &a.pair.left, &a.pair.right)?;
     // Every output in memory first, then each written atomically.
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let z: Vec<f32> = d.xyz.iter().map(|p| p[2]).collect();

@@ -6,6 +6,7 @@ use crate::data::csv::{
 };
 use crate::data::output::{check_outputs, write_bytes, write_output};
 use crate::vision::{locate_files, locate_overlay, png_bytes, Located};
+use super::StereoArgs;
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::{Path, PathBuf};
 
@@ -23,15 +24,8 @@ use std::path::{Path, PathBuf};
     no_estimate. A Z-only model gives z and leaves x, y empty."
 )]
 pub struct Args {
-    /// The model (from `hvs train`, with its matcher geometry).
-    #[arg(long, value_name = "M.hvsw")]
-    pub model: PathBuf,
-    /// The left image (PNG or JPEG).
-    #[arg(long, value_name = "L.png")]
-    pub left: PathBuf,
-    /// The right image, the same size.
-    #[arg(long, value_name = "R.png")]
-    pub right: PathBuf,
+    #[command(flatten)]
+    pub pair: StereoArgs,
     /// Points to locate: a CSV with columns u_l,v_l (other columns passed through).
     #[arg(
         long,
@@ -140,11 +134,7 @@ pub fn row(l: &Located) -> String {
 
 /// `hvs locate`.
 pub fn run(a: Args) -> Result<()> {
-    let mut inputs: Vec<(&str, &Path)> = vec![
-        ("--model", &a.model),
-        ("--left", &a.left),
-        ("--right", &a.right),
-    ];
+    let mut inputs: Vec<(&str, &Path)> = a.pair.inputs().to_vec();
     if let Some(p) = &a.points {
         inputs.push(("--points", p));
     }
@@ -165,7 +155,7 @@ pub fn run(a: Args) -> Result<()> {
         },
         (None, None) => bail!("give --points PIXELS.csv or --at U,V"),
     };
-    let (found, l, r) = locate_files(&a.model, &a.left, &a.right, &pixels.points)?;
+    let (found, l, r) = locate_files(&a.pair.model, &a.pair.left, &a.pair.right, &pixels.points)?;
     if let Some(p) = &a.overlay {
         write_bytes(p, &png_bytes(&locate_overlay(&l, &r, &found))?)?;
     }

@@ -65,6 +65,31 @@ impl RigArgs {
     }
 }
 
+/// A model and a stereo pair of images (`hvs locate`, `hvs depth`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct StereoArgs {
+    /// The model (from `hvs train`, with its matcher geometry).
+    #[arg(long, value_name = "M.hvsw")]
+    pub model: PathBuf,
+    /// The left image (PNG or JPEG).
+    #[arg(long, value_name = "L.png")]
+    pub left: PathBuf,
+    /// The right image, the same size.
+    #[arg(long, value_name = "R.png")]
+    pub right: PathBuf,
+}
+
+impl StereoArgs {
+    /// The three inputs with their flags, for the output-overwrites-input checks.
+    pub fn inputs(&self) -> [(&'static str, &std::path::Path); 3] {
+        [
+            ("--model", self.model.as_path()),
+            ("--left", self.left.as_path()),
+            ("--right", self.right.as_path()),
+        ]
+    }
+}
+
 /// `--distortion K1[,K2]` (`hvs simulate`, `hvs eval`).
 #[derive(Debug, clap::Args)]
 pub struct LensArgs {
