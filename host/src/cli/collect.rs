@@ -103,7 +103,7 @@ pub fn run(a: Args) -> Result<()> {
     let loaded = crate::track::scene_file::load(scene_path)?;
     let head_rig = HeadRig::new(loaded.rig);
     let plan = Plan {
-        render: a.camera.options(board.square_cm)?,
+        render: a.camera.options(board.square_cm, 4)?,
         board,
         placements,
         postures,

@@ -1,11 +1,11 @@
 //! `hvs depth`: every pixel of a stereo pair to X, Y, Z by the model
 //! ([`crate::depth::depth_files`]), written as PFM images, a colour-mapped PNG and a PLY cloud.
 
+use super::StereoArgs;
 use crate::data::output::check_outputs;
 use crate::data::output::write_bytes;
 use crate::depth::{depth_files, Depth};
 use crate::vision::png_bytes;
-use super::StereoArgs;
 use anyhow::Result;
 use hvs_vision::pfm::{colour_depth, pfm_bytes, ply_bytes, FloatImage};
 use std::path::{Path, PathBuf};

@@ -1,12 +1,12 @@
 //! `hvs locate`: points of the left image found in the right one and turned into X, Y, Z by the
 //! model, with nothing but the model and the two images ([`crate::vision::locate`]).
 
+use super::StereoArgs;
 use crate::data::csv::{
     check_row_len, check_unique_names, csv_error, csv_reader, missing_column, LineCounter,
 };
 use crate::data::output::{check_outputs, write_bytes, write_output};
 use crate::vision::{locate_files, locate_overlay, png_bytes, Located};
-use super::StereoArgs;
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::{Path, PathBuf};
 

@@ -1,8 +1,9 @@
-//! Where `hvs view`'s pictures come from: a [`FrameSource`] gives each pair's left and right
-//! frame (and the detected corners drawn on them) as PNG bytes with a sequence number, and the
-//! grey images the matcher reads. [`StillFrames`] is the still one (a pair of files, a capture
-//! set); a live source (a virtual head, two cameras) implements the same trait and bumps the
-//! sequence number, and the page, which polls, shows each new frame.
+//! What `hvs view` shows: a [`PairStore`] holds each pair's left and right frame (and the
+//! detected corners drawn on them) as PNG bytes with a sequence number, and the grey images
+//! the matcher reads. [`StillFrames`] is the still one (a pair of files, a capture set). Frames
+//! are *grabbed* through the one camera interface, [`crate::track::frames::FrameSource`] (the
+//! virtual cameras today): a live store fed from such a source keeps the latest pair and bumps
+//! the sequence number, and the page, which polls, shows each new frame.
 
 use crate::vision::png_bytes;
 use hvs_vision::detect::StereoCorners;
@@ -52,7 +53,7 @@ pub struct Frame {
 pub type GreyPair = (Arc<GrayImage>, Arc<GrayImage>);
 
 /// What the server shows and matches on.
-pub trait FrameSource: Send + Sync {
+pub trait PairStore: Send + Sync {
     /// How many pairs there are.
     fn len(&self) -> usize;
     /// Whether there are none.
@@ -113,7 +114,7 @@ impl StillFrames {
     }
 }
 
-impl FrameSource for StillFrames {
+impl PairStore for StillFrames {
     fn len(&self) -> usize {
         self.pairs.len()
     }

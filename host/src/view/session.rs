@@ -4,7 +4,7 @@
 //! `hvs locate --at` ([`crate::vision::locate_with`]), [`Session::retrain`] is
 //! `hvs board detect` + `hvs train` on the ticked pairs ([`crate::train::model::train_model`]).
 
-use super::frames::{FrameSource, StillFrames, StillPair};
+use super::frames::{PairStore, StillFrames, StillPair};
 use crate::data::captures::{self, CaptureSet};
 use crate::data::csv::{read_set_from, Inputs};
 use crate::data::model::ModelFile;
@@ -74,7 +74,7 @@ pub struct Session {
     /// Why a click cannot be located (a posture-aware model), if it cannot.
     pub locate_refused: Option<String>,
     /// The pictures.
-    pub frames: Arc<dyn FrameSource>,
+    pub frames: Arc<dyn PairStore>,
     /// The pairs, in order.
     pub pairs: Vec<PairMeta>,
     /// The capture set, with `--captures`.
