@@ -8,8 +8,10 @@
 //! of the front region, then refined to a sub-pixel match at full resolution.
 //!
 //! - **Nearest**: every grid point that matches is estimated (X, Y, Z by the model at the
-//!   current posture); the nearest depth cluster (at least [`MIN_CLUSTER`] points within a
-//!   few percent of one depth) is the target; its region is then matched densely (every
+//!   current posture); the cluster of the largest disparity `u_l - u_r` (at least
+//!   [`MIN_CLUSTER`] points within a few pixels of one disparity and a few percent of one
+//!   depth) is the target (nearest by disparity: a net's depth outside its training box is
+//!   not to be trusted for the order); its region is then matched densely (every
 //!   [`DENSE_STEP`] px) and the target's pixels are the centroid of the matched points at that
 //!   depth, in the left and in the right image.
 //! - **Pixel `(U, V)`**: the first frame matches `(U, V)` and grows the region of its depth
@@ -25,9 +27,10 @@ use image::GrayImage;
 pub const MIN_CLUSTER: usize = 3;
 /// Spacing of the dense matches in the target's region (px).
 pub const DENSE_STEP: i32 = 3;
-/// Spacing of the coarse grid (full-resolution px): a 40th of the image width, at least 4.
+/// Spacing of the coarse grid (full-resolution px): an 80th of the image width, at least 4
+/// (8 px at 640: a 5 cm sphere at 90 cm, 32 px across, gets a dozen grid points).
 fn grid_step(w: i32) -> i32 {
-    (w / 40).max(4)
+    (w / 80).max(4)
 }
 /// Share of the image width and height, around the centre, searched for the nearest object.
 const FRONT_SHARE: f64 = 0.7;
@@ -43,6 +46,8 @@ const UNIQUENESS: f32 = 0.05;
 const MAX_EXTENT: f64 = 60.0;
 /// Smallest grey-level standard deviation of a window worth matching.
 const MIN_STD: f32 = 4.0;
+/// Disparity band of one object on the coarse grid (px).
+const DISPARITY_BAND_PX: f64 = 3.0;
 /// Relative depth band of one object (plus 1 cm).
 const DEPTH_BAND: f32 = 0.06;
 
@@ -380,9 +385,19 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
         }
         y += grid_step(l.w);
     }
-    pts.sort_by(|a, b| a.z.total_cmp(&b.z));
+    // Nearest first by disparity, not by the model's depth: along every left ray the right
+    // image's match moves one way as the point recedes, whatever the cameras' deflections,
+    // while a net's depth far outside its training box (the wall behind the objects) can be
+    // anything, nearer than the nearest object included.
+    let disparity = |q: &Pt| f64::from(q.l[0]) - q.r[0];
+    pts.sort_by(|a, b| disparity(b).total_cmp(&disparity(a)));
     for p in &pts {
-        let members: Vec<&Pt> = pts.iter().filter(|q| in_band(q.z, p.z)).collect();
+        let members: Vec<&Pt> = pts
+            .iter()
+            .filter(|q| {
+                (disparity(q) - disparity(p)).abs() <= DISPARITY_BAND_PX && in_band(q.z, p.z)
+            })
+            .collect();
         if members.len() >= MIN_CLUSTER {
             let n = members.len() as f64;
             let cu = members.iter().map(|q| f64::from(q.l[0])).sum::<f64>() / n;
@@ -484,6 +499,31 @@ mod tests {
     const SCENE: &str = r#"{ "rig": {"case": 1}, "camera_fps": 30,
       "background": {"z_cm": 300, "texture_seed": 1},
       "objects": [ {"shape": "sphere", "radius_cm": 8, "centre_cm": [10, -5, 90], "texture_seed": 2} ] }"#;
+
+    #[test]
+    fn the_nearest_is_the_largest_disparity_even_when_depths_are_wrong() {
+        // Case III's deflected cameras with the built-in (parallel-camera) calibration: its
+        // depths are wrong everywhere, the wall's nearer than the sphere's in places, but the
+        // order of the disparities is not. A small sphere (5 cm at 90 cm, 32 px across).
+        const SMALL: &str = r#"{ "rig": {"case": 3}, "camera_fps": 30,
+          "background": {"z_cm": 300, "texture_seed": 1},
+          "objects": [ {"shape": "sphere", "radius_cm": 5, "centre_cm": [20, -8, 90], "texture_seed": 2} ] }"#;
+        let scene = SceneFile::parse(SMALL).unwrap().scene().unwrap().at(0.0);
+        let head = HeadRig::new(presets::case(3).unwrap());
+        let r = render_scene(&head, &Joints::HOME, &scene, &RenderOptions::default(), 5).unwrap();
+        let est = Estimator::Fallback(Calibration::BUILT_IN);
+        let found = Finder::new(TargetMode::Nearest)
+            .find(&r.left, &r.right, &Joints::HOME, &est)
+            .expect("a target");
+        let truth = head.project(&Joints::HOME, &[20.0, -8.0, 90.0]).unwrap();
+        let e = (found.px[0] - truth[0]).hypot(found.px[1] - truth[1]);
+        assert!(
+            e < 6.0,
+            "centroid {:?} vs the sphere's centre {:?}",
+            found.px,
+            truth
+        );
+    }
 
     #[test]
     fn matches_are_true_and_the_nearest_is_the_sphere() {
