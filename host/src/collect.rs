@@ -281,6 +281,48 @@ mod tests {
     }
 
     #[test]
+    fn a_board_hidden_by_an_object_is_refused_and_a_clear_one_is_rendered() {
+        let head = HeadRig::new(presets::case(3).unwrap());
+        let mut p = plan(vec![Joints::HOME]);
+        p.render.supersample = 1;
+        let stop = Stop {
+            placement: 0,
+            posture: 0,
+            t_s: 0.0,
+            joints: Joints::HOME,
+        };
+        let wall = |objects: &str| {
+            hvs_vision::scene::SceneFile::parse(&format!(
+                r#"{{"rig": {{"case": 3}}, "camera_fps": 30, "background": {{"z_cm": 300}}, "objects": [{objects}]}}"#
+            ))
+            .unwrap()
+            .scene()
+            .unwrap()
+        };
+        let clear = wall("");
+        match capture(&head, &clear, &p, &stop).unwrap() {
+            Shot::Pair(pair) => assert_eq!(pair[0].dimensions(), (640, 480)),
+            other => panic!("expected a pair, got {other:?}"),
+        }
+        // A box between the head and the board (at 105 cm) hides its middle.
+        let boxed = wall(r#"{"shape": "box", "size_cm": [10, 10, 10], "centre_cm": [0, 0, 60]}"#);
+        assert!(matches!(
+            capture(&head, &boxed, &p, &stop).unwrap(),
+            Shot::Hidden
+        ));
+        // Turned away: refused before rendering.
+        let away = Stop {
+            joints: Joints([30.0, 0.0, 0.0, 0.0, 0.0]),
+            ..stop
+        };
+        p.placements[0].xyz = [0.0, 0.0, 40.0];
+        assert!(matches!(
+            capture(&head, &clear, &p, &away).unwrap(),
+            Shot::OutOfView
+        ));
+    }
+
+    #[test]
     fn captures_csv_is_what_board_detect_reads() {
         let p = plan(vec![Joints::HOME]);
         let stops = [Stop {
