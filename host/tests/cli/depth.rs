@@ -4,7 +4,7 @@
 //! bad input (another size, no matcher geometry, a posture model, blank images, an output
 //! onto an input).
 
-use crate::common::{fails, ok, s, stderr_with_code, train_restarts};
+use crate::common::{fails, locate_args, ok, s, stderr_with_code, train_restarts};
 use hvs_shared::runtime::blob::{self, MAX_BLOB_LEN};
 use hvs_shared::test_support::splitmix64;
 use hvs_vision::pfm::read_pfm;
@@ -120,25 +120,24 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
         out("d.png"),
         out("c.ply"),
     );
-    let args = [
-        "depth",
-        "--model",
-        s(&model),
-        "--left",
-        s(&l),
-        "--right",
-        s(&r),
-        "-o",
-        s(&depth),
-        "--matches",
-        s(&matches),
-        "--xyz",
-        s(&xyz),
-        "--colour",
-        s(&colour),
-        "--ply",
-        s(&ply),
-    ];
+    let args = locate_args(
+        &["depth"],
+        &model,
+        &l,
+        &r,
+        &[
+            "-o",
+            s(&depth),
+            "--matches",
+            s(&matches),
+            "--xyz",
+            s(&xyz),
+            "--colour",
+            s(&colour),
+            "--ply",
+            s(&ply),
+        ],
+    );
     let err = stderr_with_code(args, 0);
     assert!(
         err.contains("pixels") && err.contains("0 warning(s)"),
@@ -223,17 +222,7 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
         .unwrap();
     let bd = d.join("blank.pfm");
     let err = stderr_with_code(
-        [
-            "depth",
-            "--model",
-            s(&model),
-            "--left",
-            s(&blank),
-            "--right",
-            s(&blank),
-            "-o",
-            s(&bd),
-        ],
+        locate_args(&["depth"], &model, &blank, &blank, &["-o", s(&bd)]),
         0,
     );
     assert!(
@@ -250,17 +239,7 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
         .unwrap();
     let no = d.join("no.pfm");
     fails(
-        &[
-            "depth",
-            "--model",
-            s(&model),
-            "--left",
-            s(&l),
-            "--right",
-            s(&small),
-            "-o",
-            s(&no),
-        ],
+        &locate_args(&["depth"], &model, &l, &small, &["-o", s(&no)]),
         "differ in size",
     );
     let mut b = blob::decode(&std::fs::read(&model).unwrap()).unwrap();
@@ -270,17 +249,7 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
     let sized = d.join("sized.hvsw");
     std::fs::write(&sized, &buf[..n]).unwrap();
     fails(
-        &[
-            "depth",
-            "--model",
-            s(&sized),
-            "--left",
-            s(&l),
-            "--right",
-            s(&r),
-            "-o",
-            s(&no),
-        ],
+        &locate_args(&["depth"], &sized, &l, &r, &["-o", s(&no)]),
         "trained on 320x240 px images",
     );
     // No matcher geometry; a posture model.
@@ -300,34 +269,11 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
         let n = m.encode(&mut buf).unwrap();
         let p = d.join(format!("bare{k}.hvsw"));
         std::fs::write(&p, &buf[..n]).unwrap();
-        fails(
-            &[
-                "depth",
-                "--model",
-                s(&p),
-                "--left",
-                s(&l),
-                "--right",
-                s(&r),
-                "-o",
-                s(&no),
-            ],
-            want,
-        );
+        fails(&locate_args(&["depth"], &p, &l, &r, &["-o", s(&no)]), want);
     }
     // An output onto an input.
     fails(
-        &[
-            "depth",
-            "--model",
-            s(&model),
-            "--left",
-            s(&l),
-            "--right",
-            s(&r),
-            "-o",
-            s(&l),
-        ],
+        &locate_args(&["depth"], &model, &l, &r, &["-o", s(&l)]),
         "--left",
     );
     assert!(!no.exists());

@@ -3,7 +3,7 @@
 //! when a command fails, results that cannot be right are refused with the reason, every
 //! image input is bounded in size and time, bad usage exits 2. Through the built binary.
 
-use crate::common::{detect_args, hvs, s, stderr_with_code};
+use crate::common::{detect_args, hvs, locate_args, s, stderr_with_code};
 use std::path::{Path, PathBuf};
 
 /// A rendered capture set of four pairs at 65-125 cm in `dir/shots`.
@@ -375,15 +375,7 @@ fn locate_checks_its_outputs_usage_and_image_sizes() {
     crate::common::train_restarts(&points, &model, "1");
     let (l, r) = (shots.join("left02.png"), shots.join("right02.png"));
     let locate = |rest: &[&str]| {
-        let mut v = vec![
-            "locate",
-            "--model",
-            s(&model),
-            "--left",
-            s(&l),
-            "--right",
-            s(&r),
-        ];
+        let mut v = locate_args(&["locate"], &model, &l, &r, &[]);
         v.extend_from_slice(rest);
         hvs().args(&v).output().unwrap()
     };
@@ -414,17 +406,13 @@ fn locate_checks_its_outputs_usage_and_image_sizes() {
     let bomb = dir.path().join("bomb.png");
     std::fs::write(&bomb, png_bomb(20_000, 20_000)).unwrap();
     let o = hvs()
-        .args([
-            "locate",
-            "--model",
-            s(&model),
-            "--left",
-            s(&bomb),
-            "--right",
-            s(&bomb),
-            "--at",
-            "320,240",
-        ])
+        .args(locate_args(
+            &["locate"],
+            &model,
+            &bomb,
+            &bomb,
+            &["--at", "320,240"],
+        ))
         .output()
         .unwrap();
     assert!(
@@ -473,17 +461,7 @@ fn a_z_only_model_locates_and_predicts_without_false_alarms() {
     let at = format!("{},{}", row[col("u_l")], row[col("v_l")]);
     let (l, r) = (shots.join("left02.png"), shots.join("right02.png"));
     let o = hvs()
-        .args([
-            "locate",
-            "--model",
-            s(&model),
-            "--left",
-            s(&l),
-            "--right",
-            s(&r),
-            "--at",
-            &at,
-        ])
+        .args(locate_args(&["locate"], &model, &l, &r, &["--at", &at]))
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", err(&o));

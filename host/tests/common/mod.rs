@@ -87,7 +87,8 @@ pub fn train_restarts(data: &Path, model: &Path, restarts: &str) {
     ]);
 }
 
-/// `verb --model model --left left --right right` and `rest` (`hvs locate`, `hvs head look`).
+/// `verb --model model --left left --right right` and `rest` (`hvs locate`, `hvs depth`,
+/// `hvs head look`).
 pub fn locate_args<'a>(
     verb: &[&'a str],
     model: &'a Path,
