@@ -187,21 +187,23 @@ fn detect_all(
     progress: &(dyn Fn() + Sync),
     keep: bool,
 ) -> Result<(Detection, Vec<PairImages>)> {
-    let detected: Vec<(PairOutcome, PairImages)> = set
+    // Each pair's images are dropped as soon as it is detected unless kept: a posture set
+    // holds thousands of pairs.
+    let detected: Vec<_> = set
         .captures
         .par_iter()
         .map(|c| {
-            let out = detect_capture(board, c);
+            let (outcome, pair) = detect_capture(board, c);
             progress();
-            out
+            let size = pair.as_ref().map(|[l, _]| l.dimensions());
+            (outcome, size, if keep { pair } else { None })
         })
         .collect();
     let mut images = Vec::new();
     let mut outcomes: Vec<PairOutcome> = Vec::with_capacity(set.captures.len());
     let mut image_size = None;
-    for (mut outcome, pair) in detected {
-        if let (PairOutcome::Found(_), Some([l, _])) = (&outcome, &pair) {
-            let size = l.dimensions();
+    for (mut outcome, size, pair) in detected {
+        if let (PairOutcome::Found(_), Some(size)) = (&outcome, size) {
             match image_size {
                 None => image_size = Some(size),
                 Some(first) if first != size => {
