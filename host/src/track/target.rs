@@ -392,12 +392,11 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
     let disparity = |q: &Pt| f64::from(q.l[0]) - q.r[0];
     pts.sort_by(|a, b| disparity(b).total_cmp(&disparity(a)));
     for p in &pts {
-        let members: Vec<&Pt> = pts
-            .iter()
-            .filter(|q| {
-                (disparity(q) - disparity(p)).abs() <= DISPARITY_BAND_PX && in_band(q.z, p.z)
-            })
-            .collect();
+        // The points within the disparity band of `p` are one run of the sorted list.
+        let d = disparity(p);
+        let lo = pts.partition_point(|q| disparity(q) > d + DISPARITY_BAND_PX);
+        let hi = pts.partition_point(|q| disparity(q) >= d - DISPARITY_BAND_PX);
+        let members: Vec<&Pt> = pts[lo..hi].iter().filter(|q| in_band(q.z, p.z)).collect();
         if members.len() >= MIN_CLUSTER {
             let n = members.len() as f64;
             let cu = members.iter().map(|q| f64::from(q.l[0])).sum::<f64>() / n;
