@@ -186,6 +186,16 @@ fn pairs_that_cannot_be_right_are_refused_with_the_reason() {
     let mut rows = good.to_vec();
     rows[2] = "right03.png,left03.png,105";
     rows[1] = "left02.png,left02.png,85";
+    // Two boards in view: each image of pair 4 beside a copy of itself.
+    for side in ["left", "right"] {
+        let one = image::open(shots.join(format!("{side}04.png"))).unwrap();
+        let (w, h) = (one.width(), one.height());
+        let mut two = image::DynamicImage::new(2 * w, h, one.color());
+        image::GenericImage::copy_from(&mut two, &one, 0, 0).unwrap();
+        image::GenericImage::copy_from(&mut two, &one, w, 0).unwrap();
+        two.save(shots.join(format!("two-{side}04.png"))).unwrap();
+    }
+    rows.push("two-left04.png,two-right04.png,125");
     captures(&shots, "bad.csv", &rows);
     let o = detect(&shots, "bad.csv", &out, &[]);
     assert!(o.status.success(), "{}", err(&o));
@@ -198,6 +208,11 @@ fn pairs_that_cannot_be_right_are_refused_with_the_reason() {
         e.contains(
             "bad.csv:3 (left02.png, left02.png): skipped: every corner is at the same pixel"
         ),
+        "{e}"
+    );
+    assert!(
+        e.contains("bad.csv:6 (two-left04.png, two-right04.png): skipped:")
+            && e.contains("several boards in view"),
         "{e}"
     );
     let text = std::fs::read_to_string(&out).unwrap();
