@@ -20,7 +20,6 @@ pub mod render;
 pub mod simulate;
 pub mod track;
 pub mod train;
-pub mod train_update;
 pub mod view;
 
 use crate::sim::posture::Sampling;
