@@ -6,7 +6,7 @@
 //! pieces: its `exp` branches between `exp_fast` (a straight range-reduced polynomial) and
 //! `exp_outside` (saturation) on `|x| < EXP_FAST_BELOW`; here every lane computes `exp_fast` on
 //! its input (0 where it is out of range) and selects, so the lanes stay branch-free and LLVM
-//! vectorises them. (`libm::expf`, the exp before issue 29, needed a branch-free copy of its
+//! vectorises them. (`libm::expf`, the exp of earlier versions, needed a branch-free copy of its
 //! own here.) Tested bit for bit against the scalar sigmoid on a dense sweep of f32 inputs, and
 //! exhaustively with `cargo test --release -p hvs-host --lib infer::lanes -- --ignored`.
 //!

@@ -231,7 +231,7 @@ pub struct TrainingMeta {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ExpKind {
     /// The exp of [`mlp::sigmoid`], what every model so far uses: `libm::expf` (libm 0.2)
-    /// until issue 29, since then the range-reduced polynomial [`mlp::exp`] (within 8.2e-8 of
+    /// in earlier versions of hvs, now the range-reduced polynomial [`mlp::exp`] (within 8.2e-8 of
     /// `e^x`; predictions moved by an ulp or so, the variant and the bytes stayed).
     LibmExp,
 }

@@ -4,7 +4,7 @@
 //! joint angles) and get centimetres. Inputs are normalised as `(x - in_offset) * in_scale`,
 //! outputs de-normalised as `y * out_scale + out_offset`. Every sum starts from the bias and
 //! adds the products in index order, in plain f32 (no fused multiply-add), with the
-//! range-reduced polynomial [`exp`] in the sigmoid (`libm::expf` until issue 29), so
+//! range-reduced polynomial [`exp`] in the sigmoid (`libm::expf` in earlier versions), so
 //! [`Mlp::infer`] and the runtime-sized [`infer_flat`] give the same bits on the host and on
 //! the Cortex-M4F.
 //!
