@@ -10,14 +10,14 @@
 //!   both images with a margin, before anything is rendered.
 //! - [`capture`]: the pair, rendered from the scene with the board in it; refused when
 //!   something in the scene hides a corner.
-//! - [`captures_csv`]: `CAPTURES.csv` (`left,right,x,y,z` and the five joint columns), the
+//! - [`captures_csv`]: `CAPTURES.csv` (`left,right,z,x,y` and the five joint columns), the
 //!   capture set `hvs board detect` reads.
 //!
 //! Renders are independent (each pair's sensor noise has its own seed, from the run's seed and
 //! the pair's place in the visit), so they run in parallel and the same seed gives the same
 //! bytes whatever the thread count.
 
-use crate::data::dataset::JOINT_COLUMNS;
+use crate::data::captures::CaptureRow;
 use crate::data::positions::Placement;
 use crate::track::frames::mix;
 use crate::track::head_sim::VirtualHead;
@@ -28,7 +28,6 @@ use hvs_vision::board::Board;
 use hvs_vision::render::RenderOptions;
 use hvs_vision::scene::{render_scene, Motion, Object, Scene, Shape, MAX_OBJECTS};
 use image::GrayImage;
-use std::fmt::Write as _;
 
 /// Margin (px) the whole board must keep from every image border to count as seen.
 pub const VIEW_MARGIN_PX: f64 = 4.0;
@@ -196,23 +195,21 @@ pub fn image_names(stop: &Stop) -> [String; 2] {
     [format!("left_{tag}.png"), format!("right_{tag}.png")]
 }
 
-/// `CAPTURES.csv` of the captured stops: `left,right,x,y,z` and the five joint columns, one row
-/// per pair, numbers in their shortest round-trip form.
+/// `CAPTURES.csv` of the captured stops ([`crate::data::captures::captures_csv`]):
+/// `left,right,z,x,y` and the five joint columns the head reported, one row per pair.
 pub fn captures_csv(plan: &Plan, captured: &[Stop]) -> String {
-    let mut s = String::with_capacity(96 * (captured.len() + 1));
-    s.push_str("left,right,x,y,z,");
-    s.push_str(&JOINT_COLUMNS.join(","));
-    s.push('\n');
-    for stop in captured {
-        let [l, r] = image_names(stop);
-        let [x, y, z] = plan.placements[stop.placement].xyz;
-        let _ = write!(s, "{l},{r},{x},{y},{z}");
-        for j in stop.joints.0 {
-            let _ = write!(s, ",{j}");
-        }
-        s.push('\n');
-    }
-    s
+    let names: Vec<[String; 2]> = captured.iter().map(image_names).collect();
+    let rows: Vec<CaptureRow<'_>> = captured
+        .iter()
+        .zip(&names)
+        .map(|(stop, [l, r])| CaptureRow {
+            left: l,
+            right: r,
+            centre: plan.placements[stop.placement].xyz,
+            joints: stop.joints,
+        })
+        .collect();
+    crate::data::captures::captures_csv(&rows, true)
 }
 
 #[cfg(test)]
@@ -336,7 +333,7 @@ mod tests {
         let path = dir.path().join("CAPTURES.csv");
         std::fs::write(&path, &text).unwrap();
         let set = crate::data::captures::read(&path).unwrap();
-        assert_eq!(set.extra_columns, JOINT_COLUMNS);
+        assert_eq!(set.extra_columns, crate::data::dataset::JOINT_COLUMNS);
         let c = &set.captures[0];
         assert_eq!(
             (c.left_name.as_str(), c.right_name.as_str()),

@@ -13,7 +13,8 @@
 //! - [`evaluate`]: e_ma per depth for several estimators side by side.
 //! - [`study`]: the thesis' chapter-4 experiments and the posture study: facts computed and
 //!   unit-tested, plots (`plotters`), and the reports written from templates.
-//! - [`vision`]: image files around `hvs-vision` (board photos into a training set).
+//! - [`vision`]: images around `hvs-vision`: image files, board photos into a training set,
+//!   pixels located in a stereo pair through a model.
 //! - [`track`]: the head in the loop: scene files, the simulated head and its virtual
 //!   cameras, target finding, the loop of `hvs track`.
 //! - [`collect`]: the head collects its own posture-aware training set (`hvs collect`): it

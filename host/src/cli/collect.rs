@@ -22,7 +22,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
     The board stays where the user put it (each row of --positions), the head visits the\n\
     postures (--postures grid|lattice|random as `hvs simulate --postures`), waits until the\n\
     servos have settled and takes a pair. Pairs in which both cameras see the whole board are\n\
-    written to DIR with CAPTURES.csv (left,right,x,y,z and the five joint columns the head\n\
+    written to DIR with CAPTURES.csv (left,right,z,x,y and the five joint columns the head\n\
     reports) and board.json; postures that do not see the board are skipped and counted. Then:\n\n\
     \x20 hvs board detect --board DIR/board.json --captures DIR/CAPTURES.csv -o POINTS.csv\n\
     \x20 hvs train --data POINTS.csv -o MODEL.hvsw\n\n\

@@ -1,6 +1,7 @@
 //! `hvs track`: the head in the loop on a virtual scene (`host::track`): keeps the nearest
 //! object (or the one under a pixel) in the middle of both eyes, one log row per frame.
 
+use crate::data::captures::{captures_csv, CaptureRow};
 use crate::data::output::{write_atomically, write_bytes};
 use crate::track::{self, frames::VirtualCameras, head_sim::VirtualHead, target::TargetMode};
 use anyhow::{anyhow, bail, Result};
@@ -153,20 +154,21 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(dir) = &a.record {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
-        let mut csv = String::from("left,right,z,x,y,");
-        csv.push_str(&crate::data::dataset::JOINT_COLUMNS.join(","));
-        csv.push('\n');
-        for (k, (l, r, joints, centre)) in recorded.iter().enumerate() {
-            let (ln, rn) = (format!("left{k:04}.png"), format!("right{k:04}.png"));
-            write_bytes(&dir.join(&ln), l)?;
-            write_bytes(&dir.join(&rn), r)?;
-            let [x, y, z] = centre.unwrap_or([f64::NAN; 3]);
-            csv.push_str(&format!("{ln},{rn},{z},{x},{y}"));
-            for j in joints.0 {
-                csv.push_str(&format!(",{j}"));
-            }
-            csv.push('\n');
+        let names: Vec<[String; 2]> = (0..recorded.len())
+            .map(|k| [format!("left{k:04}.png"), format!("right{k:04}.png")])
+            .collect();
+        let mut rows = Vec::with_capacity(recorded.len());
+        for ((l, r, joints, centre), [ln, rn]) in recorded.iter().zip(&names) {
+            write_bytes(&dir.join(ln), l)?;
+            write_bytes(&dir.join(rn), r)?;
+            rows.push(CaptureRow {
+                left: ln,
+                right: rn,
+                centre: centre.unwrap_or([f64::NAN; 3]),
+                joints: *joints,
+            });
         }
+        let csv = captures_csv(&rows, true);
         write_bytes(&dir.join("CAPTURES.csv"), csv.as_bytes())?;
     }
     let tracked = rows.iter().filter(|r| r.status == "tracking").count();

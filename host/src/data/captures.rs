@@ -11,6 +11,8 @@ use super::csv::{
 };
 use super::dataset::JOINT_COLUMNS;
 use anyhow::{bail, Context, Result};
+use hvs_shared::runtime::gaze::Joints;
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// One stereo pair of a capture set.
@@ -53,6 +55,44 @@ impl CaptureSet {
     pub fn at(&self, c: &Capture) -> String {
         format!("{}:{}", self.path.display(), c.line)
     }
+}
+
+/// One pair to write into a `CAPTURES.csv` ([`captures_csv`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CaptureRow<'a> {
+    /// The left image, relative to the CSV's folder.
+    pub left: &'a str,
+    /// The right image.
+    pub right: &'a str,
+    /// The board centre X, Y, Z (cm).
+    pub centre: [f64; 3],
+    /// The posture the pair was taken at (written when the set has joint columns).
+    pub joints: Joints,
+}
+
+/// `CAPTURES.csv` as [`read`] reads it, one row per pair: `left,right,z,x,y` (the board
+/// centre, cm) and, `with_joints`, the [`JOINT_COLUMNS`] of each pair's posture; numbers in
+/// their shortest round-trip form. The one writer of the format (`hvs render`, `hvs
+/// collect`, `hvs track --record`).
+pub fn captures_csv(rows: &[CaptureRow<'_>], with_joints: bool) -> String {
+    let mut s = String::with_capacity(96 * (rows.len() + 1));
+    s.push_str("left,right,z,x,y");
+    if with_joints {
+        s.push(',');
+        s.push_str(&JOINT_COLUMNS.join(","));
+    }
+    s.push('\n');
+    for r in rows {
+        let [x, y, z] = r.centre;
+        let _ = write!(s, "{},{},{z},{x},{y}", r.left, r.right);
+        if with_joints {
+            for v in r.joints.0 {
+                let _ = write!(s, ",{v}");
+            }
+        }
+        s.push('\n');
+    }
+    s
 }
 
 /// The columns `hvs board detect` writes before the capture's own (`POINTS.csv`): a

@@ -58,13 +58,13 @@ fn collect_keeps_the_postures_that_see_the_board_and_board_detect_reads_them() {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("left,right,x,y,z,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")
+        Some("left,right,z,x,y,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     // Neck pan -30, 0, +30 at each placement (vergence 5 degrees, the middle of its range).
     assert_eq!(rows.len(), 2, "{text}");
     for (r, z) in rows.iter().zip(["45", "47"]) {
-        assert_eq!(r[4], z);
+        assert_eq!(r[2], z);
         assert_eq!(
             &r[5..],
             ["0", "0", "0", "-2.52", "2.52"],

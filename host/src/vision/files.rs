@@ -1,0 +1,165 @@
+//! Image files: grey images in (PNG or JPEG, bounded in size before decoding), PNG bytes out,
+//! and a rendered capture set written as the files `hvs board detect` reads.
+
+use crate::data::captures::{captures_csv, CaptureRow};
+use crate::data::output::write_bytes;
+use anyhow::{anyhow, bail, Context, Result};
+use hvs_shared::runtime::gaze::Joints;
+use hvs_vision::render;
+use image::GrayImage;
+use std::io::Cursor;
+use std::path::Path;
+
+/// Reads an image file (PNG or JPEG, any colour type) as grey levels, through
+/// [`hvs_vision::image_file`]: other formats and images over
+/// [`hvs_vision::image_file::MAX_PIXELS`] are refused before decoding; errors name the file.
+pub fn read_grey(path: &Path) -> Result<GrayImage> {
+    hvs_vision::image_file::read_grey(path).map_err(|e| anyhow!("{e}"))
+}
+
+/// Reads a left and a right image of the same size as grey levels.
+pub fn read_pair(left: &Path, right: &Path) -> Result<(GrayImage, GrayImage)> {
+    let (l, r) = (read_grey(left)?, read_grey(right)?);
+    if l.dimensions() != r.dimensions() {
+        bail!(
+            "{} and {}: the images differ in size ({}x{} and {}x{})",
+            left.display(),
+            right.display(),
+            l.width(),
+            l.height(),
+            r.width(),
+            r.height()
+        );
+    }
+    Ok((l, r))
+}
+
+/// Refuses a left and a right image of different sizes (every command that matches a pair).
+pub fn check_same_size(left: &GrayImage, right: &GrayImage) -> Result<()> {
+    if left.dimensions() != right.dimensions() {
+        bail!(
+            "the images differ in size: left {}x{}, right {}x{}",
+            left.width(),
+            left.height(),
+            right.width(),
+            right.height()
+        );
+    }
+    Ok(())
+}
+
+/// PNG bytes of an image (written with the one atomic writer by the caller).
+pub fn png_bytes<P, C>(img: &image::ImageBuffer<P, C>) -> Result<Vec<u8>>
+where
+    P: image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+    C: std::ops::Deref<Target = [P::Subpixel]>,
+{
+    let mut out = Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png)
+        .map_err(|e| anyhow!("cannot encode a PNG: {e}"))?;
+    Ok(out.into_inner())
+}
+
+/// Writes a rendered capture set into `dir` (created if missing), each file atomically: the
+/// PNG pairs, `captures.csv` ([`captures_csv`], with the joint columns when `joints` is
+/// given), `truth.csv` and `board.json`, which is
+/// what `hvs board detect` reads.
+pub fn write_capture_set(
+    dir: &Path,
+    set: &render::CaptureSet,
+    joints: Option<&Joints>,
+) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+    for c in &set.captures {
+        write_bytes(&dir.join(&c.left_name), &png_bytes(&c.render.left)?)?;
+        write_bytes(&dir.join(&c.right_name), &png_bytes(&c.render.right)?)?;
+    }
+    let rows: Vec<CaptureRow<'_>> = set
+        .captures
+        .iter()
+        .map(|c| CaptureRow {
+            left: &c.left_name,
+            right: &c.right_name,
+            centre: c.centre,
+            joints: joints.copied().unwrap_or(Joints::HOME),
+        })
+        .collect();
+    for (name, text) in [
+        ("captures.csv", captures_csv(&rows, joints.is_some())),
+        ("truth.csv", set.truth_csv()),
+        ("board.json", set.board_json()),
+    ] {
+        write_bytes(&dir.join(name), text.as_bytes())?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hvs_shared::sim::presets;
+    use hvs_vision::board::Board;
+
+    /// Two clean pairs of the OpenCV board at (1, -2, 65 | 85) cm through case I at home.
+    fn two_pairs() -> render::CaptureSet {
+        render::render_capture_set(
+            &hvs_shared::sim::posture::HeadRig::new(presets::CASE_1),
+            &Joints::HOME,
+            &render::opencv_board(),
+            [1.0, -2.0],
+            &[65.0, 85.0],
+            &render::RenderOptions::clean(),
+            0,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn capture_set_files_are_what_board_detect_reads() {
+        let set = two_pairs();
+        let dir = tempfile::tempdir().unwrap();
+        let with_joints = dir.path().join("joints");
+        let j = Joints([1.5, -2.0, 0.0, 3.0, -3.0]);
+        write_capture_set(&with_joints, &set, Some(&j)).unwrap();
+        let with = std::fs::read_to_string(with_joints.join("captures.csv")).unwrap();
+        assert_eq!(
+            with.lines().next(),
+            Some("left,right,z,x,y,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")
+        );
+        assert_eq!(
+            with.lines().nth(1),
+            Some("left01.png,right01.png,65,1,-2,1.5,-2,0,3,-3")
+        );
+
+        let out = dir.path().join("shots");
+        write_capture_set(&out, &set, None).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(out.join("captures.csv")).unwrap(),
+            "left,right,z,x,y\nleft01.png,right01.png,65,1,-2\nleft02.png,right02.png,85,1,-2\n"
+        );
+        let read = crate::data::captures::read(&out.join("captures.csv")).unwrap();
+        assert_eq!(read.captures.len(), 2);
+        assert_eq!(
+            (read.captures[1].z, read.captures[1].xy),
+            (Some(85.0), [1.0, -2.0])
+        );
+        assert_eq!(
+            read_grey(&read.captures[0].left).unwrap(),
+            set.captures[0].render.left
+        );
+        let board = std::fs::read_to_string(out.join("board.json")).unwrap();
+        assert_eq!(Board::from_json(&board).unwrap(), set.board);
+        assert_eq!(
+            std::fs::read_to_string(out.join("truth.csv")).unwrap(),
+            set.truth_csv()
+        );
+        // Writing names the file that failed.
+        let blocked = dir.path().join("file");
+        std::fs::write(&blocked, "").unwrap();
+        let err = write_capture_set(&blocked, &set, None).unwrap_err();
+        let err = format!("{err:#}");
+        assert!(err.contains(&blocked.display().to_string()), "{err}");
+    }
+}

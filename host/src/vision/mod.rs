@@ -1,0 +1,19 @@
+//! Images on the host, around `hvs-vision`, one module per job: image files in and out
+//! ([`files`]), board photos of a capture set into a training set ([`detection`], `hvs board
+//! detect`), and pixels located in a stereo pair through a model ([`locate`], `hvs locate`).
+//! The detection, rendering and matching themselves live in the `hvs-vision` crate; the
+//! capture-set file (`CAPTURES.csv`) is read and written in [`crate::data::captures`].
+
+pub mod detection;
+pub mod files;
+pub mod locate;
+
+pub use detection::{
+    detect_set, detect_set_with_images, found_corners, points_csv, Detection, FoundCorner,
+    GroupFit, PairImages, PairOutcome, MAX_HELD_OUT_EPIPOLAR_PX,
+};
+pub use files::{check_same_size, png_bytes, read_grey, read_pair, write_capture_set};
+pub use locate::{
+    check_image_size, load_stereo_model, locate, locate_files, locate_overlay, locate_with,
+    model_xyz, Located, DISPARITY_SLACK,
+};
