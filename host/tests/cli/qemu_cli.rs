@@ -9,7 +9,7 @@
 //! `cargo test -p hvs-host --test cli qemu_cli -- --ignored`. When run, a missing QEMU or ELF is a
 //! failure with the command that fixes it, never a skip.
 
-use crate::common::{detect_args, locate_args, ok as run, s, train_restarts};
+use crate::common::{detect_args, locate_args, ok as run, render_case1, s, train_restarts};
 use hvs_host::device::qemu::{find_firmware, free_port, FIRMWARE_BUILD};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -227,7 +227,7 @@ fn head_looks_at_a_point_found_in_the_images() {
     let dir = TempDir::new().unwrap();
     let d = dir.path();
     let (shots, test, model) = (d.join("shots"), d.join("test"), d.join("m.hvsw"));
-    run(&["render", "--case", "1", "-o", s(&shots), "--seed", "4"]);
+    render_case1(&shots, "4", &[]);
     let points = d.join("points.csv");
     run(&detect_args(
         &shots.join("board.json"),
@@ -235,19 +235,7 @@ fn head_looks_at_a_point_found_in_the_images() {
         &points,
     ));
     train_restarts(&points, &model, "2");
-    run(&[
-        "render",
-        "--case",
-        "1",
-        "-o",
-        s(&test),
-        "--seed",
-        "5",
-        "--depths",
-        "110",
-        "--centre",
-        "2,1",
-    ]);
+    render_case1(&test, "5", &["--depths", "110", "--centre", "2,1"]);
     // A board corner of the test pair: textured, unique along its epipolar line.
     let truth = std::fs::read_to_string(test.join("truth.csv")).unwrap();
     let row: Vec<&str> = truth.lines().nth(20).unwrap().split(',').collect();
@@ -275,4 +263,25 @@ fn head_looks_at_a_point_found_in_the_images() {
     // The point is about where the board was.
     let z: f32 = got[2].parse().unwrap();
     assert!((z - 110.0).abs() < 2.0, "z = {z}");
+    // Another model (another seed) than the one the head runs: refused, nothing asked.
+    let other = d.join("other.hvsw");
+    run(&[
+        "train",
+        "--data",
+        s(&points),
+        "-o",
+        s(&other),
+        "--restarts",
+        "1",
+        "--seed",
+        "9",
+    ]);
+    let out = hvs()
+        .args(["head", "--connect", &connect])
+        .args(locate_args(&["look"], &other, &l, &r, &["--at", &at]))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{e}");
+    assert!(e.contains("is not the model the head runs"), "{e}");
 }
