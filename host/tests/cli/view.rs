@@ -31,17 +31,7 @@ fn fixture() -> &'static Fixture {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         let shots = d.join("shots");
-        ok(&[
-            "render",
-            "--case",
-            "1",
-            "-o",
-            s(&shots),
-            "--seed",
-            "6",
-            "--depths",
-            "65,115,165",
-        ]);
+        crate::common::render_case1(&shots, "6", &["--depths", "65,115,165"]);
         let points = d.join("points.csv");
         ok(&crate::common::detect_args(
             &shots.join("board.json"),
@@ -51,19 +41,7 @@ fn fixture() -> &'static Fixture {
         let model = d.join("m.hvsw");
         crate::common::train_restarts(&points, &model, "2");
         let test = d.join("test");
-        ok(&[
-            "render",
-            "--case",
-            "1",
-            "-o",
-            s(&test),
-            "--seed",
-            "7",
-            "--depths",
-            "95",
-            "--centre",
-            "-3,2",
-        ]);
+        crate::common::render_case1(&test, "7", &["--depths", "95", "--centre", "-3,2"]);
         let truth = std::fs::read_to_string(test.join("truth.csv")).unwrap();
         let corners = truth
             .lines()
@@ -323,52 +301,24 @@ fn view_refuses_bad_requests_and_stays_up() {
         r#"{{"pair":0,"u":1,"v":1,"pad":"{}"}}"#,
         "x".repeat(200_000)
     );
-    let bad: Vec<(&str, &str, Option<&str>, u16)> = vec![
-        ("POST", "/api/locate", Some("{not json"), 400),
-        (
-            "POST",
-            "/api/locate",
-            Some(r#"{"pair":0,"u":"a","v":1}"#),
-            422,
-        ),
-        ("POST", "/api/locate", Some(r#"{"pair":0,"u":1}"#), 422),
-        (
-            "POST",
-            "/api/locate",
-            Some(r#"{"pair":0,"u":1,"v":2,"w":3}"#),
-            422,
-        ),
-        (
-            "POST",
-            "/api/locate",
-            Some(r#"{"pair":-1,"u":1,"v":2}"#),
-            422,
-        ),
-        (
-            "POST",
-            "/api/locate",
-            Some(r#"{"pair":0,"u":1e999,"v":2}"#),
-            400,
-        ),
-        (
-            "POST",
-            "/api/locate",
-            Some(r#"{"pair":0,"u":-5,"v":2}"#),
-            400,
-        ),
-        (
-            "POST",
-            "/api/locate",
-            Some(r#"{"pair":0,"u":100000,"v":2}"#),
-            400,
-        ),
-        (
-            "POST",
-            "/api/locate",
-            Some(r#"{"pair":3,"u":1,"v":2}"#),
-            400,
-        ),
-        ("POST", "/api/locate", Some(&big), 413),
+    // Bodies of `POST /api/locate`: malformed JSON (400), wrong fields (422), bad values (400).
+    let locates: [(&str, u16); 9] = [
+        ("{not json", 400),
+        (r#"{"pair":0,"u":"a","v":1}"#, 422),
+        (r#"{"pair":0,"u":1}"#, 422),
+        (r#"{"pair":0,"u":1,"v":2,"w":3}"#, 422),
+        (r#"{"pair":-1,"u":1,"v":2}"#, 422),
+        (r#"{"pair":0,"u":1e999,"v":2}"#, 400),
+        (r#"{"pair":0,"u":-5,"v":2}"#, 400),
+        (r#"{"pair":0,"u":100000,"v":2}"#, 400),
+        (r#"{"pair":3,"u":1,"v":2}"#, 400),
+    ];
+    let mut bad: Vec<(&str, &str, Option<&str>, u16)> = locates
+        .iter()
+        .map(|&(body, code)| ("POST", "/api/locate", Some(body), code))
+        .collect();
+    bad.extend([
+        ("POST", "/api/locate", Some(big.as_str()), 413),
         ("GET", "/api/locate", None, 405),
         ("POST", "/api/retrain", Some(r#"{"use":[true]}"#), 400),
         ("GET", "/api/captures", None, 404),
@@ -379,7 +329,7 @@ fn view_refuses_bad_requests_and_stays_up() {
         ("GET", "/../../Cargo.toml", None, 404),
         ("GET", "/etc/passwd", None, 404),
         ("GET", "/app.js/../../Cargo.toml", None, 404),
-    ];
+    ]);
     for (method, path, body, want) in bad {
         let (st, b) = http(&sv.addr, method, path, body.map(str::as_bytes));
         let text = String::from_utf8_lossy(&b);

@@ -74,6 +74,13 @@ pub fn detect_args<'a>(board: &'a Path, captures: &'a Path, out: &'a Path) -> Ve
     ]
 }
 
+/// Runs `hvs render --case 1 -o out --seed seed` and `rest`, asserting success.
+pub fn render_case1(out: &Path, seed: &str, rest: &[&str]) {
+    let mut args = vec!["render", "--case", "1", "-o", s(out), "--seed", seed];
+    args.extend_from_slice(rest);
+    ok(&args);
+}
+
 /// Runs `hvs train --data data -o model --restarts restarts`, asserting success.
 pub fn train_restarts(data: &Path, model: &Path, restarts: &str) {
     ok(&[
