@@ -43,6 +43,13 @@ impl Depth {
     pub fn returned(&self) -> usize {
         self.xyz.iter().filter(|p| p[2].is_finite()).count()
     }
+
+    /// The colour-mapped depth image with its legend in cm over the model's depth box
+    /// ([`hvs_vision::pfm::colour_depth`]): `hvs depth --colour` and `hvs view`'s overlay.
+    pub fn colour(&self) -> image::RgbImage {
+        let z: Vec<f32> = self.xyz.iter().map(|p| p[2]).collect();
+        hvs_vision::pfm::colour_depth(self.matches.width, self.matches.height, &z, self.z_box)
+    }
 }
 
 /// The model's matcher geometry, or the error every image command gives without it.

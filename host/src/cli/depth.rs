@@ -7,7 +7,7 @@ use crate::data::output::write_bytes;
 use crate::depth::{depth_files, Depth};
 use crate::vision::png_bytes;
 use anyhow::Result;
-use hvs_vision::pfm::{colour_depth, pfm_bytes, ply_bytes, FloatImage};
+use hvs_vision::pfm::{pfm_bytes, ply_bytes, FloatImage};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `hvs depth`.
@@ -81,8 +81,7 @@ pub fn run(a: Args) -> Result<()> {
         files.push((p, pfm_bytes(&image(&d, 3, data))));
     }
     if let Some(p) = &a.colour {
-        let img = colour_depth(d.matches.width, d.matches.height, &z, d.z_box);
-        files.push((p, png_bytes(&img)?));
+        files.push((p, png_bytes(&d.colour())?));
     }
     if let Some(p) = &a.ply {
         let (pts, grey): (Vec<[f32; 3]>, Vec<u8>) = d

@@ -13,7 +13,8 @@ use std::path::PathBuf;
     about = "Serve a local page showing a stereo pair or a capture set and the model",
     long_about = "Serve a local page (HTML, JavaScript and CSS inside the binary) that shows a \
     stereo pair (--left/--right: click a left pixel to see its match, X, Y, Z, status and \
-    score, the numbers of `hvs locate --at`) or a capture set (--board/--captures: every pair \
+    score, the numbers of `hvs locate --at`; tick \"depth\" for the pair's dense depth, `hvs \
+    depth --colour`) or a capture set (--board/--captures: every pair \
     with its detected corners, homography and epipolar residuals; untick pairs and retrain as \
     `hvs train` does), and the model (what `hvs info` prints). It listens on 127.0.0.1 unless \
     --listen names another address, and then every request needs the token in the printed URL. \

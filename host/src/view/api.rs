@@ -2,7 +2,7 @@
 //! are refused) and the answers, built from the session's values with the CLI's own
 //! formatting (`hvs locate --at`'s digits, `hvs info`'s and `hvs train`'s text).
 
-use super::session::{Retrained, Session};
+use super::session::{DepthView, Retrained, Session};
 use crate::vision::{Located, PairOutcome};
 use serde::Deserialize;
 use serde_json::{json, Value};
@@ -83,6 +83,20 @@ pub fn located(pair: usize, l: &Located, ms: f64) -> Value {
         "right": l.right,
         "line": l.line(),
         "ms": ms,
+    })
+}
+
+/// `GET /api/depth/{pair}`: what the depth map of a pair holds (its image is
+/// `/api/depth/{pair}/image`).
+pub fn depth(pair: usize, d: &DepthView) -> Value {
+    json!({
+        "pair": pair,
+        "returned": d.returned,
+        "pixels": d.pixels,
+        "z_box_cm": d.z_box,
+        "disparity_px": d.d_range,
+        "warnings": d.warnings,
+        "ms": d.ms,
     })
 }
 

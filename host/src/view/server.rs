@@ -7,7 +7,7 @@
 use super::api::{self, LocateRequest, RetrainRequest};
 use super::assets;
 use super::frames::View;
-use super::session::{Refused, Session};
+use super::session::{DepthView, Refused, Session};
 use anyhow::{Context, Result};
 use axum::body::Body;
 use axum::extract::{DefaultBodyLimit, Path, Request, State};
@@ -128,6 +128,8 @@ fn router(app: Shared) -> Router {
         .route("/api/session", get(session))
         .route("/api/frame/{pair}/{view}", get(frame))
         .route("/api/locate", post(locate))
+        .route("/api/depth/{pair}", get(depth))
+        .route("/api/depth/{pair}/image", get(depth_image))
         .route("/api/captures", get(captures))
         .route("/api/retrain", post(retrain))
         .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
@@ -214,6 +216,31 @@ async fn locate(
         .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))??;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     Ok(Json(api::located(q.pair, &found, ms)).into_response())
+}
+
+/// The depth map of a pair, computed on a blocking thread the first time.
+async fn depth_of(app: &Shared, pair: usize) -> Result<Arc<DepthView>, ApiError> {
+    let a = app.clone();
+    Ok(tokio::task::spawn_blocking(move || a.session.depth(pair))
+        .await
+        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))??)
+}
+
+async fn depth(State(app): State<Shared>, Path(pair): Path<usize>) -> Result<Response, ApiError> {
+    let d = depth_of(&app, pair).await?;
+    Ok(Json(api::depth(pair, &d)).into_response())
+}
+
+async fn depth_image(
+    State(app): State<Shared>,
+    Path(pair): Path<usize>,
+) -> Result<Response, ApiError> {
+    let d = depth_of(&app, pair).await?;
+    let mut r = Response::new(Body::from((*d.png).clone()));
+    let h = r.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static("image/png"));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    Ok(r)
 }
 
 async fn captures(State(app): State<Shared>) -> Result<Response, ApiError> {

@@ -2,7 +2,8 @@
 //! ([`super::frames`]) and, for a capture set, its detection; and the two actions the page
 //! asks for, each a call of the function the CLI uses: [`Session::locate`] is
 //! `hvs locate --at` ([`crate::vision::locate_with`]), [`Session::retrain`] is
-//! `hvs board detect` + `hvs train` on the ticked pairs ([`crate::train::model::train_model`]).
+//! `hvs board detect` + `hvs train` on the ticked pairs ([`crate::train::model::train_model`]);
+//! [`Session::depth`], the dense depth of a pair, is `hvs depth --colour` ([`crate::depth`]).
 
 use super::frames::{PairStore, StillFrames, StillPair};
 use crate::data::captures::{self, CaptureSet};
@@ -14,7 +15,8 @@ use crate::vision::{self, Detection, Located, PairOutcome};
 use anyhow::{anyhow, Result};
 use hvs_vision::board::Board;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
+use std::time::Instant;
 
 /// What to show.
 #[derive(Debug, Clone)]
@@ -81,6 +83,27 @@ pub struct Session {
     pub captures: Option<CaptureData>,
     /// How a retrain trains.
     pub retrain: RetrainOptions,
+    /// Each pair's depth map, computed when first asked for.
+    depth: Vec<OnceLock<Result<Arc<DepthView>, Refused>>>,
+}
+
+/// A pair's dense depth as the page shows it.
+#[derive(Debug, Clone)]
+pub struct DepthView {
+    /// The colour-mapped depth image with its legend (PNG; `hvs depth --colour`).
+    pub png: Arc<Vec<u8>>,
+    /// Left pixels with a depth.
+    pub returned: usize,
+    /// Left pixels.
+    pub pixels: usize,
+    /// The model's training depths (cm): the colour scale's ends.
+    pub z_box: [f32; 2],
+    /// The disparities searched (px).
+    pub d_range: [i32; 2],
+    /// What `hvs depth` warns about (a blank or saturated image, matches without estimate).
+    pub warnings: Vec<String>,
+    /// Time it took (ms).
+    pub ms: f64,
 }
 
 /// What a retrain gave.
@@ -162,7 +185,9 @@ impl Session {
                 )
             }
         };
+        let depth = (0..pairs.len()).map(|_| OnceLock::new()).collect();
         Ok(Session {
+            depth,
             model_path: model_path.to_path_buf(),
             model,
             info,
@@ -199,6 +224,44 @@ impl Session {
             .into_iter()
             .next()
             .ok_or_else(|| Refused::Unprocessable("no result".into()))
+    }
+
+    /// `hvs depth --colour` on pair `pair` ([`crate::depth::depth`] with its default
+    /// parameters): computed once per pair, then kept.
+    pub fn depth(&self, pair: usize) -> Result<Arc<DepthView>, Refused> {
+        if let Some(why) = &self.locate_refused {
+            return Err(Refused::Unprocessable(why.clone()));
+        }
+        let cell = self
+            .depth
+            .get(pair)
+            .ok_or_else(|| Refused::Bad(format!("pair {pair}: no such pair")))?;
+        cell.get_or_init(|| {
+            let (l, r) = self
+                .frames
+                .grey(pair)
+                .ok_or_else(|| Refused::Bad(format!("pair {pair}: its images are unreadable")))?;
+            let t0 = Instant::now();
+            let d = crate::depth::depth(
+                &self.model.blob,
+                &l,
+                &r,
+                &hvs_vision::dense::DenseParams::default(),
+            )
+            .map_err(|e| Refused::Unprocessable(format!("{}: {e:#}", self.model_path.display())))?;
+            let png = crate::vision::png_bytes(&d.colour())
+                .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
+            Ok(Arc::new(DepthView {
+                png: Arc::new(png),
+                returned: d.returned(),
+                pixels: d.xyz.len(),
+                z_box: d.z_box,
+                d_range: d.d_range,
+                warnings: d.warnings,
+                ms: t0.elapsed().as_secs_f64() * 1e3,
+            }))
+        })
+        .clone()
     }
 
     /// `hvs board detect` + `hvs train` (its defaults, [`RetrainOptions`]) on the pairs of the

@@ -293,6 +293,51 @@ fn view_answers_a_click_with_the_numbers_of_locate_at() {
     assert!(oks >= 4, "{oks} board corners located");
 }
 
+/// The depth overlay is `hvs depth --colour` of the pair, pixel for pixel, with its counts;
+/// a pair that does not exist is refused.
+#[test]
+fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
+    let f = fixture();
+    let sv = start_pair();
+    let d = json(&sv.addr, "GET", "/api/depth/0", None, 200);
+    let (w, h) = image::image_dimensions(&f.left).unwrap();
+    assert_eq!(d["pixels"].as_u64(), Some(u64::from(w * h)), "{d}");
+    // The board is the textured part of the rendered pair: a few percent of the pixels.
+    let returned = d["returned"].as_u64().unwrap();
+    assert!(returned > 5000, "{d}");
+    let (st, png) = http(&sv.addr, "GET", "/api/depth/0/image", None);
+    assert_eq!(st, 200);
+    let shown = image::load_from_memory(&png).unwrap().to_rgb8();
+    let dir = tempfile::tempdir().unwrap();
+    let (pfm, colour) = (dir.path().join("d.pfm"), dir.path().join("d.png"));
+    let out = crate::common::hvs()
+        .args(crate::common::locate_args(
+            &["depth"],
+            &f.model,
+            &f.left,
+            &f.right,
+            &["-o", s(&pfm), "--colour", s(&colour)],
+        ))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{said}");
+    assert!(
+        said.contains(&format!("{returned} of {} pixels", w * h)),
+        "{said}"
+    );
+    assert_eq!(shown, image::open(&colour).unwrap().to_rgb8());
+    // Asked again: the same map, kept.
+    assert_eq!(
+        json(&sv.addr, "GET", "/api/depth/0", None, 200)["returned"],
+        returned
+    );
+    for path in ["/api/depth/1", "/api/depth/1/image"] {
+        assert_eq!(http(&sv.addr, "GET", path, None).0, 400, "{path}");
+    }
+    assert_eq!(http(&sv.addr, "GET", "/api/depth/x", None).0, 400);
+}
+
 /// Every request in `bad` gets its 4xx; the server answers normally after each.
 #[test]
 fn view_refuses_bad_requests_and_stays_up() {
@@ -840,6 +885,18 @@ fn browser_click_and_retrain_in_chromium() {
         }
         assert!(oks >= 2, "{oks} of 3 corners located");
         shot(&c, "pair-click.png").await;
+        // The depth overlay: every pixel matched, the map shown with its counts.
+        c.find(fantoccini::Locator::Id("show-depth"))
+            .await
+            .unwrap()
+            .click()
+            .await
+            .unwrap();
+        wait_js(&c, "document.getElementById('depth').dataset.loaded").await;
+        let status = text(&c, "depth-status").await;
+        assert!(status.contains("pixels with a depth"), "{status}");
+        eprintln!("depth: {status}");
+        shot(&c, "pair-depth.png").await;
         drop(sv);
         // A capture set: untick a pair, retrain, the summary changes.
         let sv = start(&[

@@ -54,12 +54,36 @@ function place(mark, img, u, v) {
   mark.hidden = false;
 }
 
+// The dense depth of the pair (`hvs depth --colour`), computed by the server when first asked.
+async function loadDepth() {
+  const fig = $('depth-figure');
+  fig.hidden = !$('show-depth').checked;
+  if (fig.hidden) return;
+  const asked = pair;
+  $('depth-status').textContent = 'matching every pixel…';
+  delete $('depth').dataset.loaded;
+  try {
+    const d = await getJson(`/api/depth/${asked}`);
+    if (asked !== pair) return;
+    const pct = 100 * d.returned / d.pixels;
+    $('depth-status').textContent = `${d.returned} of ${d.pixels} pixels with a depth (${pct.toFixed(1)} %), ` +
+      `${d.z_box_cm[0].toFixed(0)}-${d.z_box_cm[1].toFixed(0)} cm, disparities ${d.disparity_px[0]}..${d.disparity_px[1]} px, ` +
+      `${(d.ms / 1000).toFixed(2)} s` + (d.warnings.length ? '; ' + d.warnings.join('; ') : '');
+    $('depth').onload = () => { $('depth').dataset.loaded = 'yes'; };
+    $('depth').src = q(`/api/depth/${asked}/image`);
+  } catch (err) {
+    $('depth-status').textContent = 'no depth: ' + err.message;
+  }
+}
+
 async function click(e) {
-  const img = $('left');
+  const img = e.currentTarget;
+  const left = $('left');
   const u = Math.floor(e.offsetX * img.naturalWidth / img.clientWidth);
-  const v = Math.floor(e.offsetY * img.naturalHeight / img.clientHeight);
+  const v = Math.floor(e.offsetY * img.naturalWidth / img.clientWidth);
+  if (v >= left.naturalHeight) return; // the depth image's legend
   $('at').textContent = `${u},${v}`;
-  place($('mark-left'), img, u, v);
+  place($('mark-left'), left, u, v);
   $('mark-right').hidden = true;
   $('locate-note').textContent = '';
   for (const id of ['status', 'score', 'u_r', 'v_r', 'x', 'y', 'z', 'ms']) $(id).textContent = '…';
@@ -139,6 +163,7 @@ function choosePair() {
   $('mark-left').hidden = true;
   $('mark-right').hidden = true;
   loadFrames();
+  loadDepth();
 }
 
 async function start() {
@@ -153,6 +178,8 @@ async function start() {
   }
   if (session.locate_refused) $('locate-note').textContent = session.locate_refused;
   $('left').addEventListener('click', click);
+  $('depth').addEventListener('click', click);
+  $('show-depth').addEventListener('change', loadDepth);
   $('pair').addEventListener('change', choosePair);
   $('show-corners').addEventListener('change', loadFrames);
   $('retrain').addEventListener('click', retrain);
