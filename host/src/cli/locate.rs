@@ -1,5 +1,5 @@
 //! `hvs locate`: points of the left image found in the right one and turned into X, Y, Z by the
-//! model, with nothing but the model and the two images ([`crate::vision::locate`]).
+//! model, with nothing but the model and the two images ([`crate::vision::locate()`]).
 
 use super::StereoArgs;
 use crate::data::csv::{

@@ -1,6 +1,6 @@
 //! Images on the host, around `hvs-vision`, one module per job: image files in and out
 //! ([`files`]), board photos of a capture set into a training set ([`detection`], `hvs board
-//! detect`), and pixels located in a stereo pair through a model ([`locate`], `hvs locate`).
+//! detect`), and pixels located in a stereo pair through a model ([`mod@locate`], `hvs locate`).
 //! The detection, rendering and matching themselves live in the `hvs-vision` crate; the
 //! capture-set file (`CAPTURES.csv`) is read and written in [`crate::data::captures`].
 
