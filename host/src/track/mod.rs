@@ -116,6 +116,73 @@ fn true_error(frame: &Frame, found: &target::Found, centre: [f64; 2]) -> Option<
     Some([e(0)?, e(1)?])
 }
 
+/// The loop, frame by frame: the target finder and the fixation step's state. [`run`] drives
+/// it on simulated time; `hvs view --scene` on the wall clock.
+pub struct Tracker {
+    finder: Finder,
+    state: LoopState,
+    loop_cfg: LoopConfig,
+    frame: u64,
+}
+
+impl Tracker {
+    /// A loop following `target` with the step's settings `loop_cfg`.
+    pub fn new(target: TargetMode, loop_cfg: LoopConfig) -> Tracker {
+        Tracker {
+            finder: Finder::new(target),
+            state: LoopState::default(),
+            loop_cfg,
+            frame: 0,
+        }
+    }
+
+    /// One frame at time `t_s`: the servos run up to `t_s`, the pair is grabbed at their
+    /// posture, the target found, [`fixation::step`] gives the joint targets and the servos
+    /// are commanded there. Returns the frame and its log row.
+    pub fn frame(
+        &mut self,
+        source: &mut dyn FrameSource,
+        head: &mut VirtualHead,
+        estimator: &Estimator,
+        t_s: f64,
+    ) -> Result<(Frame, LogRow)> {
+        head.advance_to(t_s);
+        let joints = head.joints();
+        let frame = source.grab(t_s, &joints)?;
+        let found = self
+            .finder
+            .find(&frame.left, &frame.right, &joints, estimator);
+        let obs = Observation {
+            target: found.as_ref().map(|f| StereoPoint {
+                u_l: f.px[0] as f32,
+                v_l: f.px[1] as f32,
+                u_r: f.px[2] as f32,
+                v_r: f.px[3] as f32,
+            }),
+            joints,
+        };
+        let (next, cmd) = fixation::step(&self.loop_cfg, estimator, &self.state, &obs);
+        self.state = next;
+        head.command(&cmd.joints);
+        let centre = self.loop_cfg.centre_px.map(f64::from);
+        let row = LogRow {
+            t_s,
+            frame: self.frame,
+            status: match cmd.status {
+                LoopStatus::Tracking => "tracking",
+                LoopStatus::ImageOnly => "image_only",
+                LoopStatus::Lost => "lost",
+            },
+            px: found.as_ref().map(|f| f.px),
+            xyz: cmd.estimate,
+            joints,
+            err_px: found.as_ref().and_then(|f| true_error(&frame, f, centre)),
+        };
+        self.frame += 1;
+        Ok((frame, row))
+    }
+}
+
 /// Runs the loop for `cfg.seconds` (or until `stop` is set): the rows of the log. Frame
 /// errors end the run with the error (the rows so far are lost only to the caller that
 /// drops them: `on_row` sees each row as it is made).
@@ -128,44 +195,13 @@ pub fn run(
     mut on_row: impl FnMut(&Frame, &LogRow) -> Result<()>,
 ) -> Result<Vec<LogRow>> {
     let frames = (cfg.seconds * cfg.fps).floor() as u64;
-    let mut finder = Finder::new(cfg.target);
-    let mut state = LoopState::default();
+    let mut tracker = Tracker::new(cfg.target, cfg.loop_cfg);
     let mut rows = Vec::with_capacity(frames as usize);
     for k in 0..frames {
         if stop.load(Ordering::Relaxed) {
             break;
         }
-        let t = k as f64 / cfg.fps;
-        head.advance_to(t);
-        let joints = head.joints();
-        let frame = source.grab(t, &joints)?;
-        let found = finder.find(&frame.left, &frame.right, &joints, estimator);
-        let obs = Observation {
-            target: found.as_ref().map(|f| StereoPoint {
-                u_l: f.px[0] as f32,
-                v_l: f.px[1] as f32,
-                u_r: f.px[2] as f32,
-                v_r: f.px[3] as f32,
-            }),
-            joints,
-        };
-        let (next, cmd) = fixation::step(&cfg.loop_cfg, estimator, &state, &obs);
-        state = next;
-        head.command(&cmd.joints);
-        let centre = cfg.loop_cfg.centre_px.map(f64::from);
-        let row = LogRow {
-            t_s: t,
-            frame: k,
-            status: match cmd.status {
-                LoopStatus::Tracking => "tracking",
-                LoopStatus::ImageOnly => "image_only",
-                LoopStatus::Lost => "lost",
-            },
-            px: found.as_ref().map(|f| f.px),
-            xyz: cmd.estimate,
-            joints,
-            err_px: found.as_ref().and_then(|f| true_error(&frame, f, centre)),
-        };
+        let (frame, row) = tracker.frame(source, head, estimator, k as f64 / cfg.fps)?;
         on_row(&frame, &row)?;
         rows.push(row);
     }
