@@ -1,34 +1,10 @@
 //! `hvs track` driven from outside: the log's columns and rows, the same log bytes for the
 //! same scene and seed, `--record`, and the refusals (bad scene field, bad flags, qemu).
 
-use crate::common::{fails, ok, stderr_with_code, Scratch};
+use crate::common::{
+    fails, ok, small_model as model, small_scene as scene, stderr_with_code, Scratch,
+};
 use std::fs;
-
-/// A quarter-size case I rig (160 x 120), so the test renders and matches quickly.
-const RIG: &str = r#"{"phi_u_left": 71.459, "phi_u_right": 71.459, "alpha_left": 0, "alpha_right": 0,
-  "beta0": 0, "phi0": 0, "u0": 80, "v0": 60, "width": 160, "height": 120}"#;
-
-fn scene(dir: &Scratch, extra: &str) -> String {
-    let text = format!(
-        r#"{{ "rig": {RIG}, "camera_fps": 30 {extra},
-  "background": {{"z_cm": 300, "texture_seed": 1}},
-  "objects": [ {{"shape": "sphere", "radius_cm": 8, "centre_cm": [10, -5, 90],
-                "velocity_cm_s": [5, 0, 0], "texture_seed": 2}} ] }}"#
-    );
-    let p = dir.p("scene.json");
-    fs::write(&p, text).unwrap();
-    p
-}
-
-/// A stereo model of the small rig (the thesis board protocol through it).
-fn model(dir: &Scratch) -> String {
-    let rig = dir.p("rig.json");
-    fs::write(&rig, RIG).unwrap();
-    let (data, m) = (dir.p("train.csv"), dir.p("m.hvsw"));
-    ok(&["simulate", "--rig", &rig, "--set", "train", "-o", &data]);
-    ok(&["train", "--data", &data, "-o", &m, "--restarts", "1"]);
-    m
-}
 
 #[test]
 fn track_logs_every_frame_and_repeats_its_bytes() {

@@ -232,3 +232,31 @@ pub fn plot_svg(dir: &Path, stem: &str) -> String {
     );
     svg
 }
+
+/// A quarter-size case I rig (160 x 120), so the test renders and matches quickly.
+pub const SMALL_RIG: &str = r#"{"phi_u_left": 71.459, "phi_u_right": 71.459, "alpha_left": 0, "alpha_right": 0,
+  "beta0": 0, "phi0": 0, "u0": 80, "v0": 60, "width": 160, "height": 120}"#;
+
+/// A scene of the small rig: a textured sphere moving at 5 cm/s before a wall at 300 cm
+/// (`extra`: more top-level fields).
+pub fn small_scene(dir: &Scratch, extra: &str) -> String {
+    let text = format!(
+        r#"{{ "rig": {SMALL_RIG}, "camera_fps": 30 {extra},
+  "background": {{"z_cm": 300, "texture_seed": 1}},
+  "objects": [ {{"shape": "sphere", "radius_cm": 8, "centre_cm": [10, -5, 90],
+                "velocity_cm_s": [5, 0, 0], "texture_seed": 2}} ] }}"#
+    );
+    let p = dir.p("scene.json");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A stereo model of the small rig (the thesis board protocol through it).
+pub fn small_model(dir: &Scratch) -> String {
+    let rig = dir.p("rig.json");
+    std::fs::write(&rig, SMALL_RIG).unwrap();
+    let (data, m) = (dir.p("train.csv"), dir.p("m.hvsw"));
+    ok(&["simulate", "--rig", &rig, "--set", "train", "-o", &data]);
+    ok(&["train", "--data", &data, "-o", &m, "--restarts", "1"]);
+    m
+}
