@@ -349,6 +349,15 @@ pub fn exit_code(e: &anyhow::Error) -> i32 {
     }
 }
 
+/// Where the loop's logic runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum HeadKind {
+    /// The `shared::runtime` logic on the host.
+    Emulate,
+    /// The firmware in QEMU (not yet).
+    Qemu,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

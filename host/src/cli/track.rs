@@ -7,17 +7,7 @@ use crate::track::{self, frames::VirtualCameras, head_sim::VirtualHead, target::
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::trajectory::ControllerConfig;
 use hvs_shared::sim::posture::HeadRig;
-use hvs_vision::render::RenderOptions;
 use std::path::PathBuf;
-
-/// Where the loop's logic runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum HeadKind {
-    /// The `shared::runtime` logic on the host.
-    Emulate,
-    /// The firmware in QEMU (not yet).
-    Qemu,
-}
 
 /// Arguments of `hvs track`.
 #[derive(Debug, clap::Args)]
@@ -36,7 +26,7 @@ pub struct Args {
     pub log: PathBuf,
     /// Where the loop runs.
     #[arg(long, value_enum, default_value = "emulate")]
-    pub head: HeadKind,
+    pub head: super::HeadKind,
     /// `nearest` (the nearest object in the front region) or `U,V` (the object under this left
     /// pixel at the start, then followed).
     #[arg(long, value_name = "nearest|U,V", default_value = "nearest")]
@@ -46,7 +36,7 @@ pub struct Args {
     pub record: Option<PathBuf>,
     /// Share of the kinematics' measured miss taken into the correction per frame (0 = the
     /// kinematics alone, no image correction).
-    #[arg(long, value_name = "G", default_value_t = 0.5)]
+    #[arg(long, value_name = "G", default_value_t = track::DEFAULT_CORRECTION_GAIN)]
     pub correction_gain: f32,
     /// Seed of the cameras' sensor noise (same seed, same log bytes).
     #[arg(long, value_name = "S", default_value_t = 0)]
@@ -76,7 +66,7 @@ fn parse_target(s: &str) -> Result<TargetMode> {
 
 /// `hvs track`.
 pub fn run(a: Args) -> Result<()> {
-    if a.head == HeadKind::Qemu {
+    if a.head == super::HeadKind::Qemu {
         bail!("--head qemu: not yet (the protocol has no posture command yet); use --head emulate");
     }
     if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
@@ -119,10 +109,7 @@ pub fn run(a: Args) -> Result<()> {
         target,
         loop_cfg: track::loop_config(&loaded.rig, a.correction_gain),
     };
-    let opt = RenderOptions {
-        supersample: 4,
-        ..RenderOptions::default()
-    };
+    let opt = track::frames::loop_render_options();
     let mut cameras = VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, opt, a.seed);
     let mut head = VirtualHead::new(&ControllerConfig::DEFAULT)?;
     let stop = track::stop_on_interrupt();

@@ -52,6 +52,15 @@ impl VirtualCameras {
     }
 }
 
+/// The virtual cameras' image options of the loop (`hvs track`, `hvs view --scene`): the
+/// renderer's blur and noise, 4x4 supersampling.
+pub fn loop_render_options() -> RenderOptions {
+    RenderOptions {
+        supersample: 4,
+        ..RenderOptions::default()
+    }
+}
+
 /// splitmix64: one seed per frame from the run's seed.
 pub(crate) fn mix(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);

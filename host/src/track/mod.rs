@@ -221,6 +221,10 @@ pub fn estimator_of(blob: hvs_shared::runtime::blob::ModelBlob) -> Result<Estima
         })
 }
 
+/// Share of the kinematics' measured miss the image correction takes per frame, by default
+/// (`hvs track --correction-gain`, `hvs view --scene`).
+pub const DEFAULT_CORRECTION_GAIN: f32 = 0.5;
+
 /// The loop's settings for a rig's nominal cameras (image centre and focal lengths: what the
 /// image correction converts pixels to angles with) and the gain (0 = the kinematics alone).
 pub fn loop_config(rig: &hvs_shared::sim::camera::Rig, gain: f32) -> LoopConfig {

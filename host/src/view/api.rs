@@ -2,6 +2,7 @@
 //! are refused) and the answers, built from the session's values with the CLI's own
 //! formatting (`hvs locate --at`'s digits, `hvs info`'s and `hvs train`'s text).
 
+use super::live::{Goal, HeadState};
 use super::session::{DepthView, Retrained, Session};
 use crate::vision::{Located, PairOutcome};
 use serde::Deserialize;
@@ -17,6 +18,37 @@ pub struct LocateRequest {
     pub u: f64,
     /// Row (px).
     pub v: f64,
+}
+
+/// `POST /api/look`: what the live head is to look at: `{"target": "pixel", "u": U, "v": V}`
+/// (the object under this left pixel, then followed), `{"target": "nearest"}` or
+/// `{"target": "home"}`.
+#[derive(Debug, Deserialize)]
+#[serde(tag = "target", rename_all = "lowercase", deny_unknown_fields)]
+pub enum LookRequest {
+    /// The object under a left pixel.
+    Pixel {
+        /// Column (px).
+        u: f64,
+        /// Row (px).
+        v: f64,
+    },
+    /// The nearest object in the front region (a struct variant, so that an unknown field is
+    /// refused: serde lets unit variants of a tagged enum through with any).
+    Nearest {},
+    /// Home, and hold.
+    Home {},
+}
+
+impl LookRequest {
+    /// The head's goal.
+    pub fn goal(&self) -> Goal {
+        match *self {
+            LookRequest::Pixel { u, v } => Goal::Pixel([u, v]),
+            LookRequest::Nearest {} => Goal::Nearest,
+            LookRequest::Home {} => Goal::Home,
+        }
+    }
 }
 
 /// `POST /api/retrain`: which pairs to train on.
@@ -58,6 +90,7 @@ pub fn session(s: &Session) -> Value {
             "matcher": matcher,
         },
         "live": s.frames.live(),
+        "head": s.head.is_some(),
         "pairs": pairs,
         "locate_refused": s.locate_refused,
         "captures": s.captures.is_some(),
@@ -84,6 +117,42 @@ pub fn located(pair: usize, l: &Located, ms: f64) -> Value {
         "line": l.line(),
         "ms": ms,
     })
+}
+
+/// `GET /api/head` (and `POST /api/look`'s answer): the live head after its latest frame,
+/// the joints named as in `CAPTURES.csv`.
+pub fn head(s: &HeadState) -> Value {
+    let joints: serde_json::Map<String, Value> = crate::data::dataset::JOINT_COLUMNS
+        .iter()
+        .zip(s.joints.0)
+        .map(|(k, v)| (k.to_string(), f32_json(v)))
+        .collect();
+    let goal = match s.goal {
+        Goal::Idle => json!({"target": "idle"}),
+        Goal::Pixel([u, v]) => json!({"target": "pixel", "u": u, "v": v}),
+        Goal::Nearest => json!({"target": "nearest"}),
+        Goal::Home => json!({"target": "home"}),
+    };
+    json!({
+        "t_s": s.t_s,
+        "frames": s.frames,
+        "goal": goal,
+        "status": s.status,
+        "joints": joints,
+        "moving": s.moving,
+        "target_px": s.target_px,
+        "xyz": s.xyz.map(|p| p.map(f32_json)),
+        "err_px": s.err_px,
+        "fps": s.fps,
+        "error": s.error,
+    })
+}
+
+/// An `f32` as the JSON number of its shortest decimal (0.9, not 0.9000000357627869).
+fn f32_json(v: f32) -> Value {
+    v.to_string()
+        .parse::<f64>()
+        .map_or(Value::Null, |x| json!(x))
 }
 
 /// `GET /api/depth/{pair}`: what the depth map of a pair holds (its image is

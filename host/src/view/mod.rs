@@ -1,12 +1,14 @@
 //! `hvs view`: a local web page over the libraries the CLI uses. [`session`] loads the model
 //! and the pictures and runs the page's actions through the same functions as `hvs locate`,
-//! `hvs board detect` and `hvs train`; [`frames`] is where pictures come from (still files
-//! now; a live source implements the same trait); [`api`] is the JSON; `server` the
-//! HTTP layer; `assets` the embedded page.
+//! `hvs depth`, `hvs board detect`, `hvs train` and `hvs track`; [`frames`] is where pictures
+//! come from (the [`frames::PairStore`] trait; still files), [`live`] the virtual head in the
+//! loop on the wall clock (`--scene`); [`api`] is the JSON; `server` the HTTP layer; `assets`
+//! the embedded page.
 
 pub mod api;
 mod assets;
 pub mod frames;
+pub mod live;
 mod server;
 pub mod session;
 

@@ -4,7 +4,7 @@
 //! request gets a 4xx and the server carries on. Off loopback every request must carry the
 //! token printed at start (`?token=`, as Jupyter does). SIGINT or SIGTERM stop it at once.
 
-use super::api::{self, LocateRequest, RetrainRequest};
+use super::api::{self, LocateRequest, LookRequest, RetrainRequest};
 use super::assets;
 use super::frames::View;
 use super::session::{DepthView, Refused, Session};
@@ -128,6 +128,8 @@ fn router(app: Shared) -> Router {
         .route("/api/session", get(session))
         .route("/api/frame/{pair}/{view}", get(frame))
         .route("/api/locate", post(locate))
+        .route("/api/head", get(head))
+        .route("/api/look", post(look))
         .route("/api/depth/{pair}", get(depth))
         .route("/api/depth/{pair}/image", get(depth_image))
         .route("/api/captures", get(captures))
@@ -216,6 +218,24 @@ async fn locate(
         .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))??;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     Ok(Json(api::located(q.pair, &found, ms)).into_response())
+}
+
+async fn head(State(app): State<Shared>) -> Result<Response, ApiError> {
+    let head = app.session.head.as_ref().ok_or_else(|| {
+        ApiError(
+            StatusCode::NOT_FOUND,
+            "not a live head: start hvs view with --scene".into(),
+        )
+    })?;
+    let s = head
+        .state()
+        .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, "no frame yet".into()))?;
+    Ok(Json(api::head(&s)).into_response())
+}
+
+async fn look(State(app): State<Shared>, Json(q): Json<LookRequest>) -> Result<Response, ApiError> {
+    let s = app.session.look(q.goal())?;
+    Ok(Json(api::head(&s)).into_response())
 }
 
 /// The depth map of a pair, computed on a blocking thread the first time.

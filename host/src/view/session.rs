@@ -6,13 +6,16 @@
 //! [`Session::depth`], the dense depth of a pair, is `hvs depth --colour` ([`crate::depth`]).
 
 use super::frames::{PairStore, StillFrames, StillPair};
+use super::live::{Goal, HeadState, LiveHead};
 use crate::data::captures::{self, CaptureSet};
 use crate::data::csv::{read_set_from, Inputs};
 use crate::data::model::ModelFile;
+use crate::track::{self, frames::VirtualCameras};
 use crate::train::model::{train_model, Plan};
 use crate::train::{self, TrainConfig};
 use crate::vision::{self, Detection, Located, PairOutcome};
 use anyhow::{anyhow, Result};
+use hvs_shared::sim::posture::HeadRig;
 use hvs_vision::board::Board;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
@@ -34,6 +37,13 @@ pub enum Source {
         board: PathBuf,
         /// The captures.
         captures: PathBuf,
+    },
+    /// The virtual head in a scene, live (`--scene SCENE.json`).
+    Scene {
+        /// The scene file (`hvs track`'s).
+        scene: PathBuf,
+        /// Seed of the cameras' sensor noise.
+        seed: u64,
     },
 }
 
@@ -83,8 +93,10 @@ pub struct Session {
     pub captures: Option<CaptureData>,
     /// How a retrain trains.
     pub retrain: RetrainOptions,
-    /// Each pair's depth map, computed when first asked for.
+    /// Each pair's depth map, computed when first asked for (a live source's, every time).
     depth: Vec<OnceLock<Result<Arc<DepthView>, Refused>>>,
+    /// The virtual head of a live scene.
+    pub head: Option<Arc<LiveHead>>,
 }
 
 /// A pair's dense depth as the page shows it.
@@ -140,13 +152,14 @@ impl Session {
             ),
         };
         let info = train::describe::describe(model_path, &model);
-        let (frames, pairs, captures) = match source {
+        let (frames, pairs, captures, head): (Arc<dyn PairStore>, _, _, _) = match source {
             Source::Pair { left, right } => {
                 let (l, r) = vision::read_pair(left, right)?;
                 let name = format!("{} | {}", file_name(left), file_name(right));
                 (
-                    vec![StillPair::new(Some([l, r]), None)],
+                    Arc::new(StillFrames::new(vec![StillPair::new(Some([l, r]), None)])),
                     vec![PairMeta { name, z: None }],
+                    None,
                     None,
                 )
             }
@@ -175,13 +188,39 @@ impl Session {
                     })
                     .collect();
                 (
-                    frames,
+                    Arc::new(StillFrames::new(frames)),
                     pairs,
                     Some(CaptureData {
                         board: b,
                         set,
                         detection,
                     }),
+                    None,
+                )
+            }
+            Source::Scene { scene, seed } => {
+                let loaded = track::scene_file::load(scene)?;
+                let estimator = track::estimator_of(model.blob.clone())
+                    .map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
+                let cameras = VirtualCameras::new(
+                    HeadRig::new(loaded.rig),
+                    loaded.scene.clone(),
+                    track::frames::loop_render_options(),
+                    *seed,
+                );
+                let live = LiveHead::start(
+                    cameras,
+                    estimator,
+                    track::loop_config(&loaded.rig, track::DEFAULT_CORRECTION_GAIN),
+                    loaded.scene.camera_fps,
+                )
+                .map_err(|e| anyhow!("{}: {e:#}", scene.display()))?;
+                let name = format!("virtual head: {}", file_name(scene));
+                (
+                    live.clone() as Arc<dyn PairStore>,
+                    vec![PairMeta { name, z: None }],
+                    None,
+                    Some(live),
                 )
             }
         };
@@ -192,7 +231,8 @@ impl Session {
             model,
             info,
             locate_refused,
-            frames: Arc::new(StillFrames::new(frames)),
+            frames,
+            head,
             pairs,
             captures,
             retrain,
@@ -236,7 +276,7 @@ impl Session {
             .depth
             .get(pair)
             .ok_or_else(|| Refused::Bad(format!("pair {pair}: no such pair")))?;
-        cell.get_or_init(|| {
+        let compute = || {
             let (l, r) = self
                 .frames
                 .grey(pair)
@@ -260,8 +300,37 @@ impl Session {
                 warnings: d.warnings,
                 ms: t0.elapsed().as_secs_f64() * 1e3,
             }))
-        })
-        .clone()
+        };
+        if self.frames.live() {
+            return compute();
+        }
+        cell.get_or_init(compute).clone()
+    }
+
+    /// Asks the live head to do `goal`; its state then (the goal applies from the next frame).
+    pub fn look(&self, goal: Goal) -> Result<HeadState, Refused> {
+        let head = self
+            .head
+            .as_ref()
+            .ok_or_else(|| Refused::Bad("not a live head: start hvs view with --scene".into()))?;
+        if let Goal::Pixel([u, v]) = goal {
+            let (w, h) = head.size();
+            let (w, h) = (f64::from(w), f64::from(h));
+            if !(u.is_finite()
+                && v.is_finite()
+                && u > -0.5
+                && v > -0.5
+                && u < w - 0.5
+                && v < h - 0.5)
+            {
+                return Err(Refused::Bad(format!(
+                    "pixel ({u}, {v}) is outside the {w}x{h} left image"
+                )));
+            }
+        }
+        head.set_goal(goal);
+        head.state()
+            .ok_or_else(|| Refused::Unprocessable("the head has no frame yet".into()))
     }
 
     /// `hvs board detect` + `hvs train` (its defaults, [`RetrainOptions`]) on the pairs of the

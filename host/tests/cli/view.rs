@@ -5,7 +5,7 @@
 //! (ignored) measure click latency and 20 polling clients.
 
 use crate::common::{hvs, ok, s};
-use serde_json::Value;
+use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
@@ -338,6 +338,112 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
     assert_eq!(http(&sv.addr, "GET", "/api/depth/x", None).0, 400);
 }
 
+/// Polls `GET /api/head` until `done` holds (60 s at most); the last state.
+fn head_until(addr: &str, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+    let t0 = Instant::now();
+    loop {
+        let h = json(addr, "GET", "/api/head", None, 200);
+        if done(&h) {
+            return h;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "waited 60 s for {what}: {h}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn joints_at_home(h: &Value) -> bool {
+    h["joints"]
+        .as_object()
+        .unwrap()
+        .values()
+        .all(|v| v.as_f64() == Some(0.0))
+}
+
+/// `hvs view --scene`: the virtual head runs live (frames keep coming, the state is served),
+/// looks at the nearest object when asked (the joints leave home) and goes home again; bad
+/// look requests are refused and a still source has no head.
+#[test]
+fn view_runs_the_virtual_head_live_and_looks_where_asked() {
+    let dir = crate::common::Scratch::new();
+    let (m, scene) = (
+        crate::common::small_model(&dir),
+        crate::common::small_scene(&dir, ""),
+    );
+    let sv = start(&["--model", &m, "--scene", &scene, "--seed", "3"]);
+    let session = json(&sv.addr, "GET", "/api/session", None, 200);
+    assert_eq!(
+        (&session["live"], &session["head"]),
+        (&json!(true), &json!(true))
+    );
+    let first = json(&sv.addr, "GET", "/api/head", None, 200);
+    assert_eq!(first["status"], "idle", "{first}");
+    assert!(joints_at_home(&first), "{first}");
+    // Frames keep coming: the head's frame count and the frames' sequence numbers grow.
+    let n0 = first["frames"].as_u64().unwrap();
+    head_until(&sv.addr, "more frames", |h| {
+        h["frames"].as_u64().unwrap() > n0 + 2
+    });
+    let (st, png) = http(&sv.addr, "GET", "/api/frame/0/left", None);
+    assert_eq!(st, 200);
+    let img = image::load_from_memory(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (160, 120));
+    // Look at the nearest object: the loop runs and the joints leave home.
+    json(
+        &sv.addr,
+        "POST",
+        "/api/look",
+        Some(r#"{"target":"nearest"}"#),
+        200,
+    );
+    let h = head_until(&sv.addr, "the head to turn", |h| !joints_at_home(h));
+    assert_eq!(h["goal"]["target"], "nearest", "{h}");
+    assert!(
+        ["tracking", "image_only", "lost"].contains(&h["status"].as_str().unwrap()),
+        "{h}"
+    );
+    // Home again.
+    json(
+        &sv.addr,
+        "POST",
+        "/api/look",
+        Some(r#"{"target":"home"}"#),
+        200,
+    );
+    head_until(&sv.addr, "the head at home", |h| {
+        joints_at_home(h) && h["moving"] == false && h["status"] == "idle"
+    });
+    json(
+        &sv.addr,
+        "POST",
+        "/api/look",
+        Some(r#"{"target":"pixel","u":100,"v":50}"#),
+        200,
+    );
+    for (body, want) in [
+        (r#"{"target":"pixel","u":1000,"v":5}"#, 400),
+        (r#"{"target":"pixel","u":5}"#, 422),
+        (r#"{"target":"fly"}"#, 422),
+        (r#"{"target":"home","x":1}"#, 422),
+    ] {
+        let (st, _) = http(&sv.addr, "POST", "/api/look", Some(body.as_bytes()));
+        assert_eq!(st, want, "{body}");
+    }
+    drop(sv);
+    // A still pair has no head.
+    let sv = start_pair();
+    json(&sv.addr, "GET", "/api/head", None, 404);
+    json(
+        &sv.addr,
+        "POST",
+        "/api/look",
+        Some(r#"{"target":"home"}"#),
+        400,
+    );
+}
+
 /// Every request in `bad` gets its 4xx; the server answers normally after each.
 #[test]
 fn view_refuses_bad_requests_and_stays_up() {
@@ -613,6 +719,40 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
         .args(["view", "--model", s(&f.model)])
         .assert()
         .code(2);
+    // A scene with a still pair is bad usage; the QEMU head is not there yet; a bad scene
+    // file is named.
+    let scene = f.shots.join("scene.json");
+    std::fs::write(
+        &scene,
+        r#"{"rig": {"case": 1}, "camera_fps": 30, "objects": [], "wall": 1}"#,
+    )
+    .unwrap();
+    let both = [
+        "view",
+        "--model",
+        s(&f.model),
+        "--scene",
+        s(&scene),
+        "--left",
+        s(&f.left),
+        "--right",
+        s(&f.right),
+    ];
+    crate::common::stderr_with_code(both, 2);
+    let qemu = [
+        "view",
+        "--model",
+        s(&f.model),
+        "--scene",
+        s(&scene),
+        "--head",
+        "qemu",
+    ];
+    let err = crate::common::stderr_with_code(qemu, 1);
+    assert!(err.contains("--head qemu: not yet"), "{err}");
+    let bad = ["view", "--model", s(&f.model), "--scene", s(&scene)];
+    let err = crate::common::stderr_with_code(bad, 1);
+    assert!(err.contains("scene.json") && err.contains("wall"), "{err}");
     // SIGINT stops it at once, even with a client connected.
     let mut sv = start_pair();
     let _idle = TcpStream::connect(&sv.addr).unwrap();
@@ -935,6 +1075,47 @@ fn browser_click_and_retrain_in_chromium() {
             .await
             .unwrap();
         shot(&c, "captures-table.png").await;
+        drop(sv);
+        // The virtual head, live: frames keep coming, a click on a still sphere (20 cm
+        // radius, at 90 cm straight ahead: most of the small rig's view) and "look" turn the
+        // head.
+        let dir = crate::common::Scratch::new();
+        let m = crate::common::small_model(&dir);
+        let scene = crate::common::small_scene(&dir, "")
+            .replace("scene.json", "still.json");
+        let still = std::fs::read_to_string(dir.p("scene.json"))
+            .unwrap()
+            .replace("[5, 0, 0]", "[0, 0, 0]")
+            .replace(r#""radius_cm": 8, "centre_cm": [10, -5, 90]"#, r#""radius_cm": 20, "centre_cm": [0, 0, 90]"#);
+        assert!(still.contains(r#""radius_cm": 20"#), "{still}");
+        std::fs::write(&scene, still).unwrap();
+        let sv = start(&["--model", &m, "--scene", &scene]);
+        c.goto(&sv.url).await.unwrap();
+        wait_js(&c, "document.getElementById('frames-status').textContent.startsWith('live')").await;
+        wait_js(&c, "Number(document.getElementById('head').dataset.updates || 0) >= 3").await;
+        assert_eq!(
+            wait_js(&c, "document.getElementById('head').dataset.status").await,
+            "idle"
+        );
+        click_left(&c, 90, 64).await;
+        c.find(fantoccini::Locator::Id("look"))
+            .await
+            .unwrap()
+            .click()
+            .await
+            .unwrap();
+        wait_js(&c, "document.getElementById('head').dataset.asked === '1'").await;
+        wait_js(&c, "document.getElementById('head').dataset.moved === 'yes'").await;
+        let goal = text(&c, "head-goal").await;
+        // The pixel the page took from the mouse (the pointer lands within a pixel of it).
+        assert_eq!(goal, format!("the object under {}", text(&c, "at").await));
+        eprintln!(
+            "live: {} | {} | {}",
+            text(&c, "frames-status").await,
+            text(&c, "head-loop").await,
+            text(&c, "head-joints").await
+        );
+        shot(&c, "live-look.png").await;
         c.close().await.unwrap();
     });
 }

@@ -7,6 +7,7 @@ let session = null;
 let pair = 0;
 let frameCount = 0;
 let frameStart = performance.now();
+let clicked = null;
 
 async function getJson(path) {
   const r = await fetch(q(path));
@@ -26,24 +27,57 @@ function view(side) {
   return $('show-corners').checked ? side + '-corners' : side;
 }
 
-// Frames: a still source is loaded once; a live one is polled, each image asked for when the
-// previous one has arrived.
+// Frames: a still source is loaded once; a live one is polled, the next pair asked for when
+// the last one has arrived. A live frame is fetched and decoded off screen, then put in place
+// in one step (an image already decoded under its URL is shown at once), so the shown
+// image always has its size and a click always maps to a pixel.
+let liveLoop = false;
 function loadFrames() {
+  if (session.live) {
+    if (!liveLoop) { liveLoop = true; liveFrames(); }
+    return;
+  }
   let loaded = 0;
   for (const side of ['left', 'right']) {
     const img = $(side);
     img.onload = () => {
       loaded += 1;
-      frameCount += 1;
       if (loaded === 2) {
-        const fps = frameCount / ((performance.now() - frameStart) / 1000);
-        $('frames-status').textContent = session.live ? `live, ${fps.toFixed(1)} frames/s` : 'frames loaded';
+        $('frames-status').textContent = 'frames loaded';
         $('frames-status').dataset.loaded = 'yes';
-        if (session.live) setTimeout(loadFrames, 0);
       }
     };
     img.onerror = () => { $('frames-status').textContent = `no ${side} frame for this pair`; };
     img.src = q(`/api/frame/${pair}/${view(side)}?n=${frameCount}`);
+  }
+}
+
+async function fetchFrame(side) {
+  const r = await fetch(q(`/api/frame/${pair}/${view(side)}?n=${frameCount}`));
+  if (!r.ok) throw new Error(`no ${side} frame (${r.status})`);
+  const url = URL.createObjectURL(await r.blob());
+  const pre = new Image();
+  pre.src = url;
+  await pre.decode();
+  return url;
+}
+
+async function liveFrames() {
+  try {
+    const urls = await Promise.all(['left', 'right'].map(fetchFrame));
+    ['left', 'right'].forEach((side, k) => {
+      const img = $(side), old = img.src;
+      img.src = urls[k];
+      if (old.startsWith('blob:')) setTimeout(() => URL.revokeObjectURL(old), 2000);
+    });
+    frameCount += 1;
+    const fps = frameCount / ((performance.now() - frameStart) / 1000);
+    $('frames-status').textContent = `live, ${fps.toFixed(1)} pairs fetched/s`;
+    $('frames-status').dataset.loaded = 'yes';
+    setTimeout(liveFrames, 0);
+  } catch (err) {
+    $('frames-status').textContent = 'live: ' + err.message;
+    setTimeout(liveFrames, 500);
   }
 }
 
@@ -83,6 +117,8 @@ async function click(e) {
   const v = Math.floor(e.offsetY * img.naturalWidth / img.clientWidth);
   if (v >= left.naturalHeight) return; // the depth image's legend
   $('at').textContent = `${u},${v}`;
+  clicked = {u, v};
+  $('look').disabled = false;
   place($('mark-left'), left, u, v);
   $('mark-right').hidden = true;
   $('locate-note').textContent = '';
@@ -158,6 +194,38 @@ async function retrain() {
   }
 }
 
+// The live head: its state polled, the look buttons.
+async function pollHead() {
+  try {
+    const h = await getJson('/api/head');
+    const j = h.joints;
+    $('head-status').textContent = `(${h.frames} frames, ${h.fps.toFixed(1)} frames/s, t = ${h.t_s.toFixed(1)} s)`;
+    $('head-goal').textContent = h.goal.target === 'pixel' ? `the object under ${h.goal.u},${h.goal.v}` : h.goal.target;
+    $('head-loop').textContent = h.status + (h.moving ? ', moving' : '') + (h.error ? '; ' + h.error : '');
+    $('head-joints').textContent = ['neck_pan', 'neck_tilt', 'eye_tilt', 'left_eye_pan', 'right_eye_pan'].map((k) => `${k} ${j[k]}`).join(', ');
+    $('head-target').textContent = h.target_px ? `${fmt(h.target_px[0], 1)},${fmt(h.target_px[1], 1)} | ${fmt(h.target_px[2], 1)},${fmt(h.target_px[3], 1)}` : '—';
+    $('head-xyz').textContent = h.xyz ? h.xyz.join(', ') : '—';
+    $('head-err').textContent = h.err_px ? `${fmt(h.err_px[0], 1)} | ${fmt(h.err_px[1], 1)}` : '—';
+    const sec = $('head');
+    sec.dataset.updates = String(Number(sec.dataset.updates || 0) + 1);
+    sec.dataset.status = h.status;
+    if (Object.values(j).some((v) => v !== 0)) sec.dataset.moved = 'yes';
+  } catch (err) {
+    $('head-status').textContent = 'error: ' + err.message;
+  }
+  setTimeout(pollHead, 200);
+}
+
+async function look(goal) {
+  $('look-note').textContent = '';
+  try {
+    await postJson('/api/look', goal);
+    $('head').dataset.asked = String(Number($('head').dataset.asked || 0) + 1);
+  } catch (err) {
+    $('look-note').textContent = err.message;
+  }
+}
+
 function choosePair() {
   pair = Number($('pair').value);
   $('mark-left').hidden = true;
@@ -184,6 +252,13 @@ async function start() {
   $('show-corners').addEventListener('change', loadFrames);
   $('retrain').addEventListener('click', retrain);
   if (session.captures) await loadCaptures();
+  if (session.head) {
+    $('head').hidden = false;
+    $('look').addEventListener('click', () => clicked && look({target: 'pixel', u: clicked.u, v: clicked.v}));
+    $('look-nearest').addEventListener('click', () => look({target: 'nearest'}));
+    $('home').addEventListener('click', () => look({target: 'home'}));
+    pollHead();
+  }
   loadFrames();
 }
 

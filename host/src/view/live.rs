@@ -1,0 +1,292 @@
+//! The live source of `hvs view --scene`: the virtual head in the loop on the wall clock. A
+//! thread grabs a frame from the virtual cameras ([`crate::track::frames::VirtualCameras`])
+//! at the servos' posture every camera frame (the scene's `camera_fps`, or as fast as
+//! rendering allows), runs the loop's frame ([`crate::track::Tracker::frame`], the one `hvs
+//! track` runs) while the page has asked the head to look at something, and keeps the
+//! latest pair and the head's state for the page. [`LiveHead`] is the page's
+//! [`PairStore`]: one pair, live.
+
+use super::frames::{Frame, GreyPair, PairStore, View};
+use crate::track::frames::{FrameSource, VirtualCameras};
+use crate::track::head_sim::VirtualHead;
+use crate::track::target::TargetMode;
+use crate::track::Tracker;
+use crate::vision::png_bytes;
+use hvs_shared::runtime::fixation::LoopConfig;
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::runtime::head::Estimator;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+/// What the head is asked to do.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Goal {
+    /// Hold still where it is (at start: at home).
+    Idle,
+    /// Look at the object under this left pixel, then follow it.
+    Pixel([f64; 2]),
+    /// Look at the nearest object in the front region and follow it.
+    Nearest,
+    /// Go home and hold.
+    Home,
+}
+
+/// The head's state after the latest frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeadState {
+    /// Seconds since the head started.
+    pub t_s: f64,
+    /// Frames grabbed so far.
+    pub frames: u64,
+    /// What it was asked to do.
+    pub goal: Goal,
+    /// `idle`, or the loop's status: `tracking`, `image_only`, `lost`.
+    pub status: &'static str,
+    /// The joints when the latest frame was taken (degrees).
+    pub joints: Joints,
+    /// Whether the servos are still moving.
+    pub moving: bool,
+    /// The target's pixels in the latest frame (`u_l, v_l, u_r, v_r`).
+    pub target_px: Option<[f64; 4]>,
+    /// The loop's estimate of the target (cm, head frame).
+    pub xyz: Option<[f32; 3]>,
+    /// With the scene's truth: each image's distance from its centre to the tracked
+    /// object's true centre (px).
+    pub err_px: Option<[f64; 2]>,
+    /// Frames per second over the last second or so.
+    pub fps: f64,
+    /// The latest frame error (the cameras could not render), if any.
+    pub error: Option<String>,
+}
+
+struct Latest {
+    seq: u64,
+    grey: GreyPair,
+    png: [OnceLock<Option<Arc<Vec<u8>>>>; 2],
+    state: HeadState,
+}
+
+/// The virtual head in the loop, running on its own thread until dropped.
+pub struct LiveHead {
+    latest: Mutex<Option<Arc<Latest>>>,
+    goal: Mutex<Option<Goal>>,
+    stop: AtomicBool,
+    size: (u32, u32),
+}
+
+impl LiveHead {
+    /// Starts the head at home with `cameras` on it; `estimator` and `loop_cfg` are the loop's
+    /// (`hvs track`'s). Returns once the first frame is there (or its error).
+    pub fn start(
+        cameras: VirtualCameras,
+        estimator: Estimator,
+        loop_cfg: LoopConfig,
+        fps: f64,
+    ) -> anyhow::Result<Arc<LiveHead>> {
+        let head = VirtualHead::new(&hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT)?;
+        let size = (cameras.head.rig.width, cameras.head.rig.height);
+        let live = Arc::new(LiveHead {
+            latest: Mutex::new(None),
+            goal: Mutex::new(None),
+            stop: AtomicBool::new(false),
+            size,
+        });
+        let weak = Arc::downgrade(&live);
+        let (first_tx, first_rx) = std::sync::mpsc::channel();
+        std::thread::Builder::new()
+            .name("hvs-view-head".into())
+            .spawn(move || {
+                run(
+                    weak,
+                    Loop {
+                        cameras,
+                        head,
+                        estimator,
+                        loop_cfg,
+                        fps,
+                    },
+                    first_tx,
+                )
+            })?;
+        match first_rx.recv_timeout(Duration::from_secs(60)) {
+            Ok(Ok(())) => Ok(live),
+            Ok(Err(e)) => Err(anyhow::anyhow!("{e}")),
+            Err(_) => Err(anyhow::anyhow!(
+                "the virtual cameras gave no first frame within 60 s"
+            )),
+        }
+    }
+
+    /// Asks the head to do `goal` from the next frame on.
+    pub fn set_goal(&self, goal: Goal) {
+        *self.goal.lock().unwrap_or_else(|e| e.into_inner()) = Some(goal);
+    }
+
+    /// The head's state after the latest frame.
+    pub fn state(&self) -> Option<HeadState> {
+        self.latest().map(|l| l.state.clone())
+    }
+
+    /// The left image's size (px).
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    fn latest(&self) -> Option<Arc<Latest>> {
+        self.latest
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+}
+
+impl Drop for LiveHead {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+impl PairStore for LiveHead {
+    fn len(&self) -> usize {
+        1
+    }
+
+    fn live(&self) -> bool {
+        true
+    }
+
+    fn frame(&self, pair: usize, view: View) -> Option<Frame> {
+        let side = match (pair, view) {
+            (0, View::Left) => 0,
+            (0, View::Right) => 1,
+            _ => return None,
+        };
+        let l = self.latest()?;
+        let png = l.png[side]
+            .get_or_init(|| {
+                let img = if side == 0 { &l.grey.0 } else { &l.grey.1 };
+                png_bytes(&**img).ok().map(Arc::new)
+            })
+            .clone()?;
+        Some(Frame { seq: l.seq, png })
+    }
+
+    fn grey(&self, pair: usize) -> Option<GreyPair> {
+        (pair == 0).then(|| self.latest().map(|l| l.grey.clone()))?
+    }
+}
+
+/// What the head's thread owns.
+struct Loop {
+    cameras: VirtualCameras,
+    head: VirtualHead,
+    estimator: Estimator,
+    loop_cfg: LoopConfig,
+    fps: f64,
+}
+
+/// The head's thread: a frame every `1 / fps` s of the wall clock (or as soon as the last one
+/// is done when rendering is slower), until the [`LiveHead`] is dropped or stopped.
+fn run(
+    live: std::sync::Weak<LiveHead>,
+    mut lp: Loop,
+    first: std::sync::mpsc::Sender<Result<(), String>>,
+) {
+    let start = Instant::now();
+    let period = 1.0 / lp.fps.clamp(1.0, 240.0);
+    let (mut goal, mut tracker) = (Goal::Idle, None::<Tracker>);
+    let mut times: std::collections::VecDeque<f64> = Default::default();
+    let mut first = Some(first);
+    let mut seq = 0u64;
+    loop {
+        let Some(me) = live.upgrade() else { return };
+        if me.stop.load(Ordering::SeqCst) {
+            return;
+        }
+        if let Some(g) = me.goal.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            goal = g;
+            tracker = match g {
+                Goal::Pixel(px) => Some(Tracker::new(TargetMode::Pixel(px), lp.loop_cfg)),
+                Goal::Nearest => Some(Tracker::new(TargetMode::Nearest, lp.loop_cfg)),
+                Goal::Idle | Goal::Home => None,
+            };
+            if g == Goal::Home {
+                lp.head.command(&Joints::HOME);
+            }
+        }
+        let t = start.elapsed().as_secs_f64();
+        let grabbed = match tracker.as_mut() {
+            Some(tr) => tr
+                .frame(&mut lp.cameras, &mut lp.head, &lp.estimator, t)
+                .map(|(f, row)| (f, row.status, row.joints, row.px, row.xyz, row.err_px)),
+            None => {
+                lp.head.advance_to(t);
+                let joints = lp.head.joints();
+                lp.cameras
+                    .grab(t, &joints)
+                    .map(|f| (f, "idle", joints, None, None, None))
+            }
+        };
+        let previous = me.latest();
+        let next = match grabbed {
+            Ok((frame, status, joints, target_px, xyz, err_px)) => {
+                times.push_back(t);
+                while times.len() > 2 && t - times[0] > 1.0 {
+                    times.pop_front();
+                }
+                let fps = if times.len() > 1 {
+                    (times.len() - 1) as f64 / (t - times[0]).max(1e-6)
+                } else {
+                    0.0
+                };
+                seq += 1;
+                Latest {
+                    seq,
+                    grey: (Arc::new(frame.left), Arc::new(frame.right)),
+                    png: Default::default(),
+                    state: HeadState {
+                        t_s: t,
+                        frames: seq,
+                        goal,
+                        status,
+                        joints,
+                        moving: lp.head.is_moving(),
+                        target_px,
+                        xyz,
+                        err_px,
+                        fps,
+                        error: None,
+                    },
+                }
+            }
+            Err(e) => {
+                let msg = format!("{e:#}");
+                if let Some(tx) = first.take() {
+                    let _ = tx.send(Err(msg));
+                    return;
+                }
+                let Some(p) = previous else { return };
+                let mut state = p.state.clone();
+                state.error = Some(msg);
+                Latest {
+                    seq: p.seq,
+                    grey: p.grey.clone(),
+                    png: Default::default(),
+                    state,
+                }
+            }
+        };
+        *me.latest.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(next));
+        if let Some(tx) = first.take() {
+            let _ = tx.send(Ok(()));
+        }
+        drop(me);
+        // The next frame at the next multiple of the period (none skipped when behind).
+        let next_t = ((t / period).floor() + 1.0) * period;
+        let wait = next_t - start.elapsed().as_secs_f64();
+        if wait > 0.0 {
+            std::thread::sleep(Duration::from_secs_f64(wait));
+        }
+    }
+}
