@@ -770,12 +770,9 @@ fn shade_camera(
     w: u32,
     h: u32,
 ) -> (Vec<f32>, TruthImage) {
+    use rayon::prelude::*;
     let (wu, hu) = (w as usize, h as usize);
     let n = wu * hu;
-    let mut grey = Vec::with_capacity(n);
-    let mut key = Vec::with_capacity(n);
-    let mut point = Vec::with_capacity(n);
-    let mut object = Vec::with_capacity(n);
     let sample = |u: f64, v: f64| -> Option<(Hit, f32, u8)> {
         let (o, d) = cam.ray(u, v)?;
         let hit = scene.cast(&o, &d)?;
@@ -783,30 +780,40 @@ fn shade_camera(
         Some((hit, g, k))
     };
     let background = f32::from(opt.background);
-    for r in 0..hu {
-        for c in 0..wu {
-            match sample(c as f64, r as f64) {
-                Some((hit, g, k)) => {
-                    grey.push(g);
-                    key.push((hit.object, k));
-                    point.push(hit.point.map(|x| x as f32));
-                    object.push(hit.object);
-                }
-                None => {
-                    grey.push(background);
-                    key.push((NONE, 0));
-                    point.push([f32::NAN; 3]);
-                    object.push(NONE);
-                }
+    // One sample per pixel, rows in parallel (each pixel's value depends on nothing else,
+    // so the image is the same on any number of threads).
+    let rows: Vec<_> = (0..hu)
+        .into_par_iter()
+        .map(|r| {
+            let mut row = Vec::with_capacity(wu);
+            for c in 0..wu {
+                row.push(match sample(c as f64, r as f64) {
+                    Some((hit, g, k)) => {
+                        (g, (hit.object, k), hit.point.map(|x| x as f32), hit.object)
+                    }
+                    None => (background, (NONE, 0), [f32::NAN; 3], NONE),
+                });
             }
-        }
+            row
+        })
+        .collect();
+    let mut grey = Vec::with_capacity(n);
+    let mut key = Vec::with_capacity(n);
+    let mut point = Vec::with_capacity(n);
+    let mut object = Vec::with_capacity(n);
+    for (g, k, p, o) in rows.into_iter().flatten() {
+        grey.push(g);
+        key.push(k);
+        point.push(p);
+        object.push(o);
     }
-    // Supersample pixels on an edge (object or board colour differs from a 4-neighbour).
+    // Supersample pixels on an edge (object or board colour differs from a 4-neighbour),
+    // rows in parallel.
     let ns = opt.supersample as usize;
     if ns > 1 {
         let inv = 1.0 / ns as f64;
-        for r in 0..hu {
-            for c in 0..wu {
+        grey.par_chunks_mut(wu).enumerate().for_each(|(r, row)| {
+            for (c, g) in row.iter_mut().enumerate() {
                 let i = r * wu + c;
                 let k = key[i];
                 let edge = (c > 0 && key[i - 1] != k)
@@ -824,9 +831,9 @@ fn shade_camera(
                         sum += sample(u, v).map_or(background, |s| s.1);
                     }
                 }
-                grey[i] = sum / (ns * ns) as f32;
+                *g = sum / (ns * ns) as f32;
             }
-        }
+        });
     }
     (
         grey,
