@@ -22,6 +22,7 @@ use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::head::Estimator;
 use hvs_shared::runtime::protocol::StereoPoint;
 use image::GrayImage;
+use rayon::prelude::*;
 
 /// Fewest matched points that make an object.
 pub const MIN_CLUSTER: usize = 3;
@@ -373,18 +374,20 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
         (0.5 * (1.0 - FRONT_SHARE) * w) as i32,
         (0.5 * (1.0 - FRONT_SHARE) * h) as i32,
     );
-    let mut pts = Vec::new();
-    let mut y = my;
-    while y < l.h - my {
-        let mut x = mx;
-        while x < l.w - mx {
-            if let Some(p) = coarse_match_in(&lh, &rh, l, r, [x, y], joints, est) {
-                pts.push(p);
-            }
-            x += grid_step(l.w);
-        }
-        y += grid_step(l.w);
-    }
+    // The grid's matches, rows in parallel, in row-major order (the same on any number of
+    // threads).
+    let step = grid_step(l.w).max(1) as usize;
+    let xs: Vec<i32> = (mx..(l.w - mx).max(mx)).step_by(step).collect();
+    let mut pts: Vec<Pt> = (my..(l.h - my).max(my))
+        .step_by(step)
+        .collect::<Vec<i32>>()
+        .par_iter()
+        .flat_map_iter(|&y| {
+            let (lh, rh) = (&lh, &rh);
+            xs.iter()
+                .filter_map(move |&x| coarse_match_in(lh, rh, l, r, [x, y], joints, est))
+        })
+        .collect();
     // Nearest first by disparity, not by the model's depth: along every left ray the right
     // image's match moves one way as the point recedes, whatever the cameras' deflections,
     // while a net's depth far outside its training box (the wall behind the objects) can be
@@ -437,29 +440,27 @@ fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Op
         (s.centre[1] - ext).floor() as i32,
         (s.centre[1] + ext).ceil() as i32,
     );
-    let mut pts = Vec::new();
-    let mut y = r0;
-    while y <= r1 {
-        let mut x = c0;
-        while x <= c1 {
-            let ur = f64::from(x) - s.offset[0];
-            let vr = f64::from(y) - s.offset[1];
-            let (uc, vc) = (ur.round() as i32, vr.round() as i32);
-            if let Some((u, v, _)) = search(l, r, x, y, [uc - 5, uc + 5], [vc - 2, vc + 2], 4) {
-                if let Some(z) = depth_of(est, joints, [x, y], [u, v]) {
-                    if in_band(z, s.z) {
-                        pts.push(Pt {
-                            l: [x, y],
-                            r: [u, v],
-                            z,
-                        });
-                    }
-                }
-            }
-            x += DENSE_STEP;
-        }
-        y += DENSE_STEP;
-    }
+    // Rows in parallel, matches in row-major order (the same on any number of threads).
+    let xs: Vec<i32> = (c0..=c1).step_by(DENSE_STEP as usize).collect();
+    let pts: Vec<Pt> = (r0..=r1)
+        .step_by(DENSE_STEP as usize)
+        .collect::<Vec<i32>>()
+        .par_iter()
+        .flat_map_iter(|&y| {
+            xs.iter().filter_map(move |&x| {
+                let ur = f64::from(x) - s.offset[0];
+                let vr = f64::from(y) - s.offset[1];
+                let (uc, vc) = (ur.round() as i32, vr.round() as i32);
+                let (u, v, _) = search(l, r, x, y, [uc - 5, uc + 5], [vc - 2, vc + 2], 4)?;
+                let z = depth_of(est, joints, [x, y], [u, v])?;
+                in_band(z, s.z).then_some(Pt {
+                    l: [x, y],
+                    r: [u, v],
+                    z,
+                })
+            })
+        })
+        .collect();
     if pts.len() < MIN_CLUSTER {
         return None;
     }
