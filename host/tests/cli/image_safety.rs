@@ -196,6 +196,16 @@ fn pairs_that_cannot_be_right_are_refused_with_the_reason() {
         two.save(shots.join(format!("two-{side}04.png"))).unwrap();
     }
     rows.push("two-left04.png,two-right04.png,125");
+    // Both images of pair 4 mirrored, and both turned 180 degrees.
+    for side in ["left", "right"] {
+        let one = image::open(shots.join(format!("{side}04.png"))).unwrap();
+        one.fliph()
+            .save(shots.join(format!("mirror-{side}04.png")))
+            .unwrap();
+        one.rotate180()
+            .save(shots.join(format!("turned-{side}04.png")))
+            .unwrap();
+    }
     captures(&shots, "bad.csv", &rows);
     let o = detect(&shots, "bad.csv", &out, &[]);
     assert!(o.status.success(), "{}", err(&o));
@@ -215,8 +225,23 @@ fn pairs_that_cannot_be_right_are_refused_with_the_reason() {
             && e.contains("several boards in view"),
         "{e}"
     );
+
     let text = std::fs::read_to_string(&out).unwrap();
     assert_eq!(text.lines().count(), 1 + 2 * 54);
+    // Among good pairs, one with both images mirrored and one with both turned 180 degrees.
+    let mut rows = good.to_vec();
+    rows.push("mirror-left04.png,mirror-right04.png,125");
+    rows.push("turned-left04.png,turned-right04.png,125");
+    captures(&shots, "flipped.csv", &rows);
+    let o = detect(&shots, "flipped.csv", &out, &[]);
+    assert!(o.status.success(), "{}", err(&o));
+    let e = err(&o);
+    for (line, pair) in [(6, "mirror"), (7, "turned")] {
+        let at = format!("flipped.csv:{line} ({pair}-left04.png, {pair}-right04.png): skipped: ");
+        assert!(e.contains(&at), "{pair}: {e}");
+    }
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(text.lines().count(), 1 + 4 * 54, "{e}");
     // Every pair swapped: nothing usable.
     let all: Vec<String> = good
         .iter()
