@@ -119,15 +119,38 @@ pub fn start(args: &[&str]) -> Server {
 
 /// A view of the fixture's test pair.
 pub fn start_pair() -> Server {
+    start_pair_with(&[])
+}
+
+/// A view of the fixture's capture set, retraining with one restart.
+pub fn start_captures() -> Server {
     let f = fixture();
+    let (b, c) = (f.shots.join("board.json"), f.shots.join("captures.csv"));
     start(&[
+        "--model",
+        s(&f.model),
+        "--board",
+        s(&b),
+        "--captures",
+        s(&c),
+        "--restarts",
+        "1",
+    ])
+}
+
+/// A view of the fixture's test pair with the options `rest`.
+pub fn start_pair_with(rest: &[&str]) -> Server {
+    let f = fixture();
+    let mut args = vec![
         "--model",
         s(&f.model),
         "--left",
         s(&f.left),
         "--right",
         s(&f.right),
-    ])
+    ];
+    args.extend_from_slice(rest);
+    start(&args)
 }
 
 /// One HTTP/1.1 request (`Connection: close`): the status and the body.
@@ -513,17 +536,7 @@ fn view_refuses_bad_requests_and_stays_up() {
 
 #[test]
 fn view_needs_the_token_off_loopback() {
-    let f = fixture();
-    let sv = start(&[
-        "--model",
-        s(&f.model),
-        "--left",
-        s(&f.left),
-        "--right",
-        s(&f.right),
-        "--listen",
-        "0.0.0.0:0",
-    ]);
+    let sv = start_pair_with(&["--listen", "0.0.0.0:0"]);
     let token = sv
         .url
         .split("?token=")
@@ -564,16 +577,7 @@ fn view_needs_the_token_off_loopback() {
         200,
     );
     // Another start, another token; loopback needs none.
-    let again = start(&[
-        "--model",
-        s(&f.model),
-        "--left",
-        s(&f.left),
-        "--right",
-        s(&f.right),
-        "--listen",
-        "0.0.0.0:0",
-    ]);
+    let again = start_pair_with(&["--listen", "0.0.0.0:0"]);
     assert!(!again.url.contains(&token));
     let local = start_pair();
     assert!(!local.url.contains("token"), "{}", local.url);
@@ -581,17 +585,9 @@ fn view_needs_the_token_off_loopback() {
 
 #[test]
 fn view_retrains_a_capture_set_on_the_ticked_pairs() {
-    let f = fixture();
-    let sv = start(&[
-        "--model",
-        s(&f.model),
-        "--board",
-        s(&f.shots.join("board.json")),
-        "--captures",
-        s(&f.shots.join("captures.csv")),
-        "--restarts",
-        "1",
-    ]);
+    let sv = start_captures();
+    let retrain =
+        |ticks: &str, want: u16| json(&sv.addr, "POST", "/api/retrain", Some(ticks), want);
     let session = json(&sv.addr, "GET", "/api/session", None, 200);
     assert_eq!(session["captures"], true);
     let c = json(&sv.addr, "GET", "/api/captures", None, 200);
@@ -613,24 +609,12 @@ fn view_retrains_a_capture_set_on_the_ticked_pairs() {
         drawn.pixels().any(|p| p[0] != p[1] || p[1] != p[2]),
         "colour marks drawn"
     );
-    let all = json(
-        &sv.addr,
-        "POST",
-        "/api/retrain",
-        Some(r#"{"use":[true,true,true]}"#),
-        200,
-    );
+    let all = retrain(r#"{"use":[true,true,true]}"#, 200);
     assert_eq!(
         (all["pairs"].as_u64(), all["points"].as_u64()),
         (Some(3), Some(162))
     );
-    let two = json(
-        &sv.addr,
-        "POST",
-        "/api/retrain",
-        Some(r#"{"use":[true,false,true]}"#),
-        200,
-    );
+    let two = retrain(r#"{"use":[true,false,true]}"#, 200);
     assert_eq!(
         (two["pairs"].as_u64(), two["points"].as_u64()),
         (Some(2), Some(108))
@@ -645,28 +629,10 @@ fn view_retrains_a_capture_set_on_the_ticked_pairs() {
     );
     assert_ne!(all["train_error_pct"], two["train_error_pct"]);
     // The same ticks, the same summary numbers (seeded).
-    let again = json(
-        &sv.addr,
-        "POST",
-        "/api/retrain",
-        Some(r#"{"use":[true,false,true]}"#),
-        200,
-    );
+    let again = retrain(r#"{"use":[true,false,true]}"#, 200);
     assert_eq!(again["train_error_pct"], two["train_error_pct"]);
-    json(
-        &sv.addr,
-        "POST",
-        "/api/retrain",
-        Some(r#"{"use":[true]}"#),
-        400,
-    );
-    json(
-        &sv.addr,
-        "POST",
-        "/api/retrain",
-        Some(r#"{"use":[false,false,false]}"#),
-        422,
-    );
+    retrain(r#"{"use":[true]}"#, 400);
+    retrain(r#"{"use":[false,false,false]}"#, 422);
     // Clicks work on a capture pair too.
     let r = json(
         &sv.addr,
@@ -681,19 +647,22 @@ fn view_retrains_a_capture_set_on_the_ticked_pairs() {
 #[test]
 fn view_names_bad_inputs_and_stops_on_ctrl_c() {
     let f = fixture();
-    let missing = f.shots.join("nope.png");
+    let view = |rest: &[&'static str]| -> Vec<String> {
+        let mut v = vec!["view".to_string(), "--model".into(), s(&f.model).into()];
+        v.extend(rest.iter().map(|a| a.to_string()));
+        v
+    };
+    let (l, r) = (s(&f.left).to_string(), s(&f.right).to_string());
+    let missing = s(&f.shots.join("nope.png")).to_string();
+    let with = |mut v: Vec<String>, more: &[&str]| -> Vec<String> {
+        v.extend(more.iter().map(|a| a.to_string()));
+        v
+    };
     let err = crate::common::stderr_with_code(
-        [
-            "view",
-            "--model",
-            s(&f.model),
-            "--left",
-            s(&missing),
-            "--right",
-            s(&f.right),
-            "--listen",
-            "127.0.0.1:0",
-        ],
+        with(
+            view(&[]),
+            &["--left", &missing, "--right", &r, "--listen", "127.0.0.1:0"],
+        ),
         1,
     );
     assert!(
@@ -701,24 +670,14 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
         "{err}"
     );
     let err = crate::common::stderr_with_code(
-        [
-            "view",
-            "--model",
-            s(&f.model),
-            "--left",
-            s(&f.left),
-            "--right",
-            s(&f.right),
-            "--listen",
-            "here",
-        ],
+        with(
+            view(&[]),
+            &["--left", &l, "--right", &r, "--listen", "here"],
+        ),
         2,
     );
     assert!(err.contains("--listen"), "{err}");
-    hvs()
-        .args(["view", "--model", s(&f.model)])
-        .assert()
-        .code(2);
+    hvs().args(view(&[])).assert().code(2);
     // A scene with a still pair is bad usage; the QEMU head is not there yet; a bad scene
     // file is named.
     let scene = f.shots.join("scene.json");
@@ -727,31 +686,11 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
         r#"{"rig": {"case": 1}, "camera_fps": 30, "objects": [], "wall": 1}"#,
     )
     .unwrap();
-    let both = [
-        "view",
-        "--model",
-        s(&f.model),
-        "--scene",
-        s(&scene),
-        "--left",
-        s(&f.left),
-        "--right",
-        s(&f.right),
-    ];
-    crate::common::stderr_with_code(both, 2);
-    let qemu = [
-        "view",
-        "--model",
-        s(&f.model),
-        "--scene",
-        s(&scene),
-        "--head",
-        "qemu",
-    ];
-    let err = crate::common::stderr_with_code(qemu, 1);
+    let sc = with(view(&[]), &["--scene", s(&scene)]);
+    crate::common::stderr_with_code(with(sc.clone(), &["--left", &l, "--right", &r]), 2);
+    let err = crate::common::stderr_with_code(with(sc.clone(), &["--head", "qemu"]), 1);
     assert!(err.contains("--head qemu: not yet"), "{err}");
-    let bad = ["view", "--model", s(&f.model), "--scene", s(&scene)];
-    let err = crate::common::stderr_with_code(bad, 1);
+    let err = crate::common::stderr_with_code(sc, 1);
     assert!(err.contains("scene.json") && err.contains("wall"), "{err}");
     // SIGINT stops it at once, even with a client connected.
     let mut sv = start_pair();
@@ -917,10 +856,14 @@ async fn wait_js(c: &fantoccini::Client, js: &str) -> Value {
         if !(v.is_null() || v == false || v == "" || v == 0) {
             return v;
         }
-        assert!(
-            t0.elapsed() < Duration::from_secs(60),
-            "waited 60 s for {js}"
-        );
+        if t0.elapsed() > Duration::from_secs(60) {
+            let page = c
+                .execute("return document.body.innerText;", vec![])
+                .await
+                .map(|v| v.as_str().unwrap_or_default().chars().take(3000).collect())
+                .unwrap_or_else(|e| format!("(no page text: {e})"));
+            panic!("waited 60 s for {js}; the page said:\n{page}");
+        }
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
 }
@@ -939,6 +882,16 @@ async fn shot(c: &fantoccini::Client, name: &str) {
     let p = screenshot_dir().join(name);
     std::fs::write(&p, png).unwrap();
     eprintln!("screenshot: {}", p.display());
+}
+
+/// Clicks the element with id `id`.
+async fn click_id(c: &fantoccini::Client, id: &str) {
+    c.find(fantoccini::Locator::Id(id))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
 }
 
 /// Clicks the left image at pixel `(u, v)` (shown at its natural size) with the mouse.
@@ -1026,12 +979,7 @@ fn browser_click_and_retrain_in_chromium() {
         assert!(oks >= 2, "{oks} of 3 corners located");
         shot(&c, "pair-click.png").await;
         // The depth overlay: every pixel matched, the map shown with its counts.
-        c.find(fantoccini::Locator::Id("show-depth"))
-            .await
-            .unwrap()
-            .click()
-            .await
-            .unwrap();
+        click_id(&c, "show-depth").await;
         wait_js(&c, "document.getElementById('depth').dataset.loaded").await;
         let status = text(&c, "depth-status").await;
         assert!(status.contains("pixels with a depth"), "{status}");
@@ -1039,20 +987,11 @@ fn browser_click_and_retrain_in_chromium() {
         shot(&c, "pair-depth.png").await;
         drop(sv);
         // A capture set: untick a pair, retrain, the summary changes.
-        let sv = start(&[
-            "--model",
-            s(&f.model),
-            "--board",
-            s(&f.shots.join("board.json")),
-            "--captures",
-            s(&f.shots.join("captures.csv")),
-            "--restarts",
-            "1",
-        ]);
+        let sv = start_captures();
         c.goto(&sv.url).await.unwrap();
         wait_js(&c, "document.querySelectorAll('input.use').length === 3").await;
         wait_js(&c, "document.getElementById('frames-status').dataset.loaded").await;
-        c.find(fantoccini::Locator::Id("retrain")).await.unwrap().click().await.unwrap();
+        click_id(&c, "retrain").await;
         wait_js(&c, "document.getElementById('summary').dataset.runs === '1'").await;
         let first = text(&c, "summary").await;
         assert!(first.starts_with("3 pairs, 162 points"), "{first}");
@@ -1062,13 +1001,13 @@ fn browser_click_and_retrain_in_chromium() {
             .click()
             .await
             .unwrap();
-        c.find(fantoccini::Locator::Id("retrain")).await.unwrap().click().await.unwrap();
+        click_id(&c, "retrain").await;
         wait_js(&c, "document.getElementById('summary').dataset.runs === '2'").await;
         let second = text(&c, "summary").await;
         assert!(second.starts_with("2 pairs, 108 points"), "{second}");
         assert_ne!(first, second);
         assert_eq!(text(&c, "summary-before").await, first);
-        c.find(fantoccini::Locator::Id("show-corners")).await.unwrap().click().await.unwrap();
+        click_id(&c, "show-corners").await;
         wait_js(&c, "document.getElementById('left').src.includes('left-corners') && document.getElementById('left').complete").await;
         shot(&c, "captures-retrain.png").await;
         c.execute("document.getElementById('summary').scrollIntoView({block: 'end'});", vec![])
@@ -1098,12 +1037,7 @@ fn browser_click_and_retrain_in_chromium() {
             "idle"
         );
         click_left(&c, 90, 64).await;
-        c.find(fantoccini::Locator::Id("look"))
-            .await
-            .unwrap()
-            .click()
-            .await
-            .unwrap();
+        click_id(&c, "look").await;
         wait_js(&c, "document.getElementById('head').dataset.asked === '1'").await;
         wait_js(&c, "document.getElementById('head').dataset.moved === 'yes'").await;
         let goal = text(&c, "head-goal").await;
