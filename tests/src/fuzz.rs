@@ -580,6 +580,13 @@ fn one_line(msg: &str) {
 /// the header `capture,i,j,u_l,v_l,u_r,v_r` and one row per corner of every found pair, each
 /// with the header's field count.
 pub fn capture_set(data: &[u8]) {
+    capture_set_found(data);
+}
+
+/// [`capture_set`], returning how many pairs were found (0 where the input stopped earlier):
+/// the seeds' test checks that their boards are found, so that the fuzzer starts from inputs
+/// that go all the way through.
+pub fn capture_set_found(data: &[u8]) -> usize {
     let [board, captures, left, right] = parts::<4>(data);
     let dir = tempfile::tempdir().expect("a temporary folder");
     for (name, bytes) in [
@@ -592,11 +599,17 @@ pub fn capture_set(data: &[u8]) {
     }
     let board = match hvs_vision::board::Board::from_path(&dir.path().join("board.json")) {
         Ok(b) => b,
-        Err(e) => return one_line(&e.to_string()),
+        Err(e) => {
+            one_line(&e.to_string());
+            return 0;
+        }
     };
     let set = match hvs_host::data::captures::read(&dir.path().join("captures.csv")) {
         Ok(s) => s,
-        Err(e) => return one_line(&format!("{e:#}")),
+        Err(e) => {
+            one_line(&format!("{e:#}"));
+            return 0;
+        }
     };
     // Images named in the CSV may be anything: only the folder's own files are read.
     if set
@@ -604,11 +617,14 @@ pub fn capture_set(data: &[u8]) {
         .iter()
         .any(|c| !c.left.starts_with(dir.path()) || !c.right.starts_with(dir.path()))
     {
-        return;
+        return 0;
     }
     let det = match hvs_host::vision::detect_set(&board, &set, &|| {}) {
         Ok(d) => d,
-        Err(e) => return one_line(&format!("{e:#}")),
+        Err(e) => {
+            one_line(&format!("{e:#}"));
+            return 0;
+        }
     };
     assert_eq!(det.outcomes.len(), set.captures.len());
     for o in &det.outcomes {
@@ -634,6 +650,7 @@ pub fn capture_set(data: &[u8]) {
     for r in rows {
         assert_eq!(csv_fields(r), fields, "{r}");
     }
+    found
 }
 
 /// Fields of one CSV line (quoted fields may hold commas).
@@ -711,19 +728,32 @@ pub fn locate(data: &[u8]) {
     }
 }
 
-/// The seeds of `capture_set` and `locate`: two rendered pairs of case I (a 5x4 board, so
-/// that the fuzzer's runs stay short) with their board and captures; a sample model with a
+/// The seeds of `capture_set` and `locate`: two rendered pairs of case I at a quarter of its
+/// size (160 x 120, a 5x4 board, so that the fuzzer's runs stay short) with their board and captures; a sample model with a
 /// matcher geometry of parallel cameras, a pair and two pixels.
 pub fn image_seeds() -> Vec<Seed> {
     use hvs_shared::sim::posture::HeadRig;
     use hvs_vision::render;
     let board = render::Board::new(5, 4, 6.0).expect("a board");
+    // Case I at a quarter of its size (160 x 120): a run detects two small images.
+    let c = hvs_shared::sim::presets::CASE_1;
+    let rig = hvs_shared::sim::camera::Rig {
+        phi_u_left: c.phi_u_left / 4.0,
+        phi_u_right: c.phi_u_right / 4.0,
+        phi_v_left: c.phi_v_left / 4.0,
+        phi_v_right: c.phi_v_right / 4.0,
+        u0: c.u0 / 4.0,
+        v0: c.v0 / 4.0,
+        width: c.width / 4,
+        height: c.height / 4,
+        ..c
+    };
     let set = render::render_capture_set(
-        &HeadRig::new(hvs_shared::sim::presets::CASE_1),
+        &HeadRig::new(rig),
         &hvs_shared::runtime::gaze::Joints::HOME,
         &board,
         [0.0, 0.0],
-        &[65.0, 85.0],
+        &[40.0, 50.0],
         &render::RenderOptions::default(),
         7,
     )
@@ -739,7 +769,7 @@ pub fn image_seeds() -> Vec<Seed> {
         "one_pair",
         joined(&[
             board_json.as_bytes(),
-            b"left,right,z\nl.png,r.png,65\n",
+            b"left,right,z\nl.png,r.png,40\n",
             &l0,
             &r0,
         ]),
@@ -749,7 +779,7 @@ pub fn image_seeds() -> Vec<Seed> {
         "same_image_twice",
         joined(&[
             board_json.as_bytes(),
-            b"left,right,z,x,y,note\nl.png,r.png,65,1,-2,a\nl.png,l.png,85,0,0,b\n",
+            b"left,right,z,x,y,note\nl.png,r.png,40,1,-2,a\nl.png,l.png,50,0,0,b\n",
             &l0,
             &r0,
         ]),

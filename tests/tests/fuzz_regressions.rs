@@ -119,3 +119,12 @@ fn overlong_varint_decodes_to_the_same_model() {
     assert_eq!(hvs_tests::blob_bytes(&b), canonical);
     fuzz::blob_decode(&long);
 }
+
+/// The capture-set seeds go all the way through: their boards are found (a seed that stops
+/// at detection would start the fuzzer from the refusals only).
+#[test]
+fn the_capture_set_seeds_find_their_boards() {
+    for (name, bytes) in seeds_of("capture_set") {
+        assert!(fuzz::capture_set_found(&bytes) >= 1, "{name}");
+    }
+}
