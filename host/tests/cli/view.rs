@@ -730,6 +730,12 @@ fn load_view_click_latency_and_20_polling_clients() {
         "click to answer over HTTP (100 clicks): median {:.2} ms, 95th percentile {:.2} ms, max {:.2} ms",
         ms[50], ms[95], ms[99]
     );
+    poll_load(&sv, "");
+}
+
+/// 20 clients polling both frames (and `/api/head` when `head`) of `sv` for
+/// `HVS_VIEW_LOAD_SECS` (60) s: their pair rates and the server's memory, printed.
+fn poll_load(sv: &Server, what: &str) {
     let secs: u64 = std::env::var("HVS_VIEW_LOAD_SECS")
         .ok()
         .and_then(|v| v.parse().ok())
@@ -742,6 +748,13 @@ fn load_view_click_latency_and_20_polling_clients() {
             .unwrap()
     };
     println!("server memory before: {}", rss());
+    let head = !what.is_empty();
+    let head_frames = || {
+        json(&sv.addr, "GET", "/api/head", None, 200)["frames"]
+            .as_u64()
+            .unwrap()
+    };
+    let f0 = if head { head_frames() } else { 0 };
     let end = Instant::now() + Duration::from_secs(secs);
     let clients: Vec<_> = (0..20)
         .map(|_| {
@@ -752,6 +765,9 @@ fn load_view_click_latency_and_20_polling_clients() {
                     for side in ["left", "right"] {
                         let (st, b) = http(&addr, "GET", &format!("/api/frame/0/{side}"), None);
                         assert!(st == 200 && b.len() > 1000);
+                    }
+                    if head {
+                        assert_eq!(http(&addr, "GET", "/api/head", None).0, 200);
                     }
                     frames += 1;
                 }
@@ -767,11 +783,40 @@ fn load_view_click_latency_and_20_polling_clients() {
     let min = rates.iter().copied().fold(f64::INFINITY, f64::min);
     let mean = rates.iter().sum::<f64>() / rates.len() as f64;
     println!(
-        "20 clients polling both frames for {secs} s: {:.1} to {:.1} pairs/s per client (mean {mean:.1}); memory at half time {mid}, at the end {}",
+        "20 clients polling both frames{} for {secs} s: {:.1} to {:.1} pairs/s per client (mean {mean:.1}); memory at half time {mid}, at the end {}",
+        if head { " and the head" } else { "" },
         min,
         rates.iter().copied().fold(0.0, f64::max),
         rss()
     );
+    if head {
+        println!(
+            "{what}: the head grabbed {:.1} frames/s meanwhile",
+            (head_frames() - f0) as f64 / secs as f64
+        );
+    }
+}
+
+/// The same load on the live virtual head (the small rig's scene) while it follows the
+/// nearest object: `cargo test --release -p hvs-host --test cli load_live -- --ignored
+/// --nocapture`.
+#[test]
+#[ignore]
+fn load_live_view_20_polling_clients() {
+    let dir = crate::common::Scratch::new();
+    let (m, scene) = (
+        crate::common::small_model(&dir),
+        crate::common::small_scene(&dir, ""),
+    );
+    let sv = start(&["--model", &m, "--scene", &scene]);
+    json(
+        &sv.addr,
+        "POST",
+        "/api/look",
+        Some(r#"{"target":"nearest"}"#),
+        200,
+    );
+    poll_load(&sv, "the live head following the nearest object");
 }
 
 /// Where the browser test leaves its screenshots.
