@@ -122,6 +122,20 @@ pub fn start_pair() -> Server {
     start_pair_with(&[])
 }
 
+/// A view of the live virtual head in the small rig's scene (its model trained first), with
+/// the options `rest`; the folder holding the model and the scene comes back with it.
+pub fn start_live(rest: &[&str]) -> (crate::common::Scratch, Server) {
+    let dir = crate::common::Scratch::new();
+    let (m, scene) = (
+        crate::common::small_model(&dir),
+        crate::common::small_scene(&dir, ""),
+    );
+    let mut args = vec!["--model", m.as_str(), "--scene", scene.as_str()];
+    args.extend_from_slice(rest);
+    let sv = start(&args);
+    (dir, sv)
+}
+
 /// A view of the fixture's capture set, retraining with one restart.
 pub fn start_captures() -> Server {
     let f = fixture();
@@ -377,6 +391,11 @@ fn head_until(addr: &str, what: &str, done: impl Fn(&Value) -> bool) -> Value {
     }
 }
 
+/// `POST /api/look` with `body`, answered with `want`.
+fn look(addr: &str, body: &str, want: u16) -> Value {
+    json(addr, "POST", "/api/look", Some(body), want)
+}
+
 fn joints_at_home(h: &Value) -> bool {
     h["joints"]
         .as_object()
@@ -390,12 +409,7 @@ fn joints_at_home(h: &Value) -> bool {
 /// look requests are refused and a still source has no head.
 #[test]
 fn view_runs_the_virtual_head_live_and_looks_where_asked() {
-    let dir = crate::common::Scratch::new();
-    let (m, scene) = (
-        crate::common::small_model(&dir),
-        crate::common::small_scene(&dir, ""),
-    );
-    let sv = start(&["--model", &m, "--scene", &scene, "--seed", "3"]);
+    let (_dir, sv) = start_live(&["--seed", "3"]);
     let session = json(&sv.addr, "GET", "/api/session", None, 200);
     assert_eq!(
         (&session["live"], &session["head"]),
@@ -414,13 +428,7 @@ fn view_runs_the_virtual_head_live_and_looks_where_asked() {
     let img = image::load_from_memory(&png).unwrap();
     assert_eq!((img.width(), img.height()), (160, 120));
     // Look at the nearest object: the loop runs and the joints leave home.
-    json(
-        &sv.addr,
-        "POST",
-        "/api/look",
-        Some(r#"{"target":"nearest"}"#),
-        200,
-    );
+    look(&sv.addr, r#"{"target":"nearest"}"#, 200);
     let h = head_until(&sv.addr, "the head to turn", |h| !joints_at_home(h));
     assert_eq!(h["goal"]["target"], "nearest", "{h}");
     assert!(
@@ -428,23 +436,11 @@ fn view_runs_the_virtual_head_live_and_looks_where_asked() {
         "{h}"
     );
     // Home again.
-    json(
-        &sv.addr,
-        "POST",
-        "/api/look",
-        Some(r#"{"target":"home"}"#),
-        200,
-    );
+    look(&sv.addr, r#"{"target":"home"}"#, 200);
     head_until(&sv.addr, "the head at home", |h| {
         joints_at_home(h) && h["moving"] == false && h["status"] == "idle"
     });
-    json(
-        &sv.addr,
-        "POST",
-        "/api/look",
-        Some(r#"{"target":"pixel","u":100,"v":50}"#),
-        200,
-    );
+    look(&sv.addr, r#"{"target":"pixel","u":100,"v":50}"#, 200);
     for (body, want) in [
         (r#"{"target":"pixel","u":1000,"v":5}"#, 400),
         (r#"{"target":"pixel","u":5}"#, 422),
@@ -458,13 +454,7 @@ fn view_runs_the_virtual_head_live_and_looks_where_asked() {
     // A still pair has no head.
     let sv = start_pair();
     json(&sv.addr, "GET", "/api/head", None, 404);
-    json(
-        &sv.addr,
-        "POST",
-        "/api/look",
-        Some(r#"{"target":"home"}"#),
-        400,
-    );
+    look(&sv.addr, r#"{"target":"home"}"#, 400);
 }
 
 /// Every request in `bad` gets its 4xx; the server answers normally after each.
@@ -803,19 +793,8 @@ fn poll_load(sv: &Server, what: &str) {
 #[test]
 #[ignore]
 fn load_live_view_20_polling_clients() {
-    let dir = crate::common::Scratch::new();
-    let (m, scene) = (
-        crate::common::small_model(&dir),
-        crate::common::small_scene(&dir, ""),
-    );
-    let sv = start(&["--model", &m, "--scene", &scene]);
-    json(
-        &sv.addr,
-        "POST",
-        "/api/look",
-        Some(r#"{"target":"nearest"}"#),
-        200,
-    );
+    let (_dir, sv) = start_live(&[]);
+    look(&sv.addr, r#"{"target":"nearest"}"#, 200);
     poll_load(&sv, "the live head following the nearest object");
 }
 
