@@ -358,6 +358,18 @@ pub enum HeadKind {
     Qemu,
 }
 
+impl HeadKind {
+    /// Refuses the head that is not there yet (QEMU: the protocol has no posture command).
+    pub fn check(self) -> anyhow::Result<()> {
+        if self == HeadKind::Qemu {
+            anyhow::bail!(
+                "--head qemu: not yet (the protocol has no posture command yet); use --head emulate"
+            );
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

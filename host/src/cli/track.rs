@@ -4,7 +4,7 @@
 use crate::data::captures::{captures_csv, CaptureRow};
 use crate::data::output::{write_atomically, write_bytes};
 use crate::track::{self, frames::VirtualCameras, head_sim::VirtualHead, target::TargetMode};
-use anyhow::{anyhow, bail, Result};
+use anyhow::{anyhow, Result};
 use hvs_shared::runtime::trajectory::ControllerConfig;
 use hvs_shared::sim::posture::HeadRig;
 use std::path::PathBuf;
@@ -66,9 +66,7 @@ fn parse_target(s: &str) -> Result<TargetMode> {
 
 /// `hvs track`.
 pub fn run(a: Args) -> Result<()> {
-    if a.head == super::HeadKind::Qemu {
-        bail!("--head qemu: not yet (the protocol has no posture command yet); use --head emulate");
-    }
+    a.head.check()?;
     if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
         return Err(crate::cli::usage(format!(
             "--seconds: must be > 0 and at most 3600, got {}",

@@ -74,9 +74,7 @@ pub fn run(a: Args) -> Result<()> {
     if a.restarts == 0 {
         bail!("--restarts must be at least 1");
     }
-    if a.head == super::HeadKind::Qemu {
-        bail!("--head qemu: not yet (the protocol has no posture command yet); use --head emulate");
-    }
+    a.head.check()?;
     let source = match (a.left, a.right, a.board, a.captures, a.scene) {
         (Some(left), Some(right), None, None, None) => Source::Pair { left, right },
         (None, None, Some(board), Some(captures), None) => Source::Captures { board, captures },

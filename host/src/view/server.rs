@@ -199,12 +199,19 @@ async fn frame(
         .await
         .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
         .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("pair {pair}: no such frame")))?;
-    let mut r = Response::new(Body::from((*f.png).clone()));
+    let mut r = png_response(&f.png);
+    r.headers_mut()
+        .insert("x-frame-seq", HeaderValue::from(f.seq));
+    Ok(r)
+}
+
+/// A PNG answer, never cached (frames change; a depth map is the page's to keep).
+fn png_response(png: &[u8]) -> Response {
+    let mut r = Response::new(Body::from(png.to_vec()));
     let h = r.headers_mut();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static("image/png"));
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
-    h.insert("x-frame-seq", HeaderValue::from(f.seq));
-    Ok(r)
+    r
 }
 
 async fn locate(
@@ -255,12 +262,7 @@ async fn depth_image(
     State(app): State<Shared>,
     Path(pair): Path<usize>,
 ) -> Result<Response, ApiError> {
-    let d = depth_of(&app, pair).await?;
-    let mut r = Response::new(Body::from((*d.png).clone()));
-    let h = r.headers_mut();
-    h.insert(header::CONTENT_TYPE, HeaderValue::from_static("image/png"));
-    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
-    Ok(r)
+    Ok(png_response(&depth_of(&app, pair).await?.png))
 }
 
 async fn captures(State(app): State<Shared>) -> Result<Response, ApiError> {

@@ -250,14 +250,7 @@ impl Session {
                 "pair {pair}: no such pair, or its images are unreadable"
             ))
         })?;
-        let (w, h) = (f64::from(l.width()), f64::from(l.height()));
-        if !(u.is_finite() && v.is_finite() && u > -0.5 && v > -0.5 && u < w - 0.5 && v < h - 0.5) {
-            return Err(Refused::Bad(format!(
-                "pixel ({u}, {v}) is outside the {}x{} left image",
-                l.width(),
-                l.height()
-            )));
-        }
+        check_pixel(u, v, l.dimensions())?;
         let found = vision::locate_with(&self.model_path, &self.model.blob, &l, &r, &[[u, v]])
             .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
         found
@@ -267,7 +260,7 @@ impl Session {
     }
 
     /// `hvs depth --colour` on pair `pair` ([`crate::depth::depth`] with its default
-    /// parameters): computed once per pair, then kept.
+    /// parameters): computed once per still pair, then kept; a live pair's every time.
     pub fn depth(&self, pair: usize) -> Result<Arc<DepthView>, Refused> {
         if let Some(why) = &self.locate_refused {
             return Err(Refused::Unprocessable(why.clone()));
@@ -314,19 +307,7 @@ impl Session {
             .as_ref()
             .ok_or_else(|| Refused::Bad("not a live head: start hvs view with --scene".into()))?;
         if let Goal::Pixel([u, v]) = goal {
-            let (w, h) = head.size();
-            let (w, h) = (f64::from(w), f64::from(h));
-            if !(u.is_finite()
-                && v.is_finite()
-                && u > -0.5
-                && v > -0.5
-                && u < w - 0.5
-                && v < h - 0.5)
-            {
-                return Err(Refused::Bad(format!(
-                    "pixel ({u}, {v}) is outside the {w}x{h} left image"
-                )));
-            }
+            check_pixel(u, v, head.size())?;
         }
         head.set_goal(goal);
         head.state()
@@ -390,6 +371,19 @@ impl Session {
             train_error_pct: t.outcome.train_error_pct,
             summary: crate::train::model::summary(&name, &t),
         })
+    }
+}
+
+/// Refuses a left pixel that is not finite or lies outside a `w x h` image (pixel-centre
+/// convention: from -0.5 to the size - 0.5), for a click and for a look.
+fn check_pixel(u: f64, v: f64, (w, h): (u32, u32)) -> Result<(), Refused> {
+    let (wf, hf) = (f64::from(w), f64::from(h));
+    if u.is_finite() && v.is_finite() && u > -0.5 && v > -0.5 && u < wf - 0.5 && v < hf - 0.5 {
+        Ok(())
+    } else {
+        Err(Refused::Bad(format!(
+            "pixel ({u}, {v}) is outside the {w}x{h} left image"
+        )))
     }
 }
 
