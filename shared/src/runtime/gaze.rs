@@ -42,14 +42,16 @@
 //!
 //! # Arithmetic
 //!
-//! Everything is `f32`. `atan2f` and `sqrtf` come from `libm`; sine and cosine are a small
+//! Everything is `f32`. `atan2f` comes from `libm`; the square root is [`sqrt`], a bit-by-bit
+//! integer square root, correctly rounded like `libm::sqrtf` (the same bits) in a sixth of the
+//! flash (libm's takes a 256 B table for its speed, which a look does not need); sine and cosine are a small
 //! pure-`f32` kernel here ([`sin_cos`]), because `libm`'s `sinf`/`cosf` evaluate in `f64`
 //! (soft-float on the Cortex-M4F) with a large-argument reduction, about 6 KiB of the
 //! firmware's 24 KiB flash budget, while joint angles never leave ±π. Host and MCU still
 //! compute the same bits (IEEE `f32` operations only, no fused multiply-add).
 use core::ops::{Index, IndexMut};
 
-use libm::{atan2f, ceilf, floorf, roundf, sqrtf};
+use libm::{atan2f, ceilf, floorf, roundf};
 use serde::{Deserialize, Serialize};
 
 /// Positioning resolution of the MCDC 3006 S drives in the thesis' head, degrees.
@@ -618,7 +620,60 @@ fn scale(a: [f32; 3], k: f32) -> [f32; 3] {
 
 /// Euclidean length (no overflow guard: callers bound their inputs).
 fn norm(a: [f32; 3]) -> f32 {
-    sqrtf(dot(a, a))
+    sqrt(dot(a, a))
+}
+
+/// The square root of `x`, correctly rounded to nearest as IEEE 754 requires: the same bits as
+/// `libm::sqrtf` for every `x` (NaN payloads aside; a negative `x` gives NaN, `-0` gives `-0`,
+/// `+inf` gives `+inf`). fdlibm's bit-by-bit method (`e_sqrtf.c`): the 24-bit root of the
+/// mantissa is built one bit per step from the integer remainder, then rounded from whether a
+/// remainder is left. About 25 steps of a few integer instructions, and small: libm's fast
+/// version needs a 256 B table, which a look (a few roots) does not need.
+pub fn sqrt(x: f32) -> f32 {
+    let bits = x.to_bits();
+    if bits & 0x7f80_0000 == 0x7f80_0000 {
+        // NaN stays NaN, +inf stays +inf, -inf gives NaN.
+        return x * x + x;
+    }
+    if bits & 0x7fff_ffff == 0 {
+        return x; // +-0
+    }
+    if bits >> 31 != 0 {
+        return f32::NAN;
+    }
+    let mut ix = bits as i32;
+    let mut m = ix >> 23;
+    if m == 0 {
+        // Subnormal: normalise.
+        let mut i = 0;
+        while ix & 0x0080_0000 == 0 {
+            ix <<= 1;
+            i += 1;
+        }
+        m -= i - 1;
+    }
+    m -= 127;
+    ix = (ix & 0x007f_ffff) | 0x0080_0000;
+    if m & 1 == 1 {
+        ix += ix;
+    }
+    m >>= 1;
+    ix += ix;
+    let (mut q, mut s, mut r) = (0i32, 0i32, 0x0100_0000i32);
+    while r != 0 {
+        let t = s + r;
+        if t <= ix {
+            s = t + r;
+            ix -= t;
+            q += r;
+        }
+        ix += ix;
+        r >>= 1;
+    }
+    if ix != 0 {
+        q += q & 1; // round to nearest (a root is never exactly halfway)
+    }
+    f32::from_bits((((q >> 1) + 0x3f00_0000) + (m << 23)) as u32)
 }
 
 /// `(sin x, cos x)` for `x` in radians, within 2 ulp of the true values for `|x| <= 2π`
@@ -657,6 +712,48 @@ mod tests {
     extern crate std;
     use libm::{cosf, sinf};
     use proptest::prelude::*;
+
+    /// `sqrt` against libm's on every 257th f32 pattern (both signs, subnormals, infinities,
+    /// NaNs) and around 1, 2 and 4: the same bits, or NaN for NaN.
+    #[test]
+    fn sqrt_gives_libms_bits() {
+        let near = |v: f32| {
+            let b = v.to_bits();
+            b - 4096..=b + 4096
+        };
+        let bits = (0..=u32::MAX)
+            .step_by(257)
+            .chain(near(1.0))
+            .chain(near(2.0))
+            .chain(near(4.0))
+            .chain(0..4096);
+        check_sqrt(bits);
+    }
+
+    /// Every f32: `cargo test --release -p hvs-shared --lib sqrt_on_every -- --ignored`.
+    #[test]
+    #[ignore]
+    fn sqrt_on_every_f32_gives_libms_bits() {
+        let parts: std::vec::Vec<_> = (0..4u32)
+            .map(|t| std::thread::spawn(move || check_sqrt(t << 30..=(t << 30) | 0x3fff_ffff)))
+            .collect();
+        for p in parts {
+            p.join().unwrap();
+        }
+    }
+
+    fn check_sqrt(bits: impl Iterator<Item = u32>) {
+        for b in bits {
+            let x = f32::from_bits(b);
+            let (got, want) = (sqrt(x), libm::sqrtf(x));
+            assert!(
+                got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                "sqrt({x:e}) = {got:e} ({:#x}), libm {want:e} ({:#x})",
+                got.to_bits(),
+                want.to_bits()
+            );
+        }
+    }
 
     #[test]
     fn platform_frame_is_the_chain_of_neck_pan_neck_tilt_eye_tilt() {

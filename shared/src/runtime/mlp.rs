@@ -49,12 +49,28 @@ impl Activation {
 /// value. NaN in, NaN out.
 #[inline(always)]
 pub fn sigmoid(a: f32) -> f32 {
-    1.0 / (1.0 + exp(-a))
+    // `exp(-a)`'s two halves, the rare one out of the straight path.
+    if f32::from_bits(a.to_bits() & 0x7fff_ffff) < EXP_FAST_BELOW {
+        1.0 / (1.0 + exp_fast(-a))
+    } else {
+        sigmoid_outside(a)
+    }
+}
+
+/// [`sigmoid`] for `|a| >=` [`EXP_FAST_BELOW`] and NaN: `1 / (1 + exp_outside(-a))`, which is
+/// 1 for `a > 0`, 0 for `a < 0` and NaN for NaN. Cold, and out of line on the head, so the
+/// straight path through [`sigmoid`] has no jump around it.
+#[cold]
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline)]
+fn sigmoid_outside(a: f32) -> f32 {
+    1.0 / (1.0 + exp_outside(-a))
 }
 
 /// [`sigmoid`] (the same function, the same bits), inlined on the host and one out-of-line
-/// copy on the head, where flash is short: every net the head runs ([`FixedMlp`],
-/// [`infer_flat`]) calls this one copy.
+/// copy on the head, where flash is short: [`infer_flat`] (every net but the 4-5-3 fast path)
+/// and [`FixedMlp`]'s output sigmoid call it; [`FixedMlp`]'s hidden layer inlines [`sigmoid`],
+/// whose constants then stay in registers across the layer.
 #[cfg_attr(target_os = "none", inline(never))]
 #[cfg_attr(not(target_os = "none"), inline(always))]
 pub fn sigmoid_shared(a: f32) -> f32 {
@@ -487,6 +503,31 @@ pub fn infer_fixed_into<const I: usize, const H: usize, const O: usize>(
     forward(m, x, &mut xn, &mut hid, y, sigmoid, dot4)
 }
 
+/// Calls `f(0)`, ..., `f(N - 1)` in order, written out for `N <= 4` (`N` is a constant, so
+/// the compiler drops the calls past it), a loop beyond: straight-line code at opt-level s,
+/// which keeps counted loops.
+#[inline(always)]
+fn unrolled<const N: usize>(mut f: impl FnMut(usize)) {
+    if N > 4 {
+        for i in 0..N {
+            f(i);
+        }
+        return;
+    }
+    if N > 0 {
+        f(0);
+    }
+    if N > 1 {
+        f(1);
+    }
+    if N > 2 {
+        f(2);
+    }
+    if N > 3 {
+        f(3);
+    }
+}
+
 /// Most parameters (sigmoid net and skip weights) a [`FixedMlp`] holds: a 4-5-3 net with a
 /// skip term has 55.
 pub const FIXED_MAX_PARAMS: usize = 64;
@@ -573,17 +614,17 @@ impl<const I: usize, const H: usize, const O: usize> FixedMlp<I, H, O> {
         let () = Self::FITS;
         let mut xn = [0.0f32; I];
         let mut finite = true;
-        for i in 0..I {
+        unrolled::<I>(|i| {
             finite &= x[i].is_finite();
             xn[i] = (x[i] - self.in_offset[i]) * self.in_scale[i];
-        }
+        });
         if !finite {
             return Err(MlpError::NonFiniteInput);
         }
         let p = &self.p;
         let h: [f32; H] = core::array::from_fn(|j| {
             let row = j * (I + 1);
-            sigmoid_shared(dot4(p[row + I], &p[row..row + I], &xn))
+            sigmoid(dot4(p[row + I], &p[row..row + I], &xn))
         });
         for k in 0..O {
             let row = Self::OUT_ROWS + k * (H + 1);
@@ -803,6 +844,30 @@ mod tests {
             we <= 8.2e-8 && ws < 1.5e-7 && ws <= wl,
             "{we:e} {ws:e} {wl:e}"
         );
+    }
+
+    /// The sigmoid's two halves are `1 / (1 + exp(-a))` bit for bit, at the split and on
+    /// every 1021st pattern (infinities and NaNs included).
+    #[test]
+    fn sigmoid_is_one_over_one_plus_exp_bit_for_bit() {
+        let near = |v: f32| {
+            let b = v.to_bits();
+            b - 4096..=b + 4096
+        };
+        let bits = (0..=u32::MAX)
+            .step_by(1021)
+            .chain(near(EXP_FAST_BELOW))
+            .chain(near(-EXP_FAST_BELOW))
+            .chain([0x7f80_0000, 0xff80_0000, 0x7fc0_0000, 0xffc0_0000]);
+        for b in bits {
+            let a = f32::from_bits(b);
+            let (got, want) = (sigmoid(a), 1.0 / (1.0 + exp(-a)));
+            assert!(
+                got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                "sigmoid({a:e}) = {got:e}, 1 / (1 + exp(-a)) = {want:e}"
+            );
+            assert_eq!(sigmoid_shared(a).to_bits(), got.to_bits());
+        }
     }
 
     #[test]
