@@ -139,28 +139,79 @@ pub(crate) const SPLIT_MIN_SAMPLES: usize = 1024;
 /// Scratch of [`Problem::normal_equations`] for one problem, allocated once per fit.
 #[derive(Debug, Clone)]
 pub(crate) struct NormalWorkspace {
-    /// Row `n` (`nx` values): the packed upper triangle of `x~ x~^T` (constant over a fit).
+    /// Row `n` (`nx_p` values, zeros after `nx`): the packed upper triangle of `x~ x~^T`
+    /// (constant over a fit).
     xpk: Vec<f64>,
     /// One accumulator per part of the samples (two for [`SPLIT_MIN_SAMPLES`] or more).
     parts: Vec<Part>,
 }
 
+/// Samples whose per-sample vectors [`Problem::accumulate`] buffers before it adds them into
+/// the sums, tile by tile ([`add_products`]).
+const CHUNK: usize = 32;
+
+/// `n` rounded up to a whole number of [`add_products`]' tiles (4).
+const fn pad4(n: usize) -> usize {
+    n.div_ceil(4) * 4
+}
+
+/// The sizes of [`Problem::normal_equations`]' sums for one shape, each padded to whole tiles
+/// (the padding holds zeros in the inputs and is never read from the sums).
+#[derive(Debug, Clone, Copy)]
+struct Dims {
+    /// `x~` (`ni + 1`) and `h~` ([`Shape::ne`]).
+    ni1: usize,
+    ne: usize,
+    /// Packed `U_n` (`nh (nh + 1) / 2`), padded.
+    nu: usize,
+    /// Packed `x~ x~^T` (`ni1 (ni1 + 1) / 2`), padded.
+    nx_p: usize,
+    /// `g_k^2 u_k` stacked (`no nh`), padded.
+    na: usize,
+    /// `x~ (x) h~` (`ni1 ne`), padded.
+    nb_p: usize,
+    /// `h~` padded: a row of an output's square second-layer block.
+    ne_p: usize,
+}
+
+impl Dims {
+    fn new(s: &Shape) -> Self {
+        let (ni1, ne) = (s.ni + 1, s.ne());
+        let nx = ni1 * (ni1 + 1) / 2;
+        Dims {
+            ni1,
+            ne,
+            nu: pad4(s.nh * (s.nh + 1) / 2),
+            nx_p: pad4(nx),
+            na: pad4(s.no * s.nh),
+            nb_p: pad4(ni1 * ne),
+            ne_p: pad4(ne),
+        }
+    }
+}
+
 /// The sums of [`Problem::normal_equations`] over one range of samples, with its scratch.
 #[derive(Debug, Clone)]
 struct Part {
-    /// `nu x nx`, row-major: the packed first-layer block `sum_n U_n (x) X_n`.
+    /// `nu x nx`, row-major (rows padded): the packed first-layer block `sum_n U_n (x) X_n`.
     m: Vec<f64>,
-    /// `(no nh) x (ni1 nh1)`, row-major: the cross blocks.
+    /// `(no nh) x (ni1 ne)`, row-major (padded): the cross blocks.
     cross: Vec<f64>,
-    /// Packed `sum_n g_k^2 h~ h~^T` per output.
+    /// `sum_n g_k^2 h~ h~^T` per output, `ne_p x ne_p` row-major; only the tiles on and above
+    /// the diagonal are summed (the others hold whatever they hold).
     w2w2: Vec<f64>,
     /// `J^T r` of the range.
     jtr: Vec<f64>,
-    /// Per sample: packed `U_n`, `g_k^2 u_k` stacked, `x~ (x) h~`.
-    upk: Vec<f64>,
-    a: Vec<f64>,
-    b: Vec<f64>,
-    ht: Vec<f64>,
+    /// Per sample of a chunk (`CHUNK` rows each): packed `U_n` (`nu`), ...
+    ub: Vec<f64>,
+    /// ... `g_k^2 u_k` stacked (`no nh`), ...
+    ab: Vec<f64>,
+    /// ... `x~ (x) h~` (`ni1 ne`), ...
+    bb: Vec<f64>,
+    /// ... `g_k^2 h~` per output (`no ne`), ...
+    gb: Vec<f64>,
+    /// ... and `h~` (`ne`).
+    hb: Vec<f64>,
     y: Vec<f64>,
     gu: Vec<f64>,
     rb: Vec<f64>,
@@ -168,17 +219,17 @@ struct Part {
 
 impl Part {
     fn new(s: &Shape) -> Self {
-        let (ni1, ne) = (s.ni + 1, s.ne());
-        let (nu, nx) = (s.nh * (s.nh + 1) / 2, ni1 * (ni1 + 1) / 2);
+        let d = Dims::new(s);
         Part {
-            m: vec![0.0; nu * nx],
-            cross: vec![0.0; s.no * s.nh * ni1 * ne],
-            w2w2: vec![0.0; s.no * ne * (ne + 1) / 2],
+            m: vec![0.0; d.nu * d.nx_p],
+            cross: vec![0.0; d.na * d.nb_p],
+            w2w2: vec![0.0; s.no * d.ne_p * d.ne_p],
             jtr: vec![0.0; s.n_params()],
-            upk: vec![0.0; nu],
-            a: vec![0.0; s.no * s.nh],
-            b: vec![0.0; ni1 * ne],
-            ht: vec![0.0; ne],
+            ub: vec![0.0; CHUNK * d.nu],
+            ab: vec![0.0; CHUNK * d.na],
+            bb: vec![0.0; CHUNK * d.nb_p],
+            gb: vec![0.0; CHUNK * s.no * d.ne_p],
+            hb: vec![0.0; CHUNK * d.ne_p],
             y: vec![0.0; s.no],
             gu: vec![0.0; s.nh],
             rb: vec![0.0; s.nh],
@@ -202,17 +253,17 @@ impl NormalWorkspace {
     /// Scratch for `prob`.
     pub(crate) fn new(prob: &Problem) -> Self {
         let s = &prob.shape;
-        let (ni1, n) = (s.ni + 1, prob.n);
-        let nx = ni1 * (ni1 + 1) / 2;
-        let mut xpk = Vec::with_capacity(n * nx);
+        let (d, n) = (Dims::new(s), prob.n);
+        let mut xpk = Vec::with_capacity(n * d.nx_p);
         for r in 0..n {
             let x = &prob.x[r * s.ni..(r + 1) * s.ni];
             let xt = |i: usize| if i < s.ni { x[i] } else { 1.0 };
-            for i in 0..ni1 {
-                for i2 in i..ni1 {
+            for i in 0..d.ni1 {
+                for i2 in i..d.ni1 {
                     xpk.push(xt(i) * xt(i2));
                 }
             }
+            xpk.resize((r + 1) * d.nx_p, 0.0);
         }
         let parts = if n >= SPLIT_MIN_SAMPLES { 2 } else { 1 };
         NormalWorkspace {
@@ -227,6 +278,104 @@ impl NormalWorkspace {
 fn axpy(dst: &mut [f64], a: f64, src: &[f64]) {
     for (d, v) in dst.iter_mut().zip(src) {
         *d += a * v;
+    }
+}
+
+/// `dst[r * ldd + c] += sum_t u[t * ldu + r] * x[t * ldx + c]` for `r < rows`, `c < cols` and
+/// `t` in `0..len`: each element adds its products in the order of `t`, so the result has
+/// the bits of adding one sample after the other ([`axpy`] per sample). `rows` and `cols`
+/// are whole tiles: the elements are summed in register tiles of 4 x 4 (SIMD pairs of f64 on
+/// the x86-64 baseline, quadruples where the CPU has AVX; plain multiplies and adds, no fused
+/// multiply-add, so every machine gives the same bits).
+fn add_products(
+    dst: &mut [f64],
+    (rows, cols, ldd): (usize, usize, usize),
+    (u, ldu): (&[f64], usize),
+    (x, ldx): (&[f64], usize),
+    len: usize,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: this CPU has AVX (checked just above).
+        unsafe { add_products_avx(dst, (rows, cols, ldd), (u, ldu), (x, ldx), len) };
+        return;
+    }
+    add_products_in::<4>(dst, (rows, cols, ldd), (u, ldu), (x, ldx), len);
+}
+
+/// [`add_products`] compiled for AVX (four f64 a register instead of two, and tiles of 4 x 8
+/// where they fit, so eight sums are in flight): the same multiplies and adds in the same
+/// order, so the same bits (tested).
+///
+/// # Safety
+/// The CPU must have AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn add_products_avx(
+    dst: &mut [f64],
+    (rows, cols, ldd): (usize, usize, usize),
+    (u, ldu): (&[f64], usize),
+    (x, ldx): (&[f64], usize),
+    len: usize,
+) {
+    add_products_in::<8>(dst, (rows, cols, ldd), (u, ldu), (x, ldx), len);
+}
+
+/// The body of [`add_products`], inlined into each of its builds: tiles `W` columns wide
+/// (4 or 8) while they fit, then 4.
+#[inline(always)]
+fn add_products_in<const W: usize>(
+    dst: &mut [f64],
+    (rows, cols, ldd): (usize, usize, usize),
+    (u, ldu): (&[f64], usize),
+    (x, ldx): (&[f64], usize),
+    len: usize,
+) {
+    debug_assert!(rows % 4 == 0 && cols % 4 == 0, "padded to whole tiles");
+    if len == 0 {
+        return;
+    }
+    for r0 in (0..rows).step_by(4) {
+        let mut c0 = 0;
+        while c0 < cols {
+            let d = &mut dst[r0 * ldd + c0..];
+            let (u, x) = ((&u[r0..], ldu), (&x[c0..], ldx));
+            if W == 8 && cols - c0 >= 8 {
+                tile::<8>(d, ldd, u, x, len);
+                c0 += 8;
+            } else {
+                tile::<4>(d, ldd, u, x, len);
+                c0 += 4;
+            }
+        }
+    }
+}
+
+/// One 4 x `C` tile of [`add_products`] (`dst`, `u` and `x` start at the tile's corner).
+#[inline(always)]
+fn tile<const C: usize>(
+    dst: &mut [f64],
+    ldd: usize,
+    (u, ldu): (&[f64], usize),
+    (x, ldx): (&[f64], usize),
+    len: usize,
+) {
+    const R: usize = 4;
+    let mut acc = [[0.0f64; C]; R];
+    for (r, a) in acc.iter_mut().enumerate() {
+        a.copy_from_slice(&dst[r * ldd..r * ldd + C]);
+    }
+    for t in 0..len {
+        let ur = &u[t * ldu..t * ldu + R];
+        let xr = &x[t * ldx..t * ldx + C];
+        for r in 0..R {
+            for c in 0..C {
+                acc[r][c] += ur[r] * xr[c];
+            }
+        }
+    }
+    for (r, a) in acc.iter().enumerate() {
+        dst[r * ldd..r * ldd + C].copy_from_slice(a);
     }
 }
 
@@ -386,8 +535,9 @@ impl Problem {
     /// - second-layer block of output `k`: `sum_n g_k^2 h~ h~^T`.
     ///
     /// This is about a third of the work of `J^T J` on the explicit Jacobian. Every sum runs
-    /// in a fixed order in plain f64 (no runtime-dispatched kernels), so the result is the
-    /// same on every machine.
+    /// in a fixed order (sample by sample) in plain f64 multiplies and adds, so the result is
+    /// the same on every machine: the AVX build of the tiled sums ([`add_products`]) gives the
+    /// bits of the portable one.
     pub(crate) fn normal_equations(
         &self,
         p: &[f64],
@@ -398,8 +548,6 @@ impl Problem {
     ) -> f64 {
         let s = &self.shape;
         let (ni1, ne, np) = (s.ni + 1, s.ne(), s.n_params());
-        let nw2 = ne * (ne + 1) / 2;
-        let nb = ni1 * ne;
         let xpk = &ws.xpk;
         let cost = match ws.parts.as_mut_slice() {
             [one] => self.accumulate(p, act, xpk, 0..self.n, one),
@@ -422,7 +570,8 @@ impl Problem {
             ..
         } = &ws.parts[0];
         jtr.copy_from_slice(sums);
-        let nx = ni1 * (ni1 + 1) / 2;
+        let d = Dims::new(s);
+        let (nx, ne_p) = (d.nx_p, d.ne_p);
 
         // Expand into the full matrix.
         let pack = |a: usize, b: usize, dim: usize| {
@@ -444,7 +593,7 @@ impl Problem {
                 for j2 in 0..ne {
                     for j3 in 0..ne {
                         jtj[s.w2e(k, j2) * np + s.w2e(k2, j3)] = if k2 == k {
-                            w2w2[k * nw2 + pack(j2, j3, ne)]
+                            w2w2[(k * ne_p + j2.min(j3)) * ne_p + j2.max(j3)]
                         } else {
                             0.0
                         };
@@ -454,7 +603,7 @@ impl Problem {
             for j in 0..s.nh {
                 for i in 0..ni1 {
                     for j2 in 0..ne {
-                        let v = cross[(k * s.nh + j) * nb + i * ne + j2];
+                        let v = cross[(k * s.nh + j) * d.nb_p + i * ne + j2];
                         let e = s.w2e(k, j2);
                         jtj[s.w1(j, i) * np + e] = v;
                         jtj[e * np + s.w1(j, i)] = v;
@@ -466,7 +615,9 @@ impl Problem {
     }
 
     /// The sums of [`Problem::normal_equations`] over the samples `range` into `part` (its
-    /// blocks and `J^T r`, zeroed first); returns the sum of squared residuals there.
+    /// blocks and `J^T r`, zeroed first); returns the sum of squared residuals there. A chunk
+    /// of samples at a time: their per-sample vectors first, then the blocks' sums over them
+    /// ([`add_products`], each element in sample order).
     fn accumulate(
         &self,
         p: &[f64],
@@ -476,19 +627,19 @@ impl Problem {
         part: &mut Part,
     ) -> f64 {
         let s = &self.shape;
-        let (ni1, ne) = (s.ni + 1, s.ne());
-        let nx = ni1 * (ni1 + 1) / 2;
-        let nw2 = ne * (ne + 1) / 2;
-        let nb = ni1 * ne;
+        let d = Dims::new(s);
+        let (ni1, ne, nu, na, nb, ne_p) = (d.ni1, d.ne, d.nu, d.na, d.nb_p, d.ne_p);
+        let nge = s.no * ne_p;
         let Part {
             m,
             cross,
             w2w2,
             jtr,
-            upk,
-            a,
-            b,
-            ht,
+            ub,
+            ab,
+            bb,
+            gb,
+            hb,
             y,
             gu,
             rb,
@@ -497,69 +648,94 @@ impl Problem {
         cross.iter_mut().for_each(|v| *v = 0.0);
         w2w2.iter_mut().for_each(|v| *v = 0.0);
         jtr.iter_mut().for_each(|v| *v = 0.0);
-        ht[s.nh] = 1.0;
         let mut cost = 0.0;
-        for n in range {
-            let x = &self.x[n * s.ni..(n + 1) * s.ni];
-            ht[..s.nh].copy_from_slice(&act.h[n * s.nh..(n + 1) * s.nh]);
-            if s.skip {
-                ht[s.nh + 1..].copy_from_slice(x);
-            }
-            y.copy_from_slice(&act.y[n * s.no..(n + 1) * s.no]);
-            // x~ (x) h~.
-            for i in 0..ni1 {
-                let xi = if i < s.ni { x[i] } else { 1.0 };
-                for j2 in 0..ne {
-                    b[i * ne + j2] = xi * ht[j2];
+        let mut n0 = range.start;
+        while n0 < range.end {
+            let len = (range.end - n0).min(CHUNK);
+            for t in 0..len {
+                let n = n0 + t;
+                let x = &self.x[n * s.ni..(n + 1) * s.ni];
+                let ht = &mut hb[t * ne_p..t * ne_p + ne];
+                ht[..s.nh].copy_from_slice(&act.h[n * s.nh..(n + 1) * s.nh]);
+                ht[s.nh] = 1.0;
+                if s.skip {
+                    ht[s.nh + 1..].copy_from_slice(x);
+                }
+                let ht = &hb[t * ne_p..t * ne_p + ne];
+                y.copy_from_slice(&act.y[n * s.no..(n + 1) * s.no]);
+                // x~ (x) h~.
+                let b = &mut bb[t * nb..t * nb + ni1 * ne];
+                for (i, row) in b.chunks_exact_mut(ne).enumerate() {
+                    let xi = if i < s.ni { x[i] } else { 1.0 };
+                    for (v, h) in row.iter_mut().zip(ht) {
+                        *v = xi * h;
+                    }
+                }
+                // The padding after each row stays zero.
+                let upk = &mut ub[t * nu..t * nu + s.nh * (s.nh + 1) / 2];
+                let a = &mut ab[t * na..(t + 1) * na];
+                let g2h = &mut gb[t * nge..(t + 1) * nge];
+                upk.iter_mut().for_each(|v| *v = 0.0);
+                rb.iter_mut().for_each(|v| *v = 0.0);
+                for k in 0..s.no {
+                    let row = n * s.no + k;
+                    let (rk, g) = self.residual(row, y[k]);
+                    cost += rk * rk;
+                    let base = s.w2(k, 0);
+                    for j in 0..s.nh {
+                        gu[j] = g * p[base + j] * ht[j] * (1.0 - ht[j]);
+                        a[k * s.nh + j] = g * gu[j];
+                        rb[j] += rk * gu[j];
+                    }
+                    // upk[(j, j2)] += gu[j] gu[j2] for j2 >= j, a row at a time.
+                    let mut q = 0;
+                    for j in 0..s.nh {
+                        let w = s.nh - j;
+                        axpy(&mut upk[q..q + w], gu[j], &gu[j..]);
+                        q += w;
+                    }
+                    // Second layer (and skip weights) of output k: g h~. Its weights are
+                    // w2(k, 0..=nh) then the skip weights sk(k, 0..ni) (`Shape::w2e`).
+                    let (rg, gg) = (rk * g, g * g);
+                    let (bias_end, skip0) = (base + s.nh + 1, s.sk(k, 0));
+                    axpy(&mut jtr[base..bias_end], rg, &ht[..=s.nh]);
+                    if s.skip {
+                        axpy(&mut jtr[skip0..skip0 + s.ni], rg, &ht[s.nh + 1..]);
+                    }
+                    for (v, h) in g2h[k * ne_p..k * ne_p + ne].iter_mut().zip(ht) {
+                        *v = gg * h;
+                    }
+                }
+                // First-layer gradient: sum_k r_k g_k u_kj x~_i.
+                for j in 0..s.nh {
+                    let w = s.w1(j, 0);
+                    axpy(&mut jtr[w..w + s.ni], rb[j], x);
+                    jtr[w + s.ni] += rb[j];
                 }
             }
-            upk.iter_mut().for_each(|v| *v = 0.0);
-            rb.iter_mut().for_each(|v| *v = 0.0);
+            // The chunk's rank-one updates: the packed first-layer block, the cross blocks,
+            // and each output's second-layer block, the tiles on and above its diagonal.
+            let nx_p = d.nx_p;
+            add_products(
+                m,
+                (nu, nx_p, nx_p),
+                (ub, nu),
+                (&xpk[n0 * nx_p..], nx_p),
+                len,
+            );
+            add_products(cross, (na, nb, nb), (ab, na), (bb, nb), len);
             for k in 0..s.no {
-                let row = n * s.no + k;
-                let (rk, g) = self.residual(row, y[k]);
-                cost += rk * rk;
-                let base = s.w2(k, 0);
-                for j in 0..s.nh {
-                    gu[j] = g * p[base + j] * ht[j] * (1.0 - ht[j]);
-                    a[k * s.nh + j] = g * gu[j];
-                    rb[j] += rk * gu[j];
-                }
-                let mut q = 0;
-                for j in 0..s.nh {
-                    for j2 in j..s.nh {
-                        upk[q] += gu[j] * gu[j2];
-                        q += 1;
-                    }
-                }
-                // Second layer (and skip weights) of output k: g h~.
-                let w2 = &mut w2w2[k * nw2..(k + 1) * nw2];
-                let mut q = 0;
-                for j2 in 0..ne {
-                    jtr[s.w2e(k, j2)] += rk * g * ht[j2];
-                    let gg = g * g * ht[j2];
-                    for j3 in j2..ne {
-                        w2[q] += gg * ht[j3];
-                        q += 1;
-                    }
+                for r0 in (0..ne_p).step_by(4) {
+                    add_products(
+                        &mut w2w2[(k * ne_p + r0) * ne_p + r0..],
+                        (4, ne_p - r0, ne_p),
+                        (&gb[k * ne_p + r0..], nge),
+                        (&hb[r0..], ne_p),
+                        len,
+                    );
                 }
             }
-            // First-layer gradient: sum_k r_k g_k u_kj x~_i.
-            for j in 0..s.nh {
-                let w = s.w1(j, 0);
-                for i in 0..s.ni {
-                    jtr[w + i] += rb[j] * x[i];
-                }
-                jtr[w + s.ni] += rb[j];
-            }
-            // Rank-one updates of the packed first-layer block and of the cross blocks.
-            let xn = &xpk[n * nx..(n + 1) * nx];
-            for (row, u) in m.chunks_exact_mut(nx).zip(upk.iter()) {
-                axpy(row, *u, xn);
-            }
-            for (row, av) in cross.chunks_exact_mut(nb).zip(a.iter()) {
-                axpy(row, *av, b);
-            }
+            n0 += len;
         }
         cost
     }
@@ -745,6 +921,35 @@ pub(crate) mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// `add_products` (AVX where this CPU has it) and its portable build give the bits of
+    /// adding the samples one after the other, over chunks that do not fill a tile of 8.
+    #[test]
+    fn tiled_products_have_the_bits_of_one_sample_at_a_time() {
+        let mut g = SplitMix64::new(5);
+        for (rows, cols, len) in [(4, 4, 1), (8, 12, 7), (16, 56, 32), (12, 20, 3)] {
+            let (ldu, ldx) = (rows + 3, cols + 1);
+            let u: Vec<f64> = (0..len * ldu).map(|_| g.uniform(-2.0, 2.0)).collect();
+            let x: Vec<f64> = (0..len * ldx).map(|_| g.uniform(-2.0, 2.0)).collect();
+            let start: Vec<f64> = (0..rows * cols).map(|_| g.uniform(-1.0, 1.0)).collect();
+            let mut want = start.clone();
+            for t in 0..len {
+                for r in 0..rows {
+                    axpy(
+                        &mut want[r * cols..(r + 1) * cols],
+                        u[t * ldu + r],
+                        &x[t * ldx..t * ldx + cols],
+                    );
+                }
+            }
+            let (mut fast, mut portable) = (start.clone(), start);
+            add_products(&mut fast, (rows, cols, cols), (&u, ldu), (&x, ldx), len);
+            add_products_in::<4>(&mut portable, (rows, cols, cols), (&u, ldu), (&x, ldx), len);
+            let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&fast), bits(&want), "{rows}x{cols}, {len} samples");
+            assert_eq!(bits(&portable), bits(&want), "{rows}x{cols}, {len} samples");
         }
     }
 
