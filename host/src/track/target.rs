@@ -72,20 +72,44 @@ pub struct Found {
     pub points: Vec<[i32; 2]>,
 }
 
-/// A grey image as `f32`, with its size.
+/// A grey image as `f32`, with its size and its integral images (window sums in four
+/// lookups).
 struct Plane {
     w: i32,
     h: i32,
     p: Vec<f32>,
+    /// `(w + 1) x (h + 1)`: the sums of the grey levels above and left of each corner, and of
+    /// their squares. Exact in `f64`: the levels are multiples of 1/4 below 256 (full and half
+    /// resolution), so every sum is a multiple of 1/16 below 2^37.
+    sum: Vec<f64>,
+    sq: Vec<f64>,
 }
 
 impl Plane {
     fn new(img: &GrayImage) -> Plane {
-        Plane {
-            w: img.width() as i32,
-            h: img.height() as i32,
-            p: img.as_raw().iter().map(|&x| f32::from(x)).collect(),
+        Plane::with(
+            img.width() as i32,
+            img.height() as i32,
+            img.as_raw().iter().map(|&x| f32::from(x)).collect(),
+        )
+    }
+
+    fn with(w: i32, h: i32, p: Vec<f32>) -> Plane {
+        let (wu, hu) = (w as usize, h as usize);
+        let mut sum = vec![0.0f64; (wu + 1) * (hu + 1)];
+        let mut sq = vec![0.0f64; (wu + 1) * (hu + 1)];
+        for y in 0..hu {
+            let (mut rs, mut rq) = (0.0f64, 0.0f64);
+            for x in 0..wu {
+                let v = f64::from(p[y * wu + x]);
+                rs += v;
+                rq += v * v;
+                let k = (y + 1) * (wu + 1) + x + 1;
+                sum[k] = sum[k - wu - 1] + rs;
+                sq[k] = sq[k - wu - 1] + rq;
+            }
         }
+        Plane { w, h, p, sum, sq }
     }
 
     /// Half resolution: 2 x 2 means.
@@ -99,54 +123,78 @@ impl Plane {
                 p.push(0.25 * (self.p[k] + self.p[k + 1] + self.p[k + wu] + self.p[k + wu + 1]));
             }
         }
-        Plane { w, h, p }
+        Plane::with(w, h, p)
     }
 
     fn inside(&self, c: i32, r: i32, rad: i32) -> bool {
         c - rad >= 0 && r - rad >= 0 && c + rad < self.w && r + rad < self.h
     }
 
-    /// Mean and centred norm of the window of radius `rad` at `(c, r)`.
+    /// Mean and centred norm of the window of radius `rad` at `(c, r)` (inside the image),
+    /// from the integral images.
     fn stats(&self, c: i32, r: i32, rad: i32) -> (f32, f32) {
-        let (mut s, mut s2) = (0.0f32, 0.0f32);
-        for y in r - rad..=r + rad {
-            let row = (y * self.w) as usize;
-            for x in c - rad..=c + rad {
-                let v = self.p[row + x as usize];
-                s += v;
-                s2 += v * v;
-            }
-        }
-        let n = ((2 * rad + 1) * (2 * rad + 1)) as f32;
-        let mean = s / n;
-        (mean, (s2 - n * mean * mean).max(0.0).sqrt())
+        let ld = (self.w + 1) as usize;
+        let (x0, x1) = ((c - rad) as usize, (c + rad + 1) as usize);
+        let (y0, y1) = ((r - rad) as usize, (r + rad + 1) as usize);
+        let window =
+            |t: &[f64]| t[y1 * ld + x1] - t[y0 * ld + x1] - t[y1 * ld + x0] + t[y0 * ld + x0];
+        let (s, s2) = (window(&self.sum), window(&self.sq));
+        let n = f64::from((2 * rad + 1) * (2 * rad + 1));
+        ((s / n) as f32, (s2 - s * s / n).max(0.0).sqrt() as f32)
     }
 }
 
-/// ZNCC of the left window at `(cl, rl)` and the right one at `(cr, rr)`.
-fn zncc(
-    l: &Plane,
-    (cl, rl): (i32, i32),
-    stats_l: (f32, f32),
-    r: &Plane,
-    cr: i32,
-    rr: i32,
+/// A left window, centred (its mean taken off), for [`zncc`] against many right windows.
+struct Centred {
+    /// `(2 rad + 1)^2` values, row by row.
+    v: Vec<f32>,
+    /// Their sum (zero but for rounding).
+    sum: f32,
+    /// Their norm.
+    norm: f32,
     rad: i32,
-) -> f32 {
-    let (ml, nl) = stats_l;
-    let (mr, nr) = r.stats(cr, rr, rad);
-    if nl <= 0.0 || nr <= 0.0 {
-        return -1.0;
+}
+
+impl Centred {
+    fn new(l: &Plane, (cl, rl): (i32, i32), (mean, norm): (f32, f32), rad: i32) -> Centred {
+        let mut v = Vec::with_capacity(((2 * rad + 1) * (2 * rad + 1)) as usize);
+        for y in rl - rad..=rl + rad {
+            let a = (y * l.w + cl - rad) as usize;
+            v.extend(l.p[a..a + (2 * rad + 1) as usize].iter().map(|x| x - mean));
+        }
+        let sum = v.iter().sum();
+        Centred { v, sum, norm, rad }
     }
-    let mut acc = 0.0f32;
-    for dy in -rad..=rad {
-        let a = ((rl + dy) * l.w) as usize;
-        let b = ((rr + dy) * r.w) as usize;
-        for dx in -rad..=rad {
-            acc += (l.p[a + (cl + dx) as usize] - ml) * (r.p[b + (cr + dx) as usize] - mr);
+}
+
+/// ZNCC scores of the centred left window `lc` against the right windows of row `rr` at the
+/// columns `c0..=c1` (all inside the image), into `out`: `sum lc (r - mr) = sum lc r - mr sum
+/// lc`, the products summed for the whole row of candidates at once (one multiply-add per
+/// window pixel and candidate, in a fixed order, so a candidate's score does not depend on
+/// the range it is computed in), the right windows' means and norms from the integral images.
+fn zncc_row(lc: &Centred, r: &Plane, rr: i32, (c0, c1): (i32, i32), out: &mut Vec<f32>) {
+    let rad = lc.rad;
+    let wd = (2 * rad + 1) as usize;
+    let nc = (c1 - c0 + 1) as usize;
+    out.clear();
+    out.resize(nc, 0.0);
+    for (dy, lrow) in lc.v.chunks_exact(wd).enumerate() {
+        let base = ((rr - rad + dy as i32) * r.w + c0 - rad) as usize;
+        for (dx, &lv) in lrow.iter().enumerate() {
+            let src = &r.p[base + dx..base + dx + nc];
+            for (o, v) in out.iter_mut().zip(src) {
+                *o += lv * v;
+            }
         }
     }
-    acc / (nl * nr)
+    for (k, o) in out.iter_mut().enumerate() {
+        let (mr, nr) = r.stats(c0 + k as i32, rr, rad);
+        *o = if lc.norm <= 0.0 || nr <= 0.0 {
+            -1.0
+        } else {
+            (*o - mr * lc.sum) / (lc.norm * nr)
+        };
+    }
 }
 
 /// The best right window for the left window at `(cl, rl)` over columns `cols` and rows
@@ -168,6 +216,7 @@ fn search(
     if st.1 / n < MIN_STD {
         return None;
     }
+    let lc = Centred::new(l, (cl, rl), st, rad);
     let c0 = cols[0].max(rad + 1);
     let c1 = cols[1].min(r.w - rad - 2);
     let r0 = rows[0].max(rad + 1);
@@ -175,13 +224,21 @@ fn search(
     if c0 > c1 || r0 > r1 {
         return None;
     }
+    // Every candidate's score, a row at a time.
+    let nc = (c1 - c0 + 1) as usize;
+    let mut scores = Vec::with_capacity(nc * (r1 - r0 + 1) as usize);
+    let mut row = Vec::with_capacity(nc);
+    for y in r0..=r1 {
+        zncc_row(&lc, r, y, (c0, c1), &mut row);
+        scores.extend_from_slice(&row);
+    }
     // The best score per column, then the best column and the best other column.
     let mut best = (-2.0f32, 0, 0);
-    let mut per_col = Vec::with_capacity((c1 - c0 + 1) as usize);
+    let mut per_col = Vec::with_capacity(nc);
     for x in c0..=c1 {
         let mut col = -2.0f32;
         for y in r0..=r1 {
-            let s = zncc(l, (cl, rl), st, r, x, y, rad);
+            let s = scores[(y - r0) as usize * nc + (x - c0) as usize];
             col = col.max(s);
             if s > best.0 {
                 best = (s, x, y);
@@ -210,16 +267,14 @@ fn search(
             0.0
         }
     };
-    let sx = sub(
-        zncc(l, (cl, rl), st, r, x - 1, y, rad),
-        s,
-        zncc(l, (cl, rl), st, r, x + 1, y, rad),
-    );
-    let sy = sub(
-        zncc(l, (cl, rl), st, r, x, y - 1, rad),
-        s,
-        zncc(l, (cl, rl), st, r, x, y + 1, rad),
-    );
+    // The neighbours (inside the image: the range keeps a pixel of margin).
+    let at = |x: i32, y: i32| {
+        let mut one = Vec::with_capacity(1);
+        zncc_row(&lc, r, y, (x, x), &mut one);
+        one[0]
+    };
+    let sx = sub(at(x - 1, y), s, at(x + 1, y));
+    let sy = sub(at(x, y - 1), s, at(x, y + 1));
     Some((
         f64::from(x) + f64::from(sx),
         f64::from(y) + f64::from(sy),
