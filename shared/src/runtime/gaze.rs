@@ -717,16 +717,7 @@ mod tests {
     /// NaNs) and around 1, 2 and 4: the same bits, or NaN for NaN.
     #[test]
     fn sqrt_gives_libms_bits() {
-        let near = |v: f32| {
-            let b = v.to_bits();
-            b - 4096..=b + 4096
-        };
-        let bits = (0..=u32::MAX)
-            .step_by(257)
-            .chain(near(1.0))
-            .chain(near(2.0))
-            .chain(near(4.0))
-            .chain(0..4096);
+        let bits = crate::runtime::mlp::fixture::f32_sweep(257, &[1.0, 2.0, 4.0]).chain(0..4096);
         check_sqrt(bits);
     }
 

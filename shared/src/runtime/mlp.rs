@@ -656,6 +656,17 @@ pub(crate) mod fixture {
     extern crate alloc;
     use alloc::vec::Vec;
 
+    /// Every `step`th f32 bit pattern (both signs, every exponent), then the 8193 patterns
+    /// around each value of `around`: the sweeps of the f32 kernels' tests.
+    pub(crate) fn f32_sweep(step: usize, around: &[f32]) -> impl Iterator<Item = u32> + '_ {
+        (0..=u32::MAX)
+            .step_by(step)
+            .chain(around.iter().flat_map(|v| {
+                let b = v.to_bits();
+                b - 4096..=b + 4096
+            }))
+    }
+
     /// Input offsets (pixels).
     pub(crate) const IN_OFFSET: [f32; 4] = [320.0, 240.0, 320.0, 240.0];
     /// Input scales.
@@ -804,18 +815,8 @@ mod tests {
     /// end of the ranges.
     #[test]
     fn exp_and_sigmoid_are_within_their_stated_errors_on_a_dense_sweep() {
-        let near = |v: f32| {
-            let b = v.to_bits();
-            b - 4096..=b + 4096
-        };
-        let bits = (0..=u32::MAX)
-            .step_by(1021)
-            .chain(near(-87.33))
-            .chain(near(-87.68))
-            .chain(near(EXP_FAST_BELOW))
-            .chain(near(-17.33))
-            .chain(near(17.33))
-            .chain(near(1e-30));
+        let around = [-87.33, -87.68, EXP_FAST_BELOW, -17.33, 17.33, 1e-30];
+        let bits = fixture::f32_sweep(1021, &around);
         let (we, ws, wl, n) = worst_errors(bits);
         assert!(n > 4_000_000, "{n}");
         assert!(we <= 8.2e-8, "exp: worst relative error {we:e}");
@@ -850,15 +851,12 @@ mod tests {
     /// every 1021st pattern (infinities and NaNs included).
     #[test]
     fn sigmoid_is_one_over_one_plus_exp_bit_for_bit() {
-        let near = |v: f32| {
-            let b = v.to_bits();
-            b - 4096..=b + 4096
-        };
-        let bits = (0..=u32::MAX)
-            .step_by(1021)
-            .chain(near(EXP_FAST_BELOW))
-            .chain(near(-EXP_FAST_BELOW))
-            .chain([0x7f80_0000, 0xff80_0000, 0x7fc0_0000, 0xffc0_0000]);
+        let bits = fixture::f32_sweep(1021, &[EXP_FAST_BELOW, -EXP_FAST_BELOW]).chain([
+            0x7f80_0000,
+            0xff80_0000,
+            0x7fc0_0000,
+            0xffc0_0000,
+        ]);
         for b in bits {
             let a = f32::from_bits(b);
             let (got, want) = (sigmoid(a), 1.0 / (1.0 + exp(-a)));
