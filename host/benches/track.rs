@@ -1,8 +1,10 @@
 //! The closed loop's perception against its rendering, per 640x480 frame of the README's
 //! scene (`hvs track`'s `static.json`: case III, a 5 cm sphere at (20, -8, 100) cm before a
 //! wall at 300 cm, the head at home):
-//! - `track/find_nearest`: the target finder in `nearest` mode (every frame searches the
-//!   whole front region's grid, then matches the target's region densely);
+//! - `track/find_nearest`: a scan frame of the target finder in `nearest` mode (the whole
+//!   front region's grid, then the target's region matched densely);
+//! - `track/find_nearest_steady`: `nearest` frame after frame (a scan every 6th frame, the
+//!   target followed in between);
 //! - `track/find_followed`: a `U,V` target after its first frame (only the region around the
 //!   last centroid is matched);
 //! - `track/render_pair`: the virtual cameras' pair (4x4 supersampling), reported on its own.
@@ -62,6 +64,11 @@ fn bench(c: &mut Criterion) {
                 &est,
             )
         })
+    });
+    // `nearest` frame after frame: a scan every 6th frame, the target followed in between.
+    let mut steady = Finder::new(TargetMode::Nearest);
+    g.bench_function("find_nearest_steady", |b| {
+        b.iter(|| steady.find(black_box(&frame.left), &frame.right, &joints, &est))
     });
     let mut followed = Finder::new(TargetMode::Pixel([found.px[0], found.px[1]]));
     followed

@@ -7,7 +7,9 @@
 //! down (the vertical offset of deflected cameras), first at half resolution on a coarse grid
 //! of the front region, then refined to a sub-pixel match at full resolution.
 //!
-//! - **Nearest**: every grid point that matches is estimated (X, Y, Z by the model at the
+//! - **Nearest**: the front region is scanned (below), then the target is followed like a
+//!   pixel's for [`RESCAN_FRAMES`] frames, then scanned for again (at once when it is lost).
+//!   In a scan every grid point that matches is estimated (X, Y, Z by the model at the
 //!   current posture); the cluster of the largest disparity `u_l - u_r` (at least
 //!   [`MIN_CLUSTER`] points within a few pixels of one disparity and a few percent of one
 //!   depth) is the target (nearest by disparity: a net's depth outside its training box is
@@ -299,10 +301,19 @@ struct Last {
     extent: f64,
 }
 
+/// Frames a `nearest` target is followed (only its region matched, as a `U,V` target is)
+/// before the whole front region is scanned again for a nearer object: at 30 frames/s a scan
+/// every 0.2 s, so a nearer object is taken within that. A target found nowhere is scanned for
+/// in the very next frame; one that leaves may leave matches of the background's texture at
+/// its depth in its region, followed until the scan.
+pub const RESCAN_FRAMES: u32 = 5;
+
 /// The target finder of one run.
 pub struct Finder {
     mode: TargetMode,
     last: Option<Last>,
+    /// `nearest`: frames followed since the last scan.
+    followed: u32,
 }
 
 fn depth_of(est: &Estimator, joints: &Joints, l: [i32; 2], r: [f64; 2]) -> Option<f32> {
@@ -341,7 +352,11 @@ fn median(mut v: Vec<f32>) -> f32 {
 impl Finder {
     /// A finder for `mode`.
     pub fn new(mode: TargetMode) -> Finder {
-        Finder { mode, last: None }
+        Finder {
+            mode,
+            last: None,
+            followed: 0,
+        }
     }
 
     /// Forgets the target (it is found afresh in the next frame).
@@ -373,7 +388,14 @@ impl Finder {
                     extent: 40.0,
                 })
             }
-            (TargetMode::Nearest, _) => nearest_seed(&l, &r, joints, est),
+            (TargetMode::Nearest, Some(last)) if self.followed < RESCAN_FRAMES => {
+                self.followed += 1;
+                Some(last.clone())
+            }
+            (TargetMode::Nearest, _) => {
+                self.followed = 0;
+                nearest_seed(&l, &r, joints, est)
+            }
         };
         let found = seed.and_then(|s| dense(&l, &r, &s, joints, est));
         self.last = found.as_ref().map(|(f, extent)| Last {
@@ -549,11 +571,65 @@ mod tests {
     use hvs_shared::sim::posture::HeadRig;
     use hvs_shared::sim::presets;
     use hvs_vision::render::RenderOptions;
-    use hvs_vision::scene::{render_scene, SceneFile};
+    use hvs_vision::scene::{render_scene, SceneFile, SceneRender};
 
     const SCENE: &str = r#"{ "rig": {"case": 1}, "camera_fps": 30,
       "background": {"z_cm": 300, "texture_seed": 1},
       "objects": [ {"shape": "sphere", "radius_cm": 8, "centre_cm": [10, -5, 90], "texture_seed": 2} ] }"#;
+
+    /// `nearest` follows the object it holds for `RESCAN_FRAMES` frames, then scans and takes
+    /// a nearer one that came into view; when the held one leaves, a scan within
+    /// `RESCAN_FRAMES + 1` frames takes the nearest left.
+    #[test]
+    fn the_nearest_is_followed_then_scanned_for_again() {
+        let render = |objects: &str| {
+            let text = format!(
+                r#"{{ "rig": {{"case": 1}}, "camera_fps": 30,
+                  "background": {{"z_cm": 300, "texture_seed": 1}}, "objects": [ {objects} ] }}"#
+            );
+            let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
+            let head = HeadRig::new(presets::case(1).unwrap());
+            let r = render_scene(&head, &Joints::HOME, &scene, &RenderOptions::default(), 5);
+            (head, r.unwrap())
+        };
+        let a =
+            r#"{"shape": "sphere", "radius_cm": 8, "centre_cm": [10, -5, 90], "texture_seed": 2}"#;
+        let b =
+            r#"{"shape": "sphere", "radius_cm": 8, "centre_cm": [-20, 5, 70], "texture_seed": 3}"#;
+        let (head, only_a) = render(a);
+        let (_, both) = render(&format!("{a}, {b}"));
+        let est = Estimator::Fallback(Calibration::BUILT_IN);
+        let near = |f: &Option<Found>, centre: [f64; 3]| {
+            let t = head.project(&Joints::HOME, &centre).unwrap();
+            f.as_ref()
+                .is_some_and(|f| (f.px[0] - t[0]).hypot(f.px[1] - t[1]) < 6.0)
+        };
+        let (at_a, at_b) = ([10.0, -5.0, 90.0], [-20.0, 5.0, 70.0]);
+        let mut f = Finder::new(TargetMode::Nearest);
+        let mut find = |r: &SceneRender| f.find(&r.left, &r.right, &Joints::HOME, &est);
+        assert!(near(&find(&only_a), at_a), "A, the only object");
+        for k in 0..RESCAN_FRAMES {
+            assert!(
+                near(&find(&both), at_a),
+                "A followed in frame {k} after the scan"
+            );
+        }
+        assert!(near(&find(&both), at_b), "the scan takes the nearer B");
+        assert!(near(&find(&both), at_b), "B followed");
+        let mut g = Finder::new(TargetMode::Nearest);
+        let mut find = |r: &SceneRender| g.find(&r.left, &r.right, &Joints::HOME, &est);
+        assert!(near(&find(&both), at_b));
+        let (_, only_a_again) = render(a);
+        // When B leaves, its region may still give matches at its depth for a few frames
+        // (the wall's texture, in the narrow search around B's old offset); the next scan, at
+        // the latest `RESCAN_FRAMES` frames on, takes A.
+        let took_a = (0..=RESCAN_FRAMES).position(|_| near(&find(&only_a_again), at_a));
+        assert!(
+            took_a.is_some(),
+            "A taken within {} frames",
+            RESCAN_FRAMES + 1
+        );
+    }
 
     #[test]
     fn the_nearest_is_the_largest_disparity_even_when_depths_are_wrong() {
