@@ -220,6 +220,44 @@ fn bilinear(img: &[u8], w: usize, h: usize, x: f64, y: f64) -> Option<f64> {
 
 /// Half size of the window of [`refine`] (5 x 5).
 const REFINE_HALF: i64 = 2;
+/// Side of the window of [`refine`].
+const REFINE_SIDE: usize = 2 * REFINE_HALF as usize + 1;
+
+/// The bilinear samples of `img` at `(x + i, y + j)` for `i, j` in `-REFINE_HALF..=REFINE_HALF`
+/// into `out` (row by row), or `false` if one lies outside the image (as [`bilinear`] says).
+/// Inside, the samples share their fractional offsets: one patch of whole pixels, its rows
+/// interpolated along x, then along y (the same products as [`bilinear`]'s).
+fn window_samples(img: &[u8], w: usize, h: usize, x: f64, y: f64, out: &mut [f64]) -> bool {
+    const N: usize = REFINE_SIDE;
+    let half = REFINE_HALF as f64;
+    let (bx, by) = (x - half, y - half);
+    if bx >= 0.0 && by >= 0.0 && x + half < (w - 1) as f64 && y + half < (h - 1) as f64 {
+        let (x0, y0) = (bx as usize, by as usize);
+        let (fx, fy) = (bx - x0 as f64, by - y0 as f64);
+        let mut rows = [[0.0f64; N]; N + 1];
+        for (r, row) in rows.iter_mut().enumerate() {
+            let line = &img[(y0 + r) * w + x0..(y0 + r) * w + x0 + N + 1];
+            for (i, v) in row.iter_mut().enumerate() {
+                *v = f64::from(line[i]) * (1.0 - fx) + f64::from(line[i + 1]) * fx;
+            }
+        }
+        for (j, o) in out.chunks_exact_mut(N).enumerate() {
+            for (i, v) in o.iter_mut().enumerate() {
+                *v = rows[j][i] * (1.0 - fy) + rows[j + 1][i] * fy;
+            }
+        }
+        return true;
+    }
+    // Near the border: sample by sample.
+    for (k, v) in out.iter_mut().enumerate() {
+        let (i, j) = ((k % N) as f64 - half, (k / N) as f64 - half);
+        match bilinear(img, w, h, x + i, y + j) {
+            Some(s) => *v = s,
+            None => return false,
+        }
+    }
+    true
+}
 
 /// Sub-pixel refinement of every kept winner on the grey levels: two Gauss-Newton steps of a
 /// 5 x 5 window's zero-mean, gain-matched difference along the epipolar line (a 1-D
@@ -261,26 +299,18 @@ pub(crate) fn refine(geo: &Geo, left: &[u8], right: &[u8], best: &mut [Option<Be
             for _ in 0..2 {
                 let v = alpha + beta * u;
                 // Right window and its derivative along the line (1, beta).
-                let (mut rw, mut gw) = ([0.0f64; 25], [0.0f64; 25]);
-                let mut k = 0;
-                'win: for j in -REFINE_HALF..=REFINE_HALF {
-                    for i in -REFINE_HALF..=REFINE_HALF {
-                        let (px, py) = (u + i as f64, v + j as f64);
-                        let (Some(c), Some(a), Some(e)) = (
-                            bilinear(right, w, h, px, py),
-                            bilinear(right, w, h, px - 0.5, py - 0.5 * beta),
-                            bilinear(right, w, h, px + 0.5, py + 0.5 * beta),
-                        ) else {
-                            ok = false;
-                            break 'win;
-                        };
-                        rw[k] = c;
-                        gw[k] = e - a;
-                        k += 1;
-                    }
-                }
-                if !ok {
+                let mut rw = [0.0f64; REFINE_SIDE * REFINE_SIDE];
+                let (mut before, mut after) = (rw, rw);
+                if !(window_samples(right, w, h, u, v, &mut rw)
+                    && window_samples(right, w, h, u - 0.5, v - 0.5 * beta, &mut before)
+                    && window_samples(right, w, h, u + 0.5, v + 0.5 * beta, &mut after))
+                {
+                    ok = false;
                     break;
+                }
+                let mut gw = after;
+                for (g, b) in gw.iter_mut().zip(&before) {
+                    *g -= b;
                 }
                 let rmean = rw.iter().sum::<f64>() / n as f64;
                 let gmean = gw.iter().sum::<f64>() / n as f64;
@@ -358,6 +388,42 @@ pub(crate) fn to_map(geo: &Geo, best: &[Option<Best>], tol: f32) -> DenseMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The window's samples are `bilinear`'s, to a few ulps inside (the shared fractional
+    /// offset is rounded once, not per sample) and exactly at the border, where a sample
+    /// outside fails the window.
+    #[test]
+    fn window_samples_are_bilinears() {
+        let (w, h) = (23usize, 17usize);
+        let img: Vec<u8> = (0..w * h).map(|k| ((k * 37 + k / 7) % 251) as u8).collect();
+        let mut out = [0.0f64; REFINE_SIDE * REFINE_SIDE];
+        let half = REFINE_HALF as f64;
+        let mut inside = 0;
+        for y10 in 0..(h * 10) {
+            for x10 in 0..(w * 10) {
+                let (x, y) = (x10 as f64 * 0.1 - 0.35, y10 as f64 * 0.1 - 0.35);
+                let ok = window_samples(&img, w, h, x, y, &mut out);
+                let want: Vec<Option<f64>> = (0..REFINE_SIDE * REFINE_SIDE)
+                    .map(|k| {
+                        let (i, j) = (
+                            (k % REFINE_SIDE) as f64 - half,
+                            (k / REFINE_SIDE) as f64 - half,
+                        );
+                        bilinear(&img, w, h, x + i, y + j)
+                    })
+                    .collect();
+                assert_eq!(ok, want.iter().all(Option::is_some), "({x}, {y})");
+                if ok {
+                    inside += 1;
+                    for (got, want) in out.iter().zip(&want) {
+                        let want = want.unwrap();
+                        assert!((got - want).abs() <= 1e-9, "({x}, {y}): {got} vs {want}");
+                    }
+                }
+            }
+        }
+        assert!(inside > 10_000, "{inside}");
+    }
 
     fn best(d: f32) -> Option<Best> {
         Some(Best {
