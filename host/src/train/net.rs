@@ -147,10 +147,10 @@ pub(crate) struct NormalWorkspace {
 }
 
 /// Samples whose per-sample vectors [`Problem::accumulate`] buffers before it adds them into
-/// the sums, tile by tile ([`add_products`]).
+/// the sums, tile by tile ([`add_products_in`]).
 const CHUNK: usize = 32;
 
-/// `n` rounded up to a whole number of [`add_products`]' tiles (4).
+/// `n` rounded up to a whole number of [`add_products_in`]' tiles (4).
 const fn pad4(n: usize) -> usize {
     n.div_ceil(4) * 4
 }
@@ -284,45 +284,10 @@ fn axpy(dst: &mut [f64], a: f64, src: &[f64]) {
 /// `dst[r * ldd + c] += sum_t u[t * ldu + r] * x[t * ldx + c]` for `r < rows`, `c < cols` and
 /// `t` in `0..len`: each element adds its products in the order of `t`, so the result has
 /// the bits of adding one sample after the other ([`axpy`] per sample). `rows` and `cols`
-/// are whole tiles: the elements are summed in register tiles of 4 x 4 (SIMD pairs of f64 on
-/// the x86-64 baseline, quadruples where the CPU has AVX; plain multiplies and adds, no fused
-/// multiply-add, so every machine gives the same bits).
-fn add_products(
-    dst: &mut [f64],
-    (rows, cols, ldd): (usize, usize, usize),
-    (u, ldu): (&[f64], usize),
-    (x, ldx): (&[f64], usize),
-    len: usize,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: this CPU has AVX (checked just above).
-        unsafe { add_products_avx(dst, (rows, cols, ldd), (u, ldu), (x, ldx), len) };
-        return;
-    }
-    add_products_in::<4>(dst, (rows, cols, ldd), (u, ldu), (x, ldx), len);
-}
-
-/// [`add_products`] compiled for AVX (four f64 a register instead of two, and tiles of 4 x 8
-/// where they fit, so eight sums are in flight): the same multiplies and adds in the same
-/// order, so the same bits (tested).
-///
-/// # Safety
-/// The CPU must have AVX.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn add_products_avx(
-    dst: &mut [f64],
-    (rows, cols, ldd): (usize, usize, usize),
-    (u, ldu): (&[f64], usize),
-    (x, ldx): (&[f64], usize),
-    len: usize,
-) {
-    add_products_in::<8>(dst, (rows, cols, ldd), (u, ldu), (x, ldx), len);
-}
-
-/// The body of [`add_products`], inlined into each of its builds: tiles `W` columns wide
-/// (4 or 8) while they fit, then 4.
+/// are whole tiles: the elements are summed in register tiles of 4 x `W` while they fit, then
+/// 4 x 4 (SIMD pairs of f64 on the x86-64 baseline, `W` = 4; quadruples and `W` = 8 in
+/// [`Problem::accumulate`]'s AVX build; plain multiplies and adds, no fused multiply-add, so
+/// every machine gives the same bits).
 #[inline(always)]
 fn add_products_in<const W: usize>(
     dst: &mut [f64],
@@ -351,7 +316,7 @@ fn add_products_in<const W: usize>(
     }
 }
 
-/// One 4 x `C` tile of [`add_products`] (`dst`, `u` and `x` start at the tile's corner).
+/// One 4 x `C` tile of [`add_products_in`] (`dst`, `u` and `x` start at the tile's corner).
 #[inline(always)]
 fn tile<const C: usize>(
     dst: &mut [f64],
@@ -536,7 +501,7 @@ impl Problem {
     ///
     /// This is about a third of the work of `J^T J` on the explicit Jacobian. Every sum runs
     /// in a fixed order (sample by sample) in plain f64 multiplies and adds, so the result is
-    /// the same on every machine: the AVX build of the tiled sums ([`add_products`]) gives the
+    /// the same on every machine: the AVX build of the tiled sums ([`add_products_in`]) gives the
     /// bits of the portable one.
     pub(crate) fn normal_equations(
         &self,
@@ -617,8 +582,44 @@ impl Problem {
     /// The sums of [`Problem::normal_equations`] over the samples `range` into `part` (its
     /// blocks and `J^T r`, zeroed first); returns the sum of squared residuals there. A chunk
     /// of samples at a time: their per-sample vectors first, then the blocks' sums over them
-    /// ([`add_products`], each element in sample order).
+    /// ([`add_products_in`], each element in sample order). Compiled for AVX too, picked at run
+    /// time: plain multiplies and adds in the same order, so the same bits.
     fn accumulate(
+        &self,
+        p: &[f64],
+        act: &Activations,
+        xpk: &[f64],
+        range: std::ops::Range<usize>,
+        part: &mut Part,
+    ) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: this CPU has AVX (checked just above).
+            return unsafe { self.accumulate_avx(p, act, xpk, range, part) };
+        }
+        self.accumulate_in::<4>(p, act, xpk, range, part)
+    }
+
+    /// [`Problem::accumulate`] compiled for AVX.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn accumulate_avx(
+        &self,
+        p: &[f64],
+        act: &Activations,
+        xpk: &[f64],
+        range: std::ops::Range<usize>,
+        part: &mut Part,
+    ) -> f64 {
+        self.accumulate_in::<8>(p, act, xpk, range, part)
+    }
+
+    /// The body of [`Problem::accumulate`], its tiles `W` columns wide ([`add_products_in`]).
+    #[inline(always)]
+    fn accumulate_in<const W: usize>(
         &self,
         p: &[f64],
         act: &Activations,
@@ -716,17 +717,17 @@ impl Problem {
             // The chunk's rank-one updates: the packed first-layer block, the cross blocks,
             // and each output's second-layer block, the tiles on and above its diagonal.
             let nx_p = d.nx_p;
-            add_products(
+            add_products_in::<W>(
                 m,
                 (nu, nx_p, nx_p),
                 (ub, nu),
                 (&xpk[n0 * nx_p..], nx_p),
                 len,
             );
-            add_products(cross, (na, nb, nb), (ab, na), (bb, nb), len);
+            add_products_in::<W>(cross, (na, nb, nb), (ab, na), (bb, nb), len);
             for k in 0..s.no {
                 for r0 in (0..ne_p).step_by(4) {
-                    add_products(
+                    add_products_in::<W>(
                         &mut w2w2[(k * ne_p + r0) * ne_p + r0..],
                         (4, ne_p - r0, ne_p),
                         (&gb[k * ne_p + r0..], nge),
@@ -924,8 +925,8 @@ pub(crate) mod tests {
         }
     }
 
-    /// `add_products` (AVX where this CPU has it) and its portable build give the bits of
-    /// adding the samples one after the other, over chunks that do not fill a tile of 8.
+    /// The tiled sums, 4 x 8 tiles and 4 x 4, give the bits of adding the samples one after
+    /// the other, over chunks that do not fill a tile of 8.
     #[test]
     fn tiled_products_have_the_bits_of_one_sample_at_a_time() {
         let mut g = SplitMix64::new(5);
@@ -944,12 +945,34 @@ pub(crate) mod tests {
                     );
                 }
             }
-            let (mut fast, mut portable) = (start.clone(), start);
-            add_products(&mut fast, (rows, cols, cols), (&u, ldu), (&x, ldx), len);
+            let (mut wide, mut portable) = (start.clone(), start);
+            add_products_in::<8>(&mut wide, (rows, cols, cols), (&u, ldu), (&x, ldx), len);
             add_products_in::<4>(&mut portable, (rows, cols, cols), (&u, ldu), (&x, ldx), len);
             let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&fast), bits(&want), "{rows}x{cols}, {len} samples");
+            assert_eq!(bits(&wide), bits(&want), "{rows}x{cols}, {len} samples");
             assert_eq!(bits(&portable), bits(&want), "{rows}x{cols}, {len} samples");
+        }
+    }
+
+    /// The normal equations' sums as this CPU runs them (AVX where it has it) have the bits
+    /// of the portable build, on chunks full and not (a 9-16-3 skip net, 75 samples).
+    #[test]
+    fn the_avx_sums_have_the_portable_bits() {
+        let prob = random_problem(Shape::new(9, 16, 3, true), Activation::Linear, 75, 3);
+        let mut g = SplitMix64::new(8);
+        let p: Vec<f64> = (0..prob.shape.n_params())
+            .map(|_| g.uniform(-0.5, 0.5))
+            .collect();
+        let mut act = prob.activations();
+        prob.evaluate(&p, &mut act);
+        let ws = NormalWorkspace::new(&prob);
+        let (mut a, mut b) = (ws.parts[0].clone(), ws.parts[0].clone());
+        let ca = prob.accumulate(&p, &act, &ws.xpk, 0..prob.n, &mut a);
+        let cb = prob.accumulate_in::<4>(&p, &act, &ws.xpk, 0..prob.n, &mut b);
+        let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+        assert_eq!(ca.to_bits(), cb.to_bits());
+        for (x, y) in [(&a.m, &b.m), (&a.cross, &b.cross), (&a.jtr, &b.jtr)] {
+            assert_eq!(bits(x), bits(y));
         }
     }
 
