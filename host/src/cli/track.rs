@@ -112,6 +112,7 @@ pub fn run(a: Args) -> Result<()> {
     let mut head = VirtualHead::new(&ControllerConfig::DEFAULT)?;
     let stop = track::stop_on_interrupt();
     let mut recorded = Vec::new();
+    let mut times = Vec::new();
     let record = a.record.is_some();
     let rows = track::run(
         &mut cameras,
@@ -119,7 +120,8 @@ pub fn run(a: Args) -> Result<()> {
         &estimator,
         &cfg,
         stop,
-        |frame, row| {
+        |frame, row, t| {
+            times.push(t);
             if record {
                 recorded.push((
                     crate::vision::png_bytes(&frame.left)?,
@@ -157,6 +159,9 @@ pub fn run(a: Args) -> Result<()> {
         write_bytes(&dir.join("CAPTURES.csv"), csv.as_bytes())?;
     }
     let tracked = rows.iter().filter(|r| r.status == "tracking").count();
+    if let Some(line) = rate_line(&times) {
+        eprintln!("{line}");
+    }
     eprintln!(
         "{} frames ({} tracking) -> {}{}",
         rows.len(),
@@ -169,4 +174,26 @@ pub fn run(a: Args) -> Result<()> {
         }
     );
     Ok(())
+}
+
+/// The run's wall times a frame: perception and control (median, 95th percentile, worst)
+/// and, on its own, the virtual cameras' render.
+fn rate_line(times: &[track::FrameTimes]) -> Option<String> {
+    let ms = |f: &dyn Fn(&track::FrameTimes) -> f64| {
+        let mut v: Vec<f64> = times.iter().map(|t| 1e3 * f(t)).collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let (p, g) = (ms(&|t| t.perceive_s), ms(&|t| t.grab_s));
+    let at = |v: &[f64], q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+    (!p.is_empty()).then(|| {
+        format!(
+            "perception and control: {:.1} ms a frame (median; 95th percentile {:.1}, worst {:.1}: {:.0} frames/s at the median); rendering the pair: {:.1} ms (median, not perception)",
+            at(&p, 0.5),
+            at(&p, 0.95),
+            at(&p, 1.0),
+            1e3 / at(&p, 0.5).max(1e-3),
+            at(&g, 0.5)
+        )
+    })
 }

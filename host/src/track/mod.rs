@@ -49,6 +49,17 @@ pub struct LogRow {
     pub err_px: Option<[f64; 2]>,
 }
 
+/// Wall time of one frame of the loop, split as the rate goal is stated: grabbing the pair
+/// (with virtual cameras, rendering it) and the rest (finding the target, the loop step,
+/// commanding the head).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrameTimes {
+    /// Grabbing the pair (s).
+    pub grab_s: f64,
+    /// Perception and control (s).
+    pub perceive_s: f64,
+}
+
 /// `LOG.csv` of `rows`.
 pub fn log_csv(rows: &[LogRow]) -> String {
     let mut s = String::with_capacity(160 * (rows.len() + 1));
@@ -123,6 +134,7 @@ pub struct Tracker {
     state: LoopState,
     loop_cfg: LoopConfig,
     frame: u64,
+    times: FrameTimes,
 }
 
 impl Tracker {
@@ -133,7 +145,13 @@ impl Tracker {
             state: LoopState::default(),
             loop_cfg,
             frame: 0,
+            times: FrameTimes::default(),
         }
+    }
+
+    /// The wall times of the last [`Tracker::frame`].
+    pub fn last_times(&self) -> FrameTimes {
+        self.times
     }
 
     /// One frame at time `t_s`: the servos run up to `t_s`, the pair is grabbed at their
@@ -148,7 +166,9 @@ impl Tracker {
     ) -> Result<(Frame, LogRow)> {
         head.advance_to(t_s);
         let joints = head.joints();
+        let t0 = std::time::Instant::now();
         let frame = source.grab(t_s, &joints)?;
+        let t1 = std::time::Instant::now();
         let found = self
             .finder
             .find(&frame.left, &frame.right, &joints, estimator);
@@ -164,6 +184,10 @@ impl Tracker {
         let (next, cmd) = fixation::step(&self.loop_cfg, estimator, &self.state, &obs);
         self.state = next;
         head.command(&cmd.joints);
+        self.times = FrameTimes {
+            grab_s: (t1 - t0).as_secs_f64(),
+            perceive_s: t1.elapsed().as_secs_f64(),
+        };
         let centre = self.loop_cfg.centre_px.map(f64::from);
         let row = LogRow {
             t_s,
@@ -185,14 +209,14 @@ impl Tracker {
 
 /// Runs the loop for `cfg.seconds` (or until `stop` is set): the rows of the log. Frame
 /// errors end the run with the error (the rows so far are lost only to the caller that
-/// drops them: `on_row` sees each row as it is made).
+/// drops them: `on_row` sees each row as it is made, with its frame's wall times).
 pub fn run(
     source: &mut dyn FrameSource,
     head: &mut VirtualHead,
     estimator: &Estimator,
     cfg: &TrackConfig,
     stop: &AtomicBool,
-    mut on_row: impl FnMut(&Frame, &LogRow) -> Result<()>,
+    mut on_row: impl FnMut(&Frame, &LogRow, FrameTimes) -> Result<()>,
 ) -> Result<Vec<LogRow>> {
     let frames = (cfg.seconds * cfg.fps).floor() as u64;
     let mut tracker = Tracker::new(cfg.target, cfg.loop_cfg);
@@ -202,7 +226,7 @@ pub fn run(
             break;
         }
         let (frame, row) = tracker.frame(source, head, estimator, k as f64 / cfg.fps)?;
-        on_row(&frame, &row)?;
+        on_row(&frame, &row, tracker.last_times())?;
         rows.push(row);
     }
     Ok(rows)

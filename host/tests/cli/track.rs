@@ -1,5 +1,6 @@
 //! `hvs track` driven from outside: the log's columns and rows, the same log bytes for the
-//! same scene and seed, `--record`, and the refusals (bad scene field, bad flags, qemu).
+//! same scene and seed, `--record`, the rate line, and the refusals (bad scene field, bad
+//! flags, qemu).
 
 use crate::common::{
     fails, ok, small_model as model, small_scene as scene, stderr_with_code, Scratch,
@@ -33,7 +34,12 @@ fn track_logs_every_frame_and_repeats_its_bytes() {
     let mut first = args(&a);
     first.extend(["--record".to_string(), rec.clone()]);
     ok(&first.iter().map(String::as_str).collect::<Vec<_>>());
-    ok(&args(&b).iter().map(String::as_str).collect::<Vec<_>>());
+    // The run's rate on stderr: perception and control, and the render on its own.
+    let err = stderr_with_code(args(&b), 0);
+    assert!(
+        err.contains("perception and control: ") && err.contains("rendering the pair: "),
+        "{err}"
+    );
     let (ta, tb) = (
         fs::read_to_string(&a).unwrap(),
         fs::read_to_string(&b).unwrap(),
