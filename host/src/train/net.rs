@@ -592,15 +592,17 @@ impl Problem {
         range: std::ops::Range<usize>,
         part: &mut Part,
     ) -> f64 {
+        let at = (p, act, xpk);
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx") {
             // SAFETY: this CPU has AVX (checked just above).
-            return unsafe { self.accumulate_avx(p, act, xpk, range, part) };
+            return unsafe { self.accumulate_avx(at, range, part) };
         }
-        self.accumulate_in::<4>(p, act, xpk, range, part)
+        self.accumulate_in::<4>(at, range, part)
     }
 
-    /// [`Problem::accumulate`] compiled for AVX.
+    /// [`Problem::accumulate`] compiled for AVX (`at`: the parameters, their forward pass and
+    /// the packed inputs).
     ///
     /// # Safety
     /// The CPU must have AVX.
@@ -608,22 +610,18 @@ impl Problem {
     #[target_feature(enable = "avx")]
     unsafe fn accumulate_avx(
         &self,
-        p: &[f64],
-        act: &Activations,
-        xpk: &[f64],
+        at: (&[f64], &Activations, &[f64]),
         range: std::ops::Range<usize>,
         part: &mut Part,
     ) -> f64 {
-        self.accumulate_in::<8>(p, act, xpk, range, part)
+        self.accumulate_in::<8>(at, range, part)
     }
 
     /// The body of [`Problem::accumulate`], its tiles `W` columns wide ([`add_products_in`]).
     #[inline(always)]
     fn accumulate_in<const W: usize>(
         &self,
-        p: &[f64],
-        act: &Activations,
-        xpk: &[f64],
+        (p, act, xpk): (&[f64], &Activations, &[f64]),
         range: std::ops::Range<usize>,
         part: &mut Part,
     ) -> f64 {
@@ -968,7 +966,7 @@ pub(crate) mod tests {
         let ws = NormalWorkspace::new(&prob);
         let (mut a, mut b) = (ws.parts[0].clone(), ws.parts[0].clone());
         let ca = prob.accumulate(&p, &act, &ws.xpk, 0..prob.n, &mut a);
-        let cb = prob.accumulate_in::<4>(&p, &act, &ws.xpk, 0..prob.n, &mut b);
+        let cb = prob.accumulate_in::<4>((&p, &act, &ws.xpk), 0..prob.n, &mut b);
         let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
         assert_eq!(ca.to_bits(), cb.to_bits());
         for (x, y) in [(&a.m, &b.m), (&a.cross, &b.cross), (&a.jtr, &b.jtr)] {
