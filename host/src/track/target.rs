@@ -269,8 +269,12 @@ fn search(
             0.0
         }
     };
-    // The neighbours (inside the image: the range keeps a pixel of margin).
+    // The neighbours: from the scores where the range has them, computed otherwise (the
+    // same bits either way; inside the image: the range keeps a pixel of margin).
     let at = |x: i32, y: i32| {
+        if (c0..=c1).contains(&x) && (r0..=r1).contains(&y) {
+            return scores[(y - r0) as usize * nc + (x - c0) as usize];
+        }
         let mut one = Vec::with_capacity(1);
         zncc_row(&lc, r, y, (x, x), &mut one);
         one[0]
