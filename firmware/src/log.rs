@@ -29,11 +29,7 @@ macro_rules! log {
 pub fn boot(boot: &Boot) {
     use defmt::Debug2Format;
     use hvs_shared::runtime::head::Estimator;
-    log!(
-        "boot: slot A {}, slot B {}",
-        Debug2Format(&boot.slot_a),
-        Debug2Format(&boot.slot_b)
-    );
+    log!("boot: slot A {}, slot B {}", Debug2Format(&boot.slot_a), Debug2Format(&boot.slot_b));
     match &boot.estimator {
         Estimator::Network(n) => log!(
             "boot: running slot {} generation {}: {}-{}-{} net, seed {}, fast path {}",

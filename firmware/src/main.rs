@@ -83,10 +83,8 @@ fn slot_bytes(addr: u32) -> &'static [u8] {
 /// Fixation settings of this head (neck/eye split, geometry, joint limits).
 const GAZE: GazeConfig = GazeConfig::DEFAULT;
 /// Trajectory settings (0.7 s neck, 0.2 s eyes, the same joint limits, 100 Hz).
-const CONTROL: ControllerConfig = ControllerConfig {
-    limits: GAZE.limits,
-    ..ControllerConfig::DEFAULT
-};
+const CONTROL: ControllerConfig =
+    ControllerConfig { limits: GAZE.limits, ..ControllerConfig::DEFAULT };
 
 #[entry]
 fn main() -> ! {
@@ -101,8 +99,7 @@ fn main() -> ! {
     // Boot decision first: nothing is commanded before it is known what runs. The head starts
     // in fallback mode, then boots in place from the two slots.
     let head = init_head(HEAD);
-    head.boot
-        .boot_in_place(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
+    head.boot.boot_in_place(slot_bytes(SLOT_A_ADDR), slot_bytes(SLOT_B_ADDR));
     log::boot(&head.boot);
 
     let gpioa = dp.GPIOA.split(&mut rcc);
@@ -131,12 +128,7 @@ fn main() -> ! {
     send(
         &mut tx,
         &mut out,
-        &Response {
-            id: UNSOLICITED_ID,
-            body: ResponseBody::Ready {
-                protocol: PROTOCOL_VERSION,
-            },
-        },
+        &Response { id: UNSOLICITED_ID, body: ResponseBody::Ready { protocol: PROTOCOL_VERSION } },
     );
 
     let mut acc = FrameAccumulator::<MAX_FRAME_LEN>::new();
@@ -192,10 +184,9 @@ fn init_head(place: &'static mut MaybeUninit<Head>) -> &'static mut Head {
 
 fn answer(head: &mut Head, req: &Request, tick_hz: u32) -> Response {
     match req.body {
-        RequestBody::Bench { point, count } => Response {
-            id: req.id,
-            body: bench::run(&head.boot, &point, count, tick_hz),
-        },
+        RequestBody::Bench { point, count } => {
+            Response { id: req.id, body: bench::run(&head.boot, &point, count, tick_hz) }
+        }
         RequestBody::Info => Response {
             id: req.id,
             body: ResponseBody::Info(protocol::InfoData {

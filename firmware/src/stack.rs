@@ -14,10 +14,8 @@ extern "C" {
 /// Deepest the stack has been since reset, in bytes.
 pub fn peak() -> u32 {
     // Only the addresses of the linker symbols are taken, never their values.
-    let (lo, hi) = (
-        core::ptr::addr_of!(_stack_end) as usize,
-        core::ptr::addr_of!(_stack_start) as usize,
-    );
+    let (lo, hi) =
+        (core::ptr::addr_of!(_stack_end) as usize, core::ptr::addr_of!(_stack_start) as usize);
     let mut p = lo;
     // SAFETY: every word in `lo..hi` is RAM (cortex-m-rt's linker script checks the bounds);
     // volatile, because the stack is written behind the compiler's back.

@@ -20,18 +20,11 @@ fn model() -> ModelBlob {
     for s in simulate(&presets::CASE_4, SetKind::Train, &SimOptions::default()).unwrap() {
         d.push(&s.px, Some(s.xyz));
     }
-    hvs_host::train::train(&d, &Default::default())
-        .unwrap()
-        .blob
+    hvs_host::train::train(&d, &Default::default()).unwrap().blob
 }
 
 fn points() -> Vec<f32> {
-    let opt = SimOptions {
-        points: N,
-        noise_px: 0.0,
-        seed: 1,
-        ..SimOptions::default()
-    };
+    let opt = SimOptions { points: N, noise_px: 0.0, seed: 1, ..SimOptions::default() };
     simulate(&presets::CASE_4, SetKind::Volume, &opt)
         .unwrap()
         .iter()

@@ -25,20 +25,13 @@ fn bench(c: &mut Criterion) {
     g.bench_function("hidden_1_to_10_x10_nets_case4_board72", |b| {
         b.iter(|| {
             for hidden in 1..=10 {
-                let cfg = TrainConfig {
-                    hidden,
-                    restarts: 10,
-                    ..TrainConfig::default()
-                };
+                let cfg = TrainConfig { hidden, restarts: 10, ..TrainConfig::default() };
                 black_box(train(black_box(&data), &cfg).unwrap());
             }
         })
     });
     g.bench_function("experiment_hidden_sweep_z_and_xyz_200_nets", |b| {
-        let cfg = experiment::Config {
-            seed: 0,
-            quick: false,
-        };
+        let cfg = experiment::Config { seed: 0, quick: false };
         b.iter(|| black_box(experiment::hidden_sweep(&cfg, &Quiet).unwrap()))
     });
     g.finish();

@@ -30,12 +30,8 @@ const SCENE: &str = r#"{ "rig": {"case": 3}, "camera_fps": 30,
 
 fn bench(c: &mut Criterion) {
     let loaded = scene_file::parse(SCENE).unwrap();
-    let mut cams = VirtualCameras::new(
-        HeadRig::new(loaded.rig),
-        loaded.scene,
-        loop_render_options(),
-        2,
-    );
+    let mut cams =
+        VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, loop_render_options(), 2);
     let joints = Joints::HOME;
     let frame = cams.grab(0.0, &joints).unwrap();
     // A stereo model of case III (the head stays at home here).
@@ -43,12 +39,7 @@ fn bench(c: &mut Criterion) {
     for s in simulate(&presets::CASE_3, SetKind::Train, &SimOptions::default()).unwrap() {
         d.push(&s.px, Some(s.xyz));
     }
-    let est = estimator_of(
-        hvs_host::train::train(&d, &Default::default())
-            .unwrap()
-            .blob,
-    )
-    .unwrap();
+    let est = estimator_of(hvs_host::train::train(&d, &Default::default()).unwrap().blob).unwrap();
     let found = Finder::new(TargetMode::Nearest)
         .find(&frame.left, &frame.right, &joints, &est)
         .expect("the sphere is found");
@@ -71,15 +62,11 @@ fn bench(c: &mut Criterion) {
         b.iter(|| steady.find(black_box(&frame.left), &frame.right, &joints, &est))
     });
     let mut followed = Finder::new(TargetMode::Pixel([found.px[0], found.px[1]]));
-    followed
-        .find(&frame.left, &frame.right, &joints, &est)
-        .expect("the pixel's object is found");
+    followed.find(&frame.left, &frame.right, &joints, &est).expect("the pixel's object is found");
     g.bench_function("find_followed", |b| {
         b.iter(|| followed.find(black_box(&frame.left), &frame.right, &joints, &est))
     });
-    g.bench_function("render_pair", |b| {
-        b.iter(|| cams.grab(0.0, black_box(&joints)))
-    });
+    g.bench_function("render_pair", |b| b.iter(|| cams.grab(0.0, black_box(&joints))));
     g.finish();
 }
 

@@ -19,27 +19,14 @@ use std::time::Duration;
 fn bench(c: &mut Criterion) {
     let sets = [
         ("board72", board_set()),
-        (
-            "board324_9x6",
-            grid_board_set(Board::Grid {
-                nx: 9,
-                ny: 6,
-                pitch: 6.0,
-            }),
-        ),
+        ("board324_9x6", grid_board_set(Board::Grid { nx: 9, ny: 6, pitch: 6.0 })),
     ];
-    let families = [
-        ("default", hvs_host::train::DEFAULT_FAMILY),
-        ("thesis", Family::THESIS),
-    ];
+    let families = [("default", hvs_host::train::DEFAULT_FAMILY), ("thesis", Family::THESIS)];
     let mut g = c.benchmark_group("train");
     g.measurement_time(Duration::from_secs(10));
     for (set, data) in &sets {
         for (name, family) in families {
-            let cfg = TrainConfig {
-                family,
-                ..TrainConfig::default()
-            };
+            let cfg = TrainConfig { family, ..TrainConfig::default() };
             g.bench_function(format!("{name}_lm_case4_{set}"), |b| {
                 b.iter(|| train(black_box(data), &cfg).unwrap())
             });
@@ -48,10 +35,7 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     g.measurement_time(Duration::from_secs(30));
     g.bench_function("bp_case4_board72_10restarts", |b| {
-        let cfg = TrainConfig {
-            algo: Algo::Bp,
-            ..TrainConfig::default()
-        };
+        let cfg = TrainConfig { algo: Algo::Bp, ..TrainConfig::default() };
         b.iter(|| train(black_box(&sets[0].1), &cfg).unwrap())
     });
     g.finish();

@@ -89,10 +89,8 @@ fn set(rig: &Rig, points: &[[f64; 3]]) -> Dataset {
 }
 
 fn board_train(rig: &Rig) -> Dataset {
-    let pts: Vec<[f64; 3]> = presets::TRAIN_DEPTHS
-        .iter()
-        .flat_map(|z| presets::board_points(*z))
-        .collect();
+    let pts: Vec<[f64; 3]> =
+        presets::TRAIN_DEPTHS.iter().flat_map(|z| presets::board_points(*z)).collect();
     set(rig, &pts)
 }
 
@@ -158,11 +156,7 @@ fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let cfg = TrainConfig {
         hidden: args.hidden,
-        outputs: if args.z_only {
-            OutputKind::Z
-        } else {
-            OutputKind::Xyz
-        },
+        outputs: if args.z_only { OutputKind::Z } else { OutputKind::Xyz },
         algo: match args.algo {
             AlgoArg::Lm => Algo::Lm,
             AlgoArg::Bp => Algo::Bp,
@@ -172,11 +166,7 @@ fn main() -> anyhow::Result<()> {
         seed: args.seed,
         ..TrainConfig::default()
     };
-    let cases: Vec<u8> = if args.case.is_empty() {
-        vec![1, 2, 3, 4]
-    } else {
-        args.case.clone()
-    };
+    let cases: Vec<u8> = if args.case.is_empty() { vec![1, 2, 3, 4] } else { args.case.clone() };
     if let Some(n) = args.sweep {
         println!(
             "protocol, one restart per seed 0..{n}: train e_ma % / worst per-depth test e_ma %"
@@ -187,11 +177,7 @@ fn main() -> anyhow::Result<()> {
             let mut line = Vec::new();
             let (mut fails, mut sum) = (0, 0.0);
             for seed in 0..n {
-                let one = TrainConfig {
-                    restarts: 1,
-                    seed,
-                    ..cfg.clone()
-                };
+                let one = TrainConfig { restarts: 1, seed, ..cfg.clone() };
                 let out = train(&tr, &one)?;
                 let w = worst(&per_depth(&te, |x| z_hat(&out.blob, x)));
                 fails += usize::from(w >= 4.0);
@@ -254,11 +240,8 @@ fn main() -> anyhow::Result<()> {
             bnet.e_ma_pct() / floor.e_ma_pct()
         );
         if args.per_depth {
-            let cells: Vec<String> = net
-                .iter()
-                .zip(&tri)
-                .map(|((z, e), (_, f))| format!("{z}:{e:.2}/{f:.2}"))
-                .collect();
+            let cells: Vec<String> =
+                net.iter().zip(&tri).map(|((z, e), (_, f))| format!("{z}:{e:.2}/{f:.2}")).collect();
             println!("       per depth, net/optimal %: {}", cells.join(" "));
         }
     }

@@ -84,20 +84,12 @@ pub fn visit(head: &mut VirtualHead, plan: &Plan) -> Result<Vec<Stop>> {
             head.advance_to(head.time_s() + dt);
             while head.is_moving() {
                 if head.time_s() - start > MOVE_TIMEOUT_S {
-                    bail!(
-                        "the head did not reach posture {:?} within {MOVE_TIMEOUT_S} s",
-                        goal.0
-                    );
+                    bail!("the head did not reach posture {:?} within {MOVE_TIMEOUT_S} s", goal.0);
                 }
                 head.advance_to(head.time_s() + dt);
             }
             head.advance_to(head.time_s() + plan.settle_s);
-            stops.push(Stop {
-                placement,
-                posture,
-                t_s: head.time_s(),
-                joints: head.joints(),
-            });
+            stops.push(Stop { placement, posture, t_s: head.time_s(), joints: head.joints() });
         }
     }
     Ok(stops)
@@ -145,10 +137,7 @@ pub fn with_board(scene: &Scene, board: &Board, centre: [f64; 3]) -> Result<Scen
     let mut s = scene.clone();
     s.objects.push(Object {
         shape: Shape::Board { board: *board },
-        motion: Motion::Linear {
-            centre_cm: centre,
-            velocity_cm_s: [0.0; 3],
-        },
+        motion: Motion::Linear { centre_cm: centre, velocity_cm_s: [0.0; 3] },
         texture_seed: 0,
     });
     Ok(s)
@@ -222,14 +211,8 @@ mod tests {
         Plan {
             board: Board::new(9, 6, 6.0).unwrap(),
             placements: vec![
-                Placement {
-                    line: 2,
-                    xyz: [0.0, 0.0, 105.0],
-                },
-                Placement {
-                    line: 3,
-                    xyz: [10.0, -5.0, 145.0],
-                },
+                Placement { line: 2, xyz: [0.0, 0.0, 105.0] },
+                Placement { line: 3, xyz: [10.0, -5.0, 145.0] },
             ],
             postures,
             render: RenderOptions::default(),
@@ -251,9 +234,7 @@ mod tests {
         assert_eq!(stops.len(), 6);
         for (k, s) in stops.iter().enumerate() {
             assert_eq!((s.placement, s.posture), (k / 3, k % 3));
-            let want = postures[s.posture]
-                .0
-                .map(hvs_shared::runtime::gaze::quantize);
+            let want = postures[s.posture].0.map(hvs_shared::runtime::gaze::quantize);
             assert_eq!(s.joints.0, want, "stop {k}");
         }
         assert!(stops.windows(2).all(|w| w[1].t_s > w[0].t_s + SETTLE_S));
@@ -269,12 +250,7 @@ mod tests {
         let away = Joints([30.0, 0.0, 0.0, 0.0, 0.0]);
         assert!(!board_in_view(&head, &away, &p.board, at));
         // Too near: the board overflows the images.
-        assert!(!board_in_view(
-            &head,
-            &Joints::HOME,
-            &p.board,
-            [0.0, 0.0, 20.0]
-        ));
+        assert!(!board_in_view(&head, &Joints::HOME, &p.board, [0.0, 0.0, 20.0]));
     }
 
     #[test]
@@ -282,12 +258,7 @@ mod tests {
         let head = HeadRig::new(presets::case(3).unwrap());
         let mut p = plan(vec![Joints::HOME]);
         p.render.supersample = 1;
-        let stop = Stop {
-            placement: 0,
-            posture: 0,
-            t_s: 0.0,
-            joints: Joints::HOME,
-        };
+        let stop = Stop { placement: 0, posture: 0, t_s: 0.0, joints: Joints::HOME };
         let wall = |objects: &str| {
             hvs_vision::scene::SceneFile::parse(&format!(
                 r#"{{"rig": {{"case": 3}}, "camera_fps": 30, "background": {{"z_cm": 300}}, "objects": [{objects}]}}"#
@@ -303,20 +274,11 @@ mod tests {
         }
         // A box between the head and the board (at 105 cm) hides its middle.
         let boxed = wall(r#"{"shape": "box", "size_cm": [10, 10, 10], "centre_cm": [0, 0, 60]}"#);
-        assert!(matches!(
-            capture(&head, &boxed, &p, &stop).unwrap(),
-            Shot::Hidden
-        ));
+        assert!(matches!(capture(&head, &boxed, &p, &stop).unwrap(), Shot::Hidden));
         // Turned away: refused before rendering.
-        let away = Stop {
-            joints: Joints([30.0, 0.0, 0.0, 0.0, 0.0]),
-            ..stop
-        };
+        let away = Stop { joints: Joints([30.0, 0.0, 0.0, 0.0, 0.0]), ..stop };
         p.placements[0].xyz = [0.0, 0.0, 40.0];
-        assert!(matches!(
-            capture(&head, &clear, &p, &away).unwrap(),
-            Shot::OutOfView
-        ));
+        assert!(matches!(capture(&head, &clear, &p, &away).unwrap(), Shot::OutOfView));
     }
 
     #[test]

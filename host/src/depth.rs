@@ -74,9 +74,7 @@ pub fn disparity_range(
     w: u32,
     h: u32,
 ) -> [i32; 2] {
-    let f = Fundamental {
-        m: g.fundamental.map(|r| r.map(f64::from)),
-    };
+    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
     let span = f64::from(g.disparity[1] - g.disparity[0]);
     let d_range = [
         f64::from(g.disparity[0]) - DISPARITY_SLACK * span,
@@ -110,11 +108,7 @@ pub fn image_warning(img: &GrayImage) -> Option<&'static str> {
     let px = img.as_raw();
     let n = px.len().max(1) as f64;
     let mean = px.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
-    let var = px
-        .iter()
-        .map(|&v| (f64::from(v) - mean).powi(2))
-        .sum::<f64>()
-        / n;
+    let var = px.iter().map(|&v| (f64::from(v) - mean).powi(2)).sum::<f64>() / n;
     let clipped = px.iter().filter(|&&v| v == 0 || v == 255).count() as f64 / n;
     if var.sqrt() < 1.0 {
         Some("is blank (one grey level): nothing to match")
@@ -143,9 +137,7 @@ pub fn depth(
     let predict = crate::vision::model_xyz(blob);
     let (w, h) = left.dimensions();
     let d_range = disparity_range(&g, &predict, w, h);
-    let f = Fundamental {
-        m: g.fundamental.map(|r| r.map(f64::from)),
-    };
+    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
     let matches = dense_match(left, right, &f, d_range, params).map_err(|e| anyhow!("{e}"))?;
     let mut warnings = Vec::new();
     for (side, img) in [("left", left), ("right", right)] {
@@ -154,9 +146,7 @@ pub fn depth(
         }
     }
     // Every match through the model, in parallel batches (bit-identical to `hvs predict`).
-    let idx: Vec<usize> = (0..matches.ur.len())
-        .filter(|&p| matches.ur[p].is_finite())
-        .collect();
+    let idx: Vec<usize> = (0..matches.ur.len()).filter(|&p| matches.ur[p].is_finite()).collect();
     let mut inputs = Vec::with_capacity(idx.len() * 4);
     for &p in &idx {
         let (x, y) = (p as u32 % w, p as u32 / w);
@@ -190,13 +180,7 @@ pub fn depth(
             "{no_estimate} matched pixels have no estimate from the model (left +inf)"
         ));
     }
-    Ok(Depth {
-        matches,
-        xyz,
-        d_range,
-        z_box: [g.out_min[2], g.out_max[2]],
-        warnings,
-    })
+    Ok(Depth { matches, xyz, d_range, z_box: [g.out_min[2], g.out_max[2]], warnings })
 }
 
 /// Loads the model and both images (PNG or JPEG, checked by [`hvs_vision::image_file`]),

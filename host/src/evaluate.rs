@@ -40,11 +40,7 @@ pub struct Ema {
 
 impl From<&EmaAcc> for Ema {
     fn from(a: &EmaAcc) -> Self {
-        Ema {
-            e_ma_cm: a.e_ma(),
-            e_ma_pct: a.e_ma_pct(),
-            max_pct: a.max_pct(),
-        }
+        Ema { e_ma_cm: a.e_ma(), e_ma_pct: a.e_ma_pct(), max_pct: a.max_pct() }
     }
 }
 
@@ -105,10 +101,8 @@ pub fn evaluate(truth: &Dataset, methods: &[Method]) -> Evaluation {
     distinct.sort_by(f64::total_cmp);
     distinct.dedup();
     let exact = distinct.len() <= MAX_EXACT_DEPTHS;
-    let (lo, hi) = (
-        distinct.first().copied().unwrap_or(0.0),
-        distinct.last().copied().unwrap_or(0.0),
-    );
+    let (lo, hi) =
+        (distinct.first().copied().unwrap_or(0.0), distinct.last().copied().unwrap_or(0.0));
     let n_groups = if exact { distinct.len() } else { BINS };
     let group_of = |zt: f64| -> usize {
         if exact {
@@ -159,21 +153,13 @@ pub fn evaluate(truth: &Dataset, methods: &[Method]) -> Evaluation {
             }
         })
         .collect();
-    Evaluation {
-        points: z.len(),
-        exact_depths: exact,
-        methods: summaries,
-        depths,
-    }
+    Evaluation { points: z.len(), exact_depths: exact, methods: summaries, depths }
 }
 
 /// The model's depth for every row (f32 inference of `hvs-shared`, widened to f64).
 pub fn model_depths(blob: &ModelBlob, data: &Dataset) -> Result<Vec<f64>, ModelDepthError> {
     if data.n_inputs != blob.n_inputs() {
-        return Err(ModelDepthError::Inputs {
-            model: blob.n_inputs(),
-            data: data.n_inputs,
-        });
+        return Err(ModelDepthError::Inputs { model: blob.n_inputs(), data: data.n_inputs });
     }
     let x = crate::infer::to_f32(&data.inputs, data.n_inputs).map_err(ModelDepthError::Range)?;
     let p = Predictor::new(blob);
@@ -307,10 +293,7 @@ mod tests {
     #[test]
     fn per_depth_mean_and_worst_by_hand() {
         let d = set(&[(1.0, 100.0), (1.0, 100.0), (1.0, 50.0)]);
-        let m = Method {
-            name: "m".into(),
-            z: vec![98.0, 104.0, 51.0],
-        };
+        let m = Method { name: "m".into(), z: vec![98.0, 104.0, 51.0] };
         let ev = evaluate(&d, &[m]);
         assert!(ev.exact_depths);
         assert_eq!(ev.depths.len(), 2);
@@ -330,32 +313,18 @@ mod tests {
     #[test]
     fn failures_count_as_infinite_and_volume_sets_are_binned() {
         let d = set(&[(1.0, 100.0), (0.0, 60.0)]);
-        let cal = Calibration {
-            phi: 100.0,
-            half_baseline: 0.5,
-            u0: 320.0,
-            v0: 240.0,
-        };
+        let cal = Calibration { phi: 100.0, half_baseline: 0.5, u0: 320.0, v0: 240.0 };
         let z = traditional_depths(&cal, &d);
         assert_eq!(z[0], 100.0);
         assert!(z[1].is_nan());
-        let ev = evaluate(
-            &d,
-            &[Method {
-                name: "t".into(),
-                z,
-            }],
-        );
+        let ev = evaluate(&d, &[Method { name: "t".into(), z }]);
         assert_eq!(ev.methods[0].missing, 1);
         assert_eq!(ev.methods[0].worst_depth_pct, f64::INFINITY);
         let many: Vec<(f64, f64)> = (0..200).map(|k| (1.0, 65.0 + k as f64 * 0.5)).collect();
         let d = set(&many);
         let ev = evaluate(
             &d,
-            &[Method {
-                name: "x".into(),
-                z: d.targets.iter().map(|t| t[2]).collect(),
-            }],
+            &[Method { name: "x".into(), z: d.targets.iter().map(|t| t[2]).collect() }],
         );
         assert!(!ev.exact_depths);
         assert_eq!(ev.depths.len(), BINS);
@@ -387,19 +356,9 @@ mod tests {
             let want = head.optimal(&s.joints, &s.px).unwrap()[2];
             assert_eq!(*zh, want, "{:?}", s.joints);
             // The floor: rounding only, a few percent at most.
-            assert!(
-                (zh - s.xyz[2]).abs() / s.xyz[2] < 0.05,
-                "{zh} vs {:?}",
-                s.xyz
-            );
+            assert!((zh - s.xyz[2]).abs() / s.xyz[2] < 0.05, "{zh} vs {:?}", s.xyz);
         }
-        let ev = evaluate(
-            &data,
-            &[Method {
-                name: "optimal".into(),
-                z,
-            }],
-        );
+        let ev = evaluate(&data, &[Method { name: "optimal".into(), z }]);
         assert_eq!(ev.methods[0].missing, 0);
         assert!(ev.methods[0].mean.e_ma_pct < 2.0, "{:?}", ev.methods[0]);
         // The pixels alone, triangulated with the home rig, are far off at the other postures:

@@ -46,10 +46,7 @@ pub fn times(v: f64) -> String {
 
 /// Values joined by `sep`, each by its `Display` (`65, 85, 165` for depths in cm).
 pub fn join<T: std::fmt::Display>(v: impl IntoIterator<Item = T>, sep: &str) -> String {
-    v.into_iter()
-        .map(|x| x.to_string())
-        .collect::<Vec<_>>()
-        .join(sep)
+    v.into_iter().map(|x| x.to_string()).collect::<Vec<_>>().join(sep)
 }
 
 /// The links under a figure of a report: its CSV, SVG and PNG.
@@ -75,10 +72,7 @@ pub fn roman(case: u8) -> &'static str {
 
 /// The smallest and largest of `v` (`(inf, -inf)` when empty).
 pub fn span(v: impl IntoIterator<Item = f64>) -> (f64, f64) {
-    v.into_iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-            (lo.min(x), hi.max(x))
-        })
+    v.into_iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| (lo.min(x), hi.max(x)))
 }
 
 /// The mean of `v` (NaN when empty).
@@ -116,10 +110,7 @@ mod tests {
     fn small_helpers() {
         assert_eq!(times(1.234), "1.23 x");
         assert_eq!(join([65.0, 85.0, 105.5], ", "), "65, 85, 105.5");
-        assert_eq!(
-            files_line("noise"),
-            "[CSV](noise.csv) · [SVG](noise.svg) · [PNG](noise.png)"
-        );
+        assert_eq!(files_line("noise"), "[CSV](noise.csv) · [SVG](noise.svg) · [PNG](noise.png)");
         assert_eq!(stages(&[("a", 1.26), ("b", 0.0)]), "a 1.3, b 0.0");
         assert_eq!((roman(1), roman(4), roman(5)), ("I", "IV", "?"));
         assert_eq!(span([3.0, -1.0, 2.0]), (-1.0, 3.0));

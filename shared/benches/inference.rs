@@ -33,10 +33,7 @@ struct Lcg(u64);
 
 impl Lcg {
     fn next(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
     }
 }
@@ -48,21 +45,12 @@ const OUT_SCALE: [f32; 3] = [3.0, 2.0, 50.0];
 
 fn params(seed: u64) -> Vec<f32> {
     let mut r = Lcg(seed);
-    (0..param_count(NET_INPUTS, NET_HIDDEN, NET_OUTPUTS))
-        .map(|_| 2.0 * r.next())
-        .collect()
+    (0..param_count(NET_INPUTS, NET_HIDDEN, NET_OUTPUTS)).map(|_| 2.0 * r.next()).collect()
 }
 
 fn model(p: &[f32]) -> Mlp<4, 5, 3> {
-    Mlp::from_params(
-        p,
-        Activation::Linear,
-        IN_OFFSET,
-        IN_SCALE,
-        OUT_OFFSET,
-        OUT_SCALE,
-    )
-    .expect("4-5-3 parameter count")
+    Mlp::from_params(p, Activation::Linear, IN_OFFSET, IN_SCALE, OUT_OFFSET, OUT_SCALE)
+        .expect("4-5-3 parameter count")
 }
 
 /// Points spread over the training box of case I (about ±30 px around the offsets).

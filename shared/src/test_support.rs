@@ -105,19 +105,13 @@ pub fn sample(spec: SampleSpec) -> ModelBlob {
     let mut state = if joints {
         spec.seed ^ 0x9e37_79b9_7f4a_7c15
     } else {
-        spec.seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407)
+        spec.seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407)
     };
     let mut params: Vec<f32, MAX_PARAMS> = Vec::new();
     for _ in 0..param_count(ni, spec.hidden as usize, no) + spec.family.skip_len(ni, no) {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         let r = ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0;
-        params
-            .push(r * spec.amplitude)
-            .expect("a sample topology fits the blob");
+        params.push(r * spec.amplitude).expect("a sample topology fits the blob");
     }
     let with_joints = |px: [f32; 4], j: [f32; 5]| -> Vec<f32, MAX_INPUTS> {
         let mut v = Vec::from_slice(&px).expect("4 <= MAX_INPUTS");
@@ -187,10 +181,7 @@ fn legacy(generation: u32, seed: u64) -> SampleSpec {
 /// [`sample_model`] in the default family of `hvs train` (inverse depth with a linear skip
 /// term): the firmware's instruction count of the default.
 pub fn sample_default_model(generation: u32, seed: u64) -> ModelBlob {
-    sample(SampleSpec {
-        family: Family::INVERSE_DEPTH_SKIP,
-        ..legacy(generation, seed)
-    })
+    sample(SampleSpec { family: Family::INVERSE_DEPTH_SKIP, ..legacy(generation, seed) })
 }
 
 /// A valid posture-aware 9-8-3 blob (four pixels, five joint angles in degrees), built like
@@ -248,9 +239,7 @@ mod tests {
         for spec in [
             SampleSpec::THESIS,
             SampleSpec::THESIS.hidden(10).outputs(OutputKind::Z),
-            SampleSpec::THESIS
-                .inputs(InputKind::StereoJoints)
-                .hidden(16),
+            SampleSpec::THESIS.inputs(InputKind::StereoJoints).hidden(16),
         ] {
             let b = sample(spec);
             assert_eq!(b.n_inputs(), spec.inputs.len());

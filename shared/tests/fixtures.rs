@@ -7,9 +7,7 @@ use serde_json::Value;
 use std::path::PathBuf;
 
 fn fixture(name: &str) -> String {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(name);
     std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
@@ -38,11 +36,7 @@ fn rig_from_json(cases: &Value, n: u8) -> Rig {
 fn rows(name: &str) -> Vec<[f64; 7]> {
     let text = fixture(name);
     let mut lines = text.lines();
-    assert_eq!(
-        lines.next(),
-        Some("u_l,v_l,u_r,v_r,x,y,z"),
-        "{name}: header"
-    );
+    assert_eq!(lines.next(), Some("u_l,v_l,u_r,v_r,x,y,z"), "{name}: header");
     lines
         .filter(|l| !l.trim().is_empty())
         .map(|l| {
@@ -56,19 +50,11 @@ fn rows(name: &str) -> Vec<[f64; 7]> {
 fn presets_equal_cases_json() {
     let cases: Value = serde_json::from_str(&fixture("cases.json")).unwrap();
     for n in 1..=4 {
-        assert_eq!(
-            presets::case(n).unwrap(),
-            rig_from_json(&cases, n),
-            "case {n}"
-        );
+        assert_eq!(presets::case(n).unwrap(), rig_from_json(&cases, n), "case {n}");
     }
     let p = &cases["protocol"];
     let list = |k: &str| -> Vec<f64> {
-        p[k].as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.as_f64().unwrap())
-            .collect()
+        p[k].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
     };
     assert_eq!(list("train_board_x_cm"), presets::TRAIN_BOARD_X);
     assert_eq!(list("train_board_y_cm"), presets::TRAIN_BOARD_Y);
@@ -109,9 +95,7 @@ fn board_protocol_generates_the_reference_points_in_order() {
 #[test]
 fn phi_calibration_of_cases_json_is_reproduced() {
     let cases: Value = serde_json::from_str(&fixture("cases.json")).unwrap();
-    let want = cases["protocol"]["phi_calibration"]["phi_px"]
-        .as_f64()
-        .unwrap();
+    let want = cases["protocol"]["phi_calibration"]["phi_px"].as_f64().unwrap();
     let rig = presets::CASE_1;
     let pairs: Vec<(f64, f64)> = presets::board_points(65.0)
         .iter()
@@ -129,9 +113,8 @@ fn traditional_error_ranges_match_the_thesis_shape() {
     // With the Phi of case I, the traditional method is accurate on case I and far off on IV.
     let cases: Value = serde_json::from_str(&fixture("cases.json")).unwrap();
     for n in 1..=4u8 {
-        let want = cases["cases"][n.to_string()]["traditional_test_error_range_pct"]
-            .as_array()
-            .unwrap();
+        let want =
+            cases["cases"][n.to_string()]["traditional_test_error_range_pct"].as_array().unwrap();
         let (lo, hi) = (want[0].as_f64().unwrap(), want[1].as_f64().unwrap());
         let data = rows(&format!("case{n}_test.csv"));
         let phi = 284.761_904_761_904_7;

@@ -35,26 +35,14 @@ fn pose_agrees_with_the_camera_module() {
 
 #[test]
 fn fixated_target_images_at_both_principal_points() {
-    let g = HeadGeometry {
-        neck_centre_cm: [0.0, 7.0, -5.0],
-        ..HeadGeometry::DEFAULT
-    };
-    let cfg = GazeConfig {
-        geometry: g,
-        ..GazeConfig::DEFAULT
-    };
-    for t in [
-        [-20.0f32, 10.0, 90.0],
-        [35.0, -25.0, 60.0],
-        [3.0, 2.0, 400.0],
-    ] {
+    let g = HeadGeometry { neck_centre_cm: [0.0, 7.0, -5.0], ..HeadGeometry::DEFAULT };
+    let cfg = GazeConfig { geometry: g, ..GazeConfig::DEFAULT };
+    for t in [[-20.0f32, 10.0, 90.0], [35.0, -25.0, 60.0], [3.0, 2.0, 400.0]] {
         let f = fixate(&cfg, t).unwrap();
         assert!(!f.clamped);
         let p = t.map(f64::from);
         for eye in [Eye::Left, Eye::Right] {
-            let uv = camera_at(&eye_pose(&g, &f.joints, eye))
-                .project(&p)
-                .unwrap();
+            let uv = camera_at(&eye_pose(&g, &f.joints, eye)).project(&p).unwrap();
             assert!((uv[0] - 320.0).abs() < 2e-3, "{eye:?} {t:?} {uv:?}");
             assert!((uv[1] - 240.0).abs() < 2e-3, "{eye:?} {t:?} {uv:?}");
         }

@@ -11,9 +11,7 @@ use hvs_shared::runtime::blob::{self, Family, ModelBlob, OutputFrame, OutputKind
 use std::path::PathBuf;
 
 fn golden(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/golden")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden").join(name)
 }
 
 fn check(
@@ -27,11 +25,7 @@ fn check(
 ) -> ModelBlob {
     let bytes = std::fs::read(golden(model)).unwrap();
     assert_eq!(&bytes[0..4], b"HVSW");
-    assert_eq!(
-        u16::from_le_bytes([bytes[4], bytes[5]]),
-        version,
-        "a v{version} file"
-    );
+    assert_eq!(u16::from_le_bytes([bytes[4], bytes[5]]), version, "a v{version} file");
     let b = blob::decode(&bytes).unwrap();
     assert_eq!(b.family, family);
     assert_eq!(b.frame, frame);
@@ -47,10 +41,7 @@ fn check(
         b.infer(&v[..n_inputs], &mut out).unwrap();
         assert_eq!(
             out.map(f32::to_bits).to_vec(),
-            v[n_inputs..]
-                .iter()
-                .map(|x| x.to_bits())
-                .collect::<Vec<_>>(),
+            v[n_inputs..].iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
             "{model}: {line}"
         );
         rows += 1;
@@ -64,28 +55,12 @@ fn check(
 
 #[test]
 fn v1_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
-    check(
-        "v1_4_5_3.hvsw",
-        "v1_4_5_3_predict.csv",
-        1,
-        4,
-        5,
-        Family::THESIS,
-        OutputFrame::Head,
-    );
+    check("v1_4_5_3.hvsw", "v1_4_5_3_predict.csv", 1, 4, 5, Family::THESIS, OutputFrame::Head);
 }
 
 #[test]
 fn v1_posture_9_8_3_decodes_and_predicts_the_recorded_bits() {
-    check(
-        "v1_9_8_3.hvsw",
-        "v1_9_8_3_predict.csv",
-        1,
-        9,
-        8,
-        Family::THESIS,
-        OutputFrame::Head,
-    );
+    check("v1_9_8_3.hvsw", "v1_9_8_3_predict.csv", 1, 9, 8, Family::THESIS, OutputFrame::Head);
 }
 
 #[test]
@@ -174,10 +149,7 @@ fn with_image_size_and_parent() -> ModelBlob {
     let mut b = blob::decode(&std::fs::read(golden("v4_4_5_3.hvsw")).unwrap()).unwrap();
     b.generation = 7;
     b.set_image_size(Some((640, 480)));
-    b.set_parent(Some(Parent {
-        crc: 0x89ab_cdef,
-        generation: 6,
-    }));
+    b.set_parent(Some(Parent { crc: 0x89ab_cdef, generation: 6 }));
     b
 }
 

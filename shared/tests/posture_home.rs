@@ -14,10 +14,7 @@ fn home_posture_reproduces_the_fixture_pixels() {
     for n in 1..=4u8 {
         let rig = presets::case(n).unwrap();
         // A neck centre off the baseline must not matter at home.
-        let head = HeadRig {
-            neck_centre_cm: [0.0, 6.0, -4.0],
-            ..HeadRig::new(rig)
-        };
+        let head = HeadRig { neck_centre_cm: [0.0, 6.0, -4.0], ..HeadRig::new(rig) };
         for set in ["train", "test"] {
             let path = dir.join(format!("case{n}_{set}.csv"));
             let text = std::fs::read_to_string(&path).unwrap();

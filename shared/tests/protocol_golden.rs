@@ -11,30 +11,15 @@ use hvs_shared::runtime::layout::Slot;
 use hvs_shared::runtime::protocol::*;
 use hvs_shared::runtime::traditional::Calibration;
 
-const P: StereoPoint = StereoPoint {
-    u_l: 335.25,
-    v_l: 240.5,
-    u_r: 289.0,
-    v_r: -1.5,
-};
+const P: StereoPoint = StereoPoint { u_l: 335.25, v_l: 240.5, u_r: 289.0, v_r: -1.5 };
 
 fn estimate(source: Source) -> EstimateData {
-    EstimateData {
-        x: -1.75,
-        y: 0.5,
-        z: 65.125,
-        source,
-        in_range: true,
-    }
+    EstimateData { x: -1.75, y: 0.5, z: 65.125, source, in_range: true }
 }
 
 fn info(mode: Mode, model: Option<ModelInfo>, a: SlotStatus, b: SlotStatus) -> InfoData {
     InfoData {
-        firmware: FirmwareVersion {
-            major: 0,
-            minor: 1,
-            patch: 2,
-        },
+        firmware: FirmwareVersion { major: 0, minor: 1, patch: 2 },
         protocol: PROTOCOL_VERSION,
         slot: model.map(|_| Slot::B),
         generation: if model.is_some() { 7 } else { 0 },
@@ -55,16 +40,7 @@ fn requests() -> Vec<(&'static str, Request)> {
         ("request estimate", r(3, RequestBody::Estimate(P))),
         ("request look", r(300, RequestBody::Look(P))),
         ("request home", r(70_000, RequestBody::Home)),
-        (
-            "request bench",
-            r(
-                u32::MAX,
-                RequestBody::Bench {
-                    point: P,
-                    count: 1000,
-                },
-            ),
-        ),
+        ("request bench", r(u32::MAX, RequestBody::Bench { point: P, count: 1000 })),
     ]
 }
 
@@ -80,10 +56,7 @@ fn responses() -> Vec<(&'static str, Response)> {
         train_error_pct: 0.875,
     };
     vec![
-        (
-            "response ready",
-            r(UNSOLICITED_ID, ResponseBody::Ready { protocol: 1 }),
-        ),
+        ("response ready", r(UNSOLICITED_ID, ResponseBody::Ready { protocol: 1 })),
         ("response pong", r(1, ResponseBody::Pong)),
         (
             "response info network",
@@ -105,22 +78,12 @@ fn responses() -> Vec<(&'static str, Response)> {
                     Mode::Fallback,
                     None,
                     SlotStatus::Empty,
-                    SlotStatus::UnsupportedTopology {
-                        inputs: 4,
-                        hidden: 5,
-                        outputs: 1,
-                    },
+                    SlotStatus::UnsupportedTopology { inputs: 4, hidden: 5, outputs: 1 },
                 )),
             ),
         ),
-        (
-            "response estimate network",
-            r(3, ResponseBody::Estimate(estimate(Source::Network))),
-        ),
-        (
-            "response estimate fallback",
-            r(3, ResponseBody::Estimate(estimate(Source::Fallback))),
-        ),
+        ("response estimate network", r(3, ResponseBody::Estimate(estimate(Source::Network)))),
+        ("response estimate fallback", r(3, ResponseBody::Estimate(estimate(Source::Fallback)))),
         (
             "response look",
             r(
@@ -162,34 +125,17 @@ fn responses() -> Vec<(&'static str, Response)> {
     .chain(
         [
             ("response info slot A bad magic", BlobError::BadMagic),
-            (
-                "response info slot A unsupported version",
-                BlobError::UnsupportedVersion(2),
-            ),
+            ("response info slot A unsupported version", BlobError::UnsupportedVersion(2)),
             ("response info slot A truncated", BlobError::Truncated),
             ("response info slot A too large", BlobError::TooLarge),
             ("response info slot A malformed", BlobError::Malformed),
-            (
-                "response info slot A topology mismatch",
-                BlobError::TopologyMismatch,
-            ),
-            (
-                "response info slot A bad parameter",
-                BlobError::BadParameter,
-            ),
-            (
-                "response info slot A buffer too small",
-                BlobError::BufferTooSmall,
-            ),
+            ("response info slot A topology mismatch", BlobError::TopologyMismatch),
+            ("response info slot A bad parameter", BlobError::BadParameter),
+            ("response info slot A buffer too small", BlobError::BufferTooSmall),
         ]
         .into_iter()
         .map(|(n, e)| {
-            let i = info(
-                Mode::Fallback,
-                None,
-                SlotStatus::Invalid(e),
-                SlotStatus::Empty,
-            );
+            let i = info(Mode::Fallback, None, SlotStatus::Invalid(e), SlotStatus::Empty);
             (n, r(2, ResponseBody::Info(i)))
         }),
     )
@@ -201,26 +147,17 @@ fn hex(b: &[u8]) -> String {
 }
 
 fn unhex(s: &str) -> Vec<u8> {
-    (0..s.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
-        .collect()
+    (0..s.len()).step_by(2).map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap()).collect()
 }
 
 fn frames() -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
     let mut buf = [0u8; MAX_FRAME_LEN];
     for (name, req) in requests() {
-        out.push((
-            name.to_string(),
-            encode_request(&req, &mut buf).unwrap().to_vec(),
-        ));
+        out.push((name.to_string(), encode_request(&req, &mut buf).unwrap().to_vec()));
     }
     for (name, resp) in responses() {
-        out.push((
-            name.to_string(),
-            encode_response(&resp, &mut buf).unwrap().to_vec(),
-        ));
+        out.push((name.to_string(), encode_response(&resp, &mut buf).unwrap().to_vec()));
     }
     out
 }
@@ -231,18 +168,13 @@ const GOLDEN: &str = "tests/golden/protocol.txt";
 fn every_message_has_its_golden_bytes() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(GOLDEN);
     let now = frames();
-    let text: String = now
-        .iter()
-        .map(|(n, b)| format!("{n}: {}\n", hex(b)))
-        .collect();
+    let text: String = now.iter().map(|(n, b)| format!("{n}: {}\n", hex(b))).collect();
     if std::env::var_os("HVS_BLESS").is_some() {
         std::fs::write(&path, &text).unwrap();
     }
     let golden = std::fs::read_to_string(&path).expect("tests/golden/protocol.txt is committed");
-    let want: Vec<(&str, &str)> = golden
-        .lines()
-        .map(|l| l.split_once(": ").expect("name: hex"))
-        .collect();
+    let want: Vec<(&str, &str)> =
+        golden.lines().map(|l| l.split_once(": ").expect("name: hex")).collect();
     assert_eq!(want.len(), now.len(), "a message was added or removed");
     for ((name, bytes), (gname, ghex)) in now.iter().zip(&want) {
         assert_eq!(name, gname);

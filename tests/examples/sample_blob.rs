@@ -18,13 +18,7 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let blob = match args.next().map(|h| {
-        if h == "default" {
-            Ok(0)
-        } else {
-            h.parse::<u8>()
-        }
-    }) {
+    let blob = match args.next().map(|h| if h == "default" { Ok(0) } else { h.parse::<u8>() }) {
         None => hvs_tests::sample_model(generation, 42),
         Some(Ok(0)) => hvs_tests::sample_default_model(generation, 42),
         Some(Ok(h @ 1..=32)) => match args.next().as_deref() {

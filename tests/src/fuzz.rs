@@ -44,16 +44,9 @@ fn check_blob(bytes: &[u8]) {
     let framed = blob::framed_len(bytes).expect("a decoded blob has a length");
     let mut buf = [0u8; MAX_BLOB_LEN];
     let n = b.encode(&mut buf).expect("a decoded blob re-encodes");
-    assert!(
-        n <= framed,
-        "re-encoding grew the blob from {framed} to {n} bytes"
-    );
+    assert!(n <= framed, "re-encoding grew the blob from {framed} to {n} bytes");
     let again = blob::decode(&buf[..n]).expect("a re-encoded blob decodes");
-    assert_eq!(
-        format!("{again:?}"),
-        format!("{b:?}"),
-        "re-encoding changed the model"
-    );
+    assert_eq!(format!("{again:?}"), format!("{b:?}"), "re-encoding changed the model");
     let mut buf2 = [0u8; MAX_BLOB_LEN];
     let m = again.encode(&mut buf2).expect("re-encodes");
     assert_eq!(&buf[..n], &buf2[..m], "encoding is not a fixed point");
@@ -125,12 +118,8 @@ fn accumulate<const N: usize>(bytes: &[u8]) {
 ///   firmware, and 8 bytes, so overlong frames are common) give exactly the frames of the
 ///   reference splitter.
 pub fn frame_decode(data: &[u8]) {
-    round_trip::<Request, _>(data, |m, buf| {
-        protocol::encode_request(m, buf).map(|f| f.len())
-    });
-    round_trip::<Response, _>(data, |m, buf| {
-        protocol::encode_response(m, buf).map(|f| f.len())
-    });
+    round_trip::<Request, _>(data, |m, buf| protocol::encode_request(m, buf).map(|f| f.len()));
+    round_trip::<Response, _>(data, |m, buf| protocol::encode_response(m, buf).map(|f| f.len()));
     accumulate::<MAX_FRAME_LEN>(data);
     accumulate::<8>(data);
 }
@@ -184,12 +173,7 @@ fn run_head_stream(data: &[u8]) -> Result<(), crate::sim::Violation> {
     } else {
         for (k, r) in rest.chunks_exact(17).enumerate() {
             let f = |i: usize| f32::from_le_bytes([r[i], r[i + 1], r[i + 2], r[i + 3]]);
-            let p = StereoPoint {
-                u_l: f(1),
-                v_l: f(5),
-                u_r: f(9),
-                v_r: f(13),
-            };
+            let p = StereoPoint { u_l: f(1), v_l: f(5), u_r: f(9), v_r: f(13) };
             let body = match r[0] % 5 {
                 0 => RequestBody::Look(p),
                 1 => RequestBody::Estimate(p),
@@ -200,9 +184,7 @@ fn run_head_stream(data: &[u8]) -> Result<(), crate::sim::Violation> {
             let id = k as u32 + 1;
             let got = head.request(&Request { id, body })?;
             if got.last().map(|r| r.id) != Some(id) {
-                return Err(crate::sim::Violation(format!(
-                    "request {id} unanswered: {got:?}"
-                )));
+                return Err(crate::sim::Violation(format!("request {id} unanswered: {got:?}")));
             }
             head.tick(ticks)?;
         }
@@ -263,21 +245,12 @@ pub fn csv_read(data: &[u8]) {
         assert!(d.targets.iter().flatten().all(|v| v.is_finite()));
         assert_eq!(t.lines.len(), n);
         for (i, w) in t.lines.windows(2).enumerate() {
-            assert!(
-                w[0] < w[1],
-                "rows {i} and {} on lines {} and {}",
-                i + 1,
-                w[0],
-                w[1]
-            );
+            assert!(w[0] < w[1], "rows {i} and {} on lines {} and {}", i + 1, w[0], w[1]);
         }
         for &l in &t.lines {
             assert!((2..=n_lines).contains(&l), "row on line {l} of {n_lines}");
             let text = text_lines[(l - 1) as usize];
-            assert!(
-                text.iter().any(|b| !b.is_ascii_whitespace()),
-                "row on blank line {l}"
-            );
+            assert!(text.iter().any(|b| !b.is_ascii_whitespace()), "row on blank line {l}");
             assert!(t.at(0).starts_with("fuzz.csv:"));
         }
         // Round trip through plain CSV.
@@ -302,11 +275,7 @@ pub fn csv_read(data: &[u8]) {
             .unwrap_or_else(|e| panic!("{inputs:?}: own output unreadable: {e:#}\n{out}"));
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&again.data.inputs), bits(&d.inputs), "{inputs:?}");
-        assert_eq!(
-            bits(&again.data.targets.concat()),
-            bits(&d.targets.concat()),
-            "{inputs:?}"
-        );
+        assert_eq!(bits(&again.data.targets.concat()), bits(&d.targets.concat()), "{inputs:?}");
     }
 }
 
@@ -339,9 +308,7 @@ fn lines_of(data: &[u8]) -> Vec<&[u8]> {
 
 fn frame(req: &Request) -> Vec<u8> {
     let mut buf = [0u8; MAX_FRAME_LEN];
-    protocol::encode_request(req, &mut buf)
-        .expect("requests fit a frame")
-        .to_vec()
+    protocol::encode_request(req, &mut buf).expect("requests fit a frame").to_vec()
 }
 
 /// One seed input: `(target, name, bytes)`.
@@ -359,32 +326,18 @@ pub fn seeds() -> Vec<Seed> {
     out.push(("blob_decode", "valid_blob", blob));
     out.push(("blob_decode", "valid_payload", payload));
 
-    let p = StereoPoint {
-        u_l: 340.0,
-        v_l: 236.0,
-        u_r: 300.0,
-        v_r: 236.0,
-    };
+    let p = StereoPoint { u_l: 340.0, v_l: 236.0, u_r: 300.0, v_r: 236.0 };
     let bodies = [
         ("ping", RequestBody::Ping),
         ("info", RequestBody::Info),
         ("estimate", RequestBody::Estimate(p)),
         ("look", RequestBody::Look(p)),
         ("home", RequestBody::Home),
-        (
-            "bench",
-            RequestBody::Bench {
-                point: p,
-                count: 10,
-            },
-        ),
+        ("bench", RequestBody::Bench { point: p, count: 10 }),
     ];
     let mut stream = Vec::new();
     for (k, (name, body)) in bodies.iter().enumerate() {
-        let f = frame(&Request {
-            id: k as u32 + 1,
-            body: *body,
-        });
+        let f = frame(&Request { id: k as u32 + 1, body: *body });
         stream.extend_from_slice(&f);
         out.push(("frame_decode", name, f));
     }
@@ -393,39 +346,21 @@ pub fn seeds() -> Vec<Seed> {
     // head_stream: mode (bits 0-1 slots, bit 2 structured), ticks per frame, then the input.
     let looks: Vec<u8> = [
         RequestBody::Look(p),
-        RequestBody::Look(StereoPoint {
-            u_l: 250.0,
-            u_r: 220.0,
-            ..p
-        }),
+        RequestBody::Look(StereoPoint { u_l: 250.0, u_r: 220.0, ..p }),
         RequestBody::Home,
         RequestBody::Estimate(p),
     ]
     .iter()
     .enumerate()
-    .flat_map(|(k, body)| {
-        frame(&Request {
-            id: k as u32 + 1,
-            body: *body,
-        })
-    })
+    .flat_map(|(k, body)| frame(&Request { id: k as u32 + 1, body: *body }))
     .collect();
-    for (name, mode) in [
-        ("fallback_raw", 0u8),
-        ("network_a_raw", 1),
-        ("network_b_raw", 2),
-    ] {
+    for (name, mode) in [("fallback_raw", 0u8), ("network_a_raw", 1), ("network_b_raw", 2)] {
         let mut v = vec![mode, 20];
         v.extend_from_slice(&looks);
         out.push(("head_stream", name, v));
     }
     let mut structured = vec![5u8, 30];
-    for (kind, q) in [
-        (0u8, p),
-        (0, StereoPoint { u_l: 200.0, ..p }),
-        (2, p),
-        (1, p),
-    ] {
+    for (kind, q) in [(0u8, p), (0, StereoPoint { u_l: 200.0, ..p }), (2, p), (1, p)] {
         structured.push(kind);
         for c in q.to_array() {
             structured.extend_from_slice(&c.to_le_bytes());
@@ -589,12 +524,9 @@ pub fn capture_set(data: &[u8]) {
 pub fn capture_set_found(data: &[u8]) -> usize {
     let [board, captures, left, right] = parts::<4>(data);
     let dir = tempfile::tempdir().expect("a temporary folder");
-    for (name, bytes) in [
-        ("board.json", board),
-        ("captures.csv", captures),
-        ("l.png", left),
-        ("r.png", right),
-    ] {
+    for (name, bytes) in
+        [("board.json", board), ("captures.csv", captures), ("l.png", left), ("r.png", right)]
+    {
         std::fs::write(dir.path().join(name), bytes).expect("written");
     }
     let board = match hvs_vision::board::Board::from_path(&dir.path().join("board.json")) {
@@ -635,10 +567,7 @@ pub fn capture_set_found(data: &[u8]) -> usize {
     let text = hvs_host::vision::points_csv(&board, &set, &det);
     let mut lines = text.lines();
     let header = lines.next().expect("a header");
-    assert!(
-        header.starts_with("capture,i,j,u_l,v_l,u_r,v_r"),
-        "{header}"
-    );
+    assert!(header.starts_with("capture,i,j,u_l,v_l,u_r,v_r"), "{header}");
     let fields = csv_fields(header);
     let found = det
         .outcomes
@@ -655,9 +584,7 @@ pub fn capture_set_found(data: &[u8]) -> usize {
 
 /// Fields of one CSV line (quoted fields may hold commas).
 fn csv_fields(line: &str) -> usize {
-    let mut rdr = ::csv::ReaderBuilder::new()
-        .has_headers(false)
-        .from_reader(line.as_bytes());
+    let mut rdr = ::csv::ReaderBuilder::new().has_headers(false).from_reader(line.as_bytes());
     rdr.records().next().map_or(0, |r| r.map_or(0, |r| r.len()))
 }
 
@@ -670,12 +597,7 @@ pub fn locate(data: &[u8]) {
     let [model, left, right, points] = parts::<4>(data);
     let dir = tempfile::tempdir().expect("a temporary folder");
     let path = |n: &str| dir.path().join(n);
-    for (name, bytes) in [
-        ("m.hvsw", model),
-        ("l.png", left),
-        ("r.png", right),
-        ("p.csv", points),
-    ] {
+    for (name, bytes) in [("m.hvsw", model), ("l.png", left), ("r.png", right), ("p.csv", points)] {
         std::fs::write(path(name), bytes).expect("written");
     }
     let pixels = match hvs_host::cli::locate::read_pixels(&path("p.csv")) {
@@ -717,10 +639,7 @@ pub fn locate(data: &[u8]) {
         assert!(known.contains(&f.status), "{}", f.status);
         if f.status == "ok" {
             let rp = f.right.expect("an ok match has a right pixel");
-            assert!(
-                rp[0] > -1.0 && rp[0] < w && rp[1] > -1.0 && rp[1] < h,
-                "{rp:?}"
-            );
+            assert!(rp[0] > -1.0 && rp[0] < w && rp[1] > -1.0 && rp[1] < h, "{rp:?}");
             assert!(f.xyz.expect("an estimate").iter().all(|v| v.is_finite()));
         } else {
             assert!(f.xyz.is_none(), "{f:?}");
@@ -759,20 +678,12 @@ pub fn image_seeds() -> Vec<Seed> {
     )
     .expect("rendered");
     let png = |img: &image::GrayImage| hvs_host::vision::png_bytes(img).expect("a PNG");
-    let (l0, r0) = (
-        png(&set.captures[0].render.left),
-        png(&set.captures[0].render.right),
-    );
+    let (l0, r0) = (png(&set.captures[0].render.left), png(&set.captures[0].render.right));
     let board_json = set.board_json();
     let mut out: Vec<Seed> = vec![(
         "capture_set",
         "one_pair",
-        joined(&[
-            board_json.as_bytes(),
-            b"left,right,z\nl.png,r.png,40\n",
-            &l0,
-            &r0,
-        ]),
+        joined(&[board_json.as_bytes(), b"left,right,z\nl.png,r.png,40\n", &l0, &r0]),
     )];
     out.push((
         "capture_set",

@@ -11,10 +11,7 @@ use std::path::PathBuf;
 
 /// The workspace root (where `memory.x` and `Cargo.toml` live).
 pub fn workspace_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("tests/ has a parent")
-        .to_path_buf()
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).parent().expect("tests/ has a parent").to_path_buf()
 }
 
 /// Parses `ORIGIN = 0x..., LENGTH = ...K` of a named region in a GNU ld `MEMORY` block.
@@ -23,14 +20,7 @@ pub fn memory_region(memory_x: &str, name: &str) -> Option<(u32, u32)> {
         let t = l.trim_start();
         t.starts_with(name) && t[name.len()..].trim_start().starts_with(':')
     })?;
-    let origin = line
-        .split("ORIGIN")
-        .nth(1)?
-        .split('=')
-        .nth(1)?
-        .split(',')
-        .next()?
-        .trim();
+    let origin = line.split("ORIGIN").nth(1)?.split('=').nth(1)?.split(',').next()?.trim();
     let origin =
         u32::from_str_radix(origin.trim_start_matches("0x").trim_start_matches("0X"), 16).ok()?;
     let len = line.split("LENGTH").nth(1)?.split('=').nth(1)?.trim();

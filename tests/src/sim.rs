@@ -21,11 +21,7 @@ use hvs_shared::runtime::servo::{parse_mcdc, McdcCmd, McdcConfig, PwmConfig};
 use hvs_shared::runtime::trajectory::{ConfigError, ControllerConfig};
 
 /// Firmware version the simulated head reports.
-pub const VERSION: FirmwareVersion = FirmwareVersion {
-    major: 0,
-    minor: 1,
-    patch: 0,
-};
+pub const VERSION: FirmwareVersion = FirmwareVersion { major: 0, minor: 1, patch: 0 };
 
 /// A broken safety rule: what and where.
 #[derive(Debug, Clone, PartialEq)]
@@ -67,10 +63,7 @@ pub struct SimHead {
 
 /// The firmware's controller settings: [`ControllerConfig::DEFAULT`] with the gaze limits.
 pub fn firmware_control(gaze: &GazeConfig) -> ControllerConfig {
-    ControllerConfig {
-        limits: gaze.limits,
-        ..ControllerConfig::DEFAULT
-    }
+    ControllerConfig { limits: gaze.limits, ..ControllerConfig::DEFAULT }
 }
 
 impl SimHead {
@@ -167,10 +160,7 @@ impl SimHead {
     fn check(&mut self, sp: &Joints, commanded: bool) -> Result<(), Violation> {
         let limits = self.limits();
         let t = self.ticks;
-        ensure!(
-            limits.contains(sp),
-            "tick {t}: setpoint {sp:?} outside the joint limits"
-        );
+        ensure!(limits.contains(sp), "tick {t}: setpoint {sp:?} outside the joint limits");
         let steps = self.head.controller.setpoint_steps();
         let max = self.head.controller.max_steps_per_tick();
         for axis in Axis::ALL {
@@ -258,16 +248,10 @@ impl SimHead {
     /// answered by `Pong` with the ping's id, as the last response.
     pub fn still_answers(&mut self, id: u32) -> Result<(), Violation> {
         let mut got = self.feed(&[0])?;
-        got.extend(self.request(&Request {
-            id,
-            body: RequestBody::Ping,
-        })?);
+        got.extend(self.request(&Request { id, body: RequestBody::Ping })?);
         let last = got.last().copied();
         ensure!(
-            last == Some(Response {
-                id,
-                body: ResponseBody::Pong
-            }),
+            last == Some(Response { id, body: ResponseBody::Pong }),
             "a Ping after the stream got {last:?}"
         );
         Ok(())
@@ -282,10 +266,7 @@ impl SimHead {
             }
             self.tick(1)?;
         }
-        ensure!(
-            !self.head.controller.is_moving(),
-            "still moving after {max} ticks"
-        );
+        ensure!(!self.head.controller.is_moving(), "still moving after {max} ticks");
         Ok(())
     }
 }

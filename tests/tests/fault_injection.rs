@@ -32,30 +32,10 @@ enum Expect {
 
 /// Points inside and outside the training box, and one the fallback cannot solve.
 const POINTS: [StereoPoint; 4] = [
-    StereoPoint {
-        u_l: 343.0,
-        v_l: 240.0,
-        u_r: 297.0,
-        v_r: 240.0,
-    },
-    StereoPoint {
-        u_l: 330.5,
-        v_l: 231.25,
-        u_r: 310.0,
-        v_r: 249.0,
-    },
-    StereoPoint {
-        u_l: 20.0,
-        v_l: 470.0,
-        u_r: 5.0,
-        v_r: 470.0,
-    },
-    StereoPoint {
-        u_l: 300.0,
-        v_l: 240.0,
-        u_r: 300.0,
-        v_r: 240.0,
-    },
+    StereoPoint { u_l: 343.0, v_l: 240.0, u_r: 297.0, v_r: 240.0 },
+    StereoPoint { u_l: 330.5, v_l: 231.25, u_r: 310.0, v_r: 249.0 },
+    StereoPoint { u_l: 20.0, v_l: 470.0, u_r: 5.0, v_r: 470.0 },
+    StereoPoint { u_l: 300.0, v_l: 240.0, u_r: 300.0, v_r: 240.0 },
 ];
 
 /// `bytes` in a slot of `MAX_BLOB_LEN` bytes (what the firmware reads), the rest `fill`.
@@ -70,11 +50,7 @@ fn check_runs(boot: &Boot, want: &Expect, what: &str) {
     let info = boot.info(VERSION);
     match (want, &boot.estimator) {
         (Expect::Model(blob, slot), Estimator::Network(n)) => {
-            assert_eq!(
-                (n.slot, n.generation),
-                (*slot, blob.generation),
-                "{what}: wrong model"
-            );
+            assert_eq!((n.slot, n.generation), (*slot, blob.generation), "{what}: wrong model");
             assert_eq!(&n.blob, &**blob, "{what}: damaged weights");
             assert_eq!(
                 (info.mode, info.slot, info.generation),
@@ -171,11 +147,8 @@ fn write_cut_off_at_every_byte_boots_the_old_or_the_new_model() {
         .into_iter()
         .flat_map(|(n, a, b)| news.iter().map(move |m| (n, a.clone(), b.clone(), m)))
     {
-        let written_before: Vec<Vec<u8>> = [&a, &b]
-            .into_iter()
-            .filter(|s| blob::decode(s).is_ok())
-            .cloned()
-            .collect();
+        let written_before: Vec<Vec<u8>> =
+            [&a, &b].into_iter().filter(|s| blob::decode(s).is_ok()).cloned().collect();
         let (sa, sb) = (slot_of(&a, 0xFF), slot_of(&b, 0xFF));
         let before = expected(&sa, &sb, &written_before);
         check_runs(&boot_slots(&sa, &sb), &before, name);
@@ -234,11 +207,8 @@ fn write_cut_off_at_every_byte_boots_the_old_or_the_new_model() {
                     new.len()
                 );
                 let want = expected(&x, &y, &written);
-                let complete = if plan.slot == Slot::A {
-                    x.starts_with(&new)
-                } else {
-                    y.starts_with(&new)
-                };
+                let complete =
+                    if plan.slot == Slot::A { x.starts_with(&new) } else { y.starts_with(&new) };
                 if complete {
                     assert_eq!(
                         want,
@@ -291,12 +261,7 @@ fn flip_scenarios() -> Vec<(&'static str, Vec<u8>, Slot, Vec<u8>)> {
         |generation: u32, seed: u64| hvs_tests::blob_bytes(&sample_posture_model(generation, seed));
     vec![
         ("posture-aware A alone", pm(5, 27), Slot::A, vec![]),
-        (
-            "posture-aware B gen 6, A gen 2",
-            pm(6, 28),
-            Slot::B,
-            m(2, 29),
-        ),
+        ("posture-aware B gen 6, A gen 2", pm(6, 28), Slot::B, m(2, 29)),
         ("A alone", m(5, 21), Slot::A, vec![]),
         ("A gen 5, B gen 4", m(5, 21), Slot::A, m(4, 22)),
         ("B gen 9, A gen 3", m(9, 23), Slot::B, m(3, 24)),
@@ -306,11 +271,7 @@ fn flip_scenarios() -> Vec<(&'static str, Vec<u8>, Slot, Vec<u8>)> {
 
 /// The intact blobs of a scenario: the stored one and the other slot's, if any.
 fn intact_blobs_of(stored: &[u8], other: &[u8]) -> Vec<Vec<u8>> {
-    [stored, other]
-        .into_iter()
-        .filter(|s| !s.is_empty())
-        .map(<[u8]>::to_vec)
-        .collect()
+    [stored, other].into_iter().filter(|s| !s.is_empty()).map(<[u8]>::to_vec).collect()
 }
 
 #[test]
@@ -327,13 +288,7 @@ fn every_single_bit_flip_is_refused() {
         }
     }
     eprintln!("single-bit flips: {flips} boots checked");
-    assert_eq!(
-        flips,
-        flip_scenarios()
-            .iter()
-            .map(|s| s.1.len() * 8)
-            .sum::<usize>()
-    );
+    assert_eq!(flips, flip_scenarios().iter().map(|s| s.1.len() * 8).sum::<usize>());
 }
 
 #[test]
@@ -363,13 +318,7 @@ fn multi_bit_flips_and_bursts_are_refused() {
                 for &b in &picked {
                     d[b / 8] ^= 1 << (b % 8);
                 }
-                check_damaged(
-                    &d,
-                    slot,
-                    &other,
-                    &intact_blobs,
-                    &format!("{name}: bits {picked:?}"),
-                );
+                check_damaged(&d, slot, &other, &intact_blobs, &format!("{name}: bits {picked:?}"));
             }
         }
         // Every burst of at most 32 bits: a random non-zero 32-bit pattern at every offset.
@@ -381,13 +330,7 @@ fn multi_bit_flips_and_bursts_are_refused() {
                     *x ^= p;
                 }
             }
-            check_damaged(
-                &d,
-                slot,
-                &other,
-                &intact_blobs,
-                &format!("{name}: burst at {start}"),
-            );
+            check_damaged(&d, slot, &other, &intact_blobs, &format!("{name}: burst at {start}"));
         }
     }
 }

@@ -8,10 +8,7 @@ use hvs_tests::{fuzz, workspace_root};
 use std::path::Path;
 
 fn kept(target: &str) -> Vec<(String, Vec<u8>)> {
-    let dir = workspace_root()
-        .join("tests")
-        .join("fuzz-regressions")
-        .join(target);
+    let dir = workspace_root().join("tests").join("fuzz-regressions").join(target);
     let mut out = Vec::new();
     if let Ok(entries) = std::fs::read_dir(&dir) {
         for e in entries {
@@ -66,10 +63,7 @@ const TARGETS: [(&str, Check, usize); 7] = [
 fn every_target_replays_its_inputs() {
     for (target, check, least) in TARGETS {
         let n = replay(target, check);
-        assert!(
-            n >= least,
-            "{target}: {n} inputs, expected at least {least}"
-        );
+        assert!(n >= least, "{target}: {n} inputs, expected at least {least}");
     }
 }
 

@@ -47,14 +47,8 @@ fn any_point() -> impl Strategy<Value = StereoPoint> {
 
 /// A point the head can usually look at: in the image, positive disparity.
 fn plausible_point() -> impl Strategy<Value = StereoPoint> {
-    (40.0f32..600.0, 40.0f32..440.0, 1.0f32..150.0, -3.0f32..3.0).prop_map(|(u, v, disp, dv)| {
-        StereoPoint {
-            u_l: u,
-            v_l: v,
-            u_r: u - disp,
-            v_r: v + dv,
-        }
-    })
+    (40.0f32..600.0, 40.0f32..440.0, 1.0f32..150.0, -3.0f32..3.0)
+        .prop_map(|(u, v, disp, dv)| StereoPoint { u_l: u, v_l: v, u_r: u - disp, v_r: v + dv })
 }
 
 fn any_body() -> impl Strategy<Value = RequestBody> {
@@ -114,10 +108,9 @@ fn answer_fits(body: &RequestBody, resp: &ResponseBody, limits: &JointLimits) ->
         (RequestBody::Estimate(_), ResponseBody::Error(c)) => {
             matches!(c, ErrorCode::NonFinite | ErrorCode::NoSolution)
         }
-        (RequestBody::Look(_), ResponseBody::Error(c)) => matches!(
-            c,
-            ErrorCode::NonFinite | ErrorCode::NoSolution | ErrorCode::Unreachable
-        ),
+        (RequestBody::Look(_), ResponseBody::Error(c)) => {
+            matches!(c, ErrorCode::NonFinite | ErrorCode::NoSolution | ErrorCode::Unreachable)
+        }
         (RequestBody::Bench { .. }, ResponseBody::Error(ErrorCode::Unsupported)) => true,
         _ => false,
     }
@@ -139,20 +132,11 @@ fn run_events(head: &mut SimHead, events: &[Event]) -> Result<(), TestCaseError>
                 bytes.extend(frame(&Request { id, body: *body }));
                 let got = head.feed(&bytes).map_err(|v| TestCaseError::fail(v.0))?;
                 let last = got.last().copied();
-                let Some(Response {
-                    id: rid,
-                    body: resp,
-                }) = last
-                else {
+                let Some(Response { id: rid, body: resp }) = last else {
                     return Err(TestCaseError::fail(format!("request {id} unanswered")));
                 };
                 prop_assert_eq!(rid, id);
-                prop_assert!(
-                    answer_fits(body, &resp, &limits),
-                    "{:?} -> {:?}",
-                    body,
-                    resp
-                );
+                prop_assert!(answer_fits(body, &resp, &limits), "{:?} -> {:?}", body, resp);
                 // Anything before the answer came from an unfinished frame: an error.
                 for r in &got[..got.len() - 1] {
                     prop_assert_eq!(r.id, UNSOLICITED_ID);
@@ -177,17 +161,13 @@ fn run_events(head: &mut SimHead, events: &[Event]) -> Result<(), TestCaseError>
                 bytes.extend((0..*len).map(|i| (i % 255 + 1) as u8));
                 bytes.push(0);
                 let got = head.feed(&bytes).map_err(|v| TestCaseError::fail(v.0))?;
-                prop_assert_eq!(
-                    got.last().copied(),
-                    Some(head::frame_error(ErrorCode::Oversize))
-                );
+                prop_assert_eq!(got.last().copied(), Some(head::frame_error(ErrorCode::Oversize)));
             }
             Event::Ticks(n) => head.tick(*n).map_err(|v| TestCaseError::fail(v.0))?,
         }
     }
     head.settle(2000).map_err(|v| TestCaseError::fail(v.0))?;
-    head.still_answers(u32::MAX)
-        .map_err(|v| TestCaseError::fail(v.0))?;
+    head.still_answers(u32::MAX).map_err(|v| TestCaseError::fail(v.0))?;
     Ok(())
 }
 
@@ -210,21 +190,13 @@ proptest! {
 
 fn any_limits() -> impl Strategy<Value = JointLimits> {
     // Speeds of at least one 0.18° step per 100 Hz tick (the controller refuses less).
-    let axis =
-        (-120.0f32..=0.0, 0.0f32..=120.0, 18.5f32..1000.0).prop_map(|(lo, hi, v)| AxisLimits {
-            min_deg: lo,
-            max_deg: hi,
-            max_vel_deg_s: v,
-        });
+    let axis = (-120.0f32..=0.0, 0.0f32..=120.0, 18.5f32..1000.0)
+        .prop_map(|(lo, hi, v)| AxisLimits { min_deg: lo, max_deg: hi, max_vel_deg_s: v });
     [axis.clone(), axis.clone(), axis.clone(), axis.clone(), axis].prop_map(JointLimits)
 }
 
 fn any_mcdc() -> impl Strategy<Value = McdcConfig> {
-    let axis = (
-        any::<u8>(),
-        prop_oneof![1.0f32..200.0, -200.0f32..-1.0],
-        -1_000_000i32..1_000_000,
-    )
+    let axis = (any::<u8>(), prop_oneof![1.0f32..200.0, -200.0f32..-1.0], -1_000_000i32..1_000_000)
         .prop_map(|(node, counts_per_deg, zero_counts)| McdcAxis {
             node,
             counts_per_deg,

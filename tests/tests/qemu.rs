@@ -173,12 +173,7 @@ fn points() -> Vec<StereoPoint> {
 
 /// The stereo point `[u_l, v_l, u_r, v_r]`.
 fn point(px: [f32; 4]) -> StereoPoint {
-    StereoPoint {
-        u_l: px[0],
-        v_l: px[1],
-        u_r: px[2],
-        v_r: px[3],
-    }
+    StereoPoint { u_l: px[0], v_l: px[1], u_r: px[2], v_r: px[3] }
 }
 
 /// The head's estimate of `p` (panics if it answers anything else).
@@ -192,10 +187,7 @@ fn estimate(run: &mut Run, p: StereoPoint) -> protocol::EstimateData {
 /// Asserts that the head runs a network from `slot` at `generation`.
 #[track_caller]
 fn assert_network(i: &protocol::InfoData, slot: Slot, generation: u32) {
-    assert_eq!(
-        (i.mode, i.slot, i.generation),
-        (Mode::Network, Some(slot), generation)
-    );
+    assert_eq!((i.mode, i.slot, i.generation), (Mode::Network, Some(slot), generation));
 }
 
 fn info(run: &mut Run) -> protocol::InfoData {
@@ -258,12 +250,8 @@ fn estimates_equal_host_inference_bit_for_bit() {
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn corrupted_slot_a_boots_valid_slot_b() {
-    let (_run, i) = boot_slots(
-        "slot-b",
-        &corrupted(&model(9, 1)),
-        &encode(&model(2, 2)),
-        Source::Network,
-    );
+    let (_run, i) =
+        boot_slots("slot-b", &corrupted(&model(9, 1)), &encode(&model(2, 2)), Source::Network);
     assert_network(&i, Slot::B, 2);
     assert_eq!(i.slot_a, SlotStatus::Invalid(BlobError::BadCrc));
     assert_eq!(i.model.map(|m| m.seed), Some(2));
@@ -298,10 +286,7 @@ fn next_unsolicited(run: &mut Run, within: Duration) -> Option<Response> {
 }
 
 fn ping_answered(run: &mut Run) {
-    assert_eq!(
-        run.link.request(RequestBody::Ping).unwrap(),
-        ResponseBody::Pong
-    );
+    assert_eq!(run.link.request(RequestBody::Ping).unwrap(), ResponseBody::Pong);
 }
 
 #[test]
@@ -315,18 +300,12 @@ fn bad_frames_get_errors_and_the_next_frame_is_answered() {
     run.link.send_raw(&garbage).unwrap();
     run.link.send_raw(&[0]).unwrap();
     let r = next_unsolicited(&mut run, Duration::from_secs(5));
-    assert_eq!(
-        r.map(|r| r.body),
-        Some(ResponseBody::Error(ErrorCode::Oversize))
-    );
+    assert_eq!(r.map(|r| r.body), Some(ResponseBody::Error(ErrorCode::Oversize)));
     ping_answered(&mut run);
 
     // A truncated request: Malformed.
     let mut buf = [0u8; MAX_FRAME_LEN];
-    let req = Request {
-        id: 77,
-        body: RequestBody::Estimate(point([340.0, 240.0, 300.0, 240.0])),
-    };
+    let req = Request { id: 77, body: RequestBody::Estimate(point([340.0, 240.0, 300.0, 240.0])) };
     let frame = protocol::encode_request(&req, &mut buf).unwrap().to_vec();
     run.link.send_raw(&frame[..frame.len() / 2]).unwrap();
     run.link.send_raw(&[0]).unwrap();
@@ -373,10 +352,7 @@ fn bad_frames_get_errors_and_the_next_frame_is_answered() {
             break;
         }
     }
-    assert!(
-        got_answer,
-        "the valid frame after a truncated one was not answered"
-    );
+    assert!(got_answer, "the valid frame after a truncated one was not answered");
     // Unsolicited replies are all errors.
     assert!(run
         .link
@@ -427,12 +403,8 @@ fn look_sequence_commands_follow_the_trajectory_within_limits() {
         point([330.0, -6000.0, 300.0, -6000.0]),
     ];
     // The host runs the same Head from the same boot.
-    let mut host = Head::new(
-        head::boot(&[], &[]),
-        GazeConfig::DEFAULT,
-        &ControllerConfig::DEFAULT,
-    )
-    .unwrap();
+    let mut host =
+        Head::new(head::boot(&[], &[]), GazeConfig::DEFAULT, &ControllerConfig::DEFAULT).unwrap();
     let cfg = McdcConfig::DEFAULT;
     let limits = GazeConfig::DEFAULT.limits;
     let mut want: [Vec<i32>; 5] = Default::default();
@@ -448,9 +420,7 @@ fn look_sequence_commands_follow_the_trajectory_within_limits() {
     let mut limited = false;
     for (k, p) in looks.iter().enumerate() {
         let r = run.link.request(RequestBody::Look(*p)).unwrap();
-        let ResponseBody::Look(l) = r else {
-            panic!("Look {k} answered {r:?}")
-        };
+        let ResponseBody::Look(l) = r else { panic!("Look {k} answered {r:?}") };
         let h = host.look(p).unwrap();
         assert_eq!(l, h, "Look {k}");
         limited |= l.limited;
@@ -462,10 +432,7 @@ fn look_sequence_commands_follow_the_trajectory_within_limits() {
         }
     }
     assert!(limited, "the last target should hit a joint limit");
-    assert_eq!(
-        run.link.request(RequestBody::Home).unwrap(),
-        ResponseBody::Home
-    );
+    assert_eq!(run.link.request(RequestBody::Home).unwrap(), ResponseBody::Home);
     std::thread::sleep(Duration::from_millis(1500));
     host.controller.home();
     while host.controller.is_moving() {
@@ -537,12 +504,7 @@ fn images_written_by_hvs_image_boot_at_the_address_they_name() {
         })
         .collect();
     let mut run = boot("image", Some(&images[0]), Some(&images[1]));
-    runs(
-        info(&mut run),
-        Slot::B,
-        5,
-        SlotStatus::Valid { generation: 3 },
-    );
+    runs(info(&mut run), Slot::B, 5, SlotStatus::Valid { generation: 3 });
     drop(run);
 
     // Intel HEX images carry their own addresses: QEMU's generic loader without `addr` loads
@@ -550,19 +512,12 @@ fn images_written_by_hvs_image_boot_at_the_address_they_name() {
     let mut loaders = Vec::new();
     for (slot, generation) in [(SlotArg::A, 7), (SlotArg::B, 6)] {
         let out = write_image(slot, generation, ImageFormat::Hex, "hex");
-        assert!(std::fs::read_to_string(&out)
-            .unwrap()
-            .starts_with(":02000004080"));
+        assert!(std::fs::read_to_string(&out).unwrap().starts_with(":02000004080"));
         loaders.push("-device".to_string());
         loaders.push(format!("loader,file={}", out.display()));
     }
     let mut run = boot_with("image-hex", None, None, loaders);
-    runs(
-        info(&mut run),
-        Slot::A,
-        7,
-        SlotStatus::Valid { generation: 6 },
-    );
+    runs(info(&mut run), Slot::A, 7, SlotStatus::Valid { generation: 6 });
     drop(run);
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -604,12 +559,7 @@ fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
     postures.push(Joints::HOME);
     let samples =
         sets::simulate(&head_rig, SetKind::Train, &postures, &SimOptions::default()).unwrap();
-    let cfg = TrainConfig {
-        hidden: 8,
-        restarts: 2,
-        seed: 5,
-        ..TrainConfig::default()
-    };
+    let cfg = TrainConfig { hidden: 8, restarts: 2, seed: 5, ..TrainConfig::default() };
     let mut m = train(&sets::dataset(&samples), &cfg).unwrap().blob;
     m.generation = 4;
     assert_eq!(m.topology.inputs, InputKind::StereoJoints);
@@ -622,20 +572,12 @@ fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
     assert_eq!((mi.inputs, mi.hidden, mi.outputs), (9, 8, 3));
 
     // The host runs the same head from the same boot.
-    let mut host = Head::new(
-        head::boot(&bytes, &[]),
-        GazeConfig::DEFAULT,
-        &ControllerConfig::DEFAULT,
-    )
-    .unwrap();
+    let mut host =
+        Head::new(head::boot(&bytes, &[]), GazeConfig::DEFAULT, &ControllerConfig::DEFAULT)
+            .unwrap();
     let seen = |j: &Joints, p: &[f64; 3]| {
         let px = head_rig.project_rounded(j, p).unwrap();
-        StereoPoint {
-            u_l: px[0] as f32,
-            v_l: px[1] as f32,
-            u_r: px[2] as f32,
-            v_r: px[3] as f32,
-        }
+        StereoPoint { u_l: px[0] as f32, v_l: px[1] as f32, u_r: px[2] as f32, v_r: px[3] as f32 }
     };
     let infer = |j: &Joints, p: &StereoPoint| {
         let mut x = p.to_array().to_vec();
@@ -653,20 +595,14 @@ fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
         panic!("Look refused")
     };
     assert_eq!(l, host.look(&p0).unwrap());
-    assert_eq!(
-        bits(&l.estimate),
-        infer(&Joints::HOME, &p0).map(f32::to_bits)
-    );
+    assert_eq!(bits(&l.estimate), infer(&Joints::HOME, &p0).map(f32::to_bits));
     let moved = l.target;
     assert!(GazeConfig::DEFAULT.limits.contains(&moved));
     // The eyes verge on the target (about 6.7 degrees) and turn left and up.
     let verg = moved[Axis::RightEyePan] - moved[Axis::LeftEyePan];
     assert!((5.5..8.0).contains(&verg), "{moved:?}");
     assert!(moved[Axis::NeckPan] > 0.0 && moved[Axis::LeftEyePan] + moved[Axis::RightEyePan] > 0.0);
-    assert!(
-        moved[Axis::NeckTilt] + moved[Axis::EyeTilt] < 0.0,
-        "{moved:?}"
-    );
+    assert!(moved[Axis::NeckTilt] + moved[Axis::EyeTilt] < 0.0, "{moved:?}");
     // Let the move finish (neck 0.7 s).
     std::thread::sleep(Duration::from_millis(1500));
     while host.controller.is_moving() {
@@ -683,10 +619,7 @@ fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
         assert_eq!(e.source, Source::Network);
         // The same pixels read at home would put the point elsewhere.
         let at_home = infer(&Joints::HOME, &px);
-        assert!(
-            (at_home[2] - e.z).abs() > 5.0,
-            "{p:?}: {at_home:?} vs {e:?}"
-        );
+        assert!((at_home[2] - e.z).abs() > 5.0, "{p:?}: {at_home:?} vs {e:?}");
         // And the estimate is right: depth within 5 % (floor about 1.3 %), 3-D within 5 cm.
         let err = ((e.x as f64 - p[0]).powi(2)
             + (e.y as f64 - p[1]).powi(2)

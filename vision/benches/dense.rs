@@ -13,9 +13,7 @@ use hvs_vision::geometry::Fundamental;
 use std::hint::black_box;
 
 fn rectified() -> Fundamental {
-    Fundamental {
-        m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
-    }
+    Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] }
 }
 
 fn bench(c: &mut Criterion) {
@@ -25,10 +23,7 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     if let Ok(dir) = std::env::var("HVS_MOTORCYCLE_DIR") {
         let dir = std::path::PathBuf::from(dir);
-        let (l, r) = (
-            dir.join("motorcycle_left.png"),
-            dir.join("motorcycle_right.png"),
-        );
+        let (l, r) = (dir.join("motorcycle_left.png"), dir.join("motorcycle_right.png"));
         g.bench_function("motorcycle_741x500_decode_and_match", |b| {
             b.iter(|| {
                 let left = hvs_vision::image_file::read_grey(&l).unwrap();
@@ -38,14 +33,9 @@ fn bench(c: &mut Criterion) {
         });
     }
     let pair = dense_common::scene(741, 500, 20.0, 20.0, 55.0, 1, 0.0, 0.0);
-    for (name, eight) in [
-        ("synthetic_741x500_8_paths", true),
-        ("synthetic_741x500_4_paths", false),
-    ] {
-        let p = DenseParams {
-            eight_paths: eight,
-            ..DenseParams::default()
-        };
+    for (name, eight) in [("synthetic_741x500_8_paths", true), ("synthetic_741x500_4_paths", false)]
+    {
+        let p = DenseParams { eight_paths: eight, ..DenseParams::default() };
         g.bench_function(name, |b| {
             b.iter(|| black_box(dense_match(&pair.left, &pair.right, &f, d_range, &p).unwrap()))
         });

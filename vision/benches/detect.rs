@@ -9,19 +9,13 @@ use std::hint::black_box;
 use std::path::PathBuf;
 
 fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures/opencv-stereo")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/opencv-stereo").join(name)
 }
 
 fn bench(c: &mut Criterion) {
     let board = Board::from_path(&fixture("board.json")).expect("board.json");
-    let left = image::open(fixture("left01.jpg"))
-        .expect("left01.jpg")
-        .to_luma8();
-    let right = image::open(fixture("right01.jpg"))
-        .expect("right01.jpg")
-        .to_luma8();
+    let left = image::open(fixture("left01.jpg")).expect("left01.jpg").to_luma8();
+    let right = image::open(fixture("right01.jpg")).expect("right01.jpg").to_luma8();
     assert_eq!(left.dimensions(), (640, 480));
     // Wall time on a shared machine overstates the work; the process CPU time (every thread,
     // since calib-targets runs the corner pass on rayon) is the figure to hold against the

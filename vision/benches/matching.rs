@@ -24,32 +24,16 @@ fn bench(c: &mut Criterion) {
     let mut wide = Vec::new();
     for a in 0..40 {
         for b in 0..25 {
-            let p = [
-                -28.0 + 56.0 * f64::from(a) / 39.0,
-                -19.0 + 38.0 * f64::from(b) / 24.0,
-                z,
-            ];
+            let p = [-28.0 + 56.0 * f64::from(a) / 39.0, -19.0 + 38.0 * f64::from(b) / 24.0, z];
             let px = rig.project(&p).unwrap();
             let d = px[0] - px[2];
             let h = (0.1 * d.abs()).max(1.0);
-            narrow.push(Query {
-                ul: px[0],
-                vl: px[1],
-                d_min: d - h,
-                d_max: d + h,
-            });
-            wide.push(Query {
-                ul: px[0],
-                vl: px[1],
-                d_min: 10.0,
-                d_max: 60.0,
-            });
+            narrow.push(Query { ul: px[0], vl: px[1], d_min: d - h, d_max: d + h });
+            wide.push(Query { ul: px[0], vl: px[1], d_min: 10.0, d_max: 60.0 });
         }
     }
     let model = |x: [f32; 4]| {
-        triangulate::optimal_rig(&rig, &x.map(f64::from))
-            .ok()
-            .map(|p| p.map(|c| c as f32))
+        triangulate::optimal_rig(&rig, &x.map(f64::from)).ok().map(|p| p.map(|c| c as f32))
     };
     let interval = |q: &Query| {
         let line = f.line_in_right([q.ul, q.vl]);
@@ -62,18 +46,12 @@ fn bench(c: &mut Criterion) {
     assert_eq!(modelled.len(), narrow.len());
     let mut g = c.benchmark_group("matching");
     g.sample_size(20);
-    g.bench_function("1000_points_narrow", |b| {
-        b.iter(|| m.find_all(black_box(&narrow)))
-    });
-    g.bench_function("1000_points_model_interval", |b| {
-        b.iter(|| m.find_all(black_box(&modelled)))
-    });
+    g.bench_function("1000_points_narrow", |b| b.iter(|| m.find_all(black_box(&narrow))));
+    g.bench_function("1000_points_model_interval", |b| b.iter(|| m.find_all(black_box(&modelled))));
     g.bench_function("1000_model_intervals_exact_triangulation", |b| {
         b.iter(|| narrow.iter().map(&interval).collect::<Vec<_>>())
     });
-    g.bench_function("1000_points_10_60px", |b| {
-        b.iter(|| m.find_all(black_box(&wide)))
-    });
+    g.bench_function("1000_points_10_60px", |b| b.iter(|| m.find_all(black_box(&wide))));
     g.finish();
 }
 

@@ -78,10 +78,7 @@ pub const MAX_CORNERS_PER_SIDE: u32 = 1000;
 impl Board {
     /// A validated board (the same checks as [`Board::from_json`]).
     pub fn new(cols: u32, rows: u32, square_cm: f64) -> Result<Board, BoardError> {
-        for (name, n) in [
-            ("inner_corners[0] (cols)", cols),
-            ("inner_corners[1] (rows)", rows),
-        ] {
+        for (name, n) in [("inner_corners[0] (cols)", cols), ("inner_corners[1] (rows)", rows)] {
             if !(2..=MAX_CORNERS_PER_SIDE).contains(&n) {
                 return Err(BoardError::Value(
                     name,
@@ -95,12 +92,7 @@ impl Board {
                 format!("{square_cm} is not a positive finite length"),
             ));
         }
-        Ok(Board {
-            pattern: Pattern::Chessboard,
-            cols,
-            rows,
-            square_cm,
-        })
+        Ok(Board { pattern: Pattern::Chessboard, cols, rows, square_cm })
     }
 
     /// Parse a board description from JSON text.
@@ -146,10 +138,7 @@ impl Board {
 
     /// Label `(i, j)` of corner index `k` (inverse of [`Board::index`]).
     pub fn label(&self, k: usize) -> (u32, u32) {
-        (
-            (k % self.cols as usize) as u32,
-            (k / self.cols as usize) as u32,
-        )
+        ((k % self.cols as usize) as u32, (k / self.cols as usize) as u32)
     }
 
     /// Corner `(i, j)` in board coordinates (cm) relative to the board centre: `i` to the
@@ -237,14 +226,8 @@ mod tests {
             assert_eq!(b.index(i, j), k);
         }
         // Top-left is left (-X) and up (-Y) of the centre; symmetric about it.
-        assert_eq!(
-            b.corner_position([1.0, 2.0, 150.0], 0, 0),
-            [1.0 - 24.0, 2.0 - 15.0, 150.0]
-        );
-        assert_eq!(
-            b.corner_position([1.0, 2.0, 150.0], 8, 5),
-            [1.0 + 24.0, 2.0 + 15.0, 150.0]
-        );
+        assert_eq!(b.corner_position([1.0, 2.0, 150.0], 0, 0), [1.0 - 24.0, 2.0 - 15.0, 150.0]);
+        assert_eq!(b.corner_position([1.0, 2.0, 150.0], 8, 5), [1.0 + 24.0, 2.0 + 15.0, 150.0]);
         assert_eq!(
             b.corner_position([0.0, 0.0, 10.0], 1, 0)[0]
                 - b.corner_position([0.0, 0.0, 10.0], 0, 0)[0],

@@ -248,12 +248,7 @@ pub struct StereoCorners {
 impl StereoCorners {
     /// `(left, right)` position pairs in label order, as [`geometry::fit_fundamental`] takes.
     pub fn pairs(&self) -> Vec<([f64; 2], [f64; 2])> {
-        self.left
-            .points
-            .iter()
-            .copied()
-            .zip(self.right.points.iter().copied())
-            .collect()
+        self.left.points.iter().copied().zip(self.right.points.iter().copied()).collect()
     }
 }
 
@@ -340,35 +335,21 @@ pub fn detect(img: &GrayImage, board: &Board) -> Result<Corners, DetectError> {
     let mut all = detector.detect_all(&frame.corners).into_iter();
     let det = all.next().ok_or(DetectError::BoardNotFound)?;
     let positions = |d: &calib_targets::chessboard::ChessboardDetection| -> Vec<[f64; 2]> {
-        d.corners
-            .iter()
-            .map(|c| [c.position.x as f64, c.position.y as f64])
-            .collect()
+        d.corners.iter().map(|c| [c.position.x as f64, c.position.y as f64]).collect()
     };
     let first = positions(&det);
     for other in all {
         if let Some(at) = separate_grid(&first, &positions(&other), board.corner_count()) {
-            return Err(DetectError::SeveralBoards {
-                corners: other.corners.len(),
-                at,
-            });
+            return Err(DetectError::SeveralBoards { corners: other.corners.len(), at });
         }
     }
     let labelled: Vec<((i32, i32), [f64; 2])> = det
         .corners
         .iter()
-        .map(|c| {
-            (
-                (c.grid.u, c.grid.v),
-                [c.position.x as f64, c.position.y as f64],
-            )
-        })
+        .map(|c| ((c.grid.u, c.grid.v), [c.position.x as f64, c.position.y as f64]))
         .collect();
-    let raw: Vec<[f64; 2]> = frame
-        .corners
-        .iter()
-        .map(|c| [c.position.x as f64, c.position.y as f64])
-        .collect();
+    let raw: Vec<[f64; 2]> =
+        frame.corners.iter().map(|c| [c.position.x as f64, c.position.y as f64]).collect();
     label_grid(&labelled, &raw, board, w, h)
 }
 
@@ -393,9 +374,7 @@ fn separate_grid(first: &[[f64; 2]], other: &[[f64; 2]], board_corners: usize) -
         return None;
     }
     let n = other.len() as f64;
-    let sum = other
-        .iter()
-        .fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
+    let sum = other.iter().fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
     Some([sum[0] / n, sum[1] / n])
 }
 
@@ -439,17 +418,11 @@ pub fn label_grid(
     let expected = board.corner_count();
     let range = LabelRange::of(labelled)?;
     let ((a0, a1), (b0, b1), extent) = (range.a, range.b, range.extent());
-    let wrong = || DetectError::WrongCornerCount {
-        found: labelled.len(),
-        expected,
-        extent,
-    };
+    let wrong = || DetectError::WrongCornerCount { found: labelled.len(), expected, extent };
     let mut seen = std::collections::HashSet::new();
     for (l, p) in labelled {
         if !(p[0].is_finite() && p[1].is_finite()) {
-            return Err(DetectError::InconsistentGrid(
-                "a corner has a non-finite position".into(),
-            ));
+            return Err(DetectError::InconsistentGrid("a corner has a non-finite position".into()));
         }
         if !seen.insert(*l) {
             return Err(DetectError::InconsistentGrid(format!(
@@ -500,11 +473,7 @@ fn best_block(
     (b0, b1): (i32, i32),
 ) -> Option<(i64, i64, i64, i64)> {
     let (c, r) = (board.cols as i64, board.rows as i64);
-    let shapes = if c == r {
-        vec![(c, r)]
-    } else {
-        vec![(c, r), (r, c)]
-    };
+    let shapes = if c == r { vec![(c, r)] } else { vec![(c, r), (r, c)] };
     let mut best: Option<(usize, (i64, i64, i64, i64))> = None;
     let mut tie = false;
     for (wa, wb) in shapes {
@@ -541,10 +510,8 @@ fn fill(block: &[((i32, i32), [f64; 2])], raw: &[[f64; 2]], l: (i32, i32)) -> Op
     let mut near: Vec<&((i32, i32), [f64; 2])> = block.iter().collect();
     near.sort_by_key(|c| (c.0 .0 - l.0).pow(2) + (c.0 .1 - l.1).pow(2));
     near.truncate(16);
-    let pairs: Vec<([f64; 2], [f64; 2])> = near
-        .iter()
-        .map(|c| ([c.0 .0 as f64, c.0 .1 as f64], c.1))
-        .collect();
+    let pairs: Vec<([f64; 2], [f64; 2])> =
+        near.iter().map(|c| ([c.0 .0 as f64, c.0 .1 as f64], c.1)).collect();
     let fit = geometry::fit_homography(&pairs).ok()?;
     let (x, y) = (l.0 as f64, l.1 as f64);
     let pred = fit.h.apply([x, y])?;
@@ -574,17 +541,13 @@ impl LabelRange {
             return Err(DetectError::BoardNotFound);
         }
         let range = |label: fn(&(i32, i32)) -> i32| {
-            labelled.iter().fold((i32::MAX, i32::MIN), |m, c| {
-                (m.0.min(label(&c.0)), m.1.max(label(&c.0)))
-            })
+            labelled
+                .iter()
+                .fold((i32::MAX, i32::MIN), |m, c| (m.0.min(label(&c.0)), m.1.max(label(&c.0))))
         };
         let (a, b) = (range(|l| l.0), range(|l| l.1));
         let span = |(lo, hi): (i32, i32)| (hi as i64 - lo as i64 + 1) as u64;
-        Ok(LabelRange {
-            a,
-            b,
-            n: (span(a), span(b)),
-        })
+        Ok(LabelRange { a, b, n: (span(a), span(b)) })
     }
 
     /// The span as [`DetectError::WrongCornerCount`] reports it (saturated to `u32`).
@@ -601,24 +564,15 @@ fn label_complete(
     height: u32,
 ) -> Result<Corners, DetectError> {
     let expected = board.corner_count();
-    if labelled
-        .iter()
-        .any(|(_, p)| !(p[0].is_finite() && p[1].is_finite()))
-    {
-        return Err(DetectError::InconsistentGrid(
-            "a corner has a non-finite position".into(),
-        ));
+    if labelled.iter().any(|(_, p)| !(p[0].is_finite() && p[1].is_finite())) {
+        return Err(DetectError::InconsistentGrid("a corner has a non-finite position".into()));
     }
     let range = LabelRange::of(labelled)?;
     let ((a0, _), (b0, _), (na, nb), extent) = (range.a, range.b, range.n, range.extent());
     let (cols, rows) = (board.cols as u64, board.rows as u64);
     let fits = (na == cols && nb == rows) || (na == rows && nb == cols);
     if labelled.len() != expected || !fits {
-        return Err(DetectError::WrongCornerCount {
-            found: labelled.len(),
-            expected,
-            extent,
-        });
+        return Err(DetectError::WrongCornerCount { found: labelled.len(), expected, extent });
     }
     let (na, nb) = (na as usize, nb as usize);
     let mut grid: Vec<Option<[f64; 2]>> = vec![None; na * nb];
@@ -663,9 +617,7 @@ fn label_complete(
     let flip_j = di[0] * dj[1] - di[1] * dj[0] < 0.0;
     let roll_deg = di[1].atan2(di[0]).to_degrees();
     if !roll_deg.is_finite() {
-        return Err(DetectError::AmbiguousOrientation(
-            "the board's axes have no direction".into(),
-        ));
+        return Err(DetectError::AmbiguousOrientation("the board's axes have no direction".into()));
     }
     let (bc, br) = (board.cols as usize, board.rows as usize);
     let mut points = Vec::with_capacity(expected);
@@ -738,11 +690,7 @@ fn check_geometry(p: &[[f64; 2]], cols: usize, rows: usize) -> Result<f64, Detec
     }
     // Along each row (axis 0) and column (axis 1).
     for axis in 0..2 {
-        let (n_lines, n_along) = if axis == 0 {
-            (rows, cols)
-        } else {
-            (cols, rows)
-        };
+        let (n_lines, n_along) = if axis == 0 { (rows, cols) } else { (cols, rows) };
         let pt = |line: usize, k: usize| if axis == 0 { at(k, line) } else { at(line, k) };
         let name = if axis == 0 { "row j" } else { "column i" };
         let mut mean = [0.0f64; 2];
@@ -852,22 +800,14 @@ pub fn pair_corners(left: Corners, right: Corners) -> Result<StereoCorners, Dete
         });
     }
     let rms = lr_check(&left, &right)?;
-    Ok(StereoCorners {
-        left,
-        right,
-        lr_homography_rms: rms,
-    })
+    Ok(StereoCorners { left, right, lr_homography_rms: rms })
 }
 
 /// The left -> right homography over the labels; `Err(LabelMismatch)` when a residual exceeds
 /// a quarter of the smaller square size.
 fn lr_check(left: &Corners, right: &Corners) -> Result<f64, DetectError> {
-    let pairs: Vec<([f64; 2], [f64; 2])> = left
-        .points
-        .iter()
-        .copied()
-        .zip(right.points.iter().copied())
-        .collect();
+    let pairs: Vec<([f64; 2], [f64; 2])> =
+        left.points.iter().copied().zip(right.points.iter().copied()).collect();
     let fit: HomographyFit = geometry::fit_homography(&pairs)?;
     let limit = LR_LIMIT_SQUARES * left.square_px.min(right.square_px);
     let mut worst = (0usize, 0.0f64);
@@ -940,15 +880,13 @@ pub fn disparity_faults(
             })
         })
         .collect();
-    let usable: Vec<usize> = (0..n)
-        .filter(|&k| out[k].is_none() && disparity[k].is_finite())
-        .collect();
+    let usable: Vec<usize> =
+        (0..n).filter(|&k| out[k].is_none() && disparity[k].is_finite()).collect();
     let fit = |idx: &[usize]| -> Option<(f64, f64)> {
         let pts: Vec<(f64, f64)> = idx
             .iter()
             .filter_map(|&k| {
-                z[k].filter(|z| z.is_finite() && *z > 0.0)
-                    .map(|z| (1.0 / z, disparity[k]))
+                z[k].filter(|z| z.is_finite() && *z > 0.0).map(|z| (1.0 / z, disparity[k]))
             })
             .collect();
         let m = pts.len() as f64;
@@ -999,21 +937,15 @@ pub fn disparity_faults(
             let expected = match (fit(&others), z[k]) {
                 (Some((a, b)), Some(zk)) if zk > 0.0 && b > 0.0 => Some(a + b / zk),
                 _ => {
-                    let pos = others
-                        .iter()
-                        .filter(|&&m| disparity[m] >= MIN_SIGN_DISPARITY_PX)
-                        .count();
-                    let neg = others
-                        .iter()
-                        .filter(|&&m| disparity[m] <= -MIN_SIGN_DISPARITY_PX)
-                        .count();
+                    let pos =
+                        others.iter().filter(|&&m| disparity[m] >= MIN_SIGN_DISPARITY_PX).count();
+                    let neg =
+                        others.iter().filter(|&&m| disparity[m] <= -MIN_SIGN_DISPARITY_PX).count();
                     let mut med: Vec<f64> = others.iter().map(|&m| disparity[m]).collect();
                     med.sort_by(f64::total_cmp);
                     let median = med.get(med.len() / 2).copied();
                     // Only when the others agree on one sign.
-                    ((pos >= 1 && neg == 0) || (neg >= 1 && pos == 0))
-                        .then_some(median)
-                        .flatten()
+                    ((pos >= 1 && neg == 0) || (neg >= 1 && pos == 0)).then_some(median).flatten()
                 }
             };
             let d = disparity[k];
@@ -1077,11 +1009,7 @@ pub fn check_set(pairs: &[StereoCorners]) -> Result<SetCheck, DetectError> {
     let all: Vec<([f64; 2], [f64; 2])> = pairs.iter().flat_map(|p| p.pairs()).collect();
     let fit = geometry::fit_fundamental_report(&all)?;
     let distances = |f: &Fundamental, p: &StereoCorners| {
-        let mut d: Vec<f64> = p
-            .pairs()
-            .iter()
-            .map(|(l, r)| f.distance_in_right(*l, *r))
-            .collect();
+        let mut d: Vec<f64> = p.pairs().iter().map(|(l, r)| f.distance_in_right(*l, *r)).collect();
         d.sort_by(f64::total_cmp);
         d
     };
@@ -1099,20 +1027,13 @@ pub fn check_set(pairs: &[StereoCorners]) -> Result<SetCheck, DetectError> {
             .flat_map(|(_, q)| q.pairs())
             .collect();
         let held = if pairs.len() >= 3 {
-            geometry::fit_fundamental(&others)
-                .ok()
-                .map(|f| distances(&f, p)[d.len() / 2])
+            geometry::fit_fundamental(&others).ok().map(|f| distances(&f, p)[d.len() / 2])
         } else {
             None
         };
         pair_held_out_median_px.push(held);
     }
-    Ok(SetCheck {
-        fit,
-        pair_median_px,
-        pair_max_px,
-        pair_held_out_median_px,
-    })
+    Ok(SetCheck { fit, pair_median_px, pair_max_px, pair_held_out_median_px })
 }
 
 #[cfg(test)]
@@ -1213,34 +1134,20 @@ mod tests {
         let e = label_grid(&moved, &[], &board, 640, 480).unwrap_err();
         assert!(matches!(e, DetectError::InconsistentGrid(_)), "{e}");
         // Rotate the whole grid by 90 degrees: cols now run down the image.
-        let rot: Vec<_> = synthetic(&board)
-            .into_iter()
-            .map(|(l, p)| (l, [400.0 - p[1], p[0]]))
-            .collect();
+        let rot: Vec<_> =
+            synthetic(&board).into_iter().map(|(l, p)| (l, [400.0 - p[1], p[0]])).collect();
         let l = label_grid(&rot, &[], &board, 640, 480).unwrap();
         assert!(l.roll_deg.abs() > PORTRAIT_DEG && l.roll_deg.abs() <= 90.0);
         assert!(l.at(8, 0)[0] > l.at(0, 0)[0], "i grows with u");
         // Such labels cannot follow the convention: refused, naming the swapped description.
         let e = check_upright(&l).unwrap_err();
-        assert!(
-            matches!(
-                e,
-                DetectError::Turned {
-                    cols: 9,
-                    rows: 6,
-                    ..
-                }
-            ),
-            "{e}"
-        );
+        assert!(matches!(e, DetectError::Turned { cols: 9, rows: 6, .. }), "{e}");
         assert!(e.to_string().contains("[6, 9]"), "{e}");
         check_upright(&label_grid(&synthetic(&board), &[], &board, 640, 480).unwrap()).unwrap();
         // A square board is labelled along the axis nearer +u, whichever way it is turned.
         let square = Board::new(6, 6, 6.0).unwrap();
-        let sq: Vec<_> = synthetic(&square)
-            .into_iter()
-            .map(|(l, p)| (l, [400.0 - p[1], p[0]]))
-            .collect();
+        let sq: Vec<_> =
+            synthetic(&square).into_iter().map(|(l, p)| (l, [400.0 - p[1], p[0]])).collect();
         check_upright(&label_grid(&sq, &[], &square, 640, 480).unwrap()).unwrap();
         // The right image resolved the portrait board the other way: turned to agree.
         let mut r = l.clone();
@@ -1273,10 +1180,7 @@ mod tests {
         assert!(matches!(e, DetectError::LabelMismatch { .. }), "{e}");
         let mut small = l.clone();
         small.width = 320;
-        assert!(matches!(
-            pair_corners(l, small),
-            Err(DetectError::SizeMismatch { .. })
-        ));
+        assert!(matches!(pair_corners(l, small), Err(DetectError::SizeMismatch { .. })));
     }
 
     #[test]
@@ -1286,9 +1190,7 @@ mod tests {
         let depths = [65.0, 85.0, 105.0, 125.0];
         let good: Vec<f64> = depths.iter().map(|z| 5.0 + 2000.0 / z).collect();
         let none = vec![false; 4];
-        assert!(disparity_faults(&good, &none, &z(&depths))
-            .iter()
-            .all(Option::is_none));
+        assert!(disparity_faults(&good, &none, &z(&depths)).iter().all(Option::is_none));
         // One pair swapped (or mirrored, or turned): its disparity is negated.
         let mut one = good.clone();
         one[2] = -one[2];
@@ -1302,34 +1204,23 @@ mod tests {
         // The whole set swapped: every pair refused.
         let all: Vec<f64> = good.iter().map(|d| -d).collect();
         let f = disparity_faults(&all, &none, &z(&depths));
-        assert!(
-            f.iter()
-                .all(|m| m.as_ref().is_some_and(|m| m.contains("grow with"))),
-            "{f:?}"
-        );
+        assert!(f.iter().all(|m| m.as_ref().is_some_and(|m| m.contains("grow with"))), "{f:?}");
         // The same image twice.
         let f = disparity_faults(&good, &[false, true, false, false], &z(&depths));
         assert!(f[1].as_ref().unwrap().contains("same image"), "{f:?}");
         // Verged eyes: disparities cross zero with depth (a < 0), and that is fine.
         let verged: Vec<f64> = depths.iter().map(|z| -20.0 + 2000.0 / z).collect();
         assert!(verged.iter().any(|d| *d < 0.0) && verged.iter().any(|d| *d > 0.0));
-        assert!(disparity_faults(&verged, &none, &z(&depths))
-            .iter()
-            .all(Option::is_none));
+        assert!(disparity_faults(&verged, &none, &z(&depths)).iter().all(Option::is_none));
         // Without depths: the sign most other pairs agree on.
         let f = disparity_faults(&one, &none, &[None; 4]);
-        assert!(
-            f[2].is_some() && f.iter().filter(|m| m.is_some()).count() == 1,
-            "{f:?}"
-        );
+        assert!(f[2].is_some() && f.iter().filter(|m| m.is_some()).count() == 1, "{f:?}");
     }
 
     #[test]
     fn a_second_grid_beside_the_board_is_another_board() {
         let grid = |x0: f64| -> Vec<[f64; 2]> {
-            (0..54)
-                .map(|k| [x0 + (k % 9) as f64 * 20.0, 100.0 + (k / 9) as f64 * 20.0])
-                .collect()
+            (0..54).map(|k| [x0 + (k % 9) as f64 * 20.0, 100.0 + (k / 9) as f64 * 20.0]).collect()
         };
         let first = grid(50.0);
         let at = separate_grid(&first, &grid(400.0), 54).unwrap();

@@ -53,9 +53,7 @@ impl core::fmt::Display for GeomError {
 impl std::error::Error for GeomError {}
 
 fn to_na(m: &Mat3) -> Matrix3<f64> {
-    Matrix3::new(
-        m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2],
-    )
+    Matrix3::new(m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2])
 }
 
 fn from_na(m: &Matrix3<f64>) -> Mat3 {
@@ -116,17 +114,7 @@ fn normaliser(pts: impl Iterator<Item = [f64; 2]> + Clone) -> Option<Matrix3<f64
         return None;
     }
     let s = core::f64::consts::SQRT_2 / d;
-    Some(Matrix3::new(
-        s,
-        0.0,
-        -s * cx,
-        0.0,
-        s,
-        -s * cy,
-        0.0,
-        0.0,
-        1.0,
-    ))
+    Some(Matrix3::new(s, 0.0, -s * cx, 0.0, s, -s * cy, 0.0, 0.0, 1.0))
 }
 
 fn apply_na(t: &Matrix3<f64>, p: [f64; 2]) -> [f64; 2] {
@@ -152,10 +140,7 @@ fn pair_normalisers(
     coincide: [&'static str; 2],
 ) -> Result<[Matrix3<f64>; 2], GeomError> {
     if pairs.len() < need {
-        return Err(GeomError::TooFewPoints {
-            need,
-            got: pairs.len(),
-        });
+        return Err(GeomError::TooFewPoints { need, got: pairs.len() });
     }
     check_finite(pairs)?;
     let first = normaliser(pairs.iter().map(|p| p.0)).ok_or(GeomError::Degenerate(coincide[0]))?;
@@ -219,10 +204,7 @@ pub fn fit_homography(pairs: &[([f64; 2], [f64; 2])]) -> Result<HomographyFit, G
     let [ts, td] = pair_normalisers(
         pairs,
         4,
-        [
-            "all source points coincide",
-            "all destination points coincide",
-        ],
+        ["all source points coincide", "all destination points coincide"],
     )?;
     let mut a = DMatrix::<f64>::zeros(2 * pairs.len(), 9);
     for (k, (s, d)) in pairs.iter().enumerate() {
@@ -237,14 +219,10 @@ pub fn fit_homography(pairs: &[([f64; 2], [f64; 2])]) -> Result<HomographyFit, G
     }
     let (h, sv) = null_vector(a);
     if sv[1] <= 1e-10 * sv[8] {
-        return Err(GeomError::Degenerate(
-            "the points do not determine a homography (collinear?)",
-        ));
+        return Err(GeomError::Degenerate("the points do not determine a homography (collinear?)"));
     }
     let hn = Matrix3::from_row_slice(&h);
-    let td_inv = td
-        .try_inverse()
-        .ok_or(GeomError::Degenerate("normalisation not invertible"))?;
+    let td_inv = td.try_inverse().ok_or(GeomError::Degenerate("normalisation not invertible"))?;
     let hm = canonical(&(td_inv * hn * ts));
     let h = Homography { m: from_na(&hm) };
     let mut sum = 0.0;
@@ -257,11 +235,7 @@ pub fn fit_homography(pairs: &[([f64; 2], [f64; 2])]) -> Result<HomographyFit, G
         sum += e2;
         max = max.max(e2.sqrt());
     }
-    Ok(HomographyFit {
-        h,
-        rms: (sum / pairs.len() as f64).sqrt(),
-        max,
-    })
+    Ok(HomographyFit { h, rms: (sum / pairs.len() as f64).sqrt(), max })
 }
 
 /// A 3x4 camera projection matrix: `p~ ~ P [X, Y, Z, 1]^T`.
@@ -272,15 +246,10 @@ pub type Projection = Matrix3x4<f64>;
 pub fn fit_dlt(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Projection, GeomError> {
     let n = points.len();
     if n < 6 || pixels.len() != n {
-        return Err(GeomError::TooFewPoints {
-            need: 6,
-            got: n.min(pixels.len()),
-        });
+        return Err(GeomError::TooFewPoints { need: 6, got: n.min(pixels.len()) });
     }
     // Similarity normalisations: centroid to 0, mean distance sqrt(3) (3-D) and sqrt(2) (2-D).
-    let c3 = points
-        .iter()
-        .fold([0.0; 3], |a, p| [a[0] + p[0], a[1] + p[1], a[2] + p[2]]);
+    let c3 = points.iter().fold([0.0; 3], |a, p| [a[0] + p[0], a[1] + p[1], a[2] + p[2]]);
     let c3 = c3.map(|v| v / n as f64);
     let d3 = points
         .iter()
@@ -291,9 +260,7 @@ pub fn fit_dlt(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Projection, G
         .sum::<f64>()
         / n as f64;
     let s3 = 3f64.sqrt() / d3;
-    let c2 = pixels
-        .iter()
-        .fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
+    let c2 = pixels.iter().fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
     let c2 = c2.map(|v| v / n as f64);
     let d2 = pixels
         .iter()
@@ -303,12 +270,7 @@ pub fn fit_dlt(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Projection, G
     let s2 = 2f64.sqrt() / d2;
     let mut a = DMatrix::<f64>::zeros(2 * n, 12);
     for (r, (p, x)) in points.iter().zip(pixels).enumerate() {
-        let pw = [
-            (p[0] - c3[0]) * s3,
-            (p[1] - c3[1]) * s3,
-            (p[2] - c3[2]) * s3,
-            1.0,
-        ];
+        let pw = [(p[0] - c3[0]) * s3, (p[1] - c3[1]) * s3, (p[2] - c3[2]) * s3, 1.0];
         let (u, v) = ((x[0] - c2[0]) * s2, (x[1] - c2[1]) * s2);
         for k in 0..4 {
             a[(2 * r, k)] = pw[k];
@@ -318,9 +280,7 @@ pub fn fit_dlt(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Projection, G
         }
     }
     let svd = a.svd(false, true);
-    let vt = svd.v_t.ok_or(GeomError::Degenerate(
-        "the SVD gave no right singular vectors",
-    ))?;
+    let vt = svd.v_t.ok_or(GeomError::Degenerate("the SVD gave no right singular vectors"))?;
     let imin = smallest(svd.singular_values.iter());
     let h = vt.row(imin);
     let pn = Matrix3x4::from_fn(|r, c| h[4 * r + c]);
@@ -343,22 +303,14 @@ pub fn fit_dlt(points: &[[f64; 3]], pixels: &[[f64; 2]]) -> Result<Projection, G
         0.0,
         1.0,
     );
-    let t2i = t2
-        .try_inverse()
-        .ok_or(GeomError::Degenerate("all pixels coincide"))?;
+    let t2i = t2.try_inverse().ok_or(GeomError::Degenerate("all pixels coincide"))?;
     Ok(t2i * pn * t3)
 }
 
 /// Index of the smallest of `values` (the first, on ties; 0 when empty or all NaN): the
 /// singular vector a homogeneous least-squares problem takes.
 fn smallest<'a>(values: impl Iterator<Item = &'a f64>) -> usize {
-    values
-        .enumerate()
-        .fold(
-            (0, f64::INFINITY),
-            |m, (i, s)| if *s < m.1 { (i, *s) } else { m },
-        )
-        .0
+    values.enumerate().fold((0, f64::INFINITY), |m, (i, s)| if *s < m.1 { (i, *s) } else { m }).0
 }
 
 /// Linear (DLT) triangulation of one point from two projection matrices and its pixels
@@ -387,9 +339,7 @@ pub fn triangulate_dlt(p: &[Projection; 2], px: &[f64; 4]) -> Option<[f64; 3]> {
         return None;
     }
     let p3 = Vector3::new(x[0] / x[3], x[1] / x[3], x[2] / x[3]);
-    p3.iter()
-        .all(|v| v.is_finite())
-        .then(|| [p3[0], p3[1], p3[2]])
+    p3.iter().all(|v| v.is_finite()).then(|| [p3[0], p3[1], p3[2]])
 }
 
 /// A fundamental matrix: `r~^T m l~ = 0` for a left point `l` and right point `r` of one scene
@@ -476,10 +426,7 @@ impl Fundamental {
         let k = (0..3)
             .min_by(|&i, &j| svd.singular_values[i].total_cmp(&svd.singular_values[j]))
             .unwrap_or(2);
-        (
-            [v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]],
-            [u[(0, k)], u[(1, k)], u[(2, k)]],
-        )
+        ([v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]], [u[(0, k)], u[(1, k)], u[(2, k)]])
     }
 }
 
@@ -509,16 +456,10 @@ pub fn fit_fundamental(pairs: &[([f64; 2], [f64; 2])]) -> Result<Fundamental, Ge
 pub fn fit_fundamental_report(pairs: &[([f64; 2], [f64; 2])]) -> Result<FundamentalFit, GeomError> {
     let f0 = eight_point(pairs)?;
     let (f, iterations) = refine_sampson(&f0, pairs);
-    let mut d: Vec<f64> = pairs
-        .iter()
-        .map(|(l, r)| f.distance_in_right(*l, *r))
-        .collect();
+    let mut d: Vec<f64> = pairs.iter().map(|(l, r)| f.distance_in_right(*l, *r)).collect();
     d.sort_by(f64::total_cmp);
-    let median = if d.len() % 2 == 1 {
-        d[d.len() / 2]
-    } else {
-        (d[d.len() / 2 - 1] + d[d.len() / 2]) / 2.0
-    };
+    let median =
+        if d.len() % 2 == 1 { d[d.len() / 2] } else { (d[d.len() / 2 - 1] + d[d.len() / 2]) / 2.0 };
     Ok(FundamentalFit {
         rms_sampson: rms_sampson(&f, pairs),
         median_distance_in_right: median,
@@ -528,20 +469,14 @@ pub fn fit_fundamental_report(pairs: &[([f64; 2], [f64; 2])]) -> Result<Fundamen
 }
 
 fn rms_sampson(f: &Fundamental, pairs: &[([f64; 2], [f64; 2])]) -> f64 {
-    let s: f64 = pairs
-        .iter()
-        .map(|(l, r)| f.sampson_signed(*l, *r).powi(2))
-        .sum();
+    let s: f64 = pairs.iter().map(|(l, r)| f.sampson_signed(*l, *r).powi(2)).sum();
     (s / pairs.len() as f64).sqrt()
 }
 
 /// The normalised 8-point estimate, rank 2 enforced (Hartley & Zisserman, alg. 11.1).
 pub fn eight_point(pairs: &[([f64; 2], [f64; 2])]) -> Result<Fundamental, GeomError> {
-    let [tl, tr] = pair_normalisers(
-        pairs,
-        8,
-        ["all left points coincide", "all right points coincide"],
-    )?;
+    let [tl, tr] =
+        pair_normalisers(pairs, 8, ["all left points coincide", "all right points coincide"])?;
     let mut a = DMatrix::<f64>::zeros(pairs.len(), 9);
     for (k, (l, r)) in pairs.iter().enumerate() {
         let [x, y] = apply_na(&tl, *l);
@@ -613,11 +548,7 @@ impl Orthonormal {
     fn step(&self, x: &[f64; 7]) -> Orthonormal {
         let ru = axis_rot(0, x[0]) * axis_rot(1, x[1]) * axis_rot(2, x[2]);
         let rv = axis_rot(0, x[3]) * axis_rot(1, x[4]) * axis_rot(2, x[5]);
-        Orthonormal {
-            u: self.u * ru,
-            v: self.v * rv,
-            s: self.s + x[6],
-        }
+        Orthonormal { u: self.u * ru, v: self.v * rv, s: self.s + x[6] }
     }
 }
 
@@ -875,9 +806,7 @@ mod tests {
         // Deterministic pseudo-noise (0.3 px scale) from a fixed LCG.
         let mut s: u64 = 12345;
         let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.6
         };
         for p in pairs.iter_mut() {
@@ -916,26 +845,14 @@ mod tests {
     fn fundamental_rejects_bad_input() {
         let r = rig();
         let pairs = exact_pairs(&r, 0.0);
-        assert_eq!(
-            fit_fundamental(&pairs[..7]),
-            Err(GeomError::TooFewPoints { need: 8, got: 7 })
-        );
+        assert_eq!(fit_fundamental(&pairs[..7]), Err(GeomError::TooFewPoints { need: 8, got: 7 }));
         let mut bad = pairs.clone();
         bad[3].1[0] = f64::NAN;
-        assert_eq!(
-            fit_fundamental(&bad),
-            Err(GeomError::NonFinite { index: 3 })
-        );
+        assert_eq!(fit_fundamental(&bad), Err(GeomError::NonFinite { index: 3 }));
         // One board only: a plane, degenerate for F.
-        assert!(matches!(
-            fit_fundamental(&pairs[..54]),
-            Err(GeomError::Degenerate(_))
-        ));
+        assert!(matches!(fit_fundamental(&pairs[..54]), Err(GeomError::Degenerate(_))));
         let same = vec![([1.0, 2.0], [3.0, 4.0]); 20];
-        assert!(matches!(
-            fit_fundamental(&same),
-            Err(GeomError::Degenerate(_))
-        ));
+        assert!(matches!(fit_fundamental(&same), Err(GeomError::Degenerate(_))));
     }
 
     #[test]
@@ -955,9 +872,7 @@ mod tests {
         assert!(fit.rms < 1e-9 && fit.max < 1e-9, "rms {}", fit.rms);
         // An off-grid board point maps to its exact projection.
         let q = fit.h.apply([13.0, 7.0]).unwrap();
-        let t = cam
-            .project(&[13.0 - 24.0, 7.0 - 15.0, 150.0 + 0.4 * 13.0])
-            .unwrap();
+        let t = cam.project(&[13.0 - 24.0, 7.0 - 15.0, 150.0 + 0.4 * 13.0]).unwrap();
         assert!((q[0] - t[0]).abs() < 1e-9 && (q[1] - t[1]).abs() < 1e-9);
         // Residual is in destination units: shifting one point by 3 px shows up.
         pairs[10].1[0] += 3.0;
@@ -971,16 +886,10 @@ mod tests {
             fit_homography(&[([0.0, 0.0], [0.0, 0.0]); 3]),
             Err(GeomError::TooFewPoints { need: 4, got: 3 })
         );
-        let line: Vec<_> = (0..6)
-            .map(|k| ([k as f64, 2.0 * k as f64], [k as f64, k as f64]))
-            .collect();
-        assert!(matches!(
-            fit_homography(&line),
-            Err(GeomError::Degenerate(_))
-        ));
-        let mut p: Vec<_> = (0..6)
-            .map(|k| ([k as f64, (k * k) as f64], [k as f64, 1.0]))
-            .collect();
+        let line: Vec<_> =
+            (0..6).map(|k| ([k as f64, 2.0 * k as f64], [k as f64, k as f64])).collect();
+        assert!(matches!(fit_homography(&line), Err(GeomError::Degenerate(_))));
+        let mut p: Vec<_> = (0..6).map(|k| ([k as f64, (k * k) as f64], [k as f64, 1.0])).collect();
         p[2].0[1] = f64::INFINITY;
         assert_eq!(fit_homography(&p), Err(GeomError::NonFinite { index: 2 }));
     }

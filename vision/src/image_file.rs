@@ -66,9 +66,7 @@ impl std::error::Error for ImageFileError {}
 
 /// The name of a format for a message.
 fn format_name(f: ImageFormat) -> String {
-    f.extensions_str()
-        .first()
-        .map_or_else(|| format!("{f:?}"), |e| e.to_uppercase())
+    f.extensions_str().first().map_or_else(|| format!("{f:?}"), |e| e.to_uppercase())
 }
 
 /// A decoder message fit for one line: the decoder's text when it is prose, a plain
@@ -94,15 +92,9 @@ fn reader(
     let io = |e: std::io::Error| ImageFileError::Io(shown.to_string(), e.to_string());
     let meta = std::fs::metadata(path).map_err(io)?;
     if meta.is_dir() {
-        return Err(ImageFileError::Io(
-            shown.to_string(),
-            "is a directory".into(),
-        ));
+        return Err(ImageFileError::Io(shown.to_string(), "is a directory".into()));
     }
-    ImageReader::open(path)
-        .map_err(io)?
-        .with_guessed_format()
-        .map_err(io)
+    ImageReader::open(path).map_err(io)?.with_guessed_format().map_err(io)
 }
 
 /// The format and size of an image file, read from its header only, checked against the
@@ -115,9 +107,8 @@ pub fn probe(path: &Path) -> Result<(ImageFormat, u32, u32), ImageFileError> {
         Some(other) => return Err(ImageFileError::Format(shown, Some(format_name(other)))),
         None => return Err(ImageFileError::Format(shown, None)),
     };
-    let (w, h) = r
-        .into_dimensions()
-        .map_err(|e| ImageFileError::Decode(shown.clone(), plain(&e)))?;
+    let (w, h) =
+        r.into_dimensions().map_err(|e| ImageFileError::Decode(shown.clone(), plain(&e)))?;
     check_size(&shown, w, h)?;
     Ok((format, w, h))
 }
@@ -145,9 +136,7 @@ pub fn read_grey(path: &Path) -> Result<GrayImage, ImageFileError> {
     limits.max_image_height = Some(h);
     limits.max_alloc = Some(MAX_ALLOC);
     r.limits(limits);
-    let img = r
-        .decode()
-        .map_err(|e| ImageFileError::Decode(shown.clone(), plain(&e)))?;
+    let img = r.decode().map_err(|e| ImageFileError::Decode(shown.clone(), plain(&e)))?;
     Ok(img.to_luma8())
 }
 
@@ -182,19 +171,14 @@ mod tests {
     fn formats_and_sizes_are_checked_before_decoding() {
         let dir = tempfile::tempdir().unwrap();
         let ok = dir.path().join("ok.png");
-        GrayImage::from_pixel(40, 30, image::Luma([7]))
-            .save(&ok)
-            .unwrap();
+        GrayImage::from_pixel(40, 30, image::Luma([7])).save(&ok).unwrap();
         let g = read_grey(&ok).unwrap();
         assert_eq!((g.width(), g.height(), g[(3, 4)][0]), (40, 30, 7));
 
         let bomb = dir.path().join("bomb.png");
         std::fs::write(&bomb, png_header(20_000, 20_000)).unwrap();
         let e = read_grey(&bomb).unwrap_err();
-        assert!(
-            matches!(e, ImageFileError::TooLarge(_, 20_000, 20_000)),
-            "{e}"
-        );
+        assert!(matches!(e, ImageFileError::TooLarge(_, 20_000, 20_000)), "{e}");
         assert!(e.to_string().contains("20000x20000"), "{e}");
         // At the limit the header passes (the data are missing: a decode error, not a size one).
         let edge = dir.path().join("edge.png");
@@ -204,16 +188,10 @@ mod tests {
         let bmp = dir.path().join("x.png");
         std::fs::write(&bmp, b"BM\x3a\0\0\0\0\0\0\0\x36\0\0\0\x28\0\0\0").unwrap();
         let e = read_grey(&bmp).unwrap_err().to_string();
-        assert!(
-            e.contains("a BMP file") && e.contains("PNG and JPEG"),
-            "{e}"
-        );
+        assert!(e.contains("a BMP file") && e.contains("PNG and JPEG"), "{e}");
         let text = dir.path().join("t.txt");
         std::fs::write(&text, "not an image").unwrap();
-        assert!(matches!(
-            read_grey(&text),
-            Err(ImageFileError::Format(_, None))
-        ));
+        assert!(matches!(read_grey(&text), Err(ImageFileError::Format(_, None))));
         let e = read_grey(&dir.path().join("missing.png")).unwrap_err();
         assert!(matches!(e, ImageFileError::Io(..)), "{e}");
         assert!(matches!(read_grey(dir.path()), Err(ImageFileError::Io(..))));

@@ -15,10 +15,7 @@ pub struct InvalidField {
 impl InvalidField {
     /// The error for `field`.
     pub fn new(field: &'static str, reason: impl Into<String>) -> Self {
-        InvalidField {
-            field,
-            reason: reason.into(),
-        }
+        InvalidField { field, reason: reason.into() }
     }
 }
 
@@ -38,10 +35,7 @@ pub(crate) fn in_range<T: PartialOrd + fmt::Display>(
     hi: T,
 ) -> Result<(), InvalidField> {
     if value < lo || value > hi {
-        return Err(InvalidField::new(
-            field,
-            format!("must be from {lo} to {hi}, got {value}"),
-        ));
+        return Err(InvalidField::new(field, format!("must be from {lo} to {hi}, got {value}")));
     }
     Ok(())
 }

@@ -115,11 +115,7 @@ pub fn draw_corners(grey: &GrayImage, corners: &Corners) -> RgbImage {
     for j in 0..b.rows {
         for i in 0..b.cols {
             let p = corners.at(i, j);
-            let c = if (i, j) == (0, 0) {
-                Rgb([0, 255, 0])
-            } else {
-                Rgb([255, 0, 0])
-            };
+            let c = if (i, j) == (0, 0) { Rgb([0, 255, 0]) } else { Rgb([255, 0, 0]) };
             draw_cross(&mut img, p, r, c);
             let label = if i == 0 {
                 Some(format!("{i},{j}"))
@@ -195,11 +191,8 @@ mod tests {
 
     #[test]
     fn save_png_names_a_bad_path() {
-        let e = save_png(
-            &RgbImage::new(2, 2),
-            std::path::Path::new("/nonexistent/x.png"),
-        )
-        .unwrap_err();
+        let e =
+            save_png(&RgbImage::new(2, 2), std::path::Path::new("/nonexistent/x.png")).unwrap_err();
         assert!(e.contains("/nonexistent/x.png"), "{e}");
     }
 }

@@ -26,11 +26,7 @@ pub struct FloatImage {
 /// PFM bytes of `img` (little-endian, bottom row first). Panics only if `data` has the wrong
 /// length or `channels` is not 1 or 3 (a programming error).
 pub fn pfm_bytes(img: &FloatImage) -> Vec<u8> {
-    let (w, h, c) = (
-        img.width as usize,
-        img.height as usize,
-        usize::from(img.channels),
-    );
+    let (w, h, c) = (img.width as usize, img.height as usize, usize::from(img.channels));
     assert!(c == 1 || c == 3, "PFM has 1 or 3 channels, not {c}");
     assert_eq!(img.data.len(), w * h * c, "PFM data length");
     let tag = if c == 1 { "Pf" } else { "PF" };
@@ -65,11 +61,7 @@ pub fn read_pfm(bytes: &[u8], shown: &str) -> Result<FloatImage, String> {
     let channels = match field(&mut pos)?.as_str() {
         "Pf" => 1u8,
         "PF" => 3,
-        t => {
-            return Err(format!(
-                "{shown}: not a PFM file (starts with {t:?}, not Pf or PF)"
-            ))
-        }
+        t => return Err(format!("{shown}: not a PFM file (starts with {t:?}, not Pf or PF)")),
     };
     let num = |t: String, what: &str| -> Result<u32, String> {
         t.parse::<u32>()
@@ -101,19 +93,10 @@ pub fn read_pfm(bytes: &[u8], shown: &str) -> Result<FloatImage, String> {
     for r in body.chunks_exact(row).rev() {
         for b in r.chunks_exact(4) {
             let b = [b[0], b[1], b[2], b[3]];
-            data.push(if little {
-                f32::from_le_bytes(b)
-            } else {
-                f32::from_be_bytes(b)
-            });
+            data.push(if little { f32::from_le_bytes(b) } else { f32::from_be_bytes(b) });
         }
     }
-    Ok(FloatImage {
-        width: w,
-        height: h,
-        channels,
-        data,
-    })
+    Ok(FloatImage { width: w, height: h, channels, data })
 }
 
 /// Binary little-endian PLY bytes of `points` (`[x, y, z]`) with their grey levels.
@@ -148,11 +131,7 @@ pub fn ramp(t: f32) -> Rgb<u8> {
         [228.0, 70.0, 10.0],
         [122.0, 4.0, 3.0],
     ];
-    let t = if t.is_finite() {
-        t.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
     let s = t * (STOPS.len() - 1) as f32;
     let i = (s.floor() as usize).min(STOPS.len() - 2);
     let f = s - i as f32;
@@ -188,23 +167,9 @@ pub fn colour_depth(width: u32, height: u32, z: &[f32], z_range: [f32; 2]) -> Rg
     let ty = i64::from(height) + 13;
     draw_text(&mut img, 1, ty, &label(lo), 2, white);
     let mid = label((lo + hi) / 2.0);
-    draw_text(
-        &mut img,
-        i64::from(width / 2) - 4 * mid.len() as i64,
-        ty,
-        &mid,
-        2,
-        white,
-    );
+    draw_text(&mut img, i64::from(width / 2) - 4 * mid.len() as i64, ty, &mid, 2, white);
     let hi_t = label(hi);
-    draw_text(
-        &mut img,
-        i64::from(width) - 8 * hi_t.len() as i64 - 1,
-        ty,
-        &hi_t,
-        2,
-        white,
-    );
+    draw_text(&mut img, i64::from(width) - 8 * hi_t.len() as i64 - 1, ty, &hi_t, 2, white);
     img
 }
 
@@ -248,19 +213,13 @@ mod tests {
         // Damaged files: one line naming the file.
         for (bytes, says) in [
             (&b"P6\n1 1\n255\n"[..], "not Pf or PF"),
-            (
-                &b"Pf\n1 1\n-1\n\0\0"[..],
-                "needs 4 data bytes, the file has 2",
-            ),
+            (&b"Pf\n1 1\n-1\n\0\0"[..], "needs 4 data bytes, the file has 2"),
             (&b"Pf\n0 1\n-1\n"[..], "width"),
             (&b"Pf\n1 1\nzz\n\0\0\0\0"[..], "scale"),
             (&b"Pf\n1"[..], "ends early"),
         ] {
             let e = read_pfm(bytes, "bad.pfm").unwrap_err();
-            assert!(
-                e.starts_with("bad.pfm: ") && e.contains(says) && !e.contains('\n'),
-                "{e}"
-            );
+            assert!(e.starts_with("bad.pfm: ") && e.contains(says) && !e.contains('\n'), "{e}");
         }
     }
 

@@ -141,11 +141,7 @@ pub(crate) fn class(board: &Board, margin_cm: f64, bx: f64, by: f64) -> Class {
     if fx >= 0.0 && fx < wx && fy >= 0.0 && fy < wy {
         let a = (fx / board.square_cm) as i64;
         let b = (fy / board.square_cm) as i64;
-        return if (a + b) % 2 == 0 {
-            Class::Black
-        } else {
-            Class::White
-        };
+        return if (a + b) % 2 == 0 { Class::Black } else { Class::White };
     }
     let m = margin_cm;
     if fx >= -m && fx < wx + m && fy >= -m && fy < wy + m {
@@ -193,11 +189,7 @@ impl Default for RenderOptions {
 impl RenderOptions {
     /// Noise-free, blur-free images (for exact geometric checks).
     pub fn clean() -> Self {
-        RenderOptions {
-            blur_sigma_px: 0.0,
-            noise_sigma: 0.0,
-            ..RenderOptions::default()
-        }
+        RenderOptions { blur_sigma_px: 0.0, noise_sigma: 0.0, ..RenderOptions::default() }
     }
 
     /// Checks the parameters (field names in the error).
@@ -258,13 +250,7 @@ pub fn corner_truth(
             let [dx, dy] = board.corner_offset(i, j);
             let xyz = [centre[0] + dx, centre[1] + dy, centre[2]];
             let px = head.project(joints, &xyz).map_err(RenderError::Camera)?;
-            out.push(CornerTruth {
-                i,
-                j,
-                xyz,
-                px,
-                in_image: head.rig.in_image(&px),
-            });
+            out.push(CornerTruth { i, j, xyz, px, in_image: head.rig.in_image(&px) });
         }
     }
     Ok(out)
@@ -312,11 +298,7 @@ pub fn render_pair(
     });
     let left = imgs.next().expect("two cameras");
     let right = imgs.next().expect("two cameras");
-    Ok(StereoRender {
-        left,
-        right,
-        corners,
-    })
+    Ok(StereoRender { left, right, corners })
 }
 
 /// [`render_pair`] through a thesis rig at home without lenses (the cameras of
@@ -366,14 +348,7 @@ fn shade(
     for r in 0..=hu {
         let v = r as f64 - 0.5;
         for c in 0..=wu {
-            corner.push(sample(
-                cam,
-                board,
-                opt.margin_cm,
-                &centre,
-                c as f64 - 0.5,
-                v,
-            ));
+            corner.push(sample(cam, board, opt.margin_cm, &centre, c as f64 - 0.5, v));
         }
     }
     let n = opt.supersample as usize;
@@ -382,12 +357,7 @@ fn shade(
     for r in 0..hu {
         for c in 0..wu {
             let k = r * (wu + 1) + c;
-            let q = [
-                corner[k],
-                corner[k + 1],
-                corner[k + wu + 1],
-                corner[k + wu + 2],
-            ];
+            let q = [corner[k], corner[k + 1], corner[k + wu + 1], corner[k + wu + 2]];
             if q.iter().all(|&x| x == q[0]) {
                 out.push(opt.level(q[0]));
                 continue;
@@ -502,10 +472,7 @@ impl CaptureSet {
             .iter()
             .enumerate()
             .flat_map(|(k, c)| {
-                c.render
-                    .corners
-                    .iter()
-                    .map(move |&corner| TruthRow { capture: k, corner })
+                c.render.corners.iter().map(move |&corner| TruthRow { capture: k, corner })
             })
             .collect()
     }
@@ -554,16 +521,10 @@ pub fn render_capture_set(
     seed: u64,
 ) -> Result<CaptureSet, RenderError> {
     if depths.is_empty() || depths.len() > 99 {
-        return Err(invalid(
-            "depths",
-            format!("need 1..=99 depths, got {}", depths.len()),
-        ));
+        return Err(invalid("depths", format!("need 1..=99 depths, got {}", depths.len())));
     }
     if let Some(z) = depths.iter().find(|z| !(z.is_finite() && **z > 0.0)) {
-        return Err(invalid(
-            "depths",
-            format!("must be finite and > 0, got {z}"),
-        ));
+        return Err(invalid("depths", format!("must be finite and > 0, got {z}")));
     }
     let mut seeds = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
     let mut captures = Vec::with_capacity(depths.len());
@@ -578,10 +539,7 @@ pub fn render_capture_set(
             render,
         });
     }
-    Ok(CaptureSet {
-        board: *board,
-        captures,
-    })
+    Ok(CaptureSet { board: *board, captures })
 }
 
 /// The thesis' training captures: the board centred on the optic axis of the head
@@ -629,16 +587,10 @@ mod tests {
 
     #[test]
     fn bad_parameters_name_the_field() {
-        let o = RenderOptions {
-            margin_cm: 1.0,
-            ..RenderOptions::default()
-        };
+        let o = RenderOptions { margin_cm: 1.0, ..RenderOptions::default() };
         let r = render_rig(&presets::CASE_1, &opencv_board(), [0.0, 0.0, 100.0], &o, 0);
         crate::invalid::assert_refused(r, "margin_cm");
-        let o = RenderOptions {
-            blur_sigma_px: f64::NAN,
-            ..RenderOptions::default()
-        };
+        let o = RenderOptions { blur_sigma_px: f64::NAN, ..RenderOptions::default() };
         crate::invalid::assert_refused(o.validate(), "blur_sigma_px");
     }
 

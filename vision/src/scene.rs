@@ -167,10 +167,9 @@ impl Motion {
     /// The centre at time `t` (s).
     pub fn centre_at(&self, t: f64) -> Vec3 {
         match self {
-            Motion::Linear {
-                centre_cm,
-                velocity_cm_s,
-            } => core::array::from_fn(|k| centre_cm[k] + velocity_cm_s[k] * t),
+            Motion::Linear { centre_cm, velocity_cm_s } => {
+                core::array::from_fn(|k| centre_cm[k] + velocity_cm_s[k] * t)
+            }
             Motion::Path(w) => {
                 let first = &w[0];
                 if t <= first.t_s {
@@ -232,10 +231,7 @@ fn check_vec(field: &str, v: &Vec3, bound: f64) -> Result<(), SceneError> {
     if v.iter().all(|x| x.is_finite() && x.abs() <= bound) {
         Ok(())
     } else {
-        Err(err(
-            field,
-            format!("must be three finite numbers within +-{bound}, got {v:?}"),
-        ))
+        Err(err(field, format!("must be three finite numbers within +-{bound}, got {v:?}")))
     }
 }
 
@@ -275,11 +271,7 @@ impl SceneFile {
             .enumerate()
             .map(|(k, o)| o.check(&format!("objects[{k}]")))
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(Scene {
-            camera_fps: self.camera_fps,
-            background: b,
-            objects,
-        })
+        Ok(Scene { camera_fps: self.camera_fps, background: b, objects })
     }
 }
 
@@ -307,18 +299,15 @@ impl ObjectSpec {
             ShapeKind::Sphere => {
                 not_for("size_cm", self.size_cm.is_some())?;
                 not_for("board", self.board.is_some())?;
-                let r = self
-                    .radius_cm
-                    .ok_or_else(|| err(field("radius_cm"), "a sphere needs it"))?;
+                let r =
+                    self.radius_cm.ok_or_else(|| err(field("radius_cm"), "a sphere needs it"))?;
                 positive("radius_cm", r)?;
                 Shape::Sphere { radius_cm: r }
             }
             ShapeKind::Box => {
                 not_for("radius_cm", self.radius_cm.is_some())?;
                 not_for("board", self.board.is_some())?;
-                let s = self
-                    .size_cm
-                    .ok_or_else(|| err(field("size_cm"), "a box needs it"))?;
+                let s = self.size_cm.ok_or_else(|| err(field("size_cm"), "a box needs it"))?;
                 for (i, x) in s.iter().enumerate() {
                     positive(&format!("size_cm[{i}]"), *x)?;
                 }
@@ -347,10 +336,7 @@ impl ObjectSpec {
                 check_vec(&field("centre_cm"), &c, MAX_CM)?;
                 let v = self.velocity_cm_s.unwrap_or([0.0; 3]);
                 check_vec(&field("velocity_cm_s"), &v, MAX_CM)?;
-                Motion::Linear {
-                    centre_cm: c,
-                    velocity_cm_s: v,
-                }
+                Motion::Linear { centre_cm: c, velocity_cm_s: v }
             }
             (Some(p), None) => {
                 not_for("velocity_cm_s", self.velocity_cm_s.is_some())?;
@@ -373,20 +359,12 @@ impl ObjectSpec {
                             format!("must be later than the waypoint before, got {}", w.t_s),
                         ));
                     }
-                    check_vec(
-                        &field(&format!("path[{i}].centre_cm")),
-                        &w.centre_cm,
-                        MAX_CM,
-                    )?;
+                    check_vec(&field(&format!("path[{i}].centre_cm")), &w.centre_cm, MAX_CM)?;
                 }
                 Motion::Path(p.clone())
             }
         };
-        Ok(Object {
-            shape,
-            motion,
-            texture_seed: self.texture_seed,
-        })
+        Ok(Object { shape, motion, texture_seed: self.texture_seed })
     }
 }
 
@@ -448,10 +426,7 @@ fn dot(a: &Vec3, b: &Vec3) -> f64 {
 
 /// Half sides of a board's rectangle with its one-square border.
 fn board_half(b: &Board) -> [f64; 2] {
-    [
-        (f64::from(b.cols) + 3.0) * 0.5 * b.square_cm,
-        (f64::from(b.rows) + 3.0) * 0.5 * b.square_cm,
-    ]
+    [(f64::from(b.cols) + 3.0) * 0.5 * b.square_cm, (f64::from(b.rows) + 3.0) * 0.5 * b.square_cm]
 }
 
 /// The nearest `t > 0` where the ray `o + t d` meets `p`.
@@ -536,30 +511,20 @@ impl SceneAt {
         }
         let (t, object) = best?;
         let point = core::array::from_fn(|k| o[k] + t * d[k]);
-        point
-            .iter()
-            .all(|x: &f64| x.is_finite())
-            .then_some(Hit { t, point, object })
+        point.iter().all(|x: &f64| x.is_finite()).then_some(Hit { t, point, object })
     }
 
     /// The grey level and colour class of a hit (the class tells edges for anti-aliasing).
     fn shade(&self, hit: &Hit, opt: &RenderOptions) -> (f32, u8) {
         if hit.object == BACKGROUND {
             let p = hit.point;
-            let g = texture(
-                [p[0], p[1], 0.0],
-                self.background.texture_seed,
-                [1.0 / 6.0, 1.0 / 2.5],
-            );
+            let g =
+                texture([p[0], p[1], 0.0], self.background.texture_seed, [1.0 / 6.0, 1.0 / 2.5]);
             return (g, 0);
         }
         let o = &self.objects[usize::from(hit.object - 1)];
         let c = o.centre;
-        let rel = [
-            hit.point[0] - c[0],
-            hit.point[1] - c[1],
-            hit.point[2] - c[2],
-        ];
+        let rel = [hit.point[0] - c[0], hit.point[1] - c[1], hit.point[2] - c[2]];
         match o.shape {
             Shape::Board { board } => {
                 let k = class(&board, board.square_cm, rel[0], rel[1]);
@@ -600,11 +565,7 @@ fn value_noise(p: Vec3, seed: u64) -> f64 {
     let lerp = |a: f64, b: f64, t: f64| a + t * (b - a);
     let plane = |z: i64| {
         let a = lerp(lattice(ix, iy, z, seed), lattice(ix + 1, iy, z, seed), sx);
-        let b = lerp(
-            lattice(ix, iy + 1, z, seed),
-            lattice(ix + 1, iy + 1, z, seed),
-            sx,
-        );
+        let b = lerp(lattice(ix, iy + 1, z, seed), lattice(ix + 1, iy + 1, z, seed), sx);
         lerp(a, b, sy)
     };
     if sz == 0.0 {
@@ -752,14 +713,7 @@ pub fn render_scene(
     });
     let (left, truth_left) = out.next().expect("two cameras");
     let (right, truth_right) = out.next().expect("two cameras");
-    Ok(SceneRender {
-        left,
-        right,
-        truth_left,
-        truth_right,
-        cameras,
-        scene: scene.clone(),
-    })
+    Ok(SceneRender { left, right, truth_left, truth_right, cameras, scene: scene.clone() })
 }
 
 /// Grey levels (row-major `f32`) and truth of one camera.
@@ -835,15 +789,7 @@ fn shade_camera(
             }
         });
     }
-    (
-        grey,
-        TruthImage {
-            width: w,
-            height: h,
-            point,
-            object,
-        },
-    )
+    (grey, TruthImage { width: w, height: h, point, object })
 }
 
 #[cfg(test)]
@@ -854,9 +800,8 @@ mod tests {
     fn texture_is_fixed_and_varied() {
         let a = texture([1.0, 2.0, 3.0], 5, [1.0, 2.0]);
         assert_eq!(a, texture([1.0, 2.0, 3.0], 5, [1.0, 2.0]));
-        let vals: Vec<f32> = (0..200)
-            .map(|i| texture([i as f64 * 0.37, 0.0, 0.0], 5, [1.0, 2.0]))
-            .collect();
+        let vals: Vec<f32> =
+            (0..200).map(|i| texture([i as f64 * 0.37, 0.0, 0.0], 5, [1.0, 2.0])).collect();
         let mean = vals.iter().sum::<f32>() / 200.0;
         let sd = (vals.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() / 200.0).sqrt();
         assert!(sd > 25.0, "texture contrast {sd}");
@@ -866,14 +811,8 @@ mod tests {
     #[test]
     fn path_interpolates_and_holds() {
         let m = Motion::Path(vec![
-            Waypoint {
-                t_s: 0.0,
-                centre_cm: [0.0, 0.0, 100.0],
-            },
-            Waypoint {
-                t_s: 2.0,
-                centre_cm: [20.0, 0.0, 100.0],
-            },
+            Waypoint { t_s: 0.0, centre_cm: [0.0, 0.0, 100.0] },
+            Waypoint { t_s: 2.0, centre_cm: [20.0, 0.0, 100.0] },
         ]);
         assert_eq!(m.centre_at(-1.0), [0.0, 0.0, 100.0]);
         assert_eq!(m.centre_at(1.0), [10.0, 0.0, 100.0]);
@@ -890,9 +829,7 @@ mod tests {
         let t = intersect(&s, &[0.0; 3], &[0.0, 0.0, 1.0]).unwrap();
         assert!((t - 95.0).abs() < 1e-12);
         let b = Placed {
-            shape: Shape::Box {
-                size_cm: [10.0, 10.0, 10.0],
-            },
+            shape: Shape::Box { size_cm: [10.0, 10.0, 10.0] },
             centre: [0.0, 0.0, 100.0],
             texture_seed: 0,
         };

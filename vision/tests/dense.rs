@@ -9,14 +9,8 @@ use hvs_vision::dense::{dense_match, DenseParams};
 
 fn check(tilt: f64, shift: f64, seed: u64) {
     let pair = scene(200, 150, 8.0, 6.0, 26.0, seed, tilt, shift);
-    let m = dense_match(
-        &pair.left,
-        &pair.right,
-        &pair.f,
-        pair.d_range,
-        &DenseParams::default(),
-    )
-    .unwrap();
+    let m = dense_match(&pair.left, &pair.right, &pair.f, pair.d_range, &DenseParams::default())
+        .unwrap();
     let s = score(&pair, &m, 4);
     eprintln!(
         "tilt {tilt}, shift {shift}: returned {:.2} % of {}, within 1 px {:.2} %, > 2 px {:.2} %, returned where unseen {}",

@@ -54,13 +54,9 @@ fn motorcycle_goals() {
     let right = hvs_vision::image_file::read_grey(&dir.join("motorcycle_right.png")).unwrap();
     let raw = std::fs::read(dir.join("disp_741x500.f32")).unwrap();
     assert_eq!(raw.len(), W * H * 4);
-    let truth: Vec<f32> = raw
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
-    let f = Fundamental {
-        m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
-    };
+    let truth: Vec<f32> =
+        raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let f = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
     if std::env::var("HVS_DENSE_SWEEP").is_ok() {
         let base = DenseParams::default();
         let mut sets = vec![base];
@@ -72,12 +68,7 @@ fn motorcycle_goals() {
             (16, 8.0, 1.5),
             (10, 12.0, 1.5),
         ] {
-            sets.push(DenseParams {
-                p1,
-                p2_gamma: g,
-                lr_tolerance_px: lr,
-                ..base
-            });
+            sets.push(DenseParams { p1, p2_gamma: g, lr_tolerance_px: lr, ..base });
         }
         for p in sets {
             let m = dense_match(&left, &right, &f, [1, 66], &p).unwrap();

@@ -44,14 +44,8 @@ fn run(case: u8, scale: f64) -> Rates {
     rig.phi_v_right *= scale;
     let head = HeadRig::new(rig);
     let scene = SceneFile::parse(SCENE).unwrap().scene().unwrap();
-    let r = render_scene(
-        &head,
-        &Joints::HOME,
-        &scene.at(0.0),
-        &RenderOptions::default(),
-        5,
-    )
-    .unwrap();
+    let r =
+        render_scene(&head, &Joints::HOME, &scene.at(0.0), &RenderOptions::default(), 5).unwrap();
     let (w, h) = r.left.dimensions();
     let f = pinhole_fundamental(&r.cameras[0].camera, &r.cameras[1].camera);
     // Every left pixel's true match, and the disparity extent of the scene.
@@ -126,8 +120,5 @@ fn cases_3_and_4_full_size_goals() {
             failed.push(case);
         }
     }
-    assert!(
-        failed.is_empty(),
-        "goals missed in case(s) {failed:?} (rates above)"
-    );
+    assert!(failed.is_empty(), "goals missed in case(s) {failed:?} (rates above)");
 }

@@ -69,10 +69,7 @@ fn homography(p: &Pose) -> [[f64; 3]; 3] {
 
 fn apply(h: &[[f64; 3]; 3], x: f64, y: f64) -> [f64; 2] {
     let w = h[2][0] * x + h[2][1] * y + h[2][2];
-    [
-        (h[0][0] * x + h[0][1] * y + h[0][2]) / w,
-        (h[1][0] * x + h[1][1] * y + h[1][2]) / w,
-    ]
+    [(h[0][0] * x + h[0][1] * y + h[0][2]) / w, (h[1][0] * x + h[1][1] * y + h[1][2]) / w]
 }
 
 fn inverse(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
@@ -81,21 +78,9 @@ fn inverse(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
     let c = |a: usize, b: usize, cc: usize, d: usize| m[a][b] * m[cc][d] - m[a][d] * m[cc][b];
     [
-        [
-            c(1, 1, 2, 2) / det,
-            -c(0, 1, 2, 2) / det,
-            c(0, 1, 1, 2) / det,
-        ],
-        [
-            -c(1, 0, 2, 2) / det,
-            c(0, 0, 2, 2) / det,
-            -c(0, 0, 1, 2) / det,
-        ],
-        [
-            c(1, 0, 2, 1) / det,
-            -c(0, 0, 2, 1) / det,
-            c(0, 0, 1, 1) / det,
-        ],
+        [c(1, 1, 2, 2) / det, -c(0, 1, 2, 2) / det, c(0, 1, 1, 2) / det],
+        [-c(1, 0, 2, 2) / det, c(0, 0, 2, 2) / det, -c(0, 0, 1, 2) / det],
+        [c(1, 0, 2, 1) / det, -c(0, 0, 2, 1) / det, c(0, 0, 1, 1) / det],
     ]
 }
 
@@ -143,9 +128,7 @@ fn blur(img: &mut [f64], sigma: f64) {
         return;
     }
     let r = (3.5 * sigma).ceil() as i64;
-    let k: Vec<f64> = (-r..=r)
-        .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
-        .collect();
+    let k: Vec<f64> = (-r..=r).map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp()).collect();
     let tmp = blur_pass(img, &k, r, true);
     let out = blur_pass(&tmp, &k, r, false);
     img.copy_from_slice(&out);
@@ -252,10 +235,7 @@ fn measure(poses: &[Pose], blur_sigma: f64, noise: f64, seed: u64) -> Stats {
     for (k, p) in poses.iter().enumerate() {
         let (img, truth) = render(p, blur_sigma, noise, seed + k as u64);
         let c = detect::detect(&img, &board).unwrap_or_else(|e| {
-            panic!(
-                "pose {k} (z {}, blur {blur_sigma}, noise {noise}): {e}",
-                p.z
-            )
+            panic!("pose {k} (z {}, blur {blur_sigma}, noise {noise}): {e}", p.z)
         });
         for (d, t) in c.points.iter().zip(&truth) {
             let e = ((d[0] - t[0]).powi(2) + (d[1] - t[1]).powi(2)).sqrt();
@@ -266,12 +246,7 @@ fn measure(poses: &[Pose], blur_sigma: f64, noise: f64, seed: u64) -> Stats {
             n += 1;
         }
     }
-    Stats {
-        mean: sum / n as f64,
-        max,
-        bias: [bias[0] / n as f64, bias[1] / n as f64],
-        n,
-    }
+    Stats { mean: sum / n as f64, max, bias: [bias[0] / n as f64, bias[1] / n as f64], n }
 }
 
 /// Poses with squares of about `square_px` pixels at the board centre, tilted up to 40 deg.
@@ -279,34 +254,10 @@ fn poses(square_px: f64) -> Vec<Pose> {
     let z = F / square_px; // 1 unit squares
     let d = std::f64::consts::PI / 180.0;
     vec![
-        Pose {
-            z,
-            yaw: 0.0,
-            pitch: 0.0,
-            roll: 2.0 * d,
-            off: [0.1, -0.2],
-        },
-        Pose {
-            z,
-            yaw: 40.0 * d,
-            pitch: 5.0 * d,
-            roll: -3.0 * d,
-            off: [0.3, 0.1],
-        },
-        Pose {
-            z,
-            yaw: -25.0 * d,
-            pitch: -20.0 * d,
-            roll: 6.0 * d,
-            off: [-0.2, 0.3],
-        },
-        Pose {
-            z,
-            yaw: 10.0 * d,
-            pitch: 30.0 * d,
-            roll: -8.0 * d,
-            off: [0.05, -0.1],
-        },
+        Pose { z, yaw: 0.0, pitch: 0.0, roll: 2.0 * d, off: [0.1, -0.2] },
+        Pose { z, yaw: 40.0 * d, pitch: 5.0 * d, roll: -3.0 * d, off: [0.3, 0.1] },
+        Pose { z, yaw: -25.0 * d, pitch: -20.0 * d, roll: 6.0 * d, off: [-0.2, 0.3] },
+        Pose { z, yaw: 10.0 * d, pitch: 30.0 * d, roll: -8.0 * d, off: [0.05, -0.1] },
     ]
 }
 
@@ -315,13 +266,7 @@ fn pixel_convention_integer_coordinates_are_pixel_centres() {
     // Fronto-parallel board, corners at known sub-pixel places: a half-pixel convention slip
     // would show as a 0.5 px bias in both coordinates.
     let s = measure(
-        &[Pose {
-            z: F / 30.0,
-            yaw: 0.0,
-            pitch: 0.0,
-            roll: 0.0,
-            off: [0.013, -0.027],
-        }],
+        &[Pose { z: F / 30.0, yaw: 0.0, pitch: 0.0, roll: 0.0, off: [0.013, -0.027] }],
         0.0,
         0.0,
         1,
@@ -330,21 +275,13 @@ fn pixel_convention_integer_coordinates_are_pixel_centres() {
         "fronto-parallel 30 px squares: mean {:.4} px, bias ({:.4}, {:.4})",
         s.mean, s.bias[0], s.bias[1]
     );
-    assert!(
-        s.bias[0].abs() < 0.05 && s.bias[1].abs() < 0.05,
-        "bias {:?}",
-        s.bias
-    );
+    assert!(s.bias[0].abs() < 0.05 && s.bias[1].abs() < 0.05, "bias {:?}", s.bias);
     assert!(s.mean < 0.05, "mean {}", s.mean);
 }
 
 #[test]
 fn corner_accuracy_table() {
-    let conditions = [
-        (0.0, 0.0, "clean"),
-        (0.8, 2.0, "mild"),
-        (1.5, 4.0, "strong"),
-    ];
+    let conditions = [(0.0, 0.0, "clean"), (0.8, 2.0, "mild"), (1.5, 4.0, "strong")];
     eprintln!("square px | condition | mean err px | max err px | bias px | corners");
     let mut worst_small: f64 = 0.0;
     let mut worst_large: f64 = 0.0;
@@ -364,12 +301,6 @@ fn corner_accuracy_table() {
     }
     // Regression guards at the measured level (see the report for the numbers).
     // Goal: <= 0.75 x OpenCV's 0.076 px, i.e. 0.057 px, in every condition.
-    assert!(
-        worst_large < 0.057,
-        "large squares: worst mean {worst_large}"
-    );
-    assert!(
-        worst_small < 0.057,
-        "small squares: worst mean {worst_small}"
-    );
+    assert!(worst_large < 0.057, "large squares: worst mean {worst_large}");
+    assert!(worst_small < 0.057, "small squares: worst mean {worst_small}");
 }

@@ -95,9 +95,7 @@ fn odd_images_never_panic() {
         GrayImage::from_pixel(640, 480, Luma([0])),
         GrayImage::from_fn(640, 480, |_, _| Luma([rng.next() as u8])),
         // A fine checkerboard of 2 px squares, far more corners than a board.
-        GrayImage::from_fn(320, 240, |x, y| {
-            Luma([if (x / 2 + y / 2) % 2 == 0 { 0 } else { 255 }])
-        }),
+        GrayImage::from_fn(320, 240, |x, y| Luma([if (x / 2 + y / 2) % 2 == 0 { 0 } else { 255 }])),
         // A huge 40x40 checker: the grid is bigger than the board.
         GrayImage::from_fn(640, 480, |x, y| {
             Luma([if (x / 12 + y / 12) % 2 == 0 { 20 } else { 230 }])

@@ -53,9 +53,7 @@ fn every_real_pair_gives_54_consistent_corners_and_one_f_fits_all() {
         // For a board near portrait (OpenCV's set has several) i still points toward +u on
         // average in the left image; the right one may have been turned by 180 degrees to agree
         // with it. j follows by handedness in both.
-        let di: f64 = (0..6)
-            .map(|j| s.left.at(8, j)[0] - s.left.at(0, j)[0])
-            .sum();
+        let di: f64 = (0..6).map(|j| s.left.at(8, j)[0] - s.left.at(0, j)[0]).sum();
         assert!(di > 0.0, "{name}");
         for c in [&s.left, &s.right] {
             let (e, f) = (
@@ -80,10 +78,7 @@ fn every_real_pair_gives_54_consistent_corners_and_one_f_fits_all() {
         check.fit.rms_sampson,
         check.fit.iterations
     );
-    for ((name, _), (m, x)) in all
-        .iter()
-        .zip(check.pair_median_px.iter().zip(&check.pair_max_px))
-    {
+    for ((name, _), (m, x)) in all.iter().zip(check.pair_median_px.iter().zip(&check.pair_max_px)) {
         eprintln!("  {name}: median {m:.3} px, max {x:.3} px");
         assert!(*m < 0.5, "{name}: median epipolar distance {m}");
         // A pair with shifted or mirrored labels would sit whole squares off.
@@ -107,16 +102,8 @@ fn one_pair_with_turned_labels_stands_out_in_the_set_check() {
     // The joint fit is dragged off for every pair ...
     assert!(check.fit.median_distance_in_right > 2.0);
     // ... and leaving each pair out points at the culprit.
-    let held: Vec<f64> = check
-        .pair_held_out_median_px
-        .iter()
-        .map(|m| m.unwrap())
-        .collect();
-    let worst = held
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1.total_cmp(b.1))
-        .unwrap();
+    let held: Vec<f64> = check.pair_held_out_median_px.iter().map(|m| m.unwrap()).collect();
+    let worst = held.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).unwrap();
     assert_eq!(worst.0, 3, "{held:?}");
     assert!(*worst.1 > 10.0, "{held:?}");
     // (The other held-out fits still include the bad pair, so they are only well below it.)

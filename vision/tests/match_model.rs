@@ -54,22 +54,14 @@ fn corners_with_the_model_interval_at_every_depth() {
         };
         let model = |x: [f32; 4]| {
             let px = x.map(f64::from);
-            triangulate::optimal_rig(&rig, &px)
-                .ok()
-                .map(|p| p.map(|c| c as f32))
+            triangulate::optimal_rig(&rig, &px).ok().map(|p| p.map(|c| c as f32))
         };
         let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(2001 + u64::from(case));
         for z in (65..=165).step_by(10).map(f64::from) {
             let cx = -10.0 + 20.0 * rng.random::<f64>();
             let cy = -6.0 + 12.0 * rng.random::<f64>();
-            let r = render_rig(
-                &rig,
-                &board,
-                [cx, cy, z],
-                &RenderOptions::default(),
-                rng.random(),
-            )
-            .unwrap();
+            let r = render_rig(&rig, &board, [cx, cy, z], &RenderOptions::default(), rng.random())
+                .unwrap();
             let m = Matcher::new(&r.left, &r.right, &f, params).unwrap();
             let mut at_z = Rates::default();
             for c in r.corners.iter().filter(|c| c.in_image) {
@@ -78,17 +70,9 @@ fn corners_with_the_model_interval_at_every_depth() {
                     model_disparity_interval(model, c.px[0], c.px[1], line, z_range, d_range)
                         .expect("a corner inside the training depths has an interval");
                 let d = c.px[0] - c.px[2];
-                assert!(
-                    d >= d_min && d <= d_max,
-                    "case {case} z {z}: {d} not in {d_min}..{d_max}"
-                );
+                assert!(d >= d_min && d <= d_max, "case {case} z {z}: {d} not in {d_min}..{d_max}");
                 widths.push(d_max - d_min);
-                let q = Query {
-                    ul: c.px[0],
-                    vl: c.px[1],
-                    d_min,
-                    d_max,
-                };
+                let q = Query { ul: c.px[0], vl: c.px[1], d_min, d_max };
                 let got = m.find(&q);
                 at_z.add(&got, [c.px[2], c.px[3]]);
             }
@@ -98,16 +82,8 @@ fn corners_with_the_model_interval_at_every_depth() {
                 d_range[1],
                 at_z.summary()
             );
-            assert!(
-                at_z.returned() >= 0.40,
-                "case {case} z {z}: {}",
-                at_z.summary()
-            );
-            assert!(
-                at_z.within(0.5) >= 0.99,
-                "case {case} z {z}: {}",
-                at_z.summary()
-            );
+            assert!(at_z.returned() >= 0.40, "case {case} z {z}: {}", at_z.summary());
+            assert!(at_z.within(0.5) >= 0.99, "case {case} z {z}: {}", at_z.summary());
             all.merge(&at_z);
         }
     }

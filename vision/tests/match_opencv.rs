@@ -38,12 +38,7 @@ fn load() -> Vec<Pair> {
             let right = image::open(dir().join(b)).unwrap().to_luma8();
             let corners = detect::detect_pair(&left, &right, &board)
                 .unwrap_or_else(|e| panic!("{a} / {b}: {e}"));
-            Pair {
-                name: a.to_string(),
-                left,
-                right,
-                corners,
-            }
+            Pair { name: a.to_string(), left, right, corners }
         })
         .collect()
 }
@@ -96,40 +91,26 @@ fn corners_of_the_real_pairs_leave_one_out() {
             .collect();
         let f = fit_fundamental(&others).unwrap();
         let ds: Vec<f64> = others.iter().map(|(l, r)| l[0] - r[0]).collect();
-        let (lo, hi) = ds
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &d| {
-                (a.min(d), b.max(d))
-            });
+        let (lo, hi) =
+            ds.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &d| (a.min(d), b.max(d)));
         let pad = 0.1 * (hi - lo);
         let m = Matcher::new(&p.left, &p.right, &f, MatchParams::default()).unwrap();
         let (mut n_pair, mut w_pair) = (Tally::default(), Tally::default());
-        let mut epi: Vec<f64> = p
-            .corners
-            .pairs()
-            .iter()
-            .map(|(l, r)| f.distance_in_right(*l, *r))
-            .collect();
+        let mut epi: Vec<f64> =
+            p.corners.pairs().iter().map(|(l, r)| f.distance_in_right(*l, *r)).collect();
         epi.sort_by(f64::total_cmp);
         epipolar.extend_from_slice(&epi);
         for (l, r) in p.corners.pairs() {
             let d = l[0] - r[0];
             let h = (0.1 * d.abs()).max(1.0);
-            for (t, (d_min, d_max)) in [
-                (&mut n_pair, (d - h, d + h)),
-                (&mut w_pair, (lo - pad, hi + pad)),
-            ] {
-                let got = m.find(&Query {
-                    ul: l[0],
-                    vl: l[1],
-                    d_min,
-                    d_max,
-                });
+            for (t, (d_min, d_max)) in
+                [(&mut n_pair, (d - h, d + h)), (&mut w_pair, (lo - pad, hi + pad))]
+            {
+                let got = m.find(&Query { ul: l[0], vl: l[1], d_min, d_max });
                 t.asked += 1;
                 *t.status.entry(got.status.name()).or_default() += 1;
                 if got.status == MatchStatus::Ok {
-                    t.errors
-                        .push(((got.ur - r[0]).powi(2) + (got.vr - r[1]).powi(2)).sqrt());
+                    t.errors.push(((got.ur - r[0]).powi(2) + (got.vr - r[1]).powi(2)).sqrt());
                 }
             }
         }
@@ -152,10 +133,7 @@ fn corners_of_the_real_pairs_leave_one_out() {
         }
     }
     eprintln!("all pairs, true d +- 10 %: {}", narrow.summary());
-    eprintln!(
-        "all pairs, other pairs' disparity range: {}",
-        wide.summary()
-    );
+    eprintln!("all pairs, other pairs' disparity range: {}", wide.summary());
     epipolar.sort_by(f64::total_cmp);
     let over1 = epipolar.iter().filter(|&&e| e > 1.0).count() as f64 / epipolar.len() as f64;
     eprintln!(

@@ -28,34 +28,18 @@ fn load() -> (image::GrayImage, image::GrayImage, Vec<f32>) {
     let dir = std::path::Path::new(&dir);
     let img = |n: &str| {
         let p = dir.join(n);
-        image::open(&p)
-            .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
-            .to_luma8()
+        image::open(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display())).to_luma8()
     };
     let p = dir.join("disp_741x500.f32");
     let raw = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-    assert_eq!(
-        raw.len(),
-        W * H * 4,
-        "{}: expected {W}x{H} f32",
-        p.display()
-    );
-    let disp = raw
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
-    (
-        img("motorcycle_left.png"),
-        img("motorcycle_right.png"),
-        disp,
-    )
+    assert_eq!(raw.len(), W * H * 4, "{}: expected {W}x{H} f32", p.display());
+    let disp = raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    (img("motorcycle_left.png"), img("motorcycle_right.png"), disp)
 }
 
 /// A rectified pair: the epipolar line of `(u, v)` is the row `v`.
 fn rectified() -> Fundamental {
-    Fundamental {
-        m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
-    }
+    Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] }
 }
 
 fn eval(seed: u64, n: usize, wide: bool, params: MatchParams) -> Rates {
@@ -70,12 +54,7 @@ fn eval(seed: u64, n: usize, wide: bool, params: MatchParams) -> Rates {
             continue;
         }
         let (d_min, d_max) = if wide { (5.0, 65.0) } else { interval(d) };
-        let q = Query {
-            ul: u as f64,
-            vl: v as f64,
-            d_min,
-            d_max,
-        };
+        let q = Query { ul: u as f64, vl: v as f64, d_min, d_max };
         rates.add(&m.find(&q), [u as f64 - d, v as f64]);
     }
     rates
@@ -122,125 +101,26 @@ fn motorcycle_dev() {
     let d = MatchParams::default();
     let variants: Vec<(&str, MatchParams)> = vec![
         ("default", d),
-        (
-            "no shifted windows",
-            MatchParams {
-                shifted_windows: false,
-                ..d
-            },
-        ),
-        (
-            "no growing",
-            MatchParams {
-                max_half_window: 5,
-                ..d
-            },
-        ),
-        (
-            "grown 0.8",
-            MatchParams {
-                grown_min_score: 0.8,
-                ..d
-            },
-        ),
-        (
-            "grown 0.95",
-            MatchParams {
-                grown_min_score: 0.95,
-                ..d
-            },
-        ),
-        (
-            "margin 0.1",
-            MatchParams {
-                uniqueness_margin: 0.1,
-                ..d
-            },
-        ),
-        (
-            "lr 0.5",
-            MatchParams {
-                lr_tolerance_px: 0.5,
-                ..d
-            },
-        ),
-        (
-            "no agree",
-            MatchParams {
-                shifted_must_agree: false,
-                ..d
-            },
-        ),
-        (
-            "floor 0",
-            MatchParams {
-                support_floor: 0.0,
-                ..d
-            },
-        ),
-        (
-            "floor 0.1",
-            MatchParams {
-                support_floor: 0.1,
-                ..d
-            },
-        ),
-        (
-            "floor 0.35",
-            MatchParams {
-                support_floor: 0.35,
-                ..d
-            },
-        ),
-        (
-            "unweighted",
-            MatchParams {
-                support_gamma: 0.0,
-                ..d
-            },
-        ),
-        (
-            "no slack",
-            MatchParams {
-                interval_slack_px: 0.0,
-                ..d
-            },
-        ),
-        (
-            "shift 0.6",
-            MatchParams {
-                shift_fraction: 0.6,
-                ..d
-            },
-        ),
-        (
-            "min score 0.5",
-            MatchParams {
-                min_score: 0.5,
-                ..d
-            },
-        ),
-        (
-            "r 4",
-            MatchParams {
-                half_window: 4,
-                ..d
-            },
-        ),
-        (
-            "r 6",
-            MatchParams {
-                half_window: 6,
-                ..d
-            },
-        ),
+        ("no shifted windows", MatchParams { shifted_windows: false, ..d }),
+        ("no growing", MatchParams { max_half_window: 5, ..d }),
+        ("grown 0.8", MatchParams { grown_min_score: 0.8, ..d }),
+        ("grown 0.95", MatchParams { grown_min_score: 0.95, ..d }),
+        ("margin 0.1", MatchParams { uniqueness_margin: 0.1, ..d }),
+        ("lr 0.5", MatchParams { lr_tolerance_px: 0.5, ..d }),
+        ("no agree", MatchParams { shifted_must_agree: false, ..d }),
+        ("floor 0", MatchParams { support_floor: 0.0, ..d }),
+        ("floor 0.1", MatchParams { support_floor: 0.1, ..d }),
+        ("floor 0.35", MatchParams { support_floor: 0.35, ..d }),
+        ("unweighted", MatchParams { support_gamma: 0.0, ..d }),
+        ("no slack", MatchParams { interval_slack_px: 0.0, ..d }),
+        ("shift 0.6", MatchParams { shift_fraction: 0.6, ..d }),
+        ("min score 0.5", MatchParams { min_score: 0.5, ..d }),
+        ("r 4", MatchParams { half_window: 4, ..d }),
+        ("r 6", MatchParams { half_window: 6, ..d }),
     ];
     let only = std::env::var("HVS_DEV_VARIANT").ok();
     for (name, p) in variants {
-        if only
-            .as_deref()
-            .is_some_and(|o| !o.split(',').any(|o| o == name))
-        {
+        if only.as_deref().is_some_and(|o| !o.split(',').any(|o| o == name)) {
             continue;
         }
         let mut all = Rates::default();

@@ -16,13 +16,8 @@ fn dev_sweep() {
             let (c, r) = eval_case(case, seed, 50, MatchParams::default());
             eprintln!("seed {seed} case {case} corners: {}", c.summary());
             eprintln!("seed {seed} case {case} random:  {}", r.summary());
-            let (c, r) = eval_case_with(
-                case,
-                seed,
-                50,
-                MatchParams::default(),
-                Interval::Fixed(10.0, 60.0),
-            );
+            let (c, r) =
+                eval_case_with(case, seed, 50, MatchParams::default(), Interval::Fixed(10.0, 60.0));
             eprintln!("seed {seed} case {case} corners 10..60: {}", c.summary());
             eprintln!("seed {seed} case {case} random 10..60:  {}", r.summary());
         }
@@ -51,21 +46,13 @@ fn wide_interval_on_the_repetitive_board_refuses_rather_than_guesses() {
     // return must still be right.
     let (mut corners, mut random) = (Rates::default(), Rates::default());
     for seed in [1001u64, 1002] {
-        let (c, r) = eval_case_with(
-            1,
-            seed,
-            50,
-            MatchParams::default(),
-            Interval::Fixed(10.0, 60.0),
-        );
+        let (c, r) =
+            eval_case_with(1, seed, 50, MatchParams::default(), Interval::Fixed(10.0, 60.0));
         corners.merge(&c);
         random.merge(&r);
     }
     eprintln!("case I, interval 10..60 px, corners: {}", corners.summary());
-    eprintln!(
-        "case I, interval 10..60 px, random points: {}",
-        random.summary()
-    );
+    eprintln!("case I, interval 10..60 px, random points: {}", random.summary());
     // Some points stay ambiguous even with the grown windows (those whose window can reach
     // no edge of the board): they are refused as such, not guessed.
     for r in [&corners, &random] {

@@ -8,9 +8,7 @@ use hvs_vision::render::{opencv_board, render_rig, RenderOptions};
 use image::GrayImage;
 
 fn rectified() -> Fundamental {
-    Fundamental {
-        m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
-    }
+    Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] }
 }
 
 /// A textured image: a smooth pseudo-random pattern.
@@ -26,12 +24,7 @@ fn texture(w: u32, h: u32, shift: u32) -> GrayImage {
 
 /// The query of the left point `(ul, vl)` for disparities in `[d_min, d_max]`.
 fn query(ul: f64, vl: f64, d_min: f64, d_max: f64) -> Query {
-    Query {
-        ul,
-        vl,
-        d_min,
-        d_max,
-    }
+    Query { ul, vl, d_min, d_max }
 }
 
 #[test]
@@ -44,10 +37,7 @@ fn a_shifted_texture_is_found_at_its_shift() {
     let got = m.find(&query(100.0, 60.0, 5.0, 20.0));
     assert_eq!(got.status, MatchStatus::Ok, "{got:?}");
     // The parabola through an asymmetric ZNCC peak is biased by up to ~0.15 px.
-    assert!(
-        (got.ur - 88.0).abs() < 0.2 && (got.vr - 60.0).abs() < 1e-9,
-        "{got:?}"
-    );
+    assert!((got.ur - 88.0).abs() < 0.2 && (got.vr - 60.0).abs() < 1e-9, "{got:?}");
     assert!(got.score > 0.99);
     // The true disparity outside the interval: no peak inside it (the pattern's 17 px
     // period would repeat at 29 and 46 px: the interval avoids both).
@@ -61,14 +51,8 @@ fn refusals_have_their_status() {
     let r = texture(200, 120, 12);
     let q = query;
     let m = Matcher::new(&l, &r, &rectified(), MatchParams::default()).unwrap();
-    assert_eq!(
-        m.find(&q(f64::NAN, 60.0, 5.0, 20.0)).status,
-        MatchStatus::NanInput
-    );
-    assert_eq!(
-        m.find(&q(100.0, 60.0, 5.0, f64::INFINITY)).status,
-        MatchStatus::NanInput
-    );
+    assert_eq!(m.find(&q(f64::NAN, 60.0, 5.0, 20.0)).status, MatchStatus::NanInput);
+    assert_eq!(m.find(&q(100.0, 60.0, 5.0, f64::INFINITY)).status, MatchStatus::NanInput);
     // Points off the image.
     for (u, v) in [(-0.5, 60.0), (199.5, 60.0), (100.0, -1.0), (100.0, 119.2)] {
         assert_eq!(m.find(&q(u, v, 5.0, 20.0)).status, MatchStatus::Outside);
@@ -80,38 +64,20 @@ fn refusals_have_their_status() {
         assert!((got.ur - (u - 12.0)).abs() < 0.3, "({u}, {v}): {got:?}");
     }
     // Every candidate window off the right image's left edge.
-    assert_eq!(
-        m.find(&q(20.0, 60.0, 30.0, 40.0)).status,
-        MatchStatus::Outside
-    );
-    assert_eq!(
-        m.find(&q(100.0, 60.0, 20.0, 5.0)).status,
-        MatchStatus::NoCandidate
-    );
+    assert_eq!(m.find(&q(20.0, 60.0, 30.0, 40.0)).status, MatchStatus::Outside);
+    assert_eq!(m.find(&q(100.0, 60.0, 20.0, 5.0)).status, MatchStatus::NoCandidate);
     // A flat image has no texture.
     let flat = GrayImage::from_pixel(200, 120, image::Luma([90]));
     let m = Matcher::new(&flat, &r, &rectified(), MatchParams::default()).unwrap();
-    assert_eq!(
-        m.find(&q(100.0, 60.0, 5.0, 20.0)).status,
-        MatchStatus::NoTexture
-    );
+    assert_eq!(m.find(&q(100.0, 60.0, 5.0, 20.0)).status, MatchStatus::NoTexture);
     // A vertical stripe pattern with a 6 px period, searched over 30 px: ambiguous.
     let stripes = |shift: u32| {
         GrayImage::from_fn(200, 120, |x, _| {
             image::Luma([if ((x + shift) / 3) % 2 == 0 { 40 } else { 200 }])
         })
     };
-    let m = Matcher::new(
-        &stripes(0),
-        &stripes(2),
-        &rectified(),
-        MatchParams::default(),
-    )
-    .unwrap();
-    assert_eq!(
-        m.find(&q(100.0, 60.0, 0.0, 30.0)).status,
-        MatchStatus::Ambiguous
-    );
+    let m = Matcher::new(&stripes(0), &stripes(2), &rectified(), MatchParams::default()).unwrap();
+    assert_eq!(m.find(&q(100.0, 60.0, 0.0, 30.0)).status, MatchStatus::Ambiguous);
 }
 
 #[test]
@@ -142,23 +108,13 @@ fn an_occluded_corner_is_not_returned() {
 fn bad_setup_is_an_error_naming_the_field() {
     let l = texture(100, 80, 0);
     let small = texture(90, 80, 0);
-    let e = Matcher::new(&l, &small, &rectified(), MatchParams::default())
+    let e = Matcher::new(&l, &small, &rectified(), MatchParams::default()).err().unwrap();
+    assert!(e.to_string().starts_with("right"), "{e}");
+    let e = Matcher::new(&l, &l, &Fundamental { m: [[0.0; 3]; 3] }, MatchParams::default())
         .err()
         .unwrap();
-    assert!(e.to_string().starts_with("right"), "{e}");
-    let e = Matcher::new(
-        &l,
-        &l,
-        &Fundamental { m: [[0.0; 3]; 3] },
-        MatchParams::default(),
-    )
-    .err()
-    .unwrap();
     assert!(e.to_string().starts_with("fundamental"), "{e}");
-    let p = MatchParams {
-        lr_tolerance_px: -1.0,
-        ..MatchParams::default()
-    };
+    let p = MatchParams { lr_tolerance_px: -1.0, ..MatchParams::default() };
     let e = Matcher::new(&l, &l, &rectified(), p).err().unwrap();
     assert!(e.to_string().starts_with("params.lr_tolerance_px"), "{e}");
 }
@@ -170,17 +126,12 @@ fn a_right_image_scaled_along_u_is_matched_with_right_scale() {
     let pattern = |x: f64, y: f64| {
         128.0 + 50.0 * (x * 0.37).sin() * (y * 0.23).cos() + 40.0 * (x * 0.11 + y * 0.19).sin()
     };
-    let l = GrayImage::from_fn(300, 120, |x, y| {
-        image::Luma([pattern(x as f64, y as f64) as u8])
-    });
+    let l = GrayImage::from_fn(300, 120, |x, y| image::Luma([pattern(x as f64, y as f64) as u8]));
     let r = GrayImage::from_fn(300, 120, |x, y| {
         let xs = (x as f64 - 100.0) / 1.4 + 112.0;
         image::Luma([pattern(xs, y as f64) as u8])
     });
-    let scaled = MatchParams {
-        right_scale: [1.4, 1.0],
-        ..MatchParams::default()
-    };
+    let scaled = MatchParams { right_scale: [1.4, 1.0], ..MatchParams::default() };
     let plain = Matcher::new(&l, &r, &rectified(), MatchParams::default()).unwrap();
     let m = Matcher::new(&l, &r, &rectified(), scaled).unwrap();
     let (mut ok, mut plain_score, mut scaled_score) = (0, 0.0, 0.0);
@@ -198,15 +149,9 @@ fn a_right_image_scaled_along_u_is_matched_with_right_scale() {
         plain_score += plain.find(&q).score;
     }
     assert!(ok >= 9, "{ok} of 11");
-    assert!(
-        scaled_score > plain_score,
-        "{scaled_score} vs {plain_score}"
-    );
+    assert!(scaled_score > plain_score, "{scaled_score} vs {plain_score}");
     // The scale is validated.
-    let bad = MatchParams {
-        right_scale: [0.0, 1.0],
-        ..MatchParams::default()
-    };
+    let bad = MatchParams { right_scale: [0.0, 1.0], ..MatchParams::default() };
     let e = Matcher::new(&l, &r, &rectified(), bad).err().unwrap();
     assert!(e.to_string().starts_with("params.right_scale[0]"), "{e}");
 }

@@ -154,10 +154,7 @@ fn capture_set_is_the_training_depths_and_deterministic() {
     assert_eq!(a.captures[0].left_name, "left01.png");
     assert_eq!(a.captures[5].right_name, "right06.png");
     // Every pair has its own noise.
-    assert_ne!(
-        a.captures[0].render.left.as_raw(),
-        a.captures[1].render.left.as_raw()
-    );
+    assert_ne!(a.captures[0].render.left.as_raw(), a.captures[1].render.left.as_raw());
     let rows = a.truth_rows();
     assert_eq!(rows.len(), 6 * 54);
     assert!(rows.iter().all(|r| r.corner.in_image));
@@ -210,12 +207,8 @@ fn black_squares_centroid_is_where_the_model_projects_them() {
     let hx = (f64::from(board.cols) + 1.0) / 2.0 * s + 0.5 * RenderOptions::default().margin_cm;
     let hy = (f64::from(board.rows) + 1.0) / 2.0 * s + 0.5 * RenderOptions::default().margin_cm;
     for (k, img) in [&r.left, &r.right].into_iter().enumerate() {
-        let tl = rig
-            .project(&[centre[0] - hx, centre[1] - hy, centre[2]])
-            .unwrap();
-        let br = rig
-            .project(&[centre[0] + hx, centre[1] + hy, centre[2]])
-            .unwrap();
+        let tl = rig.project(&[centre[0] - hx, centre[1] - hy, centre[2]]).unwrap();
+        let br = rig.project(&[centre[0] + hx, centre[1] + hy, centre[2]]).unwrap();
         let (mut su, mut sv, mut sd) = (0.0, 0.0, 0.0);
         for row in tl[2 * k + 1].round() as i64..=br[2 * k + 1].round() as i64 {
             for col in tl[2 * k].round() as i64..=br[2 * k].round() as i64 {
@@ -241,10 +234,8 @@ fn corners_in_the_image_are_where_the_truth_says() {
         let opt = RenderOptions::clean();
         let board = opencv_board();
         let r = render_rig(&rig, &board, [-4.0, 3.0, 85.0], &opt, 0).unwrap();
-        let sq = [
-            rig.phi_u_left * board.square_cm / 85.0,
-            rig.phi_u_right * board.square_cm / 85.0,
-        ];
+        let sq =
+            [rig.phi_u_left * board.square_cm / 85.0, rig.phi_u_right * board.square_cm / 85.0];
         let (mean, max) = corner_errors(&r, &opt, sq);
         eprintln!("case {n}: corner error mean {mean:.4} max {max:.4} px");
         assert!(mean < 0.02 && max < 0.05, "case {n}: mean {mean} max {max}");
@@ -284,14 +275,7 @@ fn distortion_and_posture_render_where_head_rig_projects() {
 fn squares_at_165_cm_are_about_10_px() {
     let rig = presets::CASE_1;
     let board = opencv_board();
-    let r = render_rig(
-        &rig,
-        &board,
-        [0.0, 0.0, 165.0],
-        &RenderOptions::default(),
-        5,
-    )
-    .unwrap();
+    let r = render_rig(&rig, &board, [0.0, 0.0, 165.0], &RenderOptions::default(), 5).unwrap();
     // Row through the middle of the top square row (between corner rows -1 and 0).
     let c0 = &r.corners[0];
     let row = (c0.px[1] - 0.5 * (r.corners[9].px[1] - c0.px[1])).round() as u32;
@@ -307,11 +291,7 @@ fn squares_at_165_cm_are_about_10_px() {
     }
     // background -> white border -> 10 squares -> white border -> background.
     let inner: Vec<f64> = crossings.windows(2).map(|w| w[1] - w[0]).collect();
-    let squares: Vec<f64> = inner
-        .iter()
-        .copied()
-        .filter(|&d| d > 6.0 && d < 14.0)
-        .collect();
+    let squares: Vec<f64> = inner.iter().copied().filter(|&d| d > 6.0 && d < 14.0).collect();
     assert!(squares.len() >= 8, "crossings {crossings:?}");
     let mean = squares.iter().sum::<f64>() / squares.len() as f64;
     let want = rig.phi_u_left * board.square_cm / 165.0;
@@ -325,26 +305,14 @@ fn squares_at_165_cm_are_about_10_px() {
 fn bad_input_is_an_error_naming_the_field() {
     let rig = presets::CASE_1;
     let opt = RenderOptions::default();
-    let e = render_rig(
-        &rig,
-        &Board {
-            cols: 0,
-            ..opencv_board()
-        },
-        [0.0, 0.0, 100.0],
-        &opt,
-        0,
-    )
-    .unwrap_err();
+    let e = render_rig(&rig, &Board { cols: 0, ..opencv_board() }, [0.0, 0.0, 100.0], &opt, 0)
+        .unwrap_err();
     assert!(e.to_string().starts_with("board.cols"), "{e}");
     let e = render_rig(&rig, &opencv_board(), [0.0, f64::NAN, 100.0], &opt, 0).unwrap_err();
     assert!(e.to_string().starts_with("centre"), "{e}");
     let e = render_rig(&rig, &opencv_board(), [0.0, 0.0, -10.0], &opt, 0).unwrap_err();
     assert!(e.to_string().contains("behind"), "{e}");
-    let bad = RenderOptions {
-        supersample: 0,
-        ..opt
-    };
+    let bad = RenderOptions { supersample: 0, ..opt };
     let e = render_rig(&rig, &opencv_board(), [0.0, 0.0, 100.0], &bad, 0).unwrap_err();
     assert!(e.to_string().starts_with("supersample"), "{e}");
     let e = render_capture_set(

@@ -73,10 +73,7 @@ fn true_match_sees_the_same_point_or_is_occluded() {
                     matched += 1;
                     // The right pixel nearest the match sees the same object at nearly the
                     // same depth (neighbouring points on one smooth surface).
-                    let (q, o2) = r
-                        .truth_right
-                        .hit(ur.round() as u32, vr.round() as u32)
-                        .unwrap();
+                    let (q, o2) = r.truth_right.hit(ur.round() as u32, vr.round() as u32).unwrap();
                     if o2 == obj {
                         let dz = (q[2] - p[2]).abs();
                         assert!(dz < 0.02 * p[2], "({c},{row}) z {} vs {}", p[2], q[2]);
@@ -103,10 +100,7 @@ fn objects_move_in_time() {
     let a = render(&Joints::HOME, 0.0, 1);
     let b = render(&Joints::HOME, 0.5, 1);
     assert_ne!(a.left, b.left);
-    assert_eq!(
-        a.truth_left.object.iter().filter(|&&o| o == NONE).count(),
-        0
-    );
+    assert_eq!(a.truth_left.object.iter().filter(|&&o| o == NONE).count(), 0);
 }
 
 #[test]
@@ -125,14 +119,8 @@ fn same_seed_same_bytes() {
 fn textured_surfaces_have_contrast() {
     let opt = RenderOptions::clean();
     let scene = SceneFile::parse(SCENE).unwrap().scene().unwrap();
-    let r = render_scene(
-        &HeadRig::new(small_rig()),
-        &Joints::HOME,
-        &scene.at(0.0),
-        &opt,
-        0,
-    )
-    .unwrap();
+    let r =
+        render_scene(&HeadRig::new(small_rig()), &Joints::HOME, &scene.at(0.0), &opt, 0).unwrap();
     // Grey levels on the sphere vary (a textured surface, not a flat disc).
     let vals: Vec<f64> = (0..160 * 120)
         .filter(|&k| r.truth_left.object[k] == 1)
@@ -144,9 +132,7 @@ fn textured_surfaces_have_contrast() {
 }
 
 fn refused(text: &str, needle: &str) {
-    let e = SceneFile::parse(text)
-        .and_then(|f| f.scene())
-        .expect_err("must be refused");
+    let e = SceneFile::parse(text).and_then(|f| f.scene()).expect_err("must be refused");
     assert!(e.to_string().contains(needle), "{e} does not name {needle}");
 }
 
@@ -155,19 +141,13 @@ fn strict_scene_json() {
     let base =
         r#"{"rig": {"case": 3}, "camera_fps": 30, "background": {"z_cm": 300}, "objects": [OBJ]}"#;
     let with = |o: &str| base.replace("OBJ", o);
-    refused(
-        &base.replace("\"camera_fps\"", "\"fps\""),
-        "unknown field `fps`",
-    );
+    refused(&base.replace("\"camera_fps\"", "\"fps\""), "unknown field `fps`");
     refused(
         &with(r#"{"shape": "sphere", "radius_cm": 5, "centre_cm": [0,0,90], "colour": 1}"#),
         "colour",
     );
     refused(&with(r#"{"shape": "cone", "centre_cm": [0,0,90]}"#), "cone");
-    refused(
-        &with(r#"{"shape": "sphere", "centre_cm": [0,0,90]}"#),
-        "objects[0].radius_cm",
-    );
+    refused(&with(r#"{"shape": "sphere", "centre_cm": [0,0,90]}"#), "objects[0].radius_cm");
     refused(
         &with(r#"{"shape": "sphere", "radius_cm": -1, "centre_cm": [0,0,90]}"#),
         "objects[0].radius_cm",
@@ -186,10 +166,7 @@ fn strict_scene_json() {
         ),
         "objects[0].board",
     );
-    refused(
-        &with(r#"{"shape": "sphere", "radius_cm": 5}"#),
-        "objects[0].centre_cm",
-    );
+    refused(&with(r#"{"shape": "sphere", "radius_cm": 5}"#), "objects[0].centre_cm");
     refused(
         &with(
             r#"{"shape": "sphere", "radius_cm": 5, "centre_cm": [0,0,90], "path": [{"t_s": 0, "centre_cm": [0,0,90]}]}"#,
@@ -206,22 +183,10 @@ fn strict_scene_json() {
         &with(r#"{"shape": "sphere", "radius_cm": 5, "radius_cm": 6, "centre_cm": [0,0,90]}"#),
         "duplicate field `radius_cm`",
     );
+    refused(&base.replace("\"z_cm\": 300", "\"z_cm\": 0").replace("OBJ", ""), "background.z_cm");
     refused(
-        &base
-            .replace("\"z_cm\": 300", "\"z_cm\": 0")
-            .replace("OBJ", ""),
-        "background.z_cm",
-    );
-    refused(
-        &base
-            .replace("\"camera_fps\": 30", "\"camera_fps\": 0")
-            .replace("OBJ", ""),
+        &base.replace("\"camera_fps\": 30", "\"camera_fps\": 0").replace("OBJ", ""),
         "camera_fps",
     );
-    refused(
-        &base
-            .replace("OBJ", "")
-            .replace("\"rig\": {\"case\": 3},", ""),
-        "missing field `rig`",
-    );
+    refused(&base.replace("OBJ", "").replace("\"rig\": {\"case\": 3},", ""), "missing field `rig`");
 }

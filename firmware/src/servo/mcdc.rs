@@ -42,12 +42,7 @@ pub struct Mcdc<W: embedded_io::Write> {
 impl<W: embedded_io::Write> Mcdc<W> {
     /// Drives on `tx`; nothing is sent until the first command.
     pub fn new(tx: W, cfg: McdcConfig, limits: JointLimits) -> Self {
-        Mcdc {
-            tx,
-            cfg,
-            limits,
-            last: [None; 5],
-        }
+        Mcdc { tx, cfg, limits, last: [None; 5] }
     }
 }
 
@@ -62,8 +57,7 @@ impl<W: embedded_io::Write> ServoOutput for Mcdc<W> {
                 continue;
             }
             let node = self.cfg.0[i].node;
-            self.tx
-                .write_all(&format_mcdc(node, McdcCmd::LoadAbsolute(counts)))?;
+            self.tx.write_all(&format_mcdc(node, McdcCmd::LoadAbsolute(counts)))?;
             self.tx.write_all(&format_mcdc(node, McdcCmd::Move))?;
             self.last[i] = Some(counts);
         }

@@ -33,14 +33,7 @@ pub struct Servos {
 
 /// Starts TIM3 and TIM4 at `PWM_HZ` on the five servo pins (duty 0 until the first command).
 pub fn init(parts: ServoParts, limits: JointLimits, rcc: &mut Rcc) -> Servos {
-    let ServoParts {
-        tim3,
-        tim4,
-        pa6,
-        pa7,
-        gpiob,
-        ..
-    } = parts;
+    let ServoParts { tim3, tim4, pa6, pa7, gpiob, .. } = parts;
     let gpiob = gpiob.split(rcc);
     let (_, (t3c1, t3c2, t3c3, t3c4)) = tim3.pwm_hz(PWM_HZ.Hz(), rcc);
     let (_, (t4c1, ..)) = tim4.pwm_hz(PWM_HZ.Hz(), rcc);
@@ -56,11 +49,7 @@ pub fn init(parts: ServoParts, limits: JointLimits, rcc: &mut Rcc) -> Servos {
     channels.2.enable();
     channels.3.enable();
     channels.4.enable();
-    Servos {
-        channels,
-        cfg: PWM,
-        limits,
-    }
+    Servos { channels, cfg: PWM, limits }
 }
 
 impl Servos {

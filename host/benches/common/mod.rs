@@ -17,10 +17,7 @@ pub fn board_set() -> Dataset {
 /// `board` at the thesis' six training depths through case IV, rounded pixels, as
 /// `hvs simulate --case 4 --set train --board NAME` writes it (9x6:6: 324 points).
 pub fn grid_board_set(board: Board) -> Dataset {
-    let opt = SimOptions {
-        board,
-        ..SimOptions::default()
-    };
+    let opt = SimOptions { board, ..SimOptions::default() };
     let mut d = Dataset::new(InputKind::Stereo);
     for s in simulate(&presets::CASE_4, SetKind::Train, &opt).expect("case IV sees the board") {
         d.push(&s.px, Some(s.xyz));

@@ -129,11 +129,7 @@ fn detect(a: &DetectArgs) -> Result<()> {
         }
     }
     if usable == 0 {
-        bail!(
-            "{}: no usable stereo pair ({} skipped)",
-            a.captures.display(),
-            set.captures.len()
-        );
+        bail!("{}: no usable stereo pair ({} skipped)", a.captures.display(), set.captures.len());
     }
     let checked: usize = det.groups.iter().map(|g| g.pairs).sum();
     match det.groups.as_slice() {
@@ -160,12 +156,7 @@ fn detect(a: &DetectArgs) -> Result<()> {
     // Overlays first, the points last: a failure leaves the old points file as it was.
     if let Some(dir) = &a.overlays {
         let mut pngs = Vec::new();
-        for ((out, pair), names) in det
-            .outcomes
-            .iter()
-            .zip(&images)
-            .zip(overlay_names.chunks(2))
-        {
+        for ((out, pair), names) in det.outcomes.iter().zip(&images).zip(overlay_names.chunks(2)) {
             let (PairOutcome::Found(p), Some([left, right])) = (out, pair) else {
                 continue;
             };

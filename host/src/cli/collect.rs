@@ -83,11 +83,8 @@ pub fn run(a: Args) -> Result<()> {
         ));
     };
     check_dir_output("-o", &a.output)?;
-    let inputs: [(&str, &Path); 3] = [
-        ("--board", &a.board),
-        ("--positions", &a.positions),
-        ("--scene", scene_path),
-    ];
+    let inputs: [(&str, &Path); 3] =
+        [("--board", &a.board), ("--positions", &a.positions), ("--scene", scene_path)];
     if a.output.is_dir() {
         // A new folder cannot hold an input; an existing one might.
         for name in ["CAPTURES.csv", "board.json"] {
@@ -169,10 +166,7 @@ pub fn run(a: Args) -> Result<()> {
             plan.placements.len()
         );
     }
-    write_bytes(
-        &a.output.join("board.json"),
-        plan.board.to_json().as_bytes(),
-    )?;
+    write_bytes(&a.output.join("board.json"), plan.board.to_json().as_bytes())?;
     write_bytes(
         &a.output.join("CAPTURES.csv"),
         collect::captures_csv(&plan, &captured).as_bytes(),

@@ -83,24 +83,11 @@ fn plan(seed: u64, restarts: usize) -> Plan {
 pub fn run_case(n: u8, dir: &Path, seed: u64, restarts: usize) -> Result<CaseResult> {
     let rig = presets::case(n).ok_or_else(|| anyhow!("no case {n}"))?;
     let sim = |kind, points, seed| {
-        simulate(
-            &rig,
-            kind,
-            &SimOptions {
-                points,
-                noise_px: 0.0,
-                seed,
-                ..SimOptions::default()
-            },
-        )
+        simulate(&rig, kind, &SimOptions { points, noise_px: 0.0, seed, ..SimOptions::default() })
     };
     let train = sim(SetKind::Train, 0, 0)?;
     let test = sim(SetKind::Test, 0, 0)?;
-    let vtrain = sim(
-        SetKind::Volume,
-        VOLUME_TRAIN_POINTS,
-        volume_train_seed(seed, n),
-    )?;
+    let vtrain = sim(SetKind::Volume, VOLUME_TRAIN_POINTS, volume_train_seed(seed, n))?;
     let vtest = sim(SetKind::Volume, VOLUME_POINTS, volume_test_seed(seed, n))?;
     write_set(dir, &format!("case{n}_train.csv"), &train)?;
     write_set(dir, &format!("case{n}_test.csv"), &test)?;
@@ -120,38 +107,21 @@ pub fn run_case(n: u8, dir: &Path, seed: u64, restarts: usize) -> Result<CaseRes
         model_depths(b, d).map_err(|e| anyhow!("case {n}: the model failed: {e:?}"))
     };
     let mut test_methods = vec![
-        Method {
-            name: "network".into(),
-            z: net(&t.blob, &test)?,
-        },
+        Method { name: "network".into(), z: net(&t.blob, &test)? },
         Method {
             name: "trad. (thesis Phi)".into(),
             z: traditional_depths(&Calibration::BUILT_IN, &test),
         },
-        Method {
-            name: "optimal (true rig)".into(),
-            z: optimal_depths(&rig, &test),
-        },
+        Method { name: "optimal (true rig)".into(), z: optimal_depths(&rig, &test) },
     ];
     if let Some(c) = &t.blob.fallback {
-        test_methods.push(Method {
-            name: "trad. (refit Phi)".into(),
-            z: traditional_depths(c, &test),
-        });
+        test_methods
+            .push(Method { name: "trad. (refit Phi)".into(), z: traditional_depths(c, &test) });
     }
     let vol_methods = [
-        Method {
-            name: "net (volume-trained)".into(),
-            z: net(&tv.blob, &vtest)?,
-        },
-        Method {
-            name: "net (board-trained)".into(),
-            z: net(&t.blob, &vtest)?,
-        },
-        Method {
-            name: "optimal (true rig)".into(),
-            z: optimal_depths(&rig, &vtest),
-        },
+        Method { name: "net (volume-trained)".into(), z: net(&tv.blob, &vtest)? },
+        Method { name: "net (board-trained)".into(), z: net(&t.blob, &vtest)? },
+        Method { name: "optimal (true rig)".into(), z: optimal_depths(&rig, &vtest) },
     ];
     Ok(CaseResult {
         case: n,
@@ -160,10 +130,7 @@ pub fn run_case(n: u8, dir: &Path, seed: u64, restarts: usize) -> Result<CaseRes
         train_pct: t.outcome.train_error_pct,
         volume_train_pct: tv.outcome.train_error_pct,
         refit_phi: t.fallback.map(|f| f.phi),
-        train_s: [
-            t.outcome.elapsed.as_secs_f64(),
-            tv.outcome.elapsed.as_secs_f64(),
-        ],
+        train_s: [t.outcome.elapsed.as_secs_f64(), tv.outcome.elapsed.as_secs_f64()],
     })
 }
 

@@ -41,24 +41,16 @@ pub struct Args {
 }
 
 fn image(d: &Depth, channels: u8, data: Vec<f32>) -> FloatImage {
-    FloatImage {
-        width: d.matches.width,
-        height: d.matches.height,
-        channels,
-        data,
-    }
+    FloatImage { width: d.matches.width, height: d.matches.height, channels, data }
 }
 
 /// `hvs depth`.
 pub fn run(a: Args) -> Result<()> {
     let inputs: Vec<(&str, &Path)> = a.pair.inputs().to_vec();
     let mut outputs: Vec<(&str, &Path)> = vec![("-o", &a.output)];
-    for (flag, p) in [
-        ("--matches", &a.matches),
-        ("--xyz", &a.xyz),
-        ("--colour", &a.colour),
-        ("--ply", &a.ply),
-    ] {
+    for (flag, p) in
+        [("--matches", &a.matches), ("--xyz", &a.xyz), ("--colour", &a.colour), ("--ply", &a.ply)]
+    {
         if let Some(p) = p {
             outputs.push((flag, p));
         }
@@ -71,9 +63,7 @@ pub fn run(a: Args) -> Result<()> {
     files.push((&a.output, pfm_bytes(&image(&d, 1, z.clone()))));
     if let Some(p) = &a.matches {
         let m = &d.matches;
-        let data = (0..m.ur.len())
-            .flat_map(|k| [m.ur[k], m.vr[k], m.conf[k]])
-            .collect();
+        let data = (0..m.ur.len()).flat_map(|k| [m.ur[k], m.vr[k], m.conf[k]]).collect();
         files.push((p, pfm_bytes(&image(&d, 3, data))));
     }
     if let Some(p) = &a.xyz {

@@ -80,11 +80,7 @@ pub fn preflight(cfg: &EmulatorConfig) -> Result<()> {
         _ => std::path::Path::new("."),
     };
     if !dir.is_dir() {
-        bail!(
-            "--servo-log {}: the directory {} does not exist",
-            log.display(),
-            dir.display()
-        );
+        bail!("--servo-log {}: the directory {} does not exist", log.display(), dir.display());
     }
     if log.is_dir() {
         bail!("--servo-log {}: is a directory", log.display());
@@ -96,9 +92,8 @@ pub fn preflight(cfg: &EmulatorConfig) -> Result<()> {
     let addrs: Vec<std::net::SocketAddr> = std::net::ToSocketAddrs::to_socket_addrs(&cfg.listen)
         .map_err(|e| anyhow!("--listen {}: not a HOST:PORT address ({e})", cfg.listen))?
         .collect();
-    let first = addrs
-        .first()
-        .ok_or_else(|| anyhow!("--listen {}: the host has no address", cfg.listen))?;
+    let first =
+        addrs.first().ok_or_else(|| anyhow!("--listen {}: the host has no address", cfg.listen))?;
     // Bound and released at once: QEMU binds it next.
     std::net::TcpListener::bind(first)
         .map_err(|e| anyhow!("--listen {}: cannot listen there: {e}", cfg.listen))?;

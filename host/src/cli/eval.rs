@@ -76,10 +76,8 @@ pub fn run(a: Args) -> Result<()> {
         z: y.chunks_exact(no).map(|o| o[no - 1] as f64).collect(),
     }];
     if let Some(cal) = &blob.fallback {
-        methods.push(Method {
-            name: "traditional".into(),
-            z: traditional_depths(cal, &table.data),
-        });
+        methods
+            .push(Method { name: "traditional".into(), z: traditional_depths(cal, &table.data) });
     }
     let floor = a.floor.rig()?;
     let lens = a.lens.lens()?;
@@ -96,10 +94,8 @@ pub fn run(a: Args) -> Result<()> {
         } else {
             &table.data
         };
-        methods.push(Method {
-            name: "optimal".into(),
-            z: optimal_depths_lens(rig, lens, floor_data),
-        });
+        methods
+            .push(Method { name: "optimal".into(), z: optimal_depths_lens(rig, lens, floor_data) });
     }
     let ev = evaluate(&table.data, &methods);
     let mut o = std::io::stdout().lock();
@@ -132,10 +128,7 @@ pub fn run(a: Args) -> Result<()> {
             c.phi,
             2.0 * c.half_baseline
         ),
-        None => writeln!(
-            o,
-            "traditional: none (the model holds no fallback calibration)"
-        ),
+        None => writeln!(o, "traditional: none (the model holds no fallback calibration)"),
     }?;
     if floor.is_some() {
         writeln!(

@@ -54,15 +54,13 @@ pub struct Args {
 enum Which {
     /// Every experiment of the thesis' chapter 4 (Figs. 4.3-4.22) plus BP vs. LM and pixel
     /// noise, on the four simulated camera cases.
-    #[command(
-        long_about = "Every experiment of the thesis' chapter 4 on the simulated HVS: \
+    #[command(long_about = "Every experiment of the thesis' chapter 4 on the simulated HVS: \
         Phi by eq. 4.1-3 (Figs. 4.3, 4.4), the traditional method in cases I-IV (4.8-4.11), the \
         4-5-3 net and ten nets on case IV (4.12, 4.13), hidden neurons 1-10 with one or three \
         outputs (4.14, 4.15), the proposed net in cases I-IV (4.16-4.19), fewer training depths \
         (4.20-4.22); beyond the thesis, back-propagation vs. Levenberg-Marquardt and e_ma vs. \
         pixel noise. Each writes a CSV and a plot (SVG, PNG) into DIR, and RESULTS.md puts \
-        the thesis' reported values beside ours. Same seed, same CSV bytes."
-    )]
+        the thesis' reported values beside ours. Same seed, same CSV bytes.")]
     Thesis(ThesisArgs),
     /// Beyond the thesis: depth while the eyes move. The thesis net at other head postures, a
     /// posture-aware net per posture band against the floor, its hidden neurons, lens
@@ -72,8 +70,7 @@ enum Which {
     /// Beyond the thesis: the default of `hvs train`, the thesis net, a DLT fit and the floor
     /// in every pixel regime (rounded, sub-pixel, exact, barrel lens; thesis and 9x6 boards),
     /// against pixel noise and lens distortion, and on corners detected in rendered images.
-    #[command(
-        long_about = "Depth accuracy in every pixel regime: for each training board \
+    #[command(long_about = "Depth accuracy in every pixel regime: for each training board \
         (the thesis' 4x3 at 2 cm, a 9x6 board at 6 cm), pixel regime (int: rounded; sub: \
         Gaussian 0.05 px, unrounded; exact; barrel: rounded through k1 = -0.1 lenses) and thesis \
         case I-IV, the e_ma on random volume points of the floor (optimal triangulation with the \
@@ -82,8 +79,7 @@ enum Which {
         noise 0-0.5 px and against k1 0 to -0.2 (case IV, plots); corners detected in rendered \
         images of the 9x6 board (mild, heavy blur and noise, barrel). Writes DIR/ACCURACY.md and \
         DIR/accuracy/ (CSVs, SVG and PNG plots, timing.csv). Seeds from --seed-base, the \
-        held-out 1000000 by default. Same seeds, same CSV bytes."
-    )]
+        held-out 1000000 by default. Same seeds, same CSV bytes.")]
     Accuracy(AccuracyArgs),
 }
 
@@ -112,12 +108,7 @@ struct AccuracyArgs {
 #[derive(Debug, clap::Args)]
 struct PostureArgs {
     /// Output directory (created if missing).
-    #[arg(
-        short = 'o',
-        long,
-        value_name = "DIR",
-        default_value = "docs/results/posture"
-    )]
+    #[arg(short = 'o', long, value_name = "DIR", default_value = "docs/results/posture")]
     output: PathBuf,
     /// Seed of every random step (postures, points, training starts); 1 is the seed of
     /// docs/posture-study.md.
@@ -166,10 +157,7 @@ fn posture_study(a: PostureArgs) -> Result<()> {
 }
 
 fn thesis(a: ThesisArgs) -> Result<()> {
-    let cfg = Config {
-        seed: a.seed,
-        quick: a.quick,
-    };
+    let cfg = Config { seed: a.seed, quick: a.quick };
     study(&cfg, &a.output)
 }
 
@@ -204,10 +192,7 @@ mod tests {
             .to_string();
         assert!(help.contains("on thesis case III: the thesis'"), "{help}");
         assert!(help.contains("(5, 8, 12, 16, 24, 32)"), "{help}");
-        assert!(
-            help.contains("9-16-3 net") && help.contains("within 20 %"),
-            "{help}"
-        );
+        assert!(help.contains("9-16-3 net") && help.contains("within 20 %"), "{help}");
         assert!(help.contains("k1 0 to -0.5"), "{help}");
         assert!(!help.contains("  "), "a lost line continuation: {help}");
     }

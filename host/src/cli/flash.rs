@@ -62,17 +62,11 @@ pub fn run(args: &Args) -> Result<()> {
     check_chip(&args.chip)?;
     let req = SlotRequest::from(args.slot);
     if args.dry_run {
-        print!(
-            "{}",
-            dry_run_plan(&args.model, &blob, bytes.len(), &args.chip, req)?
-        );
+        print!("{}", dry_run_plan(&args.model, &blob, bytes.len(), &args.chip, req)?);
         return Ok(());
     }
-    let target = FlashTarget {
-        chip: args.chip.clone(),
-        probe: args.probe.clone(),
-        no_reset: args.no_reset,
-    };
+    let target =
+        FlashTarget { chip: args.chip.clone(), probe: args.probe.clone(), no_reset: args.no_reset };
     flash_with_probe(&target, &blob, req)
 }
 

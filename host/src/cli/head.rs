@@ -127,21 +127,13 @@ pub fn run(args: &Args) -> Result<()> {
     // A Look from images is located before the head is contacted too.
     let look_point = match &args.command {
         HeadCommand::Look {
-            model: Some(m),
-            left: Some(l),
-            right: Some(r),
-            at: Some(at),
-            ..
+            model: Some(m), left: Some(l), right: Some(r), at: Some(at), ..
         } => {
             let p = crate::cli::parse_at(at)?;
             let (found, _, _) = crate::vision::locate_files(m, l, r, &[p])?;
             let f = found[0];
             let Some(rp) = f.right else {
-                bail!(
-                    "--at {at}: no trustworthy match in {}: {}",
-                    r.display(),
-                    f.status
-                );
+                bail!("--at {at}: no trustworthy match in {}: {}", r.display(), f.status);
             };
             eprintln!(
                 "located ({}, {}) in {} at ({}, {}) (score {:.3})",
@@ -165,12 +157,7 @@ pub fn run(args: &Args) -> Result<()> {
             u_r: Some(u_r),
             v_r: Some(v_r),
             ..
-        } => Some(StereoPoint {
-            u_l: *u_l,
-            v_l: *v_l,
-            u_r: *u_r,
-            v_r: *v_r,
-        }),
+        } => Some(StereoPoint { u_l: *u_l, v_l: *v_l, u_r: *u_r, v_r: *v_r }),
         HeadCommand::Look { .. } => {
             bail!("look: give U_L V_L U_R V_R, or --model, --left, --right and --at")
         }
@@ -260,17 +247,9 @@ pub fn run(args: &Args) -> Result<()> {
             writeln!(out, "homing")?;
         }
         HeadCommand::Bench { count } => {
-            let p = StereoPoint {
-                u_l: 330.0,
-                v_l: 241.0,
-                u_r: 300.0,
-                v_r: 239.0,
-            };
+            let p = StereoPoint { u_l: 330.0, v_l: 241.0, u_r: 300.0, v_r: 239.0 };
             let b = expect(
-                link.request(RequestBody::Bench {
-                    point: p,
-                    count: *count,
-                })?,
+                link.request(RequestBody::Bench { point: p, count: *count })?,
                 "Bench",
                 |b| match b {
                     ResponseBody::Bench(d) => Some(d),
@@ -345,10 +324,7 @@ mod tests {
         };
         assert_eq!(
             a.endpoint().unwrap(),
-            Endpoint::Serial {
-                path: "/dev/ttyACM0".into(),
-                baud: 9600
-            }
+            Endpoint::Serial { path: "/dev/ttyACM0".into(), baud: 9600 }
         );
     }
 }

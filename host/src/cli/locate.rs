@@ -27,12 +27,7 @@ pub struct Args {
     #[command(flatten)]
     pub pair: StereoArgs,
     /// Points to locate: a CSV with columns u_l,v_l (other columns passed through).
-    #[arg(
-        long,
-        value_name = "PIXELS.csv",
-        conflicts_with = "at",
-        required_unless_present = "at"
-    )]
+    #[arg(long, value_name = "PIXELS.csv", conflicts_with = "at", required_unless_present = "at")]
     pub points: Option<PathBuf>,
     /// One point U,V of the left image, printed.
     #[arg(long, value_name = "U,V", allow_hyphen_values = true)]
@@ -74,9 +69,8 @@ pub fn read_pixels(path: &Path) -> Result<Pixels> {
     };
     let (ui, vi) = (find("u_l")?, find("v_l")?);
     let own = ["u_l", "v_l", "u_r", "v_r", "x", "y", "z", "score", "status"];
-    let extra_idx: Vec<usize> = (0..names.len())
-        .filter(|&k| !own.contains(&names[k].as_str()))
-        .collect();
+    let extra_idx: Vec<usize> =
+        (0..names.len()).filter(|&k| !own.contains(&names[k].as_str())).collect();
     let mut out = Pixels {
         extra_names: extra_idx.iter().map(|&k| names[k].clone()).collect(),
         points: Vec::new(),
@@ -89,16 +83,12 @@ pub fn read_pixels(path: &Path) -> Result<Pixels> {
         let num = |k: usize, c: &str| -> Result<f64> {
             let t = &rec[k];
             // One rule with every CSV input: NaN and infinities are refused alike.
-            t.parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    anyhow!("{file}:{line}: column \"{c}\": {t:?} is not a finite number")
-                })
+            t.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                anyhow!("{file}:{line}: column \"{c}\": {t:?} is not a finite number")
+            })
         };
         out.points.push([num(ui, "u_l")?, num(vi, "v_l")?]);
-        out.extra
-            .push(extra_idx.iter().map(|&k| rec[k].to_string()).collect());
+        out.extra.push(extra_idx.iter().map(|&k| rec[k].to_string()).collect());
     }
     if out.points.is_empty() {
         bail!("{file}: no points after the header");
@@ -123,11 +113,7 @@ pub fn row(l: &Located) -> String {
         opt(x.map(|x| x[0]).filter(|v| v.is_finite())),
         opt(x.map(|x| x[1]).filter(|v| v.is_finite())),
         opt(x.map(|x| x[2])),
-        if l.score.is_finite() {
-            format!("{:.4}", l.score)
-        } else {
-            String::new()
-        },
+        if l.score.is_finite() { format!("{:.4}", l.score) } else { String::new() },
         l.status
     )
 }

@@ -93,12 +93,7 @@ impl StereoArgs {
 #[derive(Debug, clap::Args)]
 pub struct LensArgs {
     /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
-    #[arg(
-        long,
-        value_name = "K1[,K2]",
-        value_delimiter = ',',
-        allow_hyphen_values = true
-    )]
+    #[arg(long, value_name = "K1[,K2]", value_delimiter = ',', allow_hyphen_values = true)]
     distortion: Option<Vec<f64>>,
 }
 
@@ -172,10 +167,7 @@ impl PostureArgs {
             return Ok(None);
         };
         let sampling = Sampling::from(sampling);
-        let mut p = PostureOptions {
-            sampling,
-            ..PostureOptions::default()
-        };
+        let mut p = PostureOptions { sampling, ..PostureOptions::default() };
         if let Some(l) = &self.posture_levels {
             if sampling == Sampling::Random {
                 bail!("--posture-levels applies to --postures grid or lattice");
@@ -247,16 +239,11 @@ impl RenderArgs {
 
 /// `U,V` -> `[u, v]`, two finite numbers; anything else is bad usage (exit 2).
 pub fn parse_at(s: &str) -> Result<[f64; 2]> {
-    let bad = || {
-        usage(format!(
-            "--at: {s:?} is not U,V (two finite pixel coordinates, e.g. 320.5,240)"
-        ))
-    };
+    let bad =
+        || usage(format!("--at: {s:?} is not U,V (two finite pixel coordinates, e.g. 320.5,240)"));
     let (u, v) = s.split_once(',').ok_or_else(bad)?;
-    let (u, v): (f64, f64) = (
-        u.trim().parse().map_err(|_| bad())?,
-        v.trim().parse().map_err(|_| bad())?,
-    );
+    let (u, v): (f64, f64) =
+        (u.trim().parse().map_err(|_| bad())?, v.trim().parse().map_err(|_| bad())?);
     if !(u.is_finite() && v.is_finite()) {
         return Err(bad());
     }

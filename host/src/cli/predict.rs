@@ -42,10 +42,7 @@ pub fn run(a: Args) -> Result<()> {
     let blob = &m.blob;
     let table = read_set(&a.points, blob.topology.inputs.into(), false)?;
     let (x, y) = infer_table(blob, &table)?;
-    let outside = x
-        .chunks_exact(blob.n_inputs())
-        .filter(|p| !blob.in_range(p))
-        .count();
+    let outside = x.chunks_exact(blob.n_inputs()).filter(|p| !blob.in_range(p)).count();
     if outside > 0 {
         eprintln!(
             "note: {outside} of {} points lie outside the input box the model was trained on; their estimates are extrapolations",
@@ -61,11 +58,7 @@ pub fn run(a: Args) -> Result<()> {
         .map(|(r, (o, _))| (r, o));
     if let Some((first, o)) = far.next() {
         let names = model::output_names(blob.topology.outputs);
-        let shown: Vec<String> = names
-            .iter()
-            .zip(o)
-            .map(|(n, v)| format!("{n} = {v}"))
-            .collect();
+        let shown: Vec<String> = names.iter().zip(o).map(|(n, v)| format!("{n} = {v}")).collect();
         eprintln!(
             "warning: {} of {} estimates lie far outside the outputs the model was trained on (first: {}: {} cm): out of range; is the model damaged, or not for these points?",
             far.count() + 1,

@@ -44,20 +44,10 @@ pub struct Args {
     pub centre: Vec<f64>,
     /// Head posture, degrees: neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan
     /// (written to captures.csv as the joint columns) [default: home, no joint columns].
-    #[arg(
-        long,
-        value_name = "NP,NT,ET,LP,RP",
-        value_delimiter = ',',
-        allow_hyphen_values = true
-    )]
+    #[arg(long, value_name = "NP,NT,ET,LP,RP", value_delimiter = ',', allow_hyphen_values = true)]
     pub joints: Option<Vec<f32>>,
     /// Radial lens distortion of both cameras: K1 or K1,K2 (r in units of half the image width).
-    #[arg(
-        long,
-        value_name = "K1[,K2]",
-        value_delimiter = ',',
-        allow_hyphen_values = true
-    )]
+    #[arg(long, value_name = "K1[,K2]", value_delimiter = ',', allow_hyphen_values = true)]
     pub distortion: Option<Vec<f64>>,
     #[command(flatten)]
     pub camera: RenderArgs,
@@ -97,10 +87,7 @@ pub fn run(a: Args) -> Result<()> {
         [x, y] if x.is_finite() && y.is_finite() => [*x, *y],
         _ => return Err(crate::cli::usage("--centre takes X,Y (cm)")),
     };
-    let depths = a
-        .depths
-        .clone()
-        .unwrap_or_else(|| presets::TRAIN_DEPTHS.to_vec());
+    let depths = a.depths.clone().unwrap_or_else(|| presets::TRAIN_DEPTHS.to_vec());
     let head = HeadRig::new(rig).with_distortion(distortion);
     let bar = std::io::stderr().is_terminal().then(|| {
         let b = indicatif::ProgressBar::new_spinner();
@@ -122,11 +109,7 @@ pub fn run(a: Args) -> Result<()> {
         b.finish_and_clear();
     }
     write_capture_set(&a.output, &set, joints.as_ref())?;
-    let hidden = set
-        .truth_rows()
-        .iter()
-        .filter(|r| !r.corner.in_image)
-        .count();
+    let hidden = set.truth_rows().iter().filter(|r| !r.corner.in_image).count();
     eprintln!(
         "rendered {} stereo pairs of a {cols}x{rows} board ({} cm squares) into {}{}",
         set.captures.len(),
@@ -143,16 +126,10 @@ pub fn run(a: Args) -> Result<()> {
 
 /// `9x6` -> (9, 6).
 fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let bad = || {
-        crate::cli::usage(format!(
-            "--inner-corners: {s:?} is not COLSxROWS (e.g. 9x6)"
-        ))
-    };
+    let bad = || crate::cli::usage(format!("--inner-corners: {s:?} is not COLSxROWS (e.g. 9x6)"));
     let (c, r) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    let (c, r): (u32, u32) = (
-        c.trim().parse().map_err(|_| bad())?,
-        r.trim().parse().map_err(|_| bad())?,
-    );
+    let (c, r): (u32, u32) =
+        (c.trim().parse().map_err(|_| bad())?, r.trim().parse().map_err(|_| bad())?);
     if c < 2 || r < 2 || c > 100 || r > 100 {
         return Err(crate::cli::usage(format!(
             "--inner-corners: {c}x{r}: each side must be from 2 to 100 corners"

@@ -74,12 +74,7 @@ pub struct Args {
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     points: Option<usize>,
     /// Standard deviation of Gaussian pixel noise (px), added before any rounding.
-    #[arg(
-        long,
-        value_name = "S",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "S", default_value_t = 0.0, allow_negative_numbers = true)]
     noise_px: f64,
     /// Seed of the random points and the noise.
     #[arg(long, value_name = "S", default_value_t = 0, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
@@ -114,10 +109,8 @@ pub fn run(a: Args) -> Result<()> {
         let rig: Vec<_> = a.rig.rig.iter().map(|r| ("--rig", r.as_path())).collect();
         check_not_input("-o", out, &rig)?;
     }
-    let rig = a
-        .rig
-        .rig()?
-        .ok_or_else(|| anyhow!("choose a rig with --case N or --rig FILE.json"))?;
+    let rig =
+        a.rig.rig()?.ok_or_else(|| anyhow!("choose a rig with --case N or --rig FILE.json"))?;
     if a.points.is_some() && SetKind::from(a.set) != SetKind::Volume {
         bail!("--points applies to --set volume only (the board sets have a fixed size)");
     }
@@ -140,9 +133,7 @@ pub fn run(a: Args) -> Result<()> {
         return run_postures(&a, rig, &opt, postures);
     }
     let samples = simulate(&rig, a.set.into(), &opt).with_context(|| a.rig.label())?;
-    write_output(a.output.as_deref(), |w| {
-        write_csv(w, &samples).context("cannot write the CSV")
-    })
+    write_output(a.output.as_deref(), |w| write_csv(w, &samples).context("cannot write the CSV"))
 }
 
 /// `hvs simulate` with `--postures` and/or `--distortion`.

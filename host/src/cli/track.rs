@@ -58,9 +58,7 @@ fn parse_target(s: &str) -> Result<TargetMode> {
                 ))),
             }
         }
-        _ => Err(crate::cli::usage(format!(
-            "--target: expected nearest or U,V, got {s:?}"
-        ))),
+        _ => Err(crate::cli::usage(format!("--target: expected nearest or U,V, got {s:?}"))),
     }
 }
 
@@ -80,10 +78,7 @@ pub fn run(a: Args) -> Result<()> {
         )));
     }
     let target = parse_target(&a.target)?;
-    let mut inputs = vec![
-        ("--model", a.model.as_path()),
-        ("--scene", a.scene.as_path()),
-    ];
+    let mut inputs = vec![("--model", a.model.as_path()), ("--scene", a.scene.as_path())];
     crate::data::output::check_outputs(&[("--log", a.log.as_path())], &inputs)?;
     if let Some(dir) = &a.record {
         crate::data::output::check_dir_output("--record", dir)?;
@@ -114,28 +109,18 @@ pub fn run(a: Args) -> Result<()> {
     let mut recorded = Vec::new();
     let mut times = Vec::new();
     let record = a.record.is_some();
-    let rows = track::run(
-        &mut cameras,
-        &mut head,
-        &estimator,
-        &cfg,
-        stop,
-        |frame, row, t| {
-            times.push(t);
-            if record {
-                recorded.push((
-                    crate::vision::png_bytes(&frame.left)?,
-                    crate::vision::png_bytes(&frame.right)?,
-                    row.joints,
-                    frame
-                        .truth
-                        .as_ref()
-                        .and_then(|t| t.scene.objects.first().map(|o| o.centre)),
-                ));
-            }
-            Ok(())
-        },
-    )?;
+    let rows = track::run(&mut cameras, &mut head, &estimator, &cfg, stop, |frame, row, t| {
+        times.push(t);
+        if record {
+            recorded.push((
+                crate::vision::png_bytes(&frame.left)?,
+                crate::vision::png_bytes(&frame.right)?,
+                row.joints,
+                frame.truth.as_ref().and_then(|t| t.scene.objects.first().map(|o| o.centre)),
+            ));
+        }
+        Ok(())
+    })?;
     let text = track::log_csv(&rows);
     write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
     if let Some(dir) = &a.record {
@@ -167,11 +152,7 @@ pub fn run(a: Args) -> Result<()> {
         rows.len(),
         tracked,
         a.log.display(),
-        if stop.load(std::sync::atomic::Ordering::Relaxed) {
-            " (interrupted)"
-        } else {
-            ""
-        }
+        if stop.load(std::sync::atomic::Ordering::Relaxed) { " (interrupted)" } else { "" }
     );
     Ok(())
 }

@@ -228,11 +228,7 @@ pub fn run(a: Args) -> Result<()> {
         restarts: a.restarts,
         threshold_pct: a.threshold,
         seed: a.seed,
-        bp: BpParams {
-            learning_rate: a.learning_rate,
-            e_max: a.e_max,
-            max_cycles: a.max_cycles,
-        },
+        bp: BpParams { learning_rate: a.learning_rate, e_max: a.e_max, max_cycles: a.max_cycles },
         progress: std::io::stderr().is_terminal(),
         family: a.arch.unwrap_or(ArchArg::DEFAULT).family(),
         frame: OutputFrame::Head,
@@ -247,33 +243,20 @@ pub fn run(a: Args) -> Result<()> {
         (None, None) => OutputFrame::Head,
     };
     crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
-    let plan = Plan {
-        config,
-        half_baseline: a.half_baseline,
-        u0: a.u0,
-        v0: a.v0,
-    };
+    let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };
     let mut t = train_model(&table.data, &plan)
         .with_context(|| format!("{}: training failed", a.data.display()))?;
     t.blob.set_image_size(table.image_size);
     let n = model::save(&a.output, &t.blob)?;
     print_summary(&a.data, &a.output, n, &t).with_context(|| {
-        format!(
-            "wrote {} ({n} bytes), but cannot print the summary to stdout",
-            a.output.display()
-        )
+        format!("wrote {} ({n} bytes), but cannot print the summary to stdout", a.output.display())
     })
 }
 
 fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<()> {
     let mut o = std::io::stdout().lock();
     o.write_all(crate::train::model::summary(&data.display().to_string(), t).as_bytes())?;
-    writeln!(
-        o,
-        "wrote {} ({bytes} bytes, generation {})",
-        out.display(),
-        t.blob.generation
-    )?;
+    writeln!(o, "wrote {} ({bytes} bytes, generation {})", out.display(), t.blob.generation)?;
     o.flush()?;
     Ok(())
 }
@@ -360,27 +343,19 @@ fn run_update(a: &UpdateArgs) -> Result<()> {
             );
         }
     }
-    let up = update(b, &table.data, a.seed).with_context(|| {
-        format!(
-            "{}: cannot update {from} with these points",
-            a.data.display()
-        )
-    })?;
+    let up = update(b, &table.data, a.seed)
+        .with_context(|| format!("{}: cannot update {from} with these points", a.data.display()))?;
     let mut blob = up.blob.clone();
     blob.generation = b.generation.saturating_add(1);
     // The chain back to the model this one came from, and the images' size it was trained at.
-    blob.set_parent(Some(Parent {
-        crc: old.crc,
-        generation: b.generation,
-    }));
+    blob.set_parent(Some(Parent { crc: old.crc, generation: b.generation }));
     blob.set_image_size(b.image_size().or(table.image_size));
     blob.matcher = crate::train::matcher::matcher_geometry(&up.learned).or(b.matcher);
     let (half_baseline, u0, v0) = a.fallback;
     // The traditional method's calibration follows a camera that moved; otherwise it stays.
     if up.cameras.iter().any(|c| c.moved) {
-        blob.fallback = fallback::fit(&table.data, half_baseline, u0, v0)
-            .map(|f| f.calibration)
-            .or(b.fallback);
+        blob.fallback =
+            fallback::fit(&table.data, half_baseline, u0, v0).map(|f| f.calibration).or(b.fallback);
     }
     let n = model::save(&a.output, &blob)?;
     let print = || -> Result<()> {
@@ -405,34 +380,19 @@ fn run_update(a: &UpdateArgs) -> Result<()> {
         for (side, c) in ["left", "right"].iter().zip(&up.cameras) {
             writeln!(o, "{side} camera: {}", camera_line(c))?;
         }
-        writeln!(
-            o,
-            "learned {} samples of the old volume through the cameras",
-            up.learned.len()
-        )?;
-        writeln!(
-            o,
-            "wrote {} ({n} bytes, generation {})",
-            a.output.display(),
-            blob.generation
-        )?;
+        writeln!(o, "learned {} samples of the old volume through the cameras", up.learned.len())?;
+        writeln!(o, "wrote {} ({n} bytes, generation {})", a.output.display(), blob.generation)?;
         o.flush()?;
         Ok(())
     };
     print().with_context(|| {
-        format!(
-            "wrote {} ({n} bytes), but cannot print the summary to stdout",
-            a.output.display()
-        )
+        format!("wrote {} ({n} bytes), but cannot print the summary to stdout", a.output.display())
     })
 }
 
 fn camera_line(c: &CameraCheck) -> String {
-    let what = if c.moved {
-        format!("moved (up to {:.2} px)", c.max_move_px)
-    } else {
-        "held".to_string()
-    };
+    let what =
+        if c.moved { format!("moved (up to {:.2} px)", c.max_move_px) } else { "held".to_string() };
     format!(
         "{what}: old camera {:.3} px rms on the new points, a homography {:.3} px (F = {:.1})",
         c.old_rms_px, c.fit_rms_px, c.f

@@ -36,12 +36,7 @@ pub struct Args {
     #[arg(long, value_name = "R.png", requires = "left")]
     pub right: Option<PathBuf>,
     /// The board of a capture set (as `hvs board detect`).
-    #[arg(
-        long,
-        value_name = "BOARD.json",
-        requires = "captures",
-        conflicts_with = "left"
-    )]
+    #[arg(long, value_name = "BOARD.json", requires = "captures", conflicts_with = "left")]
     pub board: Option<PathBuf>,
     /// The capture set (as `hvs board detect`).
     #[arg(long, value_name = "CAPTURES.csv", requires = "board")]
@@ -86,12 +81,7 @@ pub fn run(a: Args) -> Result<()> {
             "give --left L --right R, --board BOARD.json --captures CAPTURES.csv, or --scene SCENE.json"
         ),
     };
-    let options = RetrainOptions {
-        restarts: a.restarts,
-        seed: a.seed,
-    };
+    let options = RetrainOptions { restarts: a.restarts, seed: a.seed };
     let session = Session::open(&a.model, &source, options)?;
-    serve(session, listen, |url| {
-        crate::cli::say(format_args!("hvs view: serving {url}"))
-    })
+    serve(session, listen, |url| crate::cli::say(format_args!("hvs view: serving {url}")))
 }

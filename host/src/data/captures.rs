@@ -167,10 +167,7 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
                 bail!("{file}:{line}: column \"z\": {z} cm is not a depth in front of the head (must be > 0)");
             }
         }
-        let xy = [
-            opt_num(xi, "x")?.unwrap_or(0.0),
-            opt_num(yi, "y")?.unwrap_or(0.0),
-        ];
+        let xy = [opt_num(xi, "x")?.unwrap_or(0.0), opt_num(yi, "y")?.unwrap_or(0.0)];
         let mut extra = Vec::with_capacity(extra_idx.len());
         for (k, c) in extra_idx.iter().zip(&extra_columns) {
             if JOINT_COLUMNS.contains(&c.as_str()) {
@@ -192,12 +189,7 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
     if captures.is_empty() {
         bail!("{file}: no captures after the header");
     }
-    Ok(CaptureSet {
-        path: path.to_path_buf(),
-        has_z: zi.is_some(),
-        extra_columns,
-        captures,
-    })
+    Ok(CaptureSet { path: path.to_path_buf(), has_z: zi.is_some(), extra_columns, captures })
 }
 
 #[cfg(test)]
@@ -210,10 +202,7 @@ mod tests {
         let p = dir.path().join("captures.csv");
         std::fs::write(&p, text).unwrap();
         read(&p).map_err(|e| {
-            anyhow!(
-                "{}",
-                format!("{e:#}").replace(&dir.path().display().to_string(), "DIR")
-            )
+            anyhow!("{}", format!("{e:#}").replace(&dir.path().display().to_string(), "DIR"))
         })
     }
 
@@ -240,13 +229,9 @@ mod tests {
         let s = read_text(&format!("left,right,{h}\na,b,1,2,3,4,5\n")).unwrap();
         assert_eq!(s.extra_columns, JOINT_COLUMNS);
         assert!(!s.has_z);
-        let e = read_text("left,right,neck_pan\na,b,1\n")
-            .unwrap_err()
-            .to_string();
+        let e = read_text("left,right,neck_pan\na,b,1\n").unwrap_err().to_string();
         assert!(e.contains(":1:") && e.contains("neck_tilt"), "{e}");
-        let e = read_text(&format!("left,right,{h}\na,b,1,2,x,4,5\n"))
-            .unwrap_err()
-            .to_string();
+        let e = read_text(&format!("left,right,{h}\na,b,1,2,x,4,5\n")).unwrap_err().to_string();
         assert!(e.contains(":2:") && e.contains("eye_tilt"), "{e}");
     }
 

@@ -100,9 +100,7 @@ pub fn read_set_from<R: Read>(
 ) -> Result<Table> {
     let file = name.display().to_string();
     let mut bytes = Vec::new();
-    reader
-        .read_to_end(&mut bytes)
-        .with_context(|| format!("{file}: cannot read"))?;
+    reader.read_to_end(&mut bytes).with_context(|| format!("{file}: cannot read"))?;
     let mut lines_of = LineCounter::new(&bytes);
     let mut rdr = csv_reader(&bytes);
     let header = rdr.byte_headers().map_err(|e| csv_error(&file, e))?.clone();
@@ -110,10 +108,8 @@ pub fn read_set_from<R: Read>(
         bail!("{file}: empty file (expected a header row naming the columns u_l,v_l,u_r,v_r)");
     }
     let hl = lines_of.line_at(header.position().map_or(0, |p| p.byte()));
-    let names: Vec<String> = header
-        .iter()
-        .map(|h| String::from_utf8_lossy(h).into_owned())
-        .collect();
+    let names: Vec<String> =
+        header.iter().map(|h| String::from_utf8_lossy(h).into_owned()).collect();
     check_unique_names(&file, hl, &names, true)?;
     let find = |c: &str| names.iter().position(|n| n == c);
     let require = |c: &str| find(c).ok_or_else(|| missing_column(&file, hl, c, &names));
@@ -146,11 +142,7 @@ pub fn read_set_from<R: Read>(
             tgt_cols.push((require(c)?, c));
         }
     }
-    let kind = if with_joints {
-        InputKind::StereoJoints
-    } else {
-        InputKind::Stereo
-    };
+    let kind = if with_joints { InputKind::StereoJoints } else { InputKind::Stereo };
     let mut data = Dataset::new(kind);
     let mut lines = Vec::new();
     let mut rec = csv::ByteRecord::new();
@@ -208,12 +200,7 @@ pub fn read_set_from<R: Read>(
     if data.is_empty() {
         bail!("{file}: no data rows after the header");
     }
-    Ok(Table {
-        path: name.to_path_buf(),
-        data,
-        lines,
-        image_size,
-    })
+    Ok(Table { path: name.to_path_buf(), data, lines, image_size })
 }
 
 /// 1-based line numbers of records from their byte offsets. The csv crate's own line count
@@ -227,11 +214,7 @@ pub(crate) struct LineCounter<'a> {
 
 impl<'a> LineCounter<'a> {
     pub(crate) fn new(bytes: &'a [u8]) -> Self {
-        LineCounter {
-            bytes,
-            pos: 0,
-            line: 1,
-        }
+        LineCounter { bytes, pos: 0, line: 1 }
     }
 
     pub(crate) fn line_at(&mut self, offset: u64) -> u64 {
@@ -315,17 +298,10 @@ pub(crate) fn joint_columns_present(
     hl: u64,
     find: impl Fn(&str) -> Option<usize>,
 ) -> Result<Vec<&'static str>> {
-    let present: Vec<&str> = JOINT_COLUMNS
-        .iter()
-        .copied()
-        .filter(|c| find(c).is_some())
-        .collect();
+    let present: Vec<&str> = JOINT_COLUMNS.iter().copied().filter(|c| find(c).is_some()).collect();
     if !present.is_empty() && present.len() < JOINT_COLUMNS.len() {
-        let missing = JOINT_COLUMNS
-            .iter()
-            .find(|c| !present.contains(c))
-            .copied()
-            .unwrap_or_default();
+        let missing =
+            JOINT_COLUMNS.iter().find(|c| !present.contains(c)).copied().unwrap_or_default();
         bail!(
             "{file}:{hl}: missing column \"{missing}\" (a posture-aware set needs all of {})",
             JOINT_COLUMNS.join(",")
@@ -347,9 +323,9 @@ pub(crate) fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {
     let what = match e.kind() {
         csv::ErrorKind::Io(io) => format!("cannot read: {io}"),
         csv::ErrorKind::Utf8 { .. } => "not valid UTF-8".to_string(),
-        csv::ErrorKind::UnequalLengths {
-            expected_len, len, ..
-        } => format!("row has {len} fields, the header has {expected_len}"),
+        csv::ErrorKind::UnequalLengths { expected_len, len, .. } => {
+            format!("row has {len} fields, the header has {expected_len}")
+        }
         _ => e.to_string(),
     };
     match line {
@@ -444,16 +420,8 @@ mod tests {
                 true,
                 "d.csv:2: column \"z\": \"1e999\" is not a finite number",
             ),
-            (
-                format!("{h}{ok}1,2,3,4,5,6\n"),
-                true,
-                "d.csv:3: row has 6 fields, the header has 7",
-            ),
-            (
-                format!("{h}1,2,,4,5,6,7\n"),
-                true,
-                "d.csv:2: column \"u_r\" is empty",
-            ),
+            (format!("{h}{ok}1,2,3,4,5,6\n"), true, "d.csv:3: row has 6 fields, the header has 7"),
+            (format!("{h}1,2,,4,5,6,7\n"), true, "d.csv:2: column \"u_r\" is empty"),
             (
                 "u_l,v_l,u_r,x,y,z\n1,2,3,5,6,7\n".into(),
                 true,
@@ -522,32 +490,15 @@ mod tests {
             std::fs::write(&p, text).unwrap();
             p
         };
-        let p = tmp(
-            "ok.csv",
-            "x,u_r,v_r,u_l,v_l\n9,289,240,335,240.5\n\n1,1,2,3,4\n",
-        );
+        let p = tmp("ok.csv", "x,u_r,v_r,u_l,v_l\n9,289,240,335,240.5\n\n1,1,2,3,4\n");
         let pts = read_stereo_points(&p).unwrap();
         assert_eq!(pts.len(), 2);
-        assert_eq!(
-            pts[0],
-            (
-                2,
-                StereoPoint {
-                    u_l: 335.0,
-                    v_l: 240.5,
-                    u_r: 289.0,
-                    v_r: 240.0
-                }
-            )
-        );
+        assert_eq!(pts[0], (2, StereoPoint { u_l: 335.0, v_l: 240.5, u_r: 289.0, v_r: 240.0 }));
         assert_eq!(pts[1].0, 4);
 
         let p = tmp("bad.csv", "u_l,v_l,u_r,v_r\n1,2,3,4\n1,2,abc,4\n");
         let e = format!("{:#}", read_stereo_points(&p).unwrap_err());
-        assert!(
-            e.contains("bad.csv:3") && e.contains("u_r") && e.contains("abc"),
-            "{e}"
-        );
+        assert!(e.contains("bad.csv:3") && e.contains("u_r") && e.contains("abc"), "{e}");
         let p = tmp("short.csv", "u_l,v_l,u_r,v_r\n1,2,3\n");
         let e = format!("{:#}", read_stereo_points(&p).unwrap_err());
         assert!(e.contains("short.csv:2"), "{e}");

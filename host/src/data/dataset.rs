@@ -6,13 +6,8 @@ use hvs_shared::runtime::blob::InputKind;
 /// Names of the four pixel columns, in input order.
 pub const PIXEL_COLUMNS: [&str; 4] = ["u_l", "v_l", "u_r", "v_r"];
 /// Names of the five joint-angle columns (degrees) of posture-aware sets, in input order.
-pub const JOINT_COLUMNS: [&str; 5] = [
-    "neck_pan",
-    "neck_tilt",
-    "eye_tilt",
-    "left_eye_pan",
-    "right_eye_pan",
-];
+pub const JOINT_COLUMNS: [&str; 5] =
+    ["neck_pan", "neck_tilt", "eye_tilt", "left_eye_pan", "right_eye_pan"];
 /// Names of the ground-truth columns (cm).
 pub const TARGET_COLUMNS: [&str; 3] = ["x", "y", "z"];
 
@@ -30,11 +25,7 @@ pub struct Dataset {
 impl Dataset {
     /// An empty set of the given input kind.
     pub fn new(kind: InputKind) -> Self {
-        Dataset {
-            n_inputs: kind.len(),
-            inputs: Vec::new(),
-            targets: Vec::new(),
-        }
+        Dataset { n_inputs: kind.len(), inputs: Vec::new(), targets: Vec::new() }
     }
     /// Number of rows.
     pub fn len(&self) -> usize {

@@ -72,10 +72,7 @@ fn explain(bytes: &[u8], e: BlobError) -> String {
             blob::MAGIC
         ),
         BlobError::Truncated => match blob::framed_len(bytes) {
-            Ok(n) => format!(
-                ": the header announces {n} bytes, the file has {}",
-                bytes.len()
-            ),
+            Ok(n) => format!(": the header announces {n} bytes, the file has {}", bytes.len()),
             Err(_) => format!(": only {} bytes", bytes.len()),
         },
         BlobError::BadCrc => match blob::framed_len(bytes) {

@@ -188,11 +188,7 @@ pub fn check_dir(path: &Path) -> Result<()> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        bail!(
-            "{}: the directory {} does not exist",
-            path.display(),
-            dir.display()
-        );
+        bail!("{}: the directory {} does not exist", path.display(), dir.display());
     }
     Ok(())
 }
@@ -427,18 +423,12 @@ where
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let fname = path
-        .file_name()
-        .ok_or_else(|| anyhow!("{}: not a file name", path.display()))?;
+    let fname = path.file_name().ok_or_else(|| anyhow!("{}: not a file name", path.display()))?;
     let prefix = temp_prefix(&fname.to_string_lossy());
     let mut builder = tempfile::Builder::new();
     builder.prefix(&prefix).suffix(".tmp");
     if !dir.is_dir() {
-        bail!(
-            "{}: the directory {} does not exist",
-            path.display(),
-            dir.display()
-        );
+        bail!("{}: the directory {} does not exist", path.display(), dir.display());
     }
     remove_stale(&dir);
     // Registered for removal by SIGINT/SIGTERM/SIGHUP *before* it is created (a signal
@@ -467,14 +457,10 @@ where
     let _pending = pending;
     let mut w = BufWriter::new(tmp);
     body(&mut w)?;
-    let tmp = w
-        .into_inner()
-        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error()))?;
-    tmp.as_file()
-        .sync_all()
-        .with_context(|| format!("{}: cannot write", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))?;
+    let tmp =
+        w.into_inner().map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error()))?;
+    tmp.as_file().sync_all().with_context(|| format!("{}: cannot write", path.display()))?;
+    tmp.persist(path).map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))?;
     Ok(())
 }
 
@@ -498,8 +484,7 @@ where
             e.context(format!("{shown}: cannot write"))
         }
     })?;
-    w.flush()
-        .with_context(|| format!("{}: cannot write", path.display()))?;
+    w.flush().with_context(|| format!("{}: cannot write", path.display()))?;
     Ok(())
 }
 
@@ -523,8 +508,7 @@ where
 /// Writes bytes to `path` atomically.
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomically(path, |w| {
-        w.write_all(bytes)
-            .with_context(|| format!("{}: cannot write", path.display()))
+        w.write_all(bytes).with_context(|| format!("{}: cannot write", path.display()))
     })
 }
 
@@ -558,10 +542,7 @@ mod tests {
         assert_eq!(target(&f).unwrap(), Target::Atomic(f.clone()));
         std::fs::write(&f, "x").unwrap();
         assert_eq!(target(&f).unwrap(), Target::Atomic(f.clone()));
-        assert_eq!(
-            target(Path::new("/dev/null")).unwrap(),
-            Target::InPlace("/dev/null".into())
-        );
+        assert_eq!(target(Path::new("/dev/null")).unwrap(), Target::InPlace("/dev/null".into()));
         assert_eq!(target(Path::new("/dev/stdout")).unwrap(), Target::Stdout);
         assert!(target(dir.path()).is_err());
         #[cfg(unix)]
@@ -579,17 +560,12 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let l = dir.path().join("l.csv");
         std::os::unix::fs::symlink("real.csv", &l).unwrap();
-        assert_eq!(
-            target(&l).unwrap(),
-            Target::Atomic(dir.path().join("real.csv"))
-        );
+        assert_eq!(target(&l).unwrap(), Target::Atomic(dir.path().join("real.csv")));
         let sub = dir.path().join("sub");
         std::fs::create_dir(&sub).unwrap();
         let a = dir.path().join("a.csv");
         let via = sub.join("..").join("a.csv");
-        let e = check_distinct(&[("-o", &a), ("--overlay", &via)])
-            .unwrap_err()
-            .to_string();
+        let e = check_distinct(&[("-o", &a), ("--overlay", &via)]).unwrap_err().to_string();
         assert!(e.contains("are the same file"), "{e}");
         // Through a (dangling) link to the same name, not yet written.
         let e = check_distinct(&[("-o", &l), ("--x", &dir.path().join("real.csv"))])
@@ -597,16 +573,10 @@ mod tests {
             .to_string();
         assert!(e.contains("are the same file"), "{e}");
         check_distinct(&[("-o", &a), ("--overlay", &dir.path().join("b.csv"))]).unwrap();
-        check_distinct(&[
-            ("-o", Path::new("/dev/null")),
-            ("--x", Path::new("/dev/null")),
-        ])
-        .unwrap();
+        check_distinct(&[("-o", Path::new("/dev/null")), ("--x", Path::new("/dev/null"))]).unwrap();
         // An input reached through sub/../ is refused as an output.
         std::fs::write(&a, "x").unwrap();
-        let e = check_outputs(&[("-o", &via)], &[("--captures", &a)])
-            .unwrap_err()
-            .to_string();
+        let e = check_outputs(&[("-o", &via)], &[("--captures", &a)]).unwrap_err().to_string();
         assert!(e.contains("is also the --captures input"), "{e}");
     }
 
@@ -624,11 +594,7 @@ mod tests {
         assert!(e.contains("is also the --points input"), "{e}");
         check_not_input("-o", &b, &[("--points", &a)]).unwrap();
         check_not_input("-o", &dir.path().join("new.csv"), &[("--points", &a)]).unwrap();
-        check_not_input(
-            "-o",
-            Path::new("/dev/null"),
-            &[("--points", Path::new("/dev/null"))],
-        )
-        .unwrap();
+        check_not_input("-o", Path::new("/dev/null"), &[("--points", Path::new("/dev/null"))])
+            .unwrap();
     }
 }

@@ -41,21 +41,13 @@ pub fn parse(file: &str, bytes: &[u8]) -> Result<Vec<Placement>> {
         bail!("{file}: empty file (expected a header row naming the columns x,y,z)");
     }
     check_unique_names(file, hl, &names, false)?;
-    if let Some((k, n)) = names
-        .iter()
-        .enumerate()
-        .find(|(_, n)| !["x", "y", "z"].contains(&n.as_str()))
+    if let Some((k, n)) =
+        names.iter().enumerate().find(|(_, n)| !["x", "y", "z"].contains(&n.as_str()))
     {
-        bail!(
-            "{file}:{hl}: column {} \"{n}\": a positions file has the columns x,y,z only",
-            k + 1
-        );
+        bail!("{file}:{hl}: column {} \"{n}\": a positions file has the columns x,y,z only", k + 1);
     }
     let find = |c: &str| {
-        names
-            .iter()
-            .position(|n| n == c)
-            .ok_or_else(|| missing_column(file, hl, c, &names))
+        names.iter().position(|n| n == c).ok_or_else(|| missing_column(file, hl, c, &names))
     };
     let idx = [find("x")?, find("y")?, find("z")?];
     let mut out = Vec::new();

@@ -21,28 +21,11 @@ use hvs_shared::sim::camera::Rig;
 use serde_json::{Map, Value};
 use std::path::Path;
 
-const REQUIRED: [&str; 6] = [
-    "phi_u_left",
-    "phi_u_right",
-    "alpha_left",
-    "alpha_right",
-    "beta0",
-    "phi0",
-];
-const OPTIONAL: [&str; 7] = [
-    "phi_v_left",
-    "phi_v_right",
-    "u0",
-    "v0",
-    "width",
-    "height",
-    "half_baseline_cm",
-];
-const IGNORED: [&str; 3] = [
-    "label",
-    "phi_v_equals_phi_u",
-    "traditional_test_error_range_pct",
-];
+const REQUIRED: [&str; 6] =
+    ["phi_u_left", "phi_u_right", "alpha_left", "alpha_right", "beta0", "phi0"];
+const OPTIONAL: [&str; 7] =
+    ["phi_v_left", "phi_v_right", "u0", "v0", "width", "height", "half_baseline_cm"];
+const IGNORED: [&str; 3] = ["label", "phi_v_equals_phi_u", "traditional_test_error_range_pct"];
 
 /// Reads a rig from `path`; `case` picks an entry of a `cases.json`-like file.
 pub fn load(path: &Path, case: Option<u8>) -> Result<Rig> {
@@ -60,9 +43,7 @@ pub fn parse(text: &str, case: Option<u8>) -> Result<Rig> {
         .and_then(|()| de.end())
         .map_err(|e| anyhow!("invalid JSON: {e}"))?;
     let v: Value = serde_json::from_str(text).map_err(|e| anyhow!("invalid JSON: {e}"))?;
-    let obj = v
-        .as_object()
-        .ok_or_else(|| anyhow!("expected a JSON object"))?;
+    let obj = v.as_object().ok_or_else(|| anyhow!("expected a JSON object"))?;
     match obj.get("cases") {
         Some(cases) => {
             let cases = cases
@@ -84,9 +65,8 @@ pub fn parse(text: &str, case: Option<u8>) -> Result<Rig> {
                 .ok_or_else(|| anyhow!("case \"{key}\": expected an object"))?;
             let mut defaults = Map::new();
             if let Some(img) = obj.get("image") {
-                let img = img
-                    .as_object()
-                    .ok_or_else(|| anyhow!("\"image\": expected an object"))?;
+                let img =
+                    img.as_object().ok_or_else(|| anyhow!("\"image\": expected an object"))?;
                 for k in ["u0", "v0", "width", "height"] {
                     if let Some(x) = img.get(k) {
                         defaults.insert(k.to_string(), x.clone());
@@ -146,10 +126,7 @@ impl<'de> serde::de::Visitor<'de> for Unique {
     }
     fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
         let mut i = 0usize;
-        while seq
-            .next_element_seed(Unique(format!("{}[{i}]", self.0)))?
-            .is_some()
-        {
+        while seq.next_element_seed(Unique(format!("{}[{i}]", self.0)))?.is_some() {
             i += 1;
         }
         Ok(())
@@ -169,11 +146,7 @@ impl<'de> serde::de::Visitor<'de> for Unique {
             }
             map.next_value_seed(Unique(format!(
                 "{}\"{k}\"",
-                if self.0.is_empty() {
-                    String::new()
-                } else {
-                    format!("{}.", self.0)
-                }
+                if self.0.is_empty() { String::new() } else { format!("{}.", self.0) }
             )))?;
         }
         Ok(())
@@ -225,13 +198,11 @@ fn rig_from(obj: &Map<String, Value>) -> Result<Rig> {
     let size = |k: &str, default: u32| -> Result<u32> {
         match obj.get(k) {
             None => Ok(default),
-            Some(v) => v
-                .as_u64()
-                .filter(|n| (1..=65_535).contains(n))
-                .map(|n| n as u32)
-                .ok_or_else(|| {
+            Some(v) => {
+                v.as_u64().filter(|n| (1..=65_535).contains(n)).map(|n| n as u32).ok_or_else(|| {
                     anyhow!("field \"{k}\": expected a whole number of pixels 1..65535, found {v}")
-                }),
+                })
+            }
         }
     };
     let phi_u_left = positive("phi_u_left", req("phi_u_left")?)?;
@@ -323,10 +294,8 @@ mod tests {
         ))
         .starts_with("field \"beta0\": 45 rad is not a small camera angle"));
         assert!(e("[1,2]").starts_with("expected a JSON object"));
-        assert!(e(&format!(
-            "{{\"phi_u_left\": 1, \"u0\": 320, \"u0\": 100, {base}}}"
-        ))
-        .starts_with("invalid JSON: duplicate key \"u0\" in the top-level object"),);
+        assert!(e(&format!("{{\"phi_u_left\": 1, \"u0\": 320, \"u0\": 100, {base}}}"))
+            .starts_with("invalid JSON: duplicate key \"u0\" in the top-level object"),);
         let cases = CASES.replacen("\"beta0\"", "\"beta0\": 1, \"beta0\"", 1);
         let msg = format!("{:#}", parse(&cases, Some(1)).unwrap_err());
         assert!(

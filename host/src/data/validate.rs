@@ -53,11 +53,7 @@ pub fn plausible_values(table: &Table) -> Result<()> {
             let (name, limit, unit) = if c < PIXEL_COLUMNS.len() {
                 (PIXEL_COLUMNS[c], MAX_ABS_PIXEL, "px")
             } else {
-                (
-                    JOINT_COLUMNS[c - PIXEL_COLUMNS.len()],
-                    MAX_ABS_DEG,
-                    "degrees",
-                )
+                (JOINT_COLUMNS[c - PIXEL_COLUMNS.len()], MAX_ABS_DEG, "degrees")
             };
             if v.abs() > limit {
                 bail!(

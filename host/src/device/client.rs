@@ -22,14 +22,10 @@ pub fn connect(endpoint: &Endpoint, timeout: Duration) -> Result<Link> {
 
 /// One estimate through the link; head errors become messages.
 pub fn estimate(link: &mut Link, p: &StereoPoint) -> Result<EstimateData> {
-    expect(
-        link.request(RequestBody::Estimate(*p))?,
-        "Estimate",
-        |b| match b {
-            ResponseBody::Estimate(e) => Some(e),
-            _ => None,
-        },
-    )
+    expect(link.request(RequestBody::Estimate(*p))?, "Estimate", |b| match b {
+        ResponseBody::Estimate(e) => Some(e),
+        _ => None,
+    })
 }
 
 pub fn expect<T>(
@@ -74,11 +70,7 @@ pub fn estimate_row(p: &StereoPoint, e: &EstimateData) -> String {
 
 pub fn write_info(out: &mut impl Write, i: &InfoData) -> Result<()> {
     let f = i.firmware;
-    writeln!(
-        out,
-        "firmware: {}.{}.{} (protocol {})",
-        f.major, f.minor, f.patch, i.protocol
-    )?;
+    writeln!(out, "firmware: {}.{}.{} (protocol {})", f.major, f.minor, f.patch, i.protocol)?;
     writeln!(
         out,
         "mode: {}",
@@ -95,11 +87,7 @@ pub fn write_info(out: &mut impl Write, i: &InfoData) -> Result<()> {
         let text = match s {
             SlotStatus::Empty => "empty".to_string(),
             SlotStatus::Invalid(e) => format!("invalid ({e})"),
-            SlotStatus::UnsupportedTopology {
-                inputs,
-                hidden,
-                outputs,
-            } => format!(
+            SlotStatus::UnsupportedTopology { inputs, hidden, outputs } => format!(
                 "valid but {inputs}-{hidden}-{outputs} is not a topology this firmware runs"
             ),
             SlotStatus::Valid { generation } => format!("valid, generation {generation}"),
@@ -130,12 +118,7 @@ mod tests {
 
     #[test]
     fn estimate_rows_round_trip_floats_exactly() {
-        let p = StereoPoint {
-            u_l: 335.0,
-            v_l: 240.0,
-            u_r: 289.0,
-            v_r: 240.0,
-        };
+        let p = StereoPoint { u_l: 335.0, v_l: 240.0, u_r: 289.0, v_r: 240.0 };
         let e = EstimateData {
             x: -1.749_999_9,
             y: 1e-7,

@@ -30,8 +30,7 @@ pub fn check_chip(chip: &str) -> Result<()> {
 }
 
 fn parse_selector(s: &str) -> Result<probe_rs::probe::DebugProbeSelector> {
-    s.parse()
-        .map_err(|e| anyhow!("--probe {s}: expected VID:PID or VID:PID:SERIAL ({e})"))
+    s.parse().map_err(|e| anyhow!("--probe {s}: expected VID:PID or VID:PID:SERIAL ({e})"))
 }
 
 fn read_slot(session: &mut probe_rs::Session, slot: Slot) -> Result<Vec<u8>> {
@@ -81,16 +80,11 @@ pub fn flash_with_probe(args: &FlashTarget, blob: &ModelBlob, req: SlotRequest) 
             ),
         },
     };
-    let probe = info
-        .open()
-        .with_context(|| format!("cannot open probe {info}"))?;
+    let probe = info.open().with_context(|| format!("cannot open probe {info}"))?;
     let mut session = probe
         .attach(args.chip.as_str(), probe_rs::Permissions::default())
         .with_context(|| format!("cannot attach to {}", args.chip))?;
-    let (a, b) = (
-        read_slot(&mut session, Slot::A)?,
-        read_slot(&mut session, Slot::B)?,
-    );
+    let (a, b) = (read_slot(&mut session, Slot::A)?, read_slot(&mut session, Slot::B)?);
     println!(
         "slot A: {}\nslot B: {}",
         describe(hvs_shared::runtime::head::slot_state(&a)),
@@ -107,9 +101,7 @@ pub fn flash_with_probe(args: &FlashTarget, blob: &ModelBlob, req: SlotRequest) 
         plan.running
     );
     let mut loader = session.target().flash_loader();
-    loader
-        .add_data(plan.slot.addr() as u64, &bytes)
-        .context("cannot stage the blob")?;
+    loader.add_data(plan.slot.addr() as u64, &bytes).context("cannot stage the blob")?;
     let mut opts = probe_rs::flashing::DownloadOptions::default();
     opts.verify = true;
     loader
@@ -118,15 +110,11 @@ pub fn flash_with_probe(args: &FlashTarget, blob: &ModelBlob, req: SlotRequest) 
     let back = read_slot(&mut session, plan.slot)?;
     match hvs_shared::runtime::head::slot_state(&back) {
         SlotState::Valid { generation } if generation == plan.generation => {}
-        other => bail!(
-            "read-back of slot {:?} is {other:?}; the previous model still boots",
-            plan.slot
-        ),
+        other => {
+            bail!("read-back of slot {:?} is {other:?}; the previous model still boots", plan.slot)
+        }
     }
-    println!(
-        "verified: slot {:?} holds generation {} (CRC ok)",
-        plan.slot, plan.generation
-    );
+    println!("verified: slot {:?} holds generation {} (CRC ok)", plan.slot, plan.generation);
     if !args.no_reset {
         session
             .core(0)

@@ -36,9 +36,7 @@ impl FromStr for Endpoint {
     /// Parses `tcp:HOST:PORT` or `serial:PATH[@BAUD]`.
     fn from_str(s: &str) -> Result<Self> {
         if let Some(addr) = s.strip_prefix("tcp:") {
-            if addr
-                .rsplit_once(':')
-                .is_none_or(|(h, p)| h.is_empty() || p.parse::<u16>().is_err())
+            if addr.rsplit_once(':').is_none_or(|(h, p)| h.is_empty() || p.parse::<u16>().is_err())
             {
                 bail!("endpoint {s:?}: expected tcp:HOST:PORT");
             }
@@ -48,18 +46,14 @@ impl FromStr for Endpoint {
             let (path, baud) = match rest.rsplit_once('@') {
                 Some((p, b)) => (
                     p,
-                    b.parse()
-                        .with_context(|| format!("endpoint {s:?}: bad baud rate {b:?}"))?,
+                    b.parse().with_context(|| format!("endpoint {s:?}: bad baud rate {b:?}"))?,
                 ),
                 None => (rest, protocol::BAUD_RATE),
             };
             if path.is_empty() {
                 bail!("endpoint {s:?}: empty serial port name");
             }
-            return Ok(Endpoint::Serial {
-                path: path.to_string(),
-                baud,
-            });
+            return Ok(Endpoint::Serial { path: path.to_string(), baud });
         }
         bail!("endpoint {s:?}: expected tcp:HOST:PORT or serial:PATH[@BAUD]")
     }
@@ -201,11 +195,7 @@ impl Link {
                 return Ok(r.body);
             }
         }
-        bail!(
-            "{}: no response to request {id} ({body:?}) within {:?}",
-            self.endpoint,
-            self.timeout
-        )
+        bail!("{}: no response to request {id} ({body:?}) within {:?}", self.endpoint, self.timeout)
     }
 
     /// The next well-formed frame received before `until`, or `None` on timeout. Frames that
@@ -260,26 +250,13 @@ mod tests {
         );
         assert_eq!(
             "serial:/dev/ttyUSB0@9600".parse::<Endpoint>().unwrap(),
-            Endpoint::Serial {
-                path: "/dev/ttyUSB0".into(),
-                baud: 9600
-            }
+            Endpoint::Serial { path: "/dev/ttyUSB0".into(), baud: 9600 }
         );
         assert_eq!(
             "serial:COM3".parse::<Endpoint>().unwrap(),
-            Endpoint::Serial {
-                path: "COM3".into(),
-                baud: 115_200
-            }
+            Endpoint::Serial { path: "COM3".into(), baud: 115_200 }
         );
-        for bad in [
-            "tcp:4444",
-            "tcp::1",
-            "tcp:host:99999",
-            "udp:x:1",
-            "serial:",
-            "serial:x@fast",
-        ] {
+        for bad in ["tcp:4444", "tcp::1", "tcp:host:99999", "udp:x:1", "serial:", "serial:x@fast"] {
             assert!(bad.parse::<Endpoint>().is_err(), "{bad}");
         }
     }
@@ -294,12 +271,9 @@ mod tests {
             let mut out = [0u8; MAX_FRAME_LEN];
             let ready = Response {
                 id: 0,
-                body: ResponseBody::Ready {
-                    protocol: protocol::PROTOCOL_VERSION,
-                },
+                body: ResponseBody::Ready { protocol: protocol::PROTOCOL_VERSION },
             };
-            s.write_all(protocol::encode_response(&ready, &mut out).unwrap())
-                .unwrap();
+            s.write_all(protocol::encode_response(&ready, &mut out).unwrap()).unwrap();
             let mut acc = FrameAccumulator::<MAX_FRAME_LEN>::new();
             let mut buf = [0u8; 64];
             loop {
@@ -338,12 +312,7 @@ mod tests {
         let (addr, h) = fake_head();
         let mut link = Link::open(&Endpoint::Tcp(addr), Duration::from_secs(5)).unwrap();
         link.wait_ready(Duration::from_secs(5)).unwrap();
-        let p = StereoPoint {
-            u_l: 1.5,
-            v_l: -2.0,
-            u_r: 0.0,
-            v_r: 0.0,
-        };
+        let p = StereoPoint { u_l: 1.5, v_l: -2.0, u_r: 0.0, v_r: 0.0 };
         match link.request(RequestBody::Estimate(p)).unwrap() {
             ResponseBody::Estimate(e) => assert_eq!((e.x, e.y, e.z), (1.5, -2.0, 100.0)),
             other => panic!("{other:?}"),
@@ -352,10 +321,7 @@ mod tests {
             link.request(RequestBody::Home).unwrap(),
             ResponseBody::Error(protocol::ErrorCode::Unsupported)
         );
-        assert!(link
-            .unsolicited
-            .iter()
-            .any(|r| matches!(r.body, ResponseBody::Ready { .. })));
+        assert!(link.unsolicited.iter().any(|r| matches!(r.body, ResponseBody::Ready { .. })));
         drop(link);
         h.join().unwrap();
     }
@@ -368,10 +334,7 @@ mod tests {
         link.timeout = Duration::from_millis(100);
         let err = link.request(RequestBody::Info).unwrap_err().to_string();
         assert!(err.contains(&addr) && err.contains("no response"), "{err}");
-        let err = link
-            .wait_ready(Duration::from_millis(300))
-            .unwrap_err()
-            .to_string();
+        let err = link.wait_ready(Duration::from_millis(300)).unwrap_err().to_string();
         assert!(err.contains("no answer to Ping"), "{err}");
     }
 }

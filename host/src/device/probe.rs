@@ -84,9 +84,7 @@ pub fn with_generation(blob: &ModelBlob, generation: u32) -> Result<Vec<u8>> {
     let mut b = blob.clone();
     b.generation = generation;
     let mut buf = vec![0u8; MAX_BLOB_LEN];
-    let n = b
-        .encode(&mut buf)
-        .map_err(|e| anyhow!("cannot encode blob: {e}"))?;
+    let n = b.encode(&mut buf).map_err(|e| anyhow!("cannot encode blob: {e}"))?;
     buf.truncate(n);
     Ok(buf)
 }
@@ -166,10 +164,7 @@ pub fn sizes_by_generation(blob: &ModelBlob) -> Result<Vec<(u32, u32, usize)>> {
 
 /// The size of `blob` written with generation `g`, from [`sizes_by_generation`]'s ranges.
 fn size_for(sizes: &[(u32, u32, usize)], g: u32) -> usize {
-    sizes
-        .iter()
-        .find(|(lo, hi, _)| (*lo..=*hi).contains(&g))
-        .map_or(0, |r| r.2)
+    sizes.iter().find(|(lo, hi, _)| (*lo..=*hi).contains(&g)).map_or(0, |r| r.2)
 }
 
 /// The text `--dry-run` prints. No probe is touched, so what the slots hold is not known:
@@ -205,14 +200,8 @@ pub fn dry_run_plan(
     match slot {
         SlotRequest::Auto => {
             o += "slot: auto, the slot the head is not running (known only once the probe has read both slots):\n";
-            o += &format!(
-                "  if A runs (generation G): write slot {}, {g_plus_1}\n",
-                at(Slot::B)
-            );
-            o += &format!(
-                "  if B runs (generation G): write slot {}, {g_plus_1}\n",
-                at(Slot::A)
-            );
+            o += &format!("  if A runs (generation G): write slot {}, {g_plus_1}\n", at(Slot::B));
+            o += &format!("  if B runs (generation G): write slot {}, {g_plus_1}\n", at(Slot::A));
             o += &format!(
                 "  if neither runs a model: write slot {}, generation 1, {} bytes\n",
                 at(Slot::A),
@@ -231,10 +220,8 @@ pub fn dry_run_plan(
         }
     }
     o += "generation rule: 1 + the highest generation among the slots the head can run (G), read through the probe; 1 if it runs none. The head then boots the written slot.\n";
-    let ranges: Vec<String> = sizes
-        .iter()
-        .map(|(lo, hi, n)| format!("{n} bytes for {lo}..={hi}"))
-        .collect();
+    let ranges: Vec<String> =
+        sizes.iter().map(|(lo, hi, n)| format!("{n} bytes for {lo}..={hi}")).collect();
     o += &format!("size by generation written: {}\n", ranges.join(", "));
     o += "erase: the written slot's 128 KiB sector only; the running slot stays intact\n";
     o += "verify: read the slot back and check the CRC and the generation, then reset the head\n";
@@ -279,17 +266,10 @@ mod tests {
     use hvs_shared::runtime::head;
 
     const V: hvs_shared::runtime::protocol::FirmwareVersion =
-        hvs_shared::runtime::protocol::FirmwareVersion {
-            major: 0,
-            minor: 1,
-            patch: 0,
-        };
+        hvs_shared::runtime::protocol::FirmwareVersion { major: 0, minor: 1, patch: 0 };
 
     fn model(generation: u32, outputs: OutputKind) -> ModelBlob {
-        hvs_shared::test_support::SampleSpec::THESIS
-            .outputs(outputs)
-            .generation(generation)
-            .build()
+        hvs_shared::test_support::SampleSpec::THESIS.outputs(outputs).generation(generation).build()
     }
 
     #[test]
@@ -301,10 +281,7 @@ mod tests {
         let booted = head::boot(&a, &b).info(V).slot;
         assert_eq!(booted, Some(Slot::B));
         let p = plan_for_slots(&a, &b, SlotRequest::Auto).unwrap();
-        assert_eq!(
-            (p.slot, p.generation, p.running),
-            (Slot::A, 8, Some(Slot::B))
-        );
+        assert_eq!((p.slot, p.generation, p.running), (Slot::A, 8, Some(Slot::B)));
         // Explicitly writing B would destroy the only model the head runs.
         let e = plan_for_slots(&a, &b, SlotRequest::Exactly(Slot::B)).unwrap_err();
         assert!(e.to_string().contains("only model the head can run"), "{e}");

@@ -68,18 +68,11 @@ pub struct Emulator {
 
 /// The QEMU command line for `cfg` (without the executable).
 pub fn qemu_args(cfg: &EmulatorConfig) -> Vec<String> {
-    let mut a: Vec<String> = [
-        "-machine",
-        "netduinoplus2",
-        "-display",
-        "none",
-        "-monitor",
-        "none",
-        "-nodefaults",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
+    let mut a: Vec<String> =
+        ["-machine", "netduinoplus2", "-display", "none", "-monitor", "none", "-nodefaults"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
     a.push("-serial".into());
     a.push(format!("tcp:{},server=on,wait=on,nodelay=on", cfg.listen));
     a.push("-serial".into());
@@ -87,10 +80,7 @@ pub fn qemu_args(cfg: &EmulatorConfig) -> Vec<String> {
     for (blob, addr) in [(&cfg.slot_a, SLOT_A_ADDR), (&cfg.slot_b, SLOT_B_ADDR)] {
         if let Some(b) = blob {
             a.push("-device".into());
-            a.push(format!(
-                "loader,file={},addr={addr:#010x},force-raw=on",
-                b.display()
-            ));
+            a.push(format!("loader,file={},addr={addr:#010x},force-raw=on", b.display()));
         }
     }
     a.push("-kernel".into());
@@ -124,21 +114,12 @@ impl Emulator {
             }
         }
         let mut cmd = Command::new(&cfg.qemu);
-        cmd.args(qemu_args(cfg))
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped());
+        cmd.args(qemu_args(cfg)).stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped());
         die_with_parent(&mut cmd);
         let child = cmd.spawn().with_context(|| {
-            format!(
-                "cannot run {:?} (install it: apt-get install qemu-system-arm)",
-                cfg.qemu
-            )
+            format!("cannot run {:?} (install it: apt-get install qemu-system-arm)", cfg.qemu)
         })?;
-        let mut emu = Emulator {
-            child,
-            endpoint: format!("tcp:{}", cfg.listen),
-        };
+        let mut emu = Emulator { child, endpoint: format!("tcp:{}", cfg.listen) };
         // QEMU exits at once on a bad option or file; report its message.
         std::thread::sleep(Duration::from_millis(100));
         emu.check_alive()?;
@@ -233,18 +214,10 @@ mod tests {
             extra: vec![],
         };
         let a = qemu_args(&cfg).join(" ");
-        assert!(
-            a.contains("loader,file=a.bin,addr=0x080c0000,force-raw=on"),
-            "{a}"
-        );
-        assert!(
-            a.contains("loader,file=b.bin,addr=0x080e0000,force-raw=on"),
-            "{a}"
-        );
+        assert!(a.contains("loader,file=a.bin,addr=0x080c0000,force-raw=on"), "{a}");
+        assert!(a.contains("loader,file=b.bin,addr=0x080e0000,force-raw=on"), "{a}");
         // USART1 = first -serial = protocol, USART2 = servo log.
-        let i_tcp = a
-            .find("tcp:127.0.0.1:5555,server=on,wait=on,nodelay=on")
-            .unwrap();
+        let i_tcp = a.find("tcp:127.0.0.1:5555,server=on,wait=on,nodelay=on").unwrap();
         let i_file = a.find("file:s.log").unwrap();
         assert!(i_tcp < i_file);
         assert!(a.ends_with("-kernel fw.elf"));
@@ -262,9 +235,6 @@ mod tests {
             extra: vec![],
         };
         let e = Emulator::start(&cfg).err().unwrap().to_string();
-        assert!(
-            e.contains("/nonexistent/fw.elf") && e.contains("cargo build"),
-            "{e}"
-        );
+        assert!(e.contains("/nonexistent/fw.elf") && e.contains("cargo build"), "{e}");
     }
 }

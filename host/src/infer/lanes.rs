@@ -317,16 +317,8 @@ mod tests {
     fn check_topology<const I: usize, const H: usize, const O: usize>(
         rng: &mut rand::rngs::ChaCha8Rng,
     ) {
-        let inputs = if I == 4 {
-            InputKind::Stereo
-        } else {
-            InputKind::StereoJoints
-        };
-        let outputs = if O == 3 {
-            OutputKind::Xyz
-        } else {
-            OutputKind::Z
-        };
+        let inputs = if I == 4 { InputKind::Stereo } else { InputKind::StereoJoints };
+        let outputs = if O == 3 { OutputKind::Xyz } else { OutputKind::Z };
         for model in 0..6 {
             let b = random_blob(rng, H as u8, outputs, inputs, model >= 4);
             for set in 0..3 {
@@ -391,9 +383,7 @@ mod tests {
         b.params = heapless::Vec::from_slice(&params).unwrap();
         b.out_scale[0] = 1e32;
         b.out_offset[0] = f32::MAX;
-        let x: Vec<f32> = (0..4 * 5 * LANES)
-            .map(|k| 250.0 + (k / 4 * 2) as f32)
-            .collect();
+        let x: Vec<f32> = (0..4 * 5 * LANES).map(|k| 250.0 + (k / 4 * 2) as f32).collect();
         let e = Predictor::new(&b).predict(&x).unwrap_err();
         assert_eq!(e.error, MlpError::NonFiniteOutput);
         assert!(e.index > LANES && e.index % LANES != 0, "{e:?}");

@@ -48,25 +48,23 @@ fn fixed<const I: usize, const H: usize, const O: usize>(blob: &ModelBlob) -> Op
     let m: Mlp<I, H, O> = blob.to_mlp().ok()?;
     let map = blob.family.output_map;
     if map == OutputMap::Direct {
-        return Some(Kernel::Fixed(Box::new(
-            move |x: &[f32], out: &mut [f32]| lanes::run(&m, x, out),
-        )));
+        return Some(Kernel::Fixed(Box::new(move |x: &[f32], out: &mut [f32]| {
+            lanes::run(&m, x, out)
+        })));
     }
     // The lanes stop at the de-normalised outputs; the family's map follows row by row (the
     // rows before a failing one are written, so the first failure is reported either way).
-    Some(Kernel::Fixed(Box::new(
-        move |x: &[f32], out: &mut [f32]| {
-            let done = lanes::run(&m, x, out);
-            let rows = match done {
-                Ok(()) => out.len() / O,
-                Err((r, _)) => r,
-            };
-            for (r, o) in out.chunks_exact_mut(O).take(rows).enumerate() {
-                map.apply(o).map_err(|e| (r, e))?;
-            }
-            done
-        },
-    )))
+    Some(Kernel::Fixed(Box::new(move |x: &[f32], out: &mut [f32]| {
+        let done = lanes::run(&m, x, out);
+        let rows = match done {
+            Ok(()) => out.len() / O,
+            Err((r, _)) => r,
+        };
+        for (r, o) in out.chunks_exact_mut(O).take(rows).enumerate() {
+            map.apply(o).map_err(|e| (r, e))?;
+        }
+        done
+    })))
 }
 
 macro_rules! dispatch_h {
@@ -79,11 +77,7 @@ macro_rules! dispatch_h {
 
 /// The fixed-size kernel for `I-H-O` nets with `I` in {4, 9}, `H` in 1..=10, `O` in {1, 3}.
 fn fixed_kernel(blob: &ModelBlob) -> Option<Kernel> {
-    let (i, h, o) = (
-        blob.n_inputs(),
-        blob.topology.hidden as usize,
-        blob.n_outputs(),
-    );
+    let (i, h, o) = (blob.n_inputs(), blob.topology.hidden as usize, blob.n_outputs());
     match (i, o) {
         (4, 3) => dispatch_h!(blob, i, h, o; 4, 3; 1 2 3 4 5 6 7 8 9 10),
         (4, 1) => dispatch_h!(blob, i, h, o; 4, 1; 1 2 3 4 5 6 7 8 9 10),
@@ -120,10 +114,7 @@ impl<'a> Predictor<'a> {
     fn check_shape(&self, inputs: &[f32], out: &[f32]) -> Result<(usize, usize), PointError> {
         let (ni, no) = (self.n_inputs(), self.n_outputs());
         if inputs.len() % ni != 0 || out.len() != inputs.len() / ni * no {
-            return Err(PointError {
-                index: 0,
-                error: MlpError::Shape,
-            });
+            return Err(PointError { index: 0, error: MlpError::Shape });
         }
         Ok((ni, no))
     }
@@ -137,14 +128,10 @@ impl<'a> Predictor<'a> {
                 f(inputs, out).map_err(|(index, error)| PointError { index, error })
             }
             Kernel::Flat => {
-                for (r, (xi, oi)) in inputs
-                    .chunks_exact(ni)
-                    .zip(out.chunks_exact_mut(no))
-                    .enumerate()
+                for (r, (xi, oi)) in
+                    inputs.chunks_exact(ni).zip(out.chunks_exact_mut(no)).enumerate()
                 {
-                    self.blob
-                        .infer(xi, oi)
-                        .map_err(|error| PointError { index: r, error })?;
+                    self.blob.infer(xi, oi).map_err(|error| PointError { index: r, error })?;
                 }
                 Ok(())
             }
@@ -160,10 +147,9 @@ impl<'a> Predictor<'a> {
             .zip(out.par_chunks_mut(CHUNK * no))
             .enumerate()
             .filter_map(|(c, (x, o))| {
-                self.run_serial(x, o).err().map(|e| PointError {
-                    index: c * CHUNK + e.index,
-                    error: e.error,
-                })
+                self.run_serial(x, o)
+                    .err()
+                    .map(|e| PointError { index: c * CHUNK + e.index, error: e.error })
             })
             .collect();
         match errors.into_iter().min_by_key(|e| e.index) {
@@ -206,10 +192,7 @@ pub fn infer_table(blob: &ModelBlob, table: &Table) -> Result<(Vec<f32>, Vec<f32
     })?;
     let p = Predictor::new(blob);
     let y = p.predict(&x).map_err(|PointError { index, error }| {
-        anyhow!(
-            "{}: the model cannot estimate this point: {error}",
-            table.at(index)
-        )
+        anyhow!("{}: the model cannot estimate this point: {error}", table.at(index))
     })?;
     Ok((x, y))
 }
@@ -234,12 +217,7 @@ pub(crate) mod tests {
         let inputs_scale: Vec<f32> = (0..ni).map(|k| if k < 4 { 0.02 } else { 0.1 }).collect();
         ModelBlob {
             generation: 1,
-            topology: Topology {
-                inputs,
-                hidden,
-                outputs,
-                output_activation: Activation::Linear,
-            },
+            topology: Topology { inputs, hidden, outputs, output_activation: Activation::Linear },
             in_offset: v(&inputs_off),
             in_scale: v(&inputs_scale),
             out_offset: v(&[0.0, 0.0, 115.0][3 - no..]),
@@ -278,16 +256,14 @@ pub(crate) mod tests {
             assert_eq!(p.is_fixed(), fixed);
             let ni = i.len();
             let n = 40_000; // more than two chunks
-            let x: Vec<f32> = (0..n * ni)
-                .map(|k| 200.0 + ((k * 7919) % 24_000) as f32 / 100.0)
-                .collect();
+            let x: Vec<f32> =
+                (0..n * ni).map(|k| 200.0 + ((k * 7919) % 24_000) as f32 / 100.0).collect();
             let y = p.predict(&x).unwrap();
             let mut serial = vec![0.0; y.len()];
             p.run_serial(&x, &mut serial).unwrap();
             for r in 0..n {
                 let mut want = [0.0f32; 3];
-                b.infer(&x[r * ni..(r + 1) * ni], &mut want[..o.len()])
-                    .unwrap();
+                b.infer(&x[r * ni..(r + 1) * ni], &mut want[..o.len()]).unwrap();
                 for k in 0..o.len() {
                     assert_eq!(y[r * o.len() + k].to_bits(), want[k].to_bits());
                     assert_eq!(serial[r * o.len() + k].to_bits(), want[k].to_bits());
@@ -350,18 +326,9 @@ pub(crate) mod tests {
             let got = p.predict(&x[..bad * ni]).unwrap();
             assert_eq!(
                 got.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
-                want[..bad * no]
-                    .iter()
-                    .map(|v| v.to_bits())
-                    .collect::<Vec<_>>()
+                want[..bad * no].iter().map(|v| v.to_bits()).collect::<Vec<_>>()
             );
-            assert_eq!(
-                p.predict(&x).unwrap_err(),
-                PointError {
-                    index: bad,
-                    error: err
-                }
-            );
+            assert_eq!(p.predict(&x).unwrap_err(), PointError { index: bad, error: err });
         }
     }
 

@@ -89,11 +89,7 @@ impl Board {
                 (0..ny)
                     .flat_map(|j| {
                         (0..nx).map(move |i| {
-                            [
-                                (i as f64 - cx) * pitch + 0.0,
-                                (j as f64 - cy) * pitch + 0.0,
-                                z,
-                            ]
+                            [(i as f64 - cx) * pitch + 0.0, (j as f64 - cy) * pitch + 0.0, z]
                         })
                     })
                     .collect()
@@ -103,10 +99,7 @@ impl Board {
 
     /// The board at every training depth (`presets::TRAIN_DEPTHS`), nearest first.
     pub fn train_points(&self) -> Vec<Vec3> {
-        presets::TRAIN_DEPTHS
-            .iter()
-            .flat_map(|&z| self.points(z))
-            .collect()
+        presets::TRAIN_DEPTHS.iter().flat_map(|&z| self.points(z)).collect()
     }
 
     /// The box the training boards span: `(min, max)` of X, Y, Z (cm).
@@ -150,14 +143,7 @@ mod tests {
     #[test]
     fn grid_board_is_centred_and_round_trips() {
         let b = Board::parse("9x6:6").unwrap();
-        assert_eq!(
-            b,
-            Board::Grid {
-                nx: 9,
-                ny: 6,
-                pitch: 6.0
-            }
-        );
+        assert_eq!(b, Board::Grid { nx: 9, ny: 6, pitch: 6.0 });
         assert_eq!(b.name(), "9x6:6");
         assert_eq!(Board::parse(&b.name()).unwrap(), b);
         assert_eq!(b.train_points().len(), 324);

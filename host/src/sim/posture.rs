@@ -90,9 +90,7 @@ impl PostureSample {
     /// The nine model inputs: pixels, then the joint angles.
     pub fn inputs(&self) -> [f64; 9] {
         let j = self.joints.0.map(f64::from);
-        [
-            self.px[0], self.px[1], self.px[2], self.px[3], j[0], j[1], j[2], j[3], j[4],
-        ]
+        [self.px[0], self.px[1], self.px[2], self.px[3], j[0], j[1], j[2], j[3], j[4]]
     }
 }
 
@@ -142,10 +140,7 @@ pub fn postures(opt: &PostureOptions, seed: u64) -> Result<Vec<Joints>> {
         }
         Sampling::Random => {
             if opt.count == 0 || opt.count > MAX_POSTURES {
-                bail!(
-                    "--posture-count must be 1 to {MAX_POSTURES}, got {}",
-                    opt.count
-                );
+                bail!("--posture-count must be 1 to {MAX_POSTURES}, got {}", opt.count);
             }
             Ok((0..opt.count)
                 .map(|_| opt.range.at(core::array::from_fn(|_| rng.random())))
@@ -177,9 +172,7 @@ pub fn simulate(
     let frame = |j: &Joints| gaze_frame(j, head.neck_centre_cm, rig.half_baseline);
     let project = |j: &Joints, p: &Vec3, n: &[f64; 4]| match opt.pixels {
         Pixels::Rounded => head.project_rounded_noisy(j, p, n),
-        Pixels::Exact => head
-            .project(j, p)
-            .map(|e| core::array::from_fn(|k| e[k] + n[k])),
+        Pixels::Exact => head.project(j, p).map(|e| core::array::from_fn(|k| e[k] + n[k])),
     };
     match kind {
         SetKind::Train | SetKind::Test => {
@@ -206,11 +199,7 @@ pub fn simulate(
                             p[0], p[1], p[2], j.0, rig.width, rig.height, px[0], px[1], px[2], px[3]
                         );
                     }
-                    out.push(PostureSample {
-                        px,
-                        joints: *j,
-                        xyz: p,
-                    });
+                    out.push(PostureSample { px, joints: *j, xyz: p });
                 }
             }
             Ok(out)
@@ -222,11 +211,7 @@ pub fn simulate(
                 let p = to_head(&frame(j), &volume_point(rng, &lo, &hi)).map(to_written_precision);
                 let n = noise(rng);
                 let px = project(j, &p, &n).ok().filter(|px| rig.in_image(px))?;
-                Some(PostureSample {
-                    px,
-                    joints: *j,
-                    xyz: p,
-                })
+                Some(PostureSample { px, joints: *j, xyz: p })
             })
         }
     }
@@ -303,10 +288,8 @@ mod tests {
             for k in 0..5 {
                 let [lo, hi] = w.intervals()[k];
                 let n = f32::from(DEFAULT_LEVELS[k]);
-                let (a, b) = (
-                    lo + (hi - lo) * c[k] as f32 / n,
-                    lo + (hi - lo) * (c[k] + 1) as f32 / n,
-                );
+                let (a, b) =
+                    (lo + (hi - lo) * c[k] as f32 / n, lo + (hi - lo) * (c[k] + 1) as f32 / n);
                 // Quantisation moves each eye pan by up to 0.09 degrees.
                 assert!(
                     terms[k] >= a - 0.19 && terms[k] <= b + 0.19,
@@ -315,36 +298,15 @@ mod tests {
                 );
             }
         }
-        let lattice = postures(
-            &PostureOptions {
-                sampling: Sampling::Lattice,
-                ..opt
-            },
-            1,
-        )
-        .unwrap();
+        let lattice = postures(&PostureOptions { sampling: Sampling::Lattice, ..opt }, 1).unwrap();
         assert_eq!(lattice[5], w.grid(DEFAULT_LEVELS, 5).unwrap());
-        let r = postures(
-            &PostureOptions {
-                sampling: Sampling::Random,
-                count: 50,
-                ..opt
-            },
-            9,
-        )
-        .unwrap();
+        let r =
+            postures(&PostureOptions { sampling: Sampling::Random, count: 50, ..opt }, 9).unwrap();
         assert_eq!(r.len(), 50);
         assert!(r.iter().all(|j| w.contains(j, 0.18)));
         for bad in [
-            PostureOptions {
-                levels: [3, 0, 3, 3, 3],
-                ..opt
-            },
-            PostureOptions {
-                sampling: Sampling::Random,
-                count: 0,
-                ..opt
-            },
+            PostureOptions { levels: [3, 0, 3, 3, 3], ..opt },
+            PostureOptions { sampling: Sampling::Random, count: 0, ..opt },
         ] {
             assert!(postures(&bad, 0).is_err());
         }
@@ -354,11 +316,7 @@ mod tests {
     fn board_at_every_posture_round_trips_through_the_csv() {
         let head = HeadRig::new(presets::CASE_3);
         let js = postures(
-            &PostureOptions {
-                sampling: Sampling::Random,
-                count: 4,
-                ..PostureOptions::default()
-            },
+            &PostureOptions { sampling: Sampling::Random, count: 4, ..PostureOptions::default() },
             5,
         )
         .unwrap();
@@ -408,10 +366,7 @@ mod tests {
         let c = simulate(&bent, SetKind::Train, &home, &SimOptions::default()).unwrap();
         let d = simulate(&head, SetKind::Train, &home, &SimOptions::default()).unwrap();
         let shift = |c: &[PostureSample], d: &[PostureSample]| {
-            c.iter()
-                .zip(d)
-                .map(|(p, q)| (p.px[0] - q.px[0]).abs())
-                .fold(0.0, f64::max)
+            c.iter().zip(d).map(|(p, q)| (p.px[0] - q.px[0]).abs()).fold(0.0, f64::max)
         };
         assert!(shift(&c, &d) <= 1.0, "{}", shift(&c, &d));
         let far = [Joints([0.0, 0.0, 0.0, 30.0, 30.0])];
@@ -435,31 +390,21 @@ mod tests {
         }
         let mut bytes = Vec::new();
         write_csv(&mut bytes, &c[..1], false).unwrap();
-        assert!(String::from_utf8(bytes)
-            .unwrap()
-            .starts_with("u_l,v_l,u_r,v_r,x,y,z\n"));
+        assert!(String::from_utf8(bytes).unwrap().starts_with("u_l,v_l,u_r,v_r,x,y,z\n"));
     }
 
     #[test]
     fn volume_cycles_through_the_postures_and_is_seeded() {
         let head = HeadRig::new(presets::CASE_1);
         let js = postures(&PostureOptions::default(), 3).unwrap();
-        let opt = SimOptions {
-            points: 700,
-            noise_px: 0.5,
-            seed: 4,
-            ..SimOptions::default()
-        };
+        let opt = SimOptions { points: 700, noise_px: 0.5, seed: 4, ..SimOptions::default() };
         let a = simulate(&head, SetKind::Volume, &js, &opt).unwrap();
         assert_eq!(a, simulate(&head, SetKind::Volume, &js, &opt).unwrap());
         assert_eq!(a.len(), 700);
         for (k, s) in a.iter().enumerate() {
             assert_eq!(s.joints, js[k % js.len()]);
         }
-        let bad = SimOptions {
-            noise_px: f64::NAN,
-            ..opt
-        };
+        let bad = SimOptions { noise_px: f64::NAN, ..opt };
         assert!(simulate(&head, SetKind::Volume, &js, &bad).is_err());
         assert!(simulate(&head, SetKind::Train, &[], &opt).is_err());
     }

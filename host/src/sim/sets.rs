@@ -61,11 +61,7 @@ impl Default for SimOptions {
 
 /// The box spanned by the training boards: `(min, max)` of X, Y, Z in cm.
 pub fn training_volume() -> (Vec3, Vec3) {
-    let (x, y, z) = (
-        &presets::TRAIN_BOARD_X,
-        &presets::TRAIN_BOARD_Y,
-        &presets::TRAIN_DEPTHS,
-    );
+    let (x, y, z) = (&presets::TRAIN_BOARD_X, &presets::TRAIN_BOARD_Y, &presets::TRAIN_DEPTHS);
     let lo = |s: &[f64]| s.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = |s: &[f64]| s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     ([lo(x), lo(y), lo(z)], [hi(x), hi(y), hi(z)])
@@ -89,10 +85,9 @@ pub fn check_points(n: usize) -> Result<()> {
 /// The true positions of a board set, in the order of the thesis' data files.
 pub fn board_points(kind: SetKind) -> Vec<Vec3> {
     match kind {
-        SetKind::Train => presets::TRAIN_DEPTHS
-            .iter()
-            .flat_map(|&z| presets::board_points(z))
-            .collect(),
+        SetKind::Train => {
+            presets::TRAIN_DEPTHS.iter().flat_map(|&z| presets::board_points(z)).collect()
+        }
         SetKind::Test => presets::TEST_DEPTHS
             .iter()
             .flat_map(|&z| presets::TEST_POINTS_XY.map(|[x, y]| [x, y, z]))
@@ -132,9 +127,7 @@ pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample
     let mut rng = ChaCha8Rng::seed_from_u64(opt.seed);
     let noise = |rng: &mut ChaCha8Rng| pixel_noise(rng, opt.noise_px);
     let project = |p: &Vec3, n: &[f64; 4]| match opt.pixels {
-        Pixels::Exact => rig
-            .project(p)
-            .map(|e| core::array::from_fn(|k| e[k] + n[k])),
+        Pixels::Exact => rig.project(p).map(|e| core::array::from_fn(|k| e[k] + n[k])),
         Pixels::Rounded if opt.noise_px == 0.0 => rig.project_rounded(p),
         Pixels::Rounded => rig.project_rounded_noisy(p, n),
     };
@@ -145,12 +138,9 @@ pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample
                 let n = noise(&mut rng);
                 let px = match project(&p, &n) {
                     Ok(px) => px,
-                    Err(e) => bail!(
-                        "board point ({}, {}, {}) cm has no image: {e}",
-                        p[0],
-                        p[1],
-                        p[2]
-                    ),
+                    Err(e) => {
+                        bail!("board point ({}, {}, {}) cm has no image: {e}", p[0], p[1], p[2])
+                    }
                 };
                 if !rig.in_image(&px) {
                     bail!(
@@ -246,11 +236,7 @@ pub fn write_csv(w: &mut dyn Write, samples: &[Sample]) -> std::io::Result<()> {
     writeln!(w, "u_l,v_l,u_r,v_r,x,y,z")?;
     for s in samples {
         let [x, y, z] = s.xyz.map(|v| v + 0.0);
-        writeln!(
-            w,
-            "{},{},{},{},{x:.4},{y:.4},{z:.4}",
-            s.px[0], s.px[1], s.px[2], s.px[3]
-        )?;
+        writeln!(w, "{},{},{},{},{x:.4},{y:.4},{z:.4}", s.px[0], s.px[1], s.px[2], s.px[3])?;
     }
     Ok(())
 }
@@ -269,10 +255,7 @@ mod tests {
     #[test]
     fn volume_is_seeded_inside_the_box_and_consistent() {
         let rig = presets::CASE_4;
-        let opt = SimOptions {
-            points: 300,
-            ..Default::default()
-        };
+        let opt = SimOptions { points: 300, ..Default::default() };
         let a = simulate(&rig, SetKind::Volume, &opt).unwrap();
         assert_eq!(a, simulate(&rig, SetKind::Volume, &opt).unwrap());
         let b = simulate(&rig, SetKind::Volume, &SimOptions { seed: 1, ..opt }).unwrap();
@@ -293,18 +276,10 @@ mod tests {
     fn noise_moves_pixels_and_is_seeded() {
         let rig = presets::CASE_1;
         let clean = simulate(&rig, SetKind::Train, &SimOptions::default()).unwrap();
-        let opt = SimOptions {
-            noise_px: 1.0,
-            seed: 3,
-            ..Default::default()
-        };
+        let opt = SimOptions { noise_px: 1.0, seed: 3, ..Default::default() };
         let noisy = simulate(&rig, SetKind::Train, &opt).unwrap();
         assert_eq!(noisy, simulate(&rig, SetKind::Train, &opt).unwrap());
-        let moved = clean
-            .iter()
-            .zip(&noisy)
-            .filter(|(a, b)| a.px != b.px)
-            .count();
+        let moved = clean.iter().zip(&noisy).filter(|(a, b)| a.px != b.px).count();
         // With sigma = 1 px almost every one of 72 points moves in at least one coordinate.
         assert!(moved > 50, "{moved}");
         let max_shift = clean
@@ -313,24 +288,13 @@ mod tests {
             .flat_map(|(a, b)| (0..4).map(move |k| (a.px[k] - b.px[k]).abs()))
             .fold(0.0, f64::max);
         assert!(max_shift <= 6.0, "{max_shift}");
-        assert!(simulate(
-            &rig,
-            SetKind::Train,
-            &SimOptions {
-                noise_px: -1.0,
-                ..opt
-            }
-        )
-        .is_err());
+        assert!(simulate(&rig, SetKind::Train, &SimOptions { noise_px: -1.0, ..opt }).is_err());
     }
 
     #[test]
     fn exact_pixels_are_the_projection_and_share_the_noise_draws() {
         let rig = presets::CASE_4;
-        let exact = SimOptions {
-            pixels: Pixels::Exact,
-            ..SimOptions::default()
-        };
+        let exact = SimOptions { pixels: Pixels::Exact, ..SimOptions::default() };
         for s in simulate(&rig, SetKind::Train, &exact).unwrap() {
             assert_eq!(s.px, rig.project(&s.xyz).unwrap());
         }
@@ -365,9 +329,7 @@ mod tests {
         assert_eq!(t.len(), 324);
         assert_eq!(t[0].xyz, [-24.0, -15.0, 65.0]);
         let v = simulate(&rig, SetKind::Volume, &opt).unwrap();
-        assert!(v
-            .iter()
-            .all(|s| s.xyz[0].abs() <= 24.0 && s.xyz[1].abs() <= 15.0));
+        assert!(v.iter().all(|s| s.xyz[0].abs() <= 24.0 && s.xyz[1].abs() <= 15.0));
         assert!(v.iter().any(|s| s.xyz[0].abs() > 3.0));
         let e = simulate(&rig, SetKind::Test, &opt).unwrap_err().to_string();
         assert!(e.contains("--set test is the thesis' test points"), "{e}");
@@ -385,10 +347,7 @@ mod tests {
 
     #[test]
     fn csv_form() {
-        let s = [Sample {
-            px: [330.0, 231.0, 284.0, 231.0],
-            xyz: [-3.0, -0.0, 65.0],
-        }];
+        let s = [Sample { px: [330.0, 231.0, 284.0, 231.0], xyz: [-3.0, -0.0, 65.0] }];
         let mut out = Vec::new();
         write_csv(&mut out, &s).unwrap();
         assert_eq!(

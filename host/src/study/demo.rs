@@ -96,38 +96,21 @@ fn table(results: &[CaseResult]) -> (Vec<&'static str>, Vec<Vec<String>>) {
         .map(|r| {
             let m = &r.test.methods;
             let net_ok = m[0].worst_depth_pct < NET_BOUND_PCT;
-            let (vn, vf) = (
-                r.volume.methods[0].mean.e_ma_pct,
-                r.volume.methods[2].mean.e_ma_pct,
-            );
+            let (vn, vf) = (r.volume.methods[0].mean.e_ma_pct, r.volume.methods[2].mean.e_ma_pct);
             vec![
                 roman(r.case).to_string(),
-                format!(
-                    "{} .. {}",
-                    pct(m[1].best_depth_pct),
-                    pct(m[1].worst_depth_pct)
-                ),
+                format!("{} .. {}", pct(m[1].best_depth_pct), pct(m[1].worst_depth_pct)),
                 reported::traditional_range(r.case).unwrap_or_default(),
-                m.get(3)
-                    .map_or("no fallback".into(), |s| pct(s.worst_depth_pct)),
+                m.get(3).map_or("no fallback".into(), |s| pct(s.worst_depth_pct)),
                 format!(
                     "{} ({}){}",
                     pct(m[0].worst_depth_pct),
                     pct(m[0].mean.e_ma_pct),
-                    if net_ok {
-                        String::new()
-                    } else {
-                        format!(" > {NET_BOUND_PCT} %")
-                    }
+                    if net_ok { String::new() } else { format!(" > {NET_BOUND_PCT} %") }
                 ),
                 pct(m[2].worst_depth_pct),
                 format!("< {NET_BOUND_PCT} %"),
-                format!(
-                    "{} / {} ({:+.1} %)",
-                    pct(vn),
-                    pct(vf),
-                    (vn / vf - 1.0) * 100.0
-                ),
+                format!("{} / {} ({:+.1} %)", pct(vn), pct(vf), (vn / vf - 1.0) * 100.0),
             ]
         })
         .collect();
@@ -137,10 +120,8 @@ fn table(results: &[CaseResult]) -> (Vec<&'static str>, Vec<Vec<String>>) {
 /// The columns `cols` of a table.
 fn columns(head: &[&'static str], rows: &[Vec<String>], cols: &[usize]) -> String {
     let h: Vec<&str> = cols.iter().filter_map(|&c| head.get(c).copied()).collect();
-    let r: Vec<Vec<String>> = rows
-        .iter()
-        .map(|row| cols.iter().filter_map(|&c| row.get(c).cloned()).collect())
-        .collect();
+    let r: Vec<Vec<String>> =
+        rows.iter().map(|row| cols.iter().filter_map(|&c| row.get(c).cloned()).collect()).collect();
     table_text(&h, &r)
 }
 
@@ -156,10 +137,7 @@ fn case_section(r: &CaseResult) -> Result<String> {
             ("train_s", format!("{:.3}", r.train_s[0])),
             ("volume_train_pct", format!("{:.4}", r.volume_train_pct)),
             ("volume_train_s", format!("{:.3}", r.train_s[1])),
-            (
-                "refit_phi",
-                r.refit_phi.map_or("none".into(), |p| format!("{p:.4} px")),
-            ),
+            ("refit_phi", r.refit_phi.map_or("none".into(), |p| format!("{p:.4} px"))),
             ("test_table", text_table(&r.test)),
             ("volume_table", text_table(&r.volume)),
         ],
@@ -169,11 +147,7 @@ fn case_section(r: &CaseResult) -> Result<String> {
 /// Writes `REPORT.md` of a run with `seed` and `restarts`.
 pub fn write(files: &mut Files, d: &Demo) -> Result<()> {
     let (head, rows) = table(&d.cases);
-    let cases = d
-        .cases
-        .iter()
-        .map(case_section)
-        .collect::<Result<Vec<_>>>()?;
+    let cases = d.cases.iter().map(case_section).collect::<Result<Vec<_>>>()?;
     let (lo, hi) = training_volume();
     let c = &d.config;
     let values = [
@@ -187,27 +161,18 @@ pub fn write(files: &mut Files, d: &Demo) -> Result<()> {
         ),
         ("test_depth_count", TEST_DEPTHS.len().to_string()),
         ("test_depths", test_depths()),
-        (
-            "test_points",
-            (TEST_DEPTHS.len() * TEST_POINTS_XY.len()).to_string(),
-        ),
+        ("test_points", (TEST_DEPTHS.len() * TEST_POINTS_XY.len()).to_string()),
         ("volume_train_points", VOLUME_TRAIN_POINTS.to_string()),
         ("volume_points", VOLUME_POINTS.to_string()),
         (
             "volume",
-            format!(
-                "X {}..{}, Y {}..{}, Z {}..{} cm",
-                lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
-            ),
+            format!("X {}..{}, Y {}..{}, Z {}..{} cm", lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]),
         ),
         ("table", table_markdown(&head, &[], &rows)),
         ("builtin_phi", Calibration::BUILT_IN.phi.to_string()),
         ("bound", NET_BOUND_PCT.to_string()),
         ("cases", join(cases, "")),
-        (
-            "volume_train_seed",
-            volume_train_seed(c.seed, 1).to_string(),
-        ),
+        ("volume_train_seed", volume_train_seed(c.seed, 1).to_string()),
         ("volume_test_seed", volume_test_seed(c.seed, 1).to_string()),
     ];
     files.page("REPORT.md", "demo.md", REPORT, &values)

@@ -95,11 +95,7 @@ impl Files {
     pub fn new(dir: &Path) -> Result<Self> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create the directory", dir.display()))?;
-        Ok(Files {
-            dir: dir.to_path_buf(),
-            prefix: String::new(),
-            written: Vec::new(),
-        })
+        Ok(Files { dir: dir.to_path_buf(), prefix: String::new(), written: Vec::new() })
     }
 
     /// The directory written into.
@@ -213,11 +209,7 @@ pub fn run<S: Study>(study: &S, output: &Path, progress: &dyn Progress) -> Resul
     let mut files = Files::new(output)?;
     let (threads, results) = study.compute(progress)?;
     study.write(&mut files, &results, start.elapsed().as_secs_f64())?;
-    Ok(Ran {
-        files: files.into_written(),
-        threads,
-        seconds: start.elapsed().as_secs_f64(),
-    })
+    Ok(Ran { files: files.into_written(), threads, seconds: start.elapsed().as_secs_f64() })
 }
 
 /// Alignment of a markdown table's column.
@@ -296,23 +288,14 @@ mod tests {
     fn the_writer_lists_the_files_it_wrote() {
         let d = tmp("list");
         let mut f = Files::new(&d).unwrap();
-        f.csv("a.csv", "x,y", &[vec!["1".into(), "2".into()]])
-            .unwrap();
+        f.csv("a.csv", "x,y", &[vec!["1".into(), "2".into()]]).unwrap();
         let mut s = f.sub("part").unwrap();
-        s.rows("b.csv", "n", &[3, 4], |n| vec![n.to_string()])
-            .unwrap();
+        s.rows("b.csv", "n", &[3, 4], |n| vec![n.to_string()]).unwrap();
         f.absorb(s);
-        f.page("P.md", "p.md", "n = {n}\n", &[("n", "5".into())])
-            .unwrap();
+        f.page("P.md", "p.md", "n = {n}\n", &[("n", "5".into())]).unwrap();
         assert_eq!(f.written(), ["a.csv", "part/b.csv", "P.md"]);
-        assert_eq!(
-            std::fs::read_to_string(d.join("a.csv")).unwrap(),
-            "x,y\n1,2\n"
-        );
-        assert_eq!(
-            std::fs::read_to_string(d.join("part/b.csv")).unwrap(),
-            "n\n3\n4\n"
-        );
+        assert_eq!(std::fs::read_to_string(d.join("a.csv")).unwrap(), "x,y\n1,2\n");
+        assert_eq!(std::fs::read_to_string(d.join("part/b.csv")).unwrap(), "n\n3\n4\n");
         assert_eq!(std::fs::read_to_string(d.join("P.md")).unwrap(), "n = 5\n");
         let _ = std::fs::remove_dir_all(&d);
     }
@@ -321,10 +304,8 @@ mod tests {
     fn a_page_with_an_unfilled_placeholder_fails_and_writes_nothing() {
         let d = tmp("unfilled");
         let mut f = Files::new(&d).unwrap();
-        let e = f
-            .page("P.md", "p.md", "{a} and {b}\n", &[("a", "1".into())])
-            .unwrap_err()
-            .to_string();
+        let e =
+            f.page("P.md", "p.md", "{a} and {b}\n", &[("a", "1".into())]).unwrap_err().to_string();
         assert_eq!(e, "template p.md, line 1: no value for {b}");
         assert!(f.written().is_empty());
         assert!(!d.join("P.md").exists());
@@ -349,12 +330,7 @@ mod tests {
         }
         fn write(&self, files: &mut Files, r: &Vec<usize>, _: f64) -> Result<()> {
             files.rows("count.csv", "k", r, |k| vec![k.to_string()])?;
-            files.page(
-                self.page(),
-                "count.md",
-                "{n} rows\n",
-                &[("n", r.len().to_string())],
-            )
+            files.page(self.page(), "count.md", "{n} rows\n", &[("n", r.len().to_string())])
         }
     }
 
@@ -364,10 +340,7 @@ mod tests {
         let ran = run(&Count(3), &d.join("out"), &Quiet).unwrap();
         assert_eq!(ran.files, ["count.csv", "COUNT.md"]);
         assert_eq!(ran.threads, 1);
-        assert_eq!(
-            std::fs::read_to_string(d.join("out/count.csv")).unwrap(),
-            "k\n0\n1\n2\n"
-        );
+        assert_eq!(std::fs::read_to_string(d.join("out/count.csv")).unwrap(), "k\n0\n1\n2\n");
         let _ = std::fs::remove_dir_all(&d);
     }
 

@@ -101,20 +101,13 @@ pub struct Figure {
 impl Figure {
     /// A figure of one panel.
     pub fn single(title: impl Into<String>, panel: Panel) -> Self {
-        Figure {
-            title: title.into(),
-            panels: vec![panel],
-            cols: 1,
-        }
+        Figure { title: title.into(), panels: vec![panel], cols: 1 }
     }
 
     fn size(&self) -> (u32, u32) {
         let cols = self.cols.max(1);
         let rows = self.panels.len().div_ceil(cols).max(1);
-        (
-            (if cols == 1 { 900 } else { 640 * cols }) as u32,
-            (40 + 460 * rows) as u32,
-        )
+        ((if cols == 1 { 900 } else { 640 * cols }) as u32, (40 + 460 * rows) as u32)
     }
 }
 
@@ -167,8 +160,7 @@ pub fn svg(fig: &Figure) -> Result<String> {
     {
         let root = SVGBackend::with_string(&mut out, fig.size()).into_drawing_area();
         draw(&root, fig).map_err(|e| anyhow!("cannot draw \"{}\": {e}", fig.title))?;
-        root.present()
-            .map_err(|e| anyhow!("cannot draw \"{}\": {e}", fig.title))?;
+        root.present().map_err(|e| anyhow!("cannot draw \"{}\": {e}", fig.title))?;
     }
     Ok(out)
 }
@@ -181,8 +173,7 @@ pub fn png(fig: &Figure) -> Result<Vec<u8>> {
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
         draw(&root, fig).map_err(|e| anyhow!("cannot draw \"{}\": {e}", fig.title))?;
-        root.present()
-            .map_err(|e| anyhow!("cannot draw \"{}\": {e}", fig.title))?;
+        root.present().map_err(|e| anyhow!("cannot draw \"{}\": {e}", fig.title))?;
     }
     let mut bytes = Vec::new();
     {
@@ -242,17 +233,9 @@ fn ranges(p: &Panel) -> ((f64, f64), (f64, f64)) {
         let hi = libm::pow(10.0, libm::ceil(libm::log10(y.1 * 10.0)));
         (lo, if hi > lo { hi } else { lo * 10.0 })
     } else {
-        let span = if y.1 > y.0 {
-            y.1 - y.0
-        } else {
-            y.1.abs().max(1.0)
-        };
+        let span = if y.1 > y.0 { y.1 - y.0 } else { y.1.abs().max(1.0) };
         // Start at zero when the data are not far from it: errors read best from zero.
-        let lo = if y.0 >= 0.0 && y.0 < span {
-            0.0
-        } else {
-            y.0 - 0.1 * span
-        };
+        let lo = if y.0 >= 0.0 && y.0 < span { 0.0 } else { y.0 - 0.1 * span };
         // Headroom above the data for the legend.
         (lo, y.1 + 0.5 * (y.1 - lo).max(span))
     };
@@ -290,10 +273,7 @@ fn x_tick(v: f64, integer: bool) -> String {
 fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> DrawResult<DB> {
     let ((x0, x1), (y0, y1)) = ranges(p);
     let mut b = ChartBuilder::on(area);
-    b.caption(&p.title, (FAMILY, 18))
-        .margin(12)
-        .x_label_area_size(48)
-        .y_label_area_size(70);
+    b.caption(&p.title, (FAMILY, 18)).margin(12).x_label_area_size(48).y_label_area_size(70);
     // The same mesh, series and legend on either y axis (the two chart types differ).
     macro_rules! draw {
         ($chart:expr) => {{
@@ -354,10 +334,7 @@ where
         Style::Dashed => chart.draw_series(DashedLineSeries::new(pts, 8, 5, line))?,
     };
     anno.label(s.name.clone()).legend(move |(x, y)| {
-        PathElement::new(
-            vec![(x, y), (x + 24, y)],
-            ShapeStyle::from(c).stroke_width(2),
-        )
+        PathElement::new(vec![(x, y), (x + 24, y)], ShapeStyle::from(c).stroke_width(2))
     });
     Ok(())
 }
@@ -406,13 +383,7 @@ mod tests {
                         Style::LinePoints,
                         0,
                     ),
-                    Series::new(
-                        "floor",
-                        &[65.0, 85.0],
-                        &[0.5, 0.0],
-                        Style::Dashed,
-                        FLOOR_COLOR,
-                    ),
+                    Series::new("floor", &[65.0, 85.0], &[0.5, 0.0], Style::Dashed, FLOOR_COLOR),
                 ],
                 legend: Legend::UpperRight,
                 integer_x: false,

@@ -9,12 +9,8 @@ pub const PHI_L_VARIATION_PCT: f64 = 0.24116;
 pub const PHI_LR_PCT: f64 = 0.27821;
 /// Figs. 4.8-4.11: the traditional method's per-depth e_ma range (%), lowest and highest, per
 /// case I-IV.
-pub const TRADITIONAL_PCT: [[f64; 2]; 4] = [
-    [0.017387, 1.7834],
-    [15.1465, 18.9796],
-    [58.3189, 1145.9954],
-    [155.1946, 2653.9037],
-];
+pub const TRADITIONAL_PCT: [[f64; 2]; 4] =
+    [[0.017387, 1.7834], [15.1465, 18.9796], [58.3189, 1145.9954], [155.1946, 2653.9037]];
 /// Fig. 4.12: per-depth e_ma range of the 4-5-3 net on case IV (%).
 pub const NET_CASE4_PCT: [f64; 2] = [0.48455, 2.4771];
 /// Figs. 4.16-4.19 (section 4.2.2): the bound on the proposed net's worst per-depth e_ma (%),

@@ -20,9 +20,7 @@ pub fn fill(name: &str, template: &str, values: &[(&str, String)]) -> Result<Str
     let mut rest = template;
     while let Some(k) = rest.find(['{', '}']) {
         out.push_str(&rest[..k]);
-        let line = 1 + template[..template.len() - rest.len() + k]
-            .matches('\n')
-            .count();
+        let line = 1 + template[..template.len() - rest.len() + k].matches('\n').count();
         let tail = &rest[k..];
         if tail.starts_with("{{") || tail.starts_with("}}") {
             out.push_str(&tail[..1]);
@@ -48,10 +46,7 @@ pub fn fill(name: &str, template: &str, values: &[(&str, String)]) -> Result<Str
     }
     out.push_str(rest);
     if let Some(i) = used.iter().position(|u| !u) {
-        bail!(
-            "template {name}: value {{{}}} is not in the template",
-            values[i].0
-        );
+        bail!("template {name}: value {{{}}} is not in the template", values[i].0);
     }
     Ok(out)
 }
@@ -73,29 +68,20 @@ mod tests {
         )
         .unwrap();
         assert_eq!(s, "case II: 285.8 vs. 406.9 px, 285.8 again; {literal}\n");
-        assert_eq!(
-            fill("t", "no placeholders", &[]).unwrap(),
-            "no placeholders"
-        );
+        assert_eq!(fill("t", "no placeholders", &[]).unwrap(), "no placeholders");
     }
 
     #[test]
     fn a_placeholder_without_a_value_is_an_error() {
-        let e = fill("results.md", "a\n{x} {y}", &v(&[("x", "1")]))
-            .unwrap_err()
-            .to_string();
+        let e = fill("results.md", "a\n{x} {y}", &v(&[("x", "1")])).unwrap_err().to_string();
         assert_eq!(e, "template results.md, line 2: no value for {y}");
     }
 
     #[test]
     fn a_value_without_a_placeholder_is_an_error() {
-        let e = fill("t", "{x}", &v(&[("x", "1"), ("z", "2")]))
-            .unwrap_err()
-            .to_string();
+        let e = fill("t", "{x}", &v(&[("x", "1"), ("z", "2")])).unwrap_err().to_string();
         assert_eq!(e, "template t: value {z} is not in the template");
-        let e = fill("t", "{x}", &v(&[("x", "1"), ("x", "2")]))
-            .unwrap_err()
-            .to_string();
+        let e = fill("t", "{x}", &v(&[("x", "1"), ("x", "2")])).unwrap_err().to_string();
         assert_eq!(e, "template t: value {x} given twice");
     }
 

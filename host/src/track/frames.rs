@@ -42,23 +42,14 @@ pub struct VirtualCameras {
 impl VirtualCameras {
     /// Cameras of `head` looking at `scene`.
     pub fn new(head: HeadRig, scene: Scene, opt: RenderOptions, seed: u64) -> VirtualCameras {
-        VirtualCameras {
-            head,
-            scene,
-            opt,
-            seed,
-            frame: 0,
-        }
+        VirtualCameras { head, scene, opt, seed, frame: 0 }
     }
 }
 
 /// The virtual cameras' image options of the loop (`hvs track`, `hvs view --scene`): the
 /// renderer's blur and noise, 4x4 supersampling.
 pub fn loop_render_options() -> RenderOptions {
-    RenderOptions {
-        supersample: 4,
-        ..RenderOptions::default()
-    }
+    RenderOptions { supersample: 4, ..RenderOptions::default() }
 }
 
 /// splitmix64: one seed per frame from the run's seed.
@@ -75,10 +66,6 @@ impl FrameSource for VirtualCameras {
         self.frame += 1;
         let r = render_scene(&self.head, joints, &self.scene.at(t_s), &self.opt, seed)
             .map_err(|e| anyhow!("virtual cameras: {e}"))?;
-        Ok(Frame {
-            left: r.left.clone(),
-            right: r.right.clone(),
-            truth: Some(Box::new(r)),
-        })
+        Ok(Frame { left: r.left.clone(), right: r.right.clone(), truth: Some(Box::new(r)) })
     }
 }

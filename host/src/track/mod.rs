@@ -113,9 +113,7 @@ fn true_error(frame: &Frame, found: &target::Found, centre: [f64; 2]) -> Option<
             *counts.entry(id).or_insert(0usize) += 1;
         }
     }
-    let (&id, _) = counts
-        .iter()
-        .max_by_key(|(id, n)| (**n, std::cmp::Reverse(**id)))?;
+    let (&id, _) = counts.iter().max_by_key(|(id, n)| (**n, std::cmp::Reverse(**id)))?;
     if id == hvs_vision::scene::BACKGROUND || id == hvs_vision::scene::NONE {
         return None;
     }
@@ -169,9 +167,7 @@ impl Tracker {
         let t0 = std::time::Instant::now();
         let frame = source.grab(t_s, &joints)?;
         let t1 = std::time::Instant::now();
-        let found = self
-            .finder
-            .find(&frame.left, &frame.right, &joints, estimator);
+        let found = self.finder.find(&frame.left, &frame.right, &joints, estimator);
         let obs = Observation {
             target: found.as_ref().map(|f| StereoPoint {
                 u_l: f.px[0] as f32,
@@ -184,10 +180,8 @@ impl Tracker {
         let (next, cmd) = fixation::step(&self.loop_cfg, estimator, &self.state, &obs);
         self.state = next;
         head.command(&cmd.joints);
-        self.times = FrameTimes {
-            grab_s: (t1 - t0).as_secs_f64(),
-            perceive_s: t1.elapsed().as_secs_f64(),
-        };
+        self.times =
+            FrameTimes { grab_s: (t1 - t0).as_secs_f64(), perceive_s: t1.elapsed().as_secs_f64() };
         let centre = self.loop_cfg.centre_px.map(f64::from);
         let row = LogRow {
             t_s,

@@ -17,9 +17,8 @@ pub struct LoadedScene {
 
 /// The rig of a scene file's `rig` value.
 pub fn rig_of(v: &serde_json::Value) -> Result<Rig> {
-    let obj = v
-        .as_object()
-        .ok_or_else(|| anyhow!("rig: expected {{\"case\": N}} or a rig object"))?;
+    let obj =
+        v.as_object().ok_or_else(|| anyhow!("rig: expected {{\"case\": N}} or a rig object"))?;
     if obj.contains_key("case") {
         if obj.len() != 1 {
             bail!("rig: {{\"case\": N}} takes no other field");

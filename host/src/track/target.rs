@@ -191,11 +191,7 @@ fn zncc_row(lc: &Centred, r: &Plane, rr: i32, (c0, c1): (i32, i32), out: &mut Ve
     }
     for (k, o) in out.iter_mut().enumerate() {
         let (mr, nr) = r.stats(c0 + k as i32, rr, rad);
-        *o = if lc.norm <= 0.0 || nr <= 0.0 {
-            -1.0
-        } else {
-            (*o - mr * lc.sum) / (lc.norm * nr)
-        };
+        *o = if lc.norm <= 0.0 || nr <= 0.0 { -1.0 } else { (*o - mr * lc.sum) / (lc.norm * nr) };
     }
 }
 
@@ -281,11 +277,7 @@ fn search(
     };
     let sx = sub(at(x - 1, y), s, at(x + 1, y));
     let sy = sub(at(x, y - 1), s, at(x, y + 1));
-    Some((
-        f64::from(x) + f64::from(sx),
-        f64::from(y) + f64::from(sy),
-        s,
-    ))
+    Some((f64::from(x) + f64::from(sx), f64::from(y) + f64::from(sy), s))
 }
 
 /// One matched point: left pixel, right pixel (sub-pixel), depth.
@@ -321,12 +313,7 @@ pub struct Finder {
 }
 
 fn depth_of(est: &Estimator, joints: &Joints, l: [i32; 2], r: [f64; 2]) -> Option<f32> {
-    let p = StereoPoint {
-        u_l: l[0] as f32,
-        v_l: l[1] as f32,
-        u_r: r[0] as f32,
-        v_r: r[1] as f32,
-    };
+    let p = StereoPoint { u_l: l[0] as f32, v_l: l[1] as f32, u_r: r[0] as f32, v_r: r[1] as f32 };
     // Only estimates inside the model's training box: far outside it (the wall behind the
     // objects) a net extrapolates to anything, nearer than the nearest object included.
     // (The outputs only: the pixels of a board protocol cover a small box of the image.)
@@ -356,11 +343,7 @@ fn median(mut v: Vec<f32>) -> f32 {
 impl Finder {
     /// A finder for `mode`.
     pub fn new(mode: TargetMode) -> Finder {
-        Finder {
-            mode,
-            last: None,
-            followed: 0,
-        }
+        Finder { mode, last: None, followed: 0 }
     }
 
     /// Forgets the target (it is found afresh in the next frame).
@@ -440,21 +423,14 @@ fn coarse_match_in(
     let (u2, v2) = ((2.0 * u).round() as i32, (2.0 * v).round() as i32);
     let (ur, vr, _) = search(l, r, c[0], c[1], [u2 - 2, u2 + 2], [v2 - 2, v2 + 2], 5)?;
     let z = depth_of(est, joints, c, [ur, vr])?;
-    Some(Pt {
-        l: c,
-        r: [ur, vr],
-        z,
-    })
+    Some(Pt { l: c, r: [ur, vr], z })
 }
 
 /// The nearest depth cluster on the coarse grid of the front region.
 fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Option<Last> {
     let (lh, rh) = (l.half(), r.half());
     let (w, h) = (f64::from(l.w), f64::from(l.h));
-    let (mx, my) = (
-        (0.5 * (1.0 - FRONT_SHARE) * w) as i32,
-        (0.5 * (1.0 - FRONT_SHARE) * h) as i32,
-    );
+    let (mx, my) = ((0.5 * (1.0 - FRONT_SHARE) * w) as i32, (0.5 * (1.0 - FRONT_SHARE) * h) as i32);
     // The grid's matches, rows in parallel, in row-major order (the same on any number of
     // threads).
     let step = grid_step(l.w).max(1) as usize;
@@ -465,8 +441,7 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
         .par_iter()
         .flat_map_iter(|&y| {
             let (lh, rh) = (&lh, &rh);
-            xs.iter()
-                .filter_map(move |&x| coarse_match_in(lh, rh, l, r, [x, y], joints, est))
+            xs.iter().filter_map(move |&x| coarse_match_in(lh, rh, l, r, [x, y], joints, est))
         })
         .collect();
     // Nearest first by disparity, not by the model's depth: along every left ray the right
@@ -485,16 +460,8 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
             let n = members.len() as f64;
             let cu = members.iter().map(|q| f64::from(q.l[0])).sum::<f64>() / n;
             let cv = members.iter().map(|q| f64::from(q.l[1])).sum::<f64>() / n;
-            let du = members
-                .iter()
-                .map(|q| f64::from(q.l[0]) - q.r[0])
-                .sum::<f64>()
-                / n;
-            let dv = members
-                .iter()
-                .map(|q| f64::from(q.l[1]) - q.r[1])
-                .sum::<f64>()
-                / n;
+            let du = members.iter().map(|q| f64::from(q.l[0]) - q.r[0]).sum::<f64>() / n;
+            let dv = members.iter().map(|q| f64::from(q.l[1]) - q.r[1]).sum::<f64>() / n;
             let extent = members
                 .iter()
                 .map(|q| (f64::from(q.l[0]) - cu).hypot(f64::from(q.l[1]) - cv))
@@ -513,14 +480,8 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
 /// The dense matches of the region around `s` at its depth: the target and its extent.
 fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Option<(Found, f64)> {
     let ext = (s.extent + 12.0).min(MAX_EXTENT);
-    let (c0, c1) = (
-        (s.centre[0] - ext).floor() as i32,
-        (s.centre[0] + ext).ceil() as i32,
-    );
-    let (r0, r1) = (
-        (s.centre[1] - ext).floor() as i32,
-        (s.centre[1] + ext).ceil() as i32,
-    );
+    let (c0, c1) = ((s.centre[0] - ext).floor() as i32, (s.centre[0] + ext).ceil() as i32);
+    let (r0, r1) = ((s.centre[1] - ext).floor() as i32, (s.centre[1] + ext).ceil() as i32);
     // Rows in parallel, matches in row-major order (the same on any number of threads).
     let xs: Vec<i32> = (c0..=c1).step_by(DENSE_STEP as usize).collect();
     let pts: Vec<Pt> = (r0..=r1)
@@ -534,11 +495,7 @@ fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Op
                 let (uc, vc) = (ur.round() as i32, vr.round() as i32);
                 let (u, v, _) = search(l, r, x, y, [uc - 5, uc + 5], [vc - 2, vc + 2], 4)?;
                 let z = depth_of(est, joints, [x, y], [u, v])?;
-                in_band(z, s.z).then_some(Pt {
-                    l: [x, y],
-                    r: [u, v],
-                    z,
-                })
+                in_band(z, s.z).then_some(Pt { l: [x, y], r: [u, v], z })
             })
         })
         .collect();
@@ -558,14 +515,7 @@ fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Op
         .map(|p| (f64::from(p.l[0]) - px[0]).hypot(f64::from(p.l[1]) - px[1]))
         .fold(0.0, f64::max);
     let z = median(pts.iter().map(|p| p.z).collect());
-    Some((
-        Found {
-            px,
-            z,
-            points: pts.iter().map(|p| p.l).collect(),
-        },
-        extent,
-    ))
+    Some((Found { px, z, points: pts.iter().map(|p| p.l).collect() }, extent))
 }
 
 #[cfg(test)]
@@ -605,18 +555,14 @@ mod tests {
         let est = Estimator::Fallback(Calibration::BUILT_IN);
         let near = |f: &Option<Found>, centre: [f64; 3]| {
             let t = head.project(&Joints::HOME, &centre).unwrap();
-            f.as_ref()
-                .is_some_and(|f| (f.px[0] - t[0]).hypot(f.px[1] - t[1]) < 6.0)
+            f.as_ref().is_some_and(|f| (f.px[0] - t[0]).hypot(f.px[1] - t[1]) < 6.0)
         };
         let (at_a, at_b) = ([10.0, -5.0, 90.0], [-20.0, 5.0, 70.0]);
         let mut f = Finder::new(TargetMode::Nearest);
         let mut find = |r: &SceneRender| f.find(&r.left, &r.right, &Joints::HOME, &est);
         assert!(near(&find(&only_a), at_a), "A, the only object");
         for k in 0..RESCAN_FRAMES {
-            assert!(
-                near(&find(&both), at_a),
-                "A followed in frame {k} after the scan"
-            );
+            assert!(near(&find(&both), at_a), "A followed in frame {k} after the scan");
         }
         assert!(near(&find(&both), at_b), "the scan takes the nearer B");
         assert!(near(&find(&both), at_b), "B followed");
@@ -628,11 +574,7 @@ mod tests {
         // (the wall's texture, in the narrow search around B's old offset); the next scan, at
         // the latest `RESCAN_FRAMES` frames on, takes A.
         let took_a = (0..=RESCAN_FRAMES).position(|_| near(&find(&only_a_again), at_a));
-        assert!(
-            took_a.is_some(),
-            "A taken within {} frames",
-            RESCAN_FRAMES + 1
-        );
+        assert!(took_a.is_some(), "A taken within {} frames", RESCAN_FRAMES + 1);
     }
 
     #[test]
@@ -652,12 +594,7 @@ mod tests {
             .expect("a target");
         let truth = head.project(&Joints::HOME, &[20.0, -8.0, 90.0]).unwrap();
         let e = (found.px[0] - truth[0]).hypot(found.px[1] - truth[1]);
-        assert!(
-            e < 6.0,
-            "centroid {:?} vs the sphere's centre {:?}",
-            found.px,
-            truth
-        );
+        assert!(e < 6.0, "centroid {:?} vs the sphere's centre {:?}", found.px, truth);
     }
 
     #[test]
@@ -684,9 +621,7 @@ mod tests {
         }
         assert!(n > 40 && bad * 20 <= n, "{bad} wrong of {n}");
         let mut f = Finder::new(TargetMode::Nearest);
-        let found = f
-            .find(&r.left, &r.right, &Joints::HOME, &est)
-            .expect("a target");
+        let found = f.find(&r.left, &r.right, &Joints::HOME, &est).expect("a target");
         let truth = head.project(&Joints::HOME, &[10.0, -5.0, 90.0]).unwrap();
         let e = (found.px[0] - truth[0]).hypot(found.px[1] - truth[1]);
         assert!(e < 3.0, "centroid {:?} vs {:?}", found.px, truth);

@@ -98,10 +98,7 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], o: &AdamOptions) -> AdamResult 
         best.copy_from_slice(p);
     }
     p.copy_from_slice(&best);
-    AdamResult {
-        epochs,
-        cost: best_cost,
-    }
+    AdamResult { epochs, cost: best_cost }
 }
 
 #[cfg(test)]
@@ -117,11 +114,7 @@ mod tests {
         let prob = random_problem(shape, Activation::Linear, 30, 1);
         let mut p = random_params(&shape, 2);
         let start = prob.cost(&p);
-        let opts = AdamOptions {
-            epochs: 500,
-            weight_decay: 0.0,
-            ..AdamOptions::default()
-        };
+        let opts = AdamOptions { epochs: 500, weight_decay: 0.0, ..AdamOptions::default() };
         let res = fit(&prob, &mut p, &opts);
         assert_eq!(res.epochs, 500);
         assert_eq!(res.cost, prob.cost(&p));

@@ -40,11 +40,7 @@ impl Default for BpParams {
     /// and Z outputs), so there the cycle cap ends training: stopping at a higher `E_max`
     /// leaves the nets less well fitted (worse test errors).
     fn default() -> Self {
-        BpParams {
-            learning_rate: 0.5,
-            e_max: 1e-4,
-            max_cycles: 20_000,
-        }
+        BpParams { learning_rate: 0.5, e_max: 1e-4, max_cycles: 20_000 }
     }
 }
 
@@ -52,16 +48,10 @@ impl BpParams {
     /// Rejects settings the algorithm cannot run with.
     pub fn check(&self) -> Result<()> {
         if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
-            bail!(
-                "the BP learning rate must be positive, got {}",
-                self.learning_rate
-            );
+            bail!("the BP learning rate must be positive, got {}", self.learning_rate);
         }
         if !(self.e_max.is_finite() && self.e_max >= 0.0) {
-            bail!(
-                "the BP E_max must be a non-negative number, got {}",
-                self.e_max
-            );
+            bail!("the BP E_max must be a non-negative number, got {}", self.e_max);
         }
         if self.max_cycles == 0 {
             bail!("the BP learning-cycle cap must be at least 1");
@@ -124,10 +114,7 @@ pub(crate) fn step(
 pub(crate) fn fit(prob: &Problem, p: &mut [f64], params: &BpParams) -> BpResult {
     let s = prob.shape;
     let mut scratch = (vec![0.0; s.nh], vec![0.0; s.no], vec![0.0; s.no]);
-    let mut result = BpResult {
-        cycles: 0,
-        error: f64::INFINITY,
-    };
+    let mut result = BpResult { cycles: 0, error: f64::INFINITY };
     while result.cycles < params.max_cycles {
         let mut e = 0.0;
         for n in 0..prob.n {
@@ -234,11 +221,7 @@ mod tests {
         let start = prob.cost(&p0);
         let run = |e_max: f64| {
             let mut p = p0.clone();
-            let params = BpParams {
-                learning_rate: 0.5,
-                e_max,
-                max_cycles: 300,
-            };
+            let params = BpParams { learning_rate: 0.5, e_max, max_cycles: 300 };
             (fit(&prob, &mut p, &params), p)
         };
         let (capped, p) = run(0.0);
@@ -251,18 +234,9 @@ mod tests {
     #[test]
     fn rejects_bad_settings() {
         for bad in [
-            BpParams {
-                learning_rate: 0.0,
-                ..BpParams::default()
-            },
-            BpParams {
-                e_max: f64::NAN,
-                ..BpParams::default()
-            },
-            BpParams {
-                max_cycles: 0,
-                ..BpParams::default()
-            },
+            BpParams { learning_rate: 0.0, ..BpParams::default() },
+            BpParams { e_max: f64::NAN, ..BpParams::default() },
+            BpParams { max_cycles: 0, ..BpParams::default() },
         ] {
             assert!(bad.check().is_err());
         }

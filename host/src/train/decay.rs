@@ -58,9 +58,8 @@ fn residual_vars(data: &Dataset) -> Option<(f64, f64)> {
     let mut plain_sum = 0.0;
     let mut dof = 0usize;
     for cam in 0..2 {
-        let px: Vec<[f64; 2]> = (0..n)
-            .map(|r| [data.row(r)[2 * cam], data.row(r)[2 * cam + 1]])
-            .collect();
+        let px: Vec<[f64; 2]> =
+            (0..n).map(|r| [data.row(r)[2 * cam], data.row(r)[2 * cam + 1]]).collect();
         // The DLT and the lens cubic, fitted in turn: the DLT to the pixels less the cubic,
         // the cubic to what the DLT leaves ([`LENS_ROUNDS`] rounds).
         let mut corrected = px.clone();
@@ -111,10 +110,7 @@ fn smooth_residual(proj: &[[f64; 2]], px: &[[f64; 2]]) -> Option<(f64, usize, Ve
     const TERMS: usize = 10;
     let n = proj.len();
     let plain = || -> f64 {
-        proj.iter()
-            .zip(px)
-            .map(|(q, x)| (q[0] - x[0]).powi(2) + (q[1] - x[1]).powi(2))
-            .sum()
+        proj.iter().zip(px).map(|(q, x)| (q[0] - x[0]).powi(2) + (q[1] - x[1]).powi(2)).sum()
     };
     if n < 3 * TERMS {
         return Some((plain(), 0, vec![[0.0; 2]; n]));
@@ -129,18 +125,8 @@ fn smooth_residual(proj: &[[f64; 2]], px: &[[f64; 2]]) -> Option<(f64, usize, Ve
     let a = nalgebra::DMatrix::from_fn(n, TERMS, |r, c| {
         let x = (proj[r][0] - mean[0]) / spread[0];
         let y = (proj[r][1] - mean[1]) / spread[1];
-        const POWERS: [(i32, i32); TERMS] = [
-            (0, 0),
-            (1, 0),
-            (0, 1),
-            (2, 0),
-            (1, 1),
-            (0, 2),
-            (3, 0),
-            (2, 1),
-            (1, 2),
-            (0, 3),
-        ];
+        const POWERS: [(i32, i32); TERMS] =
+            [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2), (3, 0), (2, 1), (1, 2), (0, 3)];
         let (i, j) = POWERS[c];
         x.powi(i) * y.powi(j)
     });
@@ -203,10 +189,7 @@ mod tests {
     fn the_noise_estimate_sees_through_a_lens_and_the_excess_sees_the_lens() {
         for k1 in [0.0, -0.1] {
             let d = board_set(k1);
-            let PixelNoise {
-                var: v,
-                lens_excess: e,
-            } = pixel_noise(&d).unwrap();
+            let PixelNoise { var: v, lens_excess: e } = pixel_noise(&d).unwrap();
             // The true variance is 1e-4 px^2 with or without the lens.
             assert!((0.5e-4..2e-4).contains(&v), "k1 {k1}: noise variance {v}");
             if k1 == 0.0 {

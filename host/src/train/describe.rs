@@ -18,11 +18,7 @@ pub fn describe(path: &Path, f: &ModelFile) -> String {
         f.file_len,
         f.version,
         f.blob_len - hvs_shared::runtime::blob::HEADER_LEN - hvs_shared::runtime::blob::CRC_LEN,
-        if trailing > 0 {
-            format!(", {trailing} trailing bytes ignored")
-        } else {
-            String::new()
-        }
+        if trailing > 0 { format!(", {trailing} trailing bytes ignored") } else { String::new() }
     );
     let _ = writeln!(o, "crc:         ok ({:#010x}); all checks passed", f.crc);
     let _ = writeln!(o, "generation:  {}", b.generation);
@@ -65,10 +61,7 @@ pub fn describe(path: &Path, f: &ModelFile) -> String {
     );
     let _ = match b.image_size() {
         Some((w, h)) => writeln!(o, "images:      {w}x{h} px (the training images' size)"),
-        None => writeln!(
-            o,
-            "images:      none recorded (trained from points, not images)"
-        ),
+        None => writeln!(o, "images:      none recorded (trained from points, not images)"),
     };
     let _ = match b.parent() {
         Some((crc, generation)) => writeln!(
@@ -110,10 +103,7 @@ pub fn describe(path: &Path, f: &ModelFile) -> String {
             "fallback:    traditional method, Phi = {} px, d = {} cm, principal point ({}, {})",
             c.phi, c.half_baseline, c.u0, c.v0
         ),
-        None => writeln!(
-            o,
-            "fallback:    none (a head would use its built-in calibration)"
-        ),
+        None => writeln!(o, "fallback:    none (a head would use its built-in calibration)"),
     };
     o
 }

@@ -81,12 +81,7 @@ pub fn fit(data: &Dataset, half_baseline: f64, u0: f64, v0: f64) -> Option<Fallb
                 v0: v0 as f32,
             };
             if calibration.is_valid() {
-                return Some(FallbackFit {
-                    calibration,
-                    phi,
-                    depth: z,
-                    points: pairs.len(),
-                });
+                return Some(FallbackFit { calibration, phi, depth: z, points: pairs.len() });
             }
         }
     }
@@ -133,22 +128,12 @@ mod tests {
     fn no_symmetric_board_no_fallback() {
         let mut d = Dataset::new(InputKind::Stereo);
         let rig = presets::CASE_1;
-        for s in simulate(
-            &rig,
-            SetKind::Volume,
-            &SimOptions {
-                points: 50,
-                ..Default::default()
-            },
-        )
-        .unwrap()
+        for s in simulate(&rig, SetKind::Volume, &SimOptions { points: 50, ..Default::default() })
+            .unwrap()
         {
             d.push(&s.px, Some(s.xyz));
         }
         assert_eq!(fit(&d, 5.25, 320.0, 240.0), None);
-        assert_eq!(
-            fit(&Dataset::new(InputKind::Stereo), 5.25, 320.0, 240.0),
-            None
-        );
+        assert_eq!(fit(&Dataset::new(InputKind::Stereo), 5.25, 320.0, 240.0), None);
     }
 }

@@ -38,13 +38,7 @@ impl Default for LmOptions {
     /// Plain least squares, run to a relative stall of 1e-6 (tests use this; `train` sets
     /// its own options).
     fn default() -> Self {
-        LmOptions {
-            max_iter: 300,
-            rel_tol: 1e-6,
-            patience: 4,
-            weight_decay: 0.0,
-            tail: (0, 0.0),
-        }
+        LmOptions { max_iter: 300, rel_tol: 1e-6, patience: 4, weight_decay: 0.0, tail: (0, 0.0) }
     }
 }
 
@@ -66,13 +60,7 @@ fn sum_sq(v: &[f64]) -> f64 {
 pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     let np = p.len();
     let decay: Vec<f64> = (0..np)
-        .map(|q| {
-            if q + opts.tail.0 >= np {
-                opts.tail.1
-            } else {
-                opts.weight_decay
-            }
-        })
+        .map(|q| if q + opts.tail.0 >= np { opts.tail.1 } else { opts.weight_decay })
         .collect();
     let alpha_max = decay.iter().copied().fold(0.0, f64::max);
     let mut ws = NormalWorkspace::new(prob);
@@ -98,15 +86,9 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     };
 
     prob.evaluate(p, &mut act);
-    let mut f = objective(
-        prob.normal_equations(p, &act, &mut jtj, &mut jtr, &mut ws),
-        p,
-    );
+    let mut f = objective(prob.normal_equations(p, &act, &mut jtj, &mut jtr, &mut ws), p);
     if !f.is_finite() {
-        return LmResult {
-            iterations: 0,
-            cost: f,
-        };
+        return LmResult { iterations: 0, cost: f };
     }
     let mut lambda = 1e-3;
     let mut nu = 2.0;
@@ -161,10 +143,7 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
             let improvement = (f - f_new) / f.max(f64::MIN_POSITIVE);
             p.copy_from_slice(&trial);
             std::mem::swap(&mut act, &mut act_trial);
-            f = objective(
-                prob.normal_equations(p, &act, &mut jtj, &mut jtr, &mut ws),
-                p,
-            );
+            f = objective(prob.normal_equations(p, &act, &mut jtj, &mut jtr, &mut ws), p);
             fresh = true;
             lambda *= f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3));
             lambda = lambda.max(1e-12);
@@ -185,10 +164,7 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
             }
         }
     }
-    LmResult {
-        iterations,
-        cost: f,
-    }
+    LmResult { iterations, cost: f }
 }
 
 #[cfg(test)]
@@ -235,10 +211,7 @@ mod tests {
         for seed in 0..5 {
             let mut p = random_params(&shape, seed);
             let start = prob.cost(&p);
-            let opts = LmOptions {
-                max_iter: 7,
-                ..LmOptions::default()
-            };
+            let opts = LmOptions { max_iter: 7, ..LmOptions::default() };
             let res = fit(&prob, &mut p, &opts);
             assert!(res.iterations <= 7);
             assert!(res.cost <= start);
@@ -265,23 +238,12 @@ mod tests {
         assert!(f < f0);
         let mut grad = vec![0.0; p.len()];
         prob.gradient(&p, &mut grad);
-        let norm: f64 = grad
-            .iter()
-            .zip(&p)
-            .map(|(g, q)| (g + alpha * q).powi(2))
-            .sum::<f64>()
-            .sqrt();
+        let norm: f64 =
+            grad.iter().zip(&p).map(|(g, q)| (g + alpha * q).powi(2)).sum::<f64>().sqrt();
         assert!(norm < 1e-7, "gradient norm {norm} at the end");
         // The decay shrinks the weights compared with plain least squares from the same start.
         let mut q = random_params(&shape, 3);
-        fit(
-            &prob,
-            &mut q,
-            &LmOptions {
-                weight_decay: 0.0,
-                ..opts
-            },
-        );
+        fit(&prob, &mut q, &LmOptions { weight_decay: 0.0, ..opts });
         assert!(sum_sq(&p) < sum_sq(&q));
     }
 }

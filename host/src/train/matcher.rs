@@ -78,12 +78,7 @@ mod tests {
     #[test]
     fn matcher_geometry_is_the_rigs_epipolar_geometry() {
         let rig = presets::CASE_2;
-        let opt = SimOptions {
-            points: 300,
-            noise_px: 0.0,
-            seed: 5,
-            ..SimOptions::default()
-        };
+        let opt = SimOptions { points: 300, noise_px: 0.0, seed: 5, ..SimOptions::default() };
         let mut d = Dataset::new(hvs_shared::runtime::blob::InputKind::Stereo);
         for s in simulate(&rig, SetKind::Volume, &opt).unwrap() {
             d.push(&s.px, Some(s.xyz));
@@ -91,19 +86,14 @@ mod tests {
         let g = matcher_geometry(&d).unwrap();
         assert!(g.out_min[2] >= 65.0 && g.out_max[2] <= 165.0 && g.out_min[2] < g.out_max[2]);
         // Case II's right camera has the longer focal length: the right image is larger.
-        let want = [
-            rig.phi_u_right / rig.phi_u_left,
-            rig.phi_v_right / rig.phi_v_left,
-        ];
+        let want = [rig.phi_u_right / rig.phi_u_left, rig.phi_v_right / rig.phi_v_left];
         for (got, want) in g.right_scale.iter().zip(want) {
             let got = f64::from(*got);
             assert!((got / want - 1.0).abs() < 0.01, "{got} vs {want}");
         }
         assert!(g.disparity[0] > 0.0 && g.disparity[0] < g.disparity[1]);
         // Points the fit never saw lie on their epipolar lines (rounded pixels: within ~1 px).
-        let f = hvs_vision::geometry::Fundamental {
-            m: g.fundamental.map(|r| r.map(f64::from)),
-        };
+        let f = hvs_vision::geometry::Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
         let test = simulate(&rig, SetKind::Test, &SimOptions::default()).unwrap();
         for s in &test {
             let d = f.distance_in_right([s.px[0], s.px[1]], [s.px[2], s.px[3]]);

@@ -119,11 +119,7 @@ fn lm_options(f: Family, data: &Dataset, n_skip: usize) -> lm::LmOptions {
         None if n_skip > 0 => SKIP_NET_DECAY_FACTOR * decay,
         _ => decay,
     };
-    lm::LmOptions {
-        weight_decay: net,
-        tail: (n_skip, decay),
-        ..LM_OPTIONS
-    }
+    lm::LmOptions { weight_decay: net, tail: (n_skip, decay), ..LM_OPTIONS }
 }
 
 /// Training algorithm.
@@ -245,9 +241,7 @@ struct Scaling {
 }
 
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-        (lo.min(v), hi.max(v))
-    })
+    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)))
 }
 
 /// Smallest range treated as a varying column; below it the column is held constant.
@@ -283,21 +277,15 @@ fn scaling(data: &Dataset, out_cols: &[usize], act: Activation, map: OutputMap) 
         in_min: Vec::new(),
         in_max: Vec::new(),
     };
-    let ranges: Vec<(f64, f64)> = (0..ni)
-        .map(|i| range((0..data.len()).map(|n| data.row(n)[i])))
-        .collect();
-    let pixel_span = ranges
-        .iter()
-        .take(4)
-        .map(|(lo, hi)| hi - lo)
-        .fold(0.0, f64::max);
+    let ranges: Vec<(f64, f64)> =
+        (0..ni).map(|i| range((0..data.len()).map(|n| data.row(n)[i]))).collect();
+    let pixel_span = ranges.iter().take(4).map(|(lo, hi)| hi - lo).fold(0.0, f64::max);
     for (i, &(lo, hi)) in ranges.iter().enumerate() {
         s.in_min.push(lo as f32);
         s.in_max.push(hi as f32);
         s.in_offset.push((0.5 * (lo + hi)) as f32);
         let span = if i < 4 { pixel_span } else { hi - lo };
-        s.in_scale
-            .push(if span > MIN_SPAN { 2.0 / span } else { 1.0 } as f32);
+        s.in_scale.push(if span > MIN_SPAN { 2.0 / span } else { 1.0 } as f32);
     }
     for &k in out_cols {
         let (lo, hi) = range(data.targets.iter().map(|t| target_value(map, k, t)));
@@ -327,12 +315,7 @@ fn output_columns(kind: OutputKind) -> (&'static [usize], usize) {
 fn problem(data: &Dataset, cfg: &TrainConfig, sc: &Scaling) -> Problem {
     let act = cfg.algo.output_activation();
     let (cols, _) = output_columns(cfg.outputs);
-    let shape = Shape::new(
-        data.n_inputs,
-        cfg.hidden,
-        cols.len(),
-        cfg.family.skip == Skip::Linear,
-    );
+    let shape = Shape::new(data.n_inputs, cfg.hidden, cols.len(), cfg.family.skip == Skip::Linear);
     let n = data.len();
     let mut x = Vec::with_capacity(n * shape.ni);
     for row in 0..n {
@@ -355,14 +338,7 @@ fn problem(data: &Dataset, cfg: &TrainConfig, sc: &Scaling) -> Problem {
             });
         }
     }
-    Problem {
-        shape,
-        output: act,
-        n,
-        x,
-        t,
-        c,
-    }
+    Problem { shape, output: act, n, x, t, c }
 }
 
 /// Uniform random initial weights: first layer in `[-1, 1]` (inputs are in `[-1, 1]`, so
@@ -509,11 +485,7 @@ fn check(data: &Dataset, cfg: &TrainConfig) -> Result<()> {
             bail!("the ground truth of row {} is not finite", n + 1);
         }
         if t[2] <= 0.0 {
-            bail!(
-                "row {}: depth z = {} cm; the depth of a visible point is positive",
-                n + 1,
-                t[2]
-            );
+            bail!("row {}: depth z = {} cm; the depth of a visible point is positive", n + 1, t[2]);
         }
     }
     Ok(())
@@ -584,16 +556,11 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
         .flatten();
     // The restarts learn the first `selection` synthetic points; the best one is then fitted
     // to all of them (below).
-    let selection = distilled
-        .as_ref()
-        .map(|d| synthetic::prefix(&d.set, d.selection));
+    let selection = distilled.as_ref().map(|d| synthetic::prefix(&d.set, d.selection));
     let fit_data = selection.as_ref().unwrap_or(data_for_net);
     let prob = problem(fit_data, cfg, &sc);
-    let mut lm_opts = lm_options(
-        cfg.family,
-        fit_data,
-        cfg.family.skip_len(prob.shape.ni, prob.shape.no),
-    );
+    let mut lm_opts =
+        lm_options(cfg.family, fit_data, cfg.family.skip_len(prob.shape.ni, prob.shape.no));
     if distilled.is_some() {
         // 2,000 synthetic points do not overfit: the net gets the plain decay (tuning seeds:
         // worst volume ratio 1.034 vs 1.041 with the factor, protocol 1.06 vs 1.10-1.12).
@@ -622,9 +589,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
                 Algo::Bp => bp::fit(&prob, &mut p, &cfg.bp).cycles,
             };
             let mut blob = export(&p, data, cfg, &sc, 0.0);
-            let err = blob
-                .as_ref()
-                .map_or(f64::INFINITY, |b| blob_error_pct(b, data));
+            let err = blob.as_ref().map_or(f64::INFINITY, |b| blob_error_pct(b, data));
             if let Some(b) = blob.as_mut() {
                 b.meta.train_error_pct = err as f32;
             }
@@ -633,12 +598,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
             if let Some(b) = &bar {
                 b.inc(1);
             }
-            let report = RestartReport {
-                index,
-                train_error_pct: err,
-                enrolled,
-                iterations,
-            };
+            let report = RestartReport { index, train_error_pct: err, enrolled, iterations };
             (report, blob.filter(|_| enrolled), p)
         })
         .collect();
@@ -649,10 +609,7 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
     // Quantised pixels: the best restart, fitted to every synthetic point; kept when it
     // exports and its training e_ma on the measured points is finite.
     let polish = |all: &synthetic::Distilled, p: &[f64]| -> Option<(f64, ModelBlob)> {
-        let opts = lm::LmOptions {
-            max_iter: all.polish_iter,
-            ..lm_opts
-        };
+        let opts = lm::LmOptions { max_iter: all.polish_iter, ..lm_opts };
         let mut p = p.to_vec();
         lm::fit(&problem(&all.set, cfg, &sc), &mut p, &opts);
         let mut b = export(&p, data, cfg, &sc, 0.0)?;
@@ -668,17 +625,11 @@ pub fn train(data: &Dataset, cfg: &TrainConfig) -> Result<TrainOutcome> {
         .filter_map(|(rep, blob, p)| Some((rep.train_error_pct, blob.as_ref()?, p)))
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(e, b, p)| {
-            distilled
-                .as_ref()
-                .and_then(|all| polish(all, p))
-                .unwrap_or_else(|| (e, b.clone()))
+            distilled.as_ref().and_then(|all| polish(all, p)).unwrap_or_else(|| (e, b.clone()))
         });
     let restarts: Vec<RestartReport> = runs.into_iter().map(|(r, _, _)| r).collect();
     let Some((train_error_pct, blob)) = best else {
-        let best_err = restarts
-            .iter()
-            .map(|r| r.train_error_pct)
-            .fold(f64::INFINITY, f64::min);
+        let best_err = restarts.iter().map(|r| r.train_error_pct).fold(f64::INFINITY, f64::min);
         match cfg.threshold_pct {
             Some(t) => bail!(
                 "no restart enrolled: the best of {} restarts has a training e_ma of {best_err:.4} %, above the threshold {t} %",
@@ -717,10 +668,8 @@ mod tests {
     /// The thesis protocol of case `n`: the 72 board points and the 22 test points.
     fn protocol(n: u8) -> (Dataset, Dataset) {
         let rig = presets::case(n).unwrap();
-        let train: Vec<[f64; 3]> = presets::TRAIN_DEPTHS
-            .iter()
-            .flat_map(|z| presets::board_points(*z))
-            .collect();
+        let train: Vec<[f64; 3]> =
+            presets::TRAIN_DEPTHS.iter().flat_map(|z| presets::board_points(*z)).collect();
         let mut test = Vec::new();
         for z in presets::TEST_DEPTHS {
             for [x, y] in presets::TEST_POINTS_XY {
@@ -733,11 +682,7 @@ mod tests {
     /// Case `n`'s training set (see [`protocol`]) and the default configuration with
     /// `restarts` restarts from `seed`.
     fn protocol_with(n: u8, restarts: usize, seed: u64) -> (Dataset, TrainConfig) {
-        let cfg = TrainConfig {
-            restarts,
-            seed,
-            ..TrainConfig::default()
-        };
+        let cfg = TrainConfig { restarts, seed, ..TrainConfig::default() };
         (protocol(n).0, cfg)
     }
 
@@ -790,11 +735,7 @@ mod tests {
                 net < 1.5 * floor.max(1.0),
                 "case {n}: worst per-depth {net} % vs optimal triangulation {floor} %"
             );
-            assert!(
-                out.train_error_pct < 2.0,
-                "case {n}: {}",
-                out.train_error_pct
-            );
+            assert!(out.train_error_pct < 2.0, "case {n}: {}", out.train_error_pct);
         }
     }
 
@@ -805,11 +746,8 @@ mod tests {
         // 1.06, 0.99, 1.05, 1.01 times the floor for cases I-IV with the projective fit of
         // quantised pixels (`synthetic`; 1.51, 1.20, 1.14, 1.08 without it; the goal is
         // for 1.25; the thesis family gives 1.39, 1.00, 1.39, 1.09).
-        let cfg = TrainConfig {
-            family: Family::INVERSE_DEPTH_SKIP,
-            seed: 7,
-            ..TrainConfig::default()
-        };
+        let cfg =
+            TrainConfig { family: Family::INVERSE_DEPTH_SKIP, seed: 7, ..TrainConfig::default() };
         for n in 1..=4u8 {
             let (train_set, test_set) = protocol(n);
             let out = train(&train_set, &cfg).unwrap();
@@ -835,14 +773,8 @@ mod tests {
             }
         }
         // Back-propagation has no skip term.
-        let bp = TrainConfig {
-            algo: Algo::Bp,
-            ..cfg
-        };
-        assert!(train(&protocol(1).0, &bp)
-            .unwrap_err()
-            .to_string()
-            .contains("inverse-depth-skip"));
+        let bp = TrainConfig { algo: Algo::Bp, ..cfg };
+        assert!(train(&protocol(1).0, &bp).unwrap_err().to_string().contains("inverse-depth-skip"));
     }
 
     #[test]
@@ -873,11 +805,8 @@ mod tests {
         };
         let sim = |kind, seed| set(lens, 0.01, kind, seed);
         let (train_set, test) = (sim(SetKind::Train, 11), sim(SetKind::Volume, 12));
-        let cfg = TrainConfig {
-            family: Family::INVERSE_DEPTH_SKIP,
-            seed: 7,
-            ..TrainConfig::default()
-        };
+        let cfg =
+            TrainConfig { family: Family::INVERSE_DEPTH_SKIP, seed: 7, ..TrainConfig::default() };
         let out = train(&train_set, &cfg).unwrap();
         assert_eq!(out.synthetic_points, Some(synthetic::SYNTHETIC_POINTS));
         assert!(out.synthetic_lenses);
@@ -933,26 +862,16 @@ mod tests {
             assert!(r.iterations > 0);
             assert!(out.train_error_pct <= r.train_error_pct);
         }
-        assert!(out
-            .restarts
-            .iter()
-            .any(|r| r.train_error_pct == out.train_error_pct));
+        assert!(out.restarts.iter().any(|r| r.train_error_pct == out.train_error_pct));
         // And it round-trips through the blob format.
-        assert_eq!(
-            hvs_shared::runtime::blob::decode(&encode(b)).unwrap(),
-            *b,
-            "blob round trip"
-        );
+        assert_eq!(hvs_shared::runtime::blob::decode(&encode(b)).unwrap(), *b, "blob round trip");
     }
 
     #[test]
     fn same_seed_same_bytes_whatever_the_thread_count() {
         let (train_set, cfg) = protocol_with(4, 4, 7);
         let run = |threads: usize, cfg: &TrainConfig| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let out = pool.install(|| train(&train_set, cfg)).unwrap();
             (encode(&out.blob), out.restarts)
         };
@@ -975,14 +894,8 @@ mod tests {
         // A threshold between the best and the rest enrols exactly the best.
         if errs[0] < errs[1] {
             let t = 0.5 * (errs[0] + errs[1]);
-            let one = train(
-                &train_set,
-                &TrainConfig {
-                    threshold_pct: Some(t),
-                    ..cfg.clone()
-                },
-            )
-            .unwrap();
+            let one =
+                train(&train_set, &TrainConfig { threshold_pct: Some(t), ..cfg.clone() }).unwrap();
             assert_eq!(one.restarts.iter().filter(|r| r.enrolled).count(), 1);
             assert_eq!(encode(&one.blob), encode(&all.blob));
             for r in &one.restarts {
@@ -991,25 +904,16 @@ mod tests {
         }
         // Below the best: nothing enrolled, and the error says which threshold.
         let t = errs[0] * 0.5;
-        let err = train(
-            &train_set,
-            &TrainConfig {
-                threshold_pct: Some(t),
-                ..cfg
-            },
-        )
-        .unwrap_err()
-        .to_string();
+        let err = train(&train_set, &TrainConfig { threshold_pct: Some(t), ..cfg })
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("no restart enrolled"), "{err}");
         assert!(err.contains(&format!("threshold {t} %")), "{err}");
     }
 
     #[test]
     fn bad_input_is_a_clear_error() {
-        let cfg = TrainConfig {
-            restarts: 1,
-            ..TrainConfig::default()
-        };
+        let cfg = TrainConfig { restarts: 1, ..TrainConfig::default() };
         let msg = |d: &Dataset, c: &TrainConfig| train(d, c).unwrap_err().to_string();
         assert!(msg(&Dataset::new(InputKind::Stereo), &cfg).contains("empty"));
         let mut no_truth = Dataset::new(InputKind::Stereo);
@@ -1020,38 +924,20 @@ mod tests {
         assert!(msg(&d, &cfg).contains("row 6"));
         let (d, _) = protocol(1);
         for bad in [
-            TrainConfig {
-                hidden: 0,
-                ..cfg.clone()
-            },
-            TrainConfig {
-                hidden: 33,
-                ..cfg.clone()
-            },
-            TrainConfig {
-                restarts: 0,
-                ..cfg.clone()
-            },
-            TrainConfig {
-                threshold_pct: Some(-1.0),
-                ..cfg.clone()
-            },
+            TrainConfig { hidden: 0, ..cfg.clone() },
+            TrainConfig { hidden: 33, ..cfg.clone() },
+            TrainConfig { restarts: 0, ..cfg.clone() },
+            TrainConfig { threshold_pct: Some(-1.0), ..cfg.clone() },
             TrainConfig {
                 algo: Algo::Bp,
-                bp: BpParams {
-                    learning_rate: f64::NAN,
-                    ..BpParams::default()
-                },
+                bp: BpParams { learning_rate: f64::NAN, ..BpParams::default() },
                 ..cfg.clone()
             },
         ] {
             assert!(train(&d, &bad).is_err(), "{bad:?}");
         }
-        let mut odd = Dataset {
-            n_inputs: 3,
-            inputs: vec![1.0, 2.0, 3.0],
-            targets: vec![[0.0, 0.0, 100.0]],
-        };
+        let mut odd =
+            Dataset { n_inputs: 3, inputs: vec![1.0, 2.0, 3.0], targets: vec![[0.0, 0.0, 100.0]] };
         assert!(msg(&odd, &cfg).contains("3 inputs"));
         odd.n_inputs = 4;
         odd.inputs = vec![1.0, f64::NAN, 3.0, 4.0];
@@ -1090,10 +976,7 @@ mod tests {
             &TrainConfig {
                 algo: Algo::Bp,
                 restarts: 2,
-                bp: BpParams {
-                    max_cycles: 300,
-                    ..BpParams::default()
-                },
+                bp: BpParams { max_cycles: 300, ..BpParams::default() },
                 ..TrainConfig::default()
             },
         )
@@ -1108,11 +991,7 @@ mod tests {
 
         let adam = train(
             &train_set,
-            &TrainConfig {
-                algo: Algo::Adam,
-                restarts: 2,
-                ..TrainConfig::default()
-            },
+            &TrainConfig { algo: Algo::Adam, restarts: 2, ..TrainConfig::default() },
         )
         .unwrap();
         assert_eq!(adam.blob.topology.output_activation, Activation::Linear);

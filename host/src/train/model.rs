@@ -52,11 +52,7 @@ pub fn train_model(data: &Dataset, plan: &Plan) -> Result<Trained> {
     blob.fallback = fit.map(|f| f.calibration);
     blob.matcher = super::matcher::matcher_geometry(data);
     blob.generation = 1;
-    Ok(Trained {
-        blob,
-        outcome,
-        fallback: fit,
-    })
+    Ok(Trained { blob, outcome, fallback: fit })
 }
 
 /// What `hvs train` prints about a trained model (`data` names the training set), without the
@@ -99,10 +95,7 @@ pub fn summary(data: &str, t: &Trained) -> String {
             "fallback: Phi = {:.4} px (eq. 4.1-3, {} symmetric points at Z = {} cm)",
             f.phi, f.points, f.depth
         ),
-        None => writeln!(
-            o,
-            "fallback: none (no board symmetric about X = 0 in the data)"
-        ),
+        None => writeln!(o, "fallback: none (no board symmetric about X = 0 in the data)"),
     };
     o
 }

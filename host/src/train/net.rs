@@ -266,10 +266,7 @@ impl NormalWorkspace {
             xpk.resize((r + 1) * d.nx_p, 0.0);
         }
         let parts = if n >= SPLIT_MIN_SAMPLES { 2 } else { 1 };
-        NormalWorkspace {
-            xpk,
-            parts: vec![Part::new(s); parts],
-        }
+        NormalWorkspace { xpk, parts: vec![Part::new(s); parts] }
     }
 }
 
@@ -369,14 +366,7 @@ impl Problem {
         let mut y = vec![0.0; s.no];
         let mut cost = 0.0;
         for n in 0..self.n {
-            forward(
-                s,
-                self.output,
-                p,
-                &self.x[n * s.ni..(n + 1) * s.ni],
-                &mut h,
-                &mut y,
-            );
+            forward(s, self.output, p, &self.x[n * s.ni..(n + 1) * s.ni], &mut h, &mut y);
             for k in 0..s.no {
                 let idx = n * s.no + k;
                 let v = self.c[idx] * (y[k] - self.t[idx]);
@@ -389,10 +379,7 @@ impl Problem {
 
     /// Zeroed storage for the forward pass of every sample.
     pub(crate) fn activations(&self) -> Activations {
-        Activations {
-            h: vec![0.0; self.n * self.shape.nh],
-            y: vec![0.0; self.n * self.shape.no],
-        }
+        Activations { h: vec![0.0; self.n * self.shape.nh], y: vec![0.0; self.n * self.shape.no] }
     }
 
     /// Forward pass of every sample at `p` into `act`; returns the cost `1/2 sum r^2`.
@@ -406,10 +393,8 @@ impl Problem {
         let mid = self.n / 2;
         let (h0, h1) = act.h.split_at_mut(mid * s.nh);
         let (y0, y1) = act.y.split_at_mut(mid * s.no);
-        let (c0, c1) = rayon::join(
-            || self.forward_range(p, 0, h0, y0),
-            || self.forward_range(p, mid, h1, y1),
-        );
+        let (c0, c1) =
+            rayon::join(|| self.forward_range(p, 0, h0, y0), || self.forward_range(p, mid, h1, y1));
         0.5 * (c0 + c1)
     }
 
@@ -527,13 +512,7 @@ impl Problem {
             }
             _ => unreachable!("a workspace has one or two parts"),
         };
-        let Part {
-            m,
-            cross,
-            w2w2,
-            jtr: sums,
-            ..
-        } = &ws.parts[0];
+        let Part { m, cross, w2w2, jtr: sums, .. } = &ws.parts[0];
         jtr.copy_from_slice(sums);
         let d = Dims::new(s);
         let (nx, ne_p) = (d.nx_p, d.ne_p);
@@ -629,20 +608,7 @@ impl Problem {
         let d = Dims::new(s);
         let (ni1, ne, nu, na, nb, ne_p) = (d.ni1, d.ne, d.nu, d.na, d.nb_p, d.ne_p);
         let nge = s.no * ne_p;
-        let Part {
-            m,
-            cross,
-            w2w2,
-            jtr,
-            ub,
-            ab,
-            bb,
-            gb,
-            hb,
-            y,
-            gu,
-            rb,
-        } = part;
+        let Part { m, cross, w2w2, jtr, ub, ab, bb, gb, hb, y, gu, rb } = part;
         m.iter_mut().for_each(|v| *v = 0.0);
         cross.iter_mut().for_each(|v| *v = 0.0);
         w2w2.iter_mut().for_each(|v| *v = 0.0);
@@ -715,13 +681,7 @@ impl Problem {
             // The chunk's rank-one updates: the packed first-layer block, the cross blocks,
             // and each output's second-layer block, the tiles on and above its diagonal.
             let nx_p = d.nx_p;
-            add_products_in::<W>(
-                m,
-                (nu, nx_p, nx_p),
-                (ub, nu),
-                (&xpk[n0 * nx_p..], nx_p),
-                len,
-            );
+            add_products_in::<W>(m, (nu, nx_p, nx_p), (ub, nu), (&xpk[n0 * nx_p..], nx_p), len);
             add_products_in::<W>(cross, (na, nb, nb), (ab, na), (bb, nb), len);
             for k in 0..s.no {
                 for r0 in (0..ne_p).step_by(4) {
@@ -791,11 +751,7 @@ pub(crate) mod tests {
         let mut t = Vec::new();
         for row in x.chunks(shape.ni) {
             for k in 0..shape.no {
-                let v: f64 = row
-                    .iter()
-                    .enumerate()
-                    .map(|(i, v)| v * (i + k + 1) as f64)
-                    .sum();
+                let v: f64 = row.iter().enumerate().map(|(i, v)| v * (i + k + 1) as f64).sum();
                 t.push(match output {
                     Activation::Linear => (0.7 * v).sin(),
                     Activation::Sigmoid => 0.5 + 0.4 * (0.7 * v).sin(),
@@ -803,21 +759,12 @@ pub(crate) mod tests {
             }
         }
         let c = (0..n * shape.no).map(|_| g.uniform(0.5, 2.0)).collect();
-        Problem {
-            shape,
-            output,
-            n,
-            x,
-            t,
-            c,
-        }
+        Problem { shape, output, n, x, t, c }
     }
 
     pub(crate) fn random_params(shape: &Shape, seed: u64) -> Vec<f64> {
         let mut g = SplitMix64::new(seed);
-        (0..shape.n_params())
-            .map(|_| g.uniform(-1.5, 1.5))
-            .collect()
+        (0..shape.n_params()).map(|_| g.uniform(-1.5, 1.5)).collect()
     }
 
     /// A random problem of `n` patterns (seed `seeds[0]`), random parameters (seed `seeds[1]`)
@@ -909,9 +856,8 @@ pub(crate) mod tests {
                     let want: f64 = (0..nr).map(|row| jac[a * nr + row] * r[row]).sum();
                     assert!((jtr[a] - want).abs() <= 1e-12 * (1.0 + want.abs()));
                     for b in 0..np {
-                        let want: f64 = (0..nr)
-                            .map(|row| jac[a * nr + row] * jac[b * nr + row])
-                            .sum();
+                        let want: f64 =
+                            (0..nr).map(|row| jac[a * nr + row] * jac[b * nr + row]).sum();
                         let got = jtj[a * np + b];
                         assert!(
                             (got - want).abs() <= 1e-12 * (1.0 + want.abs()),
@@ -958,9 +904,7 @@ pub(crate) mod tests {
     fn the_avx_sums_have_the_portable_bits() {
         let prob = random_problem(Shape::new(9, 16, 3, true), Activation::Linear, 75, 3);
         let mut g = SplitMix64::new(8);
-        let p: Vec<f64> = (0..prob.shape.n_params())
-            .map(|_| g.uniform(-0.5, 0.5))
-            .collect();
+        let p: Vec<f64> = (0..prob.shape.n_params()).map(|_| g.uniform(-0.5, 0.5)).collect();
         let mut act = prob.activations();
         prob.evaluate(&p, &mut act);
         let ws = NormalWorkspace::new(&prob);

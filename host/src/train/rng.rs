@@ -53,9 +53,7 @@ mod tests {
         let mut g = SplitMix64::new(0);
         assert_eq!(g.next_u64(), 0xE220_A839_7B1D_CDAF);
         assert_eq!(g.next_u64(), 0x6E78_9E6A_A1B9_65F4);
-        let a: Vec<u64> = (0..4)
-            .map(|i| SplitMix64::for_restart(7, i).next_u64())
-            .collect();
+        let a: Vec<u64> = (0..4).map(|i| SplitMix64::for_restart(7, i).next_u64()).collect();
         for i in 0..4 {
             for j in 0..i {
                 assert_ne!(a[i], a[j]);

@@ -57,10 +57,7 @@ pub(crate) fn quantised(data: &Dataset) -> bool {
     data.n_inputs == 4
         && data.len() >= 12
         && data.has_targets()
-        && data
-            .inputs
-            .iter()
-            .all(|v| v.is_finite() && v.fract() == 0.0)
+        && data.inputs.iter().all(|v| v.is_finite() && v.fract() == 0.0)
 }
 
 /// Projection of `p` through `m` (signed so that the training points lie in front), `None`
@@ -200,10 +197,7 @@ fn damped_step<T>(
 /// The normalised DLT of one camera, signed so that the training points lie in front of it.
 fn dlt_in_front(pts: &[[f64; 3]], px: &[[f64; 2]]) -> Option<Matrix3x4<f64>> {
     let m = fit_dlt(pts, px).ok()?;
-    let front = pts
-        .iter()
-        .map(|q| (m * Vector4::new(q[0], q[1], q[2], 1.0))[2])
-        .sum::<f64>();
+    let front = pts.iter().map(|q| (m * Vector4::new(q[0], q[1], q[2], 1.0))[2]).sum::<f64>();
     Some(if front < 0.0 { -m } else { m })
 }
 
@@ -239,9 +233,8 @@ pub(crate) fn fit_cameras(data: &Dataset) -> Option<[Matrix3x4<f64>; 2]> {
     }
     // The two cameras are independent fits: one on each core.
     let fit = |cam: usize| -> Option<Matrix3x4<f64>> {
-        let px: Vec<[f64; 2]> = (0..data.len())
-            .map(|r| [data.row(r)[2 * cam], data.row(r)[2 * cam + 1]])
-            .collect();
+        let px: Vec<[f64; 2]> =
+            (0..data.len()).map(|r| [data.row(r)[2 * cam], data.row(r)[2 * cam + 1]]).collect();
         let m = fit_camera(&data.targets, &px)?;
         (max_residual(&m, &data.targets, &px) <= MAX_RESIDUAL_PX).then_some(m)
     };
@@ -339,20 +332,13 @@ impl LensFit {
         for (i, v) in q.iter().take(12).enumerate() {
             m[(i / 4, i % 4)] = *v;
         }
-        LensFit {
-            m,
-            k: [q[12], q[13]],
-            scale: self.scale,
-        }
+        LensFit { m, k: [q[12], q[13]], scale: self.scale }
     }
 
     /// The fit with parameters `q`, the matrix scaled to unit Frobenius norm.
     fn with_params(&self, q: &[f64; 14]) -> LensFit {
         let f = self.with_raw_params(q);
-        LensFit {
-            m: f.m / f.m.norm(),
-            ..f
-        }
+        LensFit { m: f.m / f.m.norm(), ..f }
     }
 
     /// Sum of squared reprojection residuals (infinite when a point is behind the camera).
@@ -387,11 +373,7 @@ pub(crate) fn fit_lens_camera(pts: &[[f64; 3]], px: &[[f64; 2]]) -> Option<LensF
         .map(|x| (x[0] - c[0]).abs().max((x[1] - c[1]).abs()))
         .fold(0.0, f64::max)
         .max(1.0);
-    let mut fit = LensFit {
-        m,
-        k: [0.0; 2],
-        scale,
-    };
+    let mut fit = LensFit { m, k: [0.0; 2], scale };
     let n = pts.len();
     let resid = |f: &LensFit| -> Option<DVector<f64>> {
         let mut r = DVector::zeros(2 * n);
@@ -454,9 +436,8 @@ pub(crate) fn fit_lens_cameras(data: &Dataset) -> Option<([LensFit; 2], f64)> {
         return None;
     }
     let fit = |cam: usize| -> Option<(LensFit, f64)> {
-        let px: Vec<[f64; 2]> = (0..data.len())
-            .map(|r| [data.row(r)[2 * cam], data.row(r)[2 * cam + 1]])
-            .collect();
+        let px: Vec<[f64; 2]> =
+            (0..data.len()).map(|r| [data.row(r)[2 * cam], data.row(r)[2 * cam + 1]]).collect();
         let f = fit_lens_camera(&data.targets, &px)?;
         let c = f.cost(&data.targets, &px);
         Some((f, c))
@@ -601,10 +582,7 @@ mod tests {
     use hvs_shared::sim::presets;
 
     fn thesis_points() -> Vec<[f64; 3]> {
-        presets::TRAIN_DEPTHS
-            .iter()
-            .flat_map(|z| presets::board_points(*z))
-            .collect()
+        presets::TRAIN_DEPTHS.iter().flat_map(|z| presets::board_points(*z)).collect()
     }
 
     fn set(head: &HeadRig, pts: &[[f64; 3]], round: bool) -> Dataset {
@@ -636,9 +614,8 @@ mod tests {
         for (round, bound) in [(false, 1e-6), (true, 0.55)] {
             let d = set(&head, &pts, round);
             for cam in 0..2 {
-                let px: Vec<[f64; 2]> = (0..d.len())
-                    .map(|r| [d.row(r)[2 * cam], d.row(r)[2 * cam + 1]])
-                    .collect();
+                let px: Vec<[f64; 2]> =
+                    (0..d.len()).map(|r| [d.row(r)[2 * cam], d.row(r)[2 * cam + 1]]).collect();
                 let m = fit_camera(&pts, &px).unwrap();
                 let worst = max_residual(&m, &pts, &px);
                 assert!(worst <= bound, "round {round} camera {cam}: {worst} px");
@@ -649,10 +626,7 @@ mod tests {
                 let y = project(&m, &q).unwrap();
                 let tol = if round { 0.25 } else { 1e-6 };
                 for c in 0..2 {
-                    assert!(
-                        (y[c] - truth[2 * cam + c]).abs() < tol,
-                        "{y:?} vs {truth:?}"
-                    );
+                    assert!((y[c] - truth[2 * cam + c]).abs() < tol, "{y:?} vs {truth:?}");
                 }
             }
         }
@@ -705,21 +679,13 @@ mod tests {
             }
         }
         // The barrel lens is in k1 (both cameras), not left as residual.
-        assert!(
-            cams.iter().all(|f| f.k[0] < -1e-3),
-            "{:?}",
-            cams.map(|f| f.k)
-        );
+        assert!(cams.iter().all(|f| f.k[0] < -1e-3), "{:?}", cams.map(|f| f.k));
         // The distilled set: synthetic points beyond the targets' box, noise of the fit's.
         let dist = lens_distilled(&d, 7).unwrap();
         assert_eq!(dist.set.len(), SYNTHETIC_POINTS);
         assert_eq!(dist.selection, LENS_SELECTION_POINTS);
         assert!(dist.set.targets.iter().any(|t| t[0] > 24.0));
-        assert!(dist
-            .set
-            .targets
-            .iter()
-            .all(|t| t[0].abs() <= 24.0 * (1.0 + 2.0 * LENS_MARGIN)));
+        assert!(dist.set.targets.iter().all(|t| t[0].abs() <= 24.0 * (1.0 + 2.0 * LENS_MARGIN)));
         assert_eq!(dist.set.inputs, lens_distilled(&d, 7).unwrap().set.inputs);
         assert_ne!(dist.set.inputs, lens_distilled(&d, 8).unwrap().set.inputs);
         // Quantised pixels are not for it (they have `distilled_set`), nor the thesis' small

@@ -131,11 +131,7 @@ pub fn update(old: &ModelBlob, new: &Dataset, seed: u64) -> Result<UpdateOutcome
     let prob: Problem = problem(&learned, &cfg, &sc);
     let n_skip = cfg.family.skip_len(prob.shape.ni, prob.shape.no);
     let base = super::lm_options(cfg.family, &learned, n_skip);
-    let opts = lm::LmOptions {
-        max_iter: UPDATE_MAX_ITER,
-        weight_decay: base.tail.1,
-        ..base
-    };
+    let opts = lm::LmOptions { max_iter: UPDATE_MAX_ITER, weight_decay: base.tail.1, ..base };
     let mut p: Vec<f64> = old.params.iter().map(|v| *v as f64).collect();
     let iterations = lm::fit(&prob, &mut p, &opts).iterations;
     let Some(mut blob) = super::export(&p, new, &cfg, &sc, 0.0) else {
@@ -169,10 +165,7 @@ fn check(old: &ModelBlob, new: &Dataset) -> Result<()> {
             kind(k),
             kind(old.topology.inputs)
         ),
-        None => bail!(
-            "the new set has {} inputs per row; a model takes 4 or 9",
-            new.n_inputs
-        ),
+        None => bail!("the new set has {} inputs per row; a model takes 4 or 9", new.n_inputs),
     }
     if old.topology.inputs != InputKind::Stereo {
         bail!("updating a posture-aware (9-input) model is not supported: train it again");
@@ -184,10 +177,7 @@ fn check(old: &ModelBlob, new: &Dataset) -> Result<()> {
         bail!("the new set has no ground truth for every row: an update needs x,y,z");
     }
     if new.len() < MIN_POINTS {
-        bail!(
-            "the new set has {} rows; an update needs at least {MIN_POINTS}",
-            new.len()
-        );
+        bail!("the new set has {} rows; an update needs at least {MIN_POINTS}", new.len());
     }
     for (n, t) in new.targets.iter().enumerate() {
         if !(t.iter().all(|v| v.is_finite()) && t[2] > 0.0) {
@@ -286,9 +276,8 @@ fn sample_volume(
 
 /// Camera `c` (0 left, 1 right) fitted to the samples.
 fn fit_camera(samples: &Dataset, c: usize) -> Option<Matrix3x4<f64>> {
-    let px: Vec<[f64; 2]> = (0..samples.len())
-        .map(|n| [samples.row(n)[2 * c], samples.row(n)[2 * c + 1]])
-        .collect();
+    let px: Vec<[f64; 2]> =
+        (0..samples.len()).map(|n| [samples.row(n)[2 * c], samples.row(n)[2 * c + 1]]).collect();
     fit_dlt(&samples.targets, &px).ok()
 }
 
@@ -325,10 +314,8 @@ fn camera_move(
         pairs.push((p, [new.row(n)[2 * c], new.row(n)[2 * c + 1]]));
     }
     let n = pairs.len() as f64;
-    let ss_old: f64 = pairs
-        .iter()
-        .map(|(p, d)| (p[0] - d[0]).powi(2) + (p[1] - d[1]).powi(2))
-        .sum();
+    let ss_old: f64 =
+        pairs.iter().map(|(p, d)| (p[0] - d[0]).powi(2) + (p[1] - d[1]).powi(2)).sum();
     let (h, ss_fit) = match fit_homography(&pairs) {
         Ok(fit) => (Some(fit.h), fit.rms * fit.rms * n),
         // Collinear points cannot measure a homography: the camera is held.

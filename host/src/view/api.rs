@@ -150,9 +150,7 @@ pub fn head(s: &HeadState) -> Value {
 
 /// An `f32` as the JSON number of its shortest decimal (0.9, not 0.9000000357627869).
 fn f32_json(v: f32) -> Value {
-    v.to_string()
-        .parse::<f64>()
-        .map_or(Value::Null, |x| json!(x))
+    v.to_string().parse::<f64>().map_or(Value::Null, |x| json!(x))
 }
 
 /// `GET /api/depth/{pair}`: what the depth map of a pair holds (its image is
@@ -241,27 +239,17 @@ mod tests {
             v["line"],
             "u_r=273.98587 v_r=200.07465 x=-13.298719 y=-16.096615 z=115.02975 cm (score 0.999)"
         );
-        assert_eq!(
-            (v["u_r"].as_str(), v["z"].as_str()),
-            (Some("273.98587"), Some("115.02975"))
-        );
+        assert_eq!((v["u_r"].as_str(), v["z"].as_str()), (Some("273.98587"), Some("115.02975")));
         assert_eq!(v["score"], "0.999");
-        let none = Located {
-            right: None,
-            xyz: None,
-            status: "ambiguous",
-            ..l
-        };
+        let none = Located { right: None, xyz: None, status: "ambiguous", ..l };
         let v = located(0, &none, 1.0);
         assert_eq!(v["line"], "no trustworthy match: ambiguous");
         assert!(v["x"].is_null() && v["right"].is_null());
         // Requests are strict.
         assert!(serde_json::from_str::<LocateRequest>(r#"{"pair":0,"u":1,"v":2}"#).is_ok());
-        for bad in [
-            r#"{"pair":0,"u":1}"#,
-            r#"{"pair":0,"u":1,"v":2,"x":0}"#,
-            r#"{"pair":-1,"u":1,"v":2}"#,
-        ] {
+        for bad in
+            [r#"{"pair":0,"u":1}"#, r#"{"pair":0,"u":1,"v":2,"x":0}"#, r#"{"pair":-1,"u":1,"v":2}"#]
+        {
             assert!(serde_json::from_str::<LocateRequest>(bad).is_err(), "{bad}");
         }
         assert!(serde_json::from_str::<RetrainRequest>(r#"{"use":[true,false]}"#).is_ok());

@@ -125,9 +125,7 @@ impl PairStore for StillFrames {
 
     fn frame(&self, pair: usize, view: View) -> Option<Frame> {
         let p = self.pairs.get(pair)?;
-        let png = p.png[view.index()]
-            .get_or_init(|| p.encode(view).map(Arc::new))
-            .clone()?;
+        let png = p.png[view.index()].get_or_init(|| p.encode(view).map(Arc::new)).clone()?;
         Some(Frame { seq: 0, png })
     }
 

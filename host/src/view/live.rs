@@ -96,25 +96,11 @@ impl LiveHead {
         let (first_tx, first_rx) = std::sync::mpsc::channel();
         std::thread::Builder::new()
             .name("hvs-view-head".into())
-            .spawn(move || {
-                run(
-                    weak,
-                    Loop {
-                        cameras,
-                        head,
-                        estimator,
-                        loop_cfg,
-                        fps,
-                    },
-                    first_tx,
-                )
-            })?;
+            .spawn(move || run(weak, Loop { cameras, head, estimator, loop_cfg, fps }, first_tx))?;
         match first_rx.recv_timeout(Duration::from_secs(60)) {
             Ok(Ok(())) => Ok(live),
             Ok(Err(e)) => Err(anyhow::anyhow!("{e}")),
-            Err(_) => Err(anyhow::anyhow!(
-                "the virtual cameras gave no first frame within 60 s"
-            )),
+            Err(_) => Err(anyhow::anyhow!("the virtual cameras gave no first frame within 60 s")),
         }
     }
 
@@ -134,10 +120,7 @@ impl LiveHead {
     }
 
     fn latest(&self) -> Option<Arc<Latest>> {
-        self.latest
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.latest.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 }
 
@@ -223,9 +206,7 @@ fn run(
             None => {
                 lp.head.advance_to(t);
                 let joints = lp.head.joints();
-                lp.cameras
-                    .grab(t, &joints)
-                    .map(|f| (f, "idle", joints, None, None, None))
+                lp.cameras.grab(t, &joints).map(|f| (f, "idle", joints, None, None, None))
             }
         };
         let previous = me.latest();
@@ -269,12 +250,7 @@ fn run(
                 let Some(p) = previous else { return };
                 let mut state = p.state.clone();
                 state.error = Some(msg);
-                Latest {
-                    seq: p.seq,
-                    grey: p.grey.clone(),
-                    png: Default::default(),
-                    state,
-                }
+                Latest { seq: p.seq, grey: p.grey.clone(), png: Default::default(), state }
             }
         };
         *me.latest.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(next));

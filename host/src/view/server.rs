@@ -70,32 +70,19 @@ pub fn serve(
     addr: SocketAddr,
     started: impl FnOnce(&str) -> Result<()>,
 ) -> Result<()> {
-    let token = if needs_token(&addr) {
-        Some(random_token()?)
-    } else {
-        None
-    };
+    let token = if needs_token(&addr) { Some(random_token()?) } else { None };
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
-    let app = Arc::new(App {
-        session,
-        token,
-        training: AtomicBool::new(false),
-    });
+    let app = Arc::new(App { session, token, training: AtomicBool::new(false) });
     let result = rt.block_on(async move {
         let listener = tokio::net::TcpListener::bind(addr)
             .await
             .with_context(|| format!("--listen {addr}: cannot listen"))?;
-        let real = listener
-            .local_addr()
-            .context("cannot read the bound address")?;
-        let query = app
-            .token
-            .as_ref()
-            .map_or_else(String::new, |t| format!("?token={t}"));
+        let real = listener.local_addr().context("cannot read the bound address")?;
+        let query = app.token.as_ref().map_or_else(String::new, |t| format!("?token={t}"));
         // The handlers are installed before the address is printed: a SIGINT right after
         // it stops the server cleanly, never by the default action.
         use tokio::signal::unix::{signal, SignalKind};
@@ -117,14 +104,8 @@ pub fn serve(
 fn router(app: Shared) -> Router {
     Router::new()
         .route("/", get(index))
-        .route(
-            "/app.js",
-            get(|| async { asset("text/javascript", assets::APP_JS) }),
-        )
-        .route(
-            "/style.css",
-            get(|| async { asset("text/css", assets::STYLE_CSS) }),
-        )
+        .route("/app.js", get(|| async { asset("text/javascript", assets::APP_JS) }))
+        .route("/style.css", get(|| async { asset("text/css", assets::STYLE_CSS) }))
         .route("/api/session", get(session))
         .route("/api/frame/{pair}/{view}", get(frame))
         .route("/api/locate", post(locate))
@@ -158,12 +139,8 @@ async fn index() -> Response {
 /// Off loopback, every request needs `token=<the token>` in its query.
 async fn check_token(State(app): State<Shared>, req: Request, next: Next) -> Response {
     if let Some(want) = &app.token {
-        let given = req
-            .uri()
-            .query()
-            .unwrap_or("")
-            .split('&')
-            .find_map(|kv| kv.strip_prefix("token="));
+        let given =
+            req.uri().query().unwrap_or("").split('&').find_map(|kv| kv.strip_prefix("token="));
         if !given.is_some_and(|g| same(g.as_bytes(), want.as_bytes())) {
             return ApiError(
                 StatusCode::FORBIDDEN,
@@ -200,8 +177,7 @@ async fn frame(
         .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
         .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("pair {pair}: no such frame")))?;
     let mut r = png_response(&f.png);
-    r.headers_mut()
-        .insert("x-frame-seq", HeaderValue::from(f.seq));
+    r.headers_mut().insert("x-frame-seq", HeaderValue::from(f.seq));
     Ok(r)
 }
 
@@ -229,14 +205,9 @@ async fn locate(
 
 async fn head(State(app): State<Shared>) -> Result<Response, ApiError> {
     let head = app.session.head.as_ref().ok_or_else(|| {
-        ApiError(
-            StatusCode::NOT_FOUND,
-            "not a live head: start hvs view with --scene".into(),
-        )
+        ApiError(StatusCode::NOT_FOUND, "not a live head: start hvs view with --scene".into())
     })?;
-    let s = head
-        .state()
-        .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, "no frame yet".into()))?;
+    let s = head.state().ok_or_else(|| ApiError(StatusCode::NOT_FOUND, "no frame yet".into()))?;
     Ok(Json(api::head(&s)).into_response())
 }
 
@@ -276,10 +247,7 @@ async fn retrain(
     Json(q): Json<RetrainRequest>,
 ) -> Result<Response, ApiError> {
     if app.training.swap(true, Ordering::SeqCst) {
-        return Err(ApiError(
-            StatusCode::CONFLICT,
-            "a retrain is already running".into(),
-        ));
+        return Err(ApiError(StatusCode::CONFLICT, "a retrain is already running".into()));
     }
     let t0 = Instant::now();
     let a = app.clone();

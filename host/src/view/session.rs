@@ -146,10 +146,7 @@ impl Session {
     pub fn open(model_path: &Path, source: &Source, retrain: RetrainOptions) -> Result<Session> {
         let (model, locate_refused) = match vision::load_stereo_model(model_path) {
             Ok(m) => (m, None),
-            Err(e) => (
-                crate::data::model::load(model_path)?,
-                Some(format!("{e:#}")),
-            ),
+            Err(e) => (crate::data::model::load(model_path)?, Some(format!("{e:#}"))),
         };
         let info = train::describe::describe(model_path, &model);
         let (frames, pairs, captures, head): (Arc<dyn PairStore>, _, _, _) = match source {
@@ -190,11 +187,7 @@ impl Session {
                 (
                     Arc::new(StillFrames::new(frames)),
                     pairs,
-                    Some(CaptureData {
-                        board: b,
-                        set,
-                        detection,
-                    }),
+                    Some(CaptureData { board: b, set, detection }),
                     None,
                 )
             }
@@ -246,17 +239,12 @@ impl Session {
             return Err(Refused::Unprocessable(why.clone()));
         }
         let (l, r) = self.frames.grey(pair).ok_or_else(|| {
-            Refused::Bad(format!(
-                "pair {pair}: no such pair, or its images are unreadable"
-            ))
+            Refused::Bad(format!("pair {pair}: no such pair, or its images are unreadable"))
         })?;
         check_pixel(u, v, l.dimensions())?;
         let found = vision::locate_with(&self.model_path, &self.model.blob, &l, &r, &[[u, v]])
             .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
-        found
-            .into_iter()
-            .next()
-            .ok_or_else(|| Refused::Unprocessable("no result".into()))
+        found.into_iter().next().ok_or_else(|| Refused::Unprocessable("no result".into()))
     }
 
     /// `hvs depth --colour` on pair `pair` ([`crate::depth::depth`] with its default
@@ -310,8 +298,7 @@ impl Session {
             check_pixel(u, v, head.size())?;
         }
         head.set_goal(goal);
-        head.state()
-            .ok_or_else(|| Refused::Unprocessable("the head has no frame yet".into()))
+        head.state().ok_or_else(|| Refused::Unprocessable("the head has no frame yet".into()))
     }
 
     /// `hvs board detect` + `hvs train` (its defaults, [`RetrainOptions`]) on the pairs of the
@@ -334,15 +321,9 @@ impl Session {
                 *o = PairOutcome::Skipped("unticked".into());
             }
         }
-        let pairs = det
-            .outcomes
-            .iter()
-            .filter(|o| matches!(o, PairOutcome::Found(_)))
-            .count();
+        let pairs = det.outcomes.iter().filter(|o| matches!(o, PairOutcome::Found(_))).count();
         if pairs == 0 {
-            return Err(Refused::Unprocessable(
-                "no ticked pair has detected corners".into(),
-            ));
+            return Err(Refused::Unprocessable("no ticked pair has detected corners".into()));
         }
         let name = format!("{} (ticked pairs)", c.set.path.display());
         let points = vision::points_csv(&c.board, &c.set, &det);
@@ -359,10 +340,7 @@ impl Session {
         }
         crate::data::validate::training_set(&table, config.hidden, config.outputs.len())
             .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
-        let plan = Plan {
-            config,
-            ..Plan::default()
-        };
+        let plan = Plan { config, ..Plan::default() };
         let t = train_model(&table.data, &plan)
             .map_err(|e| Refused::Unprocessable(format!("{name}: training failed: {e:#}")))?;
         Ok(Retrained {
@@ -381,15 +359,10 @@ fn check_pixel(u: f64, v: f64, (w, h): (u32, u32)) -> Result<(), Refused> {
     if u.is_finite() && v.is_finite() && u > -0.5 && v > -0.5 && u < wf - 0.5 && v < hf - 0.5 {
         Ok(())
     } else {
-        Err(Refused::Bad(format!(
-            "pixel ({u}, {v}) is outside the {w}x{h} left image"
-        )))
+        Err(Refused::Bad(format!("pixel ({u}, {v}) is outside the {w}x{h} left image")))
     }
 }
 
 fn file_name(p: &Path) -> String {
-    p.file_name().map_or_else(
-        || p.display().to_string(),
-        |n| n.to_string_lossy().into_owned(),
-    )
+    p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
 }

@@ -82,11 +82,8 @@ pub fn detect_set_with_images(
 /// The posture groups of `set`: capture indices with equal joint fields, in order of first
 /// appearance (one group when the set has no joint columns).
 fn posture_groups(set: &CaptureSet) -> Vec<Vec<usize>> {
-    let joints = set
-        .extra_columns
-        .iter()
-        .take_while(|c| JOINT_COLUMNS.contains(&c.as_str()))
-        .count();
+    let joints =
+        set.extra_columns.iter().take_while(|c| JOINT_COLUMNS.contains(&c.as_str())).count();
     if joints == 0 {
         return vec![(0..set.captures.len()).collect()];
     }
@@ -154,12 +151,7 @@ fn detect_all(
             groups.push(fit);
         }
     }
-    let det = Detection {
-        outcomes,
-        epipolar,
-        groups,
-        image_size,
-    };
+    let det = Detection { outcomes, epipolar, groups, image_size };
     Ok((det, images))
 }
 
@@ -172,11 +164,7 @@ fn check_group(
     epipolar: &mut [Option<[f64; 2]>],
 ) -> Option<GroupFit> {
     let found = |outcomes: &[PairOutcome]| -> Vec<usize> {
-        members
-            .iter()
-            .copied()
-            .filter(|&k| matches!(outcomes[k], PairOutcome::Found(_)))
-            .collect()
+        members.iter().copied().filter(|&k| matches!(outcomes[k], PairOutcome::Found(_))).collect()
     };
     // Disparities that cannot be right (the same image twice; a pair swapped, mirrored or
     // turned): one fundamental matrix fits those too, so they are looked at first.
@@ -189,10 +177,7 @@ fn check_group(
             depth.push(set.captures[k].z);
         }
     }
-    for (&k, fault) in usable
-        .iter()
-        .zip(detect::disparity_faults(&disparity, &same, &depth))
-    {
+    for (&k, fault) in usable.iter().zip(detect::disparity_faults(&disparity, &same, &depth)) {
         if let Some(why) = fault {
             outcomes[k] = PairOutcome::Skipped(why);
         }
@@ -233,10 +218,7 @@ fn check_group(
     for (slot, &k) in usable.iter().enumerate() {
         epipolar[k] = Some([c.pair_median_px[slot], c.pair_max_px[slot]]);
     }
-    Some(GroupFit {
-        pairs: usable.len(),
-        rms_sampson: c.fit.rms_sampson,
-    })
+    Some(GroupFit { pairs: usable.len(), rms_sampson: c.fit.rms_sampson })
 }
 
 fn detect_capture(board: &Board, c: &Capture) -> (PairOutcome, PairImages) {
@@ -276,9 +258,8 @@ pub fn points_csv(board: &Board, set: &CaptureSet, det: &Detection) -> String {
     }
     // The images' size, for `hvs train` to record in the model (at most 65535 px a side: the
     // pixel limit of every image input keeps them far below).
-    let size = det
-        .image_size
-        .and_then(|(w, h)| Some((u16::try_from(w).ok()?, u16::try_from(h).ok()?)));
+    let size =
+        det.image_size.and_then(|(w, h)| Some((u16::try_from(w).ok()?, u16::try_from(h).ok()?)));
     if size.is_some() {
         s.push(',');
         s.push_str(&crate::data::csv::IMAGE_SIZE_COLUMNS.join(","));
@@ -348,9 +329,7 @@ pub fn found_corners<'a>(
                         i,
                         j,
                         px: [l[0], l[1], r[0], r[1]],
-                        xyz: cap
-                            .z
-                            .map(|z| board.corner_position([cap.xy[0], cap.xy[1], z], i, j)),
+                        xyz: cap.z.map(|z| board.corner_position([cap.xy[0], cap.xy[1], z], i, j)),
                     }
                 })
             })

@@ -128,10 +128,7 @@ mod tests {
             with.lines().next(),
             Some("left,right,z,x,y,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")
         );
-        assert_eq!(
-            with.lines().nth(1),
-            Some("left01.png,right01.png,65,1,-2,1.5,-2,0,3,-3")
-        );
+        assert_eq!(with.lines().nth(1), Some("left01.png,right01.png,65,1,-2,1.5,-2,0,3,-3"));
 
         let out = dir.path().join("shots");
         write_capture_set(&out, &set, None).unwrap();
@@ -141,20 +138,11 @@ mod tests {
         );
         let read = crate::data::captures::read(&out.join("captures.csv")).unwrap();
         assert_eq!(read.captures.len(), 2);
-        assert_eq!(
-            (read.captures[1].z, read.captures[1].xy),
-            (Some(85.0), [1.0, -2.0])
-        );
-        assert_eq!(
-            read_grey(&read.captures[0].left).unwrap(),
-            set.captures[0].render.left
-        );
+        assert_eq!((read.captures[1].z, read.captures[1].xy), (Some(85.0), [1.0, -2.0]));
+        assert_eq!(read_grey(&read.captures[0].left).unwrap(), set.captures[0].render.left);
         let board = std::fs::read_to_string(out.join("board.json")).unwrap();
         assert_eq!(Board::from_json(&board).unwrap(), set.board);
-        assert_eq!(
-            std::fs::read_to_string(out.join("truth.csv")).unwrap(),
-            set.truth_csv()
-        );
+        assert_eq!(std::fs::read_to_string(out.join("truth.csv")).unwrap(), set.truth_csv());
         // Writing names the file that failed.
         let blocked = dir.path().join("file");
         std::fs::write(&blocked, "").unwrap();

@@ -21,11 +21,7 @@ pub fn model_xyz(blob: &ModelBlob) -> impl Fn([f32; 4]) -> Option<[f32; 3]> + Sy
         if !out[..n_out].iter().all(|v| v.is_finite()) {
             return None;
         }
-        Some(if n_out == 1 {
-            [f32::NAN, f32::NAN, out[0]]
-        } else {
-            out
-        })
+        Some(if n_out == 1 { [f32::NAN, f32::NAN, out[0]] } else { out })
     }
 }
 
@@ -68,16 +64,8 @@ impl Located {
             (rp[0] as f32).to_string(),
             (rp[1] as f32).to_string(),
             // A Z-only model gives no X, Y: empty, as in `hvs locate`'s CSV.
-            if x[0].is_finite() {
-                x[0].to_string()
-            } else {
-                String::new()
-            },
-            if x[1].is_finite() {
-                x[1].to_string()
-            } else {
-                String::new()
-            },
+            if x[0].is_finite() { x[0].to_string() } else { String::new() },
+            if x[1].is_finite() { x[1].to_string() } else { String::new() },
             x[2].to_string(),
             format!("{:.3}", self.score),
         ])
@@ -123,13 +111,9 @@ pub fn locate(
     })?;
     check_same_size(left, right)?;
     check_image_size(blob, left.dimensions())?;
-    let f = Fundamental {
-        m: g.fundamental.map(|r| r.map(f64::from)),
-    };
-    let params = MatchParams {
-        right_scale: g.right_scale.map(f64::from),
-        ..MatchParams::default()
-    };
+    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
+    let params =
+        MatchParams { right_scale: g.right_scale.map(f64::from), ..MatchParams::default() };
     let matcher = Matcher::new(left, right, &f, params).map_err(|e| anyhow!("{e}"))?;
     let span = f64::from(g.disparity[1] - g.disparity[0]);
     let d_range = [
@@ -161,17 +145,9 @@ pub fn locate(
             else {
                 return none("out_of_depth_range");
             };
-            let m = matcher.find(&Query {
-                ul,
-                vl,
-                d_min,
-                d_max,
-            });
+            let m = matcher.find(&Query { ul, vl, d_min, d_max });
             if m.status != MatchStatus::Ok {
-                return Located {
-                    score: m.score,
-                    ..none(m.status.name())
-                };
+                return Located { score: m.score, ..none(m.status.name()) };
             }
             match predict([ul as f32, vl as f32, m.ur as f32, m.vr as f32]) {
                 Some(xyz) => Located {
@@ -181,10 +157,7 @@ pub fn locate(
                     score: m.score,
                     status: "ok",
                 },
-                None => Located {
-                    score: m.score,
-                    ..none("no_estimate")
-                },
+                None => Located { score: m.score, ..none("no_estimate") },
             }
         })
         .collect())

@@ -9,9 +9,7 @@ use std::path::{Path, PathBuf};
 use tempfile::TempDir;
 
 fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/tests/fixtures")
-        .join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/tests/fixtures").join(name)
 }
 
 /// Simulates case `n`'s train and test sets and trains the default net (with `restarts`)
@@ -65,17 +63,7 @@ fn simulate_reproduces_the_reference_data_files() {
             // The same rig from cases.json, and written to a file.
             let out = dir.path().join("x.csv");
             let cases = fixture("cases.json");
-            ok(&[
-                "simulate",
-                "--rig",
-                s(&cases),
-                "--case",
-                &case,
-                "--set",
-                set,
-                "-o",
-                s(&out),
-            ]);
+            ok(&["simulate", "--rig", s(&cases), "--case", &case, "--set", set, "-o", s(&out)]);
             assert_eq!(rows(&std::fs::read_to_string(&out).unwrap()), rows(&want));
         }
     }
@@ -114,10 +102,7 @@ fn simulate_volume_and_noise_are_seeded() {
             "alpha_right": 0.0299, "beta0": 0.008726646259971648, "phi0": 0.008726646259971648}"#,
     )
     .unwrap();
-    let b = ok_line(&format!(
-        "simulate --rig {} --set volume --points 200 --seed 5",
-        s(&rig)
-    ));
+    let b = ok_line(&format!("simulate --rig {} --set volume --points 200 --seed 5", s(&rig)));
     assert_eq!(a, b);
 }
 
@@ -183,17 +168,9 @@ fn predict_gives_the_bits_of_the_shared_inference() {
     let dir = TempDir::new().unwrap();
     let (_, _, model) = train_case(dir.path(), 4, 2);
     let pts = dir.path().join("vol.csv");
-    ok_line(&format!(
-        "simulate --case 4 --set volume --points 3000 --noise-px 0.8 -o {}",
-        s(&pts)
-    ));
+    ok_line(&format!("simulate --case 4 --set volume --points 3000 --noise-px 0.8 -o {}", s(&pts)));
     let out = dir.path().join("pred.csv");
-    ok_line(&format!(
-        "predict --model {} --points {} -o {}",
-        s(&model),
-        s(&pts),
-        s(&out)
-    ));
+    ok_line(&format!("predict --model {} --points {} -o {}", s(&model), s(&pts), s(&out)));
     let blob: ModelBlob = blob::decode(&std::fs::read(&model).unwrap()).unwrap();
     let input = rows(&std::fs::read_to_string(&pts).unwrap());
     let pred = rows(&std::fs::read_to_string(&out).unwrap());
@@ -205,10 +182,7 @@ fn predict_gives_the_bits_of_the_shared_inference() {
         assert_eq!(echoed, x, "row {i}");
         let mut want = [0.0f32; 3];
         blob.infer(&x, &mut want).unwrap();
-        let got: Vec<u32> = p[4..]
-            .iter()
-            .map(|v| v.parse::<f32>().unwrap().to_bits())
-            .collect();
+        let got: Vec<u32> = p[4..].iter().map(|v| v.parse::<f32>().unwrap().to_bits()).collect();
         assert_eq!(got, want.map(f32::to_bits), "row {i}");
     }
     // stdout gives the same bytes as the file.
@@ -222,11 +196,7 @@ fn z_only_models_leave_x_and_y_empty() {
     let tr = dir.path().join("t.csv");
     let m = dir.path().join("z.hvsw");
     ok(&["simulate", "--case", "2", "--set", "train", "-o", s(&tr)]);
-    ok_line(&format!(
-        "train --data {} -o {} --outputs z --restarts 2",
-        s(&tr),
-        s(&m)
-    ));
+    ok_line(&format!("train --data {} -o {} --outputs z --restarts 2", s(&tr), s(&m)));
     let out = ok(&["predict", "--model", s(&m), "--points", s(&tr)]);
     let r = rows(&out);
     assert_eq!(r.len(), 73);
@@ -244,17 +214,7 @@ fn the_same_seed_gives_the_same_model_bytes() {
     ok(&["simulate", "--case", "3", "--set", "train", "-o", s(&tr)]);
     let train = |seed: &str, name: &str| {
         let m = dir.path().join(name);
-        ok(&[
-            "train",
-            "--data",
-            s(&tr),
-            "-o",
-            s(&m),
-            "--seed",
-            seed,
-            "--restarts",
-            "4",
-        ]);
+        ok(&["train", "--data", s(&tr), "-o", s(&m), "--seed", seed, "--restarts", "4"]);
         std::fs::read(m).unwrap()
     };
     let a = train("11", "a.hvsw");
@@ -274,22 +234,13 @@ fn train_stores_the_thesis_calibration_as_fallback() {
         "Phi of case I's 65 cm board, as cases.json"
     );
     let info = ok(&["info", s(&m)]);
-    for want in [
-        "crc:         ok",
-        "generation:  1",
-        "4-5-3",
-        "Phi = 284.7619",
-        "input box",
-    ] {
+    for want in ["crc:         ok", "generation:  1", "4-5-3", "Phi = 284.7619", "input box"] {
         assert!(info.contains(want), "{want} in {info}");
     }
     // Random volume points hold no symmetric board: no fallback, and eval says so.
     let vol = dir.path().join("v.csv");
     let mv = dir.path().join("v.hvsw");
-    ok_line(&format!(
-        "simulate --case 1 --set volume --points 100 -o {}",
-        s(&vol)
-    ));
+    ok_line(&format!("simulate --case 1 --set volume --points 100 -o {}", s(&vol)));
     let out = ok(&["train", "--data", s(&vol), "-o", s(&mv), "--restarts", "2"]);
     assert!(out.contains("fallback: none"), "{out}");
     let out = ok(&["eval", "--model", s(&mv), "--data", s(&tr)]);
@@ -301,25 +252,15 @@ fn eval_reports_the_optimal_floor_with_a_true_rig() {
     let dir = TempDir::new().unwrap();
     let (_, _, m) = train_case(dir.path(), 2, 2);
     let vol = dir.path().join("v.csv");
-    ok_line(&format!(
-        "simulate --case 2 --set volume --points 300 -o {}",
-        s(&vol)
-    ));
-    let out = ok_line(&format!(
-        "eval --model {} --data {} --json --case 2",
-        s(&m),
-        s(&vol)
-    ));
+    ok_line(&format!("simulate --case 2 --set volume --points 300 -o {}", s(&vol)));
+    let out = ok_line(&format!("eval --model {} --data {} --json --case 2", s(&m), s(&vol)));
     let r: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(r["evaluation"]["exact_depths"], false);
     let floor = method(&r, "optimal")["mean"]["e_ma_pct"].as_f64().unwrap();
     // Rounded pixels alone cost about 1 % of depth over 65..165 cm on these rigs.
     assert!(floor > 0.3 && floor < 3.0, "{floor}");
     let text = ok(&["eval", "--model", s(&m), "--data", s(&vol), "--case", "2"]);
-    assert!(
-        text.contains("optimal e_ma") && text.contains("worst depth"),
-        "{text}"
-    );
+    assert!(text.contains("optimal e_ma") && text.contains("worst depth"), "{text}");
 }
 
 /// Every bad-input class: a clear one-line error naming file, line and column where there is
@@ -358,29 +299,14 @@ fn bad_inputs_are_clear_errors_and_leave_no_output() {
             "ragged.csv:3: row has 5 fields, the header has 7".into(),
         ),
         ("empty.csv", String::new(), "empty.csv: empty file".into()),
-        (
-            "header_only.csv",
-            h.to_string(),
-            "header_only.csv: no data rows after the header".into(),
-        ),
+        ("header_only.csv", h.to_string(), "header_only.csv: no data rows after the header".into()),
     ];
     for (name, text, want) in &cases {
         let p = d.join(name);
         std::fs::write(&p, text).unwrap();
         let out = d.join("out.csv");
         let mout = d.join("out.hvsw");
-        fails(
-            &[
-                "predict",
-                "--model",
-                s(&model),
-                "--points",
-                s(&p),
-                "-o",
-                s(&out),
-            ],
-            want,
-        );
+        fails(&["predict", "--model", s(&model), "--points", s(&p), "-o", s(&out)], want);
         fails(&["eval", "--model", s(&model), "--data", s(&p)], want);
         fails(&["train", "--data", s(&p), "-o", s(&mout)], want);
         assert!(!out.exists() && !mout.exists(), "{name}: output written");
@@ -399,10 +325,7 @@ fn bad_inputs_are_clear_errors_and_leave_no_output() {
     let want = "behind.csv:3: column \"z\": -65 cm is not a depth in front of the head";
     fails(&["eval", "--model", s(&model), "--data", s(&behind)], want);
     let behind_model = d.join("behind.hvsw");
-    fails(
-        &["train", "--data", s(&behind), "-o", s(&behind_model)],
-        want,
-    );
+    fails(&["train", "--data", s(&behind), "-o", s(&behind_model)], want);
     assert!(!behind_model.exists());
     ok(&["predict", "--model", s(&model), "--points", s(&behind)]);
 
@@ -410,32 +333,17 @@ fn bad_inputs_are_clear_errors_and_leave_no_output() {
     let missing = d.join("nope.csv");
     let out = d.join("out.csv");
     fails(
-        &[
-            "predict",
-            "--model",
-            s(&model),
-            "--points",
-            s(&missing),
-            "-o",
-            s(&out),
-        ],
+        &["predict", "--model", s(&model), "--points", s(&missing), "-o", s(&out)],
         "nope.csv: cannot open",
     );
-    fails(
-        &["train", "--data", s(&missing), "-o", s(&out)],
-        "nope.csv: cannot open",
-    );
+    fails(&["train", "--data", s(&missing), "-o", s(&out)], "nope.csv: cannot open");
     fails(&["info", s(&missing)], "nope.csv: cannot read");
     assert!(!out.exists());
 
     // Bad model files: not a model, damaged (one flipped byte), truncated.
     let bytes = std::fs::read(&model).unwrap();
     let bad: Vec<(&str, Vec<u8>, &str)> = vec![
-        (
-            "text.hvsw",
-            b"u_l,v_l\n1,2\n".to_vec(),
-            "magic check failed",
-        ),
+        ("text.hvsw", b"u_l,v_l\n1,2\n".to_vec(), "magic check failed"),
         (
             "flipped.hvsw",
             {
@@ -445,29 +353,14 @@ fn bad_inputs_are_clear_errors_and_leave_no_output() {
             },
             "CRC check failed",
         ),
-        (
-            "short.hvsw",
-            bytes[..bytes.len() - 3].to_vec(),
-            "length check failed",
-        ),
+        ("short.hvsw", bytes[..bytes.len() - 3].to_vec(), "length check failed"),
     ];
     for (name, b, want) in &bad {
         let p = d.join(name);
         std::fs::write(&p, b).unwrap();
         let msg = fails(&["info", s(&p)], want);
         assert!(msg.contains(name), "{msg}");
-        fails(
-            &[
-                "predict",
-                "--model",
-                s(&p),
-                "--points",
-                s(&good),
-                "-o",
-                s(&out),
-            ],
-            want,
-        );
+        fails(&["predict", "--model", s(&p), "--points", s(&good), "-o", s(&out)], want);
         fails(&["eval", "--model", s(&p), "--data", s(&good)], want);
         assert!(!out.exists());
     }
@@ -494,10 +387,7 @@ fn every_command_has_help() {
         assert!(out.contains("Usage: hvs"), "{c}: {out}");
     }
     hvs().assert().code(2);
-    hvs()
-        .args(["simulate", "--set", "nope", "--case", "1"])
-        .assert()
-        .code(2);
+    hvs().args(["simulate", "--set", "nope", "--case", "1"]).assert().code(2);
 }
 
 #[test]
@@ -508,18 +398,10 @@ fn demo_writes_models_data_and_report() {
     // ~2 s in release); the accuracy of the default is tested above.
     let stdout = ok(&["demo", "-o", s(&out), "--restarts", "1"]);
     for case in ["I ", "II ", "III ", "IV "] {
-        assert!(
-            stdout.lines().any(|l| l.starts_with(case)),
-            "{case}: {stdout}"
-        );
+        assert!(stdout.lines().any(|l| l.starts_with(case)), "{case}: {stdout}");
     }
     for n in 1..=4 {
-        for f in [
-            "train.csv",
-            "test.csv",
-            "volume_train.csv",
-            "volume_test.csv",
-        ] {
+        for f in ["train.csv", "test.csv", "volume_train.csv", "volume_test.csv"] {
             assert!(out.join(format!("case{n}_{f}")).is_file());
         }
         for m in ["", "_volume"] {
@@ -532,10 +414,7 @@ fn demo_writes_models_data_and_report() {
         assert_eq!(rows(&got), rows(&want));
     }
     let report = std::fs::read_to_string(out.join("REPORT.md")).unwrap();
-    assert!(
-        report.contains("| case |") && report.contains("## Case IV"),
-        "{report}"
-    );
+    assert!(report.contains("| case |") && report.contains("## Case IV"), "{report}");
 }
 
 #[test]
@@ -553,28 +432,12 @@ fn bad_settings_are_refused_before_anything_is_written() {
     run(&["--hidden", "0"], "--hidden must be 1..=32");
     run(&["--hidden", "33"], "--hidden must be 1..=32");
     run(&["--restarts", "0"], "--restarts must be at least 1");
-    run(
-        &["--threshold=-1"],
-        "--threshold must be a positive percentage",
-    );
-    run(
-        &["--learning-rate", "0"],
-        "--learning-rate must be a positive number",
-    );
+    run(&["--threshold=-1"], "--threshold must be a positive percentage");
+    run(&["--learning-rate", "0"], "--learning-rate must be a positive number");
     run(&["--threshold", "0.001"], "no restart enrolled");
     fails(
-        &[
-            "simulate",
-            "--case",
-            "1",
-            "--set",
-            "volume",
-            "--noise-px=-2",
-        ],
+        &["simulate", "--case", "1", "--set", "volume", "--noise-px=-2"],
         "--noise-px must be a finite number >= 0",
     );
-    fails(
-        &["simulate", "--case", "7", "--set", "test"],
-        "--case must be 1-4",
-    );
+    fails(&["simulate", "--case", "7", "--set", "test"], "--case must be 1-4");
 }

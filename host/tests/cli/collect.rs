@@ -9,11 +9,7 @@ use std::fs;
 const BOARD: &str = r#"{"pattern": "chessboard", "inner_corners": [7, 5], "square_cm": 4.0}"#;
 
 fn inputs(dir: &Scratch, positions: &str) -> (String, String, String) {
-    let (b, p, s) = (
-        dir.p("board.json"),
-        dir.p("positions.csv"),
-        dir.p("scene.json"),
-    );
+    let (b, p, s) = (dir.p("board.json"), dir.p("positions.csv"), dir.p("scene.json"));
     fs::write(&b, BOARD).unwrap();
     fs::write(&p, positions).unwrap();
     fs::write(
@@ -65,11 +61,7 @@ fn collect_keeps_the_postures_that_see_the_board_and_board_detect_reads_them() {
     assert_eq!(rows.len(), 2, "{text}");
     for (r, z) in rows.iter().zip(["45", "47"]) {
         assert_eq!(r[2], z);
-        assert_eq!(
-            &r[5..],
-            ["0", "0", "0", "-2.52", "2.52"],
-            "the joints the head reports"
-        );
+        assert_eq!(&r[5..], ["0", "0", "0", "-2.52", "2.52"], "the joints the head reports");
         for img in &r[..2] {
             assert!(fs::metadata(format!("{out}/{img}")).unwrap().len() > 1000);
         }
@@ -97,10 +89,7 @@ fn collect_keeps_the_postures_that_see_the_board_and_board_detect_reads_them() {
     ]);
     let pts = fs::read_to_string(&points).unwrap();
     let header = pts.lines().next().unwrap();
-    assert!(
-        header.contains("neck_pan") && header.contains("right_eye_pan"),
-        "{header}"
-    );
+    assert!(header.contains("neck_pan") && header.contains("right_eye_pan"), "{header}");
     assert_eq!(pts.lines().count(), 1 + 2 * 35, "{header}");
 }
 
@@ -125,41 +114,14 @@ fn collect_refuses_bad_input_naming_it() {
         assert!(e.contains(want), "{e}");
     };
     usage(&["--postures", "grid"], "--scene");
-    run(
-        &[
-            "--postures",
-            "grid",
-            "--port",
-            "/dev/null",
-            "--cameras",
-            "v4l:0,1",
-        ],
-        "V4L2",
-    );
+    run(&["--postures", "grid", "--port", "/dev/null", "--cameras", "v4l:0,1"], "V4L2");
     fs::write(&p, "x,y,z\n0,0,70\n").unwrap();
     usage(&["--scene", &s], "--postures");
-    run(
-        &[
-            "--postures",
-            "grid",
-            "--posture-levels",
-            "3,3",
-            "--scene",
-            &s,
-        ],
-        "five counts",
-    );
+    run(&["--postures", "grid", "--posture-levels", "3,3", "--scene", &s], "five counts");
     // A board far out to the side: no posture sees it, and nothing is written.
     fs::write(&p, "x,y,z\n500,0,70\n").unwrap();
     run(
-        &[
-            "--postures",
-            "lattice",
-            "--posture-levels",
-            "1,1,1,1,1",
-            "--scene",
-            &s,
-        ],
+        &["--postures", "lattice", "--posture-levels", "1,1,1,1,1", "--scene", &s],
         "no posture saw the whole board",
     );
     assert!(!std::path::Path::new(&format!("{out}/CAPTURES.csv")).exists());

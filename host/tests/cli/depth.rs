@@ -44,9 +44,7 @@ fn training_csv(path: &Path) {
 fn texture(seed: u64) -> impl Fn(f64, f64) -> f64 {
     let (tw, th) = (W as usize + 64, H as usize);
     let mut st = seed;
-    let mut g: Vec<f64> = (0..tw * th)
-        .map(|_| (splitmix64(&mut st) >> 56) as f64)
-        .collect();
+    let mut g: Vec<f64> = (0..tw * th).map(|_| (splitmix64(&mut st) >> 56) as f64).collect();
     for _ in 0..2 {
         let src = g.clone();
         for y in 0..th {
@@ -85,9 +83,8 @@ fn on_box(x: f64, y: f64) -> bool {
 fn pair(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
     let t = texture(9);
     let (dw, db) = (FOCAL * BASE / Z_WALL, FOCAL * BASE / Z_BOX);
-    let left = GrayImage::from_fn(W, H, |x, y| {
-        image::Luma([t(f64::from(x), f64::from(y)).round() as u8])
-    });
+    let left =
+        GrayImage::from_fn(W, H, |x, y| image::Luma([t(f64::from(x), f64::from(y)).round() as u8]));
     let right = GrayImage::from_fn(W, H, |u, v| {
         let (u, v) = (f64::from(u), f64::from(v));
         let x = if on_box(u + db, v) { u + db } else { u + dw };
@@ -113,13 +110,8 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
     train_restarts(&data, &model, "1");
     let (l, r) = pair(d);
     let out = |n: &str| d.join(n);
-    let (depth, matches, xyz, colour, ply) = (
-        out("d.pfm"),
-        out("m.pfm"),
-        out("xyz.pfm"),
-        out("d.png"),
-        out("c.ply"),
-    );
+    let (depth, matches, xyz, colour, ply) =
+        (out("d.pfm"), out("m.pfm"), out("xyz.pfm"), out("d.png"), out("c.ply"));
     let args = locate_args(
         &["depth"],
         &model,
@@ -139,16 +131,9 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
         ],
     );
     let err = stderr_with_code(args, 0);
-    assert!(
-        err.contains("pixels") && err.contains("0 warning(s)"),
-        "{err}"
-    );
+    assert!(err.contains("pixels") && err.contains("0 warning(s)"), "{err}");
     let bytes = std::fs::read(&depth).unwrap();
-    assert!(
-        bytes.starts_with(b"Pf\n160 120\n-1\n"),
-        "{:?}",
-        &bytes[..16]
-    );
+    assert!(bytes.starts_with(b"Pf\n160 120\n-1\n"), "{:?}", &bytes[..16]);
     let z = read_pfm(&bytes, "d.pfm").unwrap();
     assert_eq!((z.width, z.height, z.channels), (W, H, 1));
     let (mut wall, mut boxed) = (Vec::new(), Vec::new());
@@ -171,16 +156,9 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
         }
     }
     let returned = z.data.iter().filter(|v| v.is_finite()).count();
-    assert!(
-        returned as f64 > 0.85 * f64::from(W * H),
-        "{returned} returned"
-    );
+    assert!(returned as f64 > 0.85 * f64::from(W * H), "{returned} returned");
     let (mw, mb) = (median(wall.clone()), median(boxed.clone()));
-    eprintln!(
-        "median depth: wall {mw} cm ({} px), box {mb} cm ({} px)",
-        wall.len(),
-        boxed.len()
-    );
+    eprintln!("median depth: wall {mw} cm ({} px), box {mb} cm ({} px)", wall.len(), boxed.len());
     assert!((f64::from(mw) - Z_WALL).abs() < 0.01 * Z_WALL, "wall {mw}");
     assert!((f64::from(mb) - Z_BOX).abs() < 0.01 * Z_BOX, "box {mb}");
     // Matches: u_r, v_r, confidence; +inf, +inf, 0 exactly where the depth is +inf.
@@ -197,34 +175,21 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
         }
     }
     let p = read_pfm(&std::fs::read(&xyz).unwrap(), "xyz.pfm").unwrap();
-    assert!(z
-        .data
-        .iter()
-        .zip(p.data.chunks_exact(3))
-        .all(|(a, b)| a.to_bits() == b[2].to_bits()));
+    assert!(z.data.iter().zip(p.data.chunks_exact(3)).all(|(a, b)| a.to_bits() == b[2].to_bits()));
     let png = image::open(&colour).unwrap();
     assert_eq!(png.width(), W);
     assert!(png.height() > H);
     let cloud = std::fs::read(&ply).unwrap();
     let head = format!("element vertex {returned}\n");
     assert!(cloud.windows(head.len()).any(|w| w == head.as_bytes()));
-    let end = cloud
-        .windows(11)
-        .position(|w| w == b"end_header\n")
-        .unwrap()
-        + 11;
+    let end = cloud.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
     assert_eq!(cloud.len() - end, 15 * returned);
 
     // Blank images: every pixel +inf, exit 0, a warning.
     let blank = d.join("blank.png");
-    GrayImage::from_pixel(W, H, image::Luma([200]))
-        .save(&blank)
-        .unwrap();
+    GrayImage::from_pixel(W, H, image::Luma([200])).save(&blank).unwrap();
     let bd = d.join("blank.pfm");
-    let err = stderr_with_code(
-        locate_args(&["depth"], &model, &blank, &blank, &["-o", s(&bd)]),
-        0,
-    );
+    let err = stderr_with_code(locate_args(&["depth"], &model, &blank, &blank, &["-o", s(&bd)]), 0);
     assert!(
         err.contains("warning: the left image is blank") && err.contains("2 warning(s)"),
         "{err}"
@@ -234,14 +199,9 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
 
     // Another size than the other image, than the model's.
     let small = d.join("small.png");
-    GrayImage::from_pixel(100, 80, image::Luma([9]))
-        .save(&small)
-        .unwrap();
+    GrayImage::from_pixel(100, 80, image::Luma([9])).save(&small).unwrap();
     let no = d.join("no.pfm");
-    fails(
-        &locate_args(&["depth"], &model, &l, &small, &["-o", s(&no)]),
-        "differ in size",
-    );
+    fails(&locate_args(&["depth"], &model, &l, &small, &["-o", s(&no)]), "differ in size");
     let mut b = blob::decode(&std::fs::read(&model).unwrap()).unwrap();
     b.set_image_size(Some((320, 240)));
     let mut buf = [0u8; MAX_BLOB_LEN];
@@ -254,14 +214,8 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
     );
     // No matcher geometry; a posture model.
     for (k, (m, want)) in [
-        (
-            hvs_shared::test_support::sample_model(1, 3),
-            "no matcher geometry",
-        ),
-        (
-            hvs_shared::test_support::sample_posture_model(1, 3),
-            "posture-aware",
-        ),
+        (hvs_shared::test_support::sample_model(1, 3), "no matcher geometry"),
+        (hvs_shared::test_support::sample_posture_model(1, 3), "posture-aware"),
     ]
     .into_iter()
     .enumerate()
@@ -272,10 +226,7 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
         fails(&locate_args(&["depth"], &p, &l, &r, &["-o", s(&no)]), want);
     }
     // An output onto an input.
-    fails(
-        &locate_args(&["depth"], &model, &l, &r, &["-o", s(&l)]),
-        "--left",
-    );
+    fails(&locate_args(&["depth"], &model, &l, &r, &["-o", s(&l)]), "--left");
     assert!(!no.exists());
     let _ = ok(&["depth", "--help"]);
 }

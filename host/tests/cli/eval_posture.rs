@@ -7,9 +7,7 @@ use crate::common::{ok_line, posture_model, simulate_into, train_into, Scratch};
 
 /// `hvs eval --model model --data data --case 3 --json`, parsed.
 fn eval_case_3(model: &str, data: &str) -> serde_json::Value {
-    let json = ok_line(&format!(
-        "eval --model {model} --data {data} --case 3 --json"
-    ));
+    let json = ok_line(&format!("eval --model {model} --data {data} --case 3 --json"));
     serde_json::from_str(&json).unwrap()
 }
 
@@ -27,10 +25,8 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
     );
     let v = eval_case_3(&dir.p("m.hvsw"), &dir.p("test.csv"));
     let methods = v["evaluation"]["methods"].as_array().unwrap();
-    let floor = methods
-        .iter()
-        .find(|m| m["name"] == "optimal")
-        .expect("an optimal method with --case");
+    let floor =
+        methods.iter().find(|m| m["name"] == "optimal").expect("an optimal method with --case");
     assert_eq!(v["evaluation"]["points"], 12 * 22);
     assert_eq!(floor["missing"], 0, "{floor}");
     let e = floor["mean"]["e_ma_pct"].as_f64().unwrap();
@@ -40,11 +36,8 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
     assert!(worst < 5.0, "floor worst depth {worst} %");
 
     // The table says the same, without "no estimate".
-    let text = ok_line(&format!(
-        "eval --model {} --data {} --case 3",
-        dir.p("m.hvsw"),
-        dir.p("test.csv")
-    ));
+    let text =
+        ok_line(&format!("eval --model {} --data {} --case 3", dir.p("m.hvsw"), dir.p("test.csv")));
     assert!(text.contains("optimal"), "{text}");
     assert!(!text.contains("optimal: no estimate"), "{text}");
 

@@ -26,14 +26,8 @@ fn check_invariants(t: &Thesis) {
         let n = rows.len() as f64;
         let mean_l = rows.iter().map(|r| r.phi_l).sum::<f64>() / n;
         let mean_r = rows.iter().map(|r| r.phi_r).sum::<f64>() / n;
-        assert!(
-            (mean_l / rows[0].true_l - 1.0).abs() < 0.01,
-            "case {case}: {mean_l}"
-        );
-        assert!(
-            (mean_r / rows[0].true_r - 1.0).abs() < 0.01,
-            "case {case}: {mean_r}"
-        );
+        assert!((mean_l / rows[0].true_l - 1.0).abs() < 0.01, "case {case}: {mean_l}");
+        assert!((mean_r / rows[0].true_r - 1.0).abs() < 0.01, "case {case}: {mean_r}");
         for r in &rows {
             for (est, truth) in [(r.phi_l, r.true_l), (r.phi_r, r.true_r)] {
                 assert!(
@@ -45,31 +39,18 @@ fn check_invariants(t: &Thesis) {
         }
     }
     // Case II's two estimates separate its two focal lengths (285.8 and 406.9 px).
-    assert!(t
-        .phi
-        .iter()
-        .filter(|r| r.case == 2)
-        .all(|r| r.phi_r > 1.3 * r.phi_l));
+    assert!(t.phi.iter().filter(|r| r.case == 2).all(|r| r.phi_r > 1.3 * r.phi_l));
 
     // Figs. 4.8-4.11: 11 depths per case; the thesis' restriction of eq. 3.1-17.
     assert_eq!(t.traditional.len(), 4);
     for c in &t.traditional {
         assert_eq!(c.traditional.z, TEST_DEPTHS.to_vec());
         assert_eq!(c.optimal.z, TEST_DEPTHS.to_vec());
-        assert!(
-            c.optimal.worst() < 4.5,
-            "case {}: floor {}",
-            c.case,
-            c.optimal.worst()
-        );
+        assert!(c.optimal.worst() < 4.5, "case {}: floor {}", c.case, c.optimal.worst());
     }
     let tr = |n: usize| &t.traditional[n - 1].traditional;
     assert!(tr(1).worst() < 2.0, "case I: {}", tr(1).worst());
-    assert!(
-        tr(2).best() > 10.0 && tr(2).worst() < 25.0,
-        "case II: {:?}",
-        tr(2).pct
-    );
+    assert!(tr(2).best() > 10.0 && tr(2).worst() < 25.0, "case II: {:?}", tr(2).pct);
     assert!(tr(3).worst() > 100.0, "case III: {}", tr(3).worst());
     assert!(tr(4).best() > 100.0, "case IV: {}", tr(4).best());
 
@@ -92,11 +73,7 @@ fn check_invariants(t: &Thesis) {
     // Figs. 4.13-4.15: every (outputs, hidden, net) once.
     assert_eq!(hidden_counts(&t.sweep), cfg.hidden().to_vec());
     assert_eq!(t.sweep.len(), 2 * cfg.hidden().len() * cfg.nets());
-    let five = t
-        .sweep
-        .iter()
-        .filter(|r| r.hidden == 5 && r.outputs == OutputKind::Xyz)
-        .count();
+    let five = t.sweep.iter().filter(|r| r.hidden == 5 && r.outputs == OutputKind::Xyz).count();
     assert_eq!(five, cfg.nets());
     for r in &t.sweep {
         assert!(r.train_pct.is_finite() && r.test_worst_pct >= r.test_mean_pct);
@@ -104,10 +81,8 @@ fn check_invariants(t: &Thesis) {
     // The thesis' measure: three outputs beat one on average over the neuron counts (the
     // margin is small here: 4.31 % vs 4.33 % on the quick run, 4.29 % vs 4.34 % on the full).
     let avg = |v: Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
-    let (one, three) = (
-        avg(e_ma_hn(&t.sweep, OutputKind::Z)),
-        avg(e_ma_hn(&t.sweep, OutputKind::Xyz)),
-    );
+    let (one, three) =
+        (avg(e_ma_hn(&t.sweep, OutputKind::Z)), avg(e_ma_hn(&t.sweep, OutputKind::Xyz)));
     assert!(three < one, "three outputs {three} % vs one {one} %");
     // More hidden neurons fit the training boards better.
     for o in [OutputKind::Z, OutputKind::Xyz] {
@@ -139,11 +114,7 @@ fn check_invariants(t: &Thesis) {
     assert_eq!(t.algos.len(), 8);
     for case in 1..=4u8 {
         for algo in [Algo::Lm, Algo::Bp] {
-            let r = t
-                .algos
-                .iter()
-                .find(|r| r.case == case && r.algo == algo)
-                .unwrap();
+            let r = t.algos.iter().find(|r| r.case == case && r.algo == algo).unwrap();
             assert!(r.train_pct.is_finite() && r.wall_s > 0.0);
         }
     }
@@ -168,26 +139,15 @@ fn check_invariants(t: &Thesis) {
             );
         }
     }
-    let c1 = t
-        .noise
-        .iter()
-        .find(|r| r.case == 1 && r.sigma == 0.0)
-        .unwrap();
+    let c1 = t.noise.iter().find(|r| r.case == 1 && r.sigma == 0.0).unwrap();
     assert!(c1.traditional_pct < 1.3 * c1.optimal_pct);
-    let c4 = t
-        .noise
-        .iter()
-        .find(|r| r.case == 4 && r.sigma == 0.0)
-        .unwrap();
+    let c4 = t.noise.iter().find(|r| r.case == 4 && r.sigma == 0.0).unwrap();
     assert!(c4.traditional_pct > 100.0);
 }
 
 #[test]
 fn quick_run_invariants_files_and_determinism() {
-    let cfg = Config {
-        seed: 0,
-        quick: true,
-    };
+    let cfg = Config { seed: 0, quick: true };
     // The command (same seed, another directory, one worker thread) runs while the library
     // run below does (all threads): equal CSVs also show the thread count does not matter.
     let cli = spawn_quick_experiment("thesis", &["--seed", "0"]);
@@ -229,10 +189,7 @@ fn quick_run_invariants_files_and_determinism() {
     let mut links = 0;
     for part in md.split("](").skip(1) {
         let target = &part[..part.find(')').unwrap()];
-        assert!(
-            out.join(target).is_file(),
-            "RESULTS.md links missing {target}"
-        );
+        assert!(out.join(target).is_file(), "RESULTS.md links missing {target}");
         links += 1;
     }
     assert!(links >= 3 * report::STEMS.len(), "{links} links");
@@ -257,9 +214,6 @@ fn an_unusable_output_directory_is_a_clear_error() {
             .failure()
             .code(1);
         let err = String::from_utf8_lossy(&assert.get_output().stderr).into_owned();
-        assert!(
-            err.contains("not_a_dir") && err.contains("cannot create"),
-            "{study}: {err}"
-        );
+        assert!(err.contains("not_a_dir") && err.contains("cannot create"), "{study}: {err}");
     }
 }

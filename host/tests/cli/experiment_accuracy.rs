@@ -46,10 +46,7 @@ fn quick_run_files_facts_and_determinism() {
             assert!(default < thesis, "{r:?}");
         } else {
             assert!(floor > 0.05 && floor < 3.0, "{r:?}");
-            assert!(
-                r.scores.ratios().iter().all(|q| *q > 0.8 && *q < 10.0),
-                "{r:?}"
-            );
+            assert!(r.scores.ratios().iter().all(|q| *q > 0.8 && *q < 10.0), "{r:?}");
         }
     }
     // The sweeps: the floor grows with the noise; both ends of each sweep on both boards.
@@ -57,10 +54,7 @@ fn quick_run_files_facts_and_determinism() {
     assert_eq!(run.lens.len(), 2 * BOARDS.len());
     for b in run.noise.chunks(2) {
         assert_eq!((b[0].x, b[1].x), (0.0, 0.5));
-        assert!(
-            b[0].scores.floor() < 1e-9 && b[1].scores.floor() > 1.0,
-            "{b:?}"
-        );
+        assert!(b[0].scores.floor() < 1e-9 && b[1].scores.floor() > 1.0, "{b:?}");
     }
     // Rendered images: every corner found, sub-pixel corners, the floor well below the
     // rounding floor.
@@ -100,13 +94,9 @@ fn the_readme_shows_the_committed_accuracy_table() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let text = |p: &str| String::from_utf8(read(&root.join(p))).unwrap();
     let (page, readme) = (text("docs/ACCURACY.md"), text("README.md"));
-    let start = page
-        .find("| board | regime | floor e_ma")
-        .expect("the summary table in docs/ACCURACY.md");
-    let end = start
-        + page[start..]
-            .find("\n\n")
-            .expect("a blank line after the table");
+    let start =
+        page.find("| board | regime | floor e_ma").expect("the summary table in docs/ACCURACY.md");
+    let end = start + page[start..].find("\n\n").expect("a blank line after the table");
     assert!(
         readme.contains(&page[start..end]),
         "README.md's accuracy table is not docs/ACCURACY.md's; copy it from there:\n{}",

@@ -29,18 +29,10 @@ fn check_invariants(r: &Posture) {
     let home = &r.fixed[0];
     assert_eq!(home.label, "home");
     assert!(home.net.z_pct < 1.5 * home.floor.z_pct, "{home:?}");
-    let verged = r
-        .fixed
-        .iter()
-        .find(|f| f.label.starts_with("vergence 10"))
-        .unwrap();
+    let verged = r.fixed.iter().find(|f| f.label.starts_with("vergence 10")).unwrap();
     assert!(verged.net.z_pct > 100.0, "{verged:?}");
     assert!(verged.net.z_pct > 20.0 * verged.floor.z_pct, "{verged:?}");
-    let pan = r
-        .fixed
-        .iter()
-        .find(|f| f.label == "neck pan 30 deg")
-        .unwrap();
+    let pan = r.fixed.iter().find(|f| f.label == "neck pan 30 deg").unwrap();
     assert!(pan.net.d3_pct > 2.0 * pan.net.z_pct, "{pan:?}");
     assert!(pan.net.d3_pct > 10.0 * pan.floor.d3_pct, "{pan:?}");
 
@@ -54,11 +46,7 @@ fn check_invariants(r: &Posture) {
     for term in ["neck pan", "neck tilt", "eye tilt", "version", "vergence"] {
         let b: Vec<_> = bands.iter().filter(|b| b.term == term).collect();
         assert_eq!(b.len(), 3, "{term}");
-        assert_eq!(
-            b.iter().map(|b| b.net.points).sum::<usize>(),
-            c.test_points,
-            "{term}"
-        );
+        assert_eq!(b.iter().map(|b| b.net.points).sum::<usize>(), c.test_points, "{term}");
     }
     for b in bands {
         // Rounding, not posture, limits the floor: about the same in every band.
@@ -75,34 +63,21 @@ fn check_invariants(r: &Posture) {
 
     // (c) The sweep: the quick counts on the grid, the chosen one on the lattice too.
     let sweep = &r.aware.sweep;
-    let grid: Vec<usize> = sweep
-        .iter()
-        .filter(|h| h.postures == "grid")
-        .map(|h| h.hidden)
-        .collect();
+    let grid: Vec<usize> =
+        sweep.iter().filter(|h| h.postures == "grid").map(|h| h.hidden).collect();
     assert_eq!(grid, HIDDEN_SWEEP_QUICK.to_vec());
-    let lattice: Vec<usize> = sweep
-        .iter()
-        .filter(|h| h.postures == "lattice")
-        .map(|h| h.hidden)
-        .collect();
+    let lattice: Vec<usize> =
+        sweep.iter().filter(|h| h.postures == "lattice").map(|h| h.hidden).collect();
     assert_eq!(lattice, vec![c.hidden]);
     for h in sweep {
         // 9-H-3: 9H + H weights and biases into the hidden layer, 3H + 3 out, and the
         // family's skip weights (3 x 9 for the default family).
-        assert_eq!(
-            h.params,
-            13 * h.hidden + 3 + c.family.skip_len(9, 3),
-            "{h:?}"
-        );
+        assert_eq!(h.params, 13 * h.hidden + 3 + c.family.skip_len(9, 3), "{h:?}");
         assert!(h.train_pct.is_finite() && h.test.z_pct.is_finite(), "{h:?}");
         assert!(h.worst_band_ratio >= h.test.z_pct / h.floor.z_pct, "{h:?}");
         assert_eq!(h.floor, bands[0].floor);
     }
-    let chosen = sweep
-        .iter()
-        .find(|h| h.postures == "grid" && h.hidden == c.hidden)
-        .unwrap();
+    let chosen = sweep.iter().find(|h| h.postures == "grid" && h.hidden == c.hidden).unwrap();
     assert_eq!(chosen.test, bands[0].net);
     // More hidden neurons fit the training set better.
     assert!(sweep[0].train_pct > chosen.train_pct, "{sweep:?}");
@@ -124,12 +99,8 @@ fn check_invariants(r: &Posture) {
 
 /// The rows of a CSV (header first), parsed with the quotes the labels need.
 fn csv_rows(text: &str) -> Vec<Vec<String>> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .from_reader(text.as_bytes());
-    rdr.records()
-        .map(|r| r.unwrap().iter().map(str::to_string).collect())
-        .collect()
+    let mut rdr = csv::ReaderBuilder::new().has_headers(false).from_reader(text.as_bytes());
+    rdr.records().map(|r| r.unwrap().iter().map(str::to_string).collect()).collect()
 }
 
 #[test]
@@ -154,21 +125,9 @@ fn quick_run_invariants_files_and_determinism() {
 
     let r = &run;
     let headers = [
-        (
-            "fixed",
-            format!("posture,{},net_points", JOINT_COLUMNS.join(",")),
-            r.fixed.len(),
-        ),
-        (
-            "bands",
-            "term,band,net_points,net_z_pct".to_string(),
-            r.aware.bands.len(),
-        ),
-        (
-            "hidden",
-            "postures,hidden,params,train_pct,test_points".to_string(),
-            r.aware.sweep.len(),
-        ),
+        ("fixed", format!("posture,{},net_points", JOINT_COLUMNS.join(",")), r.fixed.len()),
+        ("bands", "term,band,net_points,net_z_pct".to_string(), r.aware.bands.len()),
+        ("hidden", "postures,hidden,params,train_pct,test_points".to_string(), r.aware.sweep.len()),
         (
             "distortion",
             "k1,max_shift_px,method,points,z_pct".to_string(),
@@ -205,19 +164,13 @@ fn quick_run_invariants_files_and_determinism() {
         if target.starts_with("../") {
             continue;
         }
-        assert!(
-            out.join(target).is_file(),
-            "POSTURE.md links missing {target}"
-        );
+        assert!(out.join(target).is_file(), "POSTURE.md links missing {target}");
         links += 1;
     }
     assert!(links >= 4 * STEMS.len(), "{links} links");
-    for want in [
-        "hvs experiment posture --seed 1 --quick",
-        "at most 1.20 x",
-        "## Tables",
-        "#### (a)",
-    ] {
+    for want in
+        ["hvs experiment posture --seed 1 --quick", "at most 1.20 x", "## Tables", "#### (a)"]
+    {
         assert!(md.contains(want), "POSTURE.md lacks {want}");
     }
 }

@@ -60,17 +60,7 @@ fn hex_image_sits_at_the_slot_address() {
     let m = write_model(dir.path(), 3);
     for (slot, addr) in [("a", SLOT_A_ADDR), ("b", SLOT_B_ADDR)] {
         let out = dir.path().join(format!("{slot}.hex"));
-        ok(&[
-            "image",
-            "--model",
-            s(&m),
-            "--slot",
-            slot,
-            "--format",
-            "hex",
-            "-o",
-            s(&out),
-        ]);
+        ok(&["image", "--model", s(&m), "--slot", slot, "--format", "hex", "-o", s(&out)]);
         let text = std::fs::read_to_string(&out).unwrap();
         let mut base = 0u32;
         let mut first = None;
@@ -113,10 +103,7 @@ fn dry_run_prints_the_plan_without_a_probe() {
     let s = dry_run(&m, "b");
     assert!(s.contains("no probe touched"), "{s}");
     assert!(s.contains("chip: STM32F405RGTx"), "{s}");
-    assert!(
-        s.contains(&format!("({file_len} bytes, CRC ok, 4-5-3")),
-        "{s}"
-    );
+    assert!(s.contains(&format!("({file_len} bytes, CRC ok, 4-5-3")), "{s}");
     assert!(s.contains("slot: B at 0x080e0000 (sector 11)\n"), "{s}");
     assert!(
         s.contains(&format!(
@@ -124,10 +111,7 @@ fn dry_run_prints_the_plan_without_a_probe() {
         )),
         "{s}"
     );
-    assert!(
-        s.contains("refused if slot B holds the only model the head runs"),
-        "{s}"
-    );
+    assert!(s.contains("refused if slot B holds the only model the head runs"), "{s}");
     assert!(!s.contains("slot A at"), "{s}");
 
     let s = dry_run(&m, "auto");
@@ -166,10 +150,7 @@ fn a_model_the_head_would_not_run_is_refused() {
         let o = hvs().args(&args).output().unwrap();
         assert_eq!(o.status.code(), Some(1), "{args:?}");
         let e = String::from_utf8_lossy(&o.stderr);
-        assert!(
-            e.contains("z.hvsw: the head would not run this 4-5-1 model"),
-            "{e}"
-        );
+        assert!(e.contains("z.hvsw: the head would not run this 4-5-1 model"), "{e}");
         assert_eq!(e.trim().lines().count(), 1, "{e}");
         assert!(o.stdout.is_empty(), "{args:?}");
     }

@@ -10,15 +10,7 @@ use std::path::{Path, PathBuf};
 fn shots(dir: &Path) -> PathBuf {
     let shots = dir.join("shots");
     hvs()
-        .args([
-            "render",
-            "--case",
-            "1",
-            "--depths",
-            "65,85,105,125",
-            "-o",
-            s(&shots),
-        ])
+        .args(["render", "--case", "1", "--depths", "65,85,105,125", "-o", s(&shots)])
         .assert()
         .success();
     shots
@@ -61,12 +53,7 @@ fn board_detect_never_overwrites_an_input() {
     let dir = tempfile::tempdir().unwrap();
     let shots = shots(dir.path());
     std::fs::create_dir(shots.join("sub")).unwrap();
-    for out in [
-        "captures.csv",
-        "board.json",
-        "left03.png",
-        "sub/../right02.png",
-    ] {
+    for out in ["captures.csv", "board.json", "left03.png", "sub/../right02.png"] {
         let path = shots.join(out);
         let before = std::fs::read(&path).unwrap();
         let o = detect(&shots, "captures.csv", &path, &[]);
@@ -79,23 +66,12 @@ fn board_detect_never_overwrites_an_input() {
     captures(
         &shots,
         "named.csv",
-        &[
-            "left01.png,left01.overlay.png,65",
-            "left02.png,right02.png,85",
-        ],
+        &["left01.png,left01.overlay.png,65", "left02.png,right02.png,85"],
     );
     let before = std::fs::read(shots.join("left01.overlay.png")).unwrap();
-    let o = detect(
-        &shots,
-        "named.csv",
-        &dir.path().join("p.csv"),
-        &["--overlays", s(&shots)],
-    );
+    let o = detect(&shots, "named.csv", &dir.path().join("p.csv"), &["--overlays", s(&shots)]);
     assert!(o.status.success(), "{}", err(&o));
-    assert_eq!(
-        std::fs::read(shots.join("left01.overlay.png")).unwrap(),
-        before
-    );
+    assert_eq!(std::fs::read(shots.join("left01.overlay.png")).unwrap(), before);
 }
 
 #[test]
@@ -104,29 +80,12 @@ fn overlays_of_images_with_one_stem_are_all_written() {
     let shots = shots(dir.path());
     for (sub, k) in [("a", "01"), ("b", "02")] {
         std::fs::create_dir(shots.join(sub)).unwrap();
-        std::fs::copy(
-            shots.join(format!("left{k}.png")),
-            shots.join(sub).join("img.png"),
-        )
-        .unwrap();
-        std::fs::copy(
-            shots.join(format!("right{k}.png")),
-            shots.join(sub).join("r.png"),
-        )
-        .unwrap();
+        std::fs::copy(shots.join(format!("left{k}.png")), shots.join(sub).join("img.png")).unwrap();
+        std::fs::copy(shots.join(format!("right{k}.png")), shots.join(sub).join("r.png")).unwrap();
     }
-    captures(
-        &shots,
-        "stems.csv",
-        &["a/img.png,a/r.png,65", "b/img.png,b/r.png,85"],
-    );
+    captures(&shots, "stems.csv", &["a/img.png,a/r.png,65", "b/img.png,b/r.png,85"]);
     let ov = dir.path().join("ov");
-    let o = detect(
-        &shots,
-        "stems.csv",
-        &dir.path().join("p.csv"),
-        &["--overlays", s(&ov)],
-    );
+    let o = detect(&shots, "stems.csv", &dir.path().join("p.csv"), &["--overlays", s(&ov)]);
     assert!(o.status.success(), "{}", err(&o));
     let mut names: Vec<String> = std::fs::read_dir(&ov)
         .unwrap()
@@ -160,15 +119,9 @@ fn a_failing_run_writes_nothing() {
         assert_eq!(std::fs::read_to_string(&points).unwrap(), "old", "{bad}");
     }
     // hvs render into an existing file: refused up front, saying what is wrong.
-    let o = hvs()
-        .args(["render", "--case", "1", "-o", s(&file)])
-        .output()
-        .unwrap();
+    let o = hvs().args(["render", "--case", "1", "-o", s(&file)]).output().unwrap();
     let e = one_error(&o, 1);
-    assert!(
-        e.contains("is not a directory") && !e.contains("File exists"),
-        "{e}"
-    );
+    assert!(e.contains("is not a directory") && !e.contains("File exists"), "{e}");
 }
 
 #[test]
@@ -199,21 +152,14 @@ fn pairs_that_cannot_be_right_are_refused_with_the_reason() {
     // Both images of pair 4 mirrored, and both turned 180 degrees.
     for side in ["left", "right"] {
         let one = image::open(shots.join(format!("{side}04.png"))).unwrap();
-        one.fliph()
-            .save(shots.join(format!("mirror-{side}04.png")))
-            .unwrap();
-        one.rotate180()
-            .save(shots.join(format!("turned-{side}04.png")))
-            .unwrap();
+        one.fliph().save(shots.join(format!("mirror-{side}04.png"))).unwrap();
+        one.rotate180().save(shots.join(format!("turned-{side}04.png"))).unwrap();
     }
     captures(&shots, "bad.csv", &rows);
     let o = detect(&shots, "bad.csv", &out, &[]);
     assert!(o.status.success(), "{}", err(&o));
     let e = err(&o);
-    assert!(
-        e.contains("bad.csv:4 (right03.png, left03.png): skipped: its disparity is -"),
-        "{e}"
-    );
+    assert!(e.contains("bad.csv:4 (right03.png, left03.png): skipped: its disparity is -"), "{e}");
     assert!(
         e.contains(
             "bad.csv:3 (left02.png, left02.png): skipped: every corner is at the same pixel"
@@ -257,19 +203,12 @@ fn pairs_that_cannot_be_right_are_refused_with_the_reason() {
     assert!(err(&o).contains("left and right swapped"), "{}", err(&o));
     // A 9x6 board described as [6, 9]: refused, naming the fix.
     let b69 = dir.path().join("b69.json");
-    std::fs::write(
-        &b69,
-        r#"{"pattern": "chessboard", "inner_corners": [6, 9], "square_cm": 6.0}"#,
-    )
-    .unwrap();
+    std::fs::write(&b69, r#"{"pattern": "chessboard", "inner_corners": [6, 9], "square_cm": 6.0}"#)
+        .unwrap();
     let c = shots.join("captures.csv");
     let o = hvs().args(detect_args(&b69, &c, &out)).output().unwrap();
     one_error(&o, 1);
-    assert!(
-        err(&o).contains(r#"describe it as "inner_corners": [9, 6]"#),
-        "{}",
-        err(&o)
-    );
+    assert!(err(&o).contains(r#"describe it as "inner_corners": [9, 6]"#), "{}", err(&o));
     // A captures column named like one POINTS.csv writes.
     for col in ["u_l", "capture"] {
         let text = std::fs::read_to_string(&c).unwrap();
@@ -282,9 +221,7 @@ fn pairs_that_cannot_be_right_are_refused_with_the_reason() {
         let o = detect(&shots, "dup.csv", &out, &[]);
         let e = one_error(&o, 1);
         assert!(
-            e.contains(&format!(
-                "\"{col}\": hvs board detect writes a column of that name"
-            )),
+            e.contains(&format!("\"{col}\": hvs board detect writes a column of that name")),
             "{e}"
         );
     }
@@ -321,19 +258,12 @@ fn huge_images_and_corner_textures_are_refused_quickly() {
     captures(
         &shots,
         "big.csv",
-        &[
-            "bomb.png,bomb.png,65",
-            "tex.png,tex.png,85",
-            "left03.png,right03.png,105",
-        ],
+        &["bomb.png,bomb.png,65", "tex.png,tex.png,85", "left03.png,right03.png,105"],
     );
     let o = detect(&shots, "big.csv", &dir.path().join("p.csv"), &[]);
     assert!(o.status.success(), "{}", err(&o));
     let e = err(&o);
-    assert!(
-        e.contains("20000x20000 is 400000000 pixels, more than the 16000000"),
-        "{e}"
-    );
+    assert!(e.contains("20000x20000 is 400000000 pixels, more than the 16000000"), "{e}");
     assert!(e.contains("corner candidates, more than the 8000"), "{e}");
 }
 
@@ -347,24 +277,13 @@ fn contracts_links_formats_and_exit_codes() {
     std::os::unix::fs::symlink("points.csv", &link).unwrap();
     let o = detect(&shots, "captures.csv", &link, &[]);
     assert!(o.status.success(), "{}", err(&o));
-    assert!(std::fs::symlink_metadata(&link)
-        .unwrap()
-        .file_type()
-        .is_symlink());
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
     assert!(std::fs::read_to_string(dir.path().join("points.csv"))
         .unwrap()
         .starts_with("capture,i,j"));
     // Formats other than PNG and JPEG are refused by their bytes, naming the format.
-    std::fs::write(
-        shots.join("x.bmp"),
-        b"BM\x3a\0\0\0\0\0\0\0\x36\0\0\0\x28\0\0\0",
-    )
-    .unwrap();
-    captures(
-        &shots,
-        "bmp.csv",
-        &["x.bmp,x.bmp,65", "left02.png,right02.png,85"],
-    );
+    std::fs::write(shots.join("x.bmp"), b"BM\x3a\0\0\0\0\0\0\0\x36\0\0\0\x28\0\0\0").unwrap();
+    captures(&shots, "bmp.csv", &["x.bmp,x.bmp,65", "left02.png,right02.png,85"]);
     let o = detect(&shots, "bmp.csv", &dir.path().join("p.csv"), &[]);
     assert!(
         err(&o).contains("x.bmp: a BMP file; hvs reads PNG and JPEG images only"),
@@ -373,32 +292,13 @@ fn contracts_links_formats_and_exit_codes() {
     );
     // Bad usage exits 2 with the flag's name and plain ranges.
     let e = stderr_with_code(
-        [
-            "render",
-            "--case",
-            "1",
-            "--blur",
-            "99",
-            "-o",
-            s(&dir.path().join("r")),
-        ],
+        ["render", "--case", "1", "--blur", "99", "-o", s(&dir.path().join("r"))],
         2,
     );
-    assert!(
-        e.contains("--blur: must be a number from 0 to 10, got 99"),
-        "{e}"
-    );
+    assert!(e.contains("--blur: must be a number from 0 to 10, got 99"), "{e}");
     assert!(!e.contains("..=") && !e.contains("blur_sigma_px"), "{e}");
     let e = stderr_with_code(
-        [
-            "render",
-            "--case",
-            "1",
-            "--inner-corners",
-            "9",
-            "-o",
-            s(&dir.path().join("r")),
-        ],
+        ["render", "--case", "1", "--inner-corners", "9", "-o", s(&dir.path().join("r"))],
         2,
     );
     assert!(e.contains("--inner-corners"), "{e}");
@@ -426,18 +326,11 @@ fn locate_checks_its_outputs_usage_and_image_sizes() {
     let x = dir.path().join("x.out");
     let via = dir.path().join("sub/../x.out");
     let o = locate(&["--points", s(&px), "-o", s(&x), "--overlay", s(&via)]);
-    assert!(
-        one_error(&o, 1).contains("are the same file"),
-        "{}",
-        err(&o)
-    );
+    assert!(one_error(&o, 1).contains("are the same file"), "{}", err(&o));
     assert!(!x.exists());
     // --at prints its point: -o with it is bad usage, as are malformed or infinite values.
-    for bad in [
-        vec!["--at", "320,240", "-o", s(&x)],
-        vec!["--at", "320"],
-        vec!["--at", "inf,240"],
-    ] {
+    for bad in [vec!["--at", "320,240", "-o", s(&x)], vec!["--at", "320"], vec!["--at", "inf,240"]]
+    {
         let o = locate(&bad);
         assert_eq!(o.status.code(), Some(2), "{bad:?}: {}", err(&o));
         assert!(!x.exists());
@@ -446,20 +339,10 @@ fn locate_checks_its_outputs_usage_and_image_sizes() {
     let bomb = dir.path().join("bomb.png");
     std::fs::write(&bomb, png_bomb(20_000, 20_000)).unwrap();
     let o = hvs()
-        .args(locate_args(
-            &["locate"],
-            &model,
-            &bomb,
-            &bomb,
-            &["--at", "320,240"],
-        ))
+        .args(locate_args(&["locate"], &model, &bomb, &bomb, &["--at", "320,240"]))
         .output()
         .unwrap();
-    assert!(
-        one_error(&o, 1).contains("more than the 16000000"),
-        "{}",
-        err(&o)
-    );
+    assert!(one_error(&o, 1).contains("more than the 16000000"), "{}", err(&o));
 }
 
 #[test]
@@ -482,10 +365,7 @@ fn a_z_only_model_locates_and_predicts_without_false_alarms() {
         "1",
     ]);
     // `hvs predict` on its own training points: no "damaged" or out-of-range warning.
-    let o = hvs()
-        .args(["predict", "--model", s(&model), "--points", s(&points)])
-        .output()
-        .unwrap();
+    let o = hvs().args(["predict", "--model", s(&model), "--points", s(&points)]).output().unwrap();
     assert!(o.status.success(), "{}", err(&o));
     assert!(!err(&o).contains("warning"), "{}", err(&o));
     // `hvs locate` at a detected corner of the 85 cm pair: a match and its depth, no X or Y.
@@ -500,21 +380,10 @@ fn a_z_only_model_locates_and_predicts_without_false_alarms() {
         .unwrap();
     let at = format!("{},{}", row[col("u_l")], row[col("v_l")]);
     let (l, r) = (shots.join("left02.png"), shots.join("right02.png"));
-    let o = hvs()
-        .args(locate_args(&["locate"], &model, &l, &r, &["--at", &at]))
-        .output()
-        .unwrap();
+    let o = hvs().args(locate_args(&["locate"], &model, &l, &r, &["--at", &at])).output().unwrap();
     assert!(o.status.success(), "{}", err(&o));
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(!out.contains("x=") && out.contains(" z="), "{out}");
-    let z: f64 = out
-        .split(" z=")
-        .nth(1)
-        .unwrap()
-        .split(' ')
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap();
+    let z: f64 = out.split(" z=").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
     assert!((z - 85.0).abs() < 1.0, "{out}");
 }

@@ -45,13 +45,7 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     let dir = tempfile::tempdir().unwrap();
     let shots = dir.path().join("shots");
     render(&shots, &["--depths", "65,115,165", "--seed", "2"]);
-    for f in [
-        "left01.png",
-        "right03.png",
-        "captures.csv",
-        "truth.csv",
-        "board.json",
-    ] {
+    for f in ["left01.png", "right03.png", "captures.csv", "truth.csv", "board.json"] {
         assert!(shots.join(f).is_file(), "{f}");
     }
     let caps = std::fs::read_to_string(shots.join("captures.csv")).unwrap();
@@ -90,9 +84,7 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     assert_eq!(got.len(), 162);
     let mut worst = 0.0f64;
     for (k, p) in &got {
-        let t = truth
-            .get(k)
-            .unwrap_or_else(|| panic!("{k:?} not in the truth"));
+        let t = truth.get(k).unwrap_or_else(|| panic!("{k:?} not in the truth"));
         for c in 0..4 {
             worst = worst.max((p[c] - t[c]).abs());
         }
@@ -106,10 +98,7 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     train_restarts(&points, &model, "2");
     let info = ok(&["info", s(&model)]);
     assert!(info.contains("matcher"), "{info}");
-    assert!(
-        info.contains("640x480"),
-        "the images' size is recorded: {info}"
-    );
+    assert!(info.contains("640x480"), "the images' size is recorded: {info}");
     // ... and a pair of another size is refused by locate, naming both sizes.
     let half = dir.path().join("half.png");
     image::imageops::resize(
@@ -120,10 +109,8 @@ fn rendered_boards_become_a_training_set_with_sub_pixel_corners() {
     )
     .save(&half)
     .unwrap();
-    let e = stderr_with_code(
-        locate_args(&["locate"], &model, &half, &half, &["--at", "160,120"]),
-        1,
-    );
+    let e =
+        stderr_with_code(locate_args(&["locate"], &model, &half, &half, &["--at", "160,120"]), 1);
     assert!(e.contains("320x240") && e.contains("640x480"), "{e}");
 }
 
@@ -147,12 +134,8 @@ fn bad_images_and_boards_are_named_skipped_or_refused() {
     // A truncated PNG, a blank picture, an image of another size.
     let png = std::fs::read(d.join("l.png")).unwrap();
     std::fs::write(d.join("cut.png"), &png[..png.len() / 2]).unwrap();
-    image::GrayImage::from_pixel(640, 480, image::Luma([128u8]))
-        .save(d.join("blank.png"))
-        .unwrap();
-    image::GrayImage::from_pixel(320, 240, image::Luma([128u8]))
-        .save(d.join("small.png"))
-        .unwrap();
+    image::GrayImage::from_pixel(640, 480, image::Luma([128u8])).save(d.join("blank.png")).unwrap();
+    image::GrayImage::from_pixel(320, 240, image::Luma([128u8])).save(d.join("small.png")).unwrap();
     let board = d.join("board.json");
     let out = d.join("points.csv");
     let cases = [
@@ -186,17 +169,10 @@ fn bad_images_and_boards_are_named_skipped_or_refused() {
     let e = detect_fails(&bad, &caps, &out);
     assert!(e.contains("bad.json"), "{e}");
     // One good pair and one bad one: the good one is written, the bad one named.
-    std::fs::write(
-        &caps,
-        "left,right,z\nl.png,r.png,85\nmissing.png,r.png,95\n",
-    )
-    .unwrap();
+    std::fs::write(&caps, "left,right,z\nl.png,r.png,85\nmissing.png,r.png,95\n").unwrap();
     let e = stderr_with_code(detect_args(&board, &caps, &out), 0);
     assert!(e.contains("caps.csv:3") && e.contains("missing.png"), "{e}");
-    assert_eq!(
-        std::fs::read_to_string(&out).unwrap().lines().count(),
-        1 + 54
-    );
+    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 1 + 54);
 }
 
 #[test]
@@ -206,27 +182,17 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     let shots = d.join("shots");
     render(&shots, &["--seed", "6"]);
     let points = d.join("points.csv");
-    ok(&detect_args(
-        &shots.join("board.json"),
-        &shots.join("captures.csv"),
-        &points,
-    ));
+    ok(&detect_args(&shots.join("board.json"), &shots.join("captures.csv"), &points));
     let model = d.join("m.hvsw");
     train_restarts(&points, &model, "2");
     let test = d.join("test");
-    render(
-        &test,
-        &["--seed", "7", "--depths", "95", "--centre", "-3,2"],
-    );
+    render(&test, &["--seed", "7", "--depths", "95", "--centre", "-3,2"]);
     // The test pair's true corners, plus a point outside the image.
     let truth = std::fs::read_to_string(test.join("truth.csv")).unwrap();
     let mut px = String::from("u_l,v_l,tag,true_u_r,true_v_r\n");
     for l in truth.lines().skip(1) {
         let f: Vec<&str> = l.split(',').collect();
-        px.push_str(&format!(
-            "{},{},c{}_{},{},{}\n",
-            f[6], f[7], f[1], f[2], f[8], f[9]
-        ));
+        px.push_str(&format!("{},{},c{}_{},{},{}\n", f[6], f[7], f[1], f[2], f[8], f[9]));
     }
     px.push_str("-50,10,off,0,0\n");
     let pix = d.join("px.csv");
@@ -244,10 +210,7 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     assert!(overlay.is_file());
     let text = std::fs::read_to_string(&out).unwrap();
     let mut lines = text.lines();
-    assert_eq!(
-        lines.next(),
-        Some("u_l,v_l,u_r,v_r,x,y,z,score,status,tag,true_u_r,true_v_r")
-    );
+    assert_eq!(lines.next(), Some("u_l,v_l,u_r,v_r,x,y,z,score,status,tag,true_u_r,true_v_r"));
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), 54 + 1);
     let (mut okc, mut good) = (0, 0);
@@ -274,46 +237,20 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     for bad in ["NaN", "inf"] {
         std::fs::write(&pix, format!("u_l,v_l\n300,200\n{bad},10\n")).unwrap();
         let o = crate::common::hvs()
-            .args(locate_args(
-                &["locate"],
-                &model,
-                &l,
-                &r,
-                &["--points", s(&pix)],
-            ))
+            .args(locate_args(&["locate"], &model, &l, &r, &["--points", s(&pix)]))
             .output()
             .unwrap();
         assert_eq!(o.status.code(), Some(1));
         let e = String::from_utf8_lossy(&o.stderr).into_owned();
-        assert!(
-            e.contains(":3: column \"u_l\"") && e.contains("is not a finite number"),
-            "{e}"
-        );
+        assert!(e.contains(":3: column \"u_l\"") && e.contains("is not a finite number"), "{e}");
     }
     // One point, printed.
-    let one = ok(&locate_args(
-        &["locate"],
-        &model,
-        &l,
-        &r,
-        &["--at", "300,200"],
-    ));
-    assert!(
-        one.contains("z=") || one.contains("no trustworthy match"),
-        "{one}"
-    );
+    let one = ok(&locate_args(&["locate"], &model, &l, &r, &["--at", "300,200"]));
+    assert!(one.contains("z=") || one.contains("no trustworthy match"), "{one}");
     // Images of different sizes; a model without the matcher's geometry (a v1 blob).
-    image::GrayImage::from_pixel(320, 240, image::Luma([90u8]))
-        .save(d.join("small.png"))
-        .unwrap();
+    image::GrayImage::from_pixel(320, 240, image::Luma([90u8])).save(d.join("small.png")).unwrap();
     let e = crate::common::fails(
-        &locate_args(
-            &["locate"],
-            &model,
-            &l,
-            &d.join("small.png"),
-            &["--at", "1,1"],
-        ),
+        &locate_args(&["locate"], &model, &l, &d.join("small.png"), &["--at", "1,1"]),
         "differ in size",
     );
     assert!(e.contains("small.png"), "{e}");

@@ -10,9 +10,7 @@ use tempfile::TempDir;
 fn rows(csv: &str) -> Vec<Vec<f64>> {
     let mut lines = csv.lines();
     assert_eq!(lines.next(), Some("u_l,v_l,u_r,v_r,x,y,z"));
-    lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect()
+    lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect()
 }
 
 fn whole(v: f64) -> bool {
@@ -31,9 +29,7 @@ fn pixels_exact_or_rounded_with_and_without_noise() {
         assert_eq!(set.len(), 72);
     }
     assert!(rounded.iter().all(|r| r[..4].iter().all(|v| whole(*v))));
-    assert!(rounded_noisy
-        .iter()
-        .all(|r| r[..4].iter().all(|v| whole(*v))));
+    assert!(rounded_noisy.iter().all(|r| r[..4].iter().all(|v| whole(*v))));
     // Exact pixels are not whole, and round to the rounded set (no noise: the same point).
     assert!(exact.iter().all(|r| r[..4].iter().any(|v| !whole(*v))));
     for (e, r) in exact.iter().zip(&rounded) {
@@ -73,9 +69,7 @@ fn a_grid_board_at_the_thesis_depths_and_its_volume() {
         ok_line("simulate --case 1 --set train --board thesis"),
         ok_line("simulate --case 1 --set train")
     );
-    let vol = rows(&ok_line(
-        "simulate --case 2 --set volume --board 9x6:6 --points 400 --seed 2",
-    ));
+    let vol = rows(&ok_line("simulate --case 2 --set volume --board 9x6:6 --points 400 --seed 2"));
     assert_eq!(vol.len(), 400);
     let (mut xmax, mut ymax) = (0.0f64, 0.0f64);
     for r in &vol {
@@ -105,60 +99,30 @@ fn bad_pixels_and_boards_are_clear_errors() {
         ("9x6:-6", "PITCH must be"),
         ("nine", "NXxNY:PITCH"),
     ] {
-        let e = stderr_with_code(
-            ["simulate", "--case", "1", "--set", "train", "--board", arg],
-            2,
-        );
+        let e = stderr_with_code(["simulate", "--case", "1", "--set", "train", "--board", arg], 2);
         assert!(e.contains("--board") && e.contains(want), "{arg}: {e}");
         assert!(!e.contains("panicked"), "{e}");
     }
-    let e = stderr_with_code(
-        [
-            "simulate", "--case", "1", "--set", "train", "--pixels", "fuzzy",
-        ],
-        2,
-    );
+    let e = stderr_with_code(["simulate", "--case", "1", "--set", "train", "--pixels", "fuzzy"], 2);
     assert!(e.contains("possible values: rounded, exact"), "{e}");
     fails(
-        &[
-            "simulate", "--case", "1", "--set", "test", "--board", "9x6:6",
-        ],
+        &["simulate", "--case", "1", "--set", "test", "--board", "9x6:6"],
         "--board 9x6:6 applies to --set train and --set volume",
     );
     fails(
-        &[
-            "simulate",
-            "--case",
-            "1",
-            "--set",
-            "train",
-            "--pixels",
-            "exact",
-            "--noise-px",
-            "-1",
-        ],
+        &["simulate", "--case", "1", "--set", "train", "--pixels", "exact", "--noise-px", "-1"],
         "--noise-px must be",
     );
     // A board too big for the images names the point that falls outside.
-    fails(
-        &[
-            "simulate", "--case", "1", "--set", "train", "--board", "9x6:20",
-        ],
-        "falls outside",
-    );
+    fails(&["simulate", "--case", "1", "--set", "train", "--board", "9x6:20"], "falls outside");
     // The long help says what the flags do.
     let help = ok(&["simulate", "--help"]);
-    assert!(
-        help.contains("--pixels exact") && help.contains("9x6:6"),
-        "{help}"
-    );
+    assert!(help.contains("--pixels exact") && help.contains("9x6:6"), "{help}");
 }
 
 /// `hvs eval --json` of `model` on `data` with `floor` arguments: the floor's mean e_ma (%).
 fn floor_pct(model: &str, data: &str, floor: &str) -> f64 {
-    let json = ok_line(&format!(
-        "eval --model {model} --data {data} {floor} --json"
-    ));
+    let json = ok_line(&format!("eval --model {model} --data {data} {floor} --json"));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let m = v["evaluation"]["methods"].as_array().unwrap();
     let f = m.iter().find(|m| m["name"] == "optimal").unwrap();
@@ -196,17 +160,12 @@ fn eval_gives_the_floor_on_exact_grid_board_and_barrel_sets() {
     assert!(f > 0.05 && f < 0.5, "floor at 0.05 px {f} %");
     // Barrel lenses: through the true lenses the floor is exact again; without them it
     // is not.
-    let barrel = sim(
-        "barrel.csv",
-        "--board 9x6:6 --pixels exact --distortion -0.1",
-    );
+    let barrel = sim("barrel.csv", "--board 9x6:6 --pixels exact --distortion -0.1");
     let f = floor_pct(&m, &barrel, "--case 4 --distortion -0.1");
     assert!(f < 1e-6, "floor through the true lenses {f} %");
     let f = floor_pct(&m, &barrel, "--case 4");
     assert!(f > 0.05, "floor through pinholes on a barrel set {f} %");
-    let text = ok_line(&format!(
-        "eval --model {m} --data {barrel} --case 4 --distortion -0.1"
-    ));
+    let text = ok_line(&format!("eval --model {m} --data {barrel} --case 4 --distortion -0.1"));
     assert!(text.contains("through lenses k1 = -0.1, k2 = 0"), "{text}");
     fails_line(
         &format!("eval --model {m} --data {barrel} --distortion -0.1"),

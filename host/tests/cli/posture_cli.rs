@@ -13,14 +13,8 @@ fn posture_sets_have_joint_columns_and_are_seeded() {
     );
     // 3*3*3*3*4 postures, 22 test points at each.
     assert_eq!(lines.count(), 324 * 22);
-    assert_eq!(
-        grid,
-        ok_line("simulate --case 3 --set test --postures grid --seed 5")
-    );
-    assert_ne!(
-        grid,
-        ok_line("simulate --case 3 --set test --postures grid --seed 6")
-    );
+    assert_eq!(grid, ok_line("simulate --case 3 --set test --postures grid --seed 5"));
+    assert_ne!(grid, ok_line("simulate --case 3 --set test --postures grid --seed 6"));
     let random =
         ok_line("simulate --case 1 --set volume --points 50 --postures random --posture-count 7");
     assert_eq!(random.lines().count(), 51);
@@ -29,10 +23,7 @@ fn posture_sets_have_joint_columns_and_are_seeded() {
     assert_eq!(lattice.lines().count(), 1 + 4 * 72);
     // Distortion alone keeps the thesis columns; zero distortion is the thesis set.
     let plain = ok(&["simulate", "--case", "4", "--set", "train"]);
-    assert_eq!(
-        ok_line("simulate --case 4 --set train --distortion 0"),
-        plain
-    );
+    assert_eq!(ok_line("simulate --case 4 --set train --distortion 0"), plain);
     let bent = ok_line("simulate --case 4 --set train --distortion -0.5,0.1");
     assert!(bent.starts_with("u_l,v_l,u_r,v_r,x,y,z\n"));
     assert_ne!(bent, plain);
@@ -46,18 +37,9 @@ fn bad_posture_flags_are_refused() {
     };
     let cases: [(&[&'static str], &str); 7] = [
         (&["--posture-count", "3"], "need --postures"),
-        (
-            &["--postures", "grid", "--posture-levels", "3,3"],
-            "five counts",
-        ),
-        (
-            &["--postures", "grid", "--posture-levels", "3,0,3,3,3"],
-            "at least 1",
-        ),
-        (
-            &["--postures", "random", "--posture-levels", "3,3,3,3,3"],
-            "grid or lattice",
-        ),
+        (&["--postures", "grid", "--posture-levels", "3,3"], "five counts"),
+        (&["--postures", "grid", "--posture-levels", "3,0,3,3,3"], "at least 1"),
+        (&["--postures", "random", "--posture-levels", "3,3,3,3,3"], "grid or lattice"),
         (&["--postures", "grid", "--posture-count", "4"], "random"),
         (&["--distortion", "1,2,3"], "K1 or K1,K2"),
         (&["--distortion", "nan"], "finite"),
@@ -85,11 +67,8 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     let default = hvs_host::train::DEFAULT_FAMILY.name();
     assert!(info.contains(&format!("family:      {default} ")), "{info}");
     assert!(info.contains("frame:       eye-platform"), "{info}");
-    let json = ok_line(&format!(
-        "eval --model {} --data {} --json",
-        dir.p("m.hvsw"),
-        dir.p("test.csv")
-    ));
+    let json =
+        ok_line(&format!("eval --model {} --data {} --json", dir.p("m.hvsw"), dir.p("test.csv")));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let net = &v["evaluation"]["methods"][0];
     assert_eq!(net["name"], "network");
@@ -98,11 +77,8 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     // The optimal triangulation floor of these points is about 1.3 %.
     assert!(e < 2.5, "mean e_ma {e} %");
     // predict reads the joint columns of a posture-aware model.
-    let pred = ok_line(&format!(
-        "predict --model {} --points {}",
-        dir.p("m.hvsw"),
-        dir.p("test.csv")
-    ));
+    let pred =
+        ok_line(&format!("predict --model {} --points {}", dir.p("m.hvsw"), dir.p("test.csv")));
     assert_eq!(pred.lines().count(), 1 + 20 * 22);
 }
 
@@ -133,15 +109,7 @@ fn eye_platform_frame_on_a_stereo_set_is_refused() {
     let (train, model) = (dir.p("train.csv"), dir.p("m.hvsw"));
     simulate_into("--case 1 --set train", &train);
     let err = fails(
-        &[
-            "train",
-            "--data",
-            &train,
-            "-o",
-            &model,
-            "--frame",
-            "eye-platform",
-        ],
+        &["train", "--data", &train, "-o", &model, "--frame", "eye-platform"],
         "eye-platform frame is for posture-aware sets",
     );
     assert!(err.contains("train.csv"), "{err}");

@@ -33,11 +33,7 @@ impl Drop for Emulate {
 /// Fails, naming the command that builds it, unless the QEMU firmware ELF is there.
 fn assert_firmware_built() {
     let fw = find_firmware(None);
-    assert!(
-        fw.exists(),
-        "no firmware ELF at {}: build it with `{FIRMWARE_BUILD}`",
-        fw.display()
-    );
+    assert!(fw.exists(), "no firmware ELF at {}: build it with `{FIRMWARE_BUILD}`", fw.display());
 }
 
 /// Starts `hvs emulate --model model` on a free port (servo log in `d`): the guard and the
@@ -62,11 +58,8 @@ fn emulate(model: &Path, d: &Path) -> (Emulate, String) {
 fn once_it_answers(connect: &str, args: &[&str]) -> String {
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
-        let out = hvs()
-            .args(["head", "--connect", connect])
-            .args(args)
-            .output()
-            .expect("hvs head runs");
+        let out =
+            hvs().args(["head", "--connect", connect]).args(args).output().expect("hvs head runs");
         if out.status.success() {
             break String::from_utf8(out.stdout).expect("utf-8 stdout");
         }
@@ -171,25 +164,13 @@ fn head_agrees_with_predict(joints: bool) {
     assert!(info.contains("seed 3"), "{info}");
     let peak: u32 = info
         .lines()
-        .find_map(|l| {
-            l.strip_prefix("stack peak: ")?
-                .strip_suffix(" B")?
-                .parse()
-                .ok()
-        })
+        .find_map(|l| l.strip_prefix("stack peak: ")?.strip_suffix(" B")?.parse().ok())
         .unwrap_or_else(|| panic!("no `stack peak: N B` line: {info}"));
     // Boot has run, so some of the painted stack is used; the budget is 16 KiB for static RAM
     // (about 3 KiB) and stack together (`firmware/measure.sh` checks the sum).
     assert!((256..=12 * 1024).contains(&peak), "stack peak {peak} B");
 
-    let estimated = run(&[
-        "head",
-        "--connect",
-        &connect,
-        "estimate",
-        "--points",
-        s(&pts),
-    ]);
+    let estimated = run(&["head", "--connect", &connect, "estimate", "--points", s(&pts)]);
     // A posture-aware model's prediction repeats the joint columns before x, y, z.
     let host: Vec<Vec<String>> = fields(&predicted, 12)
         .into_iter()
@@ -206,9 +187,7 @@ fn head_agrees_with_predict(joints: bool) {
     assert_eq!(head.len(), host.len());
     for (i, (h, e)) in host.iter().zip(&head).enumerate() {
         let bits = |r: &[String]| -> Vec<u32> {
-            r.iter()
-                .map(|v| v.parse::<f32>().expect("a number").to_bits())
-                .collect()
+            r.iter().map(|v| v.parse::<f32>().expect("a number").to_bits()).collect()
         };
         if i == 0 {
             continue;
@@ -229,11 +208,7 @@ fn head_looks_at_a_point_found_in_the_images() {
     let (shots, test, model) = (d.join("shots"), d.join("test"), d.join("m.hvsw"));
     render_case1(&shots, "4", &[]);
     let points = d.join("points.csv");
-    run(&detect_args(
-        &shots.join("board.json"),
-        &shots.join("captures.csv"),
-        &points,
-    ));
+    run(&detect_args(&shots.join("board.json"), &shots.join("captures.csv"), &points));
     train_restarts(&points, &model, "2");
     render_case1(&test, "5", &["--depths", "110", "--centre", "2,1"]);
     // A board corner of the test pair: textured, unique along its epipolar line.
@@ -265,17 +240,7 @@ fn head_looks_at_a_point_found_in_the_images() {
     assert!((z - 110.0).abs() < 2.0, "z = {z}");
     // Another model (another seed) than the one the head runs: refused, nothing asked.
     let other = d.join("other.hvsw");
-    run(&[
-        "train",
-        "--data",
-        s(&points),
-        "-o",
-        s(&other),
-        "--restarts",
-        "1",
-        "--seed",
-        "9",
-    ]);
+    run(&["train", "--data", s(&points), "-o", s(&other), "--restarts", "1", "--seed", "9"]);
     let out = hvs()
         .args(["head", "--connect", &connect])
         .args(locate_args(&["look"], &other, &l, &r, &["--at", &at]))

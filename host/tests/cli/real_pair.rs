@@ -9,17 +9,14 @@ use hvs_host::data::csv::{read_set, Inputs};
 use std::path::PathBuf;
 
 fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures/motorcycle")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/motorcycle").join(name)
 }
 
 /// Mean e_ma (%) of `model` on `data`, from `hvs eval --json`.
 fn e_ma_pct(model: &str, data: &str) -> f64 {
-    let json: serde_json::Value = serde_json::from_str(&ok_line(&format!(
-        "eval --model {model} --data {data} --json"
-    )))
-    .expect("eval --json prints JSON");
+    let json: serde_json::Value =
+        serde_json::from_str(&ok_line(&format!("eval --model {model} --data {data} --json")))
+            .expect("eval --json prints JSON");
     let methods = json["evaluation"]["methods"].as_array().expect("methods");
     assert_eq!(methods[0]["name"], "network");
     assert_eq!(methods[0]["missing"], 0, "every test point is estimated");
@@ -40,24 +37,15 @@ fn motorcycle_1000_points_default_within_goal() {
     let (default, thesis) = (got[0], got[1]);
     eprintln!("Motorcycle, 1000 training points: default {default:.4} %, thesis {thesis:.4} %");
     assert!(default <= 0.15, "default family {default} % > 0.15 %");
-    assert!(
-        thesis > 0.2,
-        "the thesis net is not expected to follow exact pixels: {thesis} %"
-    );
+    assert!(thesis > 0.2, "the thesis net is not expected to follow exact pixels: {thesis} %");
 
     // The DLT from the same points is exact here (the ground truth is projective).
     let read = |p: &str| read_set(p.as_ref(), Inputs::Stereo, true).unwrap().data;
     let (tr, te) = (read(train), read(test));
     let z = hvs_host::study::accuracy::dlt_depths(&tr, &te).unwrap();
-    let method = hvs_host::evaluate::Method {
-        name: "dlt".into(),
-        z,
-    };
+    let method = hvs_host::evaluate::Method { name: "dlt".into(), z };
     let ev = hvs_host::evaluate::evaluate(&te, &[method]);
-    assert_eq!(
-        ev.methods[0].missing, 0,
-        "the DLT triangulates every test point"
-    );
+    assert_eq!(ev.methods[0].missing, 0, "the DLT triangulates every test point");
     let dlt = ev.methods[0].mean.e_ma_pct;
     assert!(dlt < 0.01, "DLT {dlt} %");
 }

@@ -10,11 +10,7 @@ use tempfile::TempDir;
 /// Case 1's training and test sets and a model trained on them (one restart) in `dir`:
 /// (train csv, test csv, model).
 fn setup(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
-    let (tr, te, m) = (
-        dir.join("train.csv"),
-        dir.join("test.csv"),
-        dir.join("m.hvsw"),
-    );
+    let (tr, te, m) = (dir.join("train.csv"), dir.join("test.csv"), dir.join("m.hvsw"));
     ok(&["simulate", "--case", "1", "--set", "train", "-o", s(&tr)]);
     ok(&["simulate", "--case", "1", "--set", "test", "-o", s(&te)]);
     ok(&["train", "--data", s(&tr), "-o", s(&m), "--restarts", "1"]);
@@ -36,13 +32,7 @@ fn image_args<'a>(m: &'a Path, rest: &[&'a str]) -> Vec<&'a str> {
 fn mknod(path: &Path, major: u32, minor: u32) -> bool {
     let c = std::ffi::CString::new(s(path)).unwrap();
     // SAFETY: plain mknod(2) on a path in a temporary directory.
-    let r = unsafe {
-        libc::mknod(
-            c.as_ptr(),
-            libc::S_IFCHR | 0o666,
-            libc::makedev(major, minor),
-        )
-    };
+    let r = unsafe { libc::mknod(c.as_ptr(), libc::S_IFCHR | 0o666, libc::makedev(major, minor)) };
     if r != 0 {
         eprintln!(
             "note: mknod {}: {} (needs root); device case skipped",
@@ -60,9 +50,7 @@ fn mkfifo(path: &Path) {
 }
 
 fn file_type(p: &Path) -> std::fs::FileType {
-    std::fs::symlink_metadata(p)
-        .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
-        .file_type()
+    std::fs::symlink_metadata(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())).file_type()
 }
 
 // Item 1: an existing target that is not a regular file is written in place, never renamed
@@ -132,9 +120,7 @@ fn output_to_dev_stdout_is_standard_output() {
 }
 
 fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/tests/fixtures")
-        .join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/tests/fixtures").join(name)
 }
 
 // Item 2: an output that is one of the inputs is refused before any work, input untouched.
@@ -153,24 +139,10 @@ fn an_output_that_is_an_input_is_refused() {
         (predict_args(&m, &te, s(&hard)), "--points", &te),
         (predict_args(&m, &te, s(&dotted)), "--points", &te),
         (predict_args(&m, &te, s(&m)), "--model", &m),
-        (
-            vec!["train", "--data", s(&tr), "-o", s(&tr), "--restarts", "1"],
-            "--data",
-            &tr,
-        ),
+        (vec!["train", "--data", s(&tr), "-o", s(&tr), "--restarts", "1"], "--data", &tr),
         (image_args(&m, &["-o", s(&m)]), "--model", &m),
         (
-            vec![
-                "simulate",
-                "--rig",
-                s(&rig),
-                "--case",
-                "1",
-                "--set",
-                "train",
-                "-o",
-                s(&rig),
-            ],
+            vec!["simulate", "--rig", s(&rig), "--case", "1", "--set", "train", "-o", s(&rig)],
             "--rig",
             &rig,
         ),
@@ -213,9 +185,7 @@ fn temp_files(dir: &Path) -> Vec<String> {
 fn interrupt_a_write(out: &Path, signal: libc::c_int) -> (std::process::ExitStatus, Vec<String>) {
     let dir = out.parent().unwrap();
     let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
-        .args([
-            "simulate", "--case", "1", "--set", "volume", "--points", "1000000",
-        ])
+        .args(["simulate", "--case", "1", "--set", "volume", "--points", "1000000"])
         .arg("-o")
         .arg(out)
         .stdout(std::process::Stdio::null())
@@ -307,10 +277,7 @@ fn degenerate_and_absurd_training_sets_are_refused() {
     let rows = train_rows();
     let m = d.join("m.hvsw");
     let train = |p: &Path, want: &str| {
-        let e = fails(
-            &["train", "--data", s(p), "-o", s(&m), "--restarts", "1"],
-            want,
-        );
+        let e = fails(&["train", "--data", s(p), "-o", s(&m), "--restarts", "1"], want);
         assert!(!m.exists(), "{e}");
         e
     };
@@ -330,10 +297,7 @@ fn degenerate_and_absurd_training_sets_are_refused() {
     bad[3] = bad[3].replacen("356", "1e30", 1);
     assert!(bad[3].contains("1e30"), "{}", bad[3]);
     let p = csv(d, "pixel.csv", h, &bad);
-    train(
-        &p,
-        "pixel.csv:5: column \"u_l\": 1000000000000000000000000000000 px is not a value",
-    );
+    train(&p, "pixel.csv:5: column \"u_l\": 1000000000000000000000000000000 px is not a value");
     let mut bad = rows.clone();
     bad[7] = bad[7].replacen(",65.0000", ",1e30", 1);
     let p = csv(d, "z.csv", h, &bad);
@@ -362,28 +326,13 @@ fn rig_json_with_a_duplicate_key_is_refused() {
             "alpha_right": 0.0455, "beta0": 0.0087, "phi0": 0.0087, "u0": 320, "u0": 100}"#,
     )
     .unwrap();
-    let e = fails(
-        &["simulate", "--rig", s(&rig), "--set", "test"],
-        "duplicate key \"u0\"",
-    );
+    let e = fails(&["simulate", "--rig", s(&rig), "--set", "test"], "duplicate key \"u0\"");
     assert!(e.contains("rig.json"), "{e}");
     let cases = dir.path().join("cases.json");
     let text = std::fs::read_to_string(fixture("cases.json")).unwrap();
-    std::fs::write(
-        &cases,
-        text.replacen("\"phi0\"", "\"phi0\": 0.1, \"phi0\"", 1),
-    )
-    .unwrap();
+    std::fs::write(&cases, text.replacen("\"phi0\"", "\"phi0\": 0.1, \"phi0\"", 1)).unwrap();
     fails(
-        &[
-            "simulate",
-            "--rig",
-            s(&cases),
-            "--case",
-            "1",
-            "--set",
-            "test",
-        ],
+        &["simulate", "--rig", s(&cases), "--case", "1", "--set", "test"],
         "duplicate key \"phi0\" in \"cases\".\"1\"",
     );
 }
@@ -499,10 +448,7 @@ fn every_command_reads_csvs_alike() {
     }
     for (f, want) in [
         (&header_only, "hdr.csv: no data rows after the header"),
-        (
-            &dup,
-            "dup.csv:1: column \"u_l\" appears twice in the header",
-        ),
+        (&dup, "dup.csv:1: column \"u_l\" appears twice in the header"),
     ] {
         for args in commands(f) {
             let args: Vec<&str> = args.iter().map(String::as_str).collect();
@@ -511,16 +457,7 @@ fn every_command_reads_csvs_alike() {
     }
     let nodir = d.join("nodir").join("x.csv");
     let e = fails(
-        &[
-            "head",
-            "--connect",
-            no_head,
-            "estimate",
-            "--points",
-            s(&tr),
-            "-o",
-            s(&nodir),
-        ],
+        &["head", "--connect", no_head, "estimate", "--points", s(&tr), "-o", s(&nodir)],
         "the directory",
     );
     assert!(e.contains("nodir/x.csv") && !e.contains(".x.csv."), "{e}");
@@ -528,19 +465,13 @@ fn every_command_reads_csvs_alike() {
 
 /// Runs `hvs args` with stdout into /dev/full; returns (exit code, stderr).
 fn to_dev_full(args: &[&str]) -> (Option<i32>, String) {
-    let full = std::fs::OpenOptions::new()
-        .write(true)
-        .open("/dev/full")
-        .unwrap();
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
     let out = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
         .args(args)
         .stdout(full)
         .output()
         .unwrap();
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
 // Item 9: messages that say what is wrong and where.
@@ -552,27 +483,14 @@ fn messages_name_the_real_problem() {
     // Negative numbers get the range, not "unexpected argument".
     for (args, want) in [
         (
-            vec![
-                "simulate", "--case", "1", "--set", "volume", "--points", "-5",
-            ],
+            vec!["simulate", "--case", "1", "--set", "volume", "--points", "-5"],
             "-5 is out of range: expected a whole number from 0 to",
         ),
         (
             image_args(&m, &["--generation", "-1", "-o", "x.bin"]),
             "-1 is out of range: expected a whole number from 0 to 4294967295",
         ),
-        (
-            vec![
-                "train",
-                "--data",
-                s(&tr),
-                "-o",
-                "x.hvsw",
-                "--restarts",
-                "-3",
-            ],
-            "-3 is out of range",
-        ),
+        (vec!["train", "--data", s(&tr), "-o", "x.hvsw", "--restarts", "-3"], "-3 is out of range"),
     ] {
         let e = stderr_with_code(&args, 2);
         assert!(e.contains(want), "{args:?}: {e}");
@@ -580,15 +498,7 @@ fn messages_name_the_real_problem() {
     }
     // The noise, not the rig.
     let e = fails(
-        &[
-            "simulate",
-            "--case",
-            "1",
-            "--set",
-            "test",
-            "--noise-px",
-            "1e30",
-        ],
+        &["simulate", "--case", "1", "--set", "test", "--noise-px", "1e30"],
         "--noise-px must be a finite number >= 0 and at most the image size (640 px)",
     );
     assert!(!e.contains("case 1"), "{e}");
@@ -597,33 +507,21 @@ fn messages_name_the_real_problem() {
     // No head given, or none there: both ways are named.
     let e = fails(&["head", "ping"], "--connect tcp:HOST:PORT");
     assert!(e.contains("--port DEVICE"), "{e}");
-    fails(
-        &["head", "--connect", "tcp:127.0.0.1:9", "ping"],
-        "--port DEVICE",
-    );
+    fails(&["head", "--connect", "tcp:127.0.0.1:9", "ping"], "--port DEVICE");
     // A head that accepts the connection and never answers (as QEMU does for a second client).
     let busy = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let addr = format!("tcp:{}", busy.local_addr().unwrap());
-    fails(
-        &["head", "--connect", &addr, "--timeout-ms", "300", "ping"],
-        "busy with another client",
-    );
+    fails(&["head", "--connect", &addr, "--timeout-ms", "300", "ping"], "busy with another client");
     drop(busy);
     // Errors on stdout name stdout.
     let (code, e) = to_dev_full(&["simulate", "--case", "1", "--set", "train"]);
     assert_eq!(code, Some(1), "{e}");
-    assert!(
-        e.contains("cannot write to stdout") && e.contains("No space left"),
-        "{e}"
-    );
+    assert!(e.contains("cannot write to stdout") && e.contains("No space left"), "{e}");
     // The model was written; only the summary failed, and the message says so.
     let m2 = d.join("m2.hvsw");
     let (code, e) = to_dev_full(&["train", "--data", s(&tr), "-o", s(&m2), "--restarts", "1"]);
     assert_eq!(code, Some(1), "{e}");
-    assert!(
-        e.contains("but cannot print the summary to stdout") && e.contains("m2.hvsw"),
-        "{e}"
-    );
+    assert!(e.contains("but cannot print the summary to stdout") && e.contains("m2.hvsw"), "{e}");
     assert_eq!(read(&m2), read(&m), "the model was written in full");
     let (code, e) = to_dev_full(&[
         "image",
@@ -637,18 +535,12 @@ fn messages_name_the_real_problem() {
         s(&d.join("a.bin")),
     ]);
     assert_eq!(code, Some(1), "{e}");
-    assert!(
-        e.contains("cannot write to stdout") && !e.contains("panicked"),
-        "{e}"
-    );
+    assert!(e.contains("cannot write to stdout") && !e.contains("panicked"), "{e}");
     // The algorithm as --algo spells it.
     let info = ok(&["info", s(&m)]);
     assert!(info.contains("training:    lm, seed 0"), "{info}");
     let out = ok(&["train", "--data", s(&tr), "-o", s(&m2), "--restarts", "1"]);
-    assert!(
-        out.starts_with("trained 4-5-3 inverse-depth-skip (lm) on 72 points"),
-        "{out}"
-    );
+    assert!(out.starts_with("trained 4-5-3 inverse-depth-skip (lm) on 72 points"), "{out}");
 }
 
 // Item 8: a CRC-valid blob with a huge weight gives estimates far outside the training
@@ -677,10 +569,8 @@ fn estimates_of_a_damaged_model_are_flagged_out_of_range() {
         let mut buf = vec![0u8; MAX_BLOB_LEN];
         let n = b.encode(&mut buf).unwrap();
         std::fs::write(&bad_m, &buf[..n]).unwrap();
-        let out = hvs()
-            .args(["predict", "--model", s(&bad_m), "--points", s(&te)])
-            .output()
-            .unwrap();
+        let out =
+            hvs().args(["predict", "--model", s(&bad_m), "--points", s(&te)]).output().unwrap();
         if !out.status.success() {
             continue; // the weight overflowed the estimate: "cannot estimate this point"
         }
@@ -688,11 +578,7 @@ fn estimates_of_a_damaged_model_are_flagged_out_of_range() {
         // Absurd: a coordinate beyond 10 km, or a depth under 1 cm (the inverse-depth family
         // divides by a huge 1/Z output).
         let huge = csv.lines().skip(1).any(|l| {
-            let f: Vec<f32> = l
-                .split(',')
-                .skip(4)
-                .filter_map(|v| v.parse().ok())
-                .collect();
+            let f: Vec<f32> = l.split(',').skip(4).filter_map(|v| v.parse().ok()).collect();
             f.iter().any(|v| v.abs() > 1e6) || f.get(2).is_some_and(|z| z.abs() < 1.0)
         });
         if huge {
@@ -716,26 +602,16 @@ fn demo_fits_100_columns_and_the_readme_names_the_target_install() {
     let out = dir.path().join("d");
     let stdout = ok(&["demo", "-o", s(&out), "--restarts", "1"]);
     for l in stdout.lines().filter(|l| !l.starts_with("wrote ")) {
-        assert!(
-            l.chars().count() <= 100,
-            "{} columns: {l}",
-            l.chars().count()
-        );
+        assert!(l.chars().count() <= 100, "{} columns: {l}", l.chars().count());
     }
     assert_eq!(stdout.lines().filter(|l| l.starts_with("IV ")).count(), 2);
     let readme =
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../README.md"))
             .unwrap();
-    let at = readme
-        .find("cargo run --profile firmware -p hvs-firmware")
-        .expect("the firmware build");
+    let at =
+        readme.find("cargo run --profile firmware -p hvs-firmware").expect("the firmware build");
     let before = &readme[..at];
-    let hint = before
-        .rfind("rustup toolchain install")
-        .expect("the install command");
-    assert!(
-        at - hint < 400,
-        "the install command is not next to the firmware build"
-    );
+    let hint = before.rfind("rustup toolchain install").expect("the install command");
+    assert!(at - hint < 400, "the install command is not next to the firmware build");
     assert!(readme.contains("can't find crate for `core`"));
 }

@@ -40,10 +40,7 @@ fn track_logs_every_frame_and_repeats_its_bytes() {
         err.contains("perception and control: ") && err.contains("rendering the pair: "),
         "{err}"
     );
-    let (ta, tb) = (
-        fs::read_to_string(&a).unwrap(),
-        fs::read_to_string(&b).unwrap(),
-    );
+    let (ta, tb) = (fs::read_to_string(&a).unwrap(), fs::read_to_string(&b).unwrap());
     assert_eq!(ta, tb, "same scene and seed, same log bytes");
     let mut lines = ta.lines();
     assert_eq!(
@@ -98,20 +95,11 @@ fn track_refuses_bad_input_with_one_clear_line() {
     usage(base(&bad, &["--target", "1,x"]), "--target");
     // With a valid model the scene's unknown field is named.
     let good = model(&dir);
-    let v: Vec<String> = vec![
-        "track",
-        "--model",
-        &good,
-        "--scene",
-        &bad,
-        "--seconds",
-        "0.1",
-        "--log",
-        &log,
-    ]
-    .into_iter()
-    .map(String::from)
-    .collect();
+    let v: Vec<String> =
+        vec!["track", "--model", &good, "--scene", &bad, "--seconds", "0.1", "--log", &log]
+            .into_iter()
+            .map(String::from)
+            .collect();
     run(v, "unknown field `colour`");
     let sc = scene(&dir, "");
     let v: Vec<String> = vec![

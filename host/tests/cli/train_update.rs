@@ -35,12 +35,8 @@ fn network_and_floor(model: &str, data: &str, rig: &str) -> (f64, f64) {
     let line = format!("eval --model {model} --data {data} {rig} --json");
     let v: Value = serde_json::from_str(&ok_line(&line)).unwrap();
     let pct = |name: &str| {
-        v["evaluation"]["methods"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|m| m["name"] == name)
-            .unwrap()["mean"]["e_ma_pct"]
+        v["evaluation"]["methods"].as_array().unwrap().iter().find(|m| m["name"] == name).unwrap()
+            ["mean"]["e_ma_pct"]
             .as_f64()
             .unwrap()
     };
@@ -52,25 +48,16 @@ fn a_knocked_camera_is_learned_from_one_board_at_one_depth() {
     let d = Scratch::new();
     let rig = d.p("knocked.json");
     std::fs::write(&rig, KNOCKED).unwrap();
-    simulate_into(
-        &format!("--case 3 --set train {BOARD} --seed 31"),
-        &d.p("old.csv"),
-    );
+    simulate_into(&format!("--case 3 --set train {BOARD} --seed 31"), &d.p("old.csv"));
     train_into(&d.p("old.csv"), &d.p("old.hvsw"), "--seed 32");
-    simulate_into(
-        &format!("--rig {rig} --set train {BOARD} --seed 33"),
-        &d.p("all.csv"),
-    );
+    simulate_into(&format!("--rig {rig} --set train {BOARD} --seed 33"), &d.p("all.csv"));
     assert_eq!(one_depth(&d.p("all.csv"), 105.0, &d.p("new.csv")), 54);
     simulate_into(
         &format!("--rig {rig} --set volume {BOARD} --points 500 --seed 34"),
         &d.p("volume.csv"),
     );
     // Training from nothing refuses one depth; the update takes it.
-    fails_line(
-        &format!("train --data {} -o {}", d.p("new.csv"), d.p("scratch.hvsw")),
-        "one depth",
-    );
+    fails_line(&format!("train --data {} -o {}", d.p("new.csv"), d.p("scratch.hvsw")), "one depth");
     let out = ok_line(&format!(
         "train --data {} --from {} -o {} --seed 35",
         d.p("new.csv"),
@@ -94,10 +81,7 @@ fn a_knocked_camera_is_learned_from_one_board_at_one_depth() {
         d.p("old.hvsw"),
         d.p("again.hvsw")
     ));
-    assert_eq!(
-        std::fs::read(d.p("up.hvsw")).unwrap(),
-        std::fs::read(d.p("again.hvsw")).unwrap()
-    );
+    assert_eq!(std::fs::read(d.p("up.hvsw")).unwrap(), std::fs::read(d.p("again.hvsw")).unwrap());
     let info = ok_line(&format!("info {}", d.p("up.hvsw")));
     assert!(info.contains("generation:  2"), "{info}");
     // The update names the model it came from: the old blob's CRC and generation.
@@ -110,9 +94,7 @@ fn a_knocked_camera_is_learned_from_one_board_at_one_depth() {
         .map(str::to_string)
         .unwrap_or_else(|| panic!("no crc line in: {old_info}"));
     assert!(
-        info.contains(&format!(
-            "updated from the model with CRC {crc}, generation 1"
-        )),
+        info.contains(&format!("updated from the model with CRC {crc}, generation 1")),
         "{info}\n(old crc {crc})"
     );
 }
@@ -120,10 +102,7 @@ fn a_knocked_camera_is_learned_from_one_board_at_one_depth() {
 #[test]
 fn ten_updates_of_an_unchanged_rig_do_not_forget() {
     let d = Scratch::new();
-    simulate_into(
-        &format!("--case 3 --set train {BOARD} --seed 41"),
-        &d.p("old.csv"),
-    );
+    simulate_into(&format!("--case 3 --set train {BOARD} --seed 41"), &d.p("old.csv"));
     train_into(&d.p("old.csv"), &d.p("m0.hvsw"), "--seed 42");
     simulate_into(
         &format!("--case 3 --set volume {BOARD} --points 500 --seed 43"),
@@ -132,10 +111,7 @@ fn ten_updates_of_an_unchanged_rig_do_not_forget() {
     let (before, floor) = network_and_floor(&d.p("m0.hvsw"), &d.p("volume.csv"), "--case 3");
     for i in 1..=10u64 {
         let all = d.p("all.csv");
-        simulate_into(
-            &format!("--case 3 --set train {BOARD} --seed {}", 50 + i),
-            &all,
-        );
+        simulate_into(&format!("--case 3 --set train {BOARD} --seed {}", 50 + i), &all);
         let z = 65.0 + 20.0 * ((i - 1) % 6) as f64;
         let new = d.p(&format!("c{i}.csv"));
         assert_eq!(one_depth(&all, z, &new), 54);
@@ -153,10 +129,7 @@ fn ten_updates_of_an_unchanged_rig_do_not_forget() {
 #[test]
 fn an_update_keeps_the_old_model_or_says_why_not() {
     let d = Scratch::new();
-    simulate_into(
-        &format!("--case 3 --set train {BOARD} --seed 61"),
-        &d.p("old.csv"),
-    );
+    simulate_into(&format!("--case 3 --set train {BOARD} --seed 61"), &d.p("old.csv"));
     train_into(&d.p("old.csv"), &d.p("old.hvsw"), "--restarts 2");
     let base = |extra: &str| {
         format!(
@@ -173,10 +146,7 @@ fn an_update_keeps_the_old_model_or_says_why_not() {
     // Same values as the old model are fine.
     ok_line(&base("--hidden 5 --arch inverse-depth-skip --algo lm"));
     // A posture-aware set for a stereo model.
-    simulate_into(
-        "--case 3 --set train --postures random --posture-count 2",
-        &d.p("joints.csv"),
-    );
+    simulate_into("--case 3 --set train --postures random --posture-count 2", &d.p("joints.csv"));
     let err = fails(
         &[
             "train",

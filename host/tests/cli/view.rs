@@ -96,9 +96,7 @@ pub fn start(args: &[&str]) -> Server {
         .spawn()
         .expect("hvs view starts");
     let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
     let url = line
         .trim()
         .strip_prefix("hvs view: serving ")
@@ -110,11 +108,7 @@ pub fn start(args: &[&str]) -> Server {
         .and_then(|h| h.rsplit(':').next())
         .unwrap()
         .to_string();
-    Server {
-        child,
-        addr: format!("127.0.0.1:{port}"),
-        url,
-    }
+    Server { child, addr: format!("127.0.0.1:{port}"), url }
 }
 
 /// A view of the fixture's test pair.
@@ -126,10 +120,7 @@ pub fn start_pair() -> Server {
 /// the options `rest`; the folder holding the model and the scene comes back with it.
 pub fn start_live(rest: &[&str]) -> (crate::common::Scratch, Server) {
     let dir = crate::common::Scratch::new();
-    let (m, scene) = (
-        crate::common::small_model(&dir),
-        crate::common::small_scene(&dir, ""),
-    );
+    let (m, scene) = (crate::common::small_model(&dir), crate::common::small_scene(&dir, ""));
     let mut args = vec!["--model", m.as_str(), "--scene", scene.as_str()];
     args.extend_from_slice(rest);
     let sv = start(&args);
@@ -140,29 +131,13 @@ pub fn start_live(rest: &[&str]) -> (crate::common::Scratch, Server) {
 pub fn start_captures() -> Server {
     let f = fixture();
     let (b, c) = (f.shots.join("board.json"), f.shots.join("captures.csv"));
-    start(&[
-        "--model",
-        s(&f.model),
-        "--board",
-        s(&b),
-        "--captures",
-        s(&c),
-        "--restarts",
-        "1",
-    ])
+    start(&["--model", s(&f.model), "--board", s(&b), "--captures", s(&c), "--restarts", "1"])
 }
 
 /// A view of the fixture's test pair with the options `rest`.
 pub fn start_pair_with(rest: &[&str]) -> Server {
     let f = fixture();
-    let mut args = vec![
-        "--model",
-        s(&f.model),
-        "--left",
-        s(&f.left),
-        "--right",
-        s(&f.right),
-    ];
+    let mut args = vec!["--model", s(&f.model), "--left", s(&f.left), "--right", s(&f.right)];
     args.extend_from_slice(rest);
     start(&args)
 }
@@ -173,10 +148,7 @@ pub fn http(addr: &str, method: &str, path: &str, body: Option<&[u8]>) -> (u16, 
     c.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
     let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
     if let Some(b) = body {
-        req.push_str(&format!(
-            "Content-Type: application/json\r\nContent-Length: {}\r\n",
-            b.len()
-        ));
+        req.push_str(&format!("Content-Type: application/json\r\nContent-Length: {}\r\n", b.len()));
     }
     req.push_str("\r\n");
     c.write_all(req.as_bytes()).unwrap();
@@ -201,10 +173,7 @@ fn raw_response(mut c: TcpStream) -> (u16, Vec<u8>) {
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("bad status line in {head:?}"));
     let body = all[end + 4..].to_vec();
-    if head
-        .to_ascii_lowercase()
-        .contains("transfer-encoding: chunked")
-    {
+    if head.to_ascii_lowercase().contains("transfer-encoding: chunked") {
         return (status, unchunk(&body));
     }
     (status, body)
@@ -235,15 +204,9 @@ pub fn json(addr: &str, method: &str, path: &str, body: Option<&str>, want: u16)
 fn locate_at(u: i64, v: i64) -> String {
     let f = fixture();
     let at = format!("{u},{v}");
-    ok(&crate::common::locate_args(
-        &["locate"],
-        &f.model,
-        &f.left,
-        &f.right,
-        &["--at", &at],
-    ))
-    .trim()
-    .to_string()
+    ok(&crate::common::locate_args(&["locate"], &f.model, &f.left, &f.right, &["--at", &at]))
+        .trim()
+        .to_string()
 }
 
 #[test]
@@ -253,10 +216,7 @@ fn view_answers_a_click_with_the_numbers_of_locate_at() {
     let (st, page) = http(&sv.addr, "GET", "/", None);
     assert_eq!(st, 200);
     let page = String::from_utf8(page).unwrap();
-    assert!(
-        page.contains("<title>hvs view</title>") && page.contains("app.js"),
-        "{page}"
-    );
+    assert!(page.contains("<title>hvs view</title>") && page.contains("app.js"), "{page}");
     for asset in ["/app.js", "/style.css"] {
         let (st, b) = http(&sv.addr, "GET", asset, None);
         assert_eq!(st, 200, "{asset}");
@@ -264,10 +224,7 @@ fn view_answers_a_click_with_the_numbers_of_locate_at() {
     }
     // The model panel is `hvs info`'s text.
     let session = json(&sv.addr, "GET", "/api/session", None, 200);
-    assert_eq!(
-        session["model"]["info"].as_str().unwrap(),
-        ok(&["info", s(&f.model)])
-    );
+    assert_eq!(session["model"]["info"].as_str().unwrap(), ok(&["info", s(&f.model)]));
     assert_eq!(session["pairs"].as_array().unwrap().len(), 1);
     assert_eq!(session["live"], false);
     assert!(session["locate_refused"].is_null());
@@ -276,21 +233,13 @@ fn view_answers_a_click_with_the_numbers_of_locate_at() {
         let (st, png) = http(&sv.addr, "GET", &format!("/api/frame/0/{side}"), None);
         assert_eq!(st, 200);
         let img = image::load_from_memory(&png).unwrap().to_luma8();
-        let file = image::open(if side == "left" { &f.left } else { &f.right })
-            .unwrap()
-            .to_luma8();
+        let file = image::open(if side == "left" { &f.left } else { &f.right }).unwrap().to_luma8();
         assert_eq!(img, file, "{side}");
     }
     // Clicks on board corners and on a flat corner of the image: the same line as `hvs
     // locate --at`, and the fields are its numbers.
     let mut oks = 0;
-    let picks: Vec<[i64; 2]> = f
-        .corners
-        .iter()
-        .step_by(7)
-        .copied()
-        .chain([[3, 3]])
-        .collect();
+    let picks: Vec<[i64; 2]> = f.corners.iter().step_by(7).copied().chain([[3, 3]]).collect();
     for [u, v] in picks {
         let r = json(
             &sv.addr,
@@ -301,10 +250,7 @@ fn view_answers_a_click_with_the_numbers_of_locate_at() {
         );
         let line = locate_at(u, v);
         assert_eq!(r["line"].as_str().unwrap(), line, "at {u},{v}");
-        assert_eq!(
-            (r["u"].as_f64(), r["v"].as_f64()),
-            (Some(u as f64), Some(v as f64))
-        );
+        assert_eq!((r["u"].as_f64(), r["v"].as_f64()), (Some(u as f64), Some(v as f64)));
         if r["status"] == "ok" {
             oks += 1;
             let want = format!(
@@ -321,10 +267,7 @@ fn view_answers_a_click_with_the_numbers_of_locate_at() {
             assert!((z - 95.0).abs() < 1.0, "{r}");
         } else {
             assert!(r["z"].is_null(), "{r}");
-            assert_eq!(
-                line,
-                format!("no trustworthy match: {}", r["status"].as_str().unwrap())
-            );
+            assert_eq!(line, format!("no trustworthy match: {}", r["status"].as_str().unwrap()));
         }
     }
     assert!(oks >= 4, "{oks} board corners located");
@@ -359,16 +302,10 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
         .unwrap();
     let said = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{said}");
-    assert!(
-        said.contains(&format!("{returned} of {} pixels", w * h)),
-        "{said}"
-    );
+    assert!(said.contains(&format!("{returned} of {} pixels", w * h)), "{said}");
     assert_eq!(shown, image::open(&colour).unwrap().to_rgb8());
     // Asked again: the same map, kept.
-    assert_eq!(
-        json(&sv.addr, "GET", "/api/depth/0", None, 200)["returned"],
-        returned
-    );
+    assert_eq!(json(&sv.addr, "GET", "/api/depth/0", None, 200)["returned"], returned);
     for path in ["/api/depth/1", "/api/depth/1/image"] {
         assert_eq!(http(&sv.addr, "GET", path, None).0, 400, "{path}");
     }
@@ -383,10 +320,7 @@ fn head_until(addr: &str, what: &str, done: impl Fn(&Value) -> bool) -> Value {
         if done(&h) {
             return h;
         }
-        assert!(
-            t0.elapsed() < Duration::from_secs(60),
-            "waited 60 s for {what}: {h}"
-        );
+        assert!(t0.elapsed() < Duration::from_secs(60), "waited 60 s for {what}: {h}");
         std::thread::sleep(Duration::from_millis(100));
     }
 }
@@ -397,11 +331,7 @@ fn look(addr: &str, body: &str, want: u16) -> Value {
 }
 
 fn joints_at_home(h: &Value) -> bool {
-    h["joints"]
-        .as_object()
-        .unwrap()
-        .values()
-        .all(|v| v.as_f64() == Some(0.0))
+    h["joints"].as_object().unwrap().values().all(|v| v.as_f64() == Some(0.0))
 }
 
 /// `hvs view --scene`: the virtual head runs live (frames keep coming, the state is served),
@@ -411,18 +341,13 @@ fn joints_at_home(h: &Value) -> bool {
 fn view_runs_the_virtual_head_live_and_looks_where_asked() {
     let (_dir, sv) = start_live(&["--seed", "3"]);
     let session = json(&sv.addr, "GET", "/api/session", None, 200);
-    assert_eq!(
-        (&session["live"], &session["head"]),
-        (&json!(true), &json!(true))
-    );
+    assert_eq!((&session["live"], &session["head"]), (&json!(true), &json!(true)));
     let first = json(&sv.addr, "GET", "/api/head", None, 200);
     assert_eq!(first["status"], "idle", "{first}");
     assert!(joints_at_home(&first), "{first}");
     // Frames keep coming: the head's frame count and the frames' sequence numbers grow.
     let n0 = first["frames"].as_u64().unwrap();
-    head_until(&sv.addr, "more frames", |h| {
-        h["frames"].as_u64().unwrap() > n0 + 2
-    });
+    head_until(&sv.addr, "more frames", |h| h["frames"].as_u64().unwrap() > n0 + 2);
     let (st, png) = http(&sv.addr, "GET", "/api/frame/0/left", None);
     assert_eq!(st, 200);
     let img = image::load_from_memory(&png).unwrap();
@@ -431,10 +356,7 @@ fn view_runs_the_virtual_head_live_and_looks_where_asked() {
     look(&sv.addr, r#"{"target":"nearest"}"#, 200);
     let h = head_until(&sv.addr, "the head to turn", |h| !joints_at_home(h));
     assert_eq!(h["goal"]["target"], "nearest", "{h}");
-    assert!(
-        ["tracking", "image_only", "lost"].contains(&h["status"].as_str().unwrap()),
-        "{h}"
-    );
+    assert!(["tracking", "image_only", "lost"].contains(&h["status"].as_str().unwrap()), "{h}");
     // Home again.
     look(&sv.addr, r#"{"target":"home"}"#, 200);
     head_until(&sv.addr, "the head at home", |h| {
@@ -461,10 +383,7 @@ fn view_runs_the_virtual_head_live_and_looks_where_asked() {
 #[test]
 fn view_refuses_bad_requests_and_stays_up() {
     let sv = start_pair();
-    let big = format!(
-        r#"{{"pair":0,"u":1,"v":1,"pad":"{}"}}"#,
-        "x".repeat(200_000)
-    );
+    let big = format!(r#"{{"pair":0,"u":1,"v":1,"pad":"{}"}}"#, "x".repeat(200_000));
     // Bodies of `POST /api/locate`: malformed JSON (400), wrong fields (422), bad values (400).
     let locates: [(&str, u16); 9] = [
         ("{not json", 400),
@@ -477,10 +396,8 @@ fn view_refuses_bad_requests_and_stays_up() {
         (r#"{"pair":0,"u":100000,"v":2}"#, 400),
         (r#"{"pair":3,"u":1,"v":2}"#, 400),
     ];
-    let mut bad: Vec<(&str, &str, Option<&str>, u16)> = locates
-        .iter()
-        .map(|&(body, code)| ("POST", "/api/locate", Some(body), code))
-        .collect();
+    let mut bad: Vec<(&str, &str, Option<&str>, u16)> =
+        locates.iter().map(|&(body, code)| ("POST", "/api/locate", Some(body), code)).collect();
     bad.extend([
         ("POST", "/api/locate", Some(big.as_str()), 413),
         ("GET", "/api/locate", None, 405),
@@ -497,16 +414,8 @@ fn view_refuses_bad_requests_and_stays_up() {
     for (method, path, body, want) in bad {
         let (st, b) = http(&sv.addr, method, path, body.map(str::as_bytes));
         let text = String::from_utf8_lossy(&b);
-        assert_eq!(
-            st,
-            want,
-            "{method} {path}: {}",
-            &text[..text.len().min(300)]
-        );
-        assert!(
-            !text.contains("[package]") && !text.contains("root:"),
-            "{path}"
-        );
+        assert_eq!(st, want, "{method} {path}: {}", &text[..text.len().min(300)]);
+        assert!(!text.contains("[package]") && !text.contains("root:"), "{path}");
         json(&sv.addr, "GET", "/api/session", None, 200);
     }
     // Not HTTP at all.
@@ -527,45 +436,19 @@ fn view_refuses_bad_requests_and_stays_up() {
 #[test]
 fn view_needs_the_token_off_loopback() {
     let sv = start_pair_with(&["--listen", "0.0.0.0:0"]);
-    let token = sv
-        .url
-        .split("?token=")
-        .nth(1)
-        .expect("a token in the URL")
-        .to_string();
+    let token = sv.url.split("?token=").nth(1).expect("a token in the URL").to_string();
     assert_eq!(token.len(), 32);
     assert!(token.bytes().all(|b| b.is_ascii_hexdigit()), "{token}");
     for path in ["/", "/app.js", "/api/session", "/api/frame/0/left"] {
-        assert_eq!(
-            http(&sv.addr, "GET", path, None).0,
-            403,
-            "{path} without a token"
-        );
+        assert_eq!(http(&sv.addr, "GET", path, None).0, 403, "{path} without a token");
         let wrong = format!("{path}?token={}", "0".repeat(32));
-        assert_eq!(
-            http(&sv.addr, "GET", &wrong, None).0,
-            403,
-            "{path} with a wrong token"
-        );
+        assert_eq!(http(&sv.addr, "GET", &wrong, None).0, 403, "{path} with a wrong token");
         let right = format!("{path}?token={token}");
-        assert_eq!(
-            http(&sv.addr, "GET", &right, None).0,
-            200,
-            "{path} with the token"
-        );
+        assert_eq!(http(&sv.addr, "GET", &right, None).0, 200, "{path} with the token");
     }
     let body = r#"{"pair":0,"u":3,"v":3}"#;
-    assert_eq!(
-        http(&sv.addr, "POST", "/api/locate", Some(body.as_bytes())).0,
-        403
-    );
-    json(
-        &sv.addr,
-        "POST",
-        &format!("/api/locate?token={token}"),
-        Some(body),
-        200,
-    );
+    assert_eq!(http(&sv.addr, "POST", "/api/locate", Some(body.as_bytes())).0, 403);
+    json(&sv.addr, "POST", &format!("/api/locate?token={token}"), Some(body), 200);
     // Another start, another token; loopback needs none.
     let again = start_pair_with(&["--listen", "0.0.0.0:0"]);
     assert!(!again.url.contains(&token));
@@ -595,28 +478,13 @@ fn view_retrains_a_capture_set_on_the_ticked_pairs() {
     let (st, png) = http(&sv.addr, "GET", "/api/frame/1/left-corners", None);
     assert_eq!(st, 200);
     let drawn = image::load_from_memory(&png).unwrap().to_rgb8();
-    assert!(
-        drawn.pixels().any(|p| p[0] != p[1] || p[1] != p[2]),
-        "colour marks drawn"
-    );
+    assert!(drawn.pixels().any(|p| p[0] != p[1] || p[1] != p[2]), "colour marks drawn");
     let all = retrain(r#"{"use":[true,true,true]}"#, 200);
-    assert_eq!(
-        (all["pairs"].as_u64(), all["points"].as_u64()),
-        (Some(3), Some(162))
-    );
+    assert_eq!((all["pairs"].as_u64(), all["points"].as_u64()), (Some(3), Some(162)));
     let two = retrain(r#"{"use":[true,false,true]}"#, 200);
-    assert_eq!(
-        (two["pairs"].as_u64(), two["points"].as_u64()),
-        (Some(2), Some(108))
-    );
-    let (s3, s2) = (
-        all["summary"].as_str().unwrap(),
-        two["summary"].as_str().unwrap(),
-    );
-    assert!(
-        s3.contains("on 162 points") && s2.contains("on 108 points"),
-        "{s3}\n{s2}"
-    );
+    assert_eq!((two["pairs"].as_u64(), two["points"].as_u64()), (Some(2), Some(108)));
+    let (s3, s2) = (all["summary"].as_str().unwrap(), two["summary"].as_str().unwrap());
+    assert!(s3.contains("on 162 points") && s2.contains("on 108 points"), "{s3}\n{s2}");
     assert_ne!(all["train_error_pct"], two["train_error_pct"]);
     // The same ticks, the same summary numbers (seeded).
     let again = retrain(r#"{"use":[true,false,true]}"#, 200);
@@ -624,13 +492,7 @@ fn view_retrains_a_capture_set_on_the_ticked_pairs() {
     retrain(r#"{"use":[true]}"#, 400);
     retrain(r#"{"use":[false,false,false]}"#, 422);
     // Clicks work on a capture pair too.
-    let r = json(
-        &sv.addr,
-        "POST",
-        "/api/locate",
-        Some(r#"{"pair":2,"u":3,"v":3}"#),
-        200,
-    );
+    let r = json(&sv.addr, "POST", "/api/locate", Some(r#"{"pair":2,"u":3,"v":3}"#), 200);
     assert!(r["line"].as_str().is_some());
 }
 
@@ -649,21 +511,12 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
         v
     };
     let err = crate::common::stderr_with_code(
-        with(
-            view(&[]),
-            &["--left", &missing, "--right", &r, "--listen", "127.0.0.1:0"],
-        ),
+        with(view(&[]), &["--left", &missing, "--right", &r, "--listen", "127.0.0.1:0"]),
         1,
     );
-    assert!(
-        err.starts_with("error: ") && err.contains("nope.png"),
-        "{err}"
-    );
+    assert!(err.starts_with("error: ") && err.contains("nope.png"), "{err}");
     let err = crate::common::stderr_with_code(
-        with(
-            view(&[]),
-            &["--left", &l, "--right", &r, "--listen", "here"],
-        ),
+        with(view(&[]), &["--left", &l, "--right", &r, "--listen", "here"]),
         2,
     );
     assert!(err.contains("--listen"), "{err}");
@@ -671,11 +524,8 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
     // A scene with a still pair is bad usage; the QEMU head is not there yet; a bad scene
     // file is named.
     let scene = f.shots.join("scene.json");
-    std::fs::write(
-        &scene,
-        r#"{"rig": {"case": 1}, "camera_fps": 30, "objects": [], "wall": 1}"#,
-    )
-    .unwrap();
+    std::fs::write(&scene, r#"{"rig": {"case": 1}, "camera_fps": 30, "objects": [], "wall": 1}"#)
+        .unwrap();
     let sc = with(view(&[]), &["--scene", s(&scene)]);
     crate::common::stderr_with_code(with(sc.clone(), &["--left", &l, "--right", &r]), 2);
     let err = crate::common::stderr_with_code(with(sc.clone(), &["--head", "qemu"]), 1);
@@ -692,10 +542,7 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
             assert!(st.success(), "{st:?}");
             break;
         }
-        assert!(
-            t0.elapsed() < Duration::from_secs(3),
-            "still running after SIGINT"
-        );
+        assert!(t0.elapsed() < Duration::from_secs(3), "still running after SIGINT");
         std::thread::sleep(Duration::from_millis(20));
     }
 }
@@ -726,24 +573,15 @@ fn load_view_click_latency_and_20_polling_clients() {
 /// 20 clients polling both frames (and `/api/head` when `head`) of `sv` for
 /// `HVS_VIEW_LOAD_SECS` (60) s: their pair rates and the server's memory, printed.
 fn poll_load(sv: &Server, what: &str) {
-    let secs: u64 = std::env::var("HVS_VIEW_LOAD_SECS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(60);
+    let secs: u64 =
+        std::env::var("HVS_VIEW_LOAD_SECS").ok().and_then(|v| v.parse().ok()).unwrap_or(60);
     let rss = || {
         let st = std::fs::read_to_string(format!("/proc/{}/status", sv.child.id())).unwrap();
-        st.lines()
-            .find_map(|l| l.strip_prefix("VmRSS:"))
-            .map(|v| v.trim().to_string())
-            .unwrap()
+        st.lines().find_map(|l| l.strip_prefix("VmRSS:")).map(|v| v.trim().to_string()).unwrap()
     };
     println!("server memory before: {}", rss());
     let head = !what.is_empty();
-    let head_frames = || {
-        json(&sv.addr, "GET", "/api/head", None, 200)["frames"]
-            .as_u64()
-            .unwrap()
-    };
+    let head_frames = || json(&sv.addr, "GET", "/api/head", None, 200)["frames"].as_u64().unwrap();
     let f0 = if head { head_frames() } else { 0 };
     let end = Instant::now() + Duration::from_secs(secs);
     let clients: Vec<_> = (0..20)
@@ -820,11 +658,7 @@ impl Drop for Driver {
 }
 
 fn chromedriver() -> Driver {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let child = Command::new("/usr/bin/chromedriver")
         .arg(format!("--port={port}"))
         .stdout(Stdio::null())
@@ -833,10 +667,7 @@ fn chromedriver() -> Driver {
         .expect("/usr/bin/chromedriver (apt-get install chromium chromium-driver)");
     let t0 = Instant::now();
     while TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "chromedriver does not listen"
-        );
+        assert!(t0.elapsed() < Duration::from_secs(20), "chromedriver does not listen");
         std::thread::sleep(Duration::from_millis(50));
     }
     Driver {
@@ -893,12 +724,7 @@ async fn wait_js(c: &fantoccini::Client, js: &str) -> Value {
 }
 
 async fn text(c: &fantoccini::Client, id: &str) -> String {
-    c.find(fantoccini::Locator::Id(id))
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap()
+    c.find(fantoccini::Locator::Id(id)).await.unwrap().text().await.unwrap()
 }
 
 async fn shot(c: &fantoccini::Client, name: &str) {
@@ -910,12 +736,7 @@ async fn shot(c: &fantoccini::Client, name: &str) {
 
 /// Clicks the element with id `id`.
 async fn click_id(c: &fantoccini::Client, id: &str) {
-    c.find(fantoccini::Locator::Id(id))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    c.find(fantoccini::Locator::Id(id)).await.unwrap().click().await.unwrap();
 }
 
 /// Clicks the left image at pixel `(u, v)` (shown at its natural size) with the mouse.
@@ -929,17 +750,8 @@ async fn click_left(c: &fantoccini::Client, u: i64, v: i64) {
         )
         .await
         .unwrap();
-    let n: Vec<f64> = size
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    assert_eq!(
-        (n[0], n[1]),
-        (n[2], n[3]),
-        "the left image is shown at its natural size"
-    );
+    let n: Vec<f64> = size.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!((n[0], n[1]), (n[2], n[3]), "the left image is shown at its natural size");
     let mouse = MouseActions::new("mouse".into())
         .then(PointerAction::MoveToElement {
             element: img,
@@ -947,12 +759,8 @@ async fn click_left(c: &fantoccini::Client, u: i64, v: i64) {
             x: (u as f64 + 0.5 - n[0] / 2.0).round(),
             y: (v as f64 + 0.5 - n[1] / 2.0).round(),
         })
-        .then(PointerAction::Down {
-            button: MOUSE_BUTTON_LEFT,
-        })
-        .then(PointerAction::Up {
-            button: MOUSE_BUTTON_LEFT,
-        });
+        .then(PointerAction::Down { button: MOUSE_BUTTON_LEFT })
+        .then(PointerAction::Up { button: MOUSE_BUTTON_LEFT });
     c.perform_actions(mouse).await.unwrap();
 }
 

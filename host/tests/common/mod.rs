@@ -14,13 +14,7 @@ pub fn hvs() -> Command {
 
 /// Runs `hvs` with `args` and asserts success; returns stdout.
 pub fn ok(args: &[&str]) -> String {
-    let out = hvs()
-        .args(args)
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
+    let out = hvs().args(args).assert().success().get_output().stdout.clone();
     String::from_utf8(out).expect("utf-8 stdout")
 }
 
@@ -49,29 +43,14 @@ where
     I: IntoIterator<Item = S>,
     S: AsRef<std::ffi::OsStr>,
 {
-    let out = hvs()
-        .args(args)
-        .assert()
-        .code(code)
-        .get_output()
-        .stderr
-        .clone();
+    let out = hvs().args(args).assert().code(code).get_output().stderr.clone();
     String::from_utf8(out).expect("utf-8 stderr")
 }
 
 /// `hvs board detect --board board --captures captures -o out`.
 pub fn detect_args<'a>(board: &'a Path, captures: &'a Path, out: &'a Path) -> Vec<&'a str> {
     let (b, c) = (s(board), s(captures));
-    vec![
-        "board",
-        "detect",
-        "--board",
-        b,
-        "--captures",
-        c,
-        "-o",
-        s(out),
-    ]
+    vec!["board", "detect", "--board", b, "--captures", c, "-o", s(out)]
 }
 
 /// Runs `hvs render --case 1 -o out --seed seed` and `rest`, asserting success.
@@ -83,15 +62,7 @@ pub fn render_case1(out: &Path, seed: &str, rest: &[&str]) {
 
 /// Runs `hvs train --data data -o model --restarts restarts`, asserting success.
 pub fn train_restarts(data: &Path, model: &Path, restarts: &str) {
-    ok(&[
-        "train",
-        "--data",
-        s(data),
-        "-o",
-        s(model),
-        "--restarts",
-        restarts,
-    ]);
+    ok(&["train", "--data", s(data), "-o", s(model), "--restarts", restarts]);
 }
 
 /// `verb --model model --left left --right right` and `rest` (`hvs locate`, `hvs depth`,
@@ -152,11 +123,7 @@ pub fn spawn_quick_experiment(kind: &str, args: &[&str]) -> QuickExperiment {
 pub fn wait_ok(child: Child) -> (String, Vec<u8>) {
     let output = child.wait_with_output().expect("the command ran");
     let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
-    assert!(
-        output.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    assert!(output.status.success(), "{stdout}{}", String::from_utf8_lossy(&output.stderr));
     (stdout, output.stderr)
 }
 
@@ -200,14 +167,8 @@ impl Scratch {
 /// `hvs simulate FLAGS --set train|test TRAIN_SET|TEST_SET`, and `m.hvsw` from
 /// `hvs train --data train.csv TRAIN` (flags split at white space).
 pub fn posture_model(dir: &Scratch, flags: &str, train_set: &str, test_set: &str, train: &str) {
-    simulate_into(
-        &format!("{flags} --set train {train_set}"),
-        &dir.p("train.csv"),
-    );
-    simulate_into(
-        &format!("{flags} --set test {test_set}"),
-        &dir.p("test.csv"),
-    );
+    simulate_into(&format!("{flags} --set train {train_set}"), &dir.p("train.csv"));
+    simulate_into(&format!("{flags} --set test {test_set}"), &dir.p("test.csv"));
     train_into(&dir.p("train.csv"), &dir.p("m.hvsw"), train);
 }
 
@@ -226,10 +187,7 @@ pub fn plot_svg(dir: &Path, stem: &str) -> String {
     let png = read(&dir.join(format!("{stem}.png")));
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{stem}.png");
     let svg = String::from_utf8(read(&dir.join(format!("{stem}.svg")))).unwrap();
-    assert!(
-        svg.starts_with("<svg") && svg.contains("<text"),
-        "{stem}.svg"
-    );
+    assert!(svg.starts_with("<svg") && svg.contains("<text"), "{stem}.svg");
     svg
 }
 

@@ -61,9 +61,7 @@ mod tests {
         assert_eq!(exp_micromath(f32::NEG_INFINITY), 0.0);
         assert_eq!(exp_micromath(f32::INFINITY), f32::INFINITY);
         assert!(exp_micromath(f32::NAN).is_nan());
-        for x in [
-            -87.0f32, -86.99, 88.0, 87.99, 88.5, 88.7, 89.0, -87.5, -100.0,
-        ] {
+        for x in [-87.0f32, -86.99, 88.0, 87.99, 88.5, 88.7, 89.0, -87.5, -100.0] {
             let _ = exp_micromath(x); // no assertion inside micromath fires
         }
     }

@@ -261,24 +261,15 @@ pub struct Family {
 
 impl Family {
     /// The thesis' net: `X, Y, Z` outputs, libm exp (every version-1 blob).
-    pub const THESIS: Family = Family {
-        output_map: OutputMap::Direct,
-        exp: ExpKind::LibmExp,
-        skip: Skip::None,
-    };
+    pub const THESIS: Family =
+        Family { output_map: OutputMap::Direct, exp: ExpKind::LibmExp, skip: Skip::None };
     /// Inverse-depth outputs `X/Z, Y/Z, 1/Z`, libm exp.
-    pub const INVERSE_DEPTH: Family = Family {
-        output_map: OutputMap::InverseDepth,
-        exp: ExpKind::LibmExp,
-        skip: Skip::None,
-    };
+    pub const INVERSE_DEPTH: Family =
+        Family { output_map: OutputMap::InverseDepth, exp: ExpKind::LibmExp, skip: Skip::None };
     /// Inverse-depth outputs over an affine map of the pixels plus the sigmoid net's residual
     /// ([`Skip::Linear`]), libm exp.
-    pub const INVERSE_DEPTH_SKIP: Family = Family {
-        output_map: OutputMap::InverseDepth,
-        exp: ExpKind::LibmExp,
-        skip: Skip::Linear,
-    };
+    pub const INVERSE_DEPTH_SKIP: Family =
+        Family { output_map: OutputMap::InverseDepth, exp: ExpKind::LibmExp, skip: Skip::Linear };
     /// Short name (`thesis`, `inverse-depth`, `inverse-depth-skip`; `direct-skip` for X, Y, Z
     /// outputs with a skip term), as `hvs train --arch` takes it.
     pub fn name(&self) -> &'static str {
@@ -413,16 +404,9 @@ impl Parent {
     pub fn of(bytes: &[u8]) -> Result<Parent, BlobError> {
         let b = decode(bytes)?;
         let end = framed_len(bytes)?;
-        let crc = u32::from_le_bytes([
-            bytes[end - 4],
-            bytes[end - 3],
-            bytes[end - 2],
-            bytes[end - 1],
-        ]);
-        Ok(Parent {
-            crc,
-            generation: b.generation,
-        })
+        let crc =
+            u32::from_le_bytes([bytes[end - 4], bytes[end - 3], bytes[end - 2], bytes[end - 1]]);
+        Ok(Parent { crc, generation: b.generation })
     }
 }
 
@@ -690,12 +674,8 @@ pub fn decode_into(bytes: &[u8], out: &mut ModelBlob) -> Result<(), BlobError> {
         return Err(BlobError::Truncated);
     }
     let body = total - CRC_LEN;
-    let stored = u32::from_le_bytes([
-        bytes[body],
-        bytes[body + 1],
-        bytes[body + 2],
-        bytes[body + 3],
-    ]);
+    let stored =
+        u32::from_le_bytes([bytes[body], bytes[body + 1], bytes[body + 2], bytes[body + 3]]);
     if crc32(&bytes[..body]) != stored {
         return Err(BlobError::BadCrc);
     }
@@ -746,9 +726,7 @@ fn write_v4_fields(b: &ModelBlob, buf: &mut [u8]) -> Result<usize, BlobError> {
         }
         None => put(0, &mut tmp),
     }
-    buf.get_mut(..n)
-        .ok_or(BlobError::BufferTooSmall)?
-        .copy_from_slice(&tmp[..n]);
+    buf.get_mut(..n).ok_or(BlobError::BufferTooSmall)?.copy_from_slice(&tmp[..n]);
     Ok(n)
 }
 
@@ -922,12 +900,7 @@ mod tests {
                 algorithm: Algorithm::Lm,
                 restarts: 10,
             },
-            fallback: Some(Calibration {
-                phi: 285.0,
-                half_baseline: 5.25,
-                u0: 320.0,
-                v0: 240.0,
-            }),
+            fallback: Some(Calibration { phi: 285.0, half_baseline: 5.25, u0: 320.0, v0: 240.0 }),
             family: Family::THESIS,
             matcher: None,
             frame: OutputFrame::Head,
@@ -978,10 +951,7 @@ mod tests {
         let mut out = [0.0; 3];
         d.infer(&x, &mut out).unwrap();
         assert_eq!(m.infer(&x).unwrap(), out);
-        assert_eq!(
-            d.to_mlp::<4, 6, 3>().unwrap_err(),
-            BlobError::TopologyMismatch
-        );
+        assert_eq!(d.to_mlp::<4, 6, 3>().unwrap_err(), BlobError::TopologyMismatch);
         assert!(d.in_range(&x));
         assert!(!d.in_range(&[10.0, 235.0, 300.0, 238.0]));
     }
@@ -997,9 +967,7 @@ mod tests {
         .len();
         assert_eq!(buf[..n], TAIL);
         assert_eq!(n, tail_len(VERSION_1));
-        let n = postcard::to_slice(&OutputFrame::Head, &mut buf)
-            .unwrap()
-            .len();
+        let n = postcard::to_slice(&OutputFrame::Head, &mut buf).unwrap().len();
         assert_eq!(n, tail_len(VERSION_2));
         assert_eq!((tail_len(VERSION_3), tail_len(VERSION)), (0, 0));
     }
@@ -1020,29 +988,11 @@ mod tests {
     fn v4_fields_by_hand_are_postcard_bytes() {
         let cases = [
             (None, None),
+            (Some(ImageSize { width: 640, height: 480 }), None),
+            (None, Some(Parent { crc: u32::MAX, generation: 0 })),
             (
-                Some(ImageSize {
-                    width: 640,
-                    height: 480,
-                }),
-                None,
-            ),
-            (
-                None,
-                Some(Parent {
-                    crc: u32::MAX,
-                    generation: 0,
-                }),
-            ),
-            (
-                Some(ImageSize {
-                    width: u16::MAX,
-                    height: 0,
-                }),
-                Some(Parent {
-                    crc: 0x89ab_cdef,
-                    generation: 127,
-                }),
+                Some(ImageSize { width: u16::MAX, height: 0 }),
+                Some(Parent { crc: 0x89ab_cdef, generation: 127 }),
             ),
         ];
         for (size, parent) in cases {
@@ -1053,10 +1003,7 @@ mod tests {
             let n = write_v4_fields(&b, &mut buf).unwrap();
             assert_eq!(buf[..n], v4_fields_by_postcard(size, parent)[..]);
             assert_eq!(v4_fields_by_hand(&buf[..n]), Ok((size, parent)));
-            assert_eq!(
-                write_v4_fields(&b, &mut buf[..n - 1]),
-                Err(BlobError::BufferTooSmall)
-            );
+            assert_eq!(write_v4_fields(&b, &mut buf[..n - 1]), Err(BlobError::BufferTooSmall));
         }
     }
 
@@ -1094,9 +1041,7 @@ mod tests {
     fn version_2_decodes_in_the_head_frame_with_its_family_and_matcher() {
         let mut b = sample(5, 9);
         b.family = Family::INVERSE_DEPTH_SKIP;
-        b.params
-            .extend_from_slice(&[0.01; 12])
-            .expect("room for the skip weights");
+        b.params.extend_from_slice(&[0.01; 12]).expect("room for the skip weights");
         b.matcher = Some(MATCHER);
         let v2 = as_old(&b, VERSION_2);
         assert_eq!(u16::from_le_bytes([v2[4], v2[5]]), 2);
@@ -1194,17 +1139,11 @@ mod tests {
         let mut stereo = sample(5, 2);
         stereo.frame = OutputFrame::EyePlatform;
         assert_eq!(stereo.validate(), Err(BlobError::TopologyMismatch));
-        let z_only = spec
-            .outputs(OutputKind::Z)
-            .frame(OutputFrame::EyePlatform)
-            .build();
+        let z_only = spec.outputs(OutputKind::Z).frame(OutputFrame::EyePlatform).build();
         assert_eq!(z_only.validate(), Err(BlobError::TopologyMismatch));
         // Too few inputs for the frame is a shape error, not a panic.
         let mut y3 = [1.0f32, 2.0, 3.0];
-        assert_eq!(
-            OutputFrame::EyePlatform.apply(&x[..4], &mut y3),
-            Err(MlpError::Shape)
-        );
+        assert_eq!(OutputFrame::EyePlatform.apply(&x[..4], &mut y3), Err(MlpError::Shape));
     }
 
     #[test]
@@ -1231,18 +1170,12 @@ mod tests {
         if let Some(g) = bad.matcher.as_mut() {
             g.out_min[2] = 200.0;
         }
-        assert_eq!(
-            bad.encode(&mut [0u8; MAX_BLOB_LEN]),
-            Err(BlobError::BadParameter)
-        );
+        assert_eq!(bad.encode(&mut [0u8; MAX_BLOB_LEN]), Err(BlobError::BadParameter));
         if let Some(g) = bad.matcher.as_mut() {
             g.out_min[2] = 65.0;
             g.fundamental[1][1] = f32::NAN;
         }
-        assert_eq!(
-            bad.encode(&mut [0u8; MAX_BLOB_LEN]),
-            Err(BlobError::BadParameter)
-        );
+        assert_eq!(bad.encode(&mut [0u8; MAX_BLOB_LEN]), Err(BlobError::BadParameter));
     }
 
     #[test]
@@ -1267,44 +1200,28 @@ mod tests {
         b.params[mlp::param_count(4, 5, 3) - 1] = 0.0;
         assert_eq!(b.validate(), Err(BlobError::BadParameter), "zero scale");
         let mut z = [0.5f32, 0.25, 0.0];
-        assert_eq!(
-            OutputMap::InverseDepth.apply(&mut z),
-            Err(MlpError::NonFiniteOutput)
-        );
+        assert_eq!(OutputMap::InverseDepth.apply(&mut z), Err(MlpError::NonFiniteOutput));
     }
 
     #[test]
     fn skip_family_stores_its_weights_after_the_net_and_adds_them() {
         let (mut b, plain) = sample_at_x(6);
-        b.family = Family {
-            output_map: OutputMap::Direct,
-            ..Family::INVERSE_DEPTH_SKIP
-        };
-        assert_eq!(
-            b.validate(),
-            Err(BlobError::TopologyMismatch),
-            "no skip weights"
-        );
-        let skip = [
-            0.5f32, -0.25, 0.125, 1.0, 0.0, 2.0, -1.0, 0.5, 0.75, 0.0, 0.25, -0.5,
-        ];
+        b.family = Family { output_map: OutputMap::Direct, ..Family::INVERSE_DEPTH_SKIP };
+        assert_eq!(b.validate(), Err(BlobError::TopologyMismatch), "no skip weights");
+        let skip = [0.5f32, -0.25, 0.125, 1.0, 0.0, 2.0, -1.0, 0.5, 0.75, 0.0, 0.25, -0.5];
         b.params.extend_from_slice(&skip).unwrap();
         assert_eq!(b.validate(), Ok(()));
         assert_eq!(b.flat().params.len(), mlp::param_count(4, 5, 3));
         assert_eq!(b.flat().skip, &skip[..]);
-        assert_eq!(
-            b.to_mlp::<4, 5, 3>().unwrap_err(),
-            BlobError::TopologyMismatch
-        );
+        assert_eq!(b.to_mlp::<4, 5, 3>().unwrap_err(), BlobError::TopologyMismatch);
         let mut out = [0.0f32; 3];
         b.infer(&X, &mut out).unwrap();
         for k in 0..3 {
             // Undo the output scaling of the plain net, add the skip sum, scale again: the
             // same value up to rounding (the exact order is pinned in mlp's tests).
             let a = (plain[k] - b.out_offset[k]) / b.out_scale[k];
-            let s: f32 = (0..4)
-                .map(|i| skip[k * 4 + i] * (X[i] - b.in_offset[i]) * b.in_scale[i])
-                .sum();
+            let s: f32 =
+                (0..4).map(|i| skip[k * 4 + i] * (X[i] - b.in_offset[i]) * b.in_scale[i]).sum();
             let want = (a + s) * b.out_scale[k] + b.out_offset[k];
             assert!((out[k] - want).abs() < 1e-3 * (1.0 + want.abs()), "{k}");
         }
@@ -1336,12 +1253,7 @@ mod tests {
             disparity: [1.0; 2],
             right_scale: [1.0; 2],
         });
-        for v in [
-            &mut b.in_offset,
-            &mut b.in_scale,
-            &mut b.in_min,
-            &mut b.in_max,
-        ] {
+        for v in [&mut b.in_offset, &mut b.in_scale, &mut b.in_min, &mut b.in_max] {
             v.clear();
             v.extend_from_slice(&[1.0; 9][..i]).unwrap();
         }
@@ -1374,16 +1286,10 @@ mod tests {
         // A payload with a valid CRC but inconsistent sizes.
         let mut b = sample(5, 3);
         b.topology.hidden = 6;
-        assert_eq!(
-            b.encode(&mut [0u8; MAX_BLOB_LEN]),
-            Err(BlobError::TopologyMismatch)
-        );
+        assert_eq!(b.encode(&mut [0u8; MAX_BLOB_LEN]), Err(BlobError::TopologyMismatch));
         let mut b = sample(5, 3);
         b.params[3] = f32::NAN;
-        assert_eq!(
-            b.encode(&mut [0u8; MAX_BLOB_LEN]),
-            Err(BlobError::BadParameter)
-        );
+        assert_eq!(b.encode(&mut [0u8; MAX_BLOB_LEN]), Err(BlobError::BadParameter));
         // Garbage payload under a correct header and CRC.
         let mut g = StdVec::from(&v[..HEADER_LEN]);
         g[6..10].copy_from_slice(&3u32.to_le_bytes());
@@ -1391,10 +1297,7 @@ mod tests {
         let crc = crc32(&g);
         g.extend_from_slice(&crc.to_le_bytes());
         assert_eq!(decode(&g), Err(BlobError::Malformed));
-        assert_eq!(
-            sample(5, 3).encode(&mut [0u8; 20]),
-            Err(BlobError::BufferTooSmall)
-        );
+        assert_eq!(sample(5, 3).encode(&mut [0u8; 20]), Err(BlobError::BufferTooSmall));
     }
 
     #[test]
@@ -1461,11 +1364,7 @@ mod in_place_tests {
             inputs,
             hidden,
             outputs: OutputKind::Xyz,
-            output_activation: if seed % 2 == 0 {
-                Activation::Linear
-            } else {
-                Activation::Sigmoid
-            },
+            output_activation: if seed % 2 == 0 { Activation::Linear } else { Activation::Sigmoid },
         };
         for k in 0..param_count(n_in, hidden as usize, 3) {
             let r = ((k as u64 * 2_654_435_761 + seed) % 2000) as f32 / 1000.0 - 1.0;

@@ -146,14 +146,7 @@ pub fn step(
     }
     next.last = safe(&cfg.gaze, &next.last);
     let Some(p) = obs.target else {
-        return (
-            next,
-            Command {
-                joints: next.last,
-                estimate: None,
-                status: LoopStatus::Lost,
-            },
-        );
+        return (next, Command { joints: next.last, estimate: None, status: LoopStatus::Lost });
     };
     let now = safe(&cfg.gaze, &obs.joints);
     let miss = image_miss(cfg, &p);
@@ -163,11 +156,7 @@ pub fn step(
         .map(|e| [e.x, e.y, e.z])
         .filter(|e| e.iter().all(|x| x.is_finite()));
     let fix = estimate.and_then(|e| gaze::fixate(&cfg.gaze, e).ok());
-    let gain = if cfg.gain > 0.0 {
-        cfg.gain.min(1.0)
-    } else {
-        0.0
-    };
+    let gain = if cfg.gain > 0.0 { cfg.gain.min(1.0) } else { 0.0 };
     let (target, status) = match (fix, miss) {
         (Some(f), miss) => {
             if let Some(m) = miss {
@@ -201,11 +190,7 @@ pub fn step(
         next,
         Command {
             joints: next.last,
-            estimate: if status == LoopStatus::Tracking {
-                estimate
-            } else {
-                None
-            },
+            estimate: if status == LoopStatus::Tracking { estimate } else { None },
             status,
         },
     )
@@ -222,12 +207,7 @@ mod tests {
     }
 
     fn point(p: [f32; 4]) -> StereoPoint {
-        StereoPoint {
-            u_l: p[0],
-            v_l: p[1],
-            u_r: p[2],
-            v_r: p[3],
-        }
+        StereoPoint { u_l: p[0], v_l: p[1], u_r: p[2], v_r: p[3] }
     }
 
     #[test]
@@ -235,26 +215,17 @@ mod tests {
         // 20 px of disparity: about 150 cm straight ahead. At home the fallback's estimate
         // and the images agree, so the kinematics need no correction.
         let cfg = LoopConfig::DEFAULT;
-        let obs = Observation {
-            target: Some(point([330.0, 240.0, 310.0, 240.0])),
-            joints: Joints::HOME,
-        };
+        let obs =
+            Observation { target: Some(point([330.0, 240.0, 310.0, 240.0])), joints: Joints::HOME };
         let (s, c) = step(&cfg, &fallback(), &LoopState::default(), &obs);
         assert_eq!(c.status, LoopStatus::Tracking);
         let z = c.estimate.unwrap()[2];
         assert!((140.0..160.0).contains(&z), "z {z}");
-        assert!(
-            s.correction_deg.iter().all(|c| c.abs() < 0.05),
-            "{:?}",
-            s.correction_deg
-        );
+        assert!(s.correction_deg.iter().all(|c| c.abs() < 0.05), "{:?}", s.correction_deg);
         // Converging eyes: left turns right (negative pan), right turns left.
         assert!(c.joints[Axis::LeftEyePan] < -1.0 && c.joints[Axis::RightEyePan] > 1.0);
         assert!(cfg.gaze.limits.contains(&c.joints));
-        let lost = Observation {
-            target: None,
-            joints: Joints::HOME,
-        };
+        let lost = Observation { target: None, joints: Joints::HOME };
         let (_, c2) = step(&cfg, &fallback(), &s, &lost);
         assert_eq!(c2.status, LoopStatus::Lost);
         assert_eq!(c2.joints, c.joints);
@@ -262,21 +233,13 @@ mod tests {
 
     #[test]
     fn a_target_to_the_right_and_below_turns_the_eyes_there() {
-        let cfg = LoopConfig {
-            gain: 1.0,
-            ..LoopConfig::DEFAULT
-        };
+        let cfg = LoopConfig { gain: 1.0, ..LoopConfig::DEFAULT };
         // From home, a target right of and below the centre in both images.
-        let obs = Observation {
-            target: Some(point([360.0, 270.0, 350.0, 270.0])),
-            joints: Joints::HOME,
-        };
+        let obs =
+            Observation { target: Some(point([360.0, 270.0, 350.0, 270.0])), joints: Joints::HOME };
         let (_, c) = step(&cfg, &fallback(), &LoopState::default(), &obs);
         let j = c.joints;
-        assert!(
-            j[Axis::LeftEyePan] < 0.0 && j[Axis::RightEyePan] < 0.0,
-            "{j:?}"
-        );
+        assert!(j[Axis::LeftEyePan] < 0.0 && j[Axis::RightEyePan] < 0.0, "{j:?}");
         assert!(j[Axis::EyeTilt] + j[Axis::NeckTilt] > 0.0, "{j:?}");
     }
 
@@ -295,21 +258,13 @@ mod tests {
             s = step(&cfg, &fallback(), &s, &obs).0;
         }
         for k in [1, 2] {
-            assert!(
-                (s.correction_deg[k] - 0.9).abs() < 0.01,
-                "{:?}",
-                s.correction_deg
-            );
+            assert!((s.correction_deg[k] - 0.9).abs() < 0.01, "{:?}", s.correction_deg);
         }
         assert!(s.correction_deg[0].abs() < 1e-3);
         let (_, c) = step(&cfg, &fallback(), &s, &obs);
         // The command is the kinematics plus the learnt miss (on the step grid).
-        let (_, plain) = step(
-            &LoopConfig { gain: 0.0, ..cfg },
-            &fallback(),
-            &LoopState::default(),
-            &obs,
-        );
+        let (_, plain) =
+            step(&LoopConfig { gain: 0.0, ..cfg }, &fallback(), &LoopState::default(), &obs);
         let d = c.joints[Axis::LeftEyePan] - plain.joints[Axis::LeftEyePan];
         assert!((d - 0.9).abs() < 0.1, "{d}");
     }

@@ -83,13 +83,8 @@ pub enum Axis {
 
 impl Axis {
     /// All axes, in [`Joints`] order.
-    pub const ALL: [Axis; 5] = [
-        Axis::NeckPan,
-        Axis::NeckTilt,
-        Axis::EyeTilt,
-        Axis::LeftEyePan,
-        Axis::RightEyePan,
-    ];
+    pub const ALL: [Axis; 5] =
+        [Axis::NeckPan, Axis::NeckTilt, Axis::EyeTilt, Axis::LeftEyePan, Axis::RightEyePan];
 
     /// Index of this axis in [`Joints`] and every per-axis array.
     pub const fn index(self) -> usize {
@@ -150,11 +145,7 @@ pub enum LimitsError {
 pub struct JointLimits(pub [AxisLimits; 5]);
 
 const fn lim(min_deg: f32, max_deg: f32, max_vel_deg_s: f32) -> AxisLimits {
-    AxisLimits {
-        min_deg,
-        max_deg,
-        max_vel_deg_s,
-    }
+    AxisLimits { min_deg, max_deg, max_vel_deg_s }
 }
 
 impl JointLimits {
@@ -290,10 +281,8 @@ pub struct HeadGeometry {
 
 impl HeadGeometry {
     /// Thesis baseline, neck axes through the baseline centre.
-    pub const DEFAULT: HeadGeometry = HeadGeometry {
-        half_baseline_cm: HALF_BASELINE_CM as f32,
-        neck_centre_cm: [0.0; 3],
-    };
+    pub const DEFAULT: HeadGeometry =
+        HeadGeometry { half_baseline_cm: HALF_BASELINE_CM as f32, neck_centre_cm: [0.0; 3] };
 }
 
 impl Default for HeadGeometry {
@@ -400,10 +389,7 @@ pub struct EyePose {
 impl EyePose {
     /// The optic axis (camera `+Z`) as a ray in the base frame.
     pub fn optic_axis(&self) -> Ray {
-        Ray {
-            origin: self.centre,
-            dir: self.rot[2],
-        }
+        Ray { origin: self.centre, dir: self.rot[2] }
     }
 
     /// A base-frame point in camera coordinates, cm.
@@ -420,17 +406,12 @@ pub fn eye_pose(geometry: &HeadGeometry, joints: &Joints, eye: Eye) -> EyePose {
         Eye::Right => (joints[Axis::RightEyePan], geometry.half_baseline_cm),
     };
     // Active rotation of the camera in the head: tilt platform (outer), then pan (inner).
-    let in_head = mat_mul(
-        &rot_tilt(joints[Axis::EyeTilt] * DEG_TO_RAD),
-        &rot_pan(pan * DEG_TO_RAD),
-    );
+    let in_head =
+        mat_mul(&rot_tilt(joints[Axis::EyeTilt] * DEG_TO_RAD), &rot_pan(pan * DEG_TO_RAD));
     let in_base = mat_mul(&neck, &in_head);
     let c = geometry.neck_centre_cm;
     let centre = add(c, mat_vec(&neck, sub([x, 0.0, 0.0], c)));
-    EyePose {
-        centre,
-        rot: transpose(&in_base),
-    }
+    EyePose { centre, rot: transpose(&in_base) }
 }
 
 /// Fixation kinematics: joint targets that point both optic axes at `target_cm` (base
@@ -456,11 +437,7 @@ pub fn fixate(cfg: &GazeConfig, target_cm: [f32; 3]) -> Result<Fixation, GazeErr
         return Err(GazeError::TooClose);
     }
     let limits = &cfg.limits;
-    let share = if cfg.neck_share > 0.0 {
-        cfg.neck_share.min(1.0)
-    } else {
-        0.0
-    };
+    let share = if cfg.neck_share > 0.0 { cfg.neck_share.min(1.0) } else { 0.0 };
 
     // Neck: a share of the azimuth/elevation seen from the neck centre (pan outer).
     let rel = sub(p, cfg.geometry.neck_centre_cm);
@@ -499,10 +476,7 @@ pub fn fixate(cfg: &GazeConfig, target_cm: [f32; 3]) -> Result<Fixation, GazeErr
 
     let raw = Joints([neck_pan, neck_tilt, eyes[0], eyes[1], eyes[2]]);
     let joints = limits.clamp(&raw);
-    Ok(Fixation {
-        joints,
-        clamped: joints != raw,
-    })
+    Ok(Fixation { joints, clamped: joints != raw })
 }
 
 /// `e` pushed [`HANDOVER_MARGIN_DEG`] further from 0 (0 stays 0).
@@ -558,10 +532,7 @@ pub fn base_to_platform(angles_deg: [f32; 3], p: [f32; 3]) -> [f32; 3] {
 
 /// Active rotation of the head in the base frame: pan (outer) then tilt (inner).
 fn neck_rotation(pan_deg: f32, tilt_deg: f32) -> [[f32; 3]; 3] {
-    mat_mul(
-        &rot_pan(pan_deg * DEG_TO_RAD),
-        &rot_tilt(tilt_deg * DEG_TO_RAD),
-    )
+    mat_mul(&rot_pan(pan_deg * DEG_TO_RAD), &rot_tilt(tilt_deg * DEG_TO_RAD))
 }
 
 /// Active pan: turns `+Z` towards `-X` for a positive angle (rotation about `-Y`).
@@ -587,11 +558,7 @@ fn mat_mul(a: &[[f32; 3]; 3], b: &[[f32; 3]; 3]) -> [[f32; 3]; 3] {
 }
 
 fn transpose(a: &[[f32; 3]; 3]) -> [[f32; 3]; 3] {
-    [
-        [a[0][0], a[1][0], a[2][0]],
-        [a[0][1], a[1][1], a[2][1]],
-        [a[0][2], a[1][2], a[2][2]],
-    ]
+    [[a[0][0], a[1][0], a[2][0]], [a[0][1], a[1][1], a[2][1]], [a[0][2], a[1][2], a[2][2]]]
 }
 
 fn mat_vec(a: &[[f32; 3]; 3], v: [f32; 3]) -> [f32; 3] {
@@ -748,33 +715,20 @@ mod tests {
 
     #[test]
     fn platform_frame_is_the_chain_of_neck_pan_neck_tilt_eye_tilt() {
-        for (k, angles) in [
-            [0.0f32, 0.0, 0.0],
-            [30.0, -20.0, 15.0],
-            [-12.6, 7.2, -9.0],
-            [-30.0, 20.0, -15.0],
-        ]
-        .into_iter()
-        .enumerate()
+        for (k, angles) in
+            [[0.0f32, 0.0, 0.0], [30.0, -20.0, 15.0], [-12.6, 7.2, -9.0], [-30.0, 20.0, -15.0]]
+                .into_iter()
+                .enumerate()
         {
-            let p = [
-                12.0 - k as f32,
-                -7.0 + 2.0 * k as f32,
-                80.0 + 20.0 * k as f32,
-            ];
+            let p = [12.0 - k as f32, -7.0 + 2.0 * k as f32, 80.0 + 20.0 * k as f32];
             // The chain as matrices: Pan(neck pan) Tilt(neck tilt) Tilt(eye tilt).
-            let r = mat_mul(
-                &neck_rotation(angles[0], angles[1]),
-                &rot_tilt(angles[2] * DEG_TO_RAD),
-            );
+            let r =
+                mat_mul(&neck_rotation(angles[0], angles[1]), &rot_tilt(angles[2] * DEG_TO_RAD));
             let want = mat_vec(&r, p);
             let got = platform_to_base(angles, p);
             let back = base_to_platform(angles, got);
             for i in 0..3 {
-                assert!(
-                    (got[i] - want[i]).abs() < 1e-4,
-                    "{angles:?}: {got:?} {want:?}"
-                );
+                assert!((got[i] - want[i]).abs() < 1e-4, "{angles:?}: {got:?} {want:?}");
                 assert!((back[i] - p[i]).abs() < 1e-4, "{angles:?}: {back:?} {p:?}");
             }
             if angles == [0.0; 3] {
@@ -810,9 +764,7 @@ mod tests {
     /// Largest distance of the two optic axes from `p`.
     fn miss(geometry: &HeadGeometry, j: &Joints, p: [f32; 3]) -> f32 {
         let l = eye_pose(geometry, j, Eye::Left).optic_axis().distance_to(p);
-        let r = eye_pose(geometry, j, Eye::Right)
-            .optic_axis()
-            .distance_to(p);
+        let r = eye_pose(geometry, j, Eye::Right).optic_axis().distance_to(p);
         l.max(r)
     }
 
@@ -832,29 +784,18 @@ mod tests {
     #[test]
     fn neck_takes_its_share_of_azimuth_and_elevation() {
         // Target 30° to the right and level: neck pans -15° (right is negative).
-        let t = [
-            100.0 * libm::sinf(30.0 * DEG_TO_RAD),
-            0.0,
-            100.0 * libm::cosf(30.0 * DEG_TO_RAD),
-        ];
+        let t = [100.0 * libm::sinf(30.0 * DEG_TO_RAD), 0.0, 100.0 * libm::cosf(30.0 * DEG_TO_RAD)];
         let f = fixate(&GazeConfig::DEFAULT, t).unwrap();
         assert!(close(f.joints[Axis::NeckPan], -15.0, 1e-4), "{f:?}");
         assert_eq!(f.joints[Axis::NeckTilt], 0.0);
         // Target 20° below straight ahead: neck tilts +10° (down is positive).
-        let t = [
-            0.0,
-            200.0 * libm::sinf(20.0 * DEG_TO_RAD),
-            200.0 * libm::cosf(20.0 * DEG_TO_RAD),
-        ];
+        let t = [0.0, 200.0 * libm::sinf(20.0 * DEG_TO_RAD), 200.0 * libm::cosf(20.0 * DEG_TO_RAD)];
         let f = fixate(&GazeConfig::DEFAULT, t).unwrap();
         assert!(close(f.joints[Axis::NeckTilt], 10.0, 1e-4), "{f:?}");
         assert!(close(f.joints[Axis::EyeTilt], 10.0, 1e-3), "{f:?}");
         assert_eq!(f.joints[Axis::NeckPan], 0.0);
         // Eyes only.
-        let cfg = GazeConfig {
-            neck_share: 0.0,
-            ..GazeConfig::DEFAULT
-        };
+        let cfg = GazeConfig { neck_share: 0.0, ..GazeConfig::DEFAULT };
         let f = fixate(&cfg, t).unwrap();
         assert_eq!(f.joints[Axis::NeckTilt], 0.0);
         assert!(close(f.joints[Axis::EyeTilt], 20.0, 1e-4), "{f:?}");
@@ -865,11 +806,7 @@ mod tests {
         // Eq. 3.1-3 with roll 0, written out term by term.
         let (a, b) = (12.0f32 * DEG_TO_RAD, -7.0f32 * DEG_TO_RAD);
         let (sa, ca, sb, cb) = (sinf(a), cosf(a), sinf(b), cosf(b));
-        let omega = [
-            [ca, sa * sb, sa * cb],
-            [0.0, cb, -sb],
-            [-sa, ca * sb, ca * cb],
-        ];
+        let omega = [[ca, sa * sb, sa * cb], [0.0, cb, -sb], [-sa, ca * sb, ca * cb]];
         let j = Joints([0.0, 0.0, -7.0, 12.0, 0.0]);
         let pose = eye_pose(&HeadGeometry::DEFAULT, &j, Eye::Left);
         assert_eq!(pose.centre, [-5.25, 0.0, 0.0]);
@@ -893,10 +830,7 @@ mod tests {
         assert!(close(ray.origin[0], 0.0, 1e-5) && close(ray.origin[2], 5.25, 1e-5));
         assert!(close(ray.dir[0], -1.0, 1e-6) && close(ray.dir[2], 0.0, 1e-6));
         // Neck tilted +90° (down) about a centre 10 cm behind: eyes move down and back.
-        let g = HeadGeometry {
-            neck_centre_cm: [0.0, 0.0, -10.0],
-            ..HeadGeometry::DEFAULT
-        };
+        let g = HeadGeometry { neck_centre_cm: [0.0, 0.0, -10.0], ..HeadGeometry::DEFAULT };
         let j = Joints([0.0, 90.0, 0.0, 0.0, 0.0]);
         let pose = eye_pose(&g, &j, Eye::Left);
         assert!(close(pose.centre[1], 10.0, 1e-5) && close(pose.centre[2], -10.0, 1e-5));
@@ -906,11 +840,9 @@ mod tests {
     #[test]
     fn bad_targets_are_refused() {
         let cfg = GazeConfig::DEFAULT;
-        for t in [
-            [f32::NAN, 0.0, 100.0],
-            [0.0, f32::INFINITY, 100.0],
-            [0.0, 0.0, f32::NEG_INFINITY],
-        ] {
+        for t in
+            [[f32::NAN, 0.0, 100.0], [0.0, f32::INFINITY, 100.0], [0.0, 0.0, f32::NEG_INFINITY]]
+        {
             assert_eq!(fixate(&cfg, t), Err(GazeError::NonFinite));
         }
         assert_eq!(fixate(&cfg, [0.0, 0.0, 0.0]), Err(GazeError::BehindHead));
@@ -985,10 +917,7 @@ mod tests {
         assert_eq!(bad.validate(100), Err(LimitsError::Range(Axis::EyeTilt)));
         let mut bad = l;
         bad.0[4] = lim(-5.0, 5.0, 17.0); // under 0.18° per 10 ms tick
-        assert_eq!(
-            bad.validate(100),
-            Err(LimitsError::Velocity(Axis::RightEyePan))
-        );
+        assert_eq!(bad.validate(100), Err(LimitsError::Velocity(Axis::RightEyePan)));
         assert_eq!(bad.validate(50), Ok(()));
         assert_eq!(l.validate(0), Err(LimitsError::Velocity(Axis::NeckPan)));
         assert_eq!(max_steps_per_tick(180.0, 100), 10);
@@ -998,13 +927,7 @@ mod tests {
     #[test]
     fn clamp_maps_nan_home_and_inf_to_the_bounds() {
         let l = JointLimits::DEFAULT;
-        let j = l.clamp(&Joints([
-            f32::NAN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            1e9,
-            -3.0,
-        ]));
+        let j = l.clamp(&Joints([f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e9, -3.0]));
         assert_eq!(j, Joints([0.0, 35.0, -30.0, 35.0, -3.0]));
         assert!(l.contains(&j));
         assert!(!l.contains(&Joints([f32::NAN, 0.0, 0.0, 0.0, 0.0])));

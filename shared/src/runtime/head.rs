@@ -82,10 +82,8 @@ impl Network {
     /// What [`Network::new`] decides, by reference: `(fast, model)` if the head can run
     /// `blob`, `None` if not.
     fn check(blob: &ModelBlob) -> Option<(bool, ModelInfo)> {
-        let suppliable = matches!(
-            blob.topology.inputs,
-            InputKind::Stereo | InputKind::StereoJoints
-        );
+        let suppliable =
+            matches!(blob.topology.inputs, InputKind::Stereo | InputKind::StereoJoints);
         if !suppliable || blob.topology.outputs != OutputKind::Xyz {
             return None;
         }
@@ -238,10 +236,7 @@ fn classify(slot: Slot, bytes: &[u8]) -> (SlotStatus, SlotState, Option<Network>
 fn runnable(blob: &ModelBlob) -> (SlotStatus, SlotState) {
     let generation = blob.generation;
     if Network::check(blob).is_some() {
-        return (
-            SlotStatus::Valid { generation },
-            SlotState::Valid { generation },
-        );
+        return (SlotStatus::Valid { generation }, SlotState::Valid { generation });
     }
     (
         SlotStatus::UnsupportedTopology {
@@ -407,10 +402,7 @@ impl Boot {
 
 /// The answer to a request that failed before its id could be read.
 pub fn frame_error(code: ErrorCode) -> Response {
-    Response {
-        id: crate::runtime::protocol::UNSOLICITED_ID,
-        body: ResponseBody::Error(code),
-    }
+    Response { id: crate::runtime::protocol::UNSOLICITED_ID, body: ResponseBody::Error(code) }
 }
 
 /// What the head does with one result of [`FrameAccumulator::push`]: the request in the frame,
@@ -465,11 +457,7 @@ impl Head {
         gaze: GazeConfig,
         controller: &ControllerConfig,
     ) -> Result<Head, ConfigError> {
-        Ok(Head {
-            boot,
-            gaze,
-            controller: GazeController::new(controller)?,
-        })
+        Ok(Head { boot, gaze, controller: GazeController::new(controller)? })
     }
 
     /// Answers `req`; `Look` and `Home` start a move. `Bench` is the firmware's (answered
@@ -522,11 +510,7 @@ impl Head {
             let (lo, hi) = limits.step_range(axis);
             gaze::from_steps(gaze::to_steps(goal[axis]).clamp(lo, hi))
         }));
-        Ok(LookData {
-            estimate,
-            target,
-            limited: fix.clamped,
-        })
+        Ok(LookData { estimate, target, limited: fix.clamped })
     }
 
     /// One control tick: the next setpoint (degrees) for the servos.
@@ -569,10 +553,7 @@ impl MainLoop {
 
     /// One control tick of `head`: its next setpoint, and whether to command it.
     pub fn tick(&self, head: &mut Head) -> Tick {
-        Tick {
-            setpoint: head.tick(),
-            command: self.armed,
-        }
+        Tick { setpoint: head.tick(), command: self.armed }
     }
 
     /// A received frame (from [`crate::runtime::protocol::FrameAccumulator::push`]): `answer`'s
@@ -609,13 +590,7 @@ impl Estimator {
                     MlpError::NonFiniteOutput | MlpError::Shape => ErrorCode::NoSolution,
                 })?;
                 let in_range = n.in_range(&x, joints, &[x_cm, y_cm, z_cm]);
-                Ok(EstimateData {
-                    x: x_cm,
-                    y: y_cm,
-                    z: z_cm,
-                    source: Source::Network,
-                    in_range,
-                })
+                Ok(EstimateData { x: x_cm, y: y_cm, z: z_cm, source: Source::Network, in_range })
             }
             Estimator::Fallback(cal) => {
                 let [x_cm, y_cm, z_cm] =
@@ -628,13 +603,7 @@ impl Estimator {
                     && in_image(p.u_r, cal.u0)
                     && in_image(p.v_l, cal.v0)
                     && in_image(p.v_r, cal.v0);
-                Ok(EstimateData {
-                    x: x_cm,
-                    y: y_cm,
-                    z: z_cm,
-                    source: Source::Fallback,
-                    in_range,
-                })
+                Ok(EstimateData { x: x_cm, y: y_cm, z: z_cm, source: Source::Fallback, in_range })
             }
         }
     }
@@ -661,11 +630,7 @@ mod tests {
 
     /// A 4-`hidden`-3 sample blob.
     fn sample(hidden: u8, generation: u32, seed: u64) -> ModelBlob {
-        SampleSpec::THESIS
-            .hidden(hidden)
-            .generation(generation)
-            .seed(seed)
-            .build()
+        SampleSpec::THESIS.hidden(hidden).generation(generation).seed(seed).build()
     }
 
     fn bytes(b: &ModelBlob) -> StdVec<u8> {
@@ -682,39 +647,24 @@ mod tests {
         b
     }
 
-    const P: StereoPoint = StereoPoint {
-        u_l: 330.0,
-        v_l: 241.0,
-        u_r: 310.0,
-        v_r: 239.0,
-    };
+    const P: StereoPoint = StereoPoint { u_l: 330.0, v_l: 241.0, u_r: 310.0, v_r: 239.0 };
 
     #[test]
     fn higher_generation_runs_and_ties_go_to_a() {
         let a = bytes(&sample(5, 3, 1));
         let b = bytes(&sample(5, 4, 2));
         let boot_ab = boot(&a, &b);
-        let Estimator::Network(n) = &boot_ab.estimator else {
-            panic!("fallback")
-        };
+        let Estimator::Network(n) = &boot_ab.estimator else { panic!("fallback") };
         assert_eq!((n.slot, n.generation, n.model.seed), (Slot::B, 4, 2));
         let boot_ba = boot(&b, &a);
-        let Estimator::Network(n) = &boot_ba.estimator else {
-            panic!("fallback")
-        };
+        let Estimator::Network(n) = &boot_ba.estimator else { panic!("fallback") };
         assert_eq!((n.slot, n.generation), (Slot::A, 4));
         let tie = boot(&bytes(&sample(5, 4, 9)), &b);
-        let Estimator::Network(n) = &tie.estimator else {
-            panic!("fallback")
-        };
+        let Estimator::Network(n) = &tie.estimator else { panic!("fallback") };
         assert_eq!((n.slot, n.model.seed), (Slot::A, 9));
     }
 
-    const V0_1_0: FirmwareVersion = FirmwareVersion {
-        major: 0,
-        minor: 1,
-        patch: 0,
-    };
+    const V0_1_0: FirmwareVersion = FirmwareVersion { major: 0, minor: 1, patch: 0 };
 
     #[test]
     fn corrupted_slot_is_never_run() {
@@ -724,18 +674,12 @@ mod tests {
         assert_eq!(got.slot_a, SlotStatus::Invalid(BlobError::BadCrc));
         assert_eq!(got.slot_b, SlotStatus::Valid { generation: 2 });
         let info = got.info(V0_1_0);
-        assert_eq!(
-            (info.slot, info.generation, info.mode),
-            (Some(Slot::B), 2, Mode::Network)
-        );
+        assert_eq!((info.slot, info.generation, info.mode), (Some(Slot::B), 2, Mode::Network));
 
         let both = boot(&a, &corrupt(b));
         assert_eq!(both.estimator, Estimator::Fallback(Calibration::BUILT_IN));
         let info = both.info(V0_1_0);
-        assert_eq!(
-            (info.slot, info.mode, info.model),
-            (None, Mode::Fallback, None)
-        );
+        assert_eq!((info.slot, info.mode, info.model), (None, Mode::Fallback, None));
         // Fallback still answers, with the traditional method's numbers.
         let e = both.estimate(&P).unwrap();
         let want = traditional::traditional_xyz(&Calibration::BUILT_IN, &P.to_array()).unwrap();
@@ -749,10 +693,7 @@ mod tests {
         let empty = std::vec![0xffu8; MAX_BLOB_LEN];
         let zero = std::vec![0u8; MAX_BLOB_LEN];
         let got = boot(&empty, &zero);
-        assert_eq!(
-            (got.slot_a, got.slot_b),
-            (SlotStatus::Empty, SlotStatus::Empty)
-        );
+        assert_eq!((got.slot_a, got.slot_b), (SlotStatus::Empty, SlotStatus::Empty));
         assert!(matches!(got.estimator, Estimator::Fallback(_)));
 
         // A valid blob with Z-only outputs (the head cannot Look with it) and a higher
@@ -761,15 +702,9 @@ mod tests {
         let got = boot(&z_only, &bytes(&sample(5, 1, 2)));
         assert_eq!(
             got.slot_a,
-            SlotStatus::UnsupportedTopology {
-                inputs: 4,
-                hidden: 5,
-                outputs: 1
-            }
+            SlotStatus::UnsupportedTopology { inputs: 4, hidden: 5, outputs: 1 }
         );
-        let Estimator::Network(n) = &got.estimator else {
-            panic!("fallback")
-        };
+        let Estimator::Network(n) = &got.estimator else { panic!("fallback") };
         assert_eq!(n.slot, Slot::B);
         let got = boot(&z_only, &empty);
         assert!(matches!(got.estimator, Estimator::Fallback(_)));
@@ -777,13 +712,7 @@ mod tests {
 
     /// A valid blob with Z-only outputs: the head does not run it.
     fn z_only(generation: u32) -> StdVec<u8> {
-        bytes(
-            &SampleSpec::THESIS
-                .outputs(OutputKind::Z)
-                .generation(generation)
-                .seed(1)
-                .build(),
-        )
+        bytes(&SampleSpec::THESIS.outputs(OutputKind::Z).generation(generation).seed(1).build())
     }
 
     #[test]
@@ -795,10 +724,7 @@ mod tests {
         assert_eq!(slot_state(&a), SlotState::Unrunnable { generation: 9 });
         assert_eq!(network(&boot(&a, &b)).slot, Slot::B);
         let p = plan_write(slot_state(&a), slot_state(&b), SlotRequest::Auto).unwrap();
-        assert_eq!(
-            (p.slot, p.generation, p.running),
-            (Slot::A, 8, Some(Slot::B))
-        );
+        assert_eq!((p.slot, p.generation, p.running), (Slot::A, 8, Some(Slot::B)));
         // Every combination: the plan's running slot is the one boot runs, and it never
         // targets it.
         let contents = [
@@ -831,11 +757,7 @@ mod tests {
             None => None,
         }
         .unwrap_or(Estimator::Fallback(Calibration::BUILT_IN));
-        Boot {
-            slot_a: status_a,
-            slot_b: status_b,
-            estimator,
-        }
+        Boot { slot_a: status_a, slot_b: status_b, estimator }
     }
 
     #[test]
@@ -937,9 +859,7 @@ mod tests {
         assert_eq!(h.joints(), look.target);
         assert_ne!(look.target, Joints::HOME);
         let r = h.respond(&req(5, RequestBody::Estimate(P)), V);
-        let ResponseBody::Estimate(e) = r.body else {
-            panic!("{r:?}")
-        };
+        let ResponseBody::Estimate(e) = r.body else { panic!("{r:?}") };
         let (want, in_range) = infer(&look.target);
         assert_eq!([e.x, e.y, e.z].map(f32::to_bits), want.map(f32::to_bits));
         assert_eq!(e.in_range, in_range);
@@ -976,10 +896,7 @@ mod tests {
             let e = got.estimate(&p).unwrap();
             let mut want = [0.0f32; 3];
             blob.infer(&p.to_array(), &mut want).unwrap();
-            assert_eq!(
-                [e.x.to_bits(), e.y.to_bits(), e.z.to_bits()],
-                want.map(f32::to_bits)
-            );
+            assert_eq!([e.x.to_bits(), e.y.to_bits(), e.z.to_bits()], want.map(f32::to_bits));
             let in_range =
                 blob.in_range(&p.to_array()) && outputs_in_range(&blob, &p.to_array(), &want);
             assert_eq!(e.in_range, in_range, "{p:?}");
@@ -1015,12 +932,7 @@ mod tests {
 
     #[test]
     fn estimates_far_outside_the_training_outputs_are_out_of_range() {
-        let p = StereoPoint {
-            u_l: 330.0,
-            v_l: 240.0,
-            u_r: 305.0,
-            v_r: 240.0,
-        };
+        let p = StereoPoint { u_l: 330.0, v_l: 240.0, u_r: 305.0, v_r: 240.0 };
         let good = sample(5, 1, 77);
         assert!(good.in_range(&p.to_array()));
         // A CRC-valid blob with a huge weight: x's output bias (w2[0][0..5], then b2[0]).
@@ -1057,12 +969,7 @@ mod tests {
         let p = StereoPoint { u_r: P.u_l, ..P };
         assert_eq!(fb.estimate(&p), Err(ErrorCode::NoSolution));
         // Huge inputs: the network still answers (sigmoids saturate), out of range.
-        let p = StereoPoint {
-            u_l: 3e38,
-            v_l: -3e38,
-            u_r: 1e30,
-            v_r: 0.0,
-        };
+        let p = StereoPoint { u_l: 3e38, v_l: -3e38, u_r: 1e30, v_r: 0.0 };
         let e = net.estimate(&p).unwrap();
         assert!(!e.in_range);
         assert!(e.x.is_finite() && e.z.is_finite());
@@ -1076,27 +983,16 @@ mod tests {
         Request { id, body }
     }
 
-    const V: FirmwareVersion = FirmwareVersion {
-        major: 1,
-        minor: 2,
-        patch: 3,
-    };
+    const V: FirmwareVersion = FirmwareVersion { major: 1, minor: 2, patch: 3 };
 
     #[test]
     fn look_moves_the_setpoints_to_the_announced_target_within_limits() {
         let mut h = head(boot(&[], &[]));
         // A point to the left and below, about 1 m away.
-        let p = StereoPoint {
-            u_l: 250.0,
-            v_l: 300.0,
-            u_r: 220.0,
-            v_r: 300.0,
-        };
+        let p = StereoPoint { u_l: 250.0, v_l: 300.0, u_r: 220.0, v_r: 300.0 };
         let r = h.respond(&req(7, RequestBody::Look(p)), V);
         assert_eq!(r.id, 7);
-        let ResponseBody::Look(l) = r.body else {
-            panic!("{r:?}")
-        };
+        let ResponseBody::Look(l) = r.body else { panic!("{r:?}") };
         assert_eq!(l.estimate, h.boot.estimate(&p).unwrap());
         let limits = GazeConfig::DEFAULT.limits;
         assert!(limits.contains(&l.target));
@@ -1132,15 +1028,8 @@ mod tests {
     fn bad_looks_are_refused_without_moving() {
         let mut h = head(boot(&[], &[]));
         let nan = StereoPoint { u_l: f32::NAN, ..P };
-        let behind = StereoPoint {
-            u_r: P.u_l + 1.0,
-            ..P
-        };
-        let too_close = StereoPoint {
-            u_l: 620.0,
-            u_r: 20.0,
-            ..P
-        };
+        let behind = StereoPoint { u_r: P.u_l + 1.0, ..P };
+        let too_close = StereoPoint { u_l: 620.0, u_r: 20.0, ..P };
         for (p, code) in [
             (nan, ErrorCode::NonFinite),
             (behind, ErrorCode::NoSolution),
@@ -1157,14 +1046,9 @@ mod tests {
     fn respond_answers_every_request_with_its_id() {
         let mut h = head(boot(&bytes(&sample(5, 4, 1)), &[]));
         let info = h.respond(&req(11, RequestBody::Info), V);
-        let ResponseBody::Info(i) = info.body else {
-            panic!("{info:?}")
-        };
+        let ResponseBody::Info(i) = info.body else { panic!("{info:?}") };
         assert_eq!((info.id, i.firmware, i.generation), (11, V, 4));
-        assert_eq!(
-            h.respond(&req(12, RequestBody::Ping), V).body,
-            ResponseBody::Pong
-        );
+        assert_eq!(h.respond(&req(12, RequestBody::Ping), V).body, ResponseBody::Pong);
         let e = h.respond(&req(13, RequestBody::Estimate(P)), V);
         assert_eq!(e.body, ResponseBody::Estimate(h.boot.estimate(&P).unwrap()));
         let b = h.respond(&req(14, RequestBody::Bench { point: P, count: 1 }), V);
@@ -1185,10 +1069,7 @@ mod tests {
         let n = protocol::encode_request(&want, &mut buf).unwrap().len();
         // As the accumulator hands it out: without the sentinel.
         assert_eq!(read_frame(Ok(&mut buf[..n - 1])), Ok(want));
-        assert_eq!(
-            frame_error(ErrorCode::Malformed).id,
-            protocol::UNSOLICITED_ID
-        );
+        assert_eq!(frame_error(ErrorCode::Malformed).id, protocol::UNSOLICITED_ID);
     }
 
     #[test]

@@ -402,9 +402,8 @@ fn forward(
     sigmoid: impl Fn(f32) -> f32,
     dot: Dot,
 ) -> Result<(), MlpError> {
-    for (v, (x, (off, scale))) in xn
-        .iter_mut()
-        .zip(x.iter().zip(m.in_offset.iter().zip(m.in_scale)))
+    for (v, (x, (off, scale))) in
+        xn.iter_mut().zip(x.iter().zip(m.in_offset.iter().zip(m.in_scale)))
     {
         if !x.is_finite() {
             return Err(MlpError::NonFiniteInput);
@@ -659,12 +658,10 @@ pub(crate) mod fixture {
     /// Every `step`th f32 bit pattern (both signs, every exponent), then the 8193 patterns
     /// around each value of `around`: the sweeps of the f32 kernels' tests.
     pub(crate) fn f32_sweep(step: usize, around: &[f32]) -> impl Iterator<Item = u32> + '_ {
-        (0..=u32::MAX)
-            .step_by(step)
-            .chain(around.iter().flat_map(|v| {
-                let b = v.to_bits();
-                b - 4096..=b + 4096
-            }))
+        (0..=u32::MAX).step_by(step).chain(around.iter().flat_map(|v| {
+            let b = v.to_bits();
+            b - 4096..=b + 4096
+        }))
     }
 
     /// Input offsets (pixels).
@@ -755,10 +752,7 @@ mod tests {
     fn rejects_non_finite_and_bad_shapes() {
         let m = tiny();
         assert_eq!(m.infer(&[f32::NAN, 0.0]), Err(MlpError::NonFiniteInput));
-        assert_eq!(
-            m.infer(&[0.0, f32::INFINITY]),
-            Err(MlpError::NonFiniteInput)
-        );
+        assert_eq!(m.infer(&[0.0, f32::INFINITY]), Err(MlpError::NonFiniteInput));
         assert!(Mlp::<2, 1, 1>::from_params(
             &[0.0; 4],
             Activation::Linear,
@@ -841,10 +835,7 @@ mod tests {
         }
         std::println!("exp {we:e}, sigmoid {ws:e}, libm sigmoid {wl:e}, {n} finite f32");
         assert_eq!(n, (1u64 << 32) - 2 * (1 << 23));
-        assert!(
-            we <= 8.2e-8 && ws < 1.5e-7 && ws <= wl,
-            "{we:e} {ws:e} {wl:e}"
-        );
+        assert!(we <= 8.2e-8 && ws < 1.5e-7 && ws <= wl, "{we:e} {ws:e} {wl:e}");
     }
 
     /// The sigmoid's two halves are `1 / (1 + exp(-a))` bit for bit, at the split and on
@@ -891,10 +882,7 @@ mod tests {
         let mut a = -87.33f32;
         while a > -120.0 {
             let (got, want) = (sigmoid(a) as f64, exact_sigmoid(a));
-            assert!(
-                (got - want).abs() <= f32::MIN_POSITIVE as f64,
-                "{a}: {got:e} vs {want:e}"
-            );
+            assert!((got - want).abs() <= f32::MIN_POSITIVE as f64, "{a}: {got:e} vs {want:e}");
             a -= 0.01;
         }
     }

@@ -412,11 +412,7 @@ impl<const N: usize> Default for FrameAccumulator<N> {
 impl<const N: usize> FrameAccumulator<N> {
     /// An empty accumulator.
     pub const fn new() -> Self {
-        Self {
-            buf: [0; N],
-            len: 0,
-            overflow: false,
-        }
+        Self { buf: [0; N], len: 0, overflow: false }
     }
 
     /// Feeds one byte. Returns `Some(Ok(frame))` when `byte` ends a frame (the COBS bytes,
@@ -465,21 +461,12 @@ mod tests {
     use super::*;
 
     fn point(k: f32) -> StereoPoint {
-        StereoPoint {
-            u_l: 321.5 + k,
-            v_l: -12.25 * k,
-            u_r: f32::MAX,
-            v_r: f32::MIN_POSITIVE,
-        }
+        StereoPoint { u_l: 321.5 + k, v_l: -12.25 * k, u_r: f32::MAX, v_r: f32::MIN_POSITIVE }
     }
 
     fn largest_info() -> InfoData {
         InfoData {
-            firmware: FirmwareVersion {
-                major: u16::MAX,
-                minor: u16::MAX,
-                patch: u16::MAX,
-            },
+            firmware: FirmwareVersion { major: u16::MAX, minor: u16::MAX, patch: u16::MAX },
             protocol: u16::MAX,
             slot: Some(Slot::B),
             generation: u32::MAX,
@@ -515,33 +502,12 @@ mod tests {
 
     fn all_requests() -> [Request; 6] {
         [
-            Request {
-                id: 1,
-                body: RequestBody::Ping,
-            },
-            Request {
-                id: 2,
-                body: RequestBody::Info,
-            },
-            Request {
-                id: 3,
-                body: RequestBody::Estimate(point(1.0)),
-            },
-            Request {
-                id: u32::MAX,
-                body: RequestBody::Look(point(-3.0)),
-            },
-            Request {
-                id: 70_000,
-                body: RequestBody::Home,
-            },
-            Request {
-                id: 9,
-                body: RequestBody::Bench {
-                    point: point(0.5),
-                    count: u32::MAX,
-                },
-            },
+            Request { id: 1, body: RequestBody::Ping },
+            Request { id: 2, body: RequestBody::Info },
+            Request { id: 3, body: RequestBody::Estimate(point(1.0)) },
+            Request { id: u32::MAX, body: RequestBody::Look(point(-3.0)) },
+            Request { id: 70_000, body: RequestBody::Home },
+            Request { id: 9, body: RequestBody::Bench { point: point(0.5), count: u32::MAX } },
         ]
     }
 
@@ -560,9 +526,7 @@ mod tests {
         info_fallback.slot_a = SlotStatus::Empty;
         info_fallback.slot_b = SlotStatus::Invalid(BlobError::UnsupportedVersion(u16::MAX));
         let bodies = [
-            ResponseBody::Ready {
-                protocol: PROTOCOL_VERSION,
-            },
+            ResponseBody::Ready { protocol: PROTOCOL_VERSION },
             ResponseBody::Pong,
             ResponseBody::Info(largest_info()),
             ResponseBody::Info(info_fallback),
@@ -618,13 +582,8 @@ mod tests {
 
     #[test]
     fn floats_travel_bit_for_bit() {
-        let specials = [
-            f32::NAN,
-            -0.0,
-            f32::INFINITY,
-            f32::from_bits(1),
-            f32::from_bits(0x7fc0_1234),
-        ];
+        let specials =
+            [f32::NAN, -0.0, f32::INFINITY, f32::from_bits(1), f32::from_bits(0x7fc0_1234)];
         for v in specials {
             let resp = Response {
                 id: 5,
@@ -652,10 +611,7 @@ mod tests {
     fn small_buffer_is_an_error() {
         let resp = all_responses()[2];
         let mut buf = [0u8; 16];
-        assert_eq!(
-            encode_response(&resp, &mut buf),
-            Err(ProtocolError::BufferTooSmall)
-        );
+        assert_eq!(encode_response(&resp, &mut buf), Err(ProtocolError::BufferTooSmall));
     }
 
     #[test]
@@ -667,10 +623,7 @@ mod tests {
         for cut in 0..n - 1 {
             let mut t = [0u8; MAX_FRAME_LEN];
             t[..cut].copy_from_slice(&buf[..cut]);
-            assert!(
-                decode_request(&mut t[..cut]).is_err(),
-                "truncated to {cut} bytes decoded"
-            );
+            assert!(decode_request(&mut t[..cut]).is_err(), "truncated to {cut} bytes decoded");
         }
         // A frame with an extra byte appended is rejected, not silently accepted.
         let mut long = [0u8; MAX_FRAME_LEN];
@@ -749,10 +702,7 @@ mod tests {
         let mut stream = std::vec![0x55u8; 100];
         stream.push(0);
         stream.extend_from_slice(&frame);
-        assert_eq!(
-            run(&mut acc, &stream),
-            std::vec![Err(ProtocolError::Oversize), Ok(good)]
-        );
+        assert_eq!(run(&mut acc, &stream), std::vec![Err(ProtocolError::Oversize), Ok(good)]);
 
         // Exactly N bytes fit; N + 1 do not.
         let mut exact = std::vec![0x01u8; 32];
@@ -762,10 +712,7 @@ mod tests {
         assert_ne!(got[0], Err(ProtocolError::Oversize));
         let mut over = std::vec![0x01u8; 33];
         over.push(0);
-        assert_eq!(
-            run(&mut acc, &over),
-            std::vec![Err(ProtocolError::Oversize)]
-        );
+        assert_eq!(run(&mut acc, &over), std::vec![Err(ProtocolError::Oversize)]);
 
         // Garbage, then a truncated frame glued to the next terminator, then a good frame.
         let mut stream = std::vec![0xffu8, 0x03, 0x07, 0];

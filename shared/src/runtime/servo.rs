@@ -63,11 +63,7 @@ pub struct McdcAxis {
 pub struct McdcConfig(pub [McdcAxis; 5]);
 
 const fn mcdc(node: u8) -> McdcAxis {
-    McdcAxis {
-        node,
-        counts_per_deg: 1.0 / STEP_DEG,
-        zero_counts: 0,
-    }
+    McdcAxis { node, counts_per_deg: 1.0 / STEP_DEG, zero_counts: 0 }
 }
 
 impl McdcConfig {
@@ -81,11 +77,8 @@ impl McdcConfig {
         let a = &self.0[axis.index()];
         let l = limits.axis(axis);
         let k = a.counts_per_deg;
-        let (lo, hi) = if k >= 0.0 {
-            (l.min_deg * k, l.max_deg * k)
-        } else {
-            (l.max_deg * k, l.min_deg * k)
-        };
+        let (lo, hi) =
+            if k >= 0.0 { (l.min_deg * k, l.max_deg * k) } else { (l.max_deg * k, l.min_deg * k) };
         let rel = roundf(limits.clamp_axis(axis, deg) * k);
         // Inclusive bounds on whole counts; NaN (a broken config) gives 0 through `as`.
         let rel = rel.max(ceilf(lo)).min(floorf(hi)) as i32;
@@ -246,10 +239,7 @@ pub struct PwmAxis {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PwmConfig(pub [PwmAxis; 5]);
 
-const STD_SERVO: PwmAxis = PwmAxis {
-    centre_us: 1500,
-    us_per_deg: 500.0 / 90.0,
-};
+const STD_SERVO: PwmAxis = PwmAxis { centre_us: 1500, us_per_deg: 500.0 / 90.0 };
 
 impl PwmConfig {
     /// A standard servo on every axis: 1500 µs at 0°, 1000-2000 µs for -90° to +90°.
@@ -303,15 +293,9 @@ mod tests {
     fn exact_mcdc_strings() {
         assert_eq!(s(&format_mcdc(3, McdcCmd::LoadAbsolute(1000))), "3LA1000\r");
         assert_eq!(s(&format_mcdc(3, McdcCmd::Move)), "3M\r");
-        assert_eq!(
-            s(&format_mcdc(12, McdcCmd::LoadAbsolute(-250))),
-            "12LA-250\r"
-        );
+        assert_eq!(s(&format_mcdc(12, McdcCmd::LoadAbsolute(-250))), "12LA-250\r");
         assert_eq!(s(&format_mcdc(0, McdcCmd::LoadAbsolute(0))), "0LA0\r");
-        assert_eq!(
-            s(&format_mcdc(255, McdcCmd::LoadAbsolute(i32::MIN))),
-            "255LA-2147483648\r"
-        );
+        assert_eq!(s(&format_mcdc(255, McdcCmd::LoadAbsolute(i32::MIN))), "255LA-2147483648\r");
         assert_eq!(s(&format_mcdc(7, McdcCmd::Velocity(0))), "7V0\r");
         assert_eq!(s(&format_mcdc(1, McdcCmd::Disable)), "1DI\r");
         assert_eq!(s(&format_mcdc(1, McdcCmd::Enable)), "1EN\r");
@@ -340,11 +324,7 @@ mod tests {
     fn counts_with_gearing_offset_and_reversal() {
         let l = JointLimits::DEFAULT;
         let mut cfg = McdcConfig::DEFAULT;
-        cfg.0[0] = McdcAxis {
-            node: 9,
-            counts_per_deg: -100.0,
-            zero_counts: 5000,
-        };
+        cfg.0[0] = McdcAxis { node: 9, counts_per_deg: -100.0, zero_counts: 5000 };
         assert_eq!(cfg.counts(&l, Axis::NeckPan, 1.234), 5000 - 123);
         assert_eq!(cfg.counts(&l, Axis::NeckPan, 500.0), 5000 - 6000);
         assert_eq!(cfg.counts(&l, Axis::NeckPan, -500.0), 5000 + 6000);
@@ -353,19 +333,13 @@ mod tests {
 
     #[test]
     fn parser_reads_back_and_refuses_junk() {
-        assert_eq!(
-            parse_mcdc(b"3LA1000\r"),
-            Ok((3, McdcCmd::LoadAbsolute(1000)))
-        );
+        assert_eq!(parse_mcdc(b"3LA1000\r"), Ok((3, McdcCmd::LoadAbsolute(1000))));
         assert_eq!(parse_mcdc(b"3LA-7"), Ok((3, McdcCmd::LoadAbsolute(-7))));
         assert_eq!(parse_mcdc(b"12M\r\n"), Ok((12, McdcCmd::Move)));
         assert_eq!(parse_mcdc(b"1V0\n"), Ok((1, McdcCmd::Velocity(0))));
         assert_eq!(parse_mcdc(b"1DI"), Ok((1, McdcCmd::Disable)));
         assert_eq!(parse_mcdc(b"1EN\r"), Ok((1, McdcCmd::Enable)));
-        assert_eq!(
-            parse_mcdc(b"2LA2147483647"),
-            Ok((2, McdcCmd::LoadAbsolute(i32::MAX)))
-        );
+        assert_eq!(parse_mcdc(b"2LA2147483647"), Ok((2, McdcCmd::LoadAbsolute(i32::MAX))));
         use McdcParseError::*;
         for (line, err) in [
             (&b""[..], Node),
@@ -387,12 +361,7 @@ mod tests {
             (b"3M\r\r", Argument),
             (b"3DIX", Argument),
         ] {
-            assert_eq!(
-                parse_mcdc(line),
-                Err(err),
-                "{:?}",
-                core::str::from_utf8(line)
-            );
+            assert_eq!(parse_mcdc(line), Err(err), "{:?}", core::str::from_utf8(line));
         }
     }
 
@@ -406,12 +375,7 @@ mod tests {
         // Clamped to the 60° limit: 1500 + 333.3.
         assert_eq!(p.pulse_us(&l, Axis::NeckPan, 1e9), 1833);
         assert_eq!(p.pulse_us(&l, Axis::NeckPan, f32::NAN), 1500);
-        let wide = PwmConfig(
-            [PwmAxis {
-                centre_us: 1900,
-                us_per_deg: 20.0,
-            }; 5],
-        );
+        let wide = PwmConfig([PwmAxis { centre_us: 1900, us_per_deg: 20.0 }; 5]);
         assert_eq!(wide.pulse_us(&l, Axis::EyeTilt, 30.0), 2000);
         assert_eq!(wide.pulse_us(&l, Axis::EyeTilt, -30.0), 1300);
         // 1500 µs of 20 ms on a 16-bit timer: 1500 * 65535 / 20000 = 4915.1.

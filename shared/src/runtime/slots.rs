@@ -119,11 +119,7 @@ pub fn plan_write(a: SlotState, b: SlotState, req: SlotRequest) -> Result<WriteP
             s
         }
     };
-    Ok(WritePlan {
-        slot,
-        generation,
-        running,
-    })
+    Ok(WritePlan { slot, generation, running })
 }
 
 #[cfg(test)]
@@ -172,11 +168,8 @@ mod tests {
                 let max = a.generation().into_iter().chain(b.generation()).max();
                 assert_eq!(p.generation, max.map_or(1, |g| g + 1));
                 // After the write succeeds, the new model is the one that boots.
-                let (na, nb) = if p.slot == Slot::A {
-                    (v(p.generation), b)
-                } else {
-                    (a, v(p.generation))
-                };
+                let (na, nb) =
+                    if p.slot == Slot::A { (v(p.generation), b) } else { (a, v(p.generation)) };
                 assert_eq!(choose_boot(na, nb), Some(p.slot));
                 // If it is cut off, the old model (if any) still boots.
                 let (ca, cb) = if p.slot == Slot::A { (I, b) } else { (a, I) };
@@ -193,20 +186,12 @@ mod tests {
         let b = v(7);
         assert_eq!(choose_boot(U, b), Some(Slot::B));
         let p = plan_write(U, b, SlotRequest::Auto).unwrap();
-        assert_eq!(
-            (p.slot, p.generation, p.running),
-            (Slot::A, 8, Some(Slot::B))
-        );
+        assert_eq!((p.slot, p.generation, p.running), (Slot::A, 8, Some(Slot::B)));
         assert_eq!(
             plan_write(U, b, SlotRequest::Exactly(Slot::B)),
             Err(PlanError::WouldOverwriteOnlyModel(Slot::B))
         );
-        assert_eq!(
-            plan_write(U, b, SlotRequest::Exactly(Slot::A))
-                .unwrap()
-                .slot,
-            Slot::A
-        );
+        assert_eq!(plan_write(U, b, SlotRequest::Exactly(Slot::A)).unwrap().slot, Slot::A);
         // Nothing runnable: A, generation 1.
         let p = plan_write(U, U, SlotRequest::Auto).unwrap();
         assert_eq!((p.slot, p.generation, p.running), (Slot::A, 1, None));

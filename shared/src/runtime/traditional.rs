@@ -72,12 +72,8 @@ impl Serialize for Calibration {
 impl Calibration {
     /// Phi of case I estimated by eq. 4.1-3 at Z = 65 cm (`cases.json`), the thesis' HVS with
     /// its 640x480 images: the firmware's built-in calibration when no valid model is on flash.
-    pub const BUILT_IN: Calibration = Calibration {
-        phi: 284.761_9,
-        half_baseline: 5.25,
-        u0: 320.0,
-        v0: 240.0,
-    };
+    pub const BUILT_IN: Calibration =
+        Calibration { phi: 284.761_9, half_baseline: 5.25, u0: 320.0, v0: 240.0 };
 
     /// Whether every value is finite and `phi`, `half_baseline` are positive.
     pub fn is_valid(&self) -> bool {
@@ -209,22 +205,13 @@ mod tests {
             traditional_depth(300.0, 5.25, 299.0, 300.0),
             Err(TriError::NonPositiveDisparity)
         );
-        assert_eq!(
-            traditional_depth(f64::NAN, 5.25, 310.0, 300.0),
-            Err(TriError::NonFinite)
-        );
+        assert_eq!(traditional_depth(f64::NAN, 5.25, 310.0, 300.0), Err(TriError::NonFinite));
     }
 
     #[test]
     fn signed_traditional_keeps_negative_disparities() {
-        assert_eq!(
-            traditional_depth_signed(300.0, 5.25, 335.75, 304.25),
-            Ok(100.0)
-        );
-        assert_eq!(
-            traditional_depth_signed(300.0, 5.25, 304.25, 335.75),
-            Ok(-100.0)
-        );
+        assert_eq!(traditional_depth_signed(300.0, 5.25, 335.75, 304.25), Ok(100.0));
+        assert_eq!(traditional_depth_signed(300.0, 5.25, 304.25, 335.75), Ok(-100.0));
         assert_eq!(
             traditional_depth_signed(300.0, 5.25, 300.0, 300.0),
             Err(TriError::NonPositiveDisparity)

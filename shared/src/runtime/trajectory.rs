@@ -113,11 +113,7 @@ struct Quintic {
 
 impl Quintic {
     const fn rest(at: f32) -> Self {
-        Quintic {
-            c: [at, 0.0, 0.0, 0.0, 0.0, 0.0],
-            dur: 0.0,
-            goal: at,
-        }
+        Quintic { c: [at, 0.0, 0.0, 0.0, 0.0, 0.0], dur: 0.0, goal: at }
     }
 
     /// Position, velocity (°/s) and acceleration (°/s²) at `t` seconds after the start.
@@ -174,9 +170,7 @@ pub struct GazeController {
 impl GazeController {
     /// A controller resting at home (all joints 0), if `cfg` is usable.
     pub fn new(cfg: &ControllerConfig) -> Result<Self, ConfigError> {
-        cfg.limits
-            .validate(cfg.control_hz)
-            .map_err(ConfigError::Limits)?;
+        cfg.limits.validate(cfg.control_hz).map_err(ConfigError::Limits)?;
         let ok = |t: f32| t.is_finite() && t > 0.0;
         if !ok(cfg.neck_time_s) || !ok(cfg.eye_time_s) || cfg.control_hz == 0 {
             return Err(ConfigError::Timing);
@@ -197,11 +191,7 @@ impl GazeController {
             let l = cfg.limits.axis(axis);
             (c.lo[i], c.hi[i]) = cfg.limits.step_range(axis);
             c.max_step[i] = max_steps_per_tick(l.max_vel_deg_s, cfg.control_hz);
-            c.times[i] = if axis.is_neck() {
-                cfg.neck_time_s
-            } else {
-                cfg.eye_time_s
-            };
+            c.times[i] = if axis.is_neck() { cfg.neck_time_s } else { cfg.eye_time_s };
         }
         Ok(c)
     }
@@ -239,9 +229,7 @@ impl GazeController {
         for i in 0..5 {
             let (x, _, _) = self.refs[i].eval(t);
             let want = if x.is_finite() {
-                (roundf(x / crate::runtime::gaze::STEP_DEG) as i32)
-                    .max(self.lo[i])
-                    .min(self.hi[i])
+                (roundf(x / crate::runtime::gaze::STEP_DEG) as i32).max(self.lo[i]).min(self.hi[i])
             } else {
                 self.steps[i]
             };
@@ -341,10 +329,7 @@ mod tests {
                 let dur = if axis.is_neck() { 0.7 } else { 0.2 };
                 let ideal = min_jerk(0.0, to[axis], t, dur);
                 // Quantisation only: within half a step of the ideal profile.
-                assert!(
-                    (j[axis] - ideal).abs() <= 0.5 * STEP_DEG + 1e-4,
-                    "{axis:?} {t}"
-                );
+                assert!((j[axis] - ideal).abs() <= 0.5 * STEP_DEG + 1e-4, "{axis:?} {t}");
                 // Monotonic towards the goal.
                 assert!((j[axis] - last[axis]) * to[axis] >= 0.0);
             }
@@ -384,10 +369,7 @@ mod tests {
         for k in 1..=140 {
             let j = c.tick();
             let ideal = min_jerk(x0, 60.0, k as f32 / 100.0, dur);
-            assert!(
-                (j[Axis::NeckPan] - ideal).abs() <= 0.5 * STEP_DEG + 1e-4,
-                "{k}"
-            );
+            assert!((j[Axis::NeckPan] - ideal).abs() <= 0.5 * STEP_DEG + 1e-4, "{k}");
             max_delta = max_delta.max(to_steps(j[Axis::NeckPan] - prev).abs());
             prev = j[Axis::NeckPan];
         }
@@ -410,11 +392,7 @@ mod tests {
         // New target further on: the eye keeps going, no stop and restart.
         c.start(&Joints([0.0, 0.0, 0.0, 34.0, 0.0]));
         let j = c.tick()[Axis::LeftEyePan];
-        assert!(
-            (j - prev - step).abs() <= 3.0 * STEP_DEG,
-            "{} vs {step}",
-            j - prev
-        );
+        assert!((j - prev - step).abs() <= 3.0 * STEP_DEG, "{} vs {step}", j - prev);
         for _ in 0..100 {
             c.tick();
         }
@@ -435,22 +413,13 @@ mod tests {
     #[test]
     fn bad_goals_are_clamped_or_ignored() {
         let mut c = ctl();
-        c.start(&Joints([
-            f32::NAN,
-            f32::INFINITY,
-            -1e30,
-            1e9,
-            f32::NEG_INFINITY,
-        ]));
+        c.start(&Joints([f32::NAN, f32::INFINITY, -1e30, 1e9, f32::NEG_INFINITY]));
         assert_eq!(c.goal(), Joints([0.0, 35.0, -30.0, 35.0, -35.0]));
         for _ in 0..500 {
             c.tick();
         }
         let (lo, hi) = (from_steps(-194), from_steps(194));
-        assert_eq!(
-            c.setpoint(),
-            Joints([0.0, from_steps(194), from_steps(-166), hi, lo])
-        );
+        assert_eq!(c.setpoint(), Joints([0.0, from_steps(194), from_steps(-166), hi, lo]));
         c.home();
         for _ in 0..500 {
             c.tick();
@@ -511,12 +480,8 @@ mod tests {
     }
 
     fn any_limits() -> impl Strategy<Value = JointLimits> {
-        let axis =
-            (-90.0f32..0.0, 0.0f32..90.0, 20.0f32..1000.0).prop_map(|(a, b, v)| AxisLimits {
-                min_deg: a,
-                max_deg: b,
-                max_vel_deg_s: v,
-            });
+        let axis = (-90.0f32..0.0, 0.0f32..90.0, 20.0f32..1000.0)
+            .prop_map(|(a, b, v)| AxisLimits { min_deg: a, max_deg: b, max_vel_deg_s: v });
         prop::array::uniform5(axis).prop_map(JointLimits)
     }
 

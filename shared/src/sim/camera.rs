@@ -87,11 +87,7 @@ pub struct Camera {
 impl Camera {
     /// The point in this camera's frame, eq. 3.1-4 / 3.1-7.
     pub fn to_camera(&self, p: &Vec3) -> Vec3 {
-        let rel = [
-            p[0] - self.center[0],
-            p[1] - self.center[1],
-            p[2] - self.center[2],
-        ];
+        let rel = [p[0] - self.center[0], p[1] - self.center[1], p[2] - self.center[2]];
         mat_vec(&self.rotation, &rel)
     }
 
@@ -101,10 +97,7 @@ impl Camera {
         if c[2].is_nan() || c[2] <= 0.0 {
             return None;
         }
-        Some([
-            self.phi_u * c[0] / c[2] + self.u0,
-            self.phi_v * c[1] / c[2] + self.v0,
-        ])
+        Some([self.phi_u * c[0] / c[2] + self.u0, self.phi_v * c[1] / c[2] + self.v0])
     }
 
     /// Rounded image coordinates per eq. 3.1-6: `round(Phi X/Z) + u0`.
@@ -226,14 +219,8 @@ impl Rig {
     /// Rounded `[u_l, v_l, u_r, v_r]` (eqs. 3.1-6 and 3.1-9), what a real camera reports.
     pub fn project_rounded(&self, p: &Vec3) -> Result<StereoPixels, CameraError> {
         Self::check(p)?;
-        let l = self
-            .left()
-            .project_rounded(p)
-            .ok_or(CameraError::BehindLeft)?;
-        let r = self
-            .right()
-            .project_rounded(p)
-            .ok_or(CameraError::BehindRight)?;
+        let l = self.left().project_rounded(p).ok_or(CameraError::BehindLeft)?;
+        let r = self.right().project_rounded(p).ok_or(CameraError::BehindRight)?;
         finite4([l[0], l[1], r[0], r[1]])
     }
 
@@ -250,12 +237,10 @@ impl Rig {
             return Err(CameraError::NonFinite);
         }
         let mut out = [0.0; 4];
-        for (k, (cam, behind)) in [
-            (self.left(), CameraError::BehindLeft),
-            (self.right(), CameraError::BehindRight),
-        ]
-        .iter()
-        .enumerate()
+        for (k, (cam, behind)) in
+            [(self.left(), CameraError::BehindLeft), (self.right(), CameraError::BehindRight)]
+                .iter()
+                .enumerate()
         {
             let c = cam.to_camera(p);
             if c[2].is_nan() || c[2] <= 0.0 {
@@ -375,11 +360,7 @@ pub struct LensCamera {
 impl LensCamera {
     /// A camera without lens distortion.
     pub fn pinhole(camera: Camera, half_width: f64) -> LensCamera {
-        LensCamera {
-            camera,
-            distortion: Distortion::NONE,
-            half_width,
-        }
+        LensCamera { camera, distortion: Distortion::NONE, half_width }
     }
 
     /// Pixel offset from the principal point the lens shows for camera-frame point `c`, or
@@ -388,10 +369,7 @@ impl LensCamera {
         if c[2].is_nan() || c[2] <= 0.0 {
             return None;
         }
-        let o = [
-            self.camera.phi_u * c[0] / c[2],
-            self.camera.phi_v * c[1] / c[2],
-        ];
+        let o = [self.camera.phi_u * c[0] / c[2], self.camera.phi_v * c[1] / c[2]];
         Some(self.distortion.apply(o, self.half_width))
     }
 
@@ -406,10 +384,7 @@ impl LensCamera {
     pub fn project_rounded_noisy(&self, p: &Vec3, noise: [f64; 2]) -> Option<[f64; 2]> {
         let o = self.offset(&self.camera.to_camera(p))?;
         if noise == [0.0, 0.0] {
-            return Some([
-                libm::round(o[0]) + self.camera.u0,
-                libm::round(o[1]) + self.camera.v0,
-            ]);
+            return Some([libm::round(o[0]) + self.camera.u0, libm::round(o[1]) + self.camera.v0]);
         }
         Some([
             libm::round(o[0] + noise[0]) + self.camera.u0,
@@ -420,13 +395,8 @@ impl LensCamera {
     /// The viewing ray of an observed pixel (lens undone): origin and unit direction, or `None`
     /// where the lens cannot be undone.
     pub fn ray(&self, u: f64, v: f64) -> Option<(Vec3, Vec3)> {
-        let o = self
-            .distortion
-            .undo([u - self.camera.u0, v - self.camera.v0], self.half_width)?;
-        Some(
-            self.camera
-                .ray(o[0] + self.camera.u0, o[1] + self.camera.v0),
-        )
+        let o = self.distortion.undo([u - self.camera.u0, v - self.camera.v0], self.half_width)?;
+        Some(self.camera.ray(o[0] + self.camera.u0, o[1] + self.camera.v0))
     }
 }
 
@@ -487,21 +457,12 @@ mod tests {
         let rig = Rig::parallel(300.0);
         assert_eq!(rig.project(&[0.0, 0.0, 0.0]), Err(CameraError::BehindLeft));
         assert_eq!(rig.project(&[0.0, 0.0, -5.0]), Err(CameraError::BehindLeft));
-        assert_eq!(
-            rig.project(&[f64::NAN, 0.0, 50.0]),
-            Err(CameraError::NonFinite)
-        );
-        assert_eq!(
-            rig.project_rounded(&[0.0, f64::INFINITY, 50.0]),
-            Err(CameraError::NonFinite)
-        );
+        assert_eq!(rig.project(&[f64::NAN, 0.0, 50.0]), Err(CameraError::NonFinite));
+        assert_eq!(rig.project_rounded(&[0.0, f64::INFINITY, 50.0]), Err(CameraError::NonFinite));
         // Right camera panned so the point is behind only it.
         let mut rig = Rig::parallel(300.0);
         rig.alpha_right = -1.6;
-        assert_eq!(
-            rig.project(&[0.0, 0.0, 10.0]),
-            Err(CameraError::BehindRight)
-        );
+        assert_eq!(rig.project(&[0.0, 0.0, 10.0]), Err(CameraError::BehindRight));
     }
 
     #[test]

@@ -14,11 +14,7 @@ impl EmaAcc {
     /// Adds one (true depth, estimated depth) pair. A non-finite estimate counts as an
     /// infinite error, so a broken estimator can never look good.
     pub fn add(&mut self, z: f64, z_hat: f64) {
-        let abs = if z_hat.is_finite() {
-            libm::fabs(z - z_hat)
-        } else {
-            f64::INFINITY
-        };
+        let abs = if z_hat.is_finite() { libm::fabs(z - z_hat) } else { f64::INFINITY };
         let pct = abs / libm::fabs(z) * 100.0;
         self.sum_abs += abs;
         self.sum_pct += pct;

@@ -53,10 +53,7 @@ fn eye_in_head(j: &Joints, pan_deg: f32) -> Mat3 {
     let neck = neck_rotation(j);
     mat_mul(
         &neck,
-        &mat_mul(
-            &rot_tilt(f64::from(j[Axis::EyeTilt]) * DEG),
-            &rot_pan(f64::from(pan_deg) * DEG),
-        ),
+        &mat_mul(&rot_tilt(f64::from(j[Axis::EyeTilt]) * DEG), &rot_pan(f64::from(pan_deg) * DEG)),
     )
 }
 
@@ -65,10 +62,7 @@ fn eye_in_head(j: &Joints, pan_deg: f32) -> Mat3 {
 /// [`crate::runtime::gaze::platform_to_base`].
 pub fn platform_rotation(angles_deg: [f64; 3]) -> Mat3 {
     mat_mul(
-        &mat_mul(
-            &rot_pan(angles_deg[0] * DEG),
-            &rot_tilt(angles_deg[1] * DEG),
-        ),
+        &mat_mul(&rot_pan(angles_deg[0] * DEG), &rot_tilt(angles_deg[1] * DEG)),
         &rot_tilt(angles_deg[2] * DEG),
     )
 }
@@ -93,11 +87,7 @@ pub fn neck_rotation(j: &Joints) -> Mat3 {
 fn moved_centre(neck: &Mat3, neck_centre: Vec3, home: Vec3) -> Vec3 {
     let rel = sub(home, neck_centre);
     let moved = mat_vec(neck, &rel);
-    [
-        home[0] + (moved[0] - rel[0]),
-        home[1] + (moved[1] - rel[1]),
-        home[2] + (moved[2] - rel[2]),
-    ]
+    [home[0] + (moved[0] - rel[0]), home[1] + (moved[1] - rel[1]), home[2] + (moved[2] - rel[2])]
 }
 
 /// The thesis rig on the five-axis head, with a lens on each camera.
@@ -115,19 +105,12 @@ impl HeadRig {
     /// `rig` with the neck axes through the baseline centre (as [`crate::runtime::gaze::HeadGeometry::DEFAULT`])
     /// and pinhole lenses.
     pub fn new(rig: Rig) -> HeadRig {
-        HeadRig {
-            rig,
-            neck_centre_cm: [0.0; 3],
-            distortion: [Distortion::NONE; 2],
-        }
+        HeadRig { rig, neck_centre_cm: [0.0; 3], distortion: [Distortion::NONE; 2] }
     }
 
     /// The same head with the same lens `(k1, k2)` on both cameras.
     pub fn with_distortion(self, d: Distortion) -> HeadRig {
-        HeadRig {
-            distortion: [d; 2],
-            ..self
-        }
+        HeadRig { distortion: [d; 2], ..self }
     }
 
     /// The left and right cameras at posture `joints` (degrees), in the head frame.
@@ -135,9 +118,7 @@ impl HeadRig {
         let neck = neck_rotation(joints);
         let half_width = f64::from(self.rig.width) / 2.0;
         let mut out = [self.rig.left(), self.rig.right()];
-        for (cam, pan) in out
-            .iter_mut()
-            .zip([joints[Axis::LeftEyePan], joints[Axis::RightEyePan]])
+        for (cam, pan) in out.iter_mut().zip([joints[Axis::LeftEyePan], joints[Axis::RightEyePan]])
         {
             let a = eye_in_head(joints, pan);
             // p_cam = Omega_case A^T (p - c).
@@ -145,16 +126,8 @@ impl HeadRig {
             cam.center = moved_centre(&neck, self.neck_centre_cm, cam.center);
         }
         [
-            LensCamera {
-                camera: out[0],
-                distortion: self.distortion[0],
-                half_width,
-            },
-            LensCamera {
-                camera: out[1],
-                distortion: self.distortion[1],
-                half_width,
-            },
+            LensCamera { camera: out[0], distortion: self.distortion[0], half_width },
+            LensCamera { camera: out[1], distortion: self.distortion[1], half_width },
         ]
     }
 
@@ -181,12 +154,8 @@ impl HeadRig {
             return Err(CameraError::NonFinite);
         }
         let [l, r] = self.cameras(joints);
-        let a = l
-            .project_rounded_noisy(p, [noise[0], noise[1]])
-            .ok_or(CameraError::BehindLeft)?;
-        let b = r
-            .project_rounded_noisy(p, [noise[2], noise[3]])
-            .ok_or(CameraError::BehindRight)?;
+        let a = l.project_rounded_noisy(p, [noise[0], noise[1]]).ok_or(CameraError::BehindLeft)?;
+        let b = r.project_rounded_noisy(p, [noise[2], noise[3]]).ok_or(CameraError::BehindRight)?;
         finite4([a[0], a[1], b[0], b[1]])
     }
 
@@ -211,13 +180,7 @@ pub fn joints_from_gaze(
     version: f32,
     vergence: f32,
 ) -> Joints {
-    Joints([
-        neck_pan,
-        neck_tilt,
-        eye_tilt,
-        version - 0.5 * vergence,
-        version + 0.5 * vergence,
-    ])
+    Joints([neck_pan, neck_tilt, eye_tilt, version - 0.5 * vergence, version + 0.5 * vergence])
 }
 
 /// A box of postures in gaze terms (degrees): neck pan and tilt, conjugate eye tilt, version
@@ -262,20 +225,12 @@ impl PostureRange {
     /// The five `[min, max]` intervals in the order neck pan, neck tilt, eye tilt, version,
     /// vergence.
     pub fn intervals(&self) -> [[f32; 2]; 5] {
-        [
-            self.neck_pan,
-            self.neck_tilt,
-            self.eye_tilt,
-            self.version,
-            self.vergence,
-        ]
+        [self.neck_pan, self.neck_tilt, self.eye_tilt, self.version, self.vergence]
     }
 
     /// Whether every interval is finite with `min <= max`.
     pub fn is_valid(&self) -> bool {
-        self.intervals()
-            .iter()
-            .all(|[lo, hi]| lo.is_finite() && hi.is_finite() && lo <= hi)
+        self.intervals().iter().all(|[lo, hi]| lo.is_finite() && hi.is_finite() && lo <= hi)
     }
 
     /// The posture at fractions `t` (each in `[0, 1]`, clamped) of the five intervals,
@@ -283,11 +238,7 @@ impl PostureRange {
     pub fn at(&self, t: [f64; 5]) -> Joints {
         let iv = self.intervals();
         let g: [f32; 5] = core::array::from_fn(|k| {
-            let f = if t[k].is_nan() {
-                0.0
-            } else {
-                t[k].clamp(0.0, 1.0)
-            };
+            let f = if t[k].is_nan() { 0.0 } else { t[k].clamp(0.0, 1.0) };
             let [lo, hi] = iv[k];
             (f64::from(lo) + (f64::from(hi) - f64::from(lo)) * f) as f32
         });
@@ -308,11 +259,7 @@ impl PostureRange {
             let n = usize::from(levels[k]);
             let i = rest % n;
             rest /= n;
-            t[k] = if n == 1 {
-                0.5
-            } else {
-                i as f64 / (n - 1) as f64
-            };
+            t[k] = if n == 1 { 0.5 } else { i as f64 / (n - 1) as f64 };
         }
         Some(self.at(t))
     }
@@ -320,23 +267,14 @@ impl PostureRange {
     /// The gaze terms `[neck pan, neck tilt, eye tilt, version, vergence]` of `j`.
     pub fn gaze_terms(j: &Joints) -> [f32; 5] {
         let (l, r) = (j[Axis::LeftEyePan], j[Axis::RightEyePan]);
-        [
-            j[Axis::NeckPan],
-            j[Axis::NeckTilt],
-            j[Axis::EyeTilt],
-            0.5 * (l + r),
-            r - l,
-        ]
+        [j[Axis::NeckPan], j[Axis::NeckTilt], j[Axis::EyeTilt], 0.5 * (l + r), r - l]
     }
 
     /// Whether `j`'s gaze terms lie in the box (with `slack` degrees to spare for the step
     /// quantisation).
     pub fn contains(&self, j: &Joints, slack: f32) -> bool {
         let g = Self::gaze_terms(j);
-        self.intervals()
-            .iter()
-            .zip(g)
-            .all(|([lo, hi], v)| v >= lo - slack && v <= hi + slack)
+        self.intervals().iter().zip(g).all(|([lo, hi], v)| v >= lo - slack && v <= hi + slack)
     }
 }
 
@@ -357,14 +295,7 @@ pub fn gaze_frame(joints: &Joints, neck_centre_cm: Vec3, half_baseline: f64) -> 
     let neck = neck_rotation(joints);
     let l = moved_centre(&neck, neck_centre_cm, [-half_baseline, 0.0, 0.0]);
     let r = moved_centre(&neck, neck_centre_cm, [half_baseline, 0.0, 0.0]);
-    (
-        [
-            0.5 * (l[0] + r[0]),
-            0.5 * (l[1] + r[1]),
-            0.5 * (l[2] + r[2]),
-        ],
-        rot,
-    )
+    ([0.5 * (l[0] + r[0]), 0.5 * (l[1] + r[1]), 0.5 * (l[2] + r[2])], rot)
 }
 
 /// `origin + rotation q`: a point of a frame returned by [`gaze_frame`] in the head frame.
@@ -449,10 +380,7 @@ mod tests {
             assert_eq!(l.camera, rig.left(), "case {n}");
             assert_eq!(r.camera, rig.right(), "case {n}");
             // Also with the neck centre away from the baseline.
-            let head = HeadRig {
-                neck_centre_cm: [0.3, 6.1, -4.7],
-                ..head
-            };
+            let head = HeadRig { neck_centre_cm: [0.3, 6.1, -4.7], ..head };
             for z in [65.0, 97.3, 165.0] {
                 for p in presets::board_points(z) {
                     assert_eq!(
@@ -471,18 +399,12 @@ mod tests {
         let ten = 10.0f64.to_radians();
         for n in [1, 3, 4] {
             let rig = presets::case(n).unwrap();
-            let head = HeadRig {
-                neck_centre_cm: [0.0, 6.0, -4.0],
-                ..HeadRig::new(rig)
-            };
+            let head = HeadRig { neck_centre_cm: [0.0, 6.0, -4.0], ..HeadRig::new(rig) };
             let [l, r] = head.cameras(&joints([0.0, 0.0, 0.0, 10.0, 0.0]));
             assert_eq!(r.camera, rig.right());
             assert_eq!(l.camera.center, rig.left().center);
             // p_cam = Omega_case Pan(10)^T p = Omega_case Omega(10 deg, 0, 0) p.
-            let want = mat_mul(
-                &omega(rig.alpha_left, rig.beta0, rig.phi0),
-                &omega(ten, 0.0, 0.0),
-            );
+            let want = mat_mul(&omega(rig.alpha_left, rig.beta0, rig.phi0), &omega(ten, 0.0, 0.0));
             assert!(mat_close(&l.camera.rotation, &want, 1e-15), "case {n}");
         }
         // Parallel rig: the optic axis turns 10 degrees towards -X.
@@ -496,26 +418,16 @@ mod tests {
     #[test]
     fn neck_pan_rotates_both_centres_about_the_neck_axis() {
         // Neck centre 6 cm below and 4 cm behind the baseline centre; neck pan 30 degrees.
-        let head = HeadRig {
-            neck_centre_cm: [0.0, 6.0, -4.0],
-            ..HeadRig::new(Rig::parallel(300.0))
-        };
+        let head =
+            HeadRig { neck_centre_cm: [0.0, 6.0, -4.0], ..HeadRig::new(Rig::parallel(300.0)) };
         let [l, r] = head.cameras(&joints([30.0, 0.0, 0.0, 0.0, 0.0]));
         // By hand: c' = n + Pan(30) (c - n), Pan = [[cos, 0, -sin], [0, 1, 0], [sin, 0, cos]].
         // Left: c - n = (-5.25, -6, 4) -> (-5.25 cos30 - 4 sin30, -6, -5.25 sin30 + 4 cos30).
         let want_l = [-6.546_633_369_868_303, 0.0, -3.160_898_384_862_245_6];
         let want_r = [2.546_633_369_868_303, 0.0, 2.089_101_615_137_754_6];
         for k in 0..3 {
-            assert!(
-                close(l.camera.center[k], want_l[k], 1e-12),
-                "{:?}",
-                l.camera
-            );
-            assert!(
-                close(r.camera.center[k], want_r[k], 1e-12),
-                "{:?}",
-                r.camera
-            );
+            assert!(close(l.camera.center[k], want_l[k], 1e-12), "{:?}", l.camera);
+            assert!(close(r.camera.center[k], want_r[k], 1e-12), "{:?}", r.camera);
         }
         // Both cameras turned by the same 30 degrees.
         let want = omega(30.0f64.to_radians(), 0.0, 0.0);
@@ -535,22 +447,14 @@ mod tests {
         // The optic axis points 10 degrees down (+Y): a point on it images at the principal point.
         let b = 10.0f64.to_radians();
         let p = [-5.25, 100.0 * b.sin(), 100.0 * b.cos()];
-        let px = head
-            .project(&joints([0.0, 0.0, 10.0, 0.0, 0.0]), &p)
-            .unwrap();
-        assert!(
-            close(px[0], 320.0, 1e-9) && close(px[1], 240.0, 1e-9),
-            "{px:?}"
-        );
+        let px = head.project(&joints([0.0, 0.0, 10.0, 0.0, 0.0]), &p).unwrap();
+        assert!(close(px[0], 320.0, 1e-9) && close(px[1], 240.0, 1e-9), "{px:?}");
     }
 
     #[test]
     fn neck_moves_the_head_rigidly() {
         // A point fixed to the head images the same at every neck posture.
-        let head = HeadRig {
-            neck_centre_cm: [0.5, 6.0, -4.0],
-            ..HeadRig::new(presets::CASE_4)
-        };
+        let head = HeadRig { neck_centre_cm: [0.5, 6.0, -4.0], ..HeadRig::new(presets::CASE_4) };
         let eyes = [2.0, -3.0, 4.5];
         let home = joints([0.0, 0.0, eyes[0], eyes[1], eyes[2]]);
         let q = [2.0, -1.0, 90.0];
@@ -561,10 +465,7 @@ mod tests {
             let p = to_head(&(head.neck_centre_cm, n), &sub(q, head.neck_centre_cm));
             let px = head.project(&j, &p).unwrap();
             for k in 0..4 {
-                assert!(
-                    close(px[k], at_home[k], 1e-9),
-                    "{pan} {tilt}: {px:?} vs {at_home:?}"
-                );
+                assert!(close(px[k], at_home[k], 1e-9), "{pan} {tilt}: {px:?} vs {at_home:?}");
             }
         }
     }
@@ -668,10 +569,7 @@ mod tests {
         let rig = presets::CASE_3;
         let plain = HeadRig::new(rig).with_distortion(Distortion::NONE);
         let p = [2.5, -1.5, 77.0];
-        assert_eq!(
-            plain.project_rounded(&Joints::HOME, &p),
-            rig.project_rounded(&p)
-        );
+        assert_eq!(plain.project_rounded(&Joints::HOME, &p), rig.project_rounded(&p));
     }
 
     #[test]
@@ -679,24 +577,13 @@ mod tests {
         let head = HeadRig::new(Rig::parallel(300.0));
         let p = [0.0, 0.0, 100.0]; // left: 300 * 5.25 / 100 = 15.75
         let j = Joints::HOME;
-        assert_eq!(
-            head.project_rounded_noisy(&j, &p, &[0.3, 0.0, 0.0, 0.0])
-                .unwrap()[0],
-            336.0
-        );
-        assert_eq!(
-            head.project_rounded_noisy(&j, &p, &[-0.3, 0.0, 0.0, 0.0])
-                .unwrap()[0],
-            335.0
-        );
+        assert_eq!(head.project_rounded_noisy(&j, &p, &[0.3, 0.0, 0.0, 0.0]).unwrap()[0], 336.0);
+        assert_eq!(head.project_rounded_noisy(&j, &p, &[-0.3, 0.0, 0.0, 0.0]).unwrap()[0], 335.0);
         assert_eq!(
             head.project_rounded_noisy(&j, &p, &[f64::NAN, 0.0, 0.0, 0.0]),
             Err(CameraError::NonFinite)
         );
-        assert_eq!(
-            head.project(&j, &[0.0, 0.0, -1.0]),
-            Err(CameraError::BehindLeft)
-        );
+        assert_eq!(head.project(&j, &[0.0, 0.0, -1.0]), Err(CameraError::BehindLeft));
     }
 
     #[test]
@@ -710,10 +597,8 @@ mod tests {
         // both cameras see it at their principal points.
         let d = 80.0f64;
         let verg = (2.0 * (5.25 / d).atan()).to_degrees() as f32;
-        let head = HeadRig {
-            neck_centre_cm: [0.0, 6.0, -4.0],
-            ..HeadRig::new(Rig::parallel(300.0))
-        };
+        let head =
+            HeadRig { neck_centre_cm: [0.0, 6.0, -4.0], ..HeadRig::new(Rig::parallel(300.0)) };
         let j = joints_from_gaze(20.0, -10.0, 5.0, 0.0, verg);
         assert!(close(
             f64::from(j[Axis::RightEyePan] - j[Axis::LeftEyePan]),
@@ -737,23 +622,11 @@ mod tests {
         assert_eq!(w.grid(levels, 324), None);
         // First: every interval at its low end; last: every one at its high end.
         let q = crate::runtime::gaze::quantize;
-        assert_eq!(
-            all[0],
-            Joints([q(-30.0), q(-20.0), q(-15.0), q(-15.0), q(-15.0)])
-        );
-        assert_eq!(
-            all[323],
-            Joints([q(30.0), q(20.0), q(15.0), q(10.0), q(20.0)])
-        );
-        assert_eq!(
-            all[0].0.map(|v| (v / 0.18).round()),
-            [-167.0, -111.0, -83.0, -83.0, -83.0]
-        );
+        assert_eq!(all[0], Joints([q(-30.0), q(-20.0), q(-15.0), q(-15.0), q(-15.0)]));
+        assert_eq!(all[323], Joints([q(30.0), q(20.0), q(15.0), q(10.0), q(20.0)]));
+        assert_eq!(all[0].0.map(|v| (v / 0.18).round()), [-167.0, -111.0, -83.0, -83.0, -83.0]);
         // Vergence varies fastest, on its 4 levels 0, 3.33, 6.67, 10 (quantised).
-        let verg: Vec<f32> = all[..4]
-            .iter()
-            .map(|j| PostureRange::gaze_terms(j)[4])
-            .collect();
+        let verg: Vec<f32> = all[..4].iter().map(|j| PostureRange::gaze_terms(j)[4]).collect();
         for (v, want) in verg.iter().zip([0.0f32, 3.33, 6.67, 10.0]) {
             assert!((v - want).abs() <= 0.18, "{verg:?}");
         }
@@ -771,16 +644,9 @@ mod tests {
             }
         }
         // One level sits in the middle; the home range gives home.
-        assert_eq!(
-            w.grid([1; 5], 0),
-            Some(Joints([0.0, 0.0, 0.0, q(-2.5), q(2.5)]))
-        );
+        assert_eq!(w.grid([1; 5], 0), Some(Joints([0.0, 0.0, 0.0, q(-2.5), q(2.5)])));
         assert_eq!(PostureRange::HOME.at([0.3; 5]), Joints::HOME);
-        assert!(!PostureRange {
-            vergence: [2.0, 1.0],
-            ..w
-        }
-        .is_valid());
+        assert!(!PostureRange { vergence: [2.0, 1.0], ..w }.is_valid());
         assert!(!w.contains(&Joints([40.0, 0.0, 0.0, 0.0, 0.0]), 0.18));
     }
 }

@@ -32,23 +32,10 @@ pub const CASE_1: Rig = rig(285.836, 285.350_078_8, 0.0, 0.0, 0.0, 0.0);
 /// Case II: parallel optic axes, distinct focal lengths.
 pub const CASE_2: Rig = rig(285.836, 406.887_546, 0.0, 0.0, 0.0, 0.0);
 /// Case III: slight deflection between the optic axes (pan, tilt, roll).
-pub const CASE_3: Rig = rig(
-    285.836,
-    285.350_078_8,
-    -0.0299,
-    0.0299,
-    ONE_HALF_DEG,
-    ONE_HALF_DEG,
-);
+pub const CASE_3: Rig = rig(285.836, 285.350_078_8, -0.0299, 0.0299, ONE_HALF_DEG, ONE_HALF_DEG);
 /// Case IV: distinct focal lengths and deflected optic axes.
-pub const CASE_4: Rig = rig(
-    285.836,
-    228.668_800_000_000_03,
-    -0.0455,
-    0.0455,
-    ONE_HALF_DEG,
-    ONE_HALF_DEG,
-);
+pub const CASE_4: Rig =
+    rig(285.836, 228.668_800_000_000_03, -0.0455, 0.0455, ONE_HALF_DEG, ONE_HALF_DEG);
 
 /// Human-readable labels of the cases.
 pub const LABELS: [&str; 4] = [
@@ -78,9 +65,8 @@ pub const TRAIN_DEPTHS: [f64; 6] = [65.0, 85.0, 105.0, 125.0, 145.0, 165.0];
 /// The two test points P1, P2 (X, Y in cm).
 pub const TEST_POINTS_XY: [[f64; 2]; 2] = [[-1.75, 0.0], [1.75, 0.0]];
 /// Depths of the test boards (cm).
-pub const TEST_DEPTHS: [f64; 11] = [
-    65.0, 75.0, 85.0, 95.0, 105.0, 115.0, 125.0, 135.0, 145.0, 155.0, 165.0,
-];
+pub const TEST_DEPTHS: [f64; 11] =
+    [65.0, 75.0, 85.0, 95.0, 105.0, 115.0, 125.0, 135.0, 145.0, 155.0, 165.0];
 
 /// The 12 training-board points at depth `z`, row by row (Y outer, X inner), as in the data files.
 pub fn board_points(z: f64) -> [[f64; 3]; 12] {
@@ -105,35 +91,16 @@ mod tests {
         for n in 1..=4 {
             let rig = case(n).unwrap();
             for p in [[-3.0, -2.0, 65.0], [1.75, 0.0, 165.0], [2.9, 1.3, 97.3]] {
-                assert_eq!(
-                    rig.project_rounded_noisy(&p, &[0.0; 4]),
-                    rig.project_rounded(&p)
-                );
+                assert_eq!(rig.project_rounded_noisy(&p, &[0.0; 4]), rig.project_rounded(&p));
             }
         }
         // Parallel rig, Phi X / Z = 15.75 on the left: +0.3 px of noise rounds to 16, -0.3 to 15.
         let rig = Rig::parallel(300.0);
         let p = [0.0, 0.0, 100.0];
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[0.3, 0.0, 0.0, 0.0])
-                .unwrap()[0],
-            336.0
-        );
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[-0.3, 0.0, 0.0, 0.0])
-                .unwrap()[0],
-            335.0
-        );
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[0.0, -0.6, 0.0, 0.0])
-                .unwrap()[1],
-            239.0
-        );
-        assert_eq!(
-            rig.project_rounded_noisy(&p, &[0.0, 0.0, 0.0, 1.6])
-                .unwrap()[3],
-            242.0
-        );
+        assert_eq!(rig.project_rounded_noisy(&p, &[0.3, 0.0, 0.0, 0.0]).unwrap()[0], 336.0);
+        assert_eq!(rig.project_rounded_noisy(&p, &[-0.3, 0.0, 0.0, 0.0]).unwrap()[0], 335.0);
+        assert_eq!(rig.project_rounded_noisy(&p, &[0.0, -0.6, 0.0, 0.0]).unwrap()[1], 239.0);
+        assert_eq!(rig.project_rounded_noisy(&p, &[0.0, 0.0, 0.0, 1.6]).unwrap()[3], 242.0);
         assert_eq!(
             rig.project_rounded_noisy(&p, &[f64::NAN, 0.0, 0.0, 0.0]),
             Err(CameraError::NonFinite)

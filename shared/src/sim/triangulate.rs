@@ -15,10 +15,7 @@ use crate::sim::camera::{LensCamera, Rig, StereoPixels, Vec3};
 /// The two cameras of a thesis rig at home, as pinhole [`LensCamera`]s.
 pub fn rig_cameras(rig: &Rig) -> [LensCamera; 2] {
     let half_width = f64::from(rig.width) / 2.0;
-    [
-        LensCamera::pinhole(rig.left(), half_width),
-        LensCamera::pinhole(rig.right(), half_width),
-    ]
+    [LensCamera::pinhole(rig.left(), half_width), LensCamera::pinhole(rig.right(), half_width)]
 }
 
 /// [`midpoint`] with the cameras of a thesis rig.
@@ -74,10 +71,7 @@ fn reprojection(
         // d o / d p (2x3).
         let r = &cam.rotation;
         let mut jo = [[0.0; 3]; 2];
-        for (row, (phi, ci)) in [(cam.phi_u, 0usize), (cam.phi_v, 1usize)]
-            .into_iter()
-            .enumerate()
-        {
+        for (row, (phi, ci)) in [(cam.phi_u, 0usize), (cam.phi_v, 1usize)].into_iter().enumerate() {
             for m in 0..3 {
                 jo[row][m] = phi * (r[ci][m] * c[2] - c[ci] * r[2][m]) * iz * iz;
             }
@@ -92,10 +86,8 @@ fn reprojection(
         if let Some((jtj, jtr)) = jac.as_mut() {
             // d d / d o = f I + (2 f' / hw^2) o o^T.
             let g = 2.0 * df / hw2;
-            let dd = [
-                [f + g * o[0] * o[0], g * o[0] * o[1]],
-                [g * o[1] * o[0], f + g * o[1] * o[1]],
-            ];
+            let dd =
+                [[f + g * o[0] * o[0], g * o[0] * o[1]], [g * o[1] * o[0], f + g * o[1] * o[1]]];
             for row in 0..2 {
                 let mut j = [0.0; 3];
                 for (m, jm) in j.iter_mut().enumerate() {
@@ -225,12 +217,7 @@ mod tests {
         let rig = Rig::parallel(300.0);
         let p = [4.0, -3.0, 80.0];
         let px = rig.project(&p).unwrap();
-        let cal = Calibration {
-            phi: 300.0,
-            half_baseline: 5.25,
-            u0: 320.0,
-            v0: 240.0,
-        };
+        let cal = Calibration { phi: 300.0, half_baseline: 5.25, u0: 320.0, v0: 240.0 };
         let q = traditional_xyz(&cal, &px.map(|v| v as f32)).unwrap();
         for k in 0..3 {
             assert!((q[k] as f64 - p[k]).abs() < 1e-3, "{q:?}");
@@ -244,10 +231,7 @@ mod tests {
             Err(TriError::NonFinite)
         );
         let bad = Calibration { phi: 0.0, ..cal };
-        assert_eq!(
-            traditional_xyz(&bad, &[330.0, 240.0, 310.0, 240.0]),
-            Err(TriError::NonFinite)
-        );
+        assert_eq!(traditional_xyz(&bad, &[330.0, 240.0, 310.0, 240.0]), Err(TriError::NonFinite));
     }
 
     proptest::proptest! {

@@ -24,33 +24,28 @@ pub fn census(img: &GrayImage) -> Vec<u64> {
     for (py, row) in pad.chunks_exact_mut(pw).enumerate() {
         let y = py.saturating_sub(hh).min(h - 1);
         let src = &px[y * w..(y + 1) * w];
-        for (px_out, x) in row
-            .iter_mut()
-            .zip((0..pw).map(|x| x.saturating_sub(hw).min(w - 1)))
-        {
+        for (px_out, x) in row.iter_mut().zip((0..pw).map(|x| x.saturating_sub(hw).min(w - 1))) {
             *px_out = src[x];
         }
     }
     let mut out = vec![0u64; w * h];
-    out.par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            let centre = &pad[(y + hh) * pw + hw..(y + hh) * pw + hw + w];
-            let mut acc = vec![0u64; w];
-            for j in 0..2 * hh + 1 {
-                let r = &pad[(y + j) * pw..(y + j + 1) * pw];
-                for i in 0..2 * hw + 1 {
-                    if j == hh && i == hw {
-                        continue;
-                    }
-                    let shifted = &r[i..i + w];
-                    for ((a, &n), &c) in acc.iter_mut().zip(shifted).zip(centre) {
-                        *a = (*a << 1) | u64::from(n < c);
-                    }
+    out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+        let centre = &pad[(y + hh) * pw + hw..(y + hh) * pw + hw + w];
+        let mut acc = vec![0u64; w];
+        for j in 0..2 * hh + 1 {
+            let r = &pad[(y + j) * pw..(y + j + 1) * pw];
+            for i in 0..2 * hw + 1 {
+                if j == hh && i == hw {
+                    continue;
+                }
+                let shifted = &r[i..i + w];
+                for ((a, &n), &c) in acc.iter_mut().zip(shifted).zip(centre) {
+                    *a = (*a << 1) | u64::from(n < c);
                 }
             }
-            row.copy_from_slice(&acc);
-        });
+        }
+        row.copy_from_slice(&acc);
+    });
     out
 }
 

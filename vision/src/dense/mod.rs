@@ -218,11 +218,8 @@ impl Geo {
         // u = x + sign (d_min + k) in 0..w.
         let (w, d) = (self.w as i64, self.d as i64);
         let base = x as i64 + i64::from(self.sign) * i64::from(self.d_min);
-        let (mut lo, mut hi) = if self.sign < 0 {
-            (base - (w - 1), base)
-        } else {
-            (-base, w - 1 - base)
-        };
+        let (mut lo, mut hi) =
+            if self.sign < 0 { (base - (w - 1), base) } else { (-base, w - 1 - base) };
         lo = lo.max(0);
         hi = hi.min(d - 1);
         while lo <= hi && self.target(x, line, lo as usize).is_none() {
@@ -273,16 +270,12 @@ fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> Vec<u8> {
 /// image, within 0.01 px, at the four corners).
 fn is_rectified(f: &Fundamental, w: usize, h: usize) -> bool {
     let (w, h) = (w as f64 - 1.0, h as f64 - 1.0);
-    [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]]
-        .iter()
-        .all(|&[x, y]| {
-            let l = f.line_in_right([x, y]);
-            l[1] != 0.0
-                && (l[0] / l[1]).abs() < 1e-5
-                && [0.0, w]
-                    .iter()
-                    .all(|&u| ((-(l[0] * u + l[2]) / l[1]) - y).abs() < 0.01)
-        })
+    [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]].iter().all(|&[x, y]| {
+        let l = f.line_in_right([x, y]);
+        l[1] != 0.0
+            && (l[0] / l[1]).abs() < 1e-5
+            && [0.0, w].iter().all(|&u| ((-(l[0] * u + l[2]) / l[1]) - y).abs() < 0.01)
+    })
 }
 
 /// Matches every pixel of `left` in `right` (same size) with `f` (`r^T F l = 0`) over the
@@ -329,14 +322,7 @@ pub fn dense_match(
     }
     let (cl, cr) = rayon::join(|| census::census(left), || census::census(right));
     let pen = penalties(params);
-    let lgeo = Geo {
-        m: f.m,
-        sign: -1,
-        d_min: d_range[0],
-        d,
-        w,
-        h,
-    };
+    let lgeo = Geo { m: f.m, sign: -1, d_min: d_range[0], d, w, h };
     let cost = cost_volume(&lgeo, &cl, &cr);
     let sum = sgm::aggregate(&cost, left.as_raw(), w, h, d, &pen);
     drop(cost);
@@ -347,27 +333,14 @@ pub fn dense_match(
     } else {
         drop(sum);
         let mt = core::array::from_fn(|i| core::array::from_fn(|j| f.m[j][i]));
-        let rgeo = Geo {
-            m: mt,
-            sign: 1,
-            ..lgeo
-        };
+        let rgeo = Geo { m: mt, sign: 1, ..lgeo };
         let cost = cost_volume(&rgeo, &cr, &cl);
         let sum = sgm::aggregate(&cost, right.as_raw(), w, h, d, &pen);
         drop(cost);
-        post::winners(&rgeo, &sum, 0.0)
-            .into_iter()
-            .map(|b| b.map(|b| b.disparity))
-            .collect()
+        post::winners(&rgeo, &sum, 0.0).into_iter().map(|b| b.map(|b| b.disparity)).collect()
     };
     post::left_right_check(&lgeo, &mut best, &right_disp, params.lr_tolerance_px);
-    post::speckle_filter(
-        w,
-        h,
-        &mut best,
-        params.speckle_size,
-        params.speckle_range_px,
-    );
+    post::speckle_filter(w, h, &mut best, params.speckle_size, params.speckle_range_px);
     post::refine(&lgeo, left.as_raw(), right.as_raw(), &mut best);
     Ok(post::to_map(&lgeo, &best, params.lr_tolerance_px))
 }
@@ -381,11 +354,7 @@ fn penalties(p: &DenseParams) -> sgm::Penalties {
             *v = (s.round() as i16).max(p.p1 as i16 + 1);
         }
     }
-    sgm::Penalties {
-        p1: p.p1 as i16,
-        p2,
-        eight: p.eight_paths,
-    }
+    sgm::Penalties { p1: p.p1 as i16, p2, eight: p.eight_paths }
 }
 
 #[cfg(test)]
@@ -395,9 +364,7 @@ mod tests {
     #[test]
     fn bad_input_is_refused_with_its_field() {
         let img = GrayImage::new(20, 10);
-        let f = Fundamental {
-            m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
-        };
+        let f = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
         let p = DenseParams::default();
         let e = dense_match(&img, &GrayImage::new(21, 10), &f, [0, 4], &p).unwrap_err();
         assert!(e.to_string().starts_with("right: image is 21x10"), "{e}");
@@ -420,13 +387,9 @@ mod tests {
 
     #[test]
     fn rectified_pairs_are_recognised() {
-        let f = Fundamental {
-            m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
-        };
+        let f = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
         assert!(is_rectified(&f, 100, 80));
-        let shifted = Fundamental {
-            m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 2.0]],
-        };
+        let shifted = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 2.0]] };
         assert!(!is_rectified(&shifted, 100, 80));
     }
 }

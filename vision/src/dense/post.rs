@@ -54,21 +54,13 @@ pub(crate) fn winners(geo: &Geo, sum: &[i16], uniqueness: f32) -> Vec<Option<Bes
             }
             let below = s[lo..k1 - 1].iter().copied().min();
             let above = s.get(k1 + 2..hi + 1).and_then(|r| r.iter().copied().min());
-            let s2 = below
-                .into_iter()
-                .chain(above)
-                .min()
-                .map_or(i32::MAX, i32::from);
+            let s2 = below.into_iter().chain(above).min().map_or(i32::MAX, i32::from);
             if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
                 continue;
             }
             let offset = subpixel(i32::from(s[k1 - 1]), s1, i32::from(s[k1 + 1]));
-            *slot = Some(Best {
-                disparity: (geo.d_min as f32) + k1 as f32 + offset,
-                s1,
-                s2,
-                lr: 0.0,
-            });
+            *slot =
+                Some(Best { disparity: (geo.d_min as f32) + k1 as f32 + offset, s1, s2, lr: 0.0 });
         }
     });
     out
@@ -98,13 +90,12 @@ pub(crate) fn right_from_left_volume(geo: &Geo, sum: &[i16]) -> Vec<Option<f32>>
                     let x = xr as i64 + i64::from(geo.d_min) + k as i64;
                     (x >= 0 && x < w as i64).then(|| i32::from(sum[(y * w + x as usize) * d + k]))
                 };
-                let offset = match (
-                    k.checked_sub(1).and_then(at),
-                    (k + 1 < d).then(|| at(k + 1)).flatten(),
-                ) {
-                    (Some(a), Some(c)) => subpixel(a, i32::from(s1), c),
-                    _ => 0.0,
-                };
+                let offset =
+                    match (k.checked_sub(1).and_then(at), (k + 1 < d).then(|| at(k + 1)).flatten())
+                    {
+                        (Some(a), Some(c)) => subpixel(a, i32::from(s1), c),
+                        _ => 0.0,
+                    };
                 (geo.d_min as f32) + k as f32 + offset
             });
         }
@@ -344,27 +335,17 @@ pub(crate) fn refine(geo: &Geo, left: &[u8], right: &[u8], best: &mut [Option<Be
 /// 0.2 (capped at 1), times `1 - lr / (2 tol)` (the left-right disagreement `lr` against the
 /// check's tolerance `tol`).
 pub fn confidence(s1: i32, s2: i32, lr: f32, tol: f32) -> f32 {
-    let margin = if s2 == i32::MAX || s2 <= 0 {
-        1.0
-    } else {
-        ((s2 - s1) as f32 / s2 as f32).max(0.0)
-    };
-    let agree = if tol > 0.0 {
-        1.0 - 0.5 * (lr / tol).min(1.0)
-    } else {
-        1.0
-    };
+    let margin =
+        if s2 == i32::MAX || s2 <= 0 { 1.0 } else { ((s2 - s1) as f32 / s2 as f32).max(0.0) };
+    let agree = if tol > 0.0 { 1.0 - 0.5 * (lr / tol).min(1.0) } else { 1.0 };
     ((margin / 0.2).min(1.0) * agree).clamp(0.0, 1.0)
 }
 
 /// The winners as right-image pixels.
 pub(crate) fn to_map(geo: &Geo, best: &[Option<Best>], tol: f32) -> DenseMap {
     let n = geo.w * geo.h;
-    let (mut ur, mut vr, mut conf) = (
-        vec![f32::INFINITY; n],
-        vec![f32::INFINITY; n],
-        vec![0.0f32; n],
-    );
+    let (mut ur, mut vr, mut conf) =
+        (vec![f32::INFINITY; n], vec![f32::INFINITY; n], vec![0.0f32; n]);
     for (p, b) in best.iter().enumerate() {
         let Some(b) = b else { continue };
         let (x, y) = (p % geo.w, p / geo.w);
@@ -376,13 +357,7 @@ pub(crate) fn to_map(geo: &Geo, best: &[Option<Best>], tol: f32) -> DenseMap {
         vr[p] = (alpha + beta * u) as f32;
         conf[p] = confidence(b.s1, b.s2, b.lr, tol);
     }
-    DenseMap {
-        width: geo.w as u32,
-        height: geo.h as u32,
-        ur,
-        vr,
-        conf,
-    }
+    DenseMap { width: geo.w as u32, height: geo.h as u32, ur, vr, conf }
 }
 
 #[cfg(test)]
@@ -405,10 +380,8 @@ mod tests {
                 let ok = window_samples(&img, w, h, x, y, &mut out);
                 let want: Vec<Option<f64>> = (0..REFINE_SIDE * REFINE_SIDE)
                     .map(|k| {
-                        let (i, j) = (
-                            (k % REFINE_SIDE) as f64 - half,
-                            (k / REFINE_SIDE) as f64 - half,
-                        );
+                        let (i, j) =
+                            ((k % REFINE_SIDE) as f64 - half, (k / REFINE_SIDE) as f64 - half);
                         bilinear(&img, w, h, x + i, y + j)
                     })
                     .collect();
@@ -426,12 +399,7 @@ mod tests {
     }
 
     fn best(d: f32) -> Option<Best> {
-        Some(Best {
-            disparity: d,
-            s1: 1,
-            s2: 10,
-            lr: 0.0,
-        })
+        Some(Best { disparity: d, s1: 1, s2: 10, lr: 0.0 })
     }
 
     #[test]

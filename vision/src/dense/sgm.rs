@@ -100,14 +100,7 @@ fn pass(
                     Some(fx) if yi > 0 => {
                         let q = at(fx, yi - 1);
                         let pv = &prev[(slot * w + fx) * d..(slot * w + fx + 1) * d];
-                        step(
-                            pv,
-                            prev_min[slot * w + fx],
-                            c,
-                            pen.p1,
-                            pen.p2[grey_diff(p, q)],
-                            out,
-                        )
+                        step(pv, prev_min[slot * w + fx], c, pen.p1, pen.p2[grey_diff(p, q)], out)
                     }
                     _ => {
                         for (o, &cc) in out.iter_mut().zip(c) {
@@ -145,13 +138,11 @@ pub fn aggregate(
         || pass(cost, img, (w, h, d), pen, true, &mut bwd),
     );
     use rayon::prelude::*;
-    fwd.par_chunks_mut(1 << 16)
-        .zip(bwd.par_chunks(1 << 16))
-        .for_each(|(a, b)| {
-            for (x, &y) in a.iter_mut().zip(b) {
-                *x += y;
-            }
-        });
+    fwd.par_chunks_mut(1 << 16).zip(bwd.par_chunks(1 << 16)).for_each(|(a, b)| {
+        for (x, &y) in a.iter_mut().zip(b) {
+            *x += y;
+        }
+    });
     fwd
 }
 
@@ -160,11 +151,7 @@ mod tests {
     use super::*;
 
     fn pen(eight: bool) -> Penalties {
-        Penalties {
-            p1: 3,
-            p2: [20; 256],
-            eight,
-        }
+        Penalties { p1: 3, p2: [20; 256], eight }
     }
 
     #[test]

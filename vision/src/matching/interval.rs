@@ -30,11 +30,9 @@ pub fn model_disparity_interval(
     d_range: [f64; 2],
 ) -> Option<(f64, f64)> {
     let [a, b, c] = line;
-    let finite = [
-        ul, vl, a, b, c, z_range[0], z_range[1], d_range[0], d_range[1],
-    ]
-    .iter()
-    .all(|x| x.is_finite());
+    let finite = [ul, vl, a, b, c, z_range[0], z_range[1], d_range[0], d_range[1]]
+        .iter()
+        .all(|x| x.is_finite());
     if !finite || z_range[0] > z_range[1] || d_range[0] > d_range[1] || b.abs() < a.abs() {
         return None;
     }
@@ -63,10 +61,7 @@ pub fn model_disparity_interval(
         }
     }
     kept.map(|(lo, hi)| {
-        (
-            (lo - MODEL_SCAN_STEP_PX).max(d_range[0]),
-            (hi + MODEL_SCAN_STEP_PX).min(d_range[1]),
-        )
+        ((lo - MODEL_SCAN_STEP_PX).max(d_range[0]), (hi + MODEL_SCAN_STEP_PX).min(d_range[1]))
     })
 }
 

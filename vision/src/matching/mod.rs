@@ -143,12 +143,7 @@ pub struct Match {
 
 impl Match {
     fn fail(status: MatchStatus) -> Match {
-        Match {
-            ur: f64::NAN,
-            vr: f64::NAN,
-            score: f64::NAN,
-            status,
-        }
+        Match { ur: f64::NAN, vr: f64::NAN, score: f64::NAN, status }
     }
 
     /// Whether the match is usable (`status == Ok`).
@@ -205,10 +200,7 @@ impl Matcher {
             return Err(InvalidField::new("left", "image is empty"));
         }
         if !f.m.iter().flatten().all(|x| x.is_finite()) || f.m.iter().flatten().all(|&x| x == 0.0) {
-            return Err(InvalidField::new(
-                "fundamental",
-                "must be finite and not all zero",
-            ));
+            return Err(InvalidField::new("fundamental", "must be finite and not all zero"));
         }
         Ok(Matcher {
             left: Plane::new(left),
@@ -228,10 +220,7 @@ impl Matcher {
     /// Matches every query in order, on the calling thread.
     pub fn find_all(&self, queries: &[Query]) -> Vec<Match> {
         let mut buf = Vec::new();
-        queries
-            .iter()
-            .map(|q| self.find_with(q, &mut buf))
-            .collect()
+        queries.iter().map(|q| self.find_with(q, &mut buf)).collect()
     }
 }
 
@@ -263,18 +252,13 @@ mod tests {
         let (lo, hi) =
             model_disparity_interval(model, 300.0, 50.0, row, [50.0, 100.0], [0.0, 80.0]).unwrap();
         // Z in 47.5..102.5 cm: d in 9.76..21.05 px, plus one step.
-        assert!(
-            (lo - 9.5).abs() < 0.26 && (hi - 21.25).abs() < 0.26,
-            "{lo} {hi}"
-        );
+        assert!((lo - 9.5).abs() < 0.26 && (hi - 21.25).abs() < 0.26, "{lo} {hi}");
         // Nothing inside: None; bad input: None.
         assert!(
             model_disparity_interval(model, 300.0, 50.0, row, [500.0, 600.0], [0.0, 1.0]).is_none()
         );
-        assert!(
-            model_disparity_interval(model, f64::NAN, 50.0, row, [50.0, 100.0], [0.0, 80.0])
-                .is_none()
-        );
+        assert!(model_disparity_interval(model, f64::NAN, 50.0, row, [50.0, 100.0], [0.0, 80.0])
+            .is_none());
         assert!(model_disparity_interval(
             model,
             300.0,
@@ -284,10 +268,8 @@ mod tests {
             [0.0, 80.0]
         )
         .is_none());
-        assert!(
-            model_disparity_interval(|_| None, 300.0, 50.0, row, [50.0, 100.0], [0.0, 80.0])
-                .is_none()
-        );
+        assert!(model_disparity_interval(|_| None, 300.0, 50.0, row, [50.0, 100.0], [0.0, 80.0])
+            .is_none());
     }
 
     #[test]
@@ -309,16 +291,8 @@ mod tests {
         let mut t = vec![0.0f32; 98];
         let w = Win::shifted(3, 0, 0);
         for gamma in [0.0, 10.0] {
-            let std = template(
-                &p,
-                20.3,
-                14.6,
-                w,
-                [1.0, 1.0],
-                &weight_lut(gamma, 0.2),
-                &mut t,
-            )
-            .unwrap();
+            let std =
+                template(&p, 20.3, 14.6, w, [1.0, 1.0], &weight_lut(gamma, 0.2), &mut t).unwrap();
             assert!(std > 1.0);
             let (a, wt) = t.split_at(49);
             let s: f32 = a.iter().sum();
@@ -326,16 +300,7 @@ mod tests {
             let ss: f32 = a.iter().zip(wt).map(|(x, w)| x * x / w).sum();
             assert!(s.abs() < 1e-4 && (ws - 1.0).abs() < 1e-4 && (ss - 1.0).abs() < 1e-3);
             // The same window correlates with itself at 1, and not with its neighbour.
-            template(
-                &p,
-                20.0,
-                14.0,
-                w,
-                [1.0, 1.0],
-                &weight_lut(gamma, 0.2),
-                &mut t,
-            )
-            .unwrap();
+            template(&p, 20.0, 14.0, w, [1.0, 1.0], &weight_lut(gamma, 0.2), &mut t).unwrap();
             let z = zncc_at(&p, &t, w, [1.0, 1.0], 20, 14.0).unwrap();
             assert!((z - 1.0).abs() < 1e-4, "{z}");
             let z = zncc_at(&p, &t, w, [1.0, 1.0], 21, 14.0).unwrap();
@@ -347,15 +312,7 @@ mod tests {
         assert!(template(&p, 36.5, 26.0, w, [1.0, 1.0], &[], &mut t).is_none());
         // Clipped at the border: the part that fits.
         let c = w.clip(40, 30, 1.5, 1.5, 28.0, 28.0, [1.0, 1.0]);
-        assert_eq!(
-            c,
-            Win {
-                x0: -1,
-                x1: 3,
-                y0: -3,
-                y1: 1
-            }
-        );
+        assert_eq!(c, Win { x0: -1, x1: 3, y0: -3, y1: 1 });
         assert!(template(&p, 1.5, 28.0, c, [1.0, 1.0], &[], &mut t[..2 * c.len()]).is_some());
     }
 }

@@ -111,36 +111,18 @@ impl MatchParams {
             ("params.right_scale[1]", self.right_scale[1], 0.25, 4.0),
             ("params.support_floor", self.support_floor, 0.0, 1.0),
             ("params.support_gamma", self.support_gamma, 0.0, 1000.0),
-            (
-                "params.interval_slack_px",
-                self.interval_slack_px,
-                0.0,
-                100.0,
-            ),
+            ("params.interval_slack_px", self.interval_slack_px, 0.0, 100.0),
             ("params.shift_fraction", self.shift_fraction, 0.0, 1.0),
             ("params.min_std", self.min_std, 0.0, 255.0),
             ("params.min_score", self.min_score, -1.0, 1.0),
             ("params.uniqueness_margin", self.uniqueness_margin, 0.0, 2.0),
-            (
-                "params.min_peak_separation_px",
-                self.min_peak_separation_px,
-                1.0,
-                1000.0,
-            ),
+            ("params.min_peak_separation_px", self.min_peak_separation_px, 1.0, 1000.0),
             ("params.lr_tolerance_px", self.lr_tolerance_px, 0.0, 1000.0),
-            (
-                "params.max_interval_px",
-                self.max_interval_px,
-                0.0,
-                100_000.0,
-            ),
+            ("params.max_interval_px", self.max_interval_px, 0.0, 100_000.0),
         ];
         for (field, v, lo, hi) in checks {
             if !(v.is_finite() && v >= lo && v <= hi) {
-                return Err(InvalidField::new(
-                    field,
-                    format!("must be in {lo}..={hi}, got {v}"),
-                ));
+                return Err(InvalidField::new(field, format!("must be in {lo}..={hi}, got {v}")));
             }
         }
         Ok(())

@@ -20,13 +20,7 @@ struct Search {
 
 impl Search {
     fn none(status: MatchStatus) -> Search {
-        Search {
-            score: f64::NAN,
-            u: f64::NAN,
-            v: f64::NAN,
-            status,
-            peaks: Vec::new(),
-        }
+        Search { score: f64::NAN, u: f64::NAN, v: f64::NAN, status, peaks: Vec::new() }
     }
 }
 
@@ -74,10 +68,7 @@ impl Matcher {
             }
             return first;
         }
-        let retry = matches!(
-            first.status,
-            MatchStatus::NoCandidate | MatchStatus::LrCheckFailed
-        );
+        let retry = matches!(first.status, MatchStatus::NoCandidate | MatchStatus::LrCheckFailed);
         if first.status == MatchStatus::Ok || !retry || !self.params.shifted_windows {
             return first;
         }
@@ -136,22 +127,14 @@ impl Matcher {
             return Match::fail(MatchStatus::Outside);
         };
         *peaks = s.peaks;
-        let out = Match {
-            ur: s.u,
-            vr: s.v,
-            score: s.score,
-            status: s.status,
-        };
+        let out = Match { ur: s.u, vr: s.v, score: s.score, status: s.status };
         if s.status != MatchStatus::Ok {
             return out;
         }
         // Left-right check: the right window at the match, searched back in the left image.
         let back_line = self.f.line_in_left([s.u, s.v]);
-        let back_only: Option<Vec<i64>> = only.map(|o| {
-            o.iter()
-                .map(|&c| (q.ul + (c as f64 - s.u)).round() as i64)
-                .collect()
-        });
+        let back_only: Option<Vec<i64>> =
+            only.map(|o| o.iter().map(|&c| (q.ul + (c as f64 - s.u)).round() as i64).collect());
         let b = self.search_from(
             Side::Back,
             s.u,
@@ -170,10 +153,7 @@ impl Matcher {
             b.status == MatchStatus::Ok && dist <= self.params.lr_tolerance_px
         });
         if !back_ok {
-            return Match {
-                status: MatchStatus::LrCheckFailed,
-                ..out
-            };
+            return Match { status: MatchStatus::LrCheckFailed, ..out };
         }
         out
     }
@@ -253,14 +233,8 @@ impl Matcher {
                 Side::Back => MatchStatus::LrCheckFailed,
             }));
         }
-        let ctx = LineSearch {
-            img: dst,
-            t: buf,
-            win,
-            scale: s_dst,
-            v_at: &v_at,
-            params: &self.params,
-        };
+        let ctx =
+            LineSearch { img: dst, t: buf, win, scale: s_dst, v_at: &v_at, params: &self.params };
         let s = ctx.scan(k_lo, k_hi, only, check_unique);
         // A peak found only thanks to the slack must still be near the interval.
         Some(s)
@@ -284,14 +258,7 @@ impl LineSearch<'_> {
     /// decisions 4-6 of the module documentation to the peak in `k_lo..=k_hi` (`only`: score
     /// only around these `u`; `check_unique`: whether step 5 applies).
     fn scan(&self, k_lo: i64, k_hi: i64, only: Option<&[i64]>, check_unique: bool) -> Search {
-        let LineSearch {
-            img,
-            t,
-            win,
-            scale,
-            v_at,
-            params: p,
-        } = *self;
+        let LineSearch { img, t, win, scale, v_at, params: p } = *self;
         // Scores at k_lo - 1 ..= k_hi + 1 (index 0 is the extra one on the left).
         let len = (k_hi - k_lo + 3) as usize;
         let mut s = [f64::NAN; 64];
@@ -408,11 +375,7 @@ impl LineSearch<'_> {
         }
         // Parabola through the three scores.
         let den = sl - 2.0 * sb + sr;
-        let off = if den < 0.0 {
-            (0.5 * (sl - sr) / den).clamp(-0.5, 0.5)
-        } else {
-            0.0
-        };
+        let off = if den < 0.0 { (0.5 * (sl - sr) / den).clamp(-0.5, 0.5) } else { 0.0 };
         out.u = u_best + off;
         out.v = v_at(out.u);
         out

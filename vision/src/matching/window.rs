@@ -33,12 +33,7 @@ pub(super) struct Win {
 impl Win {
     /// The square window of half size `r`, moved by `(sx, sy)` px (the point stays inside).
     pub(super) fn shifted(r: i64, sx: i64, sy: i64) -> Win {
-        Win {
-            x0: -r + sx,
-            x1: r + sx,
-            y0: -r + sy,
-            y1: r + sy,
-        }
+        Win { x0: -r + sx, x1: r + sx, y0: -r + sy, y1: r + sy }
     }
     pub(super) fn width(&self) -> usize {
         (self.x1 - self.x0 + 1) as usize

@@ -19,9 +19,7 @@ pub struct Texture {
 impl Texture {
     pub fn new(w: usize, h: usize, seed: u64) -> Texture {
         let mut s = seed;
-        let mut g: Vec<f32> = (0..w * h)
-            .map(|_| (splitmix64(&mut s) >> 56) as f32)
-            .collect();
+        let mut g: Vec<f32> = (0..w * h).map(|_| (splitmix64(&mut s) >> 56) as f32).collect();
         for _ in 0..2 {
             let src = g.clone();
             for y in 0..h {
@@ -139,29 +137,16 @@ pub fn render(w: u32, h: u32, planes: &[Plane], seed: u64, tilt: f64, shift: f64
         }
     }
     // r^T F l = 0 with v_l - v_r - tilt u_r - shift = 0.
-    let f = Fundamental {
-        m: [[0.0, 0.0, -tilt], [0.0, 0.0, -1.0], [0.0, 1.0, -shift]],
-    };
+    let f = Fundamental { m: [[0.0, 0.0, -tilt], [0.0, 0.0, -1.0], [0.0, 1.0, -shift]] };
     let dmax = planes
         .iter()
         .flat_map(|p| [p.a + p.b * p.x0, p.a + p.b * p.x1.min(f64::from(w))])
         .fold(f64::MIN, f64::max);
     let dmin = planes
         .iter()
-        .flat_map(|p| {
-            [
-                p.a + p.b * p.x0.max(0.0),
-                p.a + p.b * p.x1.min(f64::from(w)),
-            ]
-        })
+        .flat_map(|p| [p.a + p.b * p.x0.max(0.0), p.a + p.b * p.x1.min(f64::from(w))])
         .fold(f64::MAX, f64::min);
-    Pair {
-        left,
-        right,
-        f,
-        truth,
-        d_range: [(dmin.floor() as i32) - 3, (dmax.ceil() as i32) + 3],
-    }
+    Pair { left, right, f, truth, d_range: [(dmin.floor() as i32) - 3, (dmax.ceil() as i32) + 3] }
 }
 
 /// The standard test scene at `w x h`: a background slanted from disparity `bg` to
@@ -178,22 +163,8 @@ pub fn scene(
 ) -> Pair {
     let (wf, hf) = (f64::from(w), f64::from(h));
     let planes = [
-        Plane {
-            a: bg,
-            b: slant / wf,
-            x0: -1e9,
-            x1: 1e9,
-            y0: -1e9,
-            y1: 1e9,
-        },
-        Plane {
-            a: fg,
-            b: 0.0,
-            x0: 0.35 * wf,
-            x1: 0.65 * wf,
-            y0: 0.3 * hf,
-            y1: 0.7 * hf,
-        },
+        Plane { a: bg, b: slant / wf, x0: -1e9, x1: 1e9, y0: -1e9, y1: 1e9 },
+        Plane { a: fg, b: 0.0, x0: 0.35 * wf, x1: 0.65 * wf, y0: 0.3 * hf, y1: 0.7 * hf },
     ];
     render(w, h, &planes, seed, tilt, shift)
 }
@@ -227,19 +198,11 @@ impl Score {
 
 pub fn score(pair: &Pair, m: &hvs_vision::dense::DenseMap, border: u32) -> Score {
     let (w, h) = (m.width, m.height);
-    let mut s = Score {
-        seen: 0,
-        returned: 0,
-        within_1: 0,
-        off_2: 0,
-        returned_unseen: 0,
-    };
+    let mut s = Score { seen: 0, returned: 0, within_1: 0, off_2: 0, returned_unseen: 0 };
     for y in border..h - border {
         for x in border..w - border {
             let p = (y * w + x) as usize;
-            let got = m.ur[p]
-                .is_finite()
-                .then(|| [f64::from(m.ur[p]), f64::from(m.vr[p])]);
+            let got = m.ur[p].is_finite().then(|| [f64::from(m.ur[p]), f64::from(m.vr[p])]);
             match (pair.truth[p], got) {
                 (Some(t), g) => {
                     s.seen += 1;

@@ -24,8 +24,7 @@ impl Rates {
         self.asked += 1;
         *self.status.entry(m.status.name()).or_default() += 1;
         if m.status == MatchStatus::Ok {
-            self.errors
-                .push(((m.ur - truth[0]).powi(2) + (m.vr - truth[1]).powi(2)).sqrt());
+            self.errors.push(((m.ur - truth[0]).powi(2) + (m.vr - truth[1]).powi(2)).sqrt());
         }
     }
     pub fn merge(&mut self, o: &Rates) {
@@ -109,12 +108,7 @@ pub fn eval_case_with(
         for c in &r.corners {
             let d = c.px[0] - c.px[2];
             let (d_min, d_max) = interval(d);
-            let q = Query {
-                ul: c.px[0],
-                vl: c.px[1],
-                d_min,
-                d_max,
-            };
+            let q = Query { ul: c.px[0], vl: c.px[1], d_min, d_max };
             corners.add(&m.find(&q), [c.px[2], c.px[3]]);
         }
         // Random points on the squares (not the border).
@@ -133,12 +127,7 @@ pub fn eval_case_with(
             }
             k += 1;
             let (d_min, d_max) = interval(px[0] - px[2]);
-            let q = Query {
-                ul: px[0],
-                vl: px[1],
-                d_min,
-                d_max,
-            };
+            let q = Query { ul: px[0], vl: px[1], d_min, d_max };
             random.add(&m.find(&q), [px[2], px[3]]);
         }
     }

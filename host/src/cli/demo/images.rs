@@ -71,10 +71,7 @@ fn render_and_detect(
         Board::new(rboard.cols, rboard.rows, rboard.square_cm).map_err(|e| anyhow!("{e}"))?;
     let cset = captures::read(&dir.join("captures.csv"))?;
     let det = detect_set(&board, &cset, &|| {})?;
-    write_bytes(
-        &dir.join("points.csv"),
-        points_csv(&board, &cset, &det).as_bytes(),
-    )?;
+    write_bytes(&dir.join("points.csv"), points_csv(&board, &cset, &det).as_bytes())?;
     let mut data = Dataset::new(InputKind::Stereo);
     let mut truth_px = Vec::new();
     for c in found_corners(&board, &cset, &det) {
@@ -87,12 +84,8 @@ fn render_and_detect(
 
 /// Runs the image demo for `case`, writing images, points and the model into `dir`.
 pub fn run_case(case: u8, dir: &Path, seed: u64, restarts: usize) -> Result<ImageDemo> {
-    let train_seed = seed
-        .wrapping_mul(10_000)
-        .wrapping_add(3000 + u64::from(case));
-    let test_seed = seed
-        .wrapping_mul(10_000)
-        .wrapping_add(4000 + u64::from(case));
+    let train_seed = seed.wrapping_mul(10_000).wrapping_add(3000 + u64::from(case));
+    let test_seed = seed.wrapping_mul(10_000).wrapping_add(4000 + u64::from(case));
     let (board, train, det, truth) = render_and_detect(
         case,
         &dir.join("train"),
@@ -116,13 +109,8 @@ pub fn run_case(case: u8, dir: &Path, seed: u64, restarts: usize) -> Result<Imag
     plan.config.seed = seed;
     let trained = train_model(&train, &plan)?;
     model::save(&dir.join("model.hvsw"), &trained.blob)?;
-    let (_, test, tdet, _) = render_and_detect(
-        case,
-        &dir.join("test"),
-        &TEST_DEPTHS,
-        TEST_CENTRE,
-        test_seed,
-    )?;
+    let (_, test, tdet, _) =
+        render_and_detect(case, &dir.join("test"), &TEST_DEPTHS, TEST_CENTRE, test_seed)?;
     if test.is_empty() {
         bail!("case {case}: no test board was detected");
     }
@@ -131,22 +119,12 @@ pub fn run_case(case: u8, dir: &Path, seed: u64, restarts: usize) -> Result<Imag
     let ev = evaluate(
         &test,
         &[
-            Method {
-                name: "network (default)".into(),
-                z: net,
-            },
-            Method {
-                name: "optimal (true rig)".into(),
-                z: optimal_depths(&rig, &test),
-            },
+            Method { name: "network (default)".into(), z: net },
+            Method { name: "optimal (true rig)".into(), z: optimal_depths(&rig, &test) },
         ],
     );
     let found = |d: &Detection| {
-        d.outcomes
-            .iter()
-            .filter(|o| matches!(o, PairOutcome::Found(_)))
-            .count()
-            * n
+        d.outcomes.iter().filter(|o| matches!(o, PairOutcome::Found(_))).count() * n
     };
     Ok(ImageDemo {
         case,
@@ -175,10 +153,7 @@ pub fn run(out: &Path, seed: u64, restarts: usize) -> Result<()> {
     for case in 1..=4u8 {
         let dir = out.join(format!("case{case}_images"));
         let r = run_case(case, &dir, seed, restarts)?;
-        let (net, floor) = (
-            r.test.methods[0].mean.e_ma_pct,
-            r.test.methods[1].mean.e_ma_pct,
-        );
+        let (net, floor) = (r.test.methods[0].mean.e_ma_pct, r.test.methods[1].mean.e_ma_pct);
         let label = presets::LABELS[usize::from(case) - 1];
         println!(
             "{:<5} {:>14} {:>14} {:>9.3} px {:>12} {:>12} {:>7.2}x",

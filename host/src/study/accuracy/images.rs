@@ -43,18 +43,8 @@ pub struct ImageRegime {
 pub fn image_regimes() -> [ImageRegime; 3] {
     let d = RenderOptions::default();
     [
-        ImageRegime {
-            name: "mild",
-            blur_px: d.blur_sigma_px,
-            noise_grey: d.noise_sigma,
-            k1: 0.0,
-        },
-        ImageRegime {
-            name: "heavy",
-            blur_px: 2.0,
-            noise_grey: 8.0,
-            k1: 0.0,
-        },
+        ImageRegime { name: "mild", blur_px: d.blur_sigma_px, noise_grey: d.noise_sigma, k1: 0.0 },
+        ImageRegime { name: "heavy", blur_px: 2.0, noise_grey: 8.0, k1: 0.0 },
         ImageRegime {
             name: "barrel",
             blur_px: d.blur_sigma_px,
@@ -101,16 +91,9 @@ fn detect_boards(
         .par_iter()
         .enumerate()
         .map(|(k, &z)| {
-            let r = render_pair(
-                head,
-                &Joints::HOME,
-                &board,
-                [xy[0], xy[1], z],
-                &opt,
-                seed(k),
-            )
-            .map_err(|e| anyhow!("{e}"))
-            .with_context(|| format!("rendering the board at Z = {z} cm"))?;
+            let r = render_pair(head, &Joints::HOME, &board, [xy[0], xy[1], z], &opt, seed(k))
+                .map_err(|e| anyhow!("{e}"))
+                .with_context(|| format!("rendering the board at Z = {z} cm"))?;
             let Ok(p) = detect_pair(&r.left, &r.right, &board) else {
                 return Ok(None);
             };
@@ -138,21 +121,14 @@ fn depths(cfg: &AccuracyConfig) -> (Vec<f64>, Vec<f64>) {
     if cfg.quick {
         (vec![65.0, 165.0], vec![65.0, 165.0])
     } else {
-        (
-            presets::TRAIN_DEPTHS.to_vec(),
-            presets::TEST_DEPTHS.to_vec(),
-        )
+        (presets::TRAIN_DEPTHS.to_vec(), presets::TEST_DEPTHS.to_vec())
     }
 }
 
 /// The image part: every regime of [`image_regimes`] (the first only when quick).
 pub fn image_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<ImageRow>> {
     let regimes = image_regimes();
-    let regimes = if cfg.quick {
-        &regimes[..1]
-    } else {
-        &regimes[..]
-    };
+    let regimes = if cfg.quick { &regimes[..1] } else { &regimes[..] };
     progress.start("images", regimes.len() as u64);
     let rig = case_rig(SWEEP_CASE)?;
     let rows = regimes
@@ -198,10 +174,7 @@ pub struct ImageSets {
 pub fn image_sets(cfg: &AccuracyConfig, k: usize, regime: &ImageRegime) -> Result<ImageSets> {
     let rig = case_rig(SWEEP_CASE)?;
     let (train_z, test_z) = depths(cfg);
-    let lens = Distortion {
-        k1: regime.k1,
-        k2: 0.0,
-    };
+    let lens = Distortion { k1: regime.k1, k2: 0.0 };
     let head = HeadRig::new(rig).with_distortion(lens);
     let seed = |set: u64| move |d: usize| set_seed(cfg.seed_base, 3, k, d, SWEEP_CASE, set);
     let (train, train_n, err) = detect_boards(&head, regime, [0.0, 0.0], &train_z, seed(1))?;

@@ -72,10 +72,7 @@ pub struct Regime {
 impl Regime {
     /// The lens of the regime.
     pub fn lens(&self) -> Distortion {
-        Distortion {
-            k1: self.k1,
-            k2: 0.0,
-        }
+        Distortion { k1: self.k1, k2: 0.0 }
     }
     /// Whether the floor is zero (exact pixels, no noise): then errors are compared as e_ma,
     /// not as ratios.
@@ -87,30 +84,10 @@ impl Regime {
 /// The four pixel regimes: rounded pixels (the thesis), sub-pixel noise of 0.05 px
 /// without rounding, exact pixels, rounded pixels through barrel lenses (k1 = -0.1).
 pub const REGIMES: [Regime; 4] = [
-    Regime {
-        name: "int",
-        pixels: Pixels::Rounded,
-        noise_px: 0.0,
-        k1: 0.0,
-    },
-    Regime {
-        name: "sub",
-        pixels: Pixels::Exact,
-        noise_px: 0.05,
-        k1: 0.0,
-    },
-    Regime {
-        name: "exact",
-        pixels: Pixels::Exact,
-        noise_px: 0.0,
-        k1: 0.0,
-    },
-    Regime {
-        name: "barrel",
-        pixels: Pixels::Rounded,
-        noise_px: 0.0,
-        k1: -0.1,
-    },
+    Regime { name: "int", pixels: Pixels::Rounded, noise_px: 0.0, k1: 0.0 },
+    Regime { name: "sub", pixels: Pixels::Exact, noise_px: 0.05, k1: 0.0 },
+    Regime { name: "exact", pixels: Pixels::Exact, noise_px: 0.0, k1: 0.0 },
+    Regime { name: "barrel", pixels: Pixels::Rounded, noise_px: 0.0, k1: -0.1 },
 ];
 
 /// The pixels of the lens sweep: the `sub` regime's (0.05 px noise, unrounded), so that what
@@ -120,11 +97,7 @@ pub const LENS_SWEEP_PIXELS: Regime = REGIMES[1];
 
 /// The bigger board: 9 x 6 inner corners at 6 cm (the OpenCV board `hvs demo --images`
 /// renders), 324 training points.
-pub const BIG_BOARD: Board = Board::Grid {
-    nx: 9,
-    ny: 6,
-    pitch: 6.0,
-};
+pub const BIG_BOARD: Board = Board::Grid { nx: 9, ny: 6, pitch: 6.0 };
 /// The two training boards.
 pub const BOARDS: [Board; 2] = [Board::Thesis, BIG_BOARD];
 /// The case of the sweeps and the images: IV, the thesis' general case.
@@ -184,9 +157,7 @@ impl AccuracyConfig {
     /// k1 of the lens sweep: 0 to -0.2 in steps of -0.02 (0 and -0.2 when quick).
     pub fn k1_levels(&self) -> Vec<f64> {
         let n = if self.quick { 1 } else { 10 };
-        (0..=n)
-            .map(|k| -((20 * k / n) as f64) / 100.0 + 0.0)
-            .collect()
+        (0..=n).map(|k| -((20 * k / n) as f64) / 100.0 + 0.0).collect()
     }
     /// The thesis net's training configuration.
     pub fn thesis_net(&self) -> TrainConfig {
@@ -200,10 +171,7 @@ impl AccuracyConfig {
     }
     /// The default net's training configuration.
     pub fn default_net(&self) -> TrainConfig {
-        TrainConfig {
-            family: self.default_family,
-            ..self.thesis_net()
-        }
+        TrainConfig { family: self.default_family, ..self.thesis_net() }
     }
 }
 
@@ -341,14 +309,9 @@ pub fn simulate_command(case: u8, board: &Board, r: &Regime, kind: &str, seed: u
 /// (NaN where it fails).
 pub fn dlt_depths(train: &Dataset, test: &Dataset) -> Result<Vec<f64>> {
     let split = |k: usize| -> Vec<[f64; 2]> {
-        (0..train.len())
-            .map(|n| [train.row(n)[k], train.row(n)[k + 1]])
-            .collect()
+        (0..train.len()).map(|n| [train.row(n)[k], train.row(n)[k + 1]]).collect()
     };
-    let p = [
-        fit_dlt(&train.targets, &split(0))?,
-        fit_dlt(&train.targets, &split(2))?,
-    ];
+    let p = [fit_dlt(&train.targets, &split(0))?, fit_dlt(&train.targets, &split(2))?];
     Ok((0..test.len())
         .map(|n| {
             let r = test.row(n);
@@ -380,20 +343,9 @@ pub fn estimate_with_floor(
         let out = train(train_set, &c)?;
         model_depths(&out.blob, test).map_err(|e| anyhow!("{e:?}"))
     };
-    let z = [
-        floor,
-        dlt_depths(train_set, test)?,
-        net(cfg.thesis_net())?,
-        net(cfg.default_net())?,
-    ];
-    let methods: Vec<Method> = METHODS
-        .iter()
-        .zip(z)
-        .map(|(name, z)| Method {
-            name: name.to_string(),
-            z,
-        })
-        .collect();
+    let z = [floor, dlt_depths(train_set, test)?, net(cfg.thesis_net())?, net(cfg.default_net())?];
+    let methods: Vec<Method> =
+        METHODS.iter().zip(z).map(|(name, z)| Method { name: name.to_string(), z }).collect();
     Ok(evaluate(test, &methods))
 }
 
@@ -447,12 +399,7 @@ pub fn regime_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<
         .map(|&(b, board, k, regime, case)| {
             let scores = cell(cfg, 0, (b, &board), k, &regime, case)?;
             progress.inc();
-            Ok(RegimeRow {
-                board,
-                regime,
-                case,
-                scores,
-            })
+            Ok(RegimeRow { board, regime, case, scores })
         })
         .collect::<Result<Vec<_>>>()?;
     progress.finish();
@@ -474,10 +421,7 @@ pub fn protocol_rows(cfg: &AccuracyConfig) -> Result<Vec<ProtocolRow>> {
             let tr = simulate_set(&rig, r.lens(), SetKind::Train, &opt)?;
             let te = simulate_set(&rig, r.lens(), SetKind::Test, &opt)?;
             let ev = estimate(cfg, &rig, r.lens(), &tr, &te)?;
-            Ok(ProtocolRow {
-                case,
-                worst: worst_scores(&ev),
-            })
+            Ok(ProtocolRow { case, worst: worst_scores(&ev) })
         })
         .collect()
 }
@@ -518,17 +462,10 @@ pub fn sweep_rows(
         .par_iter()
         .map(|&(b, board, x)| {
             let r = match which {
-                Sweep::Noise => Regime {
-                    name: "noise",
-                    pixels: Pixels::Exact,
-                    noise_px: x,
-                    k1: 0.0,
-                },
-                Sweep::Lens => Regime {
-                    name: "lens",
-                    k1: x,
-                    ..LENS_SWEEP_PIXELS
-                },
+                Sweep::Noise => {
+                    Regime { name: "noise", pixels: Pixels::Exact, noise_px: x, k1: 0.0 }
+                }
+                Sweep::Lens => Regime { name: "lens", k1: x, ..LENS_SWEEP_PIXELS },
             };
             // One seed for every level (common random numbers): the same points and the
             // same standard-normal draws, so the curve shows the swept value, not the draws.
@@ -601,11 +538,7 @@ pub fn worst_over_cases(
     rows.iter()
         .filter(|r| r.board == *board && r.regime.name == regime)
         .map(|r| Worst {
-            value: if r.regime.exact() {
-                r.scores.0[m]
-            } else {
-                r.scores.0[m] / r.scores.floor()
-            },
+            value: if r.regime.exact() { r.scores.0[m] } else { r.scores.0[m] / r.scores.floor() },
             case: r.case,
         })
         .max_by(|a, b| a.value.total_cmp(&b.value))
@@ -633,12 +566,7 @@ mod tests {
     }
 
     fn row(board: Board, regime: usize, case: u8, s: [f64; 4]) -> RegimeRow {
-        RegimeRow {
-            board,
-            regime: REGIMES[regime],
-            case,
-            scores: Scores(s),
-        }
+        RegimeRow { board, regime: REGIMES[regime], case, scores: Scores(s) }
     }
 
     #[test]
@@ -684,10 +612,7 @@ mod tests {
                 }
             }
         }
-        let full = AccuracyConfig {
-            quick: false,
-            ..quick()
-        };
+        let full = AccuracyConfig { quick: false, ..quick() };
         let n = full.noise_levels();
         assert_eq!((n.len(), n[0], n[10]), (11, 0.0, 0.5));
         let k = full.k1_levels();
@@ -721,10 +646,7 @@ mod tests {
         }
         let p = protocol_rows(&cfg).unwrap();
         assert_eq!(p.len(), 1);
-        assert!(
-            p[0].worst.0.iter().all(|v| v.is_finite() && *v > 0.0),
-            "{p:?}"
-        );
+        assert!(p[0].worst.0.iter().all(|v| v.is_finite() && *v > 0.0), "{p:?}");
     }
 
     #[test]

@@ -85,10 +85,7 @@ fn parse(name: &str, text: &str) -> Result<Dataset> {
 
 /// The training and test set.
 pub fn sets() -> Result<(Dataset, Dataset)> {
-    Ok((
-        parse("motorcycle/train.csv", TRAIN_CSV)?,
-        parse("motorcycle/test.csv", TEST_CSV)?,
-    ))
+    Ok((parse("motorcycle/train.csv", TRAIN_CSV)?, parse("motorcycle/test.csv", TEST_CSV)?))
 }
 
 /// Depths of `test` triangulated with the pair's true cameras (NaN where it fails).
@@ -107,10 +104,8 @@ pub fn real_pair_row(cfg: &AccuracyConfig) -> Result<RealPairRow> {
     let (train_set, test) = sets()?;
     let ev = estimate_with_floor(cfg, floor_depths(&test), &train_set, &test)?;
     let depths = test.targets.iter().map(|t| t[2]);
-    let z_range = [
-        depths.clone().fold(f64::INFINITY, f64::min),
-        depths.fold(f64::NEG_INFINITY, f64::max),
-    ];
+    let z_range =
+        [depths.clone().fold(f64::INFINITY, f64::min), depths.fold(f64::NEG_INFINITY, f64::max)];
     Ok(RealPairRow {
         train_points: train_set.len(),
         test_points: test.len(),

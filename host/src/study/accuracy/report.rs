@@ -16,14 +16,7 @@ use anyhow::Result;
 use std::fmt::Write as _;
 
 /// The CSV stems in `DIR/accuracy/` (`noise` and `lens` also as `.svg`, `.png`).
-pub const STEMS: [&str; 6] = [
-    "regimes",
-    "protocol",
-    "noise",
-    "lens",
-    "images",
-    "real_pair",
-];
+pub const STEMS: [&str; 6] = ["regimes", "protocol", "noise", "lens", "images", "real_pair"];
 /// The sub-directory of the CSVs and plots.
 pub const SUBDIR: &str = "accuracy";
 
@@ -93,13 +86,7 @@ pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
     let sweep = |rows: &[SweepRow], x: &str| {
         let mut s = format!("board,{x},{}\n", scores_header());
         for r in rows {
-            let _ = writeln!(
-                s,
-                "{},{},{}",
-                r.board.name(),
-                num(r.x),
-                scores_csv(&r.scores)
-            );
+            let _ = writeln!(s, "{},{},{}", r.board.name(), num(r.x), scores_csv(&r.scores));
         }
         s
     };
@@ -124,10 +111,8 @@ pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
             scores_csv(&r.scores)
         );
     }
-    let mut real_pair = format!(
-        "set,train_points,test_points,z_min_cm,z_max_cm,{}\n",
-        scores_header()
-    );
+    let mut real_pair =
+        format!("set,train_points,test_points,z_min_cm,z_max_cm,{}\n", scores_header());
     if let Some(r) = &a.real_pair {
         let _ = writeln!(
             real_pair,
@@ -160,22 +145,14 @@ const RATIO_MIN_FLOOR: f64 = 1e-6;
 /// zero).
 fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -> Figure {
     let names = method_titles(&a.config);
-    let per_board: Vec<(&Board, Vec<&SweepRow>)> = BOARDS
-        .iter()
-        .map(|b| (b, rows.iter().filter(|r| r.board == *b).collect()))
-        .collect();
+    let per_board: Vec<(&Board, Vec<&SweepRow>)> =
+        BOARDS.iter().map(|b| (b, rows.iter().filter(|r| r.board == *b).collect())).collect();
     let methods = |rows: &[&SweepRow], y: &dyn Fn(&SweepRow, usize) -> f64| -> Vec<Series> {
         let x: Vec<f64> = rows.iter().map(|r| r.x).collect();
         (1..4)
             .map(|m| {
                 let y: Vec<f64> = rows.iter().map(|r| y(r, m)).collect();
-                Series::new(
-                    names[m].clone(),
-                    &x,
-                    &y,
-                    Style::LinePoints,
-                    METHOD_COLORS[m - 1],
-                )
+                Series::new(names[m].clone(), &x, &y, Style::LinePoints, METHOD_COLORS[m - 1])
             })
             .collect()
     };
@@ -205,11 +182,8 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
         })
         .collect();
     for (board, rows) in &per_board {
-        let rows: Vec<&SweepRow> = rows
-            .iter()
-            .copied()
-            .filter(|r| r.scores.floor() > RATIO_MIN_FLOOR)
-            .collect();
+        let rows: Vec<&SweepRow> =
+            rows.iter().copied().filter(|r| r.scores.floor() > RATIO_MIN_FLOOR).collect();
         let mut series = methods(&rows, &|r, m| r.scores.ratios()[m - 1]);
         let x: Vec<f64> = rows.iter().map(|r| r.x).collect();
         series.push(Series::new(
@@ -221,11 +195,7 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
         ));
         panels.push(panel(board, "e_ma / the floor's e_ma", series));
     }
-    Figure {
-        title,
-        panels,
-        cols: 2,
-    }
+    Figure { title, panels, cols: 2 }
 }
 
 fn board_words(b: &Board) -> String {
@@ -291,10 +261,7 @@ impl Study for AccuracyConfig {
         "ACCURACY.md"
     }
     fn what(&self) -> String {
-        format!(
-            "{} parts: CSV; 2 plots: SVG, PNG; timing.csv; ACCURACY.md",
-            STEMS.len()
-        )
+        format!("{} parts: CSV; 2 plots: SVG, PNG; timing.csv; ACCURACY.md", STEMS.len())
     }
     fn compute(&self, progress: &dyn Progress) -> Result<(usize, Accuracy)> {
         super::run(self, progress).map(|r| (r.threads, r))
@@ -379,11 +346,7 @@ fn method_table<'a>(
     rows: impl Iterator<Item = (Vec<String>, &'a Scores, bool)>,
 ) -> String {
     let t = method_titles(&a.config);
-    let head: Vec<&str> = lead
-        .iter()
-        .copied()
-        .chain(["floor", &t[1], &t[2], &t[3]])
-        .collect();
+    let head: Vec<&str> = lead.iter().copied().chain(["floor", &t[1], &t[2], &t[3]]).collect();
     let rows: Vec<Vec<String>> = rows
         .map(|(mut cells, scores, exact)| {
             cells.extend(score_cells(scores, exact));
@@ -409,9 +372,7 @@ fn protocol_table(a: &Accuracy) -> String {
     method_table(
         a,
         &["case"],
-        a.protocol
-            .iter()
-            .map(|p| (vec![roman(p.case).to_string()], &p.worst, false)),
+        a.protocol.iter().map(|p| (vec![roman(p.case).to_string()], &p.worst, false)),
     )
 }
 
@@ -499,20 +460,14 @@ fn sweep_sentence(rows: &[SweepRow], what: &str) -> String {
 fn commands(a: &Accuracy) -> String {
     let mut s = String::new();
     let c = SWEEP_CASE;
-    for (board, r) in [
-        (Board::Thesis, &REGIMES[0]),
-        (BIG_BOARD, &REGIMES[1]),
-        (BIG_BOARD, &REGIMES[3]),
-    ] {
+    for (board, r) in
+        [(Board::Thesis, &REGIMES[0]), (BIG_BOARD, &REGIMES[1]), (BIG_BOARD, &REGIMES[3])]
+    {
         let b = BOARDS.iter().position(|x| *x == board).unwrap_or(0);
         let k = REGIMES.iter().position(|x| x.name == r.name).unwrap_or(0);
         let train_seed = super::set_seed(a.config.seed_base, 0, b, k, c, 1);
         let test_seed = super::set_seed(a.config.seed_base, 0, b, k, c, 2);
-        let lens = if r.k1 != 0.0 {
-            format!(" --distortion {}", r.k1)
-        } else {
-            String::new()
-        };
+        let lens = if r.k1 != 0.0 { format!(" --distortion {}", r.k1) } else { String::new() };
         let _ = writeln!(
             s,
             "# {} board, {} (case {}):\n{} -o train.csv\n{} -o test.csv\nhvs train --data train.csv -o model.hvsw --seed {}\nhvs eval --model model.hvsw --data test.csv --case {c}{lens}\n",

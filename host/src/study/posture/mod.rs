@@ -290,23 +290,15 @@ pub fn fixed_postures() -> Vec<(String, Joints)> {
 pub fn fixed_posture_study(cfg: &StudyConfig) -> Result<(ModelBlob, Vec<FixedRow>)> {
     let rig = cfg.rig()?;
     let head = HeadRig::new(rig);
-    let train_set = posture::simulate(
-        &head,
-        SetKind::Train,
-        &[Joints::HOME],
-        &SimOptions::default(),
-    )?;
+    let train_set =
+        posture::simulate(&head, SetKind::Train, &[Joints::HOME], &SimOptions::default())?;
     let mut data = Dataset::new(InputKind::Stereo);
     for s in &train_set {
         data.push(&s.px, Some(s.xyz));
     }
     let out = train(
         &data,
-        &TrainConfig {
-            seed: cfg.seed,
-            family: Family::THESIS,
-            ..TrainConfig::default()
-        },
+        &TrainConfig { seed: cfg.seed, family: Family::THESIS, ..TrainConfig::default() },
     )
     .context("training the home-posture 4-5-3 net")?;
     let mut rows = Vec::new();
@@ -327,12 +319,7 @@ pub fn fixed_posture_study(cfg: &StudyConfig) -> Result<(ModelBlob, Vec<FixedRow
             net.add(&s.xyz, net_xyz(&out.blob, &s.px));
             floor.add(&s.xyz, head.optimal(&s.joints, &s.px).ok());
         }
-        rows.push(FixedRow {
-            label,
-            joints: j,
-            net: net.errors(),
-            floor: floor.errors(),
-        });
+        rows.push(FixedRow { label, joints: j, net: net.errors(), floor: floor.errors() });
     }
     Ok((out.blob, rows))
 }
@@ -402,11 +389,7 @@ fn band_defs(range: &PostureRange) -> Vec<(&'static str, usize, [f32; 4], bool)>
         .map(|k| {
             let [lo, hi] = iv[k];
             let by_magnitude = k < 4;
-            let (a, b) = if by_magnitude {
-                (0.0, lo.abs().max(hi.abs()))
-            } else {
-                (lo, hi)
-            };
+            let (a, b) = if by_magnitude { (0.0, lo.abs().max(hi.abs())) } else { (lo, hi) };
             let e = [a, a + (b - a) / 3.0, a + 2.0 * (b - a) / 3.0, b];
             (names[k], k, e, by_magnitude)
         })
@@ -541,11 +524,7 @@ pub fn posture_aware_study(cfg: &StudyConfig) -> Result<PostureAware> {
     let (test, extreme) = test_sets(cfg, &head)?;
     let set_for = |sampling: Sampling| -> Result<(Dataset, usize)> {
         let js = posture::postures(
-            &PostureOptions {
-                sampling,
-                levels: cfg.train_levels,
-                ..PostureOptions::default()
-            },
+            &PostureOptions { sampling, levels: cfg.train_levels, ..PostureOptions::default() },
             cfg.seed,
         )?;
         let s = posture::simulate(&head, SetKind::Train, &js, &SimOptions::default())?;
@@ -637,10 +616,7 @@ pub fn wide_board(rig: &Rig, z: f64, nu: usize, nv: usize) -> Vec<Vec3> {
 }
 
 fn wide_board_phi(rig: &Rig) -> f64 {
-    rig.phi_u_left
-        .max(rig.phi_u_right)
-        .max(rig.phi_v_left)
-        .max(rig.phi_v_right)
+    rig.phi_u_left.max(rig.phi_u_right).max(rig.phi_v_left).max(rig.phi_v_right)
 }
 
 /// One lens of [`distortion_study`].
@@ -686,11 +662,7 @@ pub fn distortion_study(cfg: &StudyConfig) -> Result<Vec<DistortionRow>> {
         let head = HeadRig::new(rig).with_distortion(lens);
         let plain = HeadRig::new(rig);
         let j = Joints::HOME;
-        let project = |p: &Vec3| {
-            head.project_rounded(&j, p)
-                .ok()
-                .filter(|px| rig.in_image(px))
-        };
+        let project = |p: &Vec3| head.project_rounded(&j, p).ok().filter(|px| rig.in_image(px));
         let mut data = Dataset::new(InputKind::Stereo);
         let (mut pts, mut pix_l, mut pix_r) = (Vec::new(), Vec::new(), Vec::new());
         for p in &train_pts {
@@ -734,11 +706,7 @@ pub fn distortion_study(cfg: &StudyConfig) -> Result<Vec<DistortionRow>> {
         }
         rows.push(DistortionRow {
             k1,
-            nets: nets
-                .iter()
-                .zip(&net_acc)
-                .map(|((h, _), a)| (*h, a.errors()))
-                .collect(),
+            nets: nets.iter().zip(&net_acc).map(|((h, _), a)| (*h, a.errors())).collect(),
             dlt: d.errors(),
             floor: f.errors(),
             max_shift_px: shift,
@@ -852,9 +820,8 @@ pub fn run(study: &StudyConfig, progress: &dyn Progress) -> Result<Posture> {
     progress.finish();
     stage_s.push(("posture-aware nets and lens", t.elapsed().as_secs_f64()));
 
-    let mut results = results
-        .into_inner()
-        .map_err(|_| anyhow!("a worker of the posture study panicked"))?;
+    let mut results =
+        results.into_inner().map_err(|_| anyhow!("a worker of the posture study panicked"))?;
     if let Some(k) = results.iter().position(|r| matches!(r, Some(Err(_)))) {
         if let Some(Some(Err(e))) = results.get_mut(k).map(Option::take) {
             return Err(e);
@@ -925,12 +892,8 @@ fn csv_row(out: &mut String, fields: &[&dyn std::fmt::Display]) {
 /// `distortion.csv`, and the wall times in `timing.csv` (so that the four tables depend on the
 /// configuration only: same seed, same bytes). The caller writes them atomically.
 pub fn csv_tables(r: &Posture) -> Vec<(&'static str, String)> {
-    let e = |x: &Errors| {
-        format!(
-            "{},{},{},{},{}",
-            x.points, x.z_pct, x.d3_pct, x.max_z_pct, x.failed
-        )
-    };
+    let e =
+        |x: &Errors| format!("{},{},{},{},{}", x.points, x.z_pct, x.d3_pct, x.max_z_pct, x.failed);
     let eh = |p: &str| format!("{p}_points,{p}_z_pct,{p}_d3_pct,{p}_max_z_pct,{p}_failed");
     let mut fixed = format!(
         "posture,{},{},{}\n",
@@ -954,10 +917,7 @@ pub fn csv_tables(r: &Posture) -> Vec<(&'static str, String)> {
         eh("floor")
     );
     let mut timing = "what,postures,hidden,seconds\n".to_string();
-    for (k, part) in ["(a) fixed posture", "(b) posture-aware", "(c) lens"]
-        .iter()
-        .enumerate()
-    {
+    for (k, part) in ["(a) fixed posture", "(b) posture-aware", "(c) lens"].iter().enumerate() {
         let _ = writeln!(timing, "{part},,,{}", r.seconds[k]);
     }
     for h in &r.aware.sweep {
@@ -1060,10 +1020,7 @@ mod tests {
         // Home: the thesis net is near the floor; verged 10 degrees it is off by over 50 %.
         assert_eq!(fixed[0].label, "home");
         assert!(fixed[0].net.z_pct < 2.5, "{:?}", fixed[0]);
-        let verged = fixed
-            .iter()
-            .find(|f| f.label.starts_with("vergence 10"))
-            .unwrap();
+        let verged = fixed.iter().find(|f| f.label.starts_with("vergence 10")).unwrap();
         assert!(verged.net.z_pct > 50.0, "{verged:?}");
         assert!(verged.floor.z_pct < 2.0, "{verged:?}");
         // Without distortion the DLT is the floor up to rounding; at k1 = -0.5 the linear
@@ -1104,11 +1061,7 @@ mod tests {
         let head = HeadRig::new(presets::CASE_3);
         let js = [Joints::HOME, Joints([10.0, 5.0, -5.0, 3.0, 8.0])];
         let s = posture::simulate(&head, SetKind::Train, &js, &SimOptions::default()).unwrap();
-        let cfg = TrainConfig {
-            hidden: 3,
-            restarts: 1,
-            ..TrainConfig::default()
-        };
+        let cfg = TrainConfig { hidden: 3, restarts: 1, ..TrainConfig::default() };
         train(&posture::dataset(&s), &cfg).unwrap().blob
     }
 

@@ -48,10 +48,7 @@ impl Study for StudyConfig {
         "POSTURE.md"
     }
     fn what(&self) -> String {
-        format!(
-            "{} parts: CSV, SVG, PNG; timing.csv, POSTURE.md",
-            STEMS.len()
-        )
+        format!("{} parts: CSV, SVG, PNG; timing.csv, POSTURE.md", STEMS.len())
     }
     fn compute(&self, progress: &dyn Progress) -> Result<(usize, Posture)> {
         run(self, progress).map(|r| (r.threads, r))
@@ -80,12 +77,8 @@ fn single_term(rows: &[FixedRow], k: usize) -> Vec<(f64, &FixedRow)> {
         .collect()
 }
 
-const TURNS: [(usize, &str, usize); 4] = [
-    (3, "version (eyes turned)", 0),
-    (0, "neck pan", 2),
-    (2, "eye tilt", 3),
-    (1, "neck tilt", 4),
-];
+const TURNS: [(usize, &str, usize); 4] =
+    [(3, "version (eyes turned)", 0), (0, "neck pan", 2), (2, "eye tilt", 3), (1, "neck tilt", 4)];
 
 fn fixed_figure(r: &Posture) -> Figure {
     let verg = single_term(&r.fixed, 4);
@@ -97,20 +90,8 @@ fn fixed_figure(r: &Posture) -> Figure {
         y_label: "error (% of true depth or distance)".into(),
         log_y: true,
         series: vec![
-            Series::new(
-                "4-5-3 net: depth e_ma",
-                &x,
-                &y(&|f| f.net.z_pct),
-                Style::LinePoints,
-                0,
-            ),
-            Series::new(
-                "4-5-3 net: 3-D error",
-                &x,
-                &y(&|f| f.net.d3_pct),
-                Style::Points,
-                3,
-            ),
+            Series::new("4-5-3 net: depth e_ma", &x, &y(&|f| f.net.z_pct), Style::LinePoints, 0),
+            Series::new("4-5-3 net: 3-D error", &x, &y(&|f| f.net.d3_pct), Style::Points, 3),
             Series::new(
                 "optimal triangulation at the posture (floor): depth e_ma",
                 &x,
@@ -130,13 +111,10 @@ fn fixed_figure(r: &Posture) -> Figure {
             zero(g[4])
         })
         .collect();
-    let xmax = span(
-        TURNS
-            .iter()
-            .flat_map(|&(k, _, _)| single_term(&r.fixed, k).into_iter().map(|v| v.0)),
-    )
-    .1
-    .max(1.0);
+    let xmax =
+        span(TURNS.iter().flat_map(|&(k, _, _)| single_term(&r.fixed, k).into_iter().map(|v| v.0)))
+            .1
+            .max(1.0);
     let turn_panel = |title: &str, y_label: &str, value: fn(&Errors) -> f64| {
         let mut series: Vec<Series> = TURNS
             .iter()
@@ -189,13 +167,8 @@ fn fixed_figure(r: &Posture) -> Figure {
 }
 
 /// The five gaze terms of the bands, in the study's order, with their colours.
-const TERMS: [(&str, usize); 5] = [
-    ("neck pan", 0),
-    ("neck tilt", 2),
-    ("eye tilt", 3),
-    ("version", 4),
-    ("vergence", 6),
-];
+const TERMS: [(&str, usize); 5] =
+    [("neck pan", 0), ("neck tilt", 2), ("eye tilt", 3), ("version", 4), ("vergence", 6)];
 
 fn bands_figure(r: &Posture) -> Figure {
     let bands = &r.aware.bands;
@@ -294,28 +267,17 @@ fn bands_figure(r: &Posture) -> Figure {
 }
 
 fn grid_sweep(r: &Posture) -> Vec<&HiddenRow> {
-    r.aware
-        .sweep
-        .iter()
-        .filter(|h| h.postures == "grid")
-        .collect()
+    r.aware.sweep.iter().filter(|h| h.postures == "grid").collect()
 }
 
 fn hidden_figure(r: &Posture) -> Figure {
     let rows = grid_sweep(r);
     let x: Vec<f64> = rows.iter().map(|h| h.hidden as f64).collect();
     let y = |f: fn(&HiddenRow) -> f64| -> Vec<f64> { rows.iter().map(|h| f(h)).collect() };
-    let ends = [
-        x.first().copied().unwrap_or(0.0),
-        x.last().copied().unwrap_or(1.0),
-    ];
+    let ends = [x.first().copied().unwrap_or(0.0), x.last().copied().unwrap_or(1.0)];
     let floor = rows.first().map_or(f64::NAN, |h| h.floor.z_pct);
-    let lattice: Vec<&HiddenRow> = r
-        .aware
-        .sweep
-        .iter()
-        .filter(|h| h.postures == "lattice")
-        .collect();
+    let lattice: Vec<&HiddenRow> =
+        r.aware.sweep.iter().filter(|h| h.postures == "lattice").collect();
     let lx: Vec<f64> = lattice.iter().map(|h| h.hidden as f64).collect();
     let lattice_series = |f: fn(&HiddenRow) -> f64| {
         Series::new(
@@ -416,10 +378,8 @@ fn distortion_figure(r: &Posture) -> Figure {
     let mut series = Vec::new();
     if let Some(first) = d.first() {
         for (i, (h, _)) in first.nets.iter().enumerate() {
-            let y: Vec<f64> = d
-                .iter()
-                .map(|row| row.nets.get(i).map_or(f64::NAN, |n| n.1.z_pct))
-                .collect();
+            let y: Vec<f64> =
+                d.iter().map(|row| row.nets.get(i).map_or(f64::NAN, |n| n.1.z_pct)).collect();
             series.push(Series::new(
                 format!("network 4-{h}-3"),
                 &x,
@@ -488,18 +448,12 @@ pub fn command(cfg: &StudyConfig) -> String {
         return "cargo run --release -p hvs-host --example posture_study -- (custom settings)"
             .into();
     }
-    format!(
-        "hvs experiment posture --seed {}{}",
-        cfg.seed,
-        if cfg.quick { " --quick" } else { "" }
-    )
+    format!("hvs experiment posture --seed {}{}", cfg.seed, if cfg.quick { " --quick" } else { "" })
 }
 
 /// The smallest hidden count whose worst band is within the goal (grid postures).
 pub fn smallest_within_goal(r: &Posture) -> Option<&HiddenRow> {
-    grid_sweep(r)
-        .into_iter()
-        .find(|h| h.worst_band_ratio <= GOAL_RATIO)
+    grid_sweep(r).into_iter().find(|h| h.worst_band_ratio <= GOAL_RATIO)
 }
 
 const TEMPLATE: &str = include_str!("../../../templates/posture.md");
@@ -553,10 +507,7 @@ fn posture_values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
             c.test_postures,
             sweep.join(", "),
             if c.lattice {
-                format!(
-                    " and the 9-{}-3 net trained on the regular lattice of postures",
-                    c.hidden
-                )
+                format!(" and the 9-{}-3 net trained on the regular lattice of postures", c.hidden)
             } else {
                 String::new()
             }
@@ -586,19 +537,9 @@ fn posture_values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("extreme_points", c.extreme_points.to_string()),
         ("bands_sentence", bands_sentence(r)),
         ("seed", c.seed.to_string()),
-        (
-            "restarts",
-            format!(
-                "{} restart{}",
-                c.restarts,
-                if c.restarts == 1 { "" } else { "s" }
-            ),
-        ),
+        ("restarts", format!("{} restart{}", c.restarts, if c.restarts == 1 { "" } else { "s" })),
         ("hidden_sentence", hidden_sentence(r)),
-        (
-            "train_depths",
-            number_word(hvs_shared::sim::presets::TRAIN_DEPTHS.len()),
-        ),
+        ("train_depths", number_word(hvs_shared::sim::presets::TRAIN_DEPTHS.len())),
         ("distortion_sentence", distortion_sentence(r)),
         ("case_number", c.case.to_string()),
         ("family", family_words(c.family, c.frame)),
@@ -607,17 +548,11 @@ fn posture_values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("weight_bytes", (r.aware.blob.params.len() * 4).to_string()),
         (
             "worst_band",
-            format!(
-                "{:.2}",
-                r.aware.bands.iter().map(BandRow::ratio).fold(0.0, f64::max)
-            ),
+            format!("{:.2}", r.aware.bands.iter().map(BandRow::ratio).fold(0.0, f64::max)),
         ),
         ("goal_ratio", format!("{GOAL_RATIO:.2}")),
         ("board_width_pct", format!("{:.0}", WIDE_BOARD_U * 100.0)),
-        (
-            "board_height_pct",
-            format!("{:.0}", WIDE_BOARD_V * 100.0 * 320.0 / 240.0),
-        ),
+        ("board_height_pct", format!("{:.0}", WIDE_BOARD_V * 100.0 * 320.0 / 240.0)),
         ("fixed_table", fixed_table(r)),
         ("bands_table", bands_table(r)),
         ("sweep_table", sweep_table(r)),
@@ -643,21 +578,13 @@ fn fixed_table(r: &Posture) -> String {
             ]
         })
         .collect();
-    let head = [
-        "posture",
-        "net depth e_ma",
-        "net 3-D",
-        "floor depth e_ma",
-        "net / floor",
-    ];
+    let head = ["posture", "net depth e_ma", "net 3-D", "floor depth e_ma", "net / floor"];
     table_markdown(&head, &right_after(1, head.len()), &rows)
 }
 
 /// Columns left-aligned up to `left`, right-aligned after.
 fn right_after(left: usize, n: usize) -> Vec<Align> {
-    (0..n)
-        .map(|k| if k < left { Align::Left } else { Align::Right })
-        .collect()
+    (0..n).map(|k| if k < left { Align::Left } else { Align::Right }).collect()
 }
 
 /// Table (b): the posture-aware net per band.
@@ -726,9 +653,10 @@ fn sweep_table(r: &Posture) -> String {
 
 /// Table (c): every estimator per lens.
 fn distortion_table(r: &Posture) -> String {
-    let nets: Vec<String> = r.distortion.first().map_or(Vec::new(), |d| {
-        d.nets.iter().map(|(h, _)| format!("net 4-{h}-3")).collect()
-    });
+    let nets: Vec<String> = r
+        .distortion
+        .first()
+        .map_or(Vec::new(), |d| d.nets.iter().map(|(h, _)| format!("net 4-{h}-3")).collect());
     let mut head = vec!["k1", "largest shift"];
     head.extend(nets.iter().map(String::as_str));
     head.extend(["DLT", "floor"]);
@@ -746,17 +674,11 @@ fn distortion_table(r: &Posture) -> String {
 }
 
 fn verged_worst(r: &Posture) -> Option<(f64, &FixedRow)> {
-    single_term(&r.fixed, 4)
-        .into_iter()
-        .filter(|v| v.0 > 0.0)
-        .max_by(|a, b| a.0.total_cmp(&b.0))
+    single_term(&r.fixed, 4).into_iter().filter(|v| v.0 > 0.0).max_by(|a, b| a.0.total_cmp(&b.0))
 }
 
 fn worst_band(r: &Posture) -> Option<&BandRow> {
-    r.aware
-        .bands
-        .iter()
-        .max_by(|a, b| a.ratio().total_cmp(&b.ratio()))
+    r.aware.bands.iter().max_by(|a, b| a.ratio().total_cmp(&b.ratio()))
 }
 
 fn at_a_glance(r: &Posture) -> String {
@@ -786,11 +708,7 @@ fn at_a_glance(r: &Posture) -> String {
             w.band,
             times(GOAL_RATIO),
             times(w.ratio()),
-            if w.ratio() <= GOAL_RATIO {
-                "met"
-            } else {
-                "missed"
-            }
+            if w.ratio() <= GOAL_RATIO { "met" } else { "missed" }
         ));
     }
     rows.push(format!(
@@ -813,10 +731,7 @@ fn at_a_glance(r: &Posture) -> String {
 }
 
 fn best_net(d: &DistortionRow) -> f64 {
-    d.nets
-        .iter()
-        .map(|n| n.1.z_pct)
-        .fold(f64::INFINITY, f64::min)
+    d.nets.iter().map(|n| n.1.z_pct).fold(f64::INFINITY, f64::min)
 }
 
 fn fixed_sentence(r: &Posture) -> String {
@@ -869,11 +784,7 @@ fn bands_sentence(r: &Posture) -> String {
         "{} in every band the net's depth e_ma is {lo:.2}-{hi:.2} times the floor's (worst: \
          {}, {}, {}), {} the goal of {GOAL_RATIO:.2}; the floor itself hardly moves with \
          the posture ({}-{}), because pixel rounding, not the posture, limits it.",
-        if met {
-            "The goal is met:"
-        } else {
-            "The goal is missed:"
-        },
+        if met { "The goal is met:" } else { "The goal is missed:" },
         w.term,
         w.band,
         times(w.ratio()),
@@ -885,10 +796,7 @@ fn bands_sentence(r: &Posture) -> String {
 
 fn hidden_sentence(r: &Posture) -> String {
     let rows = grid_sweep(r);
-    let Some(best) = rows
-        .iter()
-        .min_by(|a, b| a.test.z_pct.total_cmp(&b.test.z_pct))
-    else {
+    let Some(best) = rows.iter().min_by(|a, b| a.test.z_pct.total_cmp(&b.test.z_pct)) else {
         return "The run has no hidden-neuron sweep.".to_string();
     };
     let (first, last) = (rows[0], rows[rows.len() - 1]);
@@ -909,11 +817,7 @@ fn hidden_sentence(r: &Posture) -> String {
                 times(h.worst_band_ratio)
             );
             if !smaller.is_empty() {
-                let _ = write!(
-                    t,
-                    "; fewer miss it in the worst band ({})",
-                    smaller.join(", ")
-                );
+                let _ = write!(t, "; fewer miss it in the worst band ({})", smaller.join(", "));
             }
             if !larger.is_empty() {
                 let better = larger.iter().any(|x| x.test.z_pct < 0.98 * h.test.z_pct);
@@ -942,11 +846,7 @@ fn hidden_sentence(r: &Posture) -> String {
         None => format!(
             "No count of the sweep is within the goal in every band (best worst band: {} \
              the floor); the lowest test error is {} at {} hidden neurons.",
-            times(
-                rows.iter()
-                    .map(|h| h.worst_band_ratio)
-                    .fold(f64::INFINITY, f64::min)
-            ),
+            times(rows.iter().map(|h| h.worst_band_ratio).fold(f64::INFINITY, f64::min)),
             pct(best.test.z_pct),
             best.hidden
         ),

@@ -40,17 +40,9 @@ pub fn phi_stats(rows: &[PhiRow], case: u8, left: bool) -> PhiStats {
     let n = v.len() as f64;
     let mean = v.iter().map(|p| p.0).sum::<f64>() / n;
     let truth = v.first().map_or(f64::NAN, |p| p.1);
-    let max_dev_pct = v
-        .iter()
-        .map(|p| (p.0 - mean).abs() / mean * 100.0)
-        .fold(0.0, f64::max);
+    let max_dev_pct = v.iter().map(|p| (p.0 - mean).abs() / mean * 100.0).fold(0.0, f64::max);
     let var = v.iter().map(|p| (p.0 - mean) * (p.0 - mean)).sum::<f64>() / n;
-    PhiStats {
-        mean,
-        truth,
-        max_dev_pct,
-        sd_pct: libm::sqrt(var) / mean * 100.0,
-    }
+    PhiStats { mean, truth, max_dev_pct, sd_pct: libm::sqrt(var) / mean * 100.0 }
 }
 
 /// How far apart two means are, in % of the first.
@@ -86,15 +78,16 @@ pub fn board_disparity_px(rig: &Rig, centre_x: f64, z: f64) -> Option<f64> {
 
 /// The depth (cm) and e_ma (%) of a curve's worst depth (the first, on ties).
 pub fn worst_depth(c: &DepthCurve) -> (f64, f64) {
-    c.z.iter()
-        .zip(&c.pct)
-        .fold((f64::NAN, f64::NEG_INFINITY), |a, (z, v)| {
+    c.z.iter().zip(&c.pct).fold(
+        (f64::NAN, f64::NEG_INFINITY),
+        |a, (z, v)| {
             if *v > a.1 {
                 (*z, *v)
             } else {
                 a
             }
-        })
+        },
+    )
 }
 
 /// A depth grid in words: `65-165 cm in steps of 20 cm` (evenly spaced), or the list.
@@ -109,24 +102,13 @@ pub fn depth_grid(d: &[f64]) -> String {
 
 /// Signed positions as the text gives them: `-1.75, +1.75`.
 pub fn signed_list(v: impl IntoIterator<Item = f64>) -> String {
-    join(
-        v.into_iter().map(|x| {
-            if x > 0.0 {
-                format!("+{x}")
-            } else {
-                format!("{x}")
-            }
-        }),
-        ", ",
-    )
+    join(v.into_iter().map(|x| if x > 0.0 { format!("+{x}") } else { format!("{x}") }), ", ")
 }
 
 /// Whether a traditional-method range (lowest, highest per-depth e_ma, %) matches the
 /// thesis' range of `case` within 10 % at both ends (at the low end, at least 0.1 points).
 pub fn matches_thesis_traditional(case: u8, lo: f64, hi: f64) -> bool {
-    let Some(th) = usize::from(case)
-        .checked_sub(1)
-        .and_then(|k| reported::TRADITIONAL_PCT.get(k))
+    let Some(th) = usize::from(case).checked_sub(1).and_then(|k| reported::TRADITIONAL_PCT.get(k))
     else {
         return false;
     };
@@ -150,24 +132,14 @@ mod tests {
     use hvs_shared::sim::presets::{self, CASE_1, CASE_2, CASE_4, TEST_DEPTHS, TEST_POINTS_XY};
 
     fn row(case: u8, phi_l: f64, phi_r: f64) -> PhiRow {
-        PhiRow {
-            case,
-            z: 50.0,
-            phi_l,
-            phi_r,
-            true_l: 100.0,
-            true_r: 200.0,
-        }
+        PhiRow { case, z: 50.0, phi_l, phi_r, true_l: 100.0, true_r: 200.0 }
     }
 
     #[test]
     fn phi_statistics() {
         let rows = [row(1, 99.0, 1.0), row(1, 101.0, 1.0), row(2, 0.0, 202.0)];
         let s = phi_stats(&rows, 1, true);
-        assert_eq!(
-            (s.mean, s.truth, s.max_dev_pct, s.sd_pct),
-            (100.0, 100.0, 1.0, 1.0)
-        );
+        assert_eq!((s.mean, s.truth, s.max_dev_pct, s.sd_pct), (100.0, 100.0, 1.0, 1.0));
         assert_eq!(s.bias_pct(), 0.0);
         let r = phi_stats(&rows, 2, false);
         assert_eq!((r.mean, r.truth, r.max_dev_pct), (202.0, 200.0, 0.0));
@@ -206,11 +178,7 @@ mod tests {
 
     #[test]
     fn worst_depth_and_argmin() {
-        let c = DepthCurve {
-            z: vec![65.0, 75.0, 85.0],
-            pct: vec![1.0, 3.0, 3.0],
-            mean: 2.0,
-        };
+        let c = DepthCurve { z: vec![65.0, 75.0, 85.0], pct: vec![1.0, 3.0, 3.0], mean: 2.0 };
         assert_eq!(worst_depth(&c), (75.0, 3.0));
         assert_eq!(argmin(&[3.0, 1.0, 1.0, 2.0]), 1);
         assert_eq!(argmin(&[]), 0);
@@ -218,10 +186,7 @@ mod tests {
 
     #[test]
     fn grids_and_lists_in_words() {
-        assert_eq!(
-            depth_grid(&presets::TRAIN_DEPTHS),
-            "65-165 cm in steps of 20 cm"
-        );
+        assert_eq!(depth_grid(&presets::TRAIN_DEPTHS), "65-165 cm in steps of 20 cm");
         assert_eq!(depth_grid(&TEST_DEPTHS), "65-165 cm in steps of 10 cm");
         assert_eq!(depth_grid(&[65.0, 95.0, 165.0]), "65, 95, 165 cm");
         assert_eq!(depth_grid(&[]), " cm");

@@ -72,10 +72,7 @@ pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Vec<(&'static 
         ("test_xy_count", number_word(TEST_POINTS_XY.len())),
         ("test_x", signed_list(TEST_POINTS_XY.iter().map(|p| p[0]))),
         ("test_grid", depth_grid(&TEST_DEPTHS)),
-        (
-            "test_points",
-            (TEST_POINTS_XY.len() * TEST_DEPTHS.len()).to_string(),
-        ),
+        ("test_points", (TEST_POINTS_XY.len() * TEST_DEPTHS.len()).to_string()),
         ("phi_grid", depth_grid(&PHI_DEPTHS)),
         ("net_shape", net_shape()),
         ("restarts", cfg.restarts().to_string()),
@@ -86,14 +83,7 @@ pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Vec<(&'static 
         ("stage_times", stages(&t.stage_s)),
         ("bound", bound()),
         ("builtin_phi", Calibration::BUILT_IN.phi.to_string()),
-        (
-            "posture_link",
-            if posture {
-                format!("{}\n\n", posture_link())
-            } else {
-                String::new()
-            },
-        ),
+        ("posture_link", if posture { format!("{}\n\n", posture_link()) } else { String::new() }),
     ];
     for (key, stem) in [
         ("files_phi", "fig4_03_04_phi"),
@@ -131,12 +121,7 @@ fn phi_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
     let l2 = phi_stats(&t.phi, 2, true);
     let r2 = phi_stats(&t.phi, 2, false);
     let mut table = Vec::new();
-    for (case, left, s) in [
-        (1u8, true, l1),
-        (1, false, r1),
-        (2, true, l2),
-        (2, false, r2),
-    ] {
+    for (case, left, s) in [(1u8, true, l1), (1, false, r1), (2, true, l2), (2, false, r2)] {
         table.push(format!(
             "| {} | {} | {:.3} | {:.3} | {:+.3} % | {:.3} % | {:.3} % |",
             roman(case),
@@ -152,11 +137,7 @@ fn phi_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
     let far = &PHI_DEPTHS[PHI_DEPTHS.len() - 2..];
     let d = presets::CASE_1.half_baseline;
     let disp = |rig: &hvs_shared::sim::camera::Rig, centre: f64| {
-        mean(
-            &far.iter()
-                .filter_map(|&z| board_disparity_px(rig, centre, z))
-                .collect::<Vec<_>>(),
-        )
+        mean(&far.iter().filter_map(|&z| board_disparity_px(rig, centre, z)).collect::<Vec<_>>())
     };
     let far_disp = disp(&presets::CASE_1, d);
     let ratio = disp(&presets::CASE_2, -d) / far_disp;
@@ -169,14 +150,8 @@ fn phi_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         ("case1_phi_l_sd", format!("{:.3}", l1.sd_pct)),
         ("case1_phi_l_dev2", format!("{:.2}", l1.max_dev_pct)),
         ("case1_phi_l_sd2", format!("{:.2}", l1.sd_pct)),
-        (
-            "case1_lr_apart",
-            format!("{:.3}", apart_pct(l1.mean, r1.mean)),
-        ),
-        (
-            "case1_bias",
-            format!("{:.2}", l1.bias_pct().abs().max(r1.bias_pct().abs())),
-        ),
+        ("case1_lr_apart", format!("{:.3}", apart_pct(l1.mean, r1.mean))),
+        ("case1_bias", format!("{:.2}", l1.bias_pct().abs().max(r1.bias_pct().abs()))),
         ("case2_phi_l", format!("{:.1}", l2.truth)),
         ("case2_phi_r", format!("{:.1}", r2.truth)),
         ("case2_phi_r_dev", format!("{:.2}", r2.max_dev_pct)),
@@ -216,14 +191,7 @@ fn traditional_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
     v.extend([
         ("glance_traditional_rows", rows(glance)),
         ("traditional_rows", rows(table)),
-        (
-            "trad_within",
-            if within.is_empty() {
-                "none".to_string()
-            } else {
-                within.join(", ")
-            },
-        ),
+        ("trad_within", if within.is_empty() { "none".to_string() } else { within.join(", ") }),
         (
             "trad_within_count",
             if within.len() == t.traditional.len() {
@@ -234,11 +202,7 @@ fn traditional_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         ),
         (
             "trad_floor_worst",
-            pct(t
-                .traditional
-                .iter()
-                .map(|c| c.optimal.worst())
-                .fold(0.0, f64::max)),
+            pct(t.traditional.iter().map(|c| c.optimal.worst()).fold(0.0, f64::max)),
         ),
     ]);
 }
@@ -246,13 +210,12 @@ fn traditional_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
 fn net_case4_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
     let p = &t.proposed[usize::from(GENERAL_CASE - 1)];
     let rig = presets::case(GENERAL_CASE).unwrap_or(presets::CASE_4);
-    let table = p.net.z.iter().enumerate().map(|(k, z)| {
-        format!(
-            "| {z} | {} | {} |",
-            pct(p.net.pct[k]),
-            pct(p.optimal.pct[k])
-        )
-    });
+    let table = p
+        .net
+        .z
+        .iter()
+        .enumerate()
+        .map(|(k, z)| format!("| {z} | {} | {} |", pct(p.net.pct[k]), pct(p.optimal.pct[k])));
     let (wz, _) = worst_depth(&p.optimal);
     // Test points that have the same pixels at two neighbouring depths, one of them the
     // floor's worst.
@@ -278,13 +241,7 @@ fn net_case4_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
             twins.join(", and ")
         )
     };
-    let above = p
-        .net
-        .pct
-        .iter()
-        .zip(&p.optimal.pct)
-        .map(|(a, b)| a - b)
-        .fold(0.0, f64::max);
+    let above = p.net.pct.iter().zip(&p.optimal.pct).map(|(a, b)| a - b).fold(0.0, f64::max);
     let [th_lo, th_hi] = reported::NET_CASE4_PCT;
     v.extend([
         ("net_case4_rows", rows(table)),
@@ -304,20 +261,15 @@ fn net_case4_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
             } else {
                 format!(
                     " ({})",
-                    twins
-                        .join("; ")
-                        .replace(" has identical pixels at", "'s identical pixels at")
+                    twins.join("; ").replace(" has identical pixels at", "'s identical pixels at")
                 )
             },
         ),
         ("twins_sentence", twins_sentence),
     ]);
     // Fig. 4.13: the sweep's nets with the proposed shape.
-    let ten: Vec<_> = t
-        .sweep
-        .iter()
-        .filter(|r| r.hidden == 5 && r.outputs == OutputKind::Xyz)
-        .collect();
+    let ten: Vec<_> =
+        t.sweep.iter().filter(|r| r.hidden == 5 && r.outputs == OutputKind::Xyz).collect();
     let (wlo, whi) = span(ten.iter().map(|r| r.test_worst_pct));
     let (mlo, mhi) = span(ten.iter().map(|r| r.test_mean_pct));
     v.extend([
@@ -328,10 +280,7 @@ fn net_case4_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         ("ten_count", ten.len().to_string()),
         (
             "ten_below_bound",
-            ten.iter()
-                .filter(|r| r.test_worst_pct < reported::NET_BOUND_PCT)
-                .count()
-                .to_string(),
+            ten.iter().filter(|r| r.test_worst_pct < reported::NET_BOUND_PCT).count().to_string(),
         ),
     ]);
 }
@@ -343,13 +292,7 @@ fn sweep_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
     let zm = mean_e_ma_hn(&t.sweep, OutputKind::Z);
     let xm = mean_e_ma_hn(&t.sweep, OutputKind::Xyz);
     let table = hs.iter().enumerate().map(|(k, h)| {
-        format!(
-            "| {h} | {} | {} | {} | {} |",
-            pct(z1[k]),
-            pct(x3[k]),
-            pct(zm[k]),
-            pct(xm[k])
-        )
+        format!("| {h} | {} | {} | {} | {} |", pct(z1[k]), pct(x3[k]), pct(zm[k]), pct(xm[k]))
     });
     let wins = |one: &[f64], three: &[f64]| one.iter().zip(three).filter(|(a, b)| b < a).count();
     let verdict = match (mean(&x3) < mean(&z1), mean(&xm) < mean(&zm)) {
@@ -398,12 +341,8 @@ fn proposed_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
             bound()
         )
     });
-    let over: Vec<&str> = t
-        .proposed
-        .iter()
-        .filter(|p| p.net.worst() >= limit)
-        .map(|p| roman(p.case))
-        .collect();
+    let over: Vec<&str> =
+        t.proposed.iter().filter(|p| p.net.worst() >= limit).map(|p| roman(p.case)).collect();
     let near: Vec<String> = t
         .proposed
         .iter()
@@ -441,19 +380,13 @@ fn proposed_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         .iter()
         .filter(|r| r.sigma == 0.0)
         .map(|r| format!("{:.2}", r.network_pct / r.optimal_pct));
-    let glance = t
-        .proposed
-        .iter()
-        .map(|p| format!("{} {}", roman(p.case), pct(p.net.worst())));
+    let glance = t.proposed.iter().map(|p| format!("{} {}", roman(p.case), pct(p.net.worst())));
     v.extend([
         ("proposed_rows", rows(table)),
         ("proposed_worst", join(glance, ", ")),
         ("proposed_bound_sentence", bound_sentence),
         ("proposed_floor_sentence", floor_sentence),
-        (
-            "proposed_mean_max",
-            pct(t.proposed.iter().map(|p| p.net.mean).fold(0.0, f64::max)),
-        ),
+        ("proposed_mean_max", pct(t.proposed.iter().map(|p| p.net.mean).fold(0.0, f64::max))),
         ("volume_points", t.config.volume_points().to_string()),
         ("volume_ratios", join(ratios, ", ")),
     ]);
@@ -566,10 +499,8 @@ fn algo_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         t.algos.iter().filter(|r| r.algo == a).map(f).sum::<f64>()
     };
     let (bt, lt) = (sum(Algo::Bp, &|r| r.wall_s), sum(Algo::Lm, &|r| r.wall_s));
-    let (be, le) = (
-        sum(Algo::Bp, &|r| r.test_worst_pct) / 4.0,
-        sum(Algo::Lm, &|r| r.test_worst_pct) / 4.0,
-    );
+    let (be, le) =
+        (sum(Algo::Bp, &|r| r.test_worst_pct) / 4.0, sum(Algo::Lm, &|r| r.test_worst_pct) / 4.0);
     let verdict = if (be - le).abs() < 0.25 * le {
         "The thesis' algorithm is not what limits its accuracy: given enough learning \
          cycles it reaches errors close to LM's on these noise-free pixels; what it costs \
@@ -587,10 +518,7 @@ fn algo_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         ("algo_rows", rows(table)),
         ("lm_worst_mean", pct(le)),
         ("bp_worst_mean", pct(be)),
-        (
-            "floor_worst_mean",
-            pct(t.proposed.iter().map(|p| p.optimal.worst()).sum::<f64>() / 4.0),
-        ),
+        ("floor_worst_mean", pct(t.proposed.iter().map(|p| p.optimal.worst()).sum::<f64>() / 4.0)),
         ("lm_time", format!("{lt:.3}")),
         ("bp_time", format!("{bt:.2}")),
         ("speedup", format!("{:.0}", bt / lt.max(1e-9))),
@@ -600,27 +528,19 @@ fn algo_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
 
 fn noise_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
     let levels = t.config.noise_levels();
-    let shown = [
-        levels[0],
-        levels[levels.len() / 2],
-        levels[levels.len() - 1],
-    ];
-    let table = t
-        .noise
-        .iter()
-        .filter(|r| shown.contains(&r.sigma))
-        .map(|r| {
-            format!(
-                "| {} | {:.1} | {} | {:.1} % | {} | {} | {:.2} |",
-                roman(r.case),
-                r.sigma,
-                pct(r.traditional_pct),
-                r.traditional_missing_pct,
-                pct(r.network_pct),
-                pct(r.optimal_pct),
-                r.network_pct / r.optimal_pct
-            )
-        });
+    let shown = [levels[0], levels[levels.len() / 2], levels[levels.len() - 1]];
+    let table = t.noise.iter().filter(|r| shown.contains(&r.sigma)).map(|r| {
+        format!(
+            "| {} | {:.1} | {} | {:.1} % | {} | {} | {:.2} |",
+            roman(r.case),
+            r.sigma,
+            pct(r.traditional_pct),
+            r.traditional_missing_pct,
+            pct(r.network_pct),
+            pct(r.optimal_pct),
+            r.network_pct / r.optimal_pct
+        )
+    });
     let (lo, hi) = span(t.noise.iter().map(|r| r.network_pct / r.optimal_pct));
     let top = levels[levels.len() - 1];
     let at = |case: u8, sigma: f64| t.noise.iter().find(|r| r.case == case && r.sigma == sigma);
@@ -629,19 +549,12 @@ fn noise_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         _ => f64::NAN,
     };
     let trad = (1..=4u8).map(|case| {
-        let (a, b) = span(
-            t.noise
-                .iter()
-                .filter(|r| r.case == case)
-                .map(|r| r.traditional_pct),
-        );
+        let (a, b) = span(t.noise.iter().filter(|r| r.case == case).map(|r| r.traditional_pct));
         format!("{} {}-{}", roman(case), pct_value(a), pct(b))
     });
     let (vlo, vhi) = training_volume();
-    let volume_box = format!(
-        "X {}..{}, Y {}..{}, Z {}..{} cm",
-        vlo[0], vhi[0], vlo[1], vhi[1], vlo[2], vhi[2]
-    );
+    let volume_box =
+        format!("X {}..{}, Y {}..{}, Z {}..{} cm", vlo[0], vhi[0], vlo[1], vhi[1], vlo[2], vhi[2]);
     v.extend([
         ("noise_repeats", t.config.noise_repeats().to_string()),
         ("volume_box", volume_box),

@@ -54,11 +54,8 @@ pub const HIDDEN: [usize; 10] = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10];
 /// Hidden-neuron counts of the quick run's sweep (5 is Fig. 4.13's).
 pub const HIDDEN_QUICK: [usize; 4] = [1, 3, 5, 8];
 /// The reduced training-depth sets of Figs. 4.20-4.22 (cm).
-pub const FEWER_DEPTHS: [&[f64]; 3] = [
-    &[65.0, 165.0],
-    &[65.0, 115.0, 165.0],
-    &[65.0, 95.0, 135.0, 165.0],
-];
+pub const FEWER_DEPTHS: [&[f64]; 3] =
+    [&[65.0, 165.0], &[65.0, 115.0, 165.0], &[65.0, 95.0, 135.0, 165.0]];
 /// The case the thesis treats as the general one (section 4.2.2): IV.
 pub const GENERAL_CASE: u8 = 4;
 
@@ -123,10 +120,7 @@ impl Config {
     /// Back-propagation settings: the trainer's defaults (300 cycles when quick).
     pub fn bp(&self) -> BpParams {
         if self.quick {
-            BpParams {
-                max_cycles: 300,
-                ..BpParams::default()
-            }
+            BpParams { max_cycles: 300, ..BpParams::default() }
         } else {
             BpParams::default()
         }
@@ -181,14 +175,8 @@ impl DepthCurve {
 
 /// Per-depth curves of `z_hat` estimators against the truth of `test`, in their order.
 fn curves<const N: usize>(test: &Dataset, z_hat: [Vec<f64>; N]) -> [DepthCurve; N] {
-    let methods: Vec<Method> = z_hat
-        .into_iter()
-        .enumerate()
-        .map(|(k, z)| Method {
-            name: k.to_string(),
-            z,
-        })
-        .collect();
+    let methods: Vec<Method> =
+        z_hat.into_iter().enumerate().map(|(k, z)| Method { name: k.to_string(), z }).collect();
     let ev = evaluate(test, &methods);
     core::array::from_fn(|m| DepthCurve {
         z: ev.depths.iter().map(|d| d.z_min).collect(),
@@ -308,11 +296,7 @@ pub fn traditional() -> Result<Vec<TraditionalCase>> {
                     optimal_depths(&rig(case)?, &test),
                 ],
             );
-            Ok(TraditionalCase {
-                case,
-                traditional,
-                optimal,
-            })
+            Ok(TraditionalCase { case, traditional, optimal })
         })
         .collect()
 }
@@ -338,17 +322,10 @@ pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCas
         .map(|case| {
             let (train_set, test) = protocol(case)?;
             let out = train(&train_set, &tc).with_context(|| format!("case {case}"))?;
-            let [net, optimal] = curves(
-                &test,
-                [net_z(&out.blob, &test)?, optimal_depths(&rig(case)?, &test)],
-            );
+            let [net, optimal] =
+                curves(&test, [net_z(&out.blob, &test)?, optimal_depths(&rig(case)?, &test)]);
             progress.inc();
-            Ok(ProposedCase {
-                case,
-                train_pct: out.train_error_pct,
-                net,
-                optimal,
-            })
+            Ok(ProposedCase { case, train_pct: out.train_error_pct, net, optimal })
         })
         .collect()
 }
@@ -441,11 +418,8 @@ fn per_hidden(rows: &[NetRow], outputs: OutputKind, f: impl Fn(&NetRow) -> f64) 
     hidden_counts(rows)
         .iter()
         .map(|&h| {
-            let v: Vec<f64> = rows
-                .iter()
-                .filter(|r| r.outputs == outputs && r.hidden == h)
-                .map(&f)
-                .collect();
+            let v: Vec<f64> =
+                rows.iter().filter(|r| r.outputs == outputs && r.hidden == h).map(&f).collect();
             v.iter().sum::<f64>() / v.len() as f64
         })
         .collect()
@@ -493,11 +467,7 @@ pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDe
             let set = dataset(&samples);
             let out = train(&set, &tc).with_context(|| format!("training depths {depths:?}"))?;
             progress.inc();
-            let bp_tc = TrainConfig {
-                algo: Algo::Bp,
-                bp: cfg.bp(),
-                ..tc.clone()
-            };
+            let bp_tc = TrainConfig { algo: Algo::Bp, bp: cfg.bp(), ..tc.clone() };
             let bp = train(&set, &bp_tc)
                 .with_context(|| format!("training depths {depths:?}, back-propagation"))?;
             progress.inc();
@@ -543,11 +513,7 @@ pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
     for case in 1..=4u8 {
         let (train_set, test) = protocol(case)?;
         for algo in [Algo::Lm, Algo::Bp] {
-            let tc = TrainConfig {
-                algo,
-                bp: cfg.bp(),
-                ..cfg.proposed()
-            };
+            let tc = TrainConfig { algo, bp: cfg.bp(), ..cfg.proposed() };
             let t = Instant::now();
             let out = train(&train_set, &tc).with_context(|| format!("case {case}, {algo:?}"))?;
             let wall_s = t.elapsed().as_secs_f64();
@@ -705,10 +671,7 @@ pub fn run(cfg: &Config, progress: &dyn Progress) -> Result<Thesis> {
     let done = stage("Figs. 4.12, 4.16-4.19", 4);
     let proposed = proposed(cfg, progress)?;
     done(&mut stage_s);
-    let done = stage(
-        "Figs. 4.13-4.15",
-        (2 * cfg.hidden().len() * cfg.nets()) as u64,
-    );
+    let done = stage("Figs. 4.13-4.15", (2 * cfg.hidden().len() * cfg.nets()) as u64);
     let sweep = hidden_sweep(cfg, progress)?;
     done(&mut stage_s);
     let done = stage("Figs. 4.20-4.22", 2 * FEWER_DEPTHS.len() as u64);

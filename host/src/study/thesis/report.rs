@@ -36,13 +36,7 @@ const Z_LABEL: &str = "true depth Z (cm)";
 const EMA_LABEL: &str = "e_ma (% of true depth)";
 
 fn floor_series(c: &DepthCurve) -> Series {
-    Series::new(
-        "optimal triangulation, true rig (floor)",
-        &c.z,
-        &c.pct,
-        Style::Dashed,
-        FLOOR_COLOR,
-    )
+    Series::new("optimal triangulation, true rig (floor)", &c.z, &c.pct, Style::Dashed, FLOOR_COLOR)
 }
 
 /// The stems of the files [`write()`] produces (each as `.csv`, `.svg`, `.png`), besides
@@ -138,18 +132,8 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let fig = Figure {
         title: "Phi estimated at Z = 45-105 cm (thesis Figs. 4.3, 4.4)".into(),
         panels: vec![
-            panel(
-                "Phi_L",
-                case1.iter().map(|r| r.phi_l).collect(),
-                case1[0].true_l,
-                0,
-            ),
-            panel(
-                "Phi_R",
-                case1.iter().map(|r| r.phi_r).collect(),
-                case1[0].true_r,
-                1,
-            ),
+            panel("Phi_L", case1.iter().map(|r| r.phi_l).collect(), case1[0].true_l, 0),
+            panel("Phi_R", case1.iter().map(|r| r.phi_r).collect(), case1[0].true_r, 1),
         ],
         cols: 2,
     };
@@ -177,30 +161,15 @@ fn per_case_files(
     let mut rows = Vec::new();
     for (case, curve, floor) in cases {
         for (k, z) in curve.z.iter().enumerate() {
-            rows.push(vec![
-                case.to_string(),
-                num(*z),
-                num(curve.pct[k]),
-                num(floor.pct[k]),
-            ]);
+            rows.push(vec![case.to_string(), num(*z), num(curve.pct[k]), num(floor.pct[k])]);
         }
     }
-    o.csv(
-        &format!("{}.csv", spec.stem),
-        &format!("case,z_cm,{},optimal_pct", spec.column),
-        &rows,
-    )?;
+    o.csv(&format!("{}.csv", spec.stem), &format!("case,z_cm,{},optimal_pct", spec.column), &rows)?;
     let panels = cases
         .iter()
         .map(|(case, curve, floor)| {
             let mut series = vec![
-                Series::new(
-                    spec.method.0,
-                    &curve.z,
-                    &curve.pct,
-                    Style::LinePoints,
-                    spec.method.1,
-                ),
+                Series::new(spec.method.0, &curve.z, &curve.pct, Style::LinePoints, spec.method.1),
                 floor_series(floor),
             ];
             series.extend(spec.extra.iter().cloned());
@@ -219,22 +188,12 @@ fn per_case_files(
             }
         })
         .collect();
-    o.figure(
-        spec.stem,
-        &Figure {
-            title: spec.title.into(),
-            panels,
-            cols: 2,
-        },
-    )
+    o.figure(spec.stem, &Figure { title: spec.title.into(), panels, cols: 2 })
 }
 
 fn traditional_files(o: &mut Files, t: &Thesis) -> Result<()> {
-    let cases: Vec<_> = t
-        .traditional
-        .iter()
-        .map(|c| (c.case, &c.traditional, &c.optimal))
-        .collect();
+    let cases: Vec<_> =
+        t.traditional.iter().map(|c| (c.case, &c.traditional, &c.optimal)).collect();
     per_case_files(
         o,
         PerCase {
@@ -259,11 +218,7 @@ fn net_case4_files(o: &mut Files, t: &Thesis) -> Result<()> {
         .enumerate()
         .map(|(k, z)| vec![num(*z), num(p.net.pct[k]), num(p.optimal.pct[k])])
         .collect();
-    o.csv(
-        "fig4_12_net_case4.csv",
-        "z_cm,network_pct,optimal_pct",
-        &rows,
-    )?;
+    o.csv("fig4_12_net_case4.csv", "z_cm,network_pct,optimal_pct", &rows)?;
     o.figure(
         "fig4_12_net_case4",
         &Figure::single(
@@ -286,11 +241,8 @@ fn net_case4_files(o: &mut Files, t: &Thesis) -> Result<()> {
         ),
     )?;
     // Fig. 4.13: the sweep's nets with 5 hidden neurons and three outputs.
-    let ten: Vec<_> = t
-        .sweep
-        .iter()
-        .filter(|r| r.hidden == 5 && r.outputs == OutputKind::Xyz)
-        .collect();
+    let ten: Vec<_> =
+        t.sweep.iter().filter(|r| r.hidden == 5 && r.outputs == OutputKind::Xyz).collect();
     let rows: Vec<Vec<String>> = ten
         .iter()
         .map(|r| {
@@ -303,11 +255,7 @@ fn net_case4_files(o: &mut Files, t: &Thesis) -> Result<()> {
             ]
         })
         .collect();
-    o.csv(
-        "fig4_13_ten_nets.csv",
-        "net,seed,train_pct,test_mean_pct,test_worst_depth_pct",
-        &rows,
-    )?;
+    o.csv("fig4_13_ten_nets.csv", "net,seed,train_pct,test_mean_pct,test_worst_depth_pct", &rows)?;
     let x: Vec<f64> = ten.iter().map(|r| (r.index + 1) as f64).collect();
     let floor = p.optimal.worst();
     o.figure(
@@ -462,11 +410,7 @@ fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
 }
 
 fn proposed_files(o: &mut Files, t: &Thesis) -> Result<()> {
-    let cases: Vec<_> = t
-        .proposed
-        .iter()
-        .map(|c| (c.case, &c.net, &c.optimal))
-        .collect();
+    let cases: Vec<_> = t.proposed.iter().map(|c| (c.case, &c.net, &c.optimal)).collect();
     let depths = [TEST_DEPTHS[0], TEST_DEPTHS[TEST_DEPTHS.len() - 1]];
     per_case_files(
         o,
@@ -516,11 +460,7 @@ fn fewer_files(o: &mut Files, t: &Thesis) -> Result<()> {
             .map(|(k, f)| {
                 let c = if bp { &f.bp } else { &f.net };
                 Series::new(
-                    format!(
-                        "trained at {} cm (Fig. 4.{})",
-                        join(&f.depths, ", "),
-                        20 + k
-                    ),
+                    format!("trained at {} cm (Fig. 4.{})", join(&f.depths, ", "), 20 + k),
                     &c.z,
                     &c.pct,
                     Style::LinePoints,
@@ -575,24 +515,11 @@ fn algo_files(o: &mut Files, t: &Thesis) -> Result<()> {
             ]
         },
     )?;
-    o.rows(
-        "bp_vs_lm_timing.csv",
-        "case,algorithm,wall_s",
-        &t.algos,
-        |r| {
-            vec![
-                r.case.to_string(),
-                algo_name(r.algo).to_string(),
-                format!("{:.4}", r.wall_s),
-            ]
-        },
-    )?;
+    o.rows("bp_vs_lm_timing.csv", "case,algorithm,wall_s", &t.algos, |r| {
+        vec![r.case.to_string(), algo_name(r.algo).to_string(), format!("{:.4}", r.wall_s)]
+    })?;
     let pick = |a: Algo, f: &dyn Fn(&super::AlgoRow) -> f64| -> (Vec<f64>, Vec<f64>) {
-        t.algos
-            .iter()
-            .filter(|r| r.algo == a)
-            .map(|r| (r.case as f64, f(r)))
-            .unzip()
+        t.algos.iter().filter(|r| r.algo == a).map(|r| (r.case as f64, f(r))).unzip()
     };
     let (cx, lm_err) = pick(Algo::Lm, &|r| r.test_worst_pct);
     let (_, bp_err) = pick(Algo::Bp, &|r| r.test_worst_pct);
@@ -688,13 +615,7 @@ fn noise_files(o: &mut Files, t: &Thesis) -> Result<()> {
                         Style::LinePoints,
                         1,
                     ),
-                    Series::new(
-                        "proposed net",
-                        &s,
-                        &col(&|r| r.network_pct),
-                        Style::LinePoints,
-                        0,
-                    ),
+                    Series::new("proposed net", &s, &col(&|r| r.network_pct), Style::LinePoints, 0),
                     Series::new(
                         "optimal triangulation, true rig (floor)",
                         &s,
