@@ -81,14 +81,14 @@ pub fn visit(head: &mut VirtualHead, plan: &Plan) -> Result<Vec<Stop>> {
             head.command(goal);
             let start = head.time_s();
             // At least one tick: the command is taken at the next control tick.
-            head.advance_to(head.time_s() + dt);
+            head.advance_to(head.time_s() + dt)?;
             while head.is_moving() {
                 if head.time_s() - start > MOVE_TIMEOUT_S {
                     bail!("the head did not reach posture {:?} within {MOVE_TIMEOUT_S} s", goal.0);
                 }
-                head.advance_to(head.time_s() + dt);
+                head.advance_to(head.time_s() + dt)?;
             }
-            head.advance_to(head.time_s() + plan.settle_s);
+            head.advance_to(head.time_s() + plan.settle_s)?;
             stops.push(Stop { placement, posture, t_s: head.time_s(), joints: head.joints() });
         }
     }

@@ -1,10 +1,11 @@
 //! `hvs-tests`: cross-crate tests of hvs-depth. The tests live in `tests/tests/`; this library
 //! only holds helpers they share: the location of the workspace root, the sample models (re-exported from `hvs_shared::test_support`),
-//! [`sim::SimHead`] (the firmware loop on the host for the robustness tests and the fuzz
-//! targets) and the fuzz targets' checks ([`fuzz`]), replayed by the normal test suite.
+//! [`sim::SimHead`] (the firmware loop on the host, `hvs_host::sim::head`, re-exported for the
+//! robustness tests and the fuzz targets) and the fuzz targets' checks ([`fuzz`]), replayed by
+//! the normal test suite.
 
 pub mod fuzz;
-pub mod sim;
+pub use hvs_host::sim::head as sim;
 
 use hvs_shared::runtime::blob::ModelBlob;
 use std::path::PathBuf;

@@ -352,7 +352,6 @@ fn shade(
         }
     }
     let n = opt.supersample as usize;
-    let inv = 1.0 / n as f64;
     let mut out = Vec::with_capacity(wu * hu);
     for r in 0..hu {
         for c in 0..wu {
@@ -362,20 +361,33 @@ fn shade(
                 out.push(opt.level(q[0]));
                 continue;
             }
-            // A sheared n x n grid: every sample has its own u and its own v (n^2 distinct
-            // offsets on each axis), so an edge along either axis is resolved to 1/n^2 px.
-            let mut sum = 0.0f32;
-            for sy in 0..n {
-                for sx in 0..n {
-                    let u = c as f64 - 0.5 + (sx as f64 + (sy as f64 + 0.5) * inv) * inv;
-                    let v = r as f64 - 0.5 + (sy as f64 + (sx as f64 + 0.5) * inv) * inv;
-                    sum += opt.level(sample(cam, board, opt.margin_cm, &centre, u, v));
-                }
-            }
-            out.push(sum / (n * n) as f32);
+            out.push(supersample(c, r, n, |u, v| {
+                opt.level(sample(cam, board, opt.margin_cm, &centre, u, v))
+            }));
         }
     }
     out
+}
+
+/// The mean grey of pixel `(c, r)` over a sheared `n` x `n` grid of samples (`grey(u, v)`):
+/// every sample has its own u and its own v (n^2 distinct offsets on each axis), so an edge
+/// along either axis is resolved to 1/n^2 px.
+pub(crate) fn supersample(
+    c: usize,
+    r: usize,
+    n: usize,
+    mut grey: impl FnMut(f64, f64) -> f32,
+) -> f32 {
+    let inv = 1.0 / n as f64;
+    let mut sum = 0.0f32;
+    for sy in 0..n {
+        for sx in 0..n {
+            let u = c as f64 - 0.5 + (sx as f64 + (sy as f64 + 0.5) * inv) * inv;
+            let v = r as f64 - 0.5 + (sy as f64 + (sx as f64 + 0.5) * inv) * inv;
+            sum += grey(u, v);
+        }
+    }
+    sum / (n * n) as f32
 }
 
 /// Separable Gaussian blur in place (radius `ceil(3 sigma)`, edges clamped).

@@ -765,7 +765,6 @@ fn shade_camera(
     // rows in parallel.
     let ns = opt.supersample as usize;
     if ns > 1 {
-        let inv = 1.0 / ns as f64;
         grey.par_chunks_mut(wu).enumerate().for_each(|(r, row)| {
             for (c, g) in row.iter_mut().enumerate() {
                 let i = r * wu + c;
@@ -777,15 +776,9 @@ fn shade_camera(
                 if !edge {
                     continue;
                 }
-                let mut sum = 0.0f32;
-                for sy in 0..ns {
-                    for sx in 0..ns {
-                        let u = c as f64 - 0.5 + (sx as f64 + (sy as f64 + 0.5) * inv) * inv;
-                        let v = r as f64 - 0.5 + (sy as f64 + (sx as f64 + 0.5) * inv) * inv;
-                        sum += sample(u, v).map_or(background, |s| s.1);
-                    }
-                }
-                *g = sum / (ns * ns) as f32;
+                *g = crate::render::supersample(c, r, ns, |u, v| {
+                    sample(u, v).map_or(background, |s| s.1)
+                });
             }
         });
     }

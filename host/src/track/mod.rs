@@ -162,7 +162,7 @@ impl Tracker {
         estimator: &Estimator,
         t_s: f64,
     ) -> Result<(Frame, LogRow)> {
-        head.advance_to(t_s);
+        head.advance_to(t_s)?;
         let joints = head.joints();
         let t0 = std::time::Instant::now();
         let frame = source.grab(t_s, &joints)?;

@@ -203,11 +203,10 @@ fn run(
             Some(tr) => tr
                 .frame(&mut lp.cameras, &mut lp.head, &lp.estimator, t)
                 .map(|(f, row)| (f, row.status, row.joints, row.px, row.xyz, row.err_px)),
-            None => {
-                lp.head.advance_to(t);
+            None => lp.head.advance_to(t).and_then(|()| {
                 let joints = lp.head.joints();
                 lp.cameras.grab(t, &joints).map(|f| (f, "idle", joints, None, None, None))
-            }
+            }),
         };
         let previous = me.latest();
         let next = match grabbed {

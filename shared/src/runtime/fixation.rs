@@ -199,6 +199,7 @@ pub fn step(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::runtime::head::tests::any_f32;
     use crate::runtime::traditional::Calibration;
     use proptest::prelude::*;
 
@@ -267,18 +268,6 @@ mod tests {
             step(&LoopConfig { gain: 0.0, ..cfg }, &fallback(), &LoopState::default(), &obs);
         let d = c.joints[Axis::LeftEyePan] - plain.joints[Axis::LeftEyePan];
         assert!((d - 0.9).abs() < 0.1, "{d}");
-    }
-
-    fn any_f32() -> impl Strategy<Value = f32> {
-        prop_oneof![
-            Just(f32::NAN),
-            Just(f32::INFINITY),
-            Just(f32::NEG_INFINITY),
-            Just(f32::MAX),
-            Just(-f32::MAX),
-            -1.0e6f32..1.0e6,
-            -1000.0f32..1000.0,
-        ]
     }
 
     proptest! {

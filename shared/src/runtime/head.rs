@@ -610,7 +610,7 @@ impl Estimator {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     extern crate std;
 
     use super::*;
@@ -1111,7 +1111,8 @@ mod tests {
         assert!(l.armed());
     }
 
-    fn any_f32() -> impl proptest::strategy::Strategy<Value = f32> {
+    /// Any f32 a wire or a bad sensor could give: non-finite, huge, zero, in the image, any bits.
+    pub(crate) fn any_f32() -> impl proptest::strategy::Strategy<Value = f32> {
         use proptest::prelude::*;
         prop_oneof![
             Just(f32::NAN),

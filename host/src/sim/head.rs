@@ -1,6 +1,7 @@
-//! A software head for robustness tests: the firmware's loop step ([`MainLoop`], which
-//! `firmware/src/main.rs` runs too) over the same `hvs-shared` pieces, with every safety rule
-//! checked on every tick.
+//! The simulated head: the firmware's loop step ([`MainLoop`], which `firmware/src/main.rs`
+//! runs too) over the same `hvs-shared` pieces, servo setpoints that follow the trajectories on
+//! the control clock, and every safety rule checked on every tick. `hvs track`'s virtual head
+//! runs on it, and so do the cross-crate robustness tests and fuzz targets (`hvs-tests`).
 //!
 //! Bytes go through [`FrameAccumulator`] and [`MainLoop::frame`] into [`Head::respond`], as
 //! on the head; every response must encode into one [`MAX_FRAME_LEN`] frame. Each control
@@ -8,8 +9,7 @@
 //! also goes through the MCDC and PWM conversions the firmware sends to the servos. A tick
 //! fails the run ([`Violation`]) if a setpoint leaves its joint limits, leaves the 0.18° grid,
 //! moves an axis by more than its per-tick step limit, or if an MCDC line or PWM pulse would
-//! command anything beyond the limits. The property tests (`tests/tests/properties.rs`), the
-//! fault-injection tests and the `head_stream` fuzz target all drive this one harness.
+//! command anything beyond the limits.
 
 use hvs_shared::runtime::gaze::{self, Axis, GazeConfig, JointLimits, Joints};
 use hvs_shared::runtime::head::{self, Boot, Head, MainLoop};
