@@ -14,16 +14,18 @@ fn golden(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden").join(name)
 }
 
+/// Checks `v{version}_{n_inputs}_{hidden}_3.hvsw` (its header, shape, family and frame) and
+/// that it predicts the bits recorded in `v{version}_{n_inputs}_{hidden}_3_predict.csv`.
 fn check(
-    model: &str,
-    predictions: &str,
     version: u16,
     n_inputs: usize,
     hidden: u8,
     family: Family,
     frame: OutputFrame,
 ) -> ModelBlob {
-    let bytes = std::fs::read(golden(model)).unwrap();
+    let model = format!("v{version}_{n_inputs}_{hidden}_3.hvsw");
+    let predictions = format!("v{version}_{n_inputs}_{hidden}_3_predict.csv");
+    let bytes = std::fs::read(golden(&model)).unwrap();
     assert_eq!(&bytes[0..4], b"HVSW");
     assert_eq!(u16::from_le_bytes([bytes[4], bytes[5]]), version, "a v{version} file");
     let b = blob::decode(&bytes).unwrap();
@@ -32,7 +34,7 @@ fn check(
     assert_eq!(b.n_inputs(), n_inputs);
     assert_eq!(b.topology.hidden, hidden);
     assert_eq!(b.topology.outputs, OutputKind::Xyz);
-    let text = std::fs::read_to_string(golden(predictions)).unwrap();
+    let text = std::fs::read_to_string(golden(&predictions)).unwrap();
     let mut rows = 0;
     for line in text.lines().skip(1).filter(|l| !l.trim().is_empty()) {
         let v: Vec<f32> = line.split(',').map(|s| s.parse().unwrap()).collect();
@@ -55,91 +57,43 @@ fn check(
 
 #[test]
 fn v1_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
-    check("v1_4_5_3.hvsw", "v1_4_5_3_predict.csv", 1, 4, 5, Family::THESIS, OutputFrame::Head);
+    check(1, 4, 5, Family::THESIS, OutputFrame::Head);
 }
 
 #[test]
 fn v1_posture_9_8_3_decodes_and_predicts_the_recorded_bits() {
-    check("v1_9_8_3.hvsw", "v1_9_8_3_predict.csv", 1, 9, 8, Family::THESIS, OutputFrame::Head);
+    check(1, 9, 8, Family::THESIS, OutputFrame::Head);
 }
 
 #[test]
 fn v2_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
-    check(
-        "v2_4_5_3.hvsw",
-        "v2_4_5_3_predict.csv",
-        2,
-        4,
-        5,
-        Family::INVERSE_DEPTH_SKIP,
-        OutputFrame::Head,
-    );
+    check(2, 4, 5, Family::INVERSE_DEPTH_SKIP, OutputFrame::Head);
 }
 
 #[test]
 fn v2_posture_9_8_3_decodes_and_predicts_the_recorded_bits() {
-    check(
-        "v2_9_8_3.hvsw",
-        "v2_9_8_3_predict.csv",
-        2,
-        9,
-        8,
-        Family::INVERSE_DEPTH_SKIP,
-        OutputFrame::Head,
-    );
+    check(2, 9, 8, Family::INVERSE_DEPTH_SKIP, OutputFrame::Head);
 }
 
 #[test]
 fn v3_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
-    check(
-        "v3_4_5_3.hvsw",
-        "v3_4_5_3_predict.csv",
-        3,
-        4,
-        5,
-        Family::INVERSE_DEPTH_SKIP,
-        OutputFrame::Head,
-    );
+    check(3, 4, 5, Family::INVERSE_DEPTH_SKIP, OutputFrame::Head);
 }
 
 #[test]
 fn v3_posture_9_8_3_in_the_eye_platform_frame_decodes_and_predicts_the_recorded_bits() {
-    check(
-        "v3_9_8_3.hvsw",
-        "v3_9_8_3_predict.csv",
-        3,
-        9,
-        8,
-        Family::INVERSE_DEPTH_SKIP,
-        OutputFrame::EyePlatform,
-    );
+    check(3, 9, 8, Family::INVERSE_DEPTH_SKIP, OutputFrame::EyePlatform);
 }
 
 #[test]
 fn v4_stereo_4_5_3_decodes_and_predicts_the_recorded_bits() {
-    let b = check(
-        "v4_4_5_3.hvsw",
-        "v4_4_5_3_predict.csv",
-        4,
-        4,
-        5,
-        Family::INVERSE_DEPTH_SKIP,
-        OutputFrame::Head,
-    );
+    let b = check(4, 4, 5, Family::INVERSE_DEPTH_SKIP, OutputFrame::Head);
     assert_eq!((b.image_size(), b.parent()), (None, None));
 }
 
 #[test]
 fn v4_posture_9_8_3_in_the_eye_platform_frame_decodes_and_predicts_the_recorded_bits() {
-    let b = check(
-        "v4_9_8_3.hvsw",
-        "v4_9_8_3_predict.csv",
-        4,
-        9,
-        8,
-        Family::INVERSE_DEPTH_SKIP,
-        OutputFrame::EyePlatform,
-    );
+    let b = check(4, 9, 8, Family::INVERSE_DEPTH_SKIP, OutputFrame::EyePlatform);
     assert_eq!((b.image_size(), b.parent()), (None, None));
 }
 

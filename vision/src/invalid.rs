@@ -68,3 +68,27 @@ pub(crate) fn assert_refused<T: fmt::Debug, E: fmt::Display>(result: Result<T, E
         }
     }
 }
+
+/// The two images of a pair must be the same size ("right: image is WxH, the left one WxH").
+pub(crate) fn same_size(
+    left: &image::GrayImage,
+    right: &image::GrayImage,
+) -> Result<(), InvalidField> {
+    if left.dimensions() != right.dimensions() {
+        let (lw, lh, rw, rh) = (left.width(), left.height(), right.width(), right.height());
+        let why = format!("image is {rw}x{rh}, the left one {lw}x{lh}: both must be the same size");
+        return Err(InvalidField::new("right", why));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_pair_of_two_sizes_is_refused_naming_both() {
+        let (a, b) = (image::GrayImage::new(4, 3), image::GrayImage::new(5, 3));
+        assert!(super::same_size(&a, &a.clone()).is_ok());
+        let e = super::same_size(&a, &b).unwrap_err().to_string();
+        assert_eq!(e, "right: image is 5x3, the left one 4x3: both must be the same size");
+    }
+}

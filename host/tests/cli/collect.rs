@@ -3,7 +3,7 @@
 //! capture set `hvs board detect` reads, repeats its bytes for the same seed, and refuses bad
 //! input naming the file, line and column.
 
-use crate::common::{fails, ok, stderr_with_code, Scratch};
+use crate::common::{csv_rows, fails, ok, stderr_with_code, Scratch};
 use std::fs;
 
 const BOARD: &str = r#"{"pattern": "chessboard", "inner_corners": [7, 5], "square_cm": 4.0}"#;
@@ -51,12 +51,8 @@ fn collect_keeps_the_postures_that_see_the_board_and_board_detect_reads_them() {
     let (out, again) = (dir.p("set"), dir.p("again"));
     collect(&b, &p, &s, &out, "3");
     let text = fs::read_to_string(format!("{out}/CAPTURES.csv")).unwrap();
-    let mut lines = text.lines();
-    assert_eq!(
-        lines.next(),
-        Some("left,right,z,x,y,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")
-    );
-    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let rows =
+        csv_rows(&text, "left,right,z,x,y,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan");
     // Neck pan -30, 0, +30 at each placement (vergence 5 degrees, the middle of its range).
     assert_eq!(rows.len(), 2, "{text}");
     for (r, z) in rows.iter().zip(["45", "47"]) {

@@ -11,6 +11,10 @@ use hvs_vision::pfm::read_pfm;
 use image::GrayImage;
 use std::path::Path;
 
+/// The dense matcher's synthetic pairs (`vision/tests/dense_common`), for its texture.
+#[path = "../../../vision/tests/dense_common/mod.rs"]
+mod dense_common;
+
 const W: u32 = 160;
 const H: u32 = 120;
 const FOCAL: f64 = 200.0;
@@ -40,38 +44,10 @@ fn training_csv(path: &Path) {
     std::fs::write(path, out).unwrap();
 }
 
-/// A smooth seeded texture, read bilinearly.
+/// A smooth seeded texture (the dense matcher's test texture), read bilinearly.
 fn texture(seed: u64) -> impl Fn(f64, f64) -> f64 {
-    let (tw, th) = (W as usize + 64, H as usize);
-    let mut st = seed;
-    let mut g: Vec<f64> = (0..tw * th).map(|_| (splitmix64(&mut st) >> 56) as f64).collect();
-    for _ in 0..2 {
-        let src = g.clone();
-        for y in 0..th {
-            for x in 0..tw {
-                let mut a = 0.0;
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let xx = (x as i64 + dx).clamp(0, tw as i64 - 1) as usize;
-                        let yy = (y as i64 + dy).clamp(0, th as i64 - 1) as usize;
-                        a += src[yy * tw + xx];
-                    }
-                }
-                g[y * tw + x] = a / 9.0;
-            }
-        }
-    }
-    move |x: f64, y: f64| {
-        let x = (x + 32.0).clamp(0.0, (tw - 1) as f64);
-        let y = y.clamp(0.0, (th - 1) as f64);
-        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
-        let (x1, y1) = ((x0 + 1).min(tw - 1), (y0 + 1).min(th - 1));
-        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
-        let at = |x: usize, y: usize| g[y * tw + x];
-        let v = (at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx) * (1.0 - fy)
-            + (at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx) * fy;
-        (128.0 + 3.0 * (v - 127.5)).clamp(0.0, 255.0)
-    }
+    let t = dense_common::Texture::new(W as usize + 64, H as usize, seed);
+    move |x: f64, y: f64| f64::from(t.at(x + 32.0, y))
 }
 
 /// Is left pixel `(x, y)` on the box?

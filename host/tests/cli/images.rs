@@ -1,7 +1,9 @@
 //! `hvs render` and `hvs board detect`: rendered stereo photos into a training set, through the
 //! built binary, and every kind of bad input named and skipped or refused.
 
-use crate::common::{detect_args, hvs, locate_args, ok, s, stderr_with_code, train_restarts};
+use crate::common::{
+    csv_rows, detect_args, hvs, locate_args, ok, s, stderr_with_code, train_restarts,
+};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -209,9 +211,7 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     ));
     assert!(overlay.is_file());
     let text = std::fs::read_to_string(&out).unwrap();
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("u_l,v_l,u_r,v_r,x,y,z,score,status,tag,true_u_r,true_v_r"));
-    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let rows = csv_rows(&text, "u_l,v_l,u_r,v_r,x,y,z,score,status,tag,true_u_r,true_v_r");
     assert_eq!(rows.len(), 54 + 1);
     let (mut okc, mut good) = (0, 0);
     for f in &rows[..54] {

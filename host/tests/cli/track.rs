@@ -3,7 +3,7 @@
 //! flags, qemu).
 
 use crate::common::{
-    fails, ok, small_model as model, small_scene as scene, stderr_with_code, Scratch,
+    csv_rows, fails, ok, small_model as model, small_scene as scene, stderr_with_code, Scratch,
 };
 use std::fs;
 
@@ -42,12 +42,7 @@ fn track_logs_every_frame_and_repeats_its_bytes() {
     );
     let (ta, tb) = (fs::read_to_string(&a).unwrap(), fs::read_to_string(&b).unwrap());
     assert_eq!(ta, tb, "same scene and seed, same log bytes");
-    let mut lines = ta.lines();
-    assert_eq!(
-        lines.next(),
-        Some("t_s,frame,status,u_l,v_l,u_r,v_r,x,y,z,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan,err_l_px,err_r_px")
-    );
-    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let rows = csv_rows(&ta, "t_s,frame,status,u_l,v_l,u_r,v_r,x,y,z,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan,err_l_px,err_r_px");
     assert_eq!(rows.len(), 6, "0.2 s at 30 fps");
     for (k, r) in rows.iter().enumerate() {
         assert_eq!(r.len(), 17);

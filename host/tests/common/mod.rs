@@ -218,3 +218,10 @@ pub fn small_model(dir: &Scratch) -> String {
     ok(&["train", "--data", &data, "-o", &m, "--restarts", "1"]);
     m
 }
+
+/// The rows of CSV `text` split into fields, after checking its header is `header`.
+pub fn csv_rows<'a>(text: &'a str, header: &str) -> Vec<Vec<&'a str>> {
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some(header), "the header of:\n{text}");
+    lines.map(|l| l.split(',').collect()).collect()
+}

@@ -289,19 +289,7 @@ pub fn dense_match(
     params: &DenseParams,
 ) -> Result<DenseMap, DenseError> {
     params.validate()?;
-    if left.dimensions() != right.dimensions() {
-        return Err(InvalidField::new(
-            "right",
-            format!(
-                "image is {}x{}, the left one {}x{}: both must be the same size",
-                right.width(),
-                right.height(),
-                left.width(),
-                left.height()
-            ),
-        )
-        .into());
-    }
+    crate::invalid::same_size(left, right)?;
     let (w, h) = (left.width() as usize, left.height() as usize);
     if w == 0 || h == 0 {
         return Err(InvalidField::new("left", "image is empty").into());

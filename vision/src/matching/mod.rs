@@ -186,16 +186,7 @@ impl Matcher {
         params: MatchParams,
     ) -> Result<Matcher, MatchError> {
         params.validate()?;
-        if left.dimensions() != right.dimensions() {
-            return Err(InvalidField::new(
-                "right",
-                format!(
-                    "image is {:?}, the left one {:?}: both must be the same size",
-                    right.dimensions(),
-                    left.dimensions()
-                ),
-            ));
-        }
+        crate::invalid::same_size(left, right)?;
         if left.width() == 0 || left.height() == 0 {
             return Err(InvalidField::new("left", "image is empty"));
         }
