@@ -2,7 +2,7 @@
 //! (`hvs_shared::runtime::head::boot` on the raw bytes of both slots):
 //!
 //! - a model write cut off at every byte offset, as `hvs flash` does it (slot and generation
-//!   from `hvs_shared::runtime::slots::plan_write`, bytes from `hvs_host::device::probe::with_generation`), with
+//!   from `hvs_shared::runtime::slots::plan_write`, bytes from `hvs_host::device::flash_image::with_generation`), with
 //!   the rest of the slot erased (0xFF), zero (as QEMU's loader leaves it) or a half-programmed
 //!   byte; and an erase cut off at every byte offset;
 //! - every single-bit flip of a stored blob, seeded random 2- and 3-bit flips and every 32-bit
@@ -13,7 +13,7 @@
 //! one, never a damaged one) or the traditional fallback, `Info` must say which, and its
 //! estimates must equal, bit for bit, those of the model it claims to run.
 
-use hvs_host::device::probe::with_generation;
+use hvs_host::device::flash_image::with_generation;
 use hvs_shared::runtime::blob::{self, ModelBlob, MAX_BLOB_LEN};
 use hvs_shared::runtime::head::{self, Boot, Estimator};
 use hvs_shared::runtime::layout::Slot;

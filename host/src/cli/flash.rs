@@ -1,11 +1,11 @@
 //! `hvs flash`: a model into the head's idle weight slot through a debug probe
-//! ([`crate::device::probe`] plans, `device::debug_probe` writes; feature `probe`).
+//! ([`crate::device::flash_image`] plans, `device::debug_probe` writes; feature `probe`).
 
 #[cfg(feature = "probe")]
 use crate::device::debug_probe::{check_chip, flash_with_probe, FlashTarget};
 #[cfg(feature = "probe")]
-use crate::device::probe::dry_run_plan;
-use crate::device::probe::{read_model, DEFAULT_CHIP};
+use crate::device::flash_image::dry_run_plan;
+use crate::device::flash_image::{read_model, DEFAULT_CHIP};
 use anyhow::Result;
 use hvs_shared::runtime::layout::Slot;
 use hvs_shared::runtime::slots::SlotRequest;

@@ -1,10 +1,10 @@
 //! `hvs image`: a flashable file (raw binary or Intel HEX) of a model for one weight slot, for
-//! other flashers ([`crate::device::probe`]).
+//! other flashers ([`crate::device::flash_image`]).
 
 use super::value_enum;
 use crate::data::output::check_not_input;
 use crate::data::output::write_bytes;
-use crate::device::probe::{image, read_model, ImageFormat};
+use crate::device::flash_image::{image, read_model, ImageFormat};
 use anyhow::Result;
 use hvs_shared::runtime::layout::Slot;
 use std::path::PathBuf;

@@ -1,9 +1,9 @@
 //! The debug-probe side of `hvs flash` (the `probe` feature, on by default): checking the chip
 //! against probe-rs's target database and writing a blob into the idle slot through a probe.
-//! Everything that only prepares bytes (images, plans, sizes) is in [`super::probe`], which
+//! Everything that only prepares bytes (images, plans, sizes) is in [`super::flash_image`], which
 //! builds without probe-rs.
 
-use super::probe::{plan_for_slots, with_generation};
+use super::flash_image::{plan_for_slots, with_generation};
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::blob::{ModelBlob, MAX_BLOB_LEN};
 use hvs_shared::runtime::layout::{Slot, SLOT_LEN};
@@ -141,7 +141,7 @@ fn describe(s: SlotState) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::device::probe::DEFAULT_CHIP;
+    use crate::device::flash_image::DEFAULT_CHIP;
 
     #[test]
     fn chip_check() {
