@@ -17,6 +17,14 @@ fn shots(dir: &Path) -> PathBuf {
 }
 
 /// `hvs board detect` with the set's board and `captures`, writing `out`, plus `extra`.
+/// [`shots`] and their corners detected into `points.csv`: `(shots, points)`.
+fn detected_shots(dir: &Path) -> (PathBuf, PathBuf) {
+    let (shots, points) = (shots(dir), dir.join("points.csv"));
+    let o = detect(&shots, "captures.csv", &points, &[]);
+    assert!(o.status.success(), "{}", err(&o));
+    (shots, points)
+}
+
 fn detect(shots: &Path, captures: &str, out: &Path, extra: &[&str]) -> std::process::Output {
     let (b, c) = (shots.join("board.json"), shots.join(captures));
     let mut args = detect_args(&b, &c, out);
@@ -307,10 +315,7 @@ fn contracts_links_formats_and_exit_codes() {
 #[test]
 fn locate_checks_its_outputs_usage_and_image_sizes() {
     let dir = tempfile::tempdir().unwrap();
-    let shots = shots(dir.path());
-    let points = dir.path().join("points.csv");
-    let o = detect(&shots, "captures.csv", &points, &[]);
-    assert!(o.status.success(), "{}", err(&o));
+    let (shots, points) = detected_shots(dir.path());
     let model = dir.path().join("m.hvsw");
     crate::common::train_restarts(&points, &model, "1");
     let (l, r) = (shots.join("left02.png"), shots.join("right02.png"));
@@ -348,10 +353,7 @@ fn locate_checks_its_outputs_usage_and_image_sizes() {
 #[test]
 fn a_z_only_model_locates_and_predicts_without_false_alarms() {
     let dir = tempfile::tempdir().unwrap();
-    let shots = shots(dir.path());
-    let points = dir.path().join("points.csv");
-    let o = detect(&shots, "captures.csv", &points, &[]);
-    assert!(o.status.success(), "{}", err(&o));
+    let (shots, points) = detected_shots(dir.path());
     let model = dir.path().join("z.hvsw");
     crate::common::ok(&[
         "train",
