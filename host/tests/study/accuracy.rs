@@ -93,7 +93,7 @@ fn the_floor_is_zero_on_exact_pixels_and_the_dlt_is_exact_there() {
     }
     let p = protocol_rows(&cfg).unwrap();
     assert_eq!(p.len(), 1);
-    assert!(p[0].worst.0.iter().all(|v| v.is_finite() && *v > 0.0), "{p:?}");
+    assert!(p[0].scores.0.iter().all(|v| v.is_finite() && *v > 0.0), "{p:?}");
 }
 
 #[test]

@@ -9,12 +9,10 @@ pub use crate::cli::demo::images::TEST_CENTRE;
 use crate::data::dataset::Dataset;
 use crate::evaluate::optimal_depths_lens;
 use crate::study::engine::Progress;
+use crate::vision::detected_set;
 use anyhow::{anyhow, bail, Context, Result};
-use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::gaze::Joints;
-use hvs_shared::sim::camera::Distortion;
-use hvs_shared::sim::posture::HeadRig;
-use hvs_shared::sim::presets;
+use hvs_shared::sim::{camera::Distortion, posture::HeadRig, presets};
 use hvs_vision::detect::detect_pair;
 use hvs_vision::render::{opencv_board, render_pair, RenderOptions};
 use rayon::prelude::*;
@@ -60,7 +58,7 @@ pub struct ImageRow {
 }
 
 /// The detected corners of boards at `depths` centred at `xy` with their true positions, the
-/// number of corners rendered, and the sum of |detected - exact| over every coordinate.
+/// number of corners rendered, and the mean corner error (px).
 fn detect_boards(
     head: &HeadRig,
     regime: &ImageRegime,
@@ -82,16 +80,12 @@ fn detect_boards(
                 .map_err(|e| anyhow!("{e}"))
                 .with_context(|| format!("rendering the board at Z = {z} cm"))?;
             let Ok(p) = detect_pair(&r.left, &r.right, &board) else { return Ok(Vec::new()) };
-            let px = |i, j| [p.left.at(i, j), p.right.at(i, j)].concat();
+            let (l, rt) = (&p.left, &p.right);
+            let px = |i, j| [l.at(i, j)[0], l.at(i, j)[1], rt.at(i, j)[0], rt.at(i, j)[1]];
             Ok(r.corners.iter().map(|c| (px(c.i, c.j), c.xyz, c.px)).collect())
         })
         .collect::<Result<_>>()?;
-    let mut data = Dataset::new(InputKind::Stereo);
-    let mut err = 0.0;
-    for (px, xyz, truth) in found.iter().flatten() {
-        data.push(px, Some(*xyz));
-        err += (0..4).map(|c| (px[c] - truth[c]).abs()).sum::<f64>();
-    }
+    let (data, err) = detected_set(found.into_iter().flatten());
     Ok((data, depths.len() * board.corner_count(), err))
 }
 
@@ -100,18 +94,17 @@ fn detect_boards(
 /// cm only when quick).
 pub fn image_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<ImageRow>> {
     let regimes = image_regimes();
-    let regimes: Vec<_> = regimes.iter().take(if cfg.quick { 1 } else { 3 }).enumerate().collect();
-    let (train_z, test_z) = if cfg.quick {
-        (&[65.0, 165.0][..], &[65.0, 165.0][..])
-    } else {
-        (&presets::TRAIN_DEPTHS[..], &presets::TEST_DEPTHS[..])
-    };
+    let regimes: Vec<_> = regimes.iter().take(cfg.pick(3, 1)).enumerate().collect();
+    let quick = &[65.0, 165.0][..];
+    let (train_z, test_z) =
+        cfg.pick((&presets::TRAIN_DEPTHS[..], &presets::TEST_DEPTHS[..]), (quick, quick));
     let rig = case_rig(SWEEP_CASE)?;
     stage(progress, "images", &regimes, |&(k, regime)| {
         let lens = Distortion { k1: regime.k1, k2: 0.0 };
         let head = HeadRig::new(rig).with_distortion(lens);
         let seed = |set: u64| move |d: usize| set_seed(cfg.seed_base, 3, k, d, SWEEP_CASE, set);
-        let (train, train_n, err) = detect_boards(&head, regime, [0.0, 0.0], train_z, seed(1))?;
+        let (train, train_n, corner_error_px) =
+            detect_boards(&head, regime, [0.0, 0.0], train_z, seed(1))?;
         let (test, test_n, _) = detect_boards(&head, regime, TEST_CENTRE, test_z, seed(2))?;
         if train.len() < 2 * opencv_board().corner_count() || test.is_empty() {
             bail!(
@@ -127,7 +120,7 @@ pub fn image_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<I
             regime: *regime,
             train_corners: [train.len(), train_n],
             test_corners: [test.len(), test_n],
-            corner_error_px: err / (4 * train.len()) as f64,
+            corner_error_px,
             scores: Scores::mean(&ev),
         })
     })

@@ -1,13 +1,8 @@
-//! `hvs experiment accuracy`: the depth accuracy of the learned models against the floor in
-//! every pixel regime. [`run`] computes; [`report::write`] writes `ACCURACY.md` and its files.
-//!
-//! Four estimators ([`METHODS`]) on the same test pixels: the floor (optimal triangulation with
-//! the true rig and lenses, [`crate::evaluate::optimal_depths_lens`]), a normalised DLT fit
-//! ([`dlt_depths`]), the thesis 4-5-3 net and the default of `hvs train`
-//! ([`AccuracyConfig::default_family`]). Every set is the one an `hvs simulate` command writes
-//! ([`simulate_command`]), with seeds from [`set_seed`]; results are collected in a fixed order
-//! and the trainer does not depend on the thread count, so the same config gives the same CSV
-//! bytes (wall times go to `timing.csv` and the page only).
+//! `hvs experiment accuracy`: the depth accuracy of four estimators ([`METHODS`]) on the same
+//! test pixels in every pixel regime: the floor (optimal triangulation with the true rig and
+//! lenses), a DLT fit, the thesis 4-5-3 net and the default of `hvs train`. [`run`] computes,
+//! [`report::write`] writes. Every set is an `hvs simulate` command's ([`simulate_command`]),
+//! seeded by [`set_seed`]; the same config gives the same CSV bytes on any thread count.
 
 pub mod images;
 pub mod real_pair;
@@ -20,11 +15,8 @@ use crate::sim::sets::{SetKind, SimOptions};
 use crate::study::engine::{Progress, Quiet};
 use crate::train::{train, TrainConfig};
 use anyhow::{anyhow, Context, Result};
-use hvs_shared::runtime::blob::{Family, InputKind};
-use hvs_shared::runtime::gaze::Joints;
-use hvs_shared::sim::camera::{Distortion, Rig};
-use hvs_shared::sim::posture::HeadRig;
-use hvs_shared::sim::presets;
+use hvs_shared::runtime::{blob::Family, blob::InputKind, gaze::Joints};
+use hvs_shared::sim::{camera::Distortion, camera::Rig, posture::HeadRig, presets};
 use hvs_vision::geometry::{fit_dlt, triangulate_dlt};
 use nalgebra::Matrix3x4;
 use rayon::prelude::*;
@@ -94,29 +86,25 @@ pub struct AccuracyConfig {
 }
 
 impl AccuracyConfig {
+    /// `full`, or `quick` in a quick run.
+    fn pick<T>(&self, full: T, quick: T) -> T {
+        if self.quick {
+            quick
+        } else {
+            full
+        }
+    }
     /// The cases of the regime table (I-IV; IV when quick).
     pub fn cases(&self) -> Vec<u8> {
-        if self.quick {
-            vec![SWEEP_CASE]
-        } else {
-            vec![1, 2, 3, 4]
-        }
+        self.pick(vec![1, 2, 3, 4], vec![SWEEP_CASE])
     }
     /// Random test points per volume set (500; 60 when quick).
     pub fn test_points(&self) -> usize {
-        if self.quick {
-            60
-        } else {
-            500
-        }
+        self.pick(500, 60)
     }
     /// Restarts of both nets (the trainer's default, 10; 2 when quick).
     pub fn restarts(&self) -> usize {
-        if self.quick {
-            2
-        } else {
-            TrainConfig::default().restarts
-        }
+        self.pick(TrainConfig::default().restarts, 2)
     }
     /// Pixel noise levels of the noise sweep (px): 0 to 0.5 by 0.05 (0 and 0.5 when quick).
     pub fn noise_levels(&self) -> Vec<f64> {
@@ -129,7 +117,7 @@ impl AccuracyConfig {
     }
     /// The sweeps' steps out of 10 (0 and 10 when quick).
     fn steps(&self) -> impl Iterator<Item = usize> {
-        (0..=10).step_by(if self.quick { 10 } else { 1 })
+        (0..=10).step_by(self.pick(1, 10))
     }
     /// The thesis net's training configuration.
     pub fn thesis_net(&self) -> TrainConfig {
@@ -170,7 +158,8 @@ impl Scores {
     }
 }
 
-/// One row of the regime table: mean e_ma over the volume test points.
+/// One cell of the regime table, or one case of the thesis' protocol (thesis board, `int`
+/// pixels, tested on P1 and P2 at the 11 test depths).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegimeRow {
     /// The training board.
@@ -179,18 +168,8 @@ pub struct RegimeRow {
     pub regime: Regime,
     /// The thesis case.
     pub case: u8,
-    /// Mean e_ma.
+    /// Mean e_ma over the test points (the protocol: worst per-depth e_ma, as the thesis).
     pub scores: Scores,
-}
-
-/// One row of the thesis-protocol table (thesis board, rounded pixels, P1 and P2 at the 11
-/// test depths).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ProtocolRow {
-    /// The thesis case.
-    pub case: u8,
-    /// Worst per-depth e_ma (the thesis' convention).
-    pub worst: Scores,
 }
 
 /// One point of a sweep (case IV).
@@ -212,7 +191,7 @@ pub struct Accuracy {
     /// Per board, regime, case.
     pub regimes: Vec<RegimeRow>,
     /// The thesis protocol per case.
-    pub protocol: Vec<ProtocolRow>,
+    pub protocol: Vec<RegimeRow>,
     /// e_ma vs. pixel noise.
     pub noise: Vec<SweepRow>,
     /// e_ma vs. k1.
@@ -264,25 +243,16 @@ pub fn simulate_set(
 
 /// The `hvs simulate` command that writes the same set.
 pub fn simulate_command(case: u8, board: &Board, r: &Regime, kind: &str, seed: u64) -> String {
-    let mut c = format!("hvs simulate --case {case} --set {kind}");
-    if *board != Board::Thesis {
-        c.push_str(&format!(" --board {}", board.name()));
-    }
-    if r.pixels == Pixels::Exact {
-        c.push_str(" --pixels exact");
-    }
-    if r.noise_px > 0.0 {
-        c.push_str(&format!(" --noise-px {}", r.noise_px));
-    }
-    if r.k1 != 0.0 {
-        c.push_str(&format!(" --distortion {}", r.k1));
-    }
-    if kind == "volume" {
-        c.push_str(&format!(" --points N --seed {seed}"));
-    } else if r.noise_px > 0.0 {
-        c.push_str(&format!(" --seed {seed}"));
-    }
-    c
+    let flags = [
+        (*board != Board::Thesis, format!(" --board {}", board.name())),
+        (r.pixels == Pixels::Exact, " --pixels exact".into()),
+        (r.noise_px > 0.0, format!(" --noise-px {}", r.noise_px)),
+        (r.k1 != 0.0, format!(" --distortion {}", r.k1)),
+        (kind == "volume", format!(" --points N --seed {seed}")),
+        (kind != "volume" && r.noise_px > 0.0, format!(" --seed {seed}")),
+    ];
+    let on = flags.into_iter().filter_map(|(on, flag)| on.then_some(flag));
+    on.fold(format!("hvs simulate --case {case} --set {kind}"), |c, flag| c + &flag)
 }
 
 /// Depths of `test` by linear triangulation through the two 3x4 cameras `p` (NaN where it
@@ -377,10 +347,11 @@ pub fn regime_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<
 
 /// The thesis protocol: trained on the `int` cell's training set of the thesis board, tested
 /// on P1, P2 at the 11 test depths.
-pub fn protocol_rows(cfg: &AccuracyConfig) -> Result<Vec<ProtocolRow>> {
+pub fn protocol_rows(cfg: &AccuracyConfig) -> Result<Vec<RegimeRow>> {
     stage(&Quiet, "protocol", &cfg.cases(), |&case| {
-        let ev = cell(cfg, (0, 0, 0), Board::Thesis, &REGIMES[0], (case, SetKind::Test))?;
-        Ok(ProtocolRow { case, worst: Scores::worst(&ev) })
+        let (board, regime) = (Board::Thesis, REGIMES[0]);
+        let ev = cell(cfg, (0, 0, 0), board, &regime, (case, SetKind::Test))?;
+        Ok(RegimeRow { board, regime, case, scores: Scores::worst(&ev) })
     })
 }
 

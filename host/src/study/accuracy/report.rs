@@ -43,19 +43,20 @@ const IMAGES_HEAD: [&str; 7] = [
 const FLOOR_NAMES: [&str; 2] =
     ["optimal triangulation, true rig and lenses (floor)", "the floor (ratio 1)"];
 
+/// The cells of a table row, each value by its `Display`.
+macro_rules! cells {
+    ($($v:expr),* $(,)?) => { vec![$($v.to_string()),*] };
+}
+
 /// The command that reproduces a run into `dir`.
 pub fn command(cfg: &AccuracyConfig, dir: &str) -> String {
-    let mut c = "hvs experiment accuracy".to_string();
-    if dir != "docs" {
-        c.push_str(&format!(" -o {dir}"));
-    }
-    if cfg.seed_base != HELD_OUT_SEED_BASE {
-        c.push_str(&format!(" --seed-base {}", cfg.seed_base));
-    }
-    if cfg.quick {
-        c.push_str(" --quick");
-    }
-    c
+    let flags = [
+        (dir != "docs", format!(" -o {dir}")),
+        (cfg.seed_base != HELD_OUT_SEED_BASE, format!(" --seed-base {}", cfg.seed_base)),
+        (cfg.quick, " --quick".into()),
+    ];
+    let on = flags.into_iter().filter_map(|(on, flag)| on.then_some(flag));
+    on.fold("hvs experiment accuracy".to_string(), |c, flag| c + &flag)
 }
 
 /// The estimators' column titles, the default named by its family.
@@ -83,39 +84,26 @@ pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
         csv(
             &format!("board,{x}"),
             "_pct",
-            rows.iter().map(|r| (vec![r.board.name(), num(r.x)], &r.scores)),
+            rows.iter().map(|r| (cells![r.board.name(), num(r.x)], &r.scores)),
         )
     };
     let regimes = a.regimes.iter().map(|r| {
         let (g, pixels) =
             (&r.regime, ["rounded", "exact"][usize::from(r.regime.pixels == Pixels::Exact)]);
-        let lead = [
-            r.board.name(),
-            g.name.into(),
-            pixels.into(),
-            g.noise_px.to_string(),
-            g.k1.to_string(),
-        ];
-        (lead.into_iter().chain([r.case.to_string()]).collect(), &r.scores)
+        (cells![r.board.name(), g.name, pixels, g.noise_px, g.k1, r.case], &r.scores)
     });
     let images = a.images.iter().map(|r| {
-        let g = &r.regime;
-        let mut lead = vec![
-            g.name.to_string(),
-            g.blur_px.to_string(),
-            g.noise_grey.to_string(),
-            g.k1.to_string(),
-        ];
-        lead.extend(r.train_corners.iter().chain(&r.test_corners).map(|n| n.to_string()));
-        lead.push(num(r.corner_error_px));
-        (lead, &r.scores)
+        let (g, [tf, tn], [sf, sn]) = (&r.regime, r.train_corners, r.test_corners);
+        (
+            cells![g.name, g.blur_px, g.noise_grey, g.k1, tf, tn, sf, sn, num(r.corner_error_px)],
+            &r.scores,
+        )
     });
     let real_pair = a.real_pair.iter().map(|r| {
-        let counts = [r.train_points, r.test_points].map(|n| n.to_string());
-        let lead = ["motorcycle".to_string()].into_iter().chain(counts).chain(r.z_range.map(num));
-        (lead.collect(), &r.scores)
+        let [lo, hi] = r.z_range.map(num);
+        (cells!["motorcycle", r.train_points, r.test_points, lo, hi], &r.scores)
     });
-    let protocol = a.protocol.iter().map(|p| (vec![p.case.to_string()], &p.worst));
+    let protocol = a.protocol.iter().map(|p| (cells![p.case], &p.scores));
     vec![
         ("regimes", csv("board,regime,pixels,noise_px,k1,case", "_pct", regimes)),
         ("protocol", csv("case", "_worst_pct", protocol)),
@@ -279,8 +267,7 @@ fn method_table<'a>(
 /// Every case: e_ma (ratio to the floor).
 pub fn case_table(a: &Accuracy) -> String {
     let rows = a.regimes.iter().map(|r| {
-        let lead = vec![r.board.name(), r.regime.name.into(), roman(r.case).into()];
-        (lead, &r.scores, r.regime.exact())
+        (cells![r.board.name(), r.regime.name, roman(r.case)], &r.scores, r.regime.exact())
     });
     method_table(a, &["board", "regime", "case"], rows)
 }
@@ -323,22 +310,26 @@ fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, 
     let images = a.images.iter().map(|r| {
         let g = &r.regime;
         let [t, u] = [r.train_corners, r.test_corners].map(|[f, n]| format!("{f}/{n}"));
-        let lead = [
-            g.name.to_string(),
-            g.blur_px.to_string(),
-            g.noise_grey.to_string(),
-            g.k1.to_string(),
-            t,
-            u,
-        ];
-        (lead.into_iter().chain([format!("{:.3}", r.corner_error_px)]).collect(), &r.scores, false)
+        (
+            cells![
+                g.name,
+                g.blur_px,
+                g.noise_grey,
+                g.k1,
+                t,
+                u,
+                format!("{:.3}", r.corner_error_px)
+            ],
+            &r.scores,
+            false,
+        )
     });
     let real_pair = a.real_pair.iter().map(|r| {
-        let counts = [r.train_points, r.test_points].map(|n| n.to_string());
-        let depths = format!("{:.0}-{:.0}", r.z_range[0], r.z_range[1]);
-        let lead =
-            ["Motorcycle (Middlebury 2014, 741 x 500)".to_string()].into_iter().chain(counts);
-        (lead.chain([depths]).collect(), &r.scores, true)
+        let (pair, depths) = (
+            "Motorcycle (Middlebury 2014, 741 x 500)",
+            format!("{:.0}-{:.0}", r.z_range[0], r.z_range[1]),
+        );
+        (cells![pair, r.train_points, r.test_points, depths], &r.scores, true)
     });
     let mut values = vec![
         ("command", command(cfg, dir)),
@@ -368,7 +359,7 @@ fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, 
             method_table(
                 a,
                 &["case"],
-                a.protocol.iter().map(|p| (vec![roman(p.case).into()], &p.worst, false)),
+                a.protocol.iter().map(|p| (cells![roman(p.case)], &p.scores, false)),
             ),
         ),
         ("sweep_case", roman(SWEEP_CASE).to_string()),
@@ -387,7 +378,7 @@ fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, 
     // The protocol's worst ratio over cases per method, with its case.
     for (m, name) in [(3, "protocol_default"), (2, "protocol_thesis"), (1, "protocol_dlt")] {
         let (w, case) = (a.protocol.iter())
-            .map(|p| (p.worst.0[m] / p.worst.floor(), p.case))
+            .map(|p| (p.scores.0[m] / p.scores.floor(), p.case))
             .fold((f64::NEG_INFINITY, 0), |w, x| if x.0 > w.0 { x } else { w });
         values.push((name, format!("{} (case {})", times(w), roman(case))));
     }
