@@ -1,14 +1,12 @@
-//! The `images` part: the pixels are detected, not simulated. Stereo images of the 9x6 board
-//! at 6 cm are rendered through case IV at the training depths (on the axis) and at the
-//! thesis' test depths ([`TEST_CENTRE`], as `hvs demo --images`), their corners detected with
-//! sub-pixel accuracy, all in memory; the four estimators are fitted on the detected training
-//! corners and scored on the detected test corners.
+//! The `images` part: stereo images of the 9x6 board at 6 cm rendered through case IV at the
+//! training depths (on the axis) and the thesis' test depths ([`TEST_CENTRE`], as `hvs demo
+//! --images`), corners detected in memory; the four estimators fitted and scored on them.
 
-use super::{case_rig, estimate, set_seed, stage, AccuracyConfig, Scores, SWEEP_CASE};
+use super::{case_rig, estimate, set_seed, AccuracyConfig, Scores, SWEEP_CASE};
 pub use crate::cli::demo::images::TEST_CENTRE;
 use crate::data::dataset::Dataset;
 use crate::evaluate::optimal_depths_lens;
-use crate::study::engine::Progress;
+use crate::study::engine::{par_stage, Progress};
 use crate::vision::detected_set;
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::gaze::Joints;
@@ -17,16 +15,13 @@ use hvs_vision::detect::detect_pair;
 use hvs_vision::render::{opencv_board, render_pair, RenderOptions};
 use rayon::prelude::*;
 
-/// How the images of a regime are made.
+/// How the images of a regime are made: Gaussian blur (px), sensor noise (grey levels),
+/// radial distortion k1 of both lenses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImageRegime {
-    /// Short name.
     pub name: &'static str,
-    /// Gaussian blur (px).
     pub blur_px: f64,
-    /// Sensor noise (grey levels).
     pub noise_grey: f64,
-    /// Radial distortion k1 of both lenses.
     pub k1: f64,
 }
 
@@ -42,18 +37,15 @@ pub fn image_regimes() -> [ImageRegime; 3] {
     ]
 }
 
-/// What one image regime gave.
+/// What one image regime gave: training and test corners detected and rendered, the mean
+/// |detected - exact| per image coordinate of the detected training corners (px), and the
+/// mean e_ma on the detected test corners.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImageRow {
-    /// The regime.
     pub regime: ImageRegime,
-    /// Training corners detected, of those rendered.
     pub train_corners: [usize; 2],
-    /// Test corners detected, of those rendered.
     pub test_corners: [usize; 2],
-    /// Mean |detected - exact| per image coordinate over the detected training corners (px).
     pub corner_error_px: f64,
-    /// Mean e_ma on the detected test corners.
     pub scores: Scores,
 }
 
@@ -99,7 +91,7 @@ pub fn image_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<I
     let (train_z, test_z) =
         cfg.pick((&presets::TRAIN_DEPTHS[..], &presets::TEST_DEPTHS[..]), (quick, quick));
     let rig = case_rig(SWEEP_CASE)?;
-    stage(progress, "images", &regimes, |&(k, regime)| {
+    par_stage(progress, "images", &regimes, |&(k, regime)| {
         let lens = Distortion { k1: regime.k1, k2: 0.0 };
         let head = HeadRig::new(rig).with_distortion(lens);
         let seed = |set: u64| move |d: usize| set_seed(cfg.seed_base, 3, k, d, SWEEP_CASE, set);
@@ -107,12 +99,8 @@ pub fn image_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<I
             detect_boards(&head, regime, [0.0, 0.0], train_z, seed(1))?;
         let (test, test_n, _) = detect_boards(&head, regime, TEST_CENTRE, test_z, seed(2))?;
         if train.len() < 2 * opencv_board().corner_count() || test.is_empty() {
-            bail!(
-                "images {}: too few boards detected ({} training and {} test corners)",
-                regime.name,
-                train.len(),
-                test.len()
-            );
+            let (name, n, m) = (regime.name, train.len(), test.len());
+            bail!("images {name}: too few boards detected ({n} training and {m} test corners)");
         }
         let ev = estimate(cfg, optimal_depths_lens(&rig, lens, &test), &train, &test)
             .with_context(|| format!("images {}", regime.name))?;

@@ -1,7 +1,7 @@
 //! `hvs experiment accuracy`: the depth accuracy of four estimators ([`METHODS`]) on the same
 //! test pixels in every pixel regime: the floor (optimal triangulation with the true rig and
 //! lenses), a DLT fit, the thesis 4-5-3 net and the default of `hvs train`. [`run`] computes,
-//! [`report::write`] writes. Every set is an `hvs simulate` command's ([`simulate_command`]),
+//! [`report`] writes. Every set is an `hvs simulate` command's ([`simulate_command`]),
 //! seeded by [`set_seed`]; the same config gives the same CSV bytes on any thread count.
 
 pub mod images;
@@ -12,38 +12,28 @@ use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths_lens, Evaluation, Method};
 use crate::sim::board::{Board, Pixels};
 use crate::sim::sets::{SetKind, SimOptions};
-use crate::study::engine::{Progress, Quiet};
+use crate::study::engine::{par_stage, timed, Progress, Quiet};
 use crate::train::{train, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::{blob::Family, blob::InputKind, gaze::Joints};
 use hvs_shared::sim::{camera::Distortion, camera::Rig, posture::HeadRig, presets};
 use hvs_vision::geometry::{fit_dlt, triangulate_dlt};
 use nalgebra::Matrix3x4;
-use rayon::prelude::*;
-use std::time::Instant;
 
-/// The held-out seed base of the page (as `examples/accuracy_regimes.rs --eval`): the
-/// families' settings were tuned on base 0.
+/// The held-out seed base of the page: the families were tuned on base 0.
 pub const HELD_OUT_SEED_BASE: u64 = 1_000_000;
 
-/// How the pixels of a regime are made.
+/// How the pixels of a regime are made: rounded or exact, Gaussian noise (px) before any
+/// rounding, radial distortion k1 of both lenses (0: none).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Regime {
-    /// Short name (`int`, `sub`, `exact`, `barrel`).
     pub name: &'static str,
-    /// Rounded or exact.
     pub pixels: Pixels,
-    /// Gaussian pixel noise (px), before any rounding.
     pub noise_px: f64,
-    /// Radial distortion k1 of both lenses (0: none).
     pub k1: f64,
 }
 
 impl Regime {
-    /// The lens of the regime.
-    pub fn lens(&self) -> Distortion {
-        Distortion { k1: self.k1, k2: 0.0 }
-    }
     /// Whether the floor is zero (exact pixels, no noise): errors compared as e_ma, not ratios.
     pub fn exact(&self) -> bool {
         self.pixels == Pixels::Exact && self.noise_px == 0.0
@@ -59,8 +49,7 @@ pub const REGIMES: [Regime; 4] = [
     Regime { name: "barrel", pixels: Pixels::Rounded, noise_px: 0.0, k1: -0.1 },
 ];
 
-/// The pixels of the lens sweep: the `sub` regime's, so that the rounding does not hide the
-/// lens.
+/// The pixels of the lens sweep: the `sub` regime's, so that no rounding hides the lens.
 pub const LENS_SWEEP_PIXELS: Regime = REGIMES[1];
 /// The bigger board: 9 x 6 inner corners at 6 cm (the board `hvs demo --images` renders).
 pub const BIG_BOARD: Board = Board::Grid { nx: 9, ny: 6, pitch: 6.0 };
@@ -158,51 +147,38 @@ impl Scores {
     }
 }
 
-/// One cell of the regime table, or one case of the thesis' protocol (thesis board, `int`
-/// pixels, tested on P1 and P2 at the 11 test depths).
+/// One cell of the regime table: mean e_ma over the volume test points; or one case of the
+/// thesis' protocol (thesis board, `int` pixels, tested on P1 and P2 at the 11 test depths):
+/// worst per-depth e_ma, as the thesis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegimeRow {
-    /// The training board.
     pub board: Board,
-    /// The pixel regime.
     pub regime: Regime,
-    /// The thesis case.
     pub case: u8,
-    /// Mean e_ma over the test points (the protocol: worst per-depth e_ma, as the thesis).
     pub scores: Scores,
 }
 
-/// One point of a sweep (case IV).
+/// One point of a sweep (case IV): the swept value `x` (noise px or k1), mean e_ma over the
+/// volume test points.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SweepRow {
-    /// The training board.
     pub board: Board,
-    /// The swept value (noise px or k1).
     pub x: f64,
-    /// Mean e_ma over the volume test points.
     pub scores: Scores,
 }
 
-/// Everything [`run`] computed.
+/// Everything [`run`] computed, one field per part (`real_pair` `None` when not run), the wall
+/// time per stage (s, not in the CSVs) and the worker threads.
 #[derive(Debug, Clone)]
 pub struct Accuracy {
-    /// What ran.
     pub config: AccuracyConfig,
-    /// Per board, regime, case.
     pub regimes: Vec<RegimeRow>,
-    /// The thesis protocol per case.
     pub protocol: Vec<RegimeRow>,
-    /// e_ma vs. pixel noise.
     pub noise: Vec<SweepRow>,
-    /// e_ma vs. k1.
     pub lens: Vec<SweepRow>,
-    /// Rendered images of the 9x6 board.
     pub images: Vec<images::ImageRow>,
-    /// The real stereo pair (`None` when not run).
     pub real_pair: Option<real_pair::RealPairRow>,
-    /// Wall time per stage (s), not part of the CSVs.
     pub stage_s: Vec<(&'static str, f64)>,
-    /// Worker threads.
     pub threads: usize,
 }
 
@@ -227,16 +203,13 @@ pub fn simulate_set(
     kind: SetKind,
     opt: &SimOptions,
 ) -> Result<Dataset> {
-    let rows: Vec<_> = if lens.is_none() {
-        crate::sim::sets::simulate(rig, kind, opt)?.into_iter().map(|s| (s.px, s.xyz)).collect()
+    let mut d = Dataset::new(InputKind::Stereo);
+    if lens.is_none() {
+        crate::sim::sets::simulate(rig, kind, opt)?.iter().for_each(|s| d.push(&s.px, Some(s.xyz)));
     } else {
         let head = HeadRig::new(*rig).with_distortion(lens);
         let sim = crate::sim::posture::simulate(&head, kind, &[Joints::HOME], opt)?;
-        sim.into_iter().map(|s| (s.px, s.xyz)).collect()
-    };
-    let mut d = Dataset::new(InputKind::Stereo);
-    for (px, xyz) in rows {
-        d.push(&px, Some(xyz));
+        sim.iter().for_each(|s| d.push(&s.px, Some(s.xyz)));
     }
     Ok(d)
 }
@@ -303,7 +276,7 @@ fn cell(
     r: &Regime,
     (case, test): (u8, SetKind),
 ) -> Result<Evaluation> {
-    let rig = case_rig(case)?;
+    let (rig, lens) = (case_rig(case)?, Distortion { k1: r.k1, k2: 0.0 });
     let opt = |set: u64| SimOptions {
         points: cfg.test_points(),
         noise_px: r.noise_px,
@@ -311,24 +284,10 @@ fn cell(
         board,
         pixels: r.pixels,
     };
-    let tr = simulate_set(&rig, r.lens(), SetKind::Train, &opt(1))?;
-    let te = simulate_set(&rig, r.lens(), test, &opt(2))?;
-    estimate(cfg, optimal_depths_lens(&rig, r.lens(), &te), &tr, &te)
+    let tr = simulate_set(&rig, lens, SetKind::Train, &opt(1))?;
+    let te = simulate_set(&rig, lens, test, &opt(2))?;
+    estimate(cfg, optimal_depths_lens(&rig, lens, &te), &tr, &te)
         .with_context(|| format!("board {}, regime {}, case {case}", board.name(), r.name))
-}
-
-/// Runs `job` on every item of `jobs` in parallel as the stage `name` of `progress`, the
-/// results in the jobs' order.
-fn stage<J: Sync, R: Send>(
-    progress: &dyn Progress,
-    name: &str,
-    jobs: &[J],
-    job: impl Fn(&J) -> Result<R> + Sync,
-) -> Result<Vec<R>> {
-    progress.start(name, jobs.len() as u64);
-    let rows = jobs.par_iter().map(|j| job(j).inspect(|_| progress.inc())).collect();
-    progress.finish();
-    rows
 }
 
 /// The regime table: every board, regime and case (board outer, then regime, then case).
@@ -339,7 +298,7 @@ pub fn regime_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<
             jobs.extend(cfg.cases().into_iter().map(|case| (b, *board, k, *regime, case)));
         }
     }
-    stage(progress, "regimes", &jobs, |&(b, board, k, regime, case)| {
+    par_stage(progress, "regimes", &jobs, |&(b, board, k, regime, case)| {
         let ev = cell(cfg, (0, b, k), board, &regime, (case, SetKind::Volume))?;
         Ok(RegimeRow { board, regime, case, scores: Scores::mean(&ev) })
     })
@@ -348,7 +307,7 @@ pub fn regime_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<
 /// The thesis protocol: trained on the `int` cell's training set of the thesis board, tested
 /// on P1, P2 at the 11 test depths.
 pub fn protocol_rows(cfg: &AccuracyConfig) -> Result<Vec<RegimeRow>> {
-    stage(&Quiet, "protocol", &cfg.cases(), |&case| {
+    par_stage(&Quiet, "protocol", &cfg.cases(), |&case| {
         let (board, regime) = (Board::Thesis, REGIMES[0]);
         let ev = cell(cfg, (0, 0, 0), board, &regime, (case, SetKind::Test))?;
         Ok(RegimeRow { board, regime, case, scores: Scores::worst(&ev) })
@@ -366,22 +325,10 @@ fn sweep_rows(
     progress: &dyn Progress,
 ) -> Result<Vec<SweepRow>> {
     let jobs: Vec<_> = (0..2).flat_map(|b| levels.iter().map(move |&x| (b, x))).collect();
-    stage(progress, name, &jobs, |&(b, x)| {
+    par_stage(progress, name, &jobs, |&(b, x)| {
         let ev = cell(cfg, (part, b, 0), BOARDS[b], &regime(x), (SWEEP_CASE, SetKind::Volume))?;
         Ok(SweepRow { board: BOARDS[b], x, scores: Scores::mean(&ev) })
     })
-}
-
-/// Runs `f` and records its wall time as stage `name`.
-fn timed<T>(
-    stage_s: &mut Vec<(&'static str, f64)>,
-    name: &'static str,
-    f: impl FnOnce() -> Result<T>,
-) -> Result<T> {
-    let t = Instant::now();
-    let out = f()?;
-    stage_s.push((name, t.elapsed().as_secs_f64()));
-    Ok(out)
 }
 
 /// Runs every part.
@@ -413,8 +360,7 @@ pub fn run(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Accuracy> {
 }
 
 /// Worst over the cases of `board` and `regime` of method `m` (1 DLT, 2 thesis, 3 default):
-/// `(worst ratio to the floor, or in an exact regime worst e_ma (%), its case)`; `None` when
-/// there is no row.
+/// `(ratio to the floor, or in an exact regime e_ma (%), case)`; `None` without a row.
 pub fn worst_over_cases(
     rows: &[RegimeRow],
     board: &Board,

@@ -10,11 +10,6 @@ use anyhow::Result;
 use nalgebra::Matrix3x4;
 use std::path::Path;
 
-/// The training points (1000).
-pub const TRAIN_CSV: &str = include_str!("../../../tests/fixtures/motorcycle/train.csv");
-/// The test points (2000 other pixels).
-pub const TEST_CSV: &str = include_str!("../../../tests/fixtures/motorcycle/test.csv");
-
 /// The pair's two 3x4 projection matrices in the left camera's frame (cm), from Middlebury's
 /// `calib.txt` of Motorcycle divided by 4 as the images are: focal length, principal points
 /// (px), baseline 19.3001 cm along X.
@@ -26,25 +21,24 @@ pub fn cameras() -> [Matrix3x4<f64>; 2] {
     [cam(1244.772 / 4.0, 0.0), cam(1369.115 / 4.0, -19.3001)]
 }
 
-/// What the page shows of the pair.
+/// What the page shows of the pair: its points, the depth range of the test points (cm) and
+/// the mean e_ma of the four estimators on them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RealPairRow {
-    /// Training points.
     pub train_points: usize,
-    /// Test points.
     pub test_points: usize,
-    /// Depth range of the test points (cm).
     pub z_range: [f64; 2],
-    /// Mean e_ma of the four estimators on the test points.
     pub scores: Scores,
 }
 
-/// The training and test set.
+/// The training set (1000 points) and the test set (2000 other pixels).
 pub fn sets() -> Result<(Dataset, Dataset)> {
     let parse = |name: &str, text: &str| -> Result<Dataset> {
         Ok(read_set_from(Path::new(name), text.as_bytes(), Inputs::Stereo, true)?.data)
     };
-    Ok((parse("motorcycle/train.csv", TRAIN_CSV)?, parse("motorcycle/test.csv", TEST_CSV)?))
+    let train = include_str!("../../../tests/fixtures/motorcycle/train.csv");
+    let test = include_str!("../../../tests/fixtures/motorcycle/test.csv");
+    Ok((parse("motorcycle/train.csv", train)?, parse("motorcycle/test.csv", test)?))
 }
 
 /// Depths of `test` triangulated with the pair's true cameras (NaN where it fails).

@@ -1,7 +1,5 @@
-//! The files of `hvs experiment accuracy`: `DIR/ACCURACY.md` (prose from
-//! `host/templates/accuracy.md`, every number filled in from [`super::Accuracy`]) and, in
-//! `DIR/accuracy/`, one CSV per part ([`STEMS`]), the noise and lens plots (SVG and PNG) and
-//! `timing.csv` (the only file whose bytes vary between runs, with the times in the page).
+//! The files of `hvs experiment accuracy`: `DIR/ACCURACY.md` (from `host/templates/accuracy.md`)
+//! and, in `DIR/accuracy/`, one CSV per part ([`STEMS`]), two plots (SVG, PNG), `timing.csv`.
 
 use super::{
     floor_span, set_seed, simulate_command, worst_over_cases, Accuracy, AccuracyConfig, Scores,
@@ -30,18 +28,11 @@ const RATIO_MIN_FLOOR: f64 = 1e-6;
 const IMAGES_CSV_LEAD: &str =
     "regime,blur_px,noise_grey,k1,train_found,train_rendered,test_found,test_rendered,corner_error_px";
 /// The lead columns of the images table.
-const IMAGES_HEAD: [&str; 7] = [
-    "images",
-    "blur (px)",
-    "noise (grey levels)",
-    "k1",
-    "training corners",
-    "test corners",
-    "corner error (px)",
-];
-/// The floor's legend in the sweeps' e_ma and ratio panels.
-const FLOOR_NAMES: [&str; 2] =
-    ["optimal triangulation, true rig and lenses (floor)", "the floor (ratio 1)"];
+const IMAGES_HEAD: &str =
+    "images,blur (px),noise (grey levels),k1,training corners,test corners,corner error (px)";
+
+/// The lead columns of the real pair's table.
+const REAL_PAIR_HEAD: &str = "pair,training points,test points,depths (cm)";
 
 /// The cells of a table row, each value by its `Display`.
 macro_rules! cells {
@@ -81,15 +72,12 @@ fn csv<'a>(lead: &str, pct: &str, rows: impl Iterator<Item = (Vec<String>, &'a S
 /// The CSV texts, in [`STEMS`] order.
 pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
     let sweep = |rows: &[SweepRow], x: &str| {
-        csv(
-            &format!("board,{x}"),
-            "_pct",
-            rows.iter().map(|r| (cells![r.board.name(), num(r.x)], &r.scores)),
-        )
+        let rows = rows.iter().map(|r| (cells![r.board.name(), num(r.x)], &r.scores));
+        csv(&format!("board,{x}"), "_pct", rows)
     };
     let regimes = a.regimes.iter().map(|r| {
-        let (g, pixels) =
-            (&r.regime, ["rounded", "exact"][usize::from(r.regime.pixels == Pixels::Exact)]);
+        let g = &r.regime;
+        let pixels = if g.pixels == Pixels::Exact { "exact" } else { "rounded" };
         (cells![r.board.name(), g.name, pixels, g.noise_px, g.k1, r.case], &r.scores)
     });
     let images = a.images.iter().map(|r| {
@@ -127,7 +115,11 @@ fn board_words(b: &Board) -> String {
 fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -> Figure {
     let names = method_titles(&a.config);
     let mut panels = Vec::new();
-    for ratio in [false, true] {
+    let optimal = "optimal triangulation, true rig and lenses (floor)";
+    for (ratio, y_label, floor) in [
+        (false, "depth e_ma (% of true depth)", optimal),
+        (true, "e_ma / the floor's e_ma", "the floor (ratio 1)"),
+    ] {
         for board in &BOARDS {
             let rows: Vec<&SweepRow> = (rows.iter())
                 .filter(|r| r.board == *board && (!ratio || r.scores.floor() > RATIO_MIN_FLOOR))
@@ -137,14 +129,13 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
                 let y: Vec<f64> = (rows.iter())
                     .map(|r| r.scores.0[m] / if ratio { r.scores.floor() } else { 1.0 })
                     .collect();
-                let (name, style, color) = match (m, ratio) {
-                    (0, r) => (FLOOR_NAMES[usize::from(r)], Style::Dashed, FLOOR_COLOR),
-                    _ => (names[m].as_str(), Style::LinePoints, METHOD_COLORS[m - 1]),
+                let (name, style, color) = if m == 0 {
+                    (floor, Style::Dashed, FLOOR_COLOR)
+                } else {
+                    (names[m].as_str(), Style::LinePoints, METHOD_COLORS[m - 1])
                 };
                 Series::new(name, &x, &y, style, color)
             });
-            let y_label =
-                if ratio { "e_ma / the floor's e_ma" } else { "depth e_ma (% of true depth)" };
             panels.push(Panel {
                 title: format!("{} board ({} points)", board_words(board), 6 * board.len()),
                 x_label: x_label.into(),
@@ -159,34 +150,6 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
     Figure { title, panels, cols: 2 }
 }
 
-/// Writes the CSVs, plots, `timing.csv` (in `dir/accuracy/`) and `ACCURACY.md` (in `dir`);
-/// `total_s` is the run's wall time.
-pub fn write(files: &mut Files, a: &Accuracy, total_s: f64) -> Result<()> {
-    let mut sub = files.sub(SUBDIR)?;
-    for (stem, text) in csv_tables(a) {
-        sub.bytes(&format!("{stem}.csv"), text.as_bytes())?;
-    }
-    let (case, n) = (roman(SWEEP_CASE), a.config.test_points());
-    let noise = format!("Depth error vs. Gaussian pixel noise on unrounded pixels, case {case}, {n} random test points");
-    sub.figure("noise", &sweep_figure(a, &a.noise, noise, "pixel noise sigma (px), no rounding"))?;
-    let lens = format!(
-        "Depth error vs. radial lens distortion, {} px noise, unrounded, case {case}, {n} random test points",
-        LENS_SWEEP_PIXELS.noise_px
-    );
-    sub.figure(
-        "lens",
-        &sweep_figure(a, &a.lens, lens, "k1 of both lenses (radius in image half-widths)"),
-    )?;
-    let total = [("total", total_s)];
-    let times: Vec<Vec<String>> = (a.stage_s.iter().chain(&total))
-        .map(|(n, s)| vec![n.to_string(), format!("{s:.3}")])
-        .collect();
-    sub.csv("timing.csv", "stage,wall_s", &times)?;
-    files.absorb(sub);
-    let values = accuracy_values(a, total_s, &files.dir().display().to_string());
-    files.page("ACCURACY.md", "accuracy.md", TEMPLATE, &values)
-}
-
 impl Study for AccuracyConfig {
     type Results = Accuracy;
     fn page(&self) -> &'static str {
@@ -198,8 +161,25 @@ impl Study for AccuracyConfig {
     fn compute(&self, progress: &dyn Progress) -> Result<(usize, Accuracy)> {
         super::run(self, progress).map(|r| (r.threads, r))
     }
+    /// The CSVs, plots and `timing.csv` in `accuracy/`, then `ACCURACY.md`.
     fn write(&self, files: &mut Files, a: &Accuracy, total_s: f64) -> Result<()> {
-        write(files, a, total_s)
+        let mut sub = files.sub(SUBDIR)?;
+        for (stem, text) in csv_tables(a) {
+            sub.bytes(&format!("{stem}.csv"), text.as_bytes())?;
+        }
+        let (case, n, lens_px) =
+            (roman(SWEEP_CASE), a.config.test_points(), LENS_SWEEP_PIXELS.noise_px);
+        let noise = format!("Depth error vs. Gaussian pixel noise on unrounded pixels, case {case}, {n} random test points");
+        let lens = format!("Depth error vs. radial lens distortion, {lens_px} px noise, unrounded, case {case}, {n} random test points");
+        let noise_x = "pixel noise sigma (px), no rounding";
+        let lens_x = "k1 of both lenses (radius in image half-widths)";
+        sub.figure("noise", &sweep_figure(a, &a.noise, noise, noise_x))?;
+        sub.figure("lens", &sweep_figure(a, &a.lens, lens, lens_x))?;
+        let stages = [&a.stage_s[..], &[("total", total_s)]].concat();
+        sub.rows("timing.csv", "stage,wall_s", &stages, |(n, s)| cells![n, format!("{s:.3}")])?;
+        files.absorb(sub);
+        let values = accuracy_values(a, total_s, &files.dir().display().to_string());
+        files.page("ACCURACY.md", "accuracy.md", TEMPLATE, &values)
     }
 }
 
@@ -239,15 +219,16 @@ pub fn summary_table(a: &Accuracy) -> String {
     table_markdown(&head, &[], &rows)
 }
 
-/// A table of the four estimators: `lead` columns, then floor and the three methods (e_ma,
-/// and unless `exact` the ratio to the floor), one row per `(lead cells, scores, exact)`.
+/// A table of the four estimators: the `lead` columns (comma-separated), then floor and the
+/// three methods (e_ma, and unless `exact` the ratio to the floor), one row per `(lead cells,
+/// scores, exact)`.
 fn method_table<'a>(
     a: &Accuracy,
-    lead: &[&str],
+    lead: &str,
     rows: impl Iterator<Item = (Vec<String>, &'a Scores, bool)>,
 ) -> String {
     let t = method_titles(&a.config);
-    let head: Vec<&str> = lead.iter().copied().chain(["floor", &t[1], &t[2], &t[3]]).collect();
+    let head: Vec<&str> = lead.split(',').chain(["floor", &t[1], &t[2], &t[3]]).collect();
     let rows: Vec<Vec<String>> = rows
         .map(|(mut cells, s, exact)| {
             cells.push(small_pct(s.floor()));
@@ -269,7 +250,7 @@ pub fn case_table(a: &Accuracy) -> String {
     let rows = a.regimes.iter().map(|r| {
         (cells![r.board.name(), r.regime.name, roman(r.case)], &r.scores, r.regime.exact())
     });
-    method_table(a, &["board", "regime", "case"], rows)
+    method_table(a, "board,regime,case", rows)
 }
 
 /// One sentence per board of a sweep: the four at the largest value, and at the smallest.
@@ -310,27 +291,19 @@ fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, 
     let images = a.images.iter().map(|r| {
         let g = &r.regime;
         let [t, u] = [r.train_corners, r.test_corners].map(|[f, n]| format!("{f}/{n}"));
-        (
-            cells![
-                g.name,
-                g.blur_px,
-                g.noise_grey,
-                g.k1,
-                t,
-                u,
-                format!("{:.3}", r.corner_error_px)
-            ],
-            &r.scores,
-            false,
-        )
+        let err = format!("{:.3}", r.corner_error_px);
+        (cells![g.name, g.blur_px, g.noise_grey, g.k1, t, u, err], &r.scores, false)
     });
     let real_pair = a.real_pair.iter().map(|r| {
-        let (pair, depths) = (
-            "Motorcycle (Middlebury 2014, 741 x 500)",
-            format!("{:.0}-{:.0}", r.z_range[0], r.z_range[1]),
-        );
+        let pair = "Motorcycle (Middlebury 2014, 741 x 500)";
+        let depths = format!("{:.0}-{:.0}", r.z_range[0], r.z_range[1]);
         (cells![pair, r.train_points, r.test_points, depths], &r.scores, true)
     });
+    let held_out = match cfg.seed_base {
+        HELD_OUT_SEED_BASE => "the held-out base".into(),
+        _ => format!("not the held-out base ({HELD_OUT_SEED_BASE})"),
+    };
+    let protocol = a.protocol.iter().map(|p| (cells![roman(p.case)], &p.scores, false));
     let mut values = vec![
         ("command", command(cfg, dir)),
         ("total_s", format!("{total_s:.1}")),
@@ -338,13 +311,7 @@ fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, 
         ("stage_times", stages(&a.stage_s)),
         ("seed_base", cfg.seed_base.to_string()),
         ("train_seed", TRAIN_SEED.to_string()),
-        (
-            "held_out",
-            match cfg.seed_base {
-                HELD_OUT_SEED_BASE => "the held-out base".into(),
-                _ => format!("not the held-out base ({HELD_OUT_SEED_BASE})"),
-            },
-        ),
+        ("held_out", held_out),
         ("default_family", cfg.default_family.name().to_string()),
         ("default_title", method_titles(cfg)[3].clone()),
         ("restarts", cfg.restarts().to_string()),
@@ -354,32 +321,21 @@ fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, 
         ("big_points", (6 * BIG_BOARD.len()).to_string()),
         ("summary_table", summary_table(a)),
         ("case_table", case_table(a)),
-        (
-            "protocol_table",
-            method_table(
-                a,
-                &["case"],
-                a.protocol.iter().map(|p| (cells![roman(p.case)], &p.scores, false)),
-            ),
-        ),
+        ("protocol_table", method_table(a, "case", protocol)),
         ("sweep_case", roman(SWEEP_CASE).to_string()),
         ("noise_levels", list(cfg.noise_levels())),
         ("lens_noise", LENS_SWEEP_PIXELS.noise_px.to_string()),
         ("k1_levels", list(cfg.k1_levels())),
         ("noise_sentence", sweep_sentence(&a.noise, "sigma")),
         ("lens_sentence", sweep_sentence(&a.lens, "k1")),
-        ("images_table", method_table(a, &IMAGES_HEAD, images)),
-        (
-            "real_pair_table",
-            method_table(a, &["pair", "training points", "test points", "depths (cm)"], real_pair),
-        ),
+        ("images_table", method_table(a, IMAGES_HEAD, images)),
+        ("real_pair_table", method_table(a, REAL_PAIR_HEAD, real_pair)),
         ("commands", commands(a)),
     ];
     // The protocol's worst ratio over cases per method, with its case.
     for (m, name) in [(3, "protocol_default"), (2, "protocol_thesis"), (1, "protocol_dlt")] {
-        let (w, case) = (a.protocol.iter())
-            .map(|p| (p.scores.0[m] / p.scores.floor(), p.case))
-            .fold((f64::NEG_INFINITY, 0), |w, x| if x.0 > w.0 { x } else { w });
+        let worst = worst_over_cases(&a.protocol, &Board::Thesis, REGIMES[0].name, m);
+        let (w, case) = worst.unwrap_or((f64::NEG_INFINITY, 0));
         values.push((name, format!("{} (case {})", times(w), roman(case))));
     }
     values
