@@ -375,9 +375,6 @@ pub fn worst_over_cases(
 
 /// The range `(min, max)` of the floor's e_ma over the cases of `board` and `regime`.
 pub fn floor_span(rows: &[RegimeRow], board: &Board, regime: &str) -> (f64, f64) {
-    crate::fmt::span(
-        rows.iter()
-            .filter(|r| r.board == *board && r.regime.name == regime)
-            .map(|r| r.scores.floor()),
-    )
+    let rows = rows.iter().filter(|r| r.board == *board && r.regime.name == regime);
+    crate::fmt::span(rows.map(|r| r.scores.floor()))
 }

@@ -121,14 +121,13 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
         (true, "e_ma / the floor's e_ma", "the floor (ratio 1)"),
     ] {
         for board in &BOARDS {
-            let rows: Vec<&SweepRow> = (rows.iter())
-                .filter(|r| r.board == *board && (!ratio || r.scores.floor() > RATIO_MIN_FLOOR))
-                .collect();
+            let shown = |r: &&SweepRow| !ratio || r.scores.floor() > RATIO_MIN_FLOOR;
+            let rows: Vec<&SweepRow> =
+                rows.iter().filter(|r| r.board == *board && shown(r)).collect();
             let x: Vec<f64> = rows.iter().map(|r| r.x).collect();
             let series = [1, 2, 3, 0].map(|m| {
-                let y: Vec<f64> = (rows.iter())
-                    .map(|r| r.scores.0[m] / if ratio { r.scores.floor() } else { 1.0 })
-                    .collect();
+                let unit = |r: &SweepRow| if ratio { r.scores.floor() } else { 1.0 };
+                let y: Vec<f64> = rows.iter().map(|r| r.scores.0[m] / unit(r)).collect();
                 let (name, style, color) = if m == 0 {
                     (floor, Style::Dashed, FLOOR_COLOR)
                 } else {
