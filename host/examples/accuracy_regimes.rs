@@ -59,7 +59,7 @@ fn main() -> anyhow::Result<()> {
     println!("{}", summary_table(&run));
     println!("{}", case_table(&run));
     for p in &run.protocol {
-        let r = p.worst.ratios();
+        let r = p.scores.ratios();
         println!(
             "protocol case {}: worst depth / floor's: DLT {}, thesis {}, {} {}",
             roman(p.case),

@@ -274,6 +274,35 @@ pub fn number_word(n: usize) -> String {
     }
 }
 
+// Added for the accuracy study: a parallel stage with progress, and stage wall times.
+
+/// Runs `job` on every item of `jobs` in parallel as the stage `name` of `progress`; the
+/// results in the jobs' order, or the first error.
+pub fn par_stage<J: Sync, R: Send>(
+    progress: &dyn Progress,
+    name: &str,
+    jobs: &[J],
+    job: impl Fn(&J) -> Result<R> + Sync,
+) -> Result<Vec<R>> {
+    use rayon::prelude::*;
+    progress.start(name, jobs.len() as u64);
+    let out = jobs.par_iter().map(|j| job(j).inspect(|_| progress.inc())).collect();
+    progress.finish();
+    out
+}
+
+/// Runs `f` and appends its wall time (s) to `stage_s` as the stage `name`.
+pub fn timed<T>(
+    stage_s: &mut Vec<(&'static str, f64)>,
+    name: &'static str,
+    f: impl FnOnce() -> Result<T>,
+) -> Result<T> {
+    let t = Instant::now();
+    let out = f()?;
+    stage_s.push((name, t.elapsed().as_secs_f64()));
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

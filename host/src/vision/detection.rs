@@ -3,8 +3,9 @@
 
 use super::files::read_grey;
 use crate::data::captures::{Capture, CaptureSet};
-use crate::data::dataset::JOINT_COLUMNS;
+use crate::data::dataset::{Dataset, JOINT_COLUMNS};
 use anyhow::Result;
+use hvs_shared::runtime::blob::InputKind;
 use hvs_vision::board::Board;
 use hvs_vision::detect::{self, SetCheck, StereoCorners};
 use image::GrayImage;
@@ -334,6 +335,22 @@ pub fn found_corners<'a>(
                 })
             })
         })
+}
+
+/// The training set of detected corners, each `(detected [u_l, v_l, u_r, v_r], true position,
+/// exact pixels)` of a rendered board, and the mean |detected - exact| per image coordinate
+/// (px): rendered boards into a dataset (`hvs demo --images`, `hvs experiment accuracy`).
+pub fn detected_set(
+    corners: impl IntoIterator<Item = ([f64; 4], [f64; 3], [f64; 4])>,
+) -> (Dataset, f64) {
+    let mut data = Dataset::new(InputKind::Stereo);
+    let mut err = 0.0;
+    for (px, xyz, exact) in corners {
+        data.push(&px, Some(xyz));
+        err += (0..4).map(|c| (px[c] - exact[c]).abs()).sum::<f64>();
+    }
+    let n = data.len();
+    (data, err / (4 * n) as f64)
 }
 
 /// The shortest decimal that reads back as `v`: as an `f32` when `v` is one (the detector's

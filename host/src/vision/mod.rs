@@ -9,8 +9,8 @@ pub mod files;
 pub mod locate;
 
 pub use detection::{
-    detect_set, detect_set_with_images, found_corners, points_csv, Detection, FoundCorner,
-    GroupFit, PairImages, PairOutcome, MAX_HELD_OUT_EPIPOLAR_PX,
+    detect_set, detect_set_with_images, detected_set, found_corners, points_csv, Detection,
+    FoundCorner, GroupFit, PairImages, PairOutcome, MAX_HELD_OUT_EPIPOLAR_PX,
 };
 pub use files::{check_same_size, png_bytes, read_grey, read_pair, write_capture_set};
 pub use locate::{

@@ -4,9 +4,9 @@
 
 use crate::common::{read, spawn_quick_experiment, wait_ok, QuickExperiment};
 
-use hvs_host::study::accuracy::report::{csv_tables, write, STEMS, SUBDIR};
+use hvs_host::study::accuracy::report::{csv_tables, STEMS, SUBDIR};
 use hvs_host::study::accuracy::{self as accuracy, AccuracyConfig, BOARDS, REGIMES};
-use hvs_host::study::engine::{Files, Quiet};
+use hvs_host::study::engine::{Files, Quiet, Study};
 
 #[test]
 fn quick_run_files_facts_and_determinism() {
@@ -27,7 +27,7 @@ fn quick_run_files_facts_and_determinism() {
     }
     let lib = dir.path().join("lib");
     let mut writer = Files::new(&lib).unwrap();
-    write(&mut writer, &run, 1.0).unwrap();
+    cfg.write(&mut writer, &run, 1.0).unwrap();
     let files = writer.into_written();
     assert_eq!(files.len(), STEMS.len() + 2 * 2 + 2);
     for f in &files {

@@ -11,10 +11,9 @@ use crate::evaluate::{evaluate, model_depths, optimal_depths, text_table, Evalua
 use crate::fmt::pct;
 use crate::train::model::{train_model, Plan};
 use crate::vision::{
-    detect_set, found_corners, points_csv, write_capture_set, Detection, PairOutcome,
+    detect_set, detected_set, found_corners, points_csv, write_capture_set, Detection, PairOutcome,
 };
 use anyhow::{anyhow, bail, Context, Result};
-use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
@@ -46,14 +45,15 @@ pub struct ImageDemo {
 }
 
 /// Renders `depths` at `centre` into `dir` (PNGs, `captures.csv`, `truth.csv`, `board.json`)
-/// and detects the corners there, through the files, as a user's photos would go.
+/// and detects the corners there, through the files, as a user's photos would go; the mean
+/// corner error of the detected corners (px).
 fn render_and_detect(
     case: u8,
     dir: &Path,
     depths: &[f64],
     centre: [f64; 2],
     seed: u64,
-) -> Result<(Board, Dataset, Detection, Vec<[f64; 4]>)> {
+) -> Result<(Board, Dataset, Detection, f64)> {
     let rig = presets::case(case).ok_or_else(|| anyhow!("no case {case}"))?;
     let rboard = render::opencv_board();
     let set = render::render_capture_set(
@@ -72,21 +72,19 @@ fn render_and_detect(
     let cset = captures::read(&dir.join("captures.csv"))?;
     let det = detect_set(&board, &cset, &|| {})?;
     write_bytes(&dir.join("points.csv"), points_csv(&board, &cset, &det).as_bytes())?;
-    let mut data = Dataset::new(InputKind::Stereo);
-    let mut truth_px = Vec::new();
-    for c in found_corners(&board, &cset, &det) {
+    let corners = found_corners(&board, &cset, &det).map(|c| {
         let xyz = c.xyz.context("captures.csv gives every board's depth")?;
-        data.push(&c.px, Some(xyz));
-        truth_px.push(set.captures[c.capture].render.corners[board.index(c.i, c.j)].px);
-    }
-    Ok((board, data, det, truth_px))
+        Ok((c.px, xyz, set.captures[c.capture].render.corners[board.index(c.i, c.j)].px))
+    });
+    let (data, corner_error_px) = detected_set(corners.collect::<Result<Vec<_>>>()?);
+    Ok((board, data, det, corner_error_px))
 }
 
 /// Runs the image demo for `case`, writing images, points and the model into `dir`.
 pub fn run_case(case: u8, dir: &Path, seed: u64, restarts: usize) -> Result<ImageDemo> {
     let train_seed = seed.wrapping_mul(10_000).wrapping_add(3000 + u64::from(case));
     let test_seed = seed.wrapping_mul(10_000).wrapping_add(4000 + u64::from(case));
-    let (board, train, det, truth) = render_and_detect(
+    let (board, train, det, corner_error_px) = render_and_detect(
         case,
         &dir.join("train"),
         &presets::TRAIN_DEPTHS,
@@ -97,12 +95,6 @@ pub fn run_case(case: u8, dir: &Path, seed: u64, restarts: usize) -> Result<Imag
     if train.is_empty() {
         bail!("case {case}: no training board was detected");
     }
-    let mut err = 0.0;
-    for (k, t) in truth.iter().enumerate() {
-        let r = train.row(k);
-        err += (0..4).map(|c| (r[c] - t[c]).abs()).sum::<f64>();
-    }
-    let corner_error_px = err / (4 * truth.len()) as f64;
     let mut plan = Plan::default();
     plan.config.family = crate::train::DEFAULT_FAMILY;
     plan.config.restarts = restarts;
