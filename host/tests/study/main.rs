@@ -2,3 +2,4 @@
 //! module per study.
 
 mod accuracy;
+mod thesis;

@@ -67,7 +67,7 @@ pub fn identical_pixel_depths(rig: &Rig, xy: [f64; 2], depths: &[f64]) -> Vec<(f
 /// The mean horizontal disparity `u_l - u_r` (px, rounded pixels) of the 12 board points
 /// centred at `centre_x` at depth `z`, or None when a point has no image.
 pub fn board_disparity_px(rig: &Rig, centre_x: f64, z: f64) -> Option<f64> {
-    let points = hvs_shared::sim::presets::board_points(z).map(|[x, y, z]| [centre_x + x, y, z]);
+    let points = super::board_about(centre_x, z);
     let mut sum = 0.0;
     for p in points {
         let px = rig.project_rounded(&p).ok()?;
@@ -124,81 +124,4 @@ pub fn argmin(v: &[f64]) -> usize {
         }
     }
     best
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use hvs_shared::sim::presets::{self, CASE_1, CASE_2, CASE_4, TEST_DEPTHS, TEST_POINTS_XY};
-
-    fn row(case: u8, phi_l: f64, phi_r: f64) -> PhiRow {
-        PhiRow { case, z: 50.0, phi_l, phi_r, true_l: 100.0, true_r: 200.0 }
-    }
-
-    #[test]
-    fn phi_statistics() {
-        let rows = [row(1, 99.0, 1.0), row(1, 101.0, 1.0), row(2, 0.0, 202.0)];
-        let s = phi_stats(&rows, 1, true);
-        assert_eq!((s.mean, s.truth, s.max_dev_pct, s.sd_pct), (100.0, 100.0, 1.0, 1.0));
-        assert_eq!(s.bias_pct(), 0.0);
-        let r = phi_stats(&rows, 2, false);
-        assert_eq!((r.mean, r.truth, r.max_dev_pct), (202.0, 200.0, 0.0));
-        assert!((r.bias_pct() - 1.0).abs() < 1e-12);
-        assert!(phi_stats(&rows, 3, true).mean.is_nan());
-        assert_eq!(apart_pct(200.0, 199.0), 0.5);
-    }
-
-    #[test]
-    fn case_iv_p1_has_identical_pixels_at_two_test_depths() {
-        let twins = identical_pixel_depths(&CASE_4, TEST_POINTS_XY[0], &TEST_DEPTHS);
-        assert_eq!(twins, vec![(135.0, 145.0)]);
-        // Case I sees P1 differently at every test depth.
-        assert!(identical_pixel_depths(&CASE_1, TEST_POINTS_XY[0], &TEST_DEPTHS).is_empty());
-        // On the axis 20 m away, one centimetre moves no pixel (u_l = 320 + 0.75 px).
-        assert_eq!(
-            identical_pixel_depths(&CASE_1, [0.0, 0.0], &[2000.0, 2001.0, 1000.0]),
-            vec![(2000.0, 2001.0)]
-        );
-    }
-
-    #[test]
-    fn disparities_of_the_phi_boards() {
-        let d = CASE_1.half_baseline;
-        // Parallel rig: u_l - u_r = Phi 2d / Z up to rounding.
-        for z in [45.0, 105.0] {
-            let got = board_disparity_px(&CASE_1, d, z).unwrap();
-            let want = CASE_1.phi_u_left * 2.0 * d / z;
-            assert!((got - want).abs() <= 1.0, "{z}: {got} vs {want}");
-        }
-        let r = board_disparity_px(&CASE_2, -d, 100.0).unwrap()
-            / board_disparity_px(&CASE_1, d, 100.0).unwrap();
-        assert!((r - 1.4).abs() < 0.05, "{r}");
-        assert_eq!(board_disparity_px(&CASE_1, 0.0, -10.0), None);
-    }
-
-    #[test]
-    fn worst_depth_and_argmin() {
-        let c = DepthCurve { z: vec![65.0, 75.0, 85.0], pct: vec![1.0, 3.0, 3.0], mean: 2.0 };
-        assert_eq!(worst_depth(&c), (75.0, 3.0));
-        assert_eq!(argmin(&[3.0, 1.0, 1.0, 2.0]), 1);
-        assert_eq!(argmin(&[]), 0);
-    }
-
-    #[test]
-    fn grids_and_lists_in_words() {
-        assert_eq!(depth_grid(&presets::TRAIN_DEPTHS), "65-165 cm in steps of 20 cm");
-        assert_eq!(depth_grid(&TEST_DEPTHS), "65-165 cm in steps of 10 cm");
-        assert_eq!(depth_grid(&[65.0, 95.0, 165.0]), "65, 95, 165 cm");
-        assert_eq!(depth_grid(&[]), " cm");
-        assert_eq!(signed_list([-1.75, 1.75, 0.0]), "-1.75, +1.75, 0");
-    }
-
-    #[test]
-    fn traditional_ranges_within_ten_percent() {
-        assert!(matches_thesis_traditional(1, 0.0, 1.806));
-        assert!(matches_thesis_traditional(4, 158.7, 2600.0));
-        assert!(!matches_thesis_traditional(4, 158.7, 2000.0));
-        assert!(!matches_thesis_traditional(2, 13.0, 18.9));
-        assert!(!matches_thesis_traditional(5, 0.0, 0.0));
-    }
 }

@@ -1,5 +1,6 @@
-//! `RESULTS.md`: the prose is `host/templates/results.md`; this module computes every value
-//! it names (through [`super::facts`] and [`crate::fmt`]) and fills it in.
+//! `RESULTS.md`: the prose is `host/templates/results.md` (and, for the sentences that depend
+//! on the results, `results_phrases.md`); this module computes every value it names (through
+//! [`super::facts`] and [`crate::fmt`]) and fills it in.
 
 use super::facts::{
     apart_pct, argmin, board_disparity_px, depth_grid, identical_pixel_depths,
@@ -8,32 +9,41 @@ use super::facts::{
 use super::{
     e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Thesis, FEWER_DEPTHS, GENERAL_CASE, PHI_DEPTHS,
 };
-use crate::fmt::{files_line, join, mean, pct, pct_value, roman, span, stages};
+use crate::fmt::{join, mean, pct, pct_value, roman, span, stages};
 use crate::sim::sets::training_volume;
 use crate::study::engine::number_word;
 use crate::study::reported;
+use crate::study::template::fill;
 use crate::train::{Algo, TrainConfig};
+use anyhow::{anyhow, Result};
 use hvs_shared::runtime::blob::OutputKind;
 use hvs_shared::runtime::traditional::Calibration;
+use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::presets::{
     self, LABELS, TEST_DEPTHS, TEST_POINTS_XY, TRAIN_BOARD_X, TRAIN_BOARD_Y, TRAIN_DEPTHS,
 };
 
 /// The prose of `RESULTS.md`.
 pub const TEMPLATE: &str = include_str!("../../../templates/results.md");
+/// The sentences of `RESULTS.md` that depend on the results, one `name: text` a line.
+const PHRASES: &str = include_str!("../../../templates/results_phrases.md");
 
 /// Where `hvs experiment posture` writes its report, relative to the thesis' directory (its
 /// default output is `docs/results/posture`); `RESULTS.md` links it when it is there.
 pub const POSTURE_REPORT: &str = "posture/POSTURE.md";
 
-/// The paragraph of `RESULTS.md` that points to the posture study.
-pub fn posture_link() -> String {
-    format!(
-        "**Depth while the eyes move**: the thesis' 4-5-3 net at verged and turned \
-         head postures, a posture-aware net per posture band against the floor at the same \
-         posture, the hidden neurons it needs, and lens distortion, in \
-         [{POSTURE_REPORT}]({POSTURE_REPORT}) (`hvs experiment posture`)."
-    )
+/// Page values, `(placeholder, text)`.
+type Values = Vec<(&'static str, String)>;
+
+/// Phrase `name` of [`PHRASES`], its placeholders filled from those of `values` it names.
+fn phrase(name: &str, values: &[(&str, String)]) -> Result<String> {
+    let text = PHRASES
+        .lines()
+        .find_map(|l| l.strip_prefix(name)?.strip_prefix(": "))
+        .ok_or_else(|| anyhow!("results_phrases.md has no phrase {name}"))?;
+    let used: Vec<_> =
+        values.iter().filter(|(k, _)| text.contains(&format!("{{{k}}}"))).cloned().collect();
+    fill(&format!("results_phrases.md: {name}"), text, &used)
 }
 
 /// The thesis' bound on the net's worst depth as it prints it: `4 %`.
@@ -41,26 +51,32 @@ fn bound() -> String {
     format!("{} %", reported::NET_BOUND_PCT)
 }
 
+/// A markdown table row of `cells`.
+fn row<S: ToString>(cells: impl IntoIterator<Item = S>) -> String {
+    format!("| {} |", join(cells.into_iter().map(|c| c.to_string()), " | "))
+}
+
 /// Table rows, one a line.
 fn rows(v: impl IntoIterator<Item = String>) -> String {
     join(v, "\n")
 }
 
+/// The proposed net's shape, `4-5-3`: the default `hvs train` net.
+fn net_shape() -> String {
+    let tc = TrainConfig::default();
+    format!("4-{}-{}", tc.hidden, tc.outputs.len())
+}
+
 /// The values of `RESULTS.md`'s placeholders for a run that took `total_s` seconds;
 /// `posture`: link the posture report.
-pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Vec<(&'static str, String)> {
+pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Result<Values> {
     let cfg = &t.config;
     let case1 = presets::CASE_1;
-    let n_board = TRAIN_BOARD_X.len() * TRAIN_BOARD_Y.len();
-    let mut v: Vec<(&str, String)> = vec![
-        (
-            "command",
-            format!(
-                "hvs experiment thesis --seed {}{}",
-                cfg.seed,
-                if cfg.quick { " --quick" } else { "" }
-            ),
-        ),
+    let n_board = n_board();
+    let quick = if cfg.quick { " --quick" } else { "" };
+    let link = [("posture_report", POSTURE_REPORT.to_string())];
+    let mut v: Values = vec![
+        ("command", format!("hvs experiment thesis --seed {}{quick}", cfg.seed)),
         ("total_s", format!("{total_s:.1}")),
         ("threads", t.threads.to_string()),
         ("board_points", n_board.to_string()),
@@ -83,60 +99,34 @@ pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Vec<(&'static 
         ("stage_times", stages(&t.stage_s)),
         ("bound", bound()),
         ("builtin_phi", Calibration::BUILT_IN.phi.to_string()),
-        ("posture_link", if posture { format!("{}\n\n", posture_link()) } else { String::new() }),
+        ("posture_link", if posture { phrase("posture_link", &link)? + "\n\n" } else { "".into() }),
     ];
-    for (key, stem) in [
-        ("files_phi", "fig4_03_04_phi"),
-        ("files_traditional", "fig4_08_11_traditional"),
-        ("files_net_case4", "fig4_12_net_case4"),
-        ("files_ten_nets", "fig4_13_ten_nets"),
-        ("files_hidden", "fig4_14_15_hidden"),
-        ("files_proposed", "fig4_16_19_proposed"),
-        ("files_fewer", "fig4_20_22_fewer_depths"),
-        ("files_bp_vs_lm", "bp_vs_lm"),
-        ("files_noise", "noise"),
-    ] {
-        v.push((key, files_line(stem)));
-    }
     phi_values(&mut v, t);
     traditional_values(&mut v, t);
-    net_case4_values(&mut v, t);
-    sweep_values(&mut v, t);
-    proposed_values(&mut v, t);
-    fewer_values(&mut v, t);
-    algo_values(&mut v, t);
+    net_case4_values(&mut v, t)?;
+    sweep_values(&mut v, t)?;
+    proposed_values(&mut v, t)?;
+    fewer_values(&mut v, t)?;
+    algo_values(&mut v, t)?;
     noise_values(&mut v, t);
-    v
+    Ok(v)
 }
 
-/// The proposed net's shape, `4-5-3`: the default `hvs train` net.
-fn net_shape() -> String {
-    let tc = TrainConfig::default();
-    format!("4-{}-{}", tc.hidden, tc.outputs.len())
-}
-
-fn phi_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
-    let l1 = phi_stats(&t.phi, 1, true);
-    let r1 = phi_stats(&t.phi, 1, false);
-    let l2 = phi_stats(&t.phi, 2, true);
-    let r2 = phi_stats(&t.phi, 2, false);
-    let mut table = Vec::new();
-    for (case, left, s) in [(1u8, true, l1), (1, false, r1), (2, true, l2), (2, false, r2)] {
-        table.push(format!(
-            "| {} | {} | {:.3} | {:.3} | {:+.3} % | {:.3} % | {:.3} % |",
-            roman(case),
-            if left { "Phi_L" } else { "Phi_R" },
-            s.mean,
-            s.truth,
-            s.bias_pct(),
-            s.max_dev_pct,
-            s.sd_pct
-        ));
-    }
+fn phi_values(v: &mut Values, t: &Thesis) {
+    let [l1, r1, l2, r2] = [(1, true), (1, false), (2, true), (2, false)]
+        .map(|(case, left)| phi_stats(&t.phi, case, left));
+    let table = [(1u8, "Phi_L", l1), (1, "Phi_R", r1), (2, "Phi_L", l2), (2, "Phi_R", r2)].map(
+        |(case, which, s)| {
+            let (mean, truth, bias) = (s.mean, s.truth, s.bias_pct());
+            let (dev, sd) = (s.max_dev_pct, s.sd_pct);
+            let fixed = format!("{mean:.3} | {truth:.3} | {bias:+.3} % | {dev:.3} % | {sd:.3} %");
+            row([roman(case), which, fixed.as_str()])
+        },
+    );
     // The far boards of the Phi experiment: the last two depths.
     let far = &PHI_DEPTHS[PHI_DEPTHS.len() - 2..];
     let d = presets::CASE_1.half_baseline;
-    let disp = |rig: &hvs_shared::sim::camera::Rig, centre: f64| {
+    let disp = |rig: &Rig, centre: f64| {
         mean(&far.iter().filter_map(|&z| board_disparity_px(rig, centre, z)).collect::<Vec<_>>())
     };
     let far_disp = disp(&presets::CASE_1, d);
@@ -163,24 +153,20 @@ fn phi_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
     ]);
 }
 
-fn traditional_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
-    let mut glance = Vec::new();
-    let mut table = Vec::new();
+fn traditional_values(v: &mut Values, t: &Thesis) {
+    let (mut glance, mut table) = (Vec::new(), Vec::new());
     for c in &t.traditional {
         let k = usize::from(c.case - 1);
         let th = reported::traditional_range(c.case).unwrap_or_default();
-        let (lo, hi) = (pct(c.traditional.best()), pct(c.traditional.worst()));
-        glance.push(format!(
-            "| 4.{} traditional, case {} | {th} | {lo} .. {hi} |",
-            8 + k,
-            roman(c.case)
-        ));
-        table.push(format!(
-            "| {} ({}) | {th} | {lo} .. {hi} | {} |",
-            roman(c.case),
-            LABELS[k].split(": ").nth(1).unwrap_or(""),
-            pct(c.optimal.worst())
-        ));
+        let ours = format!("{} .. {}", pct(c.traditional.best()), pct(c.traditional.worst()));
+        let case = roman(c.case);
+        glance.push(row([
+            format!("4.{} traditional, case {case}", 8 + k),
+            th.clone(),
+            ours.clone(),
+        ]));
+        let rig = LABELS[k].split(": ").nth(1).unwrap_or("");
+        table.push(row([format!("{case} ({rig})"), th, ours, pct(c.optimal.worst())]));
     }
     let within: Vec<&str> = t
         .traditional
@@ -188,17 +174,14 @@ fn traditional_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         .filter(|c| matches_thesis_traditional(c.case, c.traditional.best(), c.traditional.worst()))
         .map(|c| roman(c.case))
         .collect();
+    let n = t.traditional.len();
     v.extend([
         ("glance_traditional_rows", rows(glance)),
         ("traditional_rows", rows(table)),
         ("trad_within", if within.is_empty() { "none".to_string() } else { within.join(", ") }),
         (
             "trad_within_count",
-            if within.len() == t.traditional.len() {
-                "all four".to_string()
-            } else {
-                format!("{} of {}", within.len(), t.traditional.len())
-            },
+            if within.len() == n { "all four".into() } else { format!("{} of {n}", within.len()) },
         ),
         (
             "trad_floor_worst",
@@ -207,15 +190,11 @@ fn traditional_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
     ]);
 }
 
-fn net_case4_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
+fn net_case4_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let p = &t.proposed[usize::from(GENERAL_CASE - 1)];
     let rig = presets::case(GENERAL_CASE).unwrap_or(presets::CASE_4);
-    let table = p
-        .net
-        .z
-        .iter()
-        .enumerate()
-        .map(|(k, z)| format!("| {z} | {} | {} |", pct(p.net.pct[k]), pct(p.optimal.pct[k])));
+    let table = (p.net.z.iter().enumerate())
+        .map(|(k, z)| row([z.to_string(), pct(p.net.pct[k]), pct(p.optimal.pct[k])]));
     let (wz, _) = worst_depth(&p.optimal);
     // Test points that have the same pixels at two neighbouring depths, one of them the
     // floor's worst.
@@ -229,20 +208,21 @@ fn net_case4_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
                 .map(move |(a, b)| format!("P{} has identical pixels at {a} and {b} cm", k + 1))
         })
         .collect();
-    let twins_sentence = if twins.is_empty() {
-        "no test point has the same pixels at two depths there, so this is the rounding of \
-         nearby depths."
-            .to_string()
+    let twins_values = [("case", roman(GENERAL_CASE).into()), ("twins", twins.join(", and "))];
+    let (twins_sentence, twins_note) = if twins.is_empty() {
+        (phrase("twins_none", &[])?, String::new())
     } else {
-        format!(
-            "in this simulation of case {}, {}, so any method gives it one depth there and \
-             errs by several percent at one of the two.",
-            roman(GENERAL_CASE),
-            twins.join(", and ")
-        )
+        let note = twins.join("; ").replace(" has identical pixels at", "'s identical pixels at");
+        (phrase("twins_some", &twins_values)?, format!(" ({note})"))
     };
     let above = p.net.pct.iter().zip(&p.optimal.pct).map(|(a, b)| a - b).fold(0.0, f64::max);
     let [th_lo, th_hi] = reported::NET_CASE4_PCT;
+    // Fig. 4.13: the sweep's nets with the proposed shape.
+    let ten: Vec<_> =
+        t.sweep.iter().filter(|r| r.hidden == 5 && r.outputs == OutputKind::Xyz).collect();
+    let (wlo, whi) = span(ten.iter().map(|r| r.test_worst_pct));
+    let (mlo, mhi) = span(ten.iter().map(|r| r.test_mean_pct));
+    let below = ten.iter().filter(|r| r.test_worst_pct < reported::NET_BOUND_PCT).count();
     v.extend([
         ("net_case4_rows", rows(table)),
         ("th_net_case4", format!("{th_lo} .. {th_hi} %")),
@@ -254,61 +234,30 @@ fn net_case4_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         ("floor_case4_worst", pct(p.optimal.worst())),
         ("floor_case4_worst_z", wz.to_string()),
         ("net_case4_above", pct_value(above)),
-        (
-            "floor_case4_twins_note",
-            if twins.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    " ({})",
-                    twins.join("; ").replace(" has identical pixels at", "'s identical pixels at")
-                )
-            },
-        ),
+        ("floor_case4_twins_note", twins_note),
         ("twins_sentence", twins_sentence),
-    ]);
-    // Fig. 4.13: the sweep's nets with the proposed shape.
-    let ten: Vec<_> =
-        t.sweep.iter().filter(|r| r.hidden == 5 && r.outputs == OutputKind::Xyz).collect();
-    let (wlo, whi) = span(ten.iter().map(|r| r.test_worst_pct));
-    let (mlo, mhi) = span(ten.iter().map(|r| r.test_mean_pct));
-    v.extend([
         ("ten_worst_lo", pct(wlo)),
         ("ten_worst_hi", pct(whi)),
         ("ten_mean_lo", pct(mlo)),
         ("ten_mean_hi", pct(mhi)),
         ("ten_count", ten.len().to_string()),
-        (
-            "ten_below_bound",
-            ten.iter().filter(|r| r.test_worst_pct < reported::NET_BOUND_PCT).count().to_string(),
-        ),
+        ("ten_below_bound", below.to_string()),
     ]);
+    Ok(())
 }
 
-fn sweep_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
+fn sweep_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let hs = hidden_counts(&t.sweep);
-    let z1 = e_ma_hn(&t.sweep, OutputKind::Z);
-    let x3 = e_ma_hn(&t.sweep, OutputKind::Xyz);
-    let zm = mean_e_ma_hn(&t.sweep, OutputKind::Z);
-    let xm = mean_e_ma_hn(&t.sweep, OutputKind::Xyz);
-    let table = hs.iter().enumerate().map(|(k, h)| {
-        format!("| {h} | {} | {} | {} | {} |", pct(z1[k]), pct(x3[k]), pct(zm[k]), pct(xm[k]))
-    });
+    let [z1, x3] = [OutputKind::Z, OutputKind::Xyz].map(|o| e_ma_hn(&t.sweep, o));
+    let [zm, xm] = [OutputKind::Z, OutputKind::Xyz].map(|o| mean_e_ma_hn(&t.sweep, o));
+    let table = (hs.iter().enumerate())
+        .map(|(k, h)| row([h.to_string(), pct(z1[k]), pct(x3[k]), pct(zm[k]), pct(xm[k])]));
     let wins = |one: &[f64], three: &[f64]| one.iter().zip(three).filter(|(a, b)| b < a).count();
     let verdict = match (mean(&x3) < mean(&z1), mean(&xm) < mean(&zm)) {
-        (true, true) => {
-            "on average three outputs beat one by both measures, as in the thesis, though by \
-             much less and not at every count."
-        }
-        (true, false) => {
-            "on average three outputs beat one by the thesis' measure, but not by the mean \
-             e_ma."
-        }
-        (false, true) => {
-            "on average three outputs beat one by the mean e_ma, but not by the thesis' \
-             measure."
-        }
-        (false, false) => "unlike the thesis, three outputs do not beat one on average here.",
+        (true, true) => "hn_both",
+        (true, false) => "hn_worst_only",
+        (false, true) => "hn_mean_only",
+        (false, false) => "hn_neither",
     };
     let best = |e: &[f64]| hs.get(argmin(e)).copied().unwrap_or(0).to_string();
     v.extend([
@@ -324,61 +273,35 @@ fn sweep_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         ("hn_n", hs.len().to_string()),
         ("best_h", best(&x3)),
         ("best_h_mean", best(&xm)),
-        ("hn_verdict", verdict.to_string()),
+        ("hn_verdict", phrase(verdict, &[])?),
     ]);
+    Ok(())
 }
 
-fn proposed_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
+fn proposed_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let limit = reported::NET_BOUND_PCT;
     let table = t.proposed.iter().map(|p| {
-        format!(
-            "| {} | {} | {} | {} | {} | < {} |",
-            roman(p.case),
-            pct(p.train_pct),
-            pct(p.net.mean),
-            pct(p.net.worst()),
-            pct(p.optimal.worst()),
-            bound()
-        )
+        let errors = [p.train_pct, p.net.mean, p.net.worst(), p.optimal.worst()].map(pct);
+        row([roman(p.case).to_string()].into_iter().chain(errors).chain([format!("< {}", bound())]))
     });
     let over: Vec<&str> =
         t.proposed.iter().filter(|p| p.net.worst() >= limit).map(|p| roman(p.case)).collect();
-    let near: Vec<String> = t
-        .proposed
-        .iter()
-        .filter(|p| p.optimal.worst() >= 0.9 * limit)
+    let near: Vec<String> = (t.proposed.iter().filter(|p| p.optimal.worst() >= 0.9 * limit))
         .map(|p| format!("{} ({})", roman(p.case), pct(p.optimal.worst())))
         .collect();
     let n = t.proposed.len();
-    let b = bound();
-    let bound_sentence = if over.is_empty() {
-        format!("as in the thesis, the worst depth stays below {b} in every case.")
-    } else {
-        format!(
-            "the thesis' \"well below {} even in the worst case\" holds here in {} of {n} \
-             cases; **difference:** not in case(s) {}.",
-            bound(),
-            n - over.len(),
-            over.join(", ")
-        )
-    };
-    let floor_sentence = if near.is_empty() {
-        format!("Optimal triangulation with the true rig stays well below {b} everywhere.")
-    } else {
-        format!(
-            "On these {} rounded test points even optimal triangulation with the true rig \
-             comes within 10 % of the {} bound at its worst depth in case(s) {}, so no \
-             calibration-free method can be expected to stay clearly below it there; the \
-             thesis' real pixels evidently were not this coarse at its test points.",
-            TEST_POINTS_XY.len() * TEST_DEPTHS.len(),
-            bound(),
-            near.join(", ")
-        )
-    };
-    let ratios = t
-        .noise
-        .iter()
-        .filter(|r| r.sigma == 0.0)
+    let values = [
+        ("bound", bound()),
+        ("kept", (n - over.len()).to_string()),
+        ("cases", n.to_string()),
+        ("over", over.join(", ")),
+        ("test_points", (TEST_POINTS_XY.len() * TEST_DEPTHS.len()).to_string()),
+        ("near", near.join(", ")),
+    ];
+    let bound_sentence = phrase(if over.is_empty() { "bound_all" } else { "bound_some" }, &values)?;
+    let floor_sentence =
+        phrase(if near.is_empty() { "floor_clear" } else { "floor_near" }, &values)?;
+    let ratios = (t.noise.iter().filter(|r| r.sigma == 0.0))
         .map(|r| format!("{:.2}", r.network_pct / r.optimal_pct));
     let glance = t.proposed.iter().map(|p| format!("{} {}", roman(p.case), pct(p.net.worst())));
     v.extend([
@@ -390,126 +313,87 @@ fn proposed_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         ("volume_points", t.config.volume_points().to_string()),
         ("volume_ratios", join(ratios, ", ")),
     ]);
+    Ok(())
 }
 
-fn fewer_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
+fn fewer_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let p4 = &t.proposed[usize::from(GENERAL_CASE - 1)];
-    let mut table: Vec<String> = t
-        .fewer
-        .iter()
+    let both = |c: &super::DepthCurve| format!("{} / {}", pct(c.mean), pct(c.worst()));
+    let mut table: Vec<String> = (t.fewer.iter())
         .map(|f| {
-            format!(
-                "| {} | {} | {} | {} / {} | {} / {} |",
-                join(&f.depths, ", "),
-                f.points,
-                reported::fewer_depths(f.depths.len()),
-                pct(f.net.mean),
-                pct(f.net.worst()),
-                pct(f.bp.mean),
-                pct(f.bp.worst())
-            )
+            let th = reported::fewer_depths(f.depths.len());
+            row([join(&f.depths, ", "), f.points.to_string(), th, both(&f.net), both(&f.bp)])
         })
         .collect();
     let bp4 = algo_row(t, GENERAL_CASE, Algo::Bp).map_or("-".to_string(), |r| {
         format!("{} / {}", pct(r.test_mean_pct), pct(r.test_worst_pct))
     });
-    let step = TRAIN_DEPTHS[1] - TRAIN_DEPTHS[0];
-    table.push(format!(
-        "| {}-{} step {step} (all {}) | {} | < {} | {} / {} | {bp4} |",
-        TRAIN_DEPTHS[0],
-        TRAIN_DEPTHS[TRAIN_DEPTHS.len() - 1],
-        number_word(TRAIN_DEPTHS.len()),
-        TRAIN_BOARD_X.len() * TRAIN_BOARD_Y.len() * TRAIN_DEPTHS.len(),
-        bound(),
-        pct(p4.net.mean),
-        pct(p4.net.worst())
-    ));
-    let two = &t.fewer[0];
-    let four = &t.fewer[FEWER_DEPTHS.len() - 1];
+    let (first, last) = (TRAIN_DEPTHS[0], TRAIN_DEPTHS[TRAIN_DEPTHS.len() - 1]);
+    let all = format!(
+        "{first}-{last} step {} (all {})",
+        TRAIN_DEPTHS[1] - first,
+        number_word(TRAIN_DEPTHS.len())
+    );
+    let points = (n_board() * TRAIN_DEPTHS.len()).to_string();
+    table.push(row([all, points, format!("< {}", bound()), both(&p4.net), bp4]));
+    let (two, four) = (&t.fewer[0], &t.fewer[FEWER_DEPTHS.len() - 1]);
     let th = reported::TWO_DEPTHS_MEAN_PCT;
-    let why = if two.net.mean < th / 2.0 && two.bp.mean < th / 2.0 {
-        format!(
-            "**difference:** two depths cost far less here than the thesis' {th} % with either \
-             algorithm ({} LM, {} BP): on noise-free simulated pixels the depth is a smooth \
-             function of the pixels that a {} net interpolates between {} and {} cm. The \
-             thesis does not say what its two-depth net got wrong; since our own \
-             back-propagation does not fail that way, the cause is more likely in its \
-             hand-picked pixels or its training run than in the method.",
-            pct(two.net.mean),
-            pct(two.bp.mean),
-            net_shape(),
-            two.depths[0],
-            two.depths[two.depths.len() - 1],
-        )
-    } else if two.net.mean < th / 2.0 {
-        format!(
-            "**difference:** with LM two depths cost far less than the thesis' {th} % ({}), \
-             while back-propagation gets {}, nearer the thesis: the algorithm, not only the \
-             data, decides how well a net fitted at two depths interpolates between them.",
-            pct(two.net.mean),
-            pct(two.bp.mean)
-        )
-    } else {
-        format!("two depths are as insufficient here as in the thesis ({th} %).")
+    let values = [
+        ("th", th.to_string()),
+        ("lm", pct(two.net.mean)),
+        ("bp", pct(two.bp.mean)),
+        ("net_shape", net_shape()),
+        ("from", two.depths[0].to_string()),
+        ("to", two.depths[two.depths.len() - 1].to_string()),
+    ];
+    let why = match (two.net.mean < th / 2.0, two.bp.mean < th / 2.0) {
+        (true, true) => "fewer_both",
+        (true, false) => "fewer_lm",
+        _ => "fewer_neither",
     };
+    let means =
+        t.fewer.iter().map(|f| format!("{} depths: mean {}", f.depths.len(), pct(f.net.mean)));
     v.extend([
         ("fewer_rows", rows(table)),
         ("fewer_two_mean", pct(two.net.mean)),
         ("fewer_four_mean", pct(four.net.mean)),
-        ("fewer_why", why),
+        ("fewer_why", phrase(why, &values)?),
         ("th_two_depths", reported::fewer_depths(2)),
         ("th_four_depths", reported::fewer_depths(4)),
-        (
-            "fewer_means",
-            join(
-                t.fewer
-                    .iter()
-                    .map(|f| format!("{} depths: mean {}", f.depths.len(), pct(f.net.mean))),
-                "; ",
-            ),
-        ),
+        ("fewer_means", join(means, "; ")),
     ]);
+    Ok(())
+}
+
+fn n_board() -> usize {
+    TRAIN_BOARD_X.len() * TRAIN_BOARD_Y.len()
 }
 
 fn algo_row(t: &Thesis, case: u8, algo: Algo) -> Option<&AlgoRow> {
     t.algos.iter().find(|r| r.case == case && r.algo == algo)
 }
 
-fn algo_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
+fn algo_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let bp = t.config.bp();
-    let mut table = Vec::new();
-    for case in 1..=4u8 {
-        if let (Some(b), Some(l)) = (algo_row(t, case, Algo::Bp), algo_row(t, case, Algo::Lm)) {
-            table.push(format!(
-                "| {} | {} / {} / {} | {} / {} / {} | {} | {:.2} s | {:.3} s |",
-                roman(case),
-                pct(b.train_pct),
-                pct(b.test_mean_pct),
-                pct(b.test_worst_pct),
-                pct(l.train_pct),
-                pct(l.test_mean_pct),
-                pct(l.test_worst_pct),
-                pct(t.proposed[usize::from(case - 1)].optimal.worst()),
-                b.wall_s,
-                l.wall_s
-            ));
-        }
-    }
-    let sum = |a: Algo, f: &dyn Fn(&AlgoRow) -> f64| -> f64 {
+    let three = |r: &AlgoRow| [r.train_pct, r.test_mean_pct, r.test_worst_pct].map(pct).join(" / ");
+    let table = (1..=4u8).filter_map(|case| {
+        let (b, l) = (algo_row(t, case, Algo::Bp)?, algo_row(t, case, Algo::Lm)?);
+        let floor = pct(t.proposed[usize::from(case - 1)].optimal.worst());
+        let times = [format!("{:.2} s", b.wall_s), format!("{:.3} s", l.wall_s)];
+        Some(row([roman(case).to_string(), three(b), three(l), floor].into_iter().chain(times)))
+    });
+    let sum = |a: Algo, f: fn(&AlgoRow) -> f64| -> f64 {
         t.algos.iter().filter(|r| r.algo == a).map(f).sum::<f64>()
     };
-    let (bt, lt) = (sum(Algo::Bp, &|r| r.wall_s), sum(Algo::Lm, &|r| r.wall_s));
+    let (bt, lt) = (sum(Algo::Bp, |r| r.wall_s), sum(Algo::Lm, |r| r.wall_s));
     let (be, le) =
-        (sum(Algo::Bp, &|r| r.test_worst_pct) / 4.0, sum(Algo::Lm, &|r| r.test_worst_pct) / 4.0);
+        (sum(Algo::Bp, |r| r.test_worst_pct) / 4.0, sum(Algo::Lm, |r| r.test_worst_pct) / 4.0);
     let verdict = if (be - le).abs() < 0.25 * le {
-        "The thesis' algorithm is not what limits its accuracy: given enough learning \
-         cycles it reaches errors close to LM's on these noise-free pixels; what it costs \
-         is time (thousands of learning cycles of one update per pattern, against at \
-         most 200 LM steps)."
+        "algo_close"
     } else if be > le {
-        "LM is both more accurate and much faster here."
+        "algo_lm"
     } else {
-        "BP is more accurate here, LM much faster."
+        "algo_bp"
     };
     v.extend([
         ("bp_rate", bp.learning_rate.to_string()),
@@ -522,24 +406,25 @@ fn algo_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         ("lm_time", format!("{lt:.3}")),
         ("bp_time", format!("{bt:.2}")),
         ("speedup", format!("{:.0}", bt / lt.max(1e-9))),
-        ("algo_verdict", verdict.to_string()),
+        ("algo_verdict", phrase(verdict, &[])?),
     ]);
+    Ok(())
 }
 
-fn noise_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
+fn noise_values(v: &mut Values, t: &Thesis) {
     let levels = t.config.noise_levels();
     let shown = [levels[0], levels[levels.len() / 2], levels[levels.len() - 1]];
     let table = t.noise.iter().filter(|r| shown.contains(&r.sigma)).map(|r| {
-        format!(
-            "| {} | {:.1} | {} | {:.1} % | {} | {} | {:.2} |",
-            roman(r.case),
-            r.sigma,
+        let ratio = r.network_pct / r.optimal_pct;
+        row([
+            roman(r.case).to_string(),
+            format!("{:.1}", r.sigma),
             pct(r.traditional_pct),
-            r.traditional_missing_pct,
+            format!("{:.1} %", r.traditional_missing_pct),
             pct(r.network_pct),
             pct(r.optimal_pct),
-            r.network_pct / r.optimal_pct
-        )
+            format!("{ratio:.2}"),
+        ])
     });
     let (lo, hi) = span(t.noise.iter().map(|r| r.network_pct / r.optimal_pct));
     let top = levels[levels.len() - 1];
@@ -552,9 +437,11 @@ fn noise_values(v: &mut Vec<(&str, String)>, t: &Thesis) {
         let (a, b) = span(t.noise.iter().filter(|r| r.case == case).map(|r| r.traditional_pct));
         format!("{} {}-{}", roman(case), pct_value(a), pct(b))
     });
-    let (vlo, vhi) = training_volume();
-    let volume_box =
-        format!("X {}..{}, Y {}..{}, Z {}..{} cm", vlo[0], vhi[0], vlo[1], vhi[1], vlo[2], vhi[2]);
+    let (lo_v, hi_v) = training_volume();
+    let volume_box = format!(
+        "X {}..{}, Y {}..{}, Z {}..{} cm",
+        lo_v[0], hi_v[0], lo_v[1], hi_v[1], lo_v[2], hi_v[2]
+    );
     v.extend([
         ("noise_repeats", t.config.noise_repeats().to_string()),
         ("volume_box", volume_box),

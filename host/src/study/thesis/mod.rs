@@ -14,18 +14,9 @@
 //! | beyond | back-propagation vs. Levenberg-Marquardt (error, wall time) | [`bp_vs_lm`] |
 //! | beyond | e_ma vs. pixel noise: traditional, network, optimal floor | [`noise`] |
 //!
-//! Conventions, as in the thesis: e_ma is eq. 4.1-5 in percent of the true depth; the test
-//! set is P1, P2 at the 11 test depths (65-165 cm); a net's error is its worst per-depth
-//! e_ma. Every error plot also shows the floor: optimal triangulation with the *true* rig on
-//! the same rounded pixels (`hvs_shared::sim::triangulate::optimal_rig`), which no calibration-free
-//! method can beat on average. "The proposed net" is the default `hvs train` (4-5-3,
-//! Levenberg-Marquardt, 10 restarts, best training e_ma); "a net" of the hidden-neuron sweep is
-//! one training from one seeded random start, like one BP run of the thesis.
-//!
 //! Determinism: every random step takes a seed derived from [`Config::seed`]; the trainer's
 //! result does not depend on the thread count; results are collected in a fixed order. So
-//! the same seed gives the same CSV bytes. Wall times (the BP/LM comparison and the run time)
-//! are the exception and live in their own file and in `RESULTS.md`.
+//! the same seed gives the same CSV bytes; only the wall times vary.
 
 pub mod facts;
 pub mod markdown;
@@ -38,7 +29,7 @@ use crate::study::engine::Progress;
 use crate::train::fallback;
 use crate::train::{train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
-use hvs_shared::runtime::blob::{InputKind, ModelBlob, OutputKind};
+use hvs_shared::runtime::blob::{InputKind, OutputKind};
 use hvs_shared::runtime::gaze::HALF_BASELINE_CM;
 use hvs_shared::runtime::traditional::{phi_estimate, Calibration};
 use hvs_shared::sim::camera::Rig;
@@ -69,70 +60,48 @@ pub struct Config {
 }
 
 impl Config {
+    /// `full`, or `quick` on the reduced run.
+    fn pick<T>(&self, full: T, quick: T) -> T {
+        if self.quick {
+            quick
+        } else {
+            full
+        }
+    }
     /// Restarts of the proposed net (the trainer's default, 10; 2 when quick).
     pub fn restarts(&self) -> usize {
-        if self.quick {
-            2
-        } else {
-            TrainConfig::default().restarts
-        }
+        self.pick(TrainConfig::default().restarts, 2)
     }
     /// Nets per hidden-neuron count and output kind (the thesis' ten; 2 when quick).
     pub fn nets(&self) -> usize {
-        if self.quick {
-            2
-        } else {
-            10
-        }
+        self.pick(10, 2)
     }
     /// Hidden-neuron counts of the sweep: [`HIDDEN`] ([`HIDDEN_QUICK`] when quick).
     pub fn hidden(&self) -> &'static [usize] {
-        if self.quick {
-            &HIDDEN_QUICK
-        } else {
-            &HIDDEN
-        }
+        self.pick(&HIDDEN, &HIDDEN_QUICK)
     }
     /// Pixel-noise levels (px): 0 to 1 in steps of 0.1 (0, 0.5, 1 when quick).
     pub fn noise_levels(&self) -> Vec<f64> {
-        if self.quick {
-            vec![0.0, 0.5, 1.0]
-        } else {
-            (0..=10).map(|k| k as f64 / 10.0).collect()
-        }
+        let steps = self.pick(10, 2);
+        (0..=steps).map(|k| k as f64 / steps as f64).collect()
     }
     /// Independent noise draws averaged per level (3; 1 when quick).
     pub fn noise_repeats(&self) -> usize {
-        if self.quick {
-            1
-        } else {
-            3
-        }
+        self.pick(3, 1)
     }
     /// Random test points of the training volume in the noise experiment.
     pub fn volume_points(&self) -> usize {
-        if self.quick {
-            100
-        } else {
-            500
-        }
+        self.pick(500, 100)
     }
     /// Back-propagation settings: the trainer's defaults (300 cycles when quick).
     pub fn bp(&self) -> BpParams {
-        if self.quick {
-            BpParams { max_cycles: 300, ..BpParams::default() }
-        } else {
-            BpParams::default()
-        }
+        let full = BpParams::default();
+        BpParams { max_cycles: self.pick(full.max_cycles, 300), ..full }
     }
     /// The proposed net's training configuration.
     pub fn proposed(&self) -> TrainConfig {
-        TrainConfig {
-            seed: self.seed,
-            restarts: self.restarts(),
-            progress: false,
-            ..TrainConfig::default()
-        }
+        let restarts = self.restarts();
+        TrainConfig { seed: self.seed, restarts, progress: false, ..TrainConfig::default() }
     }
 }
 
@@ -151,7 +120,7 @@ const TAG_NET: u64 = 1;
 const TAG_NOISE_TRAIN: u64 = 2;
 const TAG_NOISE_TEST: u64 = 3;
 
-/// Per-depth e_ma of some estimators on the thesis' test set (P1, P2 at the test depths).
+/// Per-depth e_ma of an estimator on a test set (the thesis': P1, P2 at the test depths).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DepthCurve {
     /// Test depths (cm).
@@ -173,16 +142,30 @@ impl DepthCurve {
     }
 }
 
-/// Per-depth curves of `z_hat` estimators against the truth of `test`, in their order.
-fn curves<const N: usize>(test: &Dataset, z_hat: [Vec<f64>; N]) -> [DepthCurve; N] {
-    let methods: Vec<Method> =
-        z_hat.into_iter().enumerate().map(|(k, z)| Method { name: k.to_string(), z }).collect();
-    let ev = evaluate(test, &methods);
-    core::array::from_fn(|m| DepthCurve {
+/// The per-depth curve of the estimates `z_hat` against the truth of `test`.
+fn curve(test: &Dataset, z_hat: Vec<f64>) -> DepthCurve {
+    let ev = evaluate(test, &[Method { name: String::new(), z: z_hat }]);
+    DepthCurve {
         z: ev.depths.iter().map(|d| d.z_min).collect(),
-        pct: ev.depths.iter().map(|d| d.methods[m].e_ma_pct).collect(),
-        mean: ev.methods[m].mean.e_ma_pct,
-    })
+        pct: ev.depths.iter().map(|d| d.methods[0].e_ma_pct).collect(),
+        mean: ev.methods[0].mean.e_ma_pct,
+    }
+}
+
+/// A net trained on `set` by `tc` (`what` names it in errors): its training e_ma (%), its
+/// curve on `test` and the training's wall time (s).
+fn net(
+    set: &Dataset,
+    test: &Dataset,
+    tc: &TrainConfig,
+    what: impl FnOnce() -> String,
+) -> Result<(f64, DepthCurve, f64)> {
+    let t = Instant::now();
+    let out = train(set, tc).with_context(what)?;
+    let wall_s = t.elapsed().as_secs_f64();
+    let z = model_depths(&out.blob, test)
+        .map_err(|e| anyhow!("the model cannot run on the set: {e:?}"))?;
+    Ok((out.train_error_pct, curve(test, z), wall_s))
 }
 
 fn dataset(samples: &[Sample]) -> Dataset {
@@ -200,15 +183,8 @@ fn rig(case: u8) -> Result<Rig> {
 /// The thesis protocol of a case: training boards (72 points) and test points (22).
 pub fn protocol(case: u8) -> Result<(Dataset, Dataset)> {
     let r = rig(case)?;
-    let opt = SimOptions::default();
-    Ok((
-        dataset(&simulate(&r, SetKind::Train, &opt)?),
-        dataset(&simulate(&r, SetKind::Test, &opt)?),
-    ))
-}
-
-fn net_z(blob: &ModelBlob, data: &Dataset) -> Result<Vec<f64>> {
-    model_depths(blob, data).map_err(|e| anyhow!("the model cannot run on the set: {e:?}"))
+    let set = |kind| simulate(&r, kind, &SimOptions::default()).map(|s| dataset(&s));
+    Ok((set(SetKind::Train)?, set(SetKind::Test)?))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -256,14 +232,9 @@ pub fn phi() -> Result<Vec<PhiRow>> {
                 }
                 phi_estimate(&pairs, z, d).map_err(|e| anyhow!("case {case}, Z = {z} cm: {e}"))
             };
-            rows.push(PhiRow {
-                case,
-                z,
-                phi_l: est(d)?,
-                phi_r: est(-d)?,
-                true_l: r.phi_u_left,
-                true_r: r.phi_u_right,
-            });
+            let (phi_l, phi_r) = (est(d)?, est(-d)?);
+            let (true_l, true_r) = (r.phi_u_left, r.phi_u_right);
+            rows.push(PhiRow { case, z, phi_l, phi_r, true_l, true_r });
         }
     }
     Ok(rows)
@@ -289,14 +260,11 @@ pub fn traditional() -> Result<Vec<TraditionalCase>> {
     (1..=4u8)
         .map(|case| {
             let (_, test) = protocol(case)?;
-            let [traditional, optimal] = curves(
-                &test,
-                [
-                    traditional_depths(&Calibration::BUILT_IN, &test),
-                    optimal_depths(&rig(case)?, &test),
-                ],
-            );
-            Ok(TraditionalCase { case, traditional, optimal })
+            Ok(TraditionalCase {
+                case,
+                traditional: curve(&test, traditional_depths(&Calibration::BUILT_IN, &test)),
+                optimal: curve(&test, optimal_depths(&rig(case)?, &test)),
+            })
         })
         .collect()
 }
@@ -317,15 +285,14 @@ pub struct ProposedCase {
 /// Figs. 4.12 (case IV) and 4.16-4.19: the proposed net (default `hvs train`) trained on the
 /// 72 board points of each case, tested on its 22 test points.
 pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCase>> {
-    let tc = cfg.proposed();
     (1..=4u8)
         .map(|case| {
             let (train_set, test) = protocol(case)?;
-            let out = train(&train_set, &tc).with_context(|| format!("case {case}"))?;
-            let [net, optimal] =
-                curves(&test, [net_z(&out.blob, &test)?, optimal_depths(&rig(case)?, &test)]);
+            let (train_pct, net, _) =
+                net(&train_set, &test, &cfg.proposed(), || format!("case {case}"))?;
             progress.inc();
-            Ok(ProposedCase { case, train_pct: out.train_error_pct, net, optimal })
+            let optimal = curve(&test, optimal_depths(&rig(case)?, &test));
+            Ok(ProposedCase { case, train_pct, net, optimal })
         })
         .collect()
 }
@@ -352,43 +319,27 @@ pub struct NetRow {
     pub test_worst_pct: f64,
 }
 
-/// Figs. 4.13-4.15: for 1-10 hidden neurons ([`Config::hidden`]) and one or three outputs, [`Config::nets`] nets,
-/// each trained from one seeded random start on case IV's boards (as each of the thesis' nets
-/// is one BP run). The nets with 5 hidden neurons and three outputs are Fig. 4.13's.
+/// Figs. 4.13-4.15: for each of [`Config::hidden`] and one or three outputs, [`Config::nets`]
+/// nets, each trained from one seeded random start on case IV's boards (as each of the thesis'
+/// nets is one BP run). The nets with 5 hidden neurons and three outputs are Fig. 4.13's.
 pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>> {
     let (train_set, test) = protocol(GENERAL_CASE)?;
     let mut jobs = Vec::new();
     for outputs in [OutputKind::Z, OutputKind::Xyz] {
         for &hidden in cfg.hidden() {
-            for index in 0..cfg.nets() {
-                jobs.push((outputs, hidden, index));
-            }
+            jobs.extend((0..cfg.nets()).map(|index| (outputs, hidden, index)));
         }
     }
     jobs.into_par_iter()
         .map(|(outputs, hidden, index)| {
             let seed = derive_seed(cfg.seed, TAG_NET, hidden as u64, index as u64);
-            let tc = TrainConfig {
-                hidden,
-                outputs,
-                restarts: 1,
-                seed,
-                progress: false,
-                ..TrainConfig::default()
-            };
-            let out = train(&train_set, &tc)
-                .with_context(|| format!("{hidden} hidden, {outputs:?}, net {index}"))?;
-            let c = curves(&test, [net_z(&out.blob, &test)?]);
+            let tc = TrainConfig { hidden, outputs, restarts: 1, seed, ..cfg.proposed() };
+            let (train_pct, c, _) = net(&train_set, &test, &tc, || {
+                format!("{hidden} hidden, {outputs:?}, net {index}")
+            })?;
             progress.inc();
-            Ok(NetRow {
-                outputs,
-                hidden,
-                index,
-                seed,
-                train_pct: out.train_error_pct,
-                test_mean_pct: c[0].mean,
-                test_worst_pct: c[0].worst(),
-            })
+            let (test_mean_pct, test_worst_pct) = (c.mean, c.worst());
+            Ok(NetRow { outputs, hidden, index, seed, train_pct, test_mean_pct, test_worst_pct })
         })
         .collect()
 }
@@ -408,8 +359,7 @@ pub fn e_ma_hn(rows: &[NetRow], outputs: OutputKind) -> Vec<f64> {
 }
 
 /// Mean of the nets' e_ma over all test points for each hidden-neuron count, in the order of
-/// [`hidden_counts`]: a second view of Figs. 4.14, 4.15 that the worst depth does not
-/// dominate.
+/// [`hidden_counts`]: a view of Figs. 4.14, 4.15 that the worst depth does not dominate.
 pub fn mean_e_ma_hn(rows: &[NetRow], outputs: OutputKind) -> Vec<f64> {
     per_hidden(rows, outputs, |r| r.test_mean_pct)
 }
@@ -452,35 +402,27 @@ pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDe
     let r = rig(GENERAL_CASE)?;
     let (_, test) = protocol(GENERAL_CASE)?;
     let tc = cfg.proposed();
+    let bp_tc = TrainConfig { algo: Algo::Bp, bp: cfg.bp(), ..tc.clone() };
     FEWER_DEPTHS
         .iter()
         .map(|depths| {
             let mut samples = Vec::new();
-            for &z in depths.iter() {
-                for p in presets::board_points(z) {
-                    let px = r
-                        .project_rounded(&p)
-                        .map_err(|e| anyhow!("point {p:?} has no image: {e:?}"))?;
-                    samples.push(Sample { px, xyz: p });
-                }
+            for p in depths.iter().flat_map(|&z| presets::board_points(z)) {
+                let px = r
+                    .project_rounded(&p)
+                    .map_err(|e| anyhow!("point {p:?} has no image: {e:?}"))?;
+                samples.push(Sample { px, xyz: p });
             }
             let set = dataset(&samples);
-            let out = train(&set, &tc).with_context(|| format!("training depths {depths:?}"))?;
+            let (train_pct, net_curve, _) =
+                net(&set, &test, &tc, || format!("training depths {depths:?}"))?;
             progress.inc();
-            let bp_tc = TrainConfig { algo: Algo::Bp, bp: cfg.bp(), ..tc.clone() };
-            let bp = train(&set, &bp_tc)
-                .with_context(|| format!("training depths {depths:?}, back-propagation"))?;
+            let (bp_train_pct, bp, _) = net(&set, &test, &bp_tc, || {
+                format!("training depths {depths:?}, back-propagation")
+            })?;
             progress.inc();
-            let [net, bp_curve] =
-                curves(&test, [net_z(&out.blob, &test)?, net_z(&bp.blob, &test)?]);
-            Ok(FewerDepths {
-                depths: depths.to_vec(),
-                points: set.len(),
-                train_pct: out.train_error_pct,
-                net,
-                bp_train_pct: bp.train_error_pct,
-                bp: bp_curve,
-            })
+            let (depths, points) = (depths.to_vec(), set.len());
+            Ok(FewerDepths { depths, points, train_pct, net: net_curve, bp_train_pct, bp })
         })
         .collect()
 }
@@ -514,19 +456,11 @@ pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
         let (train_set, test) = protocol(case)?;
         for algo in [Algo::Lm, Algo::Bp] {
             let tc = TrainConfig { algo, bp: cfg.bp(), ..cfg.proposed() };
-            let t = Instant::now();
-            let out = train(&train_set, &tc).with_context(|| format!("case {case}, {algo:?}"))?;
-            let wall_s = t.elapsed().as_secs_f64();
-            let c = curves(&test, [net_z(&out.blob, &test)?]);
+            let (train_pct, c, wall_s) =
+                net(&train_set, &test, &tc, || format!("case {case}, {algo:?}"))?;
             progress.inc();
-            rows.push(AlgoRow {
-                case,
-                algo,
-                train_pct: out.train_error_pct,
-                test_mean_pct: c[0].mean,
-                test_worst_pct: c[0].worst(),
-                wall_s,
-            });
+            let (test_mean_pct, test_worst_pct) = (c.mean, c.worst());
+            rows.push(AlgoRow { case, algo, train_pct, test_mean_pct, test_worst_pct, wall_s });
         }
     }
     Ok(rows)
@@ -558,37 +492,26 @@ pub struct NoiseRow {
 /// floor triangulates the noisy test pixels with the true rig. Mean e_ma over the test points.
 pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
     let levels = cfg.noise_levels();
-    let mut jobs = Vec::new();
-    for case in 1..=4u8 {
-        for (k, &sigma) in levels.iter().enumerate() {
-            jobs.push((case, k, sigma));
-        }
-    }
-    let tc = cfg.proposed();
+    let jobs: Vec<(u8, usize, f64)> = (1..=4u8)
+        .flat_map(|case| levels.iter().enumerate().map(move |(k, &s)| (case, k, s)))
+        .collect();
+    let (tc, repeats) = (cfg.proposed(), cfg.noise_repeats());
     jobs.into_par_iter()
         .map(|(case, k, sigma)| {
             let r = rig(case)?;
             let mut sums = [0.0; 3];
-            let mut missing = 0usize;
-            let mut points = 0usize;
-            for rep in 0..cfg.noise_repeats() {
+            let (mut missing, mut points) = (0usize, 0usize);
+            for rep in 0..repeats {
                 let item = (case as u64) << 32 | (k as u64) << 16 | rep as u64;
                 let sim = |kind, points, tag| {
-                    simulate(
-                        &r,
-                        kind,
-                        &SimOptions {
-                            points,
-                            noise_px: sigma,
-                            seed: derive_seed(cfg.seed, tag, item, 0),
-                            ..SimOptions::default()
-                        },
-                    )
+                    let seed = derive_seed(cfg.seed, tag, item, 0);
+                    let opt = SimOptions { points, noise_px: sigma, seed, ..SimOptions::default() };
+                    simulate(&r, kind, &opt).map(|s| dataset(&s))
                 };
-                let boards = dataset(&sim(SetKind::Train, 0, TAG_NOISE_TRAIN)?);
-                let test = dataset(&sim(SetKind::Volume, cfg.volume_points(), TAG_NOISE_TEST)?);
-                let out = train(&boards, &tc)
-                    .with_context(|| format!("case {case}, noise {sigma} px"))?;
+                let boards = sim(SetKind::Train, 0, TAG_NOISE_TRAIN)?;
+                let test = sim(SetKind::Volume, cfg.volume_points(), TAG_NOISE_TEST)?;
+                let (_, c, _) =
+                    net(&boards, &test, &tc, || format!("case {case}, noise {sigma} px"))?;
                 let trad = match fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0) {
                     Some(f) => traditional_depths(&f.calibration, &test),
                     None => vec![f64::NAN; test.len()],
@@ -604,21 +527,21 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
                     }
                 }
                 points += test.len();
-                let c = curves(&test, [net_z(&out.blob, &test)?, optimal_depths(&r, &test)]);
                 sums[0] += acc.e_ma_pct();
-                sums[1] += c[0].mean;
-                sums[2] += c[1].mean;
+                sums[1] += c.mean;
+                sums[2] += curve(&test, optimal_depths(&r, &test)).mean;
             }
             progress.inc();
-            let n = cfg.noise_repeats() as f64;
+            let [traditional_pct, network_pct, optimal_pct] = sums.map(|s| s / repeats as f64);
+            let traditional_missing_pct = missing as f64 / points as f64 * 100.0;
             Ok(NoiseRow {
                 case,
                 sigma,
-                repeats: cfg.noise_repeats(),
-                traditional_pct: sums[0] / n,
-                traditional_missing_pct: missing as f64 / points as f64 * 100.0,
-                network_pct: sums[1] / n,
-                optimal_pct: sums[2] / n,
+                repeats,
+                traditional_pct,
+                traditional_missing_pct,
+                network_pct,
+                optimal_pct,
             })
         })
         .collect()
@@ -654,8 +577,8 @@ pub struct Thesis {
 /// Runs every experiment.
 pub fn run(cfg: &Config, progress: &dyn Progress) -> Result<Thesis> {
     let mut stage_s = Vec::new();
-    let stage = |name: &'static str, units: u64| {
-        progress.start(name, units);
+    let stage = |name: &'static str, units: usize| {
+        progress.start(name, units as u64);
         let t = Instant::now();
         move |stage_s: &mut Vec<(&'static str, f64)>| {
             progress.finish();
@@ -671,50 +594,26 @@ pub fn run(cfg: &Config, progress: &dyn Progress) -> Result<Thesis> {
     let done = stage("Figs. 4.12, 4.16-4.19", 4);
     let proposed = proposed(cfg, progress)?;
     done(&mut stage_s);
-    let done = stage("Figs. 4.13-4.15", (2 * cfg.hidden().len() * cfg.nets()) as u64);
+    let done = stage("Figs. 4.13-4.15", 2 * cfg.hidden().len() * cfg.nets());
     let sweep = hidden_sweep(cfg, progress)?;
     done(&mut stage_s);
-    let done = stage("Figs. 4.20-4.22", 2 * FEWER_DEPTHS.len() as u64);
+    let done = stage("Figs. 4.20-4.22", 2 * FEWER_DEPTHS.len());
     let fewer = fewer_depths(cfg, progress)?;
     done(&mut stage_s);
     let done = stage("BP vs. LM", 8);
     let algos = bp_vs_lm(cfg, progress)?;
     done(&mut stage_s);
-    let done = stage("pixel noise", 4 * cfg.noise_levels().len() as u64);
+    let done = stage("pixel noise", 4 * cfg.noise_levels().len());
     let noise = noise(cfg, progress)?;
     done(&mut stage_s);
-    Ok(Thesis {
-        config: *cfg,
-        phi,
-        traditional,
-        proposed,
-        sweep,
-        fewer,
-        algos,
-        noise,
-        stage_s,
-        threads: rayon::current_num_threads(),
-    })
+    let threads = rayon::current_num_threads();
+    let config = *cfg;
+    Ok(Thesis { config, phi, traditional, proposed, sweep, fewer, algos, noise, stage_s, threads })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn derived_seeds_differ_per_item_and_per_run() {
-        let mut seen = std::collections::HashSet::new();
-        for seed in 0..3 {
-            for tag in 1..4 {
-                for a in 0..10 {
-                    for b in 0..10 {
-                        assert!(seen.insert(derive_seed(seed, tag, a, b)));
-                    }
-                }
-            }
-        }
-        assert_eq!(derive_seed(5, 1, 2, 3), derive_seed(5, 1, 2, 3));
-    }
 
     #[test]
     fn phi_points_are_symmetric_about_each_camera() {
@@ -733,29 +632,5 @@ mod tests {
             .collect();
         let phi = phi_estimate(&pairs, 95.0, HALF_BASELINE_CM).unwrap();
         assert!((phi - 300.0).abs() < 1e-9, "{phi}");
-    }
-
-    #[test]
-    fn per_hidden_means_follow_the_rows() {
-        let row = |outputs, hidden, worst, mean| NetRow {
-            outputs,
-            hidden,
-            index: 0,
-            seed: 0,
-            train_pct: 1.0,
-            test_mean_pct: mean,
-            test_worst_pct: worst,
-        };
-        let rows = [
-            row(OutputKind::Z, 3, 4.0, 1.0),
-            row(OutputKind::Z, 3, 6.0, 2.0),
-            row(OutputKind::Z, 1, 8.0, 3.0),
-            row(OutputKind::Xyz, 1, 2.0, 1.0),
-            row(OutputKind::Xyz, 3, 3.0, 1.5),
-        ];
-        assert_eq!(hidden_counts(&rows), vec![1, 3]);
-        assert_eq!(e_ma_hn(&rows, OutputKind::Z), vec![8.0, 5.0]);
-        assert_eq!(mean_e_ma_hn(&rows, OutputKind::Z), vec![3.0, 1.5]);
-        assert_eq!(e_ma_hn(&rows, OutputKind::Xyz), vec![2.0, 3.0]);
     }
 }
