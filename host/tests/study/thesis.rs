@@ -55,7 +55,7 @@ fn disparities_of_the_phi_boards() {
 #[test]
 fn worst_depth_and_argmin() {
     let c = DepthCurve { z: vec![65.0, 75.0, 85.0], pct: vec![1.0, 3.0, 3.0], mean: 2.0 };
-    assert_eq!(worst_depth(&c), (75.0, 3.0));
+    assert_eq!(worst_depth(&c), 75.0);
     assert_eq!(argmin(&[3.0, 1.0, 1.0, 2.0]), 1);
     assert_eq!(argmin(&[]), 0);
 }

@@ -1,6 +1,5 @@
 //! The facts `RESULTS.md` states, each derived from the presets, the protocol or a run's
-//! results by a small pure function (and unit-tested here), so that no number is typed into
-//! the report's prose.
+//! results by a small pure function, so that no number is typed into the report's prose.
 
 use super::{DepthCurve, PhiRow};
 use crate::fmt::join;
@@ -76,18 +75,10 @@ pub fn board_disparity_px(rig: &Rig, centre_x: f64, z: f64) -> Option<f64> {
     Some(sum / points.len() as f64)
 }
 
-/// The depth (cm) and e_ma (%) of a curve's worst depth (the first, on ties).
-pub fn worst_depth(c: &DepthCurve) -> (f64, f64) {
-    c.z.iter().zip(&c.pct).fold(
-        (f64::NAN, f64::NEG_INFINITY),
-        |a, (z, v)| {
-            if *v > a.1 {
-                (*z, *v)
-            } else {
-                a
-            }
-        },
-    )
+/// The depth (cm) of a curve's worst per-depth e_ma (the first, on ties; NaN when empty).
+pub fn worst_depth(c: &DepthCurve) -> f64 {
+    let k = (0..c.pct.len()).fold(0, |w, k| if c.pct[k] > c.pct[w] { k } else { w });
+    c.z.get(k).copied().unwrap_or(f64::NAN)
 }
 
 /// A depth grid in words: `65-165 cm in steps of 20 cm` (evenly spaced), or the list.
@@ -117,11 +108,5 @@ pub fn matches_thesis_traditional(case: u8, lo: f64, hi: f64) -> bool {
 
 /// The index of the smallest value (the first, on ties; 0 when empty).
 pub fn argmin(v: &[f64]) -> usize {
-    let mut best = 0;
-    for (k, x) in v.iter().enumerate() {
-        if *x < v[best] {
-            best = k;
-        }
-    }
-    best
+    (0..v.len()).fold(0, |b, k| if v[k] < v[b] { k } else { b })
 }

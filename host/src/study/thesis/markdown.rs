@@ -1,14 +1,9 @@
-//! `RESULTS.md`: the prose is `host/templates/results.md` (and, for the sentences that depend
-//! on the results, `results_phrases.md`); this module computes every value it names (through
-//! [`super::facts`] and [`crate::fmt`]) and fills it in.
+//! `RESULTS.md`: the prose is `host/templates/results.md` (the sentences that depend on the
+//! results: `results_phrases.md`); this module computes every value it names and fills it in.
 
-use super::facts::{
-    apart_pct, argmin, board_disparity_px, depth_grid, identical_pixel_depths,
-    matches_thesis_traditional, phi_stats, signed_list, worst_depth,
-};
-use super::{
-    e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Thesis, FEWER_DEPTHS, GENERAL_CASE, PHI_DEPTHS,
-};
+use super::facts::*;
+use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, DepthCurve, Thesis};
+use super::{FEWER_DEPTHS, GENERAL_CASE, PHI_DEPTHS};
 use crate::fmt::{join, mean, pct, pct_value, roman, span, stages};
 use crate::sim::sets::training_volume;
 use crate::study::engine::number_word;
@@ -28,8 +23,7 @@ pub const TEMPLATE: &str = include_str!("../../../templates/results.md");
 /// The sentences of `RESULTS.md` that depend on the results, one `name: text` a line.
 const PHRASES: &str = include_str!("../../../templates/results_phrases.md");
 
-/// Where `hvs experiment posture` writes its report, relative to the thesis' directory (its
-/// default output is `docs/results/posture`); `RESULTS.md` links it when it is there.
+/// The posture study's page in the thesis' directory (`hvs experiment posture`'s default).
 pub const POSTURE_REPORT: &str = "posture/POSTURE.md";
 
 /// Page values, `(placeholder, text)`.
@@ -160,11 +154,8 @@ fn traditional_values(v: &mut Values, t: &Thesis) {
         let th = reported::traditional_range(c.case).unwrap_or_default();
         let ours = format!("{} .. {}", pct(c.traditional.best()), pct(c.traditional.worst()));
         let case = roman(c.case);
-        glance.push(row([
-            format!("4.{} traditional, case {case}", 8 + k),
-            th.clone(),
-            ours.clone(),
-        ]));
+        let fig = format!("4.{} traditional, case {case}", 8 + k);
+        glance.push(row([fig, th.clone(), ours.clone()]));
         let rig = LABELS[k].split(": ").nth(1).unwrap_or("");
         table.push(row([format!("{case} ({rig})"), th, ours, pct(c.optimal.worst())]));
     }
@@ -195,7 +186,7 @@ fn net_case4_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let rig = presets::case(GENERAL_CASE).unwrap_or(presets::CASE_4);
     let table = (p.net.z.iter().enumerate())
         .map(|(k, z)| row([z.to_string(), pct(p.net.pct[k]), pct(p.optimal.pct[k])]));
-    let (wz, _) = worst_depth(&p.optimal);
+    let wz = worst_depth(&p.optimal);
     // Test points that have the same pixels at two neighbouring depths, one of them the
     // floor's worst.
     let twins: Vec<String> = TEST_POINTS_XY
@@ -318,7 +309,7 @@ fn proposed_values(v: &mut Values, t: &Thesis) -> Result<()> {
 
 fn fewer_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let p4 = &t.proposed[usize::from(GENERAL_CASE - 1)];
-    let both = |c: &super::DepthCurve| format!("{} / {}", pct(c.mean), pct(c.worst()));
+    let both = |c: &DepthCurve| format!("{} / {}", pct(c.mean), pct(c.worst()));
     let mut table: Vec<String> = (t.fewer.iter())
         .map(|f| {
             let th = reported::fewer_depths(f.depths.len());

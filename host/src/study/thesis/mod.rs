@@ -14,8 +14,8 @@
 //! | beyond | back-propagation vs. Levenberg-Marquardt (error, wall time) | [`bp_vs_lm`] |
 //! | beyond | e_ma vs. pixel noise: traditional, network, optimal floor | [`noise`] |
 //!
-//! Determinism: every random step takes a seed derived from [`Config::seed`]; the trainer's
-//! result does not depend on the thread count; results are collected in a fixed order. So
+//! Determinism: every random step takes a seed derived from [`Config::seed`], the trainer's
+//! result does not depend on the thread count and results are collected in a fixed order, so
 //! the same seed gives the same CSV bytes; only the wall times vary.
 
 pub mod facts;
@@ -40,10 +40,6 @@ use std::time::Instant;
 
 /// Depths of the Phi experiment (Figs. 4.3, 4.4), cm.
 pub const PHI_DEPTHS: [f64; 7] = [45.0, 55.0, 65.0, 75.0, 85.0, 95.0, 105.0];
-/// Hidden-neuron counts of the sweep (Figs. 4.14, 4.15), as in the thesis.
-pub const HIDDEN: [usize; 10] = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10];
-/// Hidden-neuron counts of the quick run's sweep (5 is Fig. 4.13's).
-pub const HIDDEN_QUICK: [usize; 4] = [1, 3, 5, 8];
 /// The reduced training-depth sets of Figs. 4.20-4.22 (cm).
 pub const FEWER_DEPTHS: [&[f64]; 3] =
     [&[65.0, 165.0], &[65.0, 115.0, 165.0], &[65.0, 95.0, 135.0, 165.0]];
@@ -76,9 +72,9 @@ impl Config {
     pub fn nets(&self) -> usize {
         self.pick(10, 2)
     }
-    /// Hidden-neuron counts of the sweep: [`HIDDEN`] ([`HIDDEN_QUICK`] when quick).
+    /// Hidden-neuron counts of the sweep: 1-10 as in the thesis (1, 3, 5, 8 when quick).
     pub fn hidden(&self) -> &'static [usize] {
-        self.pick(&HIDDEN, &HIDDEN_QUICK)
+        self.pick(&[1, 2, 3, 4, 5, 6, 7, 8, 9, 10], &[1, 3, 5, 8])
     }
     /// Pixel-noise levels (px): 0 to 1 in steps of 0.1 (0, 0.5, 1 when quick).
     pub fn noise_levels(&self) -> Vec<f64> {
@@ -180,6 +176,11 @@ fn rig(case: u8) -> Result<Rig> {
     presets::case(case).ok_or_else(|| anyhow!("no case {case}"))
 }
 
+/// The rounded pixels of the point `p` (cm) in `r`'s cameras.
+fn pixels(r: &Rig, p: [f64; 3]) -> Result<[f64; 4]> {
+    r.project_rounded(&p).map_err(|e| anyhow!("point {p:?} has no image: {e:?}"))
+}
+
 /// The thesis protocol of a case: training boards (72 points) and test points (22).
 pub fn protocol(case: u8) -> Result<(Dataset, Dataset)> {
     let r = rig(case)?;
@@ -187,7 +188,6 @@ pub fn protocol(case: u8) -> Result<(Dataset, Dataset)> {
     Ok((set(SetKind::Train)?, set(SetKind::Test)?))
 }
 
-// ---------------------------------------------------------------------------------------
 // Figs. 4.3, 4.4
 
 /// One depth of the Phi experiment.
@@ -212,10 +212,8 @@ fn board_about(centre_x: f64, z: f64) -> [[f64; 3]; 12] {
     presets::board_points(z).map(|[x, y, z]| [centre_x + x, y, z])
 }
 
-/// Figs. 4.3, 4.4: Phi_L and Phi_R of the parallel rigs (cases I and II) estimated by
-/// eq. 4.1-3 from rounded pixels at Z = 45-105 cm. For Phi_L the 12 points are symmetric
-/// about the right camera's optic axis (X_s = +d), so the `X_R (Phi_L - Phi_R)` terms of
-/// eq. 4.1-2 cancel; for Phi_R about the left one (X_s = -d).
+/// Figs. 4.3, 4.4: Phi_L and Phi_R of cases I and II by eq. 4.1-3 from rounded pixels; the
+/// points symmetric about the other camera's axis cancel the `X_R (Phi_L - Phi_R)` terms.
 pub fn phi() -> Result<Vec<PhiRow>> {
     let mut rows = Vec::new();
     for case in [1u8, 2] {
@@ -223,13 +221,8 @@ pub fn phi() -> Result<Vec<PhiRow>> {
         let d = r.half_baseline;
         for z in PHI_DEPTHS {
             let est = |centre: f64| -> Result<f64> {
-                let mut pairs = Vec::new();
-                for p in board_about(centre, z) {
-                    let px = r
-                        .project_rounded(&p)
-                        .map_err(|e| anyhow!("case {case}: point {p:?} has no image: {e:?}"))?;
-                    pairs.push((px[0], px[2]));
-                }
+                let px = board_about(centre, z).map(|p| pixels(&r, p).map(|px| (px[0], px[2])));
+                let pairs = px.into_iter().collect::<Result<Vec<_>>>()?;
                 phi_estimate(&pairs, z, d).map_err(|e| anyhow!("case {case}, Z = {z} cm: {e}"))
             };
             let (phi_l, phi_r) = (est(d)?, est(-d)?);
@@ -240,13 +233,11 @@ pub fn phi() -> Result<Vec<PhiRow>> {
     Ok(rows)
 }
 
-// ---------------------------------------------------------------------------------------
 // Figs. 4.8-4.11 and 4.12, 4.16-4.19
 
 /// The traditional method and the floor on one case's test set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TraditionalCase {
-    /// Case 1-4.
     pub case: u8,
     /// Eq. 3.1-17 with the thesis' single Phi ([`Calibration::BUILT_IN`]).
     pub traditional: DepthCurve,
@@ -272,7 +263,6 @@ pub fn traditional() -> Result<Vec<TraditionalCase>> {
 /// The proposed net on one case.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProposedCase {
-    /// Case 1-4.
     pub case: u8,
     /// Training e_ma (%) of the exported f32 model.
     pub train_pct: f64,
@@ -297,7 +287,6 @@ pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCas
         .collect()
 }
 
-// ---------------------------------------------------------------------------------------
 // Figs. 4.13-4.15
 
 /// One net of the hidden-neuron sweep (case IV).
@@ -305,7 +294,6 @@ pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCas
 pub struct NetRow {
     /// One output (Z) or three (X, Y, Z).
     pub outputs: OutputKind,
-    /// Hidden neurons.
     pub hidden: usize,
     /// Net number (0-based) among those of the same shape.
     pub index: usize,
@@ -319,9 +307,8 @@ pub struct NetRow {
     pub test_worst_pct: f64,
 }
 
-/// Figs. 4.13-4.15: for each of [`Config::hidden`] and one or three outputs, [`Config::nets`]
-/// nets, each trained from one seeded random start on case IV's boards (as each of the thesis'
-/// nets is one BP run). The nets with 5 hidden neurons and three outputs are Fig. 4.13's.
+/// Figs. 4.13-4.15: [`Config::nets`] nets per hidden-neuron count and output kind, each from
+/// one seeded random start on case IV's boards (as each of the thesis' nets is one BP run).
 pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>> {
     let (train_set, test) = protocol(GENERAL_CASE)?;
     let mut jobs = Vec::new();
@@ -352,14 +339,12 @@ pub fn hidden_counts(rows: &[NetRow]) -> Vec<usize> {
     h
 }
 
-/// Mean of the nets' worst per-depth e_ma for each hidden-neuron count: the thesis'
-/// `e_ma_Hn` (Figs. 4.14, 4.15), in the order of [`hidden_counts`].
+/// The thesis' `e_ma_Hn`: the nets' mean worst per-depth e_ma per count of [`hidden_counts`].
 pub fn e_ma_hn(rows: &[NetRow], outputs: OutputKind) -> Vec<f64> {
     per_hidden(rows, outputs, |r| r.test_worst_pct)
 }
 
-/// Mean of the nets' e_ma over all test points for each hidden-neuron count, in the order of
-/// [`hidden_counts`]: a view of Figs. 4.14, 4.15 that the worst depth does not dominate.
+/// Mean of the nets' e_ma over all test points for each count of [`hidden_counts`].
 pub fn mean_e_ma_hn(rows: &[NetRow], outputs: OutputKind) -> Vec<f64> {
     per_hidden(rows, outputs, |r| r.test_mean_pct)
 }
@@ -375,7 +360,6 @@ fn per_hidden(rows: &[NetRow], outputs: OutputKind, f: impl Fn(&NetRow) -> f64) 
         .collect()
 }
 
-// ---------------------------------------------------------------------------------------
 // Figs. 4.20-4.22
 
 /// The proposed net trained on a subset of the training depths (case IV).
@@ -385,19 +369,14 @@ pub struct FewerDepths {
     pub depths: Vec<f64>,
     /// Training points.
     pub points: usize,
-    /// Training e_ma (%) of the proposed net (LM).
-    pub train_pct: f64,
-    /// The proposed net on the full test set.
+    /// The proposed net (LM) on the full test set.
     pub net: DepthCurve,
-    /// Training e_ma (%) of the same net trained by the thesis' back-propagation.
-    pub bp_train_pct: f64,
-    /// The back-propagation net on the full test set.
+    /// The same net trained by the thesis' back-propagation on the full test set.
     pub bp: DepthCurve,
 }
 
-/// Figs. 4.20-4.22: the proposed net trained on case IV's boards at only 2, 3 or 4 depths
-/// (12 points each), tested on all 22 test points; and the same net trained by the thesis'
-/// back-propagation ([`Config::bp`]), to tell the algorithm's share from the data's.
+/// Figs. 4.20-4.22: the proposed net, and the same net by back-propagation, trained on case
+/// IV's boards at only [`FEWER_DEPTHS`], tested on all 22 test points.
 pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDepths>> {
     let r = rig(GENERAL_CASE)?;
     let (_, test) = protocol(GENERAL_CASE)?;
@@ -406,36 +385,28 @@ pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDe
     FEWER_DEPTHS
         .iter()
         .map(|depths| {
-            let mut samples = Vec::new();
-            for p in depths.iter().flat_map(|&z| presets::board_points(z)) {
-                let px = r
-                    .project_rounded(&p)
-                    .map_err(|e| anyhow!("point {p:?} has no image: {e:?}"))?;
-                samples.push(Sample { px, xyz: p });
-            }
-            let set = dataset(&samples);
-            let (train_pct, net_curve, _) =
+            let boards = depths.iter().flat_map(|&z| presets::board_points(z));
+            let samples = boards.map(|p| Ok(Sample { px: pixels(&r, p)?, xyz: p }));
+            let set = dataset(&samples.collect::<Result<Vec<_>>>()?);
+            let (_, net_curve, _) =
                 net(&set, &test, &tc, || format!("training depths {depths:?}"))?;
             progress.inc();
-            let (bp_train_pct, bp, _) = net(&set, &test, &bp_tc, || {
+            let (_, bp, _) = net(&set, &test, &bp_tc, || {
                 format!("training depths {depths:?}, back-propagation")
             })?;
             progress.inc();
             let (depths, points) = (depths.to_vec(), set.len());
-            Ok(FewerDepths { depths, points, train_pct, net: net_curve, bp_train_pct, bp })
+            Ok(FewerDepths { depths, points, net: net_curve, bp })
         })
         .collect()
 }
 
-// ---------------------------------------------------------------------------------------
 // Beyond the thesis
 
 /// One algorithm on one case's protocol.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AlgoRow {
-    /// Case 1-4.
     pub case: u8,
-    /// Training algorithm.
     pub algo: Algo,
     /// Training e_ma (%).
     pub train_pct: f64,
@@ -447,9 +418,8 @@ pub struct AlgoRow {
     pub wall_s: f64,
 }
 
-/// Back-propagation (the thesis' algorithm, the trainer's defaults) vs. Levenberg-Marquardt
-/// (the default), same net, restarts and seed, on each case's protocol. The trainings run one
-/// after the other (restarts in parallel inside each), so the wall times compare.
+/// Back-propagation (the thesis') vs. Levenberg-Marquardt, same net, restarts and seed, per
+/// case; the trainings run one after the other so that their wall times compare.
 pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
     let mut rows = Vec::new();
     for case in 1..=4u8 {
@@ -469,14 +439,12 @@ pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
 /// One noise level of one case (means over [`Config::noise_repeats`] draws).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoiseRow {
-    /// Case 1-4.
     pub case: u8,
     /// Standard deviation of the Gaussian pixel noise added before rounding (px).
     pub sigma: f64,
     /// Noise draws averaged.
     pub repeats: usize,
-    /// Traditional method, Phi refitted by eq. 4.1-3 on the same noisy boards (%), over the
-    /// test points it has an estimate for.
+    /// Traditional method, Phi refitted on the noisy boards (%), where it has an estimate.
     pub traditional_pct: f64,
     /// Test points without a traditional estimate (zero disparity), % of all.
     pub traditional_missing_pct: f64,
@@ -486,10 +454,8 @@ pub struct NoiseRow {
     pub optimal_pct: f64,
 }
 
-/// e_ma vs. pixel noise: the boards and [`Config::volume_points`] random test points of the
-/// training volume get Gaussian noise of the same sigma before rounding; the proposed net and
-/// the traditional method's Phi (eq. 4.1-3, nearest board) are fitted on the noisy boards; the
-/// floor triangulates the noisy test pixels with the true rig. Mean e_ma over the test points.
+/// e_ma vs. pixel noise on the boards and [`Config::volume_points`] random test points: the
+/// proposed net and the traditional Phi fitted on the noisy boards, and the floor.
 pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
     let levels = cfg.noise_levels();
     let jobs: Vec<(u8, usize, f64)> = (1..=4u8)
@@ -519,13 +485,10 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
                 // The traditional method over the points it answers for (the others are
                 // counted): one zero disparity would make its mean infinite.
                 let mut acc = EmaAcc::default();
-                for (zh, t) in trad.iter().zip(&test.targets) {
-                    if zh.is_finite() {
-                        acc.add(t[2], *zh);
-                    } else {
-                        missing += 1;
-                    }
+                for (zh, t) in trad.iter().zip(&test.targets).filter(|(zh, _)| zh.is_finite()) {
+                    acc.add(t[2], *zh);
                 }
+                missing += trad.iter().filter(|zh| !zh.is_finite()).count();
                 points += test.len();
                 sums[0] += acc.e_ma_pct();
                 sums[1] += c.mean;
@@ -547,30 +510,23 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
         .collect()
 }
 
-// ---------------------------------------------------------------------------------------
-
-/// Everything [`run`] measured.
+/// Everything [`run`] measured: the configuration, the results of each experiment (of the
+/// function of the same name), the stage times and the worker threads used.
 #[derive(Debug, Clone)]
 pub struct Thesis {
-    /// The configuration.
     pub config: Config,
-    /// Figs. 4.3, 4.4.
     pub phi: Vec<PhiRow>,
-    /// Figs. 4.8-4.11.
     pub traditional: Vec<TraditionalCase>,
-    /// Figs. 4.12, 4.16-4.19.
     pub proposed: Vec<ProposedCase>,
-    /// Figs. 4.13-4.15.
+    /// [`hidden_sweep`].
     pub sweep: Vec<NetRow>,
-    /// Figs. 4.20-4.22.
+    /// [`fewer_depths`].
     pub fewer: Vec<FewerDepths>,
-    /// BP vs. LM.
+    /// [`bp_vs_lm`].
     pub algos: Vec<AlgoRow>,
-    /// Noise.
     pub noise: Vec<NoiseRow>,
     /// Wall time of each stage (s), in run order; not deterministic.
     pub stage_s: Vec<(&'static str, f64)>,
-    /// Worker threads used.
     pub threads: usize,
 }
 
@@ -623,13 +579,8 @@ mod tests {
         assert!(b.iter().all(|p| p[2] == 95.0));
         // On an ideal parallel rig without rounding, eq. 4.1-3 is exact.
         let rig = Rig::parallel(300.0);
-        let pairs: Vec<(f64, f64)> = b
-            .iter()
-            .map(|p| {
-                let px = rig.project(p).unwrap();
-                (px[0], px[2])
-            })
-            .collect();
+        let pairs: Vec<_> = b.iter().map(|p| rig.project(p).map(|px| (px[0], px[2]))).collect();
+        let pairs: Vec<(f64, f64)> = pairs.into_iter().map(Result::unwrap).collect();
         let phi = phi_estimate(&pairs, 95.0, HALF_BASELINE_CM).unwrap();
         assert!((phi - 300.0).abs() < 1e-9, "{phi}");
     }

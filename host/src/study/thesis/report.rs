@@ -1,13 +1,9 @@
-//! Files of `hvs experiment thesis`: one CSV and one plot (SVG and PNG) per experiment, and
-//! `RESULTS.md` ([`super::markdown`]), which shows the plots with the thesis' values beside ours.
-//!
-//! CSVs hold numbers with 6 decimals (`inf` where a method has no estimate), so equal results
-//! give equal bytes; the only file with wall times is `bp_vs_lm_timing.csv` (and the run time
-//! stated in `RESULTS.md`).
+//! Files of `hvs experiment thesis`: one CSV (numbers with 6 decimals, so equal results give
+//! equal bytes) and one plot (SVG and PNG) per experiment, and `RESULTS.md`.
 
 use super::markdown::{results_values, POSTURE_REPORT, TEMPLATE};
-use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Config, DepthCurve, NoiseRow, Thesis};
-use super::{GENERAL_CASE, PHI_DEPTHS};
+use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Config, DepthCurve, NetRow, NoiseRow};
+use super::{Thesis, GENERAL_CASE, PHI_DEPTHS};
 use crate::fmt::{join, num, roman};
 use crate::study::engine::{Files, Progress, Study};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
@@ -70,14 +66,8 @@ const DEPTH: Axes = ("true depth Z (cm)", EMA, false);
 const CASES: Axes = ("case (1 = I ... 4 = IV)", EMA, true);
 const HIDDEN: Axes = ("hidden neurons H_n", EMA, true);
 
-fn panel(
-    title: impl Into<String>,
-    axes: Axes,
-    log_y: bool,
-    legend: Legend,
-    s: Vec<Series>,
-) -> Panel {
-    let (x_label, y_label, integer_x) = (axes.0.into(), axes.1.into(), axes.2);
+fn panel(title: impl Into<String>, a: Axes, log_y: bool, legend: Legend, s: Vec<Series>) -> Panel {
+    let (x_label, y_label, integer_x) = (a.0.into(), a.1.into(), a.2);
     Panel { title: title.into(), x_label, y_label, log_y, series: s, legend, integer_x }
 }
 
@@ -94,15 +84,12 @@ fn level(name: impl Into<String>, [x0, x1]: [f64; 2], y: f64, color: usize) -> S
     Series::new(name, &[x0, x1], &[y, y], Style::Dashed, color)
 }
 
-fn floor(name: &str, x: &[f64], y: &[f64]) -> Series {
-    Series::new(name, x, y, Style::Dashed, FLOOR_COLOR)
+fn floor(x: &[f64], y: &[f64]) -> Series {
+    Series::new("optimal triangulation, true rig (floor)", x, y, Style::Dashed, FLOOR_COLOR)
 }
 
-const FLOOR: &str = "optimal triangulation, true rig (floor)";
-
-fn floor_curve(c: &DepthCurve) -> Series {
-    floor(FLOOR, &c.z, &c.pct)
-}
+const WORST_FLOOR: &str = "floor: worst per-depth e_ma of optimal triangulation";
+const MEAN_FLOOR: &str = "floor: mean e_ma of optimal triangulation";
 
 /// CSV rows, one per depth of `curves`: the cells `lead`, the depth, each curve's e_ma.
 fn depth_rows(lead: &[String], curves: &[&DepthCurve]) -> Vec<Vec<String>> {
@@ -149,19 +136,16 @@ fn per_case_files(
     net: bool,
     cases: &[(u8, &DepthCurve, &DepthCurve)],
 ) -> Result<()> {
-    let (stem, column, title, first_fig, method, color) = if net {
-        let title = "The proposed net in cases I-IV (thesis Figs. 4.16-4.19)";
-        ("fig4_16_19_proposed", "network_pct", title, 16, "proposed 4-5-3 net", 0)
+    let (stem, column, first_fig) = if net {
+        ("fig4_16_19_proposed", "network_pct", 16)
+    } else {
+        ("fig4_08_11_traditional", "traditional_pct", 8)
+    };
+    let (title, method, color) = if net {
+        ("The proposed net in cases I-IV (thesis Figs. 4.16-4.19)", "proposed 4-5-3 net", 0)
     } else {
         let title = "Traditional method vs. depth, cases I-IV (thesis Figs. 4.8-4.11)";
-        (
-            "fig4_08_11_traditional",
-            "traditional_pct",
-            title,
-            8,
-            "traditional, eq. 3.1-17, one Phi",
-            1,
-        )
+        (title, "traditional, eq. 3.1-17, one Phi", 1)
     };
     let rows = cases.iter().flat_map(|(case, c, f)| depth_rows(&[case.to_string()], &[c, f]));
     let head = format!("case,z_cm,{column},optimal_pct");
@@ -169,7 +153,7 @@ fn per_case_files(
     let ends = [TEST_DEPTHS[0], TEST_DEPTHS[TEST_DEPTHS.len() - 1]];
     let bound = level(format!("thesis' bound, {NET_BOUND_PCT} %"), ends, NET_BOUND_PCT, 1);
     let panels = cases.iter().map(|(case, c, f)| {
-        let mut series = vec![line(method, &c.z, &c.pct, color), floor_curve(f)];
+        let mut series = vec![line(method, &c.z, &c.pct, color), floor(&f.z, &f.pct)];
         series.extend(net.then(|| bound.clone()));
         let title = format!("Fig. 4.{}: case {}", first_fig + usize::from(case - 1), roman(*case));
         panel(title, DEPTH, !net, Legend::UpperLeft, series)
@@ -183,7 +167,8 @@ fn net_case4_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.csv("fig4_12_net_case4.csv", "z_cm,network_pct,optimal_pct", &rows)?;
     let title =
         format!("proposed net ({} restarts, LM), trained on 72 board points", t.config.restarts());
-    let series = vec![line("4-5-3 net", &p.net.z, &p.net.pct, 0), floor_curve(&p.optimal)];
+    let series =
+        vec![line("4-5-3 net", &p.net.z, &p.net.pct, 0), floor(&p.optimal.z, &p.optimal.pct)];
     let fig = "Per-depth e_ma of the 4-5-3 net, case IV (thesis Fig. 4.12)";
     let panel_12 = panel(title, DEPTH, false, Legend::UpperLeft, series);
     o.figure("fig4_12_net_case4", &Figure::single(fig, panel_12))?;
@@ -196,7 +181,7 @@ fn net_case4_files(o: &mut Files, t: &Thesis) -> Result<()> {
         [(r.index + 1).to_string(), r.seed.to_string()].into_iter().chain(v).collect()
     })?;
     let x: Vec<f64> = ten.iter().map(|r| (r.index + 1) as f64).collect();
-    let points = |name: &str, f: fn(&super::NetRow) -> f64, color| {
+    let points = |name: &str, f: fn(&NetRow) -> f64, color| {
         Series::new(name, &x, &ten.iter().map(|r| f(r)).collect::<Vec<_>>(), Style::Points, color)
     };
     let ends = [0.5, x.len() as f64 + 0.5];
@@ -204,20 +189,13 @@ fn net_case4_files(o: &mut Files, t: &Thesis) -> Result<()> {
         points("worst per-depth test e_ma (the net's error)", |r| r.test_worst_pct, 0),
         points("mean test e_ma", |r| r.test_mean_pct, 2),
         points("training e_ma", |r| r.train_pct, 3),
-        level(
-            "floor: worst per-depth e_ma of optimal triangulation",
-            ends,
-            p.optimal.worst(),
-            FLOOR_COLOR,
-        ),
-        level("floor: mean e_ma of optimal triangulation", ends, p.optimal.mean, 6),
+        level(WORST_FLOOR, ends, p.optimal.worst(), FLOOR_COLOR),
+        level(MEAN_FLOOR, ends, p.optimal.mean, 6),
     ];
     let title = "each net: one training from one seeded random start";
     let panel_13 = panel(title, ("net number", EMA, true), false, Legend::UpperLeft, series);
-    o.figure(
-        "fig4_13_ten_nets",
-        &Figure::single("Ten 4-5-3 nets, case IV (thesis Fig. 4.13)", panel_13),
-    )
+    let fig = "Ten 4-5-3 nets, case IV (thesis Fig. 4.13)";
+    o.figure("fig4_13_ten_nets", &Figure::single(fig, panel_13))
 }
 
 fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
@@ -229,34 +207,20 @@ fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
         ids.into_iter().chain([r.seed.to_string()]).chain(v).collect()
     })?;
     let h: Vec<f64> = hidden_counts(&t.sweep).iter().map(|&h| h as f64).collect();
-    let floor = &t.proposed[usize::from(GENERAL_CASE - 1)].optimal;
-    let of_nets =
-        |title: &str, f: fn(&[super::NetRow], OutputKind) -> Vec<f64>, figs: [&str; 2]| {
-            let series = vec![
-                line(format!("one output (Z){}", figs[0]), &h, &f(&t.sweep, OutputKind::Z), 1),
-                line(
-                    format!("three outputs (X, Y, Z){}", figs[1]),
-                    &h,
-                    &f(&t.sweep, OutputKind::Xyz),
-                    0,
-                ),
-            ];
-            panel(title, HIDDEN, false, Legend::UpperRight, series)
-        };
-    let mut worst = of_nets(
-        "e_ma_Hn: mean over the nets of their worst per-depth e_ma",
-        e_ma_hn,
-        [", Fig. 4.14", ", Fig. 4.15"],
-    );
-    let name = "floor: worst per-depth e_ma of optimal triangulation";
-    worst.series.push(level(name, [1.0, 10.0], floor.worst(), FLOOR_COLOR));
-    let mut mean = of_nets(
-        "mean over the nets of their mean test e_ma (all 22 points)",
-        mean_e_ma_hn,
-        ["", ""],
-    );
-    let name = "floor: mean e_ma of optimal triangulation";
-    mean.series.push(level(name, [1.0, 10.0], floor.mean, FLOOR_COLOR));
+    let opt = &t.proposed[usize::from(GENERAL_CASE - 1)].optimal;
+    let of_nets = |title: &str, f: fn(&[NetRow], OutputKind) -> Vec<f64>, figs: [&str; 2], fl| {
+        let [z, xyz] = [OutputKind::Z, OutputKind::Xyz].map(|o| f(&t.sweep, o));
+        let one = line(format!("one output (Z){}", figs[0]), &h, &z, 1);
+        let three = line(format!("three outputs (X, Y, Z){}", figs[1]), &h, &xyz, 0);
+        panel(title, HIDDEN, false, Legend::UpperRight, vec![one, three, fl])
+    };
+    let figs = [", Fig. 4.14", ", Fig. 4.15"];
+    let fl = level(WORST_FLOOR, [1.0, 10.0], opt.worst(), FLOOR_COLOR);
+    let worst =
+        of_nets("e_ma_Hn: mean over the nets of their worst per-depth e_ma", e_ma_hn, figs, fl);
+    let title = "mean over the nets of their mean test e_ma (all 22 points)";
+    let fl = level(MEAN_FLOOR, [1.0, 10.0], opt.mean, FLOOR_COLOR);
+    let mean = of_nets(title, mean_e_ma_hn, ["", ""], fl);
     let title = format!(
         "e_ma vs. hidden neurons, one output (Z) vs. three (X, Y, Z), case IV, {} nets each (thesis Figs. 4.14, 4.15)",
         t.config.nets()
@@ -281,7 +245,7 @@ fn fewer_files(o: &mut Files, t: &Thesis) -> Result<()> {
             })
             .collect();
         series.push(line("proposed net, all 6 depths (Fig. 4.19)", &full.net.z, &full.net.pct, 0));
-        series.push(floor_curve(&full.optimal));
+        series.push(floor(&full.optimal.z, &full.optimal.pct));
         panel(title, DEPTH, true, Legend::UpperRight, series)
     };
     let panels = vec![
@@ -315,33 +279,23 @@ fn algo_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let errors = vec![
         line(format!("BP, up to {cycles} cycles"), &cx, &pick(Algo::Bp, |r| r.test_worst_pct).1, 1),
         line("LM (default)", &cx, &lm_err, 0),
-        floor(FLOOR, &cx, &floors),
+        floor(&cx, &floors),
     ];
     let times = vec![
         line("BP", &cx, &pick(Algo::Bp, |r| r.wall_s).1, 1),
         line("LM", &cx, &pick(Algo::Lm, |r| r.wall_s).1, 0),
     ];
-    let panels = vec![
-        panel(
-            "worst per-depth test e_ma (P1, P2 at 65-165 cm)",
-            CASES,
-            true,
-            Legend::UpperLeft,
-            errors,
-        ),
-        panel(
-            format!("training wall time, {} threads", t.threads),
-            (CASES.0, "wall time (s)", true),
-            true,
-            Legend::LowerRight,
-            times,
-        ),
-    ];
+    let title = "worst per-depth test e_ma (P1, P2 at 65-165 cm)";
+    let errors = panel(title, CASES, true, Legend::UpperLeft, errors);
+    let title = format!("training wall time, {} threads", t.threads);
+    let times = panel(title, (CASES.0, "wall time (s)", true), true, Legend::LowerRight, times);
     let r = t.config.restarts();
     let title =
         format!("Back-propagation (thesis) vs. Levenberg-Marquardt, 4-5-3 net, {r} restarts each");
-    o.figure("bp_vs_lm", &grid(title, panels))
+    o.figure("bp_vs_lm", &grid(title, vec![errors, times]))
 }
+
+const TRADITIONAL_REFIT: &str = "traditional (points with an estimate), Phi refitted";
 
 fn noise_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let head =
@@ -356,14 +310,9 @@ fn noise_files(o: &mut Files, t: &Thesis) -> Result<()> {
         let col = |f: fn(&NoiseRow) -> f64| rs.iter().map(|r| f(r)).collect::<Vec<f64>>();
         let s = col(|r| r.sigma);
         let series = vec![
-            line(
-                "traditional (points with an estimate), Phi refitted",
-                &s,
-                &col(|r| r.traditional_pct),
-                1,
-            ),
+            line(TRADITIONAL_REFIT, &s, &col(|r| r.traditional_pct), 1),
             line("proposed net", &s, &col(|r| r.network_pct), 0),
-            floor(FLOOR, &s, &col(|r| r.optimal_pct)),
+            floor(&s, &col(|r| r.optimal_pct)),
         ];
         let axes = ("pixel noise sigma (px)", "mean e_ma (% of true depth)", false);
         panel(format!("case {}", roman(case)), axes, true, Legend::UpperLeft, series)
