@@ -95,18 +95,23 @@ pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Result<Values>
         ("builtin_phi", Calibration::BUILT_IN.phi.to_string()),
         ("posture_link", if posture { phrase("posture_link", &link)? + "\n\n" } else { "".into() }),
     ];
-    phi_values(&mut v, t);
-    traditional_values(&mut v, t);
-    net_case4_values(&mut v, t)?;
-    sweep_values(&mut v, t)?;
-    proposed_values(&mut v, t)?;
-    fewer_values(&mut v, t)?;
-    algo_values(&mut v, t)?;
-    noise_values(&mut v, t);
+    let sections: [fn(&Thesis) -> Result<Values>; 8] = [
+        phi_values,
+        traditional_values,
+        net_case4_values,
+        sweep_values,
+        proposed_values,
+        fewer_values,
+        algo_values,
+        noise_values,
+    ];
+    for section in sections {
+        v.extend(section(t)?);
+    }
     Ok(v)
 }
 
-fn phi_values(v: &mut Values, t: &Thesis) {
+fn phi_values(t: &Thesis) -> Result<Values> {
     let [l1, r1, l2, r2] = [(1, true), (1, false), (2, true), (2, false)]
         .map(|(case, left)| phi_stats(&t.phi, case, left));
     let table = [(1u8, "Phi_L", l1), (1, "Phi_R", r1), (2, "Phi_L", l2), (2, "Phi_R", r2)].map(
@@ -125,7 +130,7 @@ fn phi_values(v: &mut Values, t: &Thesis) {
     };
     let far_disp = disp(&presets::CASE_1, d);
     let ratio = disp(&presets::CASE_2, -d) / far_disp;
-    v.extend([
+    Ok(vec![
         ("th_phi_l", reported::PHI_L_MEAN.to_string()),
         ("th_phi_var", reported::PHI_L_VARIATION_PCT.to_string()),
         ("th_phi_lr", reported::PHI_LR_PCT.to_string()),
@@ -144,10 +149,10 @@ fn phi_values(v: &mut Values, t: &Thesis) {
         ("far_disparity", format!("{far_disp:.0}")),
         ("half_px_pct", format!("{:.1}", 50.0 / far_disp)),
         ("case2_disparity_ratio", format!("{ratio:.1}")),
-    ]);
+    ])
 }
 
-fn traditional_values(v: &mut Values, t: &Thesis) {
+fn traditional_values(t: &Thesis) -> Result<Values> {
     let (mut glance, mut table) = (Vec::new(), Vec::new());
     for c in &t.traditional {
         let k = usize::from(c.case - 1);
@@ -166,7 +171,7 @@ fn traditional_values(v: &mut Values, t: &Thesis) {
         .map(|c| roman(c.case))
         .collect();
     let n = t.traditional.len();
-    v.extend([
+    Ok(vec![
         ("glance_traditional_rows", rows(glance)),
         ("traditional_rows", rows(table)),
         ("trad_within", if within.is_empty() { "none".to_string() } else { within.join(", ") }),
@@ -178,10 +183,10 @@ fn traditional_values(v: &mut Values, t: &Thesis) {
             "trad_floor_worst",
             pct(t.traditional.iter().map(|c| c.optimal.worst()).fold(0.0, f64::max)),
         ),
-    ]);
+    ])
 }
 
-fn net_case4_values(v: &mut Values, t: &Thesis) -> Result<()> {
+fn net_case4_values(t: &Thesis) -> Result<Values> {
     let p = &t.proposed[usize::from(GENERAL_CASE - 1)];
     let rig = presets::case(GENERAL_CASE).unwrap_or(presets::CASE_4);
     let table = (p.net.z.iter().enumerate())
@@ -214,7 +219,7 @@ fn net_case4_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let (wlo, whi) = span(ten.iter().map(|r| r.test_worst_pct));
     let (mlo, mhi) = span(ten.iter().map(|r| r.test_mean_pct));
     let below = ten.iter().filter(|r| r.test_worst_pct < reported::NET_BOUND_PCT).count();
-    v.extend([
+    Ok(vec![
         ("net_case4_rows", rows(table)),
         ("th_net_case4", format!("{th_lo} .. {th_hi} %")),
         ("th_net_case4_worst", th_hi.to_string()),
@@ -233,11 +238,10 @@ fn net_case4_values(v: &mut Values, t: &Thesis) -> Result<()> {
         ("ten_mean_hi", pct(mhi)),
         ("ten_count", ten.len().to_string()),
         ("ten_below_bound", below.to_string()),
-    ]);
-    Ok(())
+    ])
 }
 
-fn sweep_values(v: &mut Values, t: &Thesis) -> Result<()> {
+fn sweep_values(t: &Thesis) -> Result<Values> {
     let hs = hidden_counts(&t.sweep);
     let [z1, x3] = [OutputKind::Z, OutputKind::Xyz].map(|o| e_ma_hn(&t.sweep, o));
     let [zm, xm] = [OutputKind::Z, OutputKind::Xyz].map(|o| mean_e_ma_hn(&t.sweep, o));
@@ -251,7 +255,7 @@ fn sweep_values(v: &mut Values, t: &Thesis) -> Result<()> {
         (false, false) => "hn_neither",
     };
     let best = |e: &[f64]| hs.get(argmin(e)).copied().unwrap_or(0).to_string();
-    v.extend([
+    Ok(vec![
         ("nets", t.config.nets().to_string()),
         ("hidden_rows", rows(table)),
         ("hidden_counts", join(&hs, ", ")),
@@ -265,11 +269,10 @@ fn sweep_values(v: &mut Values, t: &Thesis) -> Result<()> {
         ("best_h", best(&x3)),
         ("best_h_mean", best(&xm)),
         ("hn_verdict", phrase(verdict, &[])?),
-    ]);
-    Ok(())
+    ])
 }
 
-fn proposed_values(v: &mut Values, t: &Thesis) -> Result<()> {
+fn proposed_values(t: &Thesis) -> Result<Values> {
     let limit = reported::NET_BOUND_PCT;
     let table = t.proposed.iter().map(|p| {
         let errors = [p.train_pct, p.net.mean, p.net.worst(), p.optimal.worst()].map(pct);
@@ -295,7 +298,7 @@ fn proposed_values(v: &mut Values, t: &Thesis) -> Result<()> {
     let ratios = (t.noise.iter().filter(|r| r.sigma == 0.0))
         .map(|r| format!("{:.2}", r.network_pct / r.optimal_pct));
     let glance = t.proposed.iter().map(|p| format!("{} {}", roman(p.case), pct(p.net.worst())));
-    v.extend([
+    Ok(vec![
         ("proposed_rows", rows(table)),
         ("proposed_worst", join(glance, ", ")),
         ("proposed_bound_sentence", bound_sentence),
@@ -303,11 +306,10 @@ fn proposed_values(v: &mut Values, t: &Thesis) -> Result<()> {
         ("proposed_mean_max", pct(t.proposed.iter().map(|p| p.net.mean).fold(0.0, f64::max))),
         ("volume_points", t.config.volume_points().to_string()),
         ("volume_ratios", join(ratios, ", ")),
-    ]);
-    Ok(())
+    ])
 }
 
-fn fewer_values(v: &mut Values, t: &Thesis) -> Result<()> {
+fn fewer_values(t: &Thesis) -> Result<Values> {
     let p4 = &t.proposed[usize::from(GENERAL_CASE - 1)];
     let both = |c: &DepthCurve| format!("{} / {}", pct(c.mean), pct(c.worst()));
     let mut table: Vec<String> = (t.fewer.iter())
@@ -344,7 +346,7 @@ fn fewer_values(v: &mut Values, t: &Thesis) -> Result<()> {
     };
     let means =
         t.fewer.iter().map(|f| format!("{} depths: mean {}", f.depths.len(), pct(f.net.mean)));
-    v.extend([
+    Ok(vec![
         ("fewer_rows", rows(table)),
         ("fewer_two_mean", pct(two.net.mean)),
         ("fewer_four_mean", pct(four.net.mean)),
@@ -352,8 +354,7 @@ fn fewer_values(v: &mut Values, t: &Thesis) -> Result<()> {
         ("th_two_depths", reported::fewer_depths(2)),
         ("th_four_depths", reported::fewer_depths(4)),
         ("fewer_means", join(means, "; ")),
-    ]);
-    Ok(())
+    ])
 }
 
 fn n_board() -> usize {
@@ -364,7 +365,7 @@ fn algo_row(t: &Thesis, case: u8, algo: Algo) -> Option<&AlgoRow> {
     t.algos.iter().find(|r| r.case == case && r.algo == algo)
 }
 
-fn algo_values(v: &mut Values, t: &Thesis) -> Result<()> {
+fn algo_values(t: &Thesis) -> Result<Values> {
     let bp = t.config.bp();
     let three = |r: &AlgoRow| [r.train_pct, r.test_mean_pct, r.test_worst_pct].map(pct).join(" / ");
     let table = (1..=4u8).filter_map(|case| {
@@ -386,7 +387,7 @@ fn algo_values(v: &mut Values, t: &Thesis) -> Result<()> {
     } else {
         "algo_bp"
     };
-    v.extend([
+    Ok(vec![
         ("bp_rate", bp.learning_rate.to_string()),
         ("bp_e_max", bp.e_max.to_string()),
         ("bp_cycles", bp.max_cycles.to_string()),
@@ -398,11 +399,10 @@ fn algo_values(v: &mut Values, t: &Thesis) -> Result<()> {
         ("bp_time", format!("{bt:.2}")),
         ("speedup", format!("{:.0}", bt / lt.max(1e-9))),
         ("algo_verdict", phrase(verdict, &[])?),
-    ]);
-    Ok(())
+    ])
 }
 
-fn noise_values(v: &mut Values, t: &Thesis) {
+fn noise_values(t: &Thesis) -> Result<Values> {
     let levels = t.config.noise_levels();
     let shown = [levels[0], levels[levels.len() / 2], levels[levels.len() - 1]];
     let table = t.noise.iter().filter(|r| shown.contains(&r.sigma)).map(|r| {
@@ -433,7 +433,7 @@ fn noise_values(v: &mut Values, t: &Thesis) {
         "X {}..{}, Y {}..{}, Z {}..{} cm",
         lo_v[0], hi_v[0], lo_v[1], hi_v[1], lo_v[2], hi_v[2]
     );
-    v.extend([
+    Ok(vec![
         ("noise_repeats", t.config.noise_repeats().to_string()),
         ("volume_box", volume_box),
         ("noise_rows", rows(table)),
@@ -442,5 +442,5 @@ fn noise_values(v: &mut Values, t: &Thesis) {
         ("noise_floor_growth", format!("{grow:.1}")),
         ("noise_top", top.to_string()),
         ("noise_traditional", join(trad, ", ")),
-    ]);
+    ])
 }

@@ -2,17 +2,7 @@
 //! simulated HVS (the four preset rigs of `hvs_shared::sim::presets`), plus three the thesis did
 //! not run. [`run`] computes; [`report::write`] writes one CSV and one plot (SVG and PNG) per
 //! experiment and `RESULTS.md`, which puts the thesis' reported values beside ours.
-//!
-//! | thesis figure | experiment | function |
-//! |---|---|---|
-//! | 4.3, 4.4 | Phi_L and Phi_R by eq. 4.1-3 at Z = 45-105 cm | [`phi`] |
-//! | 4.8-4.11 | traditional-method e_ma vs. depth, cases I-IV | [`traditional`] |
-//! | 4.12, 4.13 | per-depth e_ma of the 4-5-3 net; ten nets with 5 hidden neurons | [`proposed`], [`hidden_sweep`] |
-//! | 4.14, 4.15 | mean e_ma vs. hidden neurons 1-10, one output (Z) vs. three | [`hidden_sweep`] |
-//! | 4.16-4.19 | the proposed net in cases I-IV | [`proposed`] |
-//! | 4.20-4.22 | training on fewer depths | [`fewer_depths`] |
-//! | beyond | back-propagation vs. Levenberg-Marquardt (error, wall time) | [`bp_vs_lm`] |
-//! | beyond | e_ma vs. pixel noise: traditional, network, optimal floor | [`noise`] |
+//! One function per experiment, each named in its doc by the thesis' figures it redoes.
 //!
 //! Determinism: every random step takes a seed derived from [`Config::seed`], the trainer's
 //! result does not depend on the thread count and results are collected in a fixed order, so
@@ -190,20 +180,16 @@ pub fn protocol(case: u8) -> Result<(Dataset, Dataset)> {
 
 // Figs. 4.3, 4.4
 
-/// One depth of the Phi experiment.
+/// One depth (cm) of the Phi experiment in case 1 or 2 (the parallel rigs): Phi_L and Phi_R
+/// by eq. 4.1-3 over the 12 points symmetric about the other camera's axis and the rig's
+/// true values (px).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PhiRow {
-    /// Case (1 or 2: the parallel rigs, where eq. 4.1-1 holds).
     pub case: u8,
-    /// Board depth (cm).
     pub z: f64,
-    /// Phi_L by eq. 4.1-3 over the 12 points symmetric about the right image's centre line (px).
     pub phi_l: f64,
-    /// Phi_R by eq. 4.1-4 over the 12 points symmetric about the left image's centre line (px).
     pub phi_r: f64,
-    /// The rig's true Phi_L (px).
     pub true_l: f64,
-    /// The rig's true Phi_R (px).
     pub true_r: f64,
 }
 
@@ -235,13 +221,12 @@ pub fn phi() -> Result<Vec<PhiRow>> {
 
 // Figs. 4.8-4.11 and 4.12, 4.16-4.19
 
-/// The traditional method and the floor on one case's test set.
+/// One case's test set: eq. 3.1-17 with the thesis' single Phi ([`Calibration::BUILT_IN`])
+/// and the floor (optimal triangulation with the true rig).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TraditionalCase {
     pub case: u8,
-    /// Eq. 3.1-17 with the thesis' single Phi ([`Calibration::BUILT_IN`]).
     pub traditional: DepthCurve,
-    /// Optimal triangulation with the true rig.
     pub optimal: DepthCurve,
 }
 
@@ -260,15 +245,13 @@ pub fn traditional() -> Result<Vec<TraditionalCase>> {
         .collect()
 }
 
-/// The proposed net on one case.
+/// The proposed net on one case: training e_ma (%) of the exported f32 model, and the net and
+/// the floor on the test set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProposedCase {
     pub case: u8,
-    /// Training e_ma (%) of the exported f32 model.
     pub train_pct: f64,
-    /// The net on the test set.
     pub net: DepthCurve,
-    /// Optimal triangulation with the true rig on the same pixels.
     pub optimal: DepthCurve,
 }
 
@@ -289,21 +272,17 @@ pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCas
 
 // Figs. 4.13-4.15
 
-/// One net of the hidden-neuron sweep (case IV).
+/// One net of the hidden-neuron sweep (case IV): its shape, number (0-based) among the nets of
+/// that shape and training seed; its training e_ma, test e_ma over all 22 points and worst
+/// per-depth test e_ma (the net's error in the thesis' sense), in %.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NetRow {
-    /// One output (Z) or three (X, Y, Z).
     pub outputs: OutputKind,
     pub hidden: usize,
-    /// Net number (0-based) among those of the same shape.
     pub index: usize,
-    /// Its training seed (one restart).
     pub seed: u64,
-    /// Training e_ma (%).
     pub train_pct: f64,
-    /// Test e_ma over all 22 points (%).
     pub test_mean_pct: f64,
-    /// Worst per-depth test e_ma (%): the net's error in the thesis' sense.
     pub test_worst_pct: f64,
 }
 
@@ -362,16 +341,13 @@ fn per_hidden(rows: &[NetRow], outputs: OutputKind, f: impl Fn(&NetRow) -> f64) 
 
 // Figs. 4.20-4.22
 
-/// The proposed net trained on a subset of the training depths (case IV).
+/// The proposed net (LM) and the same net trained by back-propagation on the training depths
+/// (cm) of one subset (case IV), on the full test set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FewerDepths {
-    /// Training depths (cm).
     pub depths: Vec<f64>,
-    /// Training points.
     pub points: usize,
-    /// The proposed net (LM) on the full test set.
     pub net: DepthCurve,
-    /// The same net trained by the thesis' back-propagation on the full test set.
     pub bp: DepthCurve,
 }
 
@@ -403,18 +379,15 @@ pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDe
 
 // Beyond the thesis
 
-/// One algorithm on one case's protocol.
+/// One training algorithm on one case's protocol: training e_ma, test e_ma over all points and
+/// worst per-depth test e_ma (%), and the training's wall time (s; not deterministic).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AlgoRow {
     pub case: u8,
     pub algo: Algo,
-    /// Training e_ma (%).
     pub train_pct: f64,
-    /// Test e_ma over all points (%).
     pub test_mean_pct: f64,
-    /// Worst per-depth test e_ma (%).
     pub test_worst_pct: f64,
-    /// Wall time of the training (s); not deterministic.
     pub wall_s: f64,
 }
 
@@ -436,21 +409,18 @@ pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
     Ok(rows)
 }
 
-/// One noise level of one case (means over [`Config::noise_repeats`] draws).
+/// One pixel-noise level sigma (px, Gaussian before rounding) of one case, means over
+/// `repeats` draws (%): the traditional method with Phi refitted on the noisy boards (where it
+/// has an estimate; `traditional_missing_pct` of the points have none), the proposed net
+/// trained on them, and the floor on the noisy pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoiseRow {
     pub case: u8,
-    /// Standard deviation of the Gaussian pixel noise added before rounding (px).
     pub sigma: f64,
-    /// Noise draws averaged.
     pub repeats: usize,
-    /// Traditional method, Phi refitted on the noisy boards (%), where it has an estimate.
     pub traditional_pct: f64,
-    /// Test points without a traditional estimate (zero disparity), % of all.
     pub traditional_missing_pct: f64,
-    /// Proposed net trained on the noisy boards (%).
     pub network_pct: f64,
-    /// Optimal triangulation with the true rig on the noisy pixels (%).
     pub optimal_pct: f64,
 }
 
