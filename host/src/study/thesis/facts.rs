@@ -6,16 +6,14 @@ use crate::fmt::join;
 use crate::study::reported;
 use hvs_shared::sim::camera::Rig;
 
-/// Statistics of the Phi_L (`left`) or Phi_R estimates of one case over the depths.
+/// Statistics of the Phi_L or Phi_R estimates of one case over the depths: their mean and the
+/// rig's true value (px); the largest deviation of one estimate from the mean and their
+/// standard deviation, in % of the mean.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PhiStats {
-    /// Mean estimate (px).
     pub mean: f64,
-    /// The rig's true value (px).
     pub truth: f64,
-    /// Largest deviation of one depth's estimate from the mean, in % of the mean.
     pub max_dev_pct: f64,
-    /// Standard deviation of the estimates in % of the mean.
     pub sd_pct: f64,
 }
 
@@ -28,13 +26,7 @@ impl PhiStats {
 
 /// [`PhiStats`] of `case`'s Phi_L (`left`) or Phi_R rows (NaN fields when it has none).
 pub fn phi_stats(rows: &[PhiRow], case: u8, left: bool) -> PhiStats {
-    let pick = |r: &PhiRow| {
-        if left {
-            (r.phi_l, r.true_l)
-        } else {
-            (r.phi_r, r.true_r)
-        }
-    };
+    let pick = |r: &PhiRow| if left { (r.phi_l, r.true_l) } else { (r.phi_r, r.true_r) };
     let v: Vec<(f64, f64)> = rows.iter().filter(|r| r.case == case).map(pick).collect();
     let n = v.len() as f64;
     let mean = v.iter().map(|p| p.0).sum::<f64>() / n;

@@ -170,19 +170,15 @@ fn traditional_values(t: &Thesis) -> Result<Values> {
         .filter(|c| matches_thesis_traditional(c.case, c.traditional.best(), c.traditional.worst()))
         .map(|c| roman(c.case))
         .collect();
-    let n = t.traditional.len();
+    let (k, n) = (within.len(), t.traditional.len());
+    let count = if k == n { "all four".to_string() } else { format!("{k} of {n}") };
+    let floor = t.traditional.iter().map(|c| c.optimal.worst()).fold(0.0, f64::max);
     Ok(vec![
         ("glance_traditional_rows", rows(glance)),
         ("traditional_rows", rows(table)),
         ("trad_within", if within.is_empty() { "none".to_string() } else { within.join(", ") }),
-        (
-            "trad_within_count",
-            if within.len() == n { "all four".into() } else { format!("{} of {n}", within.len()) },
-        ),
-        (
-            "trad_floor_worst",
-            pct(t.traditional.iter().map(|c| c.optimal.worst()).fold(0.0, f64::max)),
-        ),
+        ("trad_within_count", count),
+        ("trad_floor_worst", pct(floor)),
     ])
 }
 
@@ -322,11 +318,8 @@ fn fewer_values(t: &Thesis) -> Result<Values> {
         format!("{} / {}", pct(r.test_mean_pct), pct(r.test_worst_pct))
     });
     let (first, last) = (TRAIN_DEPTHS[0], TRAIN_DEPTHS[TRAIN_DEPTHS.len() - 1]);
-    let all = format!(
-        "{first}-{last} step {} (all {})",
-        TRAIN_DEPTHS[1] - first,
-        number_word(TRAIN_DEPTHS.len())
-    );
+    let (step, count) = (TRAIN_DEPTHS[1] - first, number_word(TRAIN_DEPTHS.len()));
+    let all = format!("{first}-{last} step {step} (all {count})");
     let points = (n_board() * TRAIN_DEPTHS.len()).to_string();
     table.push(row([all, points, format!("< {}", bound()), both(&p4.net), bp4]));
     let (two, four) = (&t.fewer[0], &t.fewer[FEWER_DEPTHS.len() - 1]);
@@ -406,16 +399,10 @@ fn noise_values(t: &Thesis) -> Result<Values> {
     let levels = t.config.noise_levels();
     let shown = [levels[0], levels[levels.len() / 2], levels[levels.len() - 1]];
     let table = t.noise.iter().filter(|r| shown.contains(&r.sigma)).map(|r| {
-        let ratio = r.network_pct / r.optimal_pct;
-        row([
-            roman(r.case).to_string(),
-            format!("{:.1}", r.sigma),
-            pct(r.traditional_pct),
-            format!("{:.1} %", r.traditional_missing_pct),
-            pct(r.network_pct),
-            pct(r.optimal_pct),
-            format!("{ratio:.2}"),
-        ])
+        let [trad, net, floor] = [r.traditional_pct, r.network_pct, r.optimal_pct].map(pct);
+        let (sigma, missing) = (format!("{:.1}", r.sigma), r.traditional_missing_pct);
+        let (missing, ratio) = (format!("{missing:.1} %"), r.network_pct / r.optimal_pct);
+        row([roman(r.case).to_string(), sigma, trad, missing, net, floor, format!("{ratio:.2}")])
     });
     let (lo, hi) = span(t.noise.iter().map(|r| r.network_pct / r.optimal_pct));
     let top = levels[levels.len() - 1];

@@ -144,10 +144,10 @@ fn net(
     set: &Dataset,
     test: &Dataset,
     tc: &TrainConfig,
-    what: impl FnOnce() -> String,
+    what: String,
 ) -> Result<(f64, DepthCurve, f64)> {
     let t = Instant::now();
-    let out = train(set, tc).with_context(what)?;
+    let out = train(set, tc).context(what)?;
     let wall_s = t.elapsed().as_secs_f64();
     let z = model_depths(&out.blob, test)
         .map_err(|e| anyhow!("the model cannot run on the set: {e:?}"))?;
@@ -156,9 +156,7 @@ fn net(
 
 fn dataset(samples: &[Sample]) -> Dataset {
     let mut d = Dataset::new(InputKind::Stereo);
-    for s in samples {
-        d.push(&s.px, Some(s.xyz));
-    }
+    samples.iter().for_each(|s| d.push(&s.px, Some(s.xyz)));
     d
 }
 
@@ -236,11 +234,9 @@ pub fn traditional() -> Result<Vec<TraditionalCase>> {
     (1..=4u8)
         .map(|case| {
             let (_, test) = protocol(case)?;
-            Ok(TraditionalCase {
-                case,
-                traditional: curve(&test, traditional_depths(&Calibration::BUILT_IN, &test)),
-                optimal: curve(&test, optimal_depths(&rig(case)?, &test)),
-            })
+            let traditional = curve(&test, traditional_depths(&Calibration::BUILT_IN, &test));
+            let optimal = curve(&test, optimal_depths(&rig(case)?, &test));
+            Ok(TraditionalCase { case, traditional, optimal })
         })
         .collect()
 }
@@ -262,7 +258,7 @@ pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCas
         .map(|case| {
             let (train_set, test) = protocol(case)?;
             let (train_pct, net, _) =
-                net(&train_set, &test, &cfg.proposed(), || format!("case {case}"))?;
+                net(&train_set, &test, &cfg.proposed(), format!("case {case}"))?;
             progress.inc();
             let optimal = curve(&test, optimal_depths(&rig(case)?, &test));
             Ok(ProposedCase { case, train_pct, net, optimal })
@@ -300,9 +296,8 @@ pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>
         .map(|(outputs, hidden, index)| {
             let seed = derive_seed(cfg.seed, TAG_NET, hidden as u64, index as u64);
             let tc = TrainConfig { hidden, outputs, restarts: 1, seed, ..cfg.proposed() };
-            let (train_pct, c, _) = net(&train_set, &test, &tc, || {
-                format!("{hidden} hidden, {outputs:?}, net {index}")
-            })?;
+            let (train_pct, c, _) =
+                net(&train_set, &test, &tc, format!("{hidden} hidden, {outputs:?}, net {index}"))?;
             progress.inc();
             let (test_mean_pct, test_worst_pct) = (c.mean, c.worst());
             Ok(NetRow { outputs, hidden, index, seed, train_pct, test_mean_pct, test_worst_pct })
@@ -364,12 +359,10 @@ pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDe
             let boards = depths.iter().flat_map(|&z| presets::board_points(z));
             let samples = boards.map(|p| Ok(Sample { px: pixels(&r, p)?, xyz: p }));
             let set = dataset(&samples.collect::<Result<Vec<_>>>()?);
-            let (_, net_curve, _) =
-                net(&set, &test, &tc, || format!("training depths {depths:?}"))?;
+            let (_, net_curve, _) = net(&set, &test, &tc, format!("training depths {depths:?}"))?;
             progress.inc();
-            let (_, bp, _) = net(&set, &test, &bp_tc, || {
-                format!("training depths {depths:?}, back-propagation")
-            })?;
+            let (_, bp, _) =
+                net(&set, &test, &bp_tc, format!("training depths {depths:?}, back-propagation"))?;
             progress.inc();
             let (depths, points) = (depths.to_vec(), set.len());
             Ok(FewerDepths { depths, points, net: net_curve, bp })
@@ -400,7 +393,7 @@ pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
         for algo in [Algo::Lm, Algo::Bp] {
             let tc = TrainConfig { algo, bp: cfg.bp(), ..cfg.proposed() };
             let (train_pct, c, wall_s) =
-                net(&train_set, &test, &tc, || format!("case {case}, {algo:?}"))?;
+                net(&train_set, &test, &tc, format!("case {case}, {algo:?}"))?;
             progress.inc();
             let (test_mean_pct, test_worst_pct) = (c.mean, c.worst());
             rows.push(AlgoRow { case, algo, train_pct, test_mean_pct, test_worst_pct, wall_s });
@@ -446,8 +439,7 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
                 };
                 let boards = sim(SetKind::Train, 0, TAG_NOISE_TRAIN)?;
                 let test = sim(SetKind::Volume, cfg.volume_points(), TAG_NOISE_TEST)?;
-                let (_, c, _) =
-                    net(&boards, &test, &tc, || format!("case {case}, noise {sigma} px"))?;
+                let (_, c, _) = net(&boards, &test, &tc, format!("case {case}, noise {sigma} px"))?;
                 let trad = match fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0) {
                     Some(f) => traditional_depths(&f.calibration, &test),
                     None => vec![f64::NAN; test.len()],

@@ -30,12 +30,10 @@ pub const STEMS: [&str; 9] = [
 /// Writes every CSV, plot and `RESULTS.md`; `total_s` is the run's wall time.
 pub fn write(o: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
     phi_files(o, t)?;
-    let trad: Vec<_> = t.traditional.iter().map(|c| (c.case, &c.traditional, &c.optimal)).collect();
-    per_case_files(o, false, &trad)?;
+    per_case_files(o, t, false)?;
     net_case4_files(o, t)?;
     sweep_files(o, t)?;
-    let proposed: Vec<_> = t.proposed.iter().map(|c| (c.case, &c.net, &c.optimal)).collect();
-    per_case_files(o, true, &proposed)?;
+    per_case_files(o, t, true)?;
     fewer_files(o, t)?;
     algo_files(o, t)?;
     noise_files(o, t)?;
@@ -99,6 +97,8 @@ fn depth_rows(lead: &[String], curves: &[&DepthCurve]) -> Vec<Vec<String>> {
     curves[0].z.iter().enumerate().map(row).collect()
 }
 
+const PHI_Z: &str = "board depth Z (cm)";
+
 fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let head = "case,z_cm,phi_l_px,phi_r_px,true_phi_l_px,true_phi_r_px";
     o.rows("fig4_03_04_phi.csv", head, &t.phi, |r| {
@@ -108,18 +108,13 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let case1: Vec<_> = t.phi.iter().filter(|r| r.case == 1).collect();
     let z: Vec<f64> = case1.iter().map(|r| r.z).collect();
     let ends = [PHI_DEPTHS[0], PHI_DEPTHS[PHI_DEPTHS.len() - 1]];
-    let phi_panel = |fig: usize, which: &str, est: Vec<f64>, truth: f64, color: usize| Panel {
-        y_label: format!("{which} = k_u f (px)"),
-        ..panel(
-            format!("Fig. 4.{fig}: {which} by eq. 4.1-3, case I"),
-            ("board depth Z (cm)", "", false),
-            false,
-            Legend::LowerRight,
-            vec![
-                line(format!("{which}, 12 symmetric points, rounded pixels"), &z, &est, color),
-                level(format!("true {which} of the rig"), ends, truth, FLOOR_COLOR),
-            ],
-        )
+    let phi_panel = |fig: usize, which: &str, est: Vec<f64>, truth: f64, color: usize| {
+        let est = line(format!("{which}, 12 symmetric points, rounded pixels"), &z, &est, color);
+        let truth = level(format!("true {which} of the rig"), ends, truth, FLOOR_COLOR);
+        let (title, axes) =
+            (format!("Fig. 4.{fig}: {which} by eq. 4.1-3, case I"), (PHI_Z, "", false));
+        let p = panel(title, axes, false, Legend::LowerRight, vec![est, truth]);
+        Panel { y_label: format!("{which} = k_u f (px)"), ..p }
     };
     let panels = vec![
         phi_panel(3, "Phi_L", case1.iter().map(|r| r.phi_l).collect(), case1[0].true_l, 0),
@@ -131,11 +126,12 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
 
 /// Figs. 4.8-4.11 (the traditional method) or, with `net`, 4.16-4.19 (the proposed net): the
 /// CSV `case,z_cm,<method>,optimal_pct` and one panel per case of the method and the floor.
-fn per_case_files(
-    o: &mut Files,
-    net: bool,
-    cases: &[(u8, &DepthCurve, &DepthCurve)],
-) -> Result<()> {
+fn per_case_files(o: &mut Files, t: &Thesis, net: bool) -> Result<()> {
+    let cases: Vec<(u8, &DepthCurve, &DepthCurve)> = if net {
+        t.proposed.iter().map(|c| (c.case, &c.net, &c.optimal)).collect()
+    } else {
+        t.traditional.iter().map(|c| (c.case, &c.traditional, &c.optimal)).collect()
+    };
     let (stem, column, first_fig) = if net {
         ("fig4_16_19_proposed", "network_pct", 16)
     } else {
