@@ -15,7 +15,7 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
 use crate::sim::sets::{simulate, Sample, SetKind, SimOptions};
-use crate::study::engine::Progress;
+use crate::study::engine::{par_stage, timed, Progress};
 use crate::train::fallback;
 use crate::train::{train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
@@ -25,7 +25,6 @@ use hvs_shared::runtime::traditional::{phi_estimate, Calibration};
 use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::metrics::EmaAcc;
 use hvs_shared::sim::presets;
-use rayon::prelude::*;
 use std::time::Instant;
 
 /// Depths of the Phi experiment (Figs. 4.3, 4.4), cm.
@@ -105,6 +104,9 @@ pub fn derive_seed(seed: u64, tag: u64, a: u64, b: u64) -> u64 {
 const TAG_NET: u64 = 1;
 const TAG_NOISE_TRAIN: u64 = 2;
 const TAG_NOISE_TEST: u64 = 3;
+/// The stages that run in parallel, named as the stage times name them.
+const SWEEP: &str = "Figs. 4.13-4.15";
+const NOISE: &str = "pixel noise";
 
 /// Per-depth e_ma of an estimator on a test set (the thesis': P1, P2 at the test depths).
 #[derive(Debug, Clone, PartialEq)]
@@ -292,17 +294,14 @@ pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>
             jobs.extend((0..cfg.nets()).map(|index| (outputs, hidden, index)));
         }
     }
-    jobs.into_par_iter()
-        .map(|(outputs, hidden, index)| {
-            let seed = derive_seed(cfg.seed, TAG_NET, hidden as u64, index as u64);
-            let tc = TrainConfig { hidden, outputs, restarts: 1, seed, ..cfg.proposed() };
-            let (train_pct, c, _) =
-                net(&train_set, &test, &tc, format!("{hidden} hidden, {outputs:?}, net {index}"))?;
-            progress.inc();
-            let (test_mean_pct, test_worst_pct) = (c.mean, c.worst());
-            Ok(NetRow { outputs, hidden, index, seed, train_pct, test_mean_pct, test_worst_pct })
-        })
-        .collect()
+    par_stage(progress, SWEEP, &jobs, |&(outputs, hidden, index)| {
+        let seed = derive_seed(cfg.seed, TAG_NET, hidden as u64, index as u64);
+        let tc = TrainConfig { hidden, outputs, restarts: 1, seed, ..cfg.proposed() };
+        let what = format!("{hidden} hidden, {outputs:?}, net {index}");
+        let (train_pct, c, _) = net(&train_set, &test, &tc, what)?;
+        let (test_mean_pct, test_worst_pct) = (c.mean, c.worst());
+        Ok(NetRow { outputs, hidden, index, seed, train_pct, test_mean_pct, test_worst_pct })
+    })
 }
 
 /// The hidden-neuron counts present in `rows`, ascending.
@@ -425,51 +424,48 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
         .flat_map(|case| levels.iter().enumerate().map(move |(k, &s)| (case, k, s)))
         .collect();
     let (tc, repeats) = (cfg.proposed(), cfg.noise_repeats());
-    jobs.into_par_iter()
-        .map(|(case, k, sigma)| {
-            let r = rig(case)?;
-            let mut sums = [0.0; 3];
-            let (mut missing, mut points) = (0usize, 0usize);
-            for rep in 0..repeats {
-                let item = (case as u64) << 32 | (k as u64) << 16 | rep as u64;
-                let sim = |kind, points, tag| {
-                    let seed = derive_seed(cfg.seed, tag, item, 0);
-                    let opt = SimOptions { points, noise_px: sigma, seed, ..SimOptions::default() };
-                    simulate(&r, kind, &opt).map(|s| dataset(&s))
-                };
-                let boards = sim(SetKind::Train, 0, TAG_NOISE_TRAIN)?;
-                let test = sim(SetKind::Volume, cfg.volume_points(), TAG_NOISE_TEST)?;
-                let (_, c, _) = net(&boards, &test, &tc, format!("case {case}, noise {sigma} px"))?;
-                let trad = match fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0) {
-                    Some(f) => traditional_depths(&f.calibration, &test),
-                    None => vec![f64::NAN; test.len()],
-                };
-                // The traditional method over the points it answers for (the others are
-                // counted): one zero disparity would make its mean infinite.
-                let mut acc = EmaAcc::default();
-                for (zh, t) in trad.iter().zip(&test.targets).filter(|(zh, _)| zh.is_finite()) {
-                    acc.add(t[2], *zh);
-                }
-                missing += trad.iter().filter(|zh| !zh.is_finite()).count();
-                points += test.len();
-                sums[0] += acc.e_ma_pct();
-                sums[1] += c.mean;
-                sums[2] += curve(&test, optimal_depths(&r, &test)).mean;
+    par_stage(progress, NOISE, &jobs, |&(case, k, sigma)| {
+        let r = rig(case)?;
+        let mut sums = [0.0; 3];
+        let (mut missing, mut points) = (0usize, 0usize);
+        for rep in 0..repeats {
+            let item = (case as u64) << 32 | (k as u64) << 16 | rep as u64;
+            let sim = |kind, points, tag| {
+                let seed = derive_seed(cfg.seed, tag, item, 0);
+                let opt = SimOptions { points, noise_px: sigma, seed, ..SimOptions::default() };
+                simulate(&r, kind, &opt).map(|s| dataset(&s))
+            };
+            let boards = sim(SetKind::Train, 0, TAG_NOISE_TRAIN)?;
+            let test = sim(SetKind::Volume, cfg.volume_points(), TAG_NOISE_TEST)?;
+            let (_, c, _) = net(&boards, &test, &tc, format!("case {case}, noise {sigma} px"))?;
+            let trad = match fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0) {
+                Some(f) => traditional_depths(&f.calibration, &test),
+                None => vec![f64::NAN; test.len()],
+            };
+            // The traditional method over the points it answers for (the others are
+            // counted): one zero disparity would make its mean infinite.
+            let mut acc = EmaAcc::default();
+            for (zh, t) in trad.iter().zip(&test.targets).filter(|(zh, _)| zh.is_finite()) {
+                acc.add(t[2], *zh);
             }
-            progress.inc();
-            let [traditional_pct, network_pct, optimal_pct] = sums.map(|s| s / repeats as f64);
-            let traditional_missing_pct = missing as f64 / points as f64 * 100.0;
-            Ok(NoiseRow {
-                case,
-                sigma,
-                repeats,
-                traditional_pct,
-                traditional_missing_pct,
-                network_pct,
-                optimal_pct,
-            })
+            missing += trad.iter().filter(|zh| !zh.is_finite()).count();
+            points += test.len();
+            sums[0] += acc.e_ma_pct();
+            sums[1] += c.mean;
+            sums[2] += curve(&test, optimal_depths(&r, &test)).mean;
+        }
+        let [traditional_pct, network_pct, optimal_pct] = sums.map(|s| s / repeats as f64);
+        let traditional_missing_pct = missing as f64 / points as f64 * 100.0;
+        Ok(NoiseRow {
+            case,
+            sigma,
+            repeats,
+            traditional_pct,
+            traditional_missing_pct,
+            network_pct,
+            optimal_pct,
         })
-        .collect()
+    })
 }
 
 /// Everything [`run`] measured: the configuration, the results of each experiment (of the
@@ -494,39 +490,34 @@ pub struct Thesis {
 
 /// Runs every experiment.
 pub fn run(cfg: &Config, progress: &dyn Progress) -> Result<Thesis> {
-    let mut stage_s = Vec::new();
-    let stage = |name: &'static str, units: usize| {
-        progress.start(name, units as u64);
-        let t = Instant::now();
-        move |stage_s: &mut Vec<(&'static str, f64)>| {
-            progress.finish();
-            stage_s.push((name, t.elapsed().as_secs_f64()));
-        }
-    };
-    let done = stage("Figs. 4.3-4.11", 2);
-    let phi = phi()?;
-    progress.inc();
-    let traditional = traditional()?;
-    progress.inc();
-    done(&mut stage_s);
-    let done = stage("Figs. 4.12, 4.16-4.19", 4);
-    let proposed = proposed(cfg, progress)?;
-    done(&mut stage_s);
-    let done = stage("Figs. 4.13-4.15", 2 * cfg.hidden().len() * cfg.nets());
-    let sweep = hidden_sweep(cfg, progress)?;
-    done(&mut stage_s);
-    let done = stage("Figs. 4.20-4.22", 2 * FEWER_DEPTHS.len());
-    let fewer = fewer_depths(cfg, progress)?;
-    done(&mut stage_s);
-    let done = stage("BP vs. LM", 8);
-    let algos = bp_vs_lm(cfg, progress)?;
-    done(&mut stage_s);
-    let done = stage("pixel noise", 4 * cfg.noise_levels().len());
-    let noise = noise(cfg, progress)?;
-    done(&mut stage_s);
-    let threads = rayon::current_num_threads();
-    let config = *cfg;
+    let mut s = Vec::new();
+    let (phi, traditional) = stage(progress, &mut s, "Figs. 4.3-4.11", 2, || {
+        let phi = phi()?;
+        progress.inc();
+        Ok((phi, traditional().inspect(|_| progress.inc())?))
+    })?;
+    let proposed = stage(progress, &mut s, "Figs. 4.12, 4.16-4.19", 4, || proposed(cfg, progress))?;
+    let sweep = timed(&mut s, SWEEP, || hidden_sweep(cfg, progress))?;
+    let units = 2 * FEWER_DEPTHS.len();
+    let fewer = stage(progress, &mut s, "Figs. 4.20-4.22", units, || fewer_depths(cfg, progress))?;
+    let algos = stage(progress, &mut s, "BP vs. LM", 8, || bp_vs_lm(cfg, progress))?;
+    let noise = timed(&mut s, NOISE, || noise(cfg, progress))?;
+    let (config, threads, stage_s) = (*cfg, rayon::current_num_threads(), s);
     Ok(Thesis { config, phi, traditional, proposed, sweep, fewer, algos, noise, stage_s, threads })
+}
+
+/// [`timed`] `f` as the stage `name` of `units` steps of `progress`.
+fn stage<T>(
+    progress: &dyn Progress,
+    stage_s: &mut Vec<(&'static str, f64)>,
+    name: &'static str,
+    units: usize,
+    f: impl FnOnce() -> Result<T>,
+) -> Result<T> {
+    progress.start(name, units as u64);
+    let out = timed(stage_s, name, f);
+    progress.finish();
+    out
 }
 
 #[cfg(test)]
