@@ -8,7 +8,7 @@
 
 use crate::fmt::{join, roman};
 use crate::study::accuracy::{self as accuracy, AccuracyConfig};
-use crate::study::engine::{self, Bars, Study};
+use crate::study::engine::{self, Study};
 use crate::study::posture::{self, StudyConfig};
 use crate::study::thesis::Config;
 use anyhow::Result;
@@ -175,6 +175,57 @@ fn study<S: Study>(s: &S, output: &Path) -> Result<()> {
         ran.threads,
     ))?;
     crate::cli::say(format_args!("see {}", output.join(s.page()).display()))
+}
+
+/// `indicatif` bars on stderr, one per stage, left on screen when done.
+pub struct Bars {
+    multi: indicatif::MultiProgress,
+    current: std::sync::Mutex<Option<indicatif::ProgressBar>>,
+}
+
+impl Bars {
+    /// Bars drawn on stderr when `visible` (normally: stderr is a terminal), else hidden.
+    pub fn new(visible: bool) -> Self {
+        let target = if visible {
+            indicatif::ProgressDrawTarget::stderr()
+        } else {
+            indicatif::ProgressDrawTarget::hidden()
+        };
+        Bars {
+            multi: indicatif::MultiProgress::with_draw_target(target),
+            current: std::sync::Mutex::new(None),
+        }
+    }
+}
+
+impl engine::Progress for Bars {
+    fn start(&self, name: &str, units: u64) {
+        let b = self.multi.add(indicatif::ProgressBar::new(units));
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{prefix:<26} {bar:30} {pos:>3}/{len:<3} [{elapsed_precise}]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b.set_prefix(name.to_string());
+        if let Ok(mut c) = self.current.lock() {
+            *c = Some(b);
+        }
+    }
+    fn inc(&self) {
+        if let Ok(c) = self.current.lock() {
+            if let Some(b) = c.as_ref() {
+                b.inc(1);
+            }
+        }
+    }
+    fn finish(&self) {
+        if let Ok(mut c) = self.current.lock() {
+            if let Some(b) = c.take() {
+                b.finish();
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -2,4 +2,6 @@
 //! module per study.
 
 mod accuracy;
+mod engine;
+mod template;
 mod thesis;
