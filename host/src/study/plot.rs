@@ -55,18 +55,8 @@ impl Series {
     }
 }
 
-/// Where the legend goes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Legend {
-    /// Upper left corner.
-    UpperLeft,
-    /// Upper right corner.
-    UpperRight,
-    /// Lower right corner.
-    LowerRight,
-    /// Lower left corner.
-    LowerLeft,
-}
+/// Where the legend goes (`UpperLeft`, `UpperRight`, `LowerRight`, `LowerLeft`, ...).
+pub use plotters::chart::SeriesLabelPosition as Legend;
 
 /// One chart.
 #[derive(Debug, Clone, PartialEq)]
@@ -259,14 +249,10 @@ fn tick_label(v: f64) -> String {
 }
 
 fn x_tick(v: f64, integer: bool) -> String {
-    if integer {
-        if (v - v.round()).abs() < 1e-6 {
-            format!("{}", v.round())
-        } else {
-            String::new()
-        }
-    } else {
-        tick_label(v)
+    match integer {
+        false => tick_label(v),
+        true if (v - v.round()).abs() < 1e-6 => format!("{}", v.round()),
+        true => String::new(),
     }
 }
 
@@ -292,7 +278,7 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> D
             for s in &p.series {
                 series(&mut chart, s, drawable(s, p.log_y, y0))?;
             }
-            legend(&mut chart, p.legend)
+            legend(&mut chart, &p.legend)
         }};
     }
     if p.log_y {
@@ -341,22 +327,16 @@ where
 
 fn legend<'a, DB, X, Y>(
     chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
-    at: Legend,
+    at: &Legend,
 ) -> DrawResult<DB>
 where
     DB: DrawingBackend + 'a,
     X: Ranged<ValueType = f64>,
     Y: Ranged<ValueType = f64>,
 {
-    let pos = match at {
-        Legend::UpperLeft => SeriesLabelPosition::UpperLeft,
-        Legend::UpperRight => SeriesLabelPosition::UpperRight,
-        Legend::LowerRight => SeriesLabelPosition::LowerRight,
-        Legend::LowerLeft => SeriesLabelPosition::LowerLeft,
-    };
     chart
         .configure_series_labels()
-        .position(pos)
+        .position(at.clone())
         .label_font((FAMILY, 14))
         .background_style(WHITE.mix(0.85))
         .border_style(RGBColor(180, 180, 180))
