@@ -221,14 +221,9 @@ fn eval<'a>(
 }
 
 /// Noise-free samples of `points` random points of the training volume, at `joints` in turn.
-fn volume(
-    head: &HeadRig,
-    joints: &[Joints],
-    points: usize,
-    seed: u64,
-) -> Result<Vec<PostureSample>> {
+fn volume(head: &HeadRig, js: &[Joints], points: usize, seed: u64) -> Result<Vec<PostureSample>> {
     let opt = SimOptions { points, noise_px: 0.0, seed, ..SimOptions::default() };
-    posture::simulate(head, SetKind::Volume, joints, &opt)
+    posture::simulate(head, SetKind::Volume, js, &opt)
 }
 
 /// One row of [`fixed_posture_study`].
@@ -570,21 +565,9 @@ pub struct Posture {
     pub threads: usize,
 }
 
-/// A job of [`run`]'s queue: a posture-aware net (hidden count, training postures) or the
-/// lens study.
-#[derive(Clone, Copy, PartialEq)]
-enum Job {
-    Aware(usize, Sampling),
-    Lens,
-}
-
-enum Done {
-    Aware(Box<PostureAware>),
-    Lens(Vec<DistortionRow>),
-}
-
-/// Runs the study: part (a), then the posture-aware nets of the sweep and the lens study side
-/// by side on the rayon pool, longest first. Every training takes the study's seed, so the
+/// Runs the study: part (a), then the posture-aware nets of the sweep (a queue the workers
+/// take the largest first from: a training's time grows about linearly with the hidden count)
+/// next to the lens study, on the rayon pool. Every training takes the study's seed, so the
 /// numbers do not depend on the thread count; only the wall times do.
 pub fn run(study: &StudyConfig, progress: &dyn Progress) -> Result<Posture> {
     progress.start("fixed-posture 4-5-3 net", 1);
@@ -598,61 +581,49 @@ pub fn run(study: &StudyConfig, progress: &dyn Progress) -> Result<Posture> {
     hidden.push(study.hidden);
     hidden.sort_unstable();
     hidden.dedup();
-    let mut jobs: Vec<Job> = hidden.iter().map(|&h| Job::Aware(h, Sampling::Grid)).collect();
+    let mut jobs: Vec<(usize, Sampling)> = hidden.iter().map(|&h| (h, Sampling::Grid)).collect();
     if study.lattice {
-        jobs.push(Job::Aware(study.hidden, Sampling::Lattice));
+        jobs.push((study.hidden, Sampling::Lattice));
     }
-    jobs.push(Job::Lens);
-    // A training's time grows about linearly with the hidden count at this size; the lens
-    // study costs about as much as an 8-neuron net. The queue pops the longest first.
-    jobs.sort_by_key(|j| if let Job::Aware(h, _) = j { *h } else { 8 });
-    let n = jobs.len();
+    jobs.sort_by_key(|j| j.0);
+    let n = jobs.len() + 1;
     progress.start("posture-aware nets, lens", n as u64);
     let t = Instant::now();
-    let (queue, done) = (Mutex::new(jobs), Mutex::new(Vec::new()));
-    let threads = rayon::current_num_threads().min(n);
-    (0..threads).into_par_iter().for_each(|_| {
-        while let Some(job) = queue.lock().ok().and_then(|mut q| q.pop()) {
-            let t0 = Instant::now();
-            let r = match job {
-                Job::Aware(h, s) => posture_aware_study(study, h, s)
-                    .map(|a| Done::Aware(Box::new(a)))
-                    .with_context(|| format!("the posture-aware 9-{h}-3 net")),
-                Job::Lens => distortion_study(study).map(Done::Lens).context("the lens study"),
-            };
+    let queue = Mutex::new(jobs);
+    let worker = |_| -> Result<Vec<PostureAware>> {
+        let mut done = Vec::new();
+        while let Some((h, s)) = queue.lock().ok().and_then(|mut q| q.pop()) {
+            let a = posture_aware_study(study, h, s);
             progress.inc();
-            if r.is_err() {
-                // No point in the rest: the first error is the run's.
-                let _ = queue.lock().map(|mut q| q.clear());
-            }
-            if let Ok(mut d) = done.lock() {
-                d.push((job, r, t0.elapsed().as_secs_f64()));
-            }
+            // No point in the rest after an error: the first error is the run's.
+            let a = a.inspect_err(|_| drop(queue.lock().map(|mut q| q.clear())));
+            done.push(a.with_context(|| format!("the posture-aware 9-{h}-3 net"))?);
         }
-    });
+        Ok(done)
+    };
+    let lens = || {
+        let t0 = Instant::now();
+        let d = distortion_study(study).context("the lens study");
+        progress.inc();
+        d.map(|d| (d, t0.elapsed().as_secs_f64()))
+    };
+    let threads = rayon::current_num_threads().min(n);
+    let (nets, lens) =
+        rayon::join(|| (0..threads).into_par_iter().map(worker).collect::<Result<Vec<_>>>(), lens);
     progress.finish();
     let stage_s = vec![
         ("fixed-posture net", fixed_s),
         ("posture-aware nets and lens", t.elapsed().as_secs_f64()),
     ];
-    let done = done.into_inner().map_err(|_| anyhow!("a worker of the posture study panicked"))?;
-    let (mut chosen, mut sweep, mut distortion) = (None, Vec::new(), Vec::new());
-    let (mut aware_s, mut lens_s) = (0.0, 0.0);
-    for (job, r, s) in done {
-        match r? {
-            Done::Aware(a) => {
-                aware_s += s;
-                sweep.extend(a.sweep.iter().cloned());
-                if job == Job::Aware(study.hidden, Sampling::Grid) {
-                    chosen = Some(*a);
-                }
-            }
-            Done::Lens(d) => (distortion, lens_s) = (d, s),
-        }
-    }
-    let mut aware = chosen.ok_or_else(|| anyhow!("no posture-aware net of the chosen size"))?;
+    let mut nets: Vec<PostureAware> = nets?.into_iter().flatten().collect();
+    let (distortion, lens_s) = lens?;
+    let mut sweep: Vec<HiddenRow> = nets.iter().flat_map(|a| a.sweep.clone()).collect();
     sweep.sort_by_key(|h| (h.postures, h.hidden));
-    aware.sweep = sweep;
+    let aware_s = sweep.iter().map(|h| h.seconds).sum();
+    let chosen =
+        |a: &PostureAware| (a.sweep[0].postures, a.sweep[0].hidden) == ("grid", study.hidden);
+    let k = nets.iter().position(chosen).ok_or_else(|| anyhow!("no 9-{}-3 net", study.hidden))?;
+    let aware = PostureAware { sweep, ..nets.swap_remove(k) };
     let seconds = [fixed_s, aware_s, lens_s];
     Ok(Posture { config: study.clone(), fixed, aware, distortion, seconds, stage_s, threads })
 }

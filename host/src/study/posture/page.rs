@@ -7,7 +7,7 @@ use super::{
     GOAL_RATIO, TERMS, WIDE_BOARD_U, WIDE_BOARD_V,
 };
 use crate::fmt::{join, pct, roman, span, stages, times};
-use crate::study::engine::{number_word, table_markdown, Align, Files, Progress, Study};
+use crate::study::engine::{number_word, Files, Progress, Study};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::Result;
 use hvs_shared::runtime::blob::{Family, OutputFrame};
@@ -170,17 +170,15 @@ fn bands_figure(r: &Posture) -> Figure {
         line(floor_name, at(|b| b.floor.z_pct), Style::Dashed, FLOOR_COLOR),
         line(goal_name(), at(|b| b.floor.z_pct * GOAL_RATIO), Style::Dashed, GOAL_COLOR),
     ];
-    let mut order = Vec::new();
-    for (i, b) in bands.iter().enumerate() {
-        let k = i + 1;
-        if i == 0 || bands[i - 1].term != b.term {
-            let n = bands.iter().filter(|c| c.term == b.term).count();
-            order.push(if n == 1 {
-                format!("{k} {}", b.term)
-            } else {
-                format!("{k}-{} {}", k + n - 1, b.term)
-            });
-        }
+    let (mut order, mut k) = (Vec::new(), 1);
+    for group in bands.chunk_by(|a, b| a.term == b.term) {
+        let (n, term) = (group.len(), group[0].term);
+        order.push(if n == 1 {
+            format!("{k} {term}")
+        } else {
+            format!("{k}-{} {term}", k + n - 1)
+        });
+        k += n;
     }
     let h = r.aware.sweep.iter().find(|h| h.hidden == c.hidden);
     let train = h.map_or(String::new(), |h| format!(" (training e_ma {:.2} %)", h.train_pct));
@@ -344,6 +342,15 @@ fn family_words(f: Family, frame: OutputFrame) -> String {
     format!("`{}` (outputs {outputs}{skip}{frame})", f.name())
 }
 
+/// `yes` if `c`, else `no`.
+fn pick(c: bool, yes: &str, no: &str) -> String {
+    (if c { yes } else { no }).to_string()
+}
+
+/// Why the floor grows with barrel distortion.
+const BARREL: &str = ": barrel distortion compresses the image edges, so a rounded pixel there \
+                      covers more of the scene";
+
 /// Rows of a markdown table (its head is in the template).
 fn md_rows<T>(items: &[T], row: impl Fn(&T) -> Vec<String>) -> String {
     join(items.iter().map(|x| format!("| {} |\n", row(x).join(" | "))), "")
@@ -494,6 +501,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         _ => String::new(),
     };
     let params = r.aware.blob.params.len();
+    let lens_heads = d0.map_or(&[][..], |d| &d.nets[..]);
     let range = PostureRange::WORKING.intervals();
     let working_range = join(
         TERMS.iter().zip(range).map(|(n, [lo, hi])| {
@@ -525,7 +533,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("worst_band", worst.map_or("-".to_string(), |w| w.band.clone())),
         ("goal_x", times(GOAL_RATIO)),
         ("worst_x", times(worst_x)),
-        ("goal_verdict", (if met { "met" } else { "missed" }).to_string()),
+        ("goal_verdict", pick(met, "met", "missed")),
         (
             "smallest",
             smallest_within_goal(r).map_or("none of the sweep".to_string(), |h| {
@@ -539,12 +547,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("fixed_points", c.fixed_points.to_string()),
         (
             "fixed_verdict",
-            if verged.0.z_pct > 10.0 * verged.1.z_pct {
-                "Vergence is what breaks the home-trained net:"
-            } else {
-                "Vergence degrades the home-trained net:"
-            }
-            .to_string(),
+            pick(verged.0.z_pct > 10.0 * verged.1.z_pct, "is what breaks", "degrades"),
         ),
         ("home_z", pct(home.0.z_pct)),
         ("home_x", format!("{:.1}", home.0.z_pct / home.1.z_pct)),
@@ -560,7 +563,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("extreme_points", c.extreme_points.to_string()),
         ("ratio_lo", format!("{ratio_lo:.2}")),
         ("ratio_hi", format!("{ratio_hi:.2}")),
-        ("goal_side", (if met { "inside" } else { "against" }).to_string()),
+        ("goal_side", pick(met, "inside", "against")),
         ("goal_ratio", format!("{GOAL_RATIO:.2}")),
         ("band_floor", pct_span(bands.iter().map(|b| b.floor.z_pct))),
         ("seed", c.seed.to_string()),
@@ -569,12 +572,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("train_depths", number_word(hvs_shared::sim::presets::TRAIN_DEPTHS.len())),
         (
             "dlt_verdict",
-            if dlt_1.z_pct > 1.5 * dlt_0.z_pct {
-                "The DLT, a linear camera model, degrades steadily as the lens bends the image:"
-            } else {
-                "The DLT changes little with the lens here:"
-            }
-            .to_string(),
+            pick(dlt_1.z_pct > 1.5 * dlt_0.z_pct, "degrades steadily", "changes little"),
         ),
         ("dlt_first", pct(dlt_0.z_pct)),
         ("k1_first", format!("{k1_0:.1}")),
@@ -583,16 +581,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("lens_nets", lens_nets),
         ("best_net_x", times(best_net / floor_1.z_pct)),
         ("floor_first", pct(floor_0.z_pct)),
-        (
-            "floor_why",
-            if floor_1.z_pct > 1.05 * floor_0.z_pct {
-                ": barrel distortion compresses the image edges, so a rounded pixel there covers \
-                 more of the scene"
-            } else {
-                ""
-            }
-            .to_string(),
-        ),
+        ("floor_why", pick(floor_1.z_pct > 1.05 * floor_0.z_pct, BARREL, "")),
         ("case_number", c.case.to_string()),
         ("family", family_words(c.family, c.frame)),
         ("restarts_count", c.restarts.to_string()),
@@ -601,14 +590,9 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         (
             "fixed_rows",
             md_rows(&r.fixed, |f| {
-                let ratio = format!("{:.1}", f.net.z_pct / f.floor.z_pct);
-                vec![
-                    f.label.clone(),
-                    pct(f.net.z_pct),
-                    pct(f.net.d3_pct),
-                    pct(f.floor.z_pct),
-                    ratio,
-                ]
+                let (n, fl) = (&f.net, &f.floor);
+                let ratio = format!("{:.1}", n.z_pct / fl.z_pct);
+                vec![f.label.clone(), pct(n.z_pct), pct(n.d3_pct), pct(fl.z_pct), ratio]
             }),
         ),
         (
@@ -635,29 +619,18 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ),
         ("board_width_pct", format!("{:.0}", WIDE_BOARD_U * 100.0)),
         ("board_height_pct", format!("{:.0}", WIDE_BOARD_V * 100.0 * 320.0 / 240.0)),
-        ("distortion_table", distortion_table(r)),
+        ("lens_heads", join(lens_heads.iter().map(|(h, _)| format!("net 4-{h}-3 | ")), "")),
+        ("lens_aligns", "---:|".repeat(lens_heads.len())),
+        (
+            "distortion_rows",
+            md_rows(&r.distortion, |d| {
+                let head = vec![format!("{:.1}", d.k1), format!("{:.1} px", d.max_shift_px)];
+                let nets = d.nets.iter().map(|(_, e)| pct(e.z_pct)).collect();
+                [head, nets, vec![pct(d.dlt.z_pct), pct(d.floor.z_pct)]].concat()
+            }),
+        ),
         ("seconds_a", format!("{:.1}", r.seconds[0])),
         ("seconds_b", format!("{:.1}", r.seconds[1])),
         ("seconds_c", format!("{:.1}", r.seconds[2])),
     ]
-}
-
-/// Table (c): every estimator per lens.
-fn distortion_table(r: &Posture) -> String {
-    let first = r.distortion.first().map_or(&[][..], |d| &d.nets[..]);
-    let nets: Vec<String> = first.iter().map(|(h, _)| format!("net 4-{h}-3")).collect();
-    let mut head = vec!["k1", "largest shift"];
-    head.extend(nets.iter().map(String::as_str));
-    head.extend(["DLT", "floor"]);
-    let rows: Vec<Vec<String>> = r
-        .distortion
-        .iter()
-        .map(|d| {
-            let mut row = vec![format!("{:.1}", d.k1), format!("{:.1} px", d.max_shift_px)];
-            row.extend(d.nets.iter().map(|(_, e)| pct(e.z_pct)));
-            row.extend([pct(d.dlt.z_pct), pct(d.floor.z_pct)]);
-            row
-        })
-        .collect();
-    table_markdown(&head, &vec![Align::Right; head.len()], &rows)
 }
