@@ -341,11 +341,8 @@ fn test_sets(
     cfg: &StudyConfig,
     head: &HeadRig,
 ) -> Result<(Vec<PostureSample>, Vec<PostureSample>)> {
-    let opt = PostureOptions {
-        sampling: Sampling::Random,
-        count: cfg.test_postures,
-        ..Default::default()
-    };
+    let count = cfg.test_postures;
+    let opt = PostureOptions { sampling: Sampling::Random, count, ..Default::default() };
     let random = posture::postures(&opt, cfg.seed.wrapping_add(11))?;
     let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(cfg.seed.wrapping_add(13));
     let extreme: Vec<Joints> = (0..cfg.extreme_points.max(1))
@@ -429,13 +426,8 @@ pub fn posture_aware_study(
     let out = train(&data, &tc).with_context(|| format!("training the 9-{hidden}-3 net"))?;
     let seconds = t0.elapsed().as_secs_f64();
     let bands = bands(&out.blob, &head, &test, &extreme);
-    let worst = bands.iter().map(BandRow::ratio).fold(0.0f64, |a, b| {
-        if b.is_nan() {
-            f64::INFINITY
-        } else {
-            a.max(b)
-        }
-    });
+    let nan_inf = |x: f64| if x.is_nan() { f64::INFINITY } else { x };
+    let worst = bands.iter().map(|b| nan_inf(b.ratio())).fold(0.0, f64::max);
     let row = HiddenRow {
         hidden,
         postures: if sampling == Sampling::Lattice { "lattice" } else { "grid" },

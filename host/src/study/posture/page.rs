@@ -51,6 +51,7 @@ impl Study for StudyConfig {
 // Figures
 
 const EMA_LABEL: &str = "depth e_ma (% of true depth)";
+const RATIO_LABEL: &str = "net e_ma / floor e_ma";
 const GOAL_COLOR: usize = 1;
 /// The gaze terms of the turning panels: index, legend, colour.
 const TURNS: [(usize, &str, usize); 4] =
@@ -153,12 +154,8 @@ fn bands_figure(r: &Posture) -> Figure {
         .zip(TERM_COLORS)
         .map(|(&term, color)| {
             let b = bands.iter().filter(|b| b.term == term);
-            line(
-                term,
-                (1..).zip(b).map(|(k, b)| (f64::from(k), b.ratio())),
-                Style::LinePoints,
-                color,
-            )
+            let xy = (1..).zip(b).map(|(k, b)| (f64::from(k), b.ratio()));
+            line(term, xy, Style::LinePoints, color)
         })
         .collect();
     ratios.push(level(goal_name(), [1.0, 3.0], GOAL_RATIO, GOAL_COLOR));
@@ -173,11 +170,8 @@ fn bands_figure(r: &Posture) -> Figure {
     let (mut order, mut k) = (Vec::new(), 1);
     for group in bands.chunk_by(|a, b| a.term == b.term) {
         let (n, term) = (group.len(), group[0].term);
-        order.push(if n == 1 {
-            format!("{k} {term}")
-        } else {
-            format!("{k}-{} {term}", k + n - 1)
-        });
+        let last = if n == 1 { String::new() } else { format!("-{}", k + n - 1) };
+        order.push(format!("{k}{last} {term}"));
         k += n;
     }
     let h = r.aware.sweep.iter().find(|h| h.hidden == c.hidden);
@@ -193,14 +187,12 @@ fn bands_figure(r: &Posture) -> Figure {
         c.extreme_points
     );
     let errors_x = format!("band: {}", order.join(", "));
+    let bands = |p: Panel| Panel { integer_x: true, ..p };
     Figure {
         title: format!("The posture-aware 9-{}-3 net per posture band vs. the floor", c.hidden),
         panels: vec![
-            Panel {
-                integer_x: true,
-                ..panel(ratio_title, ratio_x, "net e_ma / floor e_ma", ratios)
-            },
-            Panel { integer_x: true, ..panel(errors_title, errors_x, EMA_LABEL, errors) },
+            bands(panel(ratio_title, ratio_x, RATIO_LABEL, ratios)),
+            bands(panel(errors_title, errors_x, EMA_LABEL, errors)),
         ],
         // One panel a row: the band key under the second needs the width.
         cols: 1,
@@ -252,12 +244,7 @@ fn hidden_figure(r: &Posture) -> Figure {
         ),
         panels: vec![
             upper_right(panel("depth e_ma vs. hidden neurons", x, EMA_LABEL, errors)),
-            upper_right(panel(
-                "net / floor vs. hidden neurons",
-                x,
-                "net e_ma / floor e_ma",
-                ratios,
-            )),
+            upper_right(panel("net / floor vs. hidden neurons", x, RATIO_LABEL, ratios)),
         ],
         cols: 2,
     }
@@ -270,13 +257,8 @@ fn distortion_figure(r: &Posture) -> Figure {
     };
     let mut series = Vec::new();
     for (i, (h, _)) in d.first().map_or(&[][..], |d| &d.nets[..]).iter().enumerate() {
-        let y = at(&|row| row.nets.get(i).map_or(f64::NAN, |n| n.1.z_pct));
-        series.push(line(
-            format!("network 4-{h}-3"),
-            y.into_iter(),
-            Style::LinePoints,
-            NET_COLORS[i % 3],
-        ));
+        let xy = at(&|row| row.nets.get(i).map_or(f64::NAN, |n| n.1.z_pct));
+        series.push(line(format!("network 4-{h}-3"), xy, Style::LinePoints, NET_COLORS[i % 3]));
     }
     let floor_name = "optimal triangulation, true cameras and lenses (floor)";
     series.push(line("DLT fit + linear triangulation", at(&|d| d.dlt.z_pct), Style::LinePoints, 1));
@@ -398,37 +380,36 @@ fn hidden_sentence(r: &Posture) -> String {
     let (low, at) = (pct(best.test.z_pct), best.hidden);
     let mut s = match smallest_within_goal(r) {
         Some(h) => {
-            let mut s = format!(
+            let fewer = rows.iter().filter(|x| x.hidden < h.hidden);
+            let fewer =
+                join(fewer.map(|x| format!("{}: {}", x.hidden, times(x.worst_band_ratio))), ", ");
+            let more: Vec<&&HiddenRow> = rows.iter().filter(|x| x.hidden > h.hidden).collect();
+            let counts = join(more.iter().map(|x| x.hidden), ", ");
+            let (first, last) = (pct(rows[0].train_pct), pct(rows[rows.len() - 1].train_pct));
+            let more = if more.is_empty() {
+                String::new()
+            } else if more.iter().any(|x| x.test.z_pct < 0.98 * h.test.z_pct) {
+                format!("; more ({counts}) still lower the test error a little")
+            } else {
+                format!(
+                    "; more ({counts}) do not do better on this training set: the training error \
+                     keeps falling ({first} to {last}) while the test error does not (lowest, \
+                     {low}, at {at} hidden neurons)"
+                )
+            };
+            let fewer = pick(
+                !fewer.is_empty(),
+                &format!("; fewer miss it in the worst band ({fewer})"),
+                "",
+            );
+            format!(
                 "{} hidden neurons ({} parameters, {} bytes of weights) is the smallest count \
-                 within the goal in every band (worst band {} the floor)",
+                 within the goal in every band (worst band {} the floor){fewer}{more}.",
                 h.hidden,
                 h.params,
                 h.params * 4,
                 times(h.worst_band_ratio)
-            );
-            let smaller = rows.iter().filter(|x| x.hidden < h.hidden);
-            let smaller =
-                join(smaller.map(|x| format!("{}: {}", x.hidden, times(x.worst_band_ratio))), ", ");
-            if !smaller.is_empty() {
-                let _ = write!(s, "; fewer miss it in the worst band ({smaller})");
-            }
-            let larger: Vec<&&HiddenRow> = rows.iter().filter(|x| x.hidden > h.hidden).collect();
-            if !larger.is_empty() {
-                let counts = join(larger.iter().map(|x| x.hidden), ", ");
-                if larger.iter().any(|x| x.test.z_pct < 0.98 * h.test.z_pct) {
-                    let _ = write!(s, "; more ({counts}) still lower the test error a little");
-                } else {
-                    let (first, last) =
-                        (pct(rows[0].train_pct), pct(rows[rows.len() - 1].train_pct));
-                    let _ = write!(
-                        s,
-                        "; more ({counts}) do not do better on this training set: the training \
-                         error keeps falling ({first} to {last}) while the test error does not \
-                         (lowest, {low}, at {at} hidden neurons)"
-                    );
-                }
-            }
-            s + "."
+            )
         }
         None => format!(
             "No count of the sweep is within the goal in every band (best worst band: {} \
@@ -501,6 +482,10 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         _ => String::new(),
     };
     let params = r.aware.blob.params.len();
+    let smallest = smallest_within_goal(r)
+        .map_or("none of the sweep".into(), |h| format!("{} ({} parameters)", h.hidden, h.params));
+    let breaks = verged.0.z_pct > 10.0 * verged.1.z_pct;
+    let dlt_grows = dlt_1.z_pct > 1.5 * dlt_0.z_pct;
     let lens_heads = d0.map_or(&[][..], |d| &d.nets[..]);
     let range = PostureRange::WORKING.intervals();
     let working_range = join(
@@ -531,24 +516,15 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("all_x", times(all.0.z_pct / all.1.z_pct)),
         ("worst_term", worst.map_or("-", |w| w.term).to_string()),
         ("worst_band", worst.map_or("-".to_string(), |w| w.band.clone())),
-        ("goal_x", times(GOAL_RATIO)),
         ("worst_x", times(worst_x)),
         ("goal_verdict", pick(met, "met", "missed")),
-        (
-            "smallest",
-            smallest_within_goal(r).map_or("none of the sweep".to_string(), |h| {
-                format!("{} ({} parameters)", h.hidden, h.params)
-            }),
-        ),
+        ("smallest", smallest),
         ("k1_last", format!("{k1_1:.1}")),
         ("dlt_last", pct(dlt_1.z_pct)),
         ("best_net_last", pct(best_net)),
         ("floor_last", pct(floor_1.z_pct)),
         ("fixed_points", c.fixed_points.to_string()),
-        (
-            "fixed_verdict",
-            pick(verged.0.z_pct > 10.0 * verged.1.z_pct, "is what breaks", "degrades"),
-        ),
+        ("fixed_verdict", pick(breaks, "is what breaks", "degrades")),
         ("home_z", pct(home.0.z_pct)),
         ("home_x", format!("{:.1}", home.0.z_pct / home.1.z_pct)),
         ("turned_z", pct_span(turned.iter().map(|f| f.net.z_pct))),
@@ -570,10 +546,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("restarts", format!("{} restart{}", c.restarts, if c.restarts == 1 { "" } else { "s" })),
         ("hidden_sentence", hidden_sentence(r)),
         ("train_depths", number_word(hvs_shared::sim::presets::TRAIN_DEPTHS.len())),
-        (
-            "dlt_verdict",
-            pick(dlt_1.z_pct > 1.5 * dlt_0.z_pct, "degrades steadily", "changes little"),
-        ),
+        ("dlt_verdict", pick(dlt_grows, "degrades steadily", "changes little")),
         ("dlt_first", pct(dlt_0.z_pct)),
         ("k1_first", format!("{k1_0:.1}")),
         ("dlt_first_x", times(dlt_0.z_pct / floor_0.z_pct)),
@@ -629,8 +602,12 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
                 [head, nets, vec![pct(d.dlt.z_pct), pct(d.floor.z_pct)]].concat()
             }),
         ),
-        ("seconds_a", format!("{:.1}", r.seconds[0])),
-        ("seconds_b", format!("{:.1}", r.seconds[1])),
-        ("seconds_c", format!("{:.1}", r.seconds[2])),
+        (
+            "part_times",
+            join(
+                ["a", "b", "c"].iter().zip(r.seconds).map(|(p, s)| format!("({p}) {s:.1} s")),
+                ", ",
+            ),
+        ),
     ]
 }
