@@ -347,28 +347,24 @@ fn pct_span(v: impl Iterator<Item = f64>) -> String {
 fn settings(r: &Posture) -> String {
     let c = &r.config;
     let sweep = join(grid_sweep(r).iter().map(|h| h.hidden), ", ");
+    let (hidden, postures, points) = (c.hidden, r.aware.train_postures, c.test_points);
     if c.quick {
         return format!(
-            "**Reduced run (`--quick`, for tests):** {} training postures ({:?} cells per \
-             gaze term), a 9-{}-3 net, hidden neurons {sweep}, {} test points; the numbers show \
-             the shape of the study, not its accuracy. Run `hvs experiment posture` for the \
-             study's settings.",
-            r.aware.train_postures, c.train_levels, c.hidden, c.test_points
+            "**Reduced run (`--quick`, for tests):** {postures} training postures ({:?} cells per \
+             gaze term), a 9-{hidden}-3 net, hidden neurons {sweep}, {points} test points; the \
+             numbers show the shape of the study, not its accuracy. Run `hvs experiment posture` \
+             for the study's settings.",
+            c.train_levels
         );
     }
-    let lattice =
-        format!(" and the 9-{}-3 net trained on the regular lattice of postures", c.hidden);
+    let lattice = format!(" and the 9-{hidden}-3 net trained on the regular lattice of postures");
+    let lattice = if c.lattice { lattice.as_str() } else { "" };
+    let (seed, family, test_postures) = (c.seed, c.family.name(), c.test_postures);
     format!(
         "Settings: those of the tables in docs/posture-study.md (the study's defaults with the \
-         example's `--sweep`): seed {}, a 9-{}-3 net of family `{}` trained at {} postures, {} \
-         test points at {} random postures, hidden neurons {sweep}{}.",
-        c.seed,
-        c.hidden,
-        c.family.name(),
-        r.aware.train_postures,
-        c.test_points,
-        c.test_postures,
-        if c.lattice { lattice.as_str() } else { "" }
+         example's `--sweep`): seed {seed}, a 9-{hidden}-3 net of family `{family}` trained at \
+         {postures} postures, {points} test points at {test_postures} random postures, hidden \
+         neurons {sweep}{lattice}."
     )
 }
 
@@ -397,18 +393,13 @@ fn hidden_sentence(r: &Posture) -> String {
                      {low}, at {at} hidden neurons)"
                 )
             };
-            let fewer = pick(
-                !fewer.is_empty(),
-                &format!("; fewer miss it in the worst band ({fewer})"),
-                "",
-            );
+            let fewer_text = format!("; fewer miss it in the worst band ({fewer})");
+            let fewer = pick(!fewer.is_empty(), &fewer_text, "");
+            let (n, p, bytes, worst) =
+                (h.hidden, h.params, h.params * 4, times(h.worst_band_ratio));
             format!(
-                "{} hidden neurons ({} parameters, {} bytes of weights) is the smallest count \
-                 within the goal in every band (worst band {} the floor){fewer}{more}.",
-                h.hidden,
-                h.params,
-                h.params * 4,
-                times(h.worst_band_ratio)
+                "{n} hidden neurons ({p} parameters, {bytes} bytes of weights) is the smallest \
+                 count within the goal in every band (worst band {worst} the floor){fewer}{more}."
             )
         }
         None => format!(
@@ -427,17 +418,14 @@ fn hidden_sentence(r: &Posture) -> String {
         } else {
             "about the same"
         };
+        let (lx, lw) = (times(l.test.z_pct / l.floor.z_pct), times(l.worst_band_ratio));
+        let (gx, gw) = (times(g.test.z_pct / g.floor.z_pct), times(g.worst_band_ratio));
         let _ = write!(
             s,
             "\n\nTrained on the regular lattice of postures ({:?} values per term) instead of one \
-             random posture per cell, the 9-{}-3 net is {} the floor overall and {} in its worst \
-             band, against {} and {}: {verdict}.",
-            r.config.train_levels,
-            l.hidden,
-            times(l.test.z_pct / l.floor.z_pct),
-            times(l.worst_band_ratio),
-            times(g.test.z_pct / g.floor.z_pct),
-            times(g.worst_band_ratio),
+             random posture per cell, the 9-{}-3 net is {lx} the floor overall and {lw} in its \
+             worst band, against {gx} and {gw}: {verdict}.",
+            r.config.train_levels, l.hidden
         );
     }
     s
@@ -447,18 +435,12 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
     let c = &r.config;
     let nan = Errors { z_pct: f64::NAN, d3_pct: f64::NAN, ..Errors::default() };
     let home = r.fixed.iter().find(|f| f.label == "home").map_or((nan, nan), |f| (f.net, f.floor));
-    let verged = single_term(&r.fixed, 4)
-        .into_iter()
-        .filter(|v| v.0 > 0.0)
-        .max_by(|a, b| a.0.total_cmp(&b.0));
+    let verged = single_term(&r.fixed, 4).into_iter().filter(|v| v.0 > 0.0);
+    let verged = verged.max_by(|a, b| a.0.total_cmp(&b.0));
     let (verged_deg, verged) =
         verged.map_or((f64::NAN, (nan, nan)), |(v, f)| (v, (f.net, f.floor)));
-    let turned: Vec<&FixedRow> = TURNS
-        .iter()
-        .flat_map(|&(k, _, _)| single_term(&r.fixed, k))
-        .filter(|v| v.0 != 0.0)
-        .map(|v| v.1)
-        .collect();
+    let moved = TURNS.iter().flat_map(|&(k, _, _)| single_term(&r.fixed, k));
+    let turned: Vec<&FixedRow> = moved.filter(|v| v.0 != 0.0).map(|v| v.1).collect();
     let bands = &r.aware.bands;
     let all = bands.first().map_or((nan, nan), |b| (b.net, b.floor));
     let worst = bands.iter().max_by(|a, b| a.ratio().total_cmp(&b.ratio()));
@@ -471,33 +453,19 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
     let ((k1_0, dlt_0, floor_0), (k1_1, dlt_1, floor_1)) = (lens(d0), lens(d1));
     let best_net =
         d1.map_or(f64::NAN, |d| d.nets.iter().map(|n| n.1.z_pct).fold(f64::INFINITY, f64::min));
-    let lens_nets = match (d0, d1) {
-        (Some(a), Some(b)) => join(
-            a.nets
-                .iter()
-                .zip(&b.nets)
-                .map(|((h, a), (_, b))| format!("4-{h}-3 {} to {}", pct(a.z_pct), pct(b.z_pct))),
-            ", ",
-        ),
-        _ => String::new(),
-    };
+    let [nets0, nets1] = [d0, d1].map(|d| d.map_or(&[][..], |d| &d.nets[..]));
+    let lens_nets = nets0.iter().zip(nets1);
+    let lens_nets =
+        lens_nets.map(|((h, a), (_, b))| format!("4-{h}-3 {} to {}", pct(a.z_pct), pct(b.z_pct)));
     let params = r.aware.blob.params.len();
     let smallest = smallest_within_goal(r)
         .map_or("none of the sweep".into(), |h| format!("{} ({} parameters)", h.hidden, h.params));
     let breaks = verged.0.z_pct > 10.0 * verged.1.z_pct;
     let dlt_grows = dlt_1.z_pct > 1.5 * dlt_0.z_pct;
-    let lens_heads = d0.map_or(&[][..], |d| &d.nets[..]);
-    let range = PostureRange::WORKING.intervals();
-    let working_range = join(
-        TERMS.iter().zip(range).map(|(n, [lo, hi])| {
-            if lo == -hi {
-                format!("{n} +-{hi}")
-            } else {
-                format!("{n} {lo}-{hi}")
-            }
-        }),
-        ", ",
-    );
+    let range = TERMS.iter().zip(PostureRange::WORKING.intervals()).map(|(n, [lo, hi])| {
+        let span = if lo == -hi { format!("+-{hi}") } else { format!("{lo}-{hi}") };
+        format!("{n} {span}")
+    });
     vec![
         ("command", command(c)),
         ("total_s", format!("{total_s:.1}")),
@@ -531,7 +499,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("turned_3d", pct_span(turned.iter().map(|f| f.net.d3_pct))),
         ("fixed_floor", pct_span(r.fixed.iter().map(|f| f.floor.z_pct))),
         ("train_postures", r.aware.train_postures.to_string()),
-        ("working_range", working_range),
+        ("working_range", join(range, ", ")),
         ("train_levels", format!("{:?}", c.train_levels)),
         ("train_rows", r.aware.train_rows.to_string()),
         ("test_points", c.test_points.to_string()),
@@ -551,7 +519,7 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ("k1_first", format!("{k1_0:.1}")),
         ("dlt_first_x", times(dlt_0.z_pct / floor_0.z_pct)),
         ("dlt_last_x", times(dlt_1.z_pct / floor_1.z_pct)),
-        ("lens_nets", lens_nets),
+        ("lens_nets", join(lens_nets, ", ")),
         ("best_net_x", times(best_net / floor_1.z_pct)),
         ("floor_first", pct(floor_0.z_pct)),
         ("floor_why", pick(floor_1.z_pct > 1.05 * floor_0.z_pct, BARREL, "")),
@@ -592,8 +560,8 @@ fn values(r: &Posture, total_s: f64) -> Vec<(&'static str, String)> {
         ),
         ("board_width_pct", format!("{:.0}", WIDE_BOARD_U * 100.0)),
         ("board_height_pct", format!("{:.0}", WIDE_BOARD_V * 100.0 * 320.0 / 240.0)),
-        ("lens_heads", join(lens_heads.iter().map(|(h, _)| format!("net 4-{h}-3 | ")), "")),
-        ("lens_aligns", "---:|".repeat(lens_heads.len())),
+        ("lens_heads", join(nets0.iter().map(|(h, _)| format!("net 4-{h}-3 | ")), "")),
+        ("lens_aligns", "---:|".repeat(nets0.len())),
         (
             "distortion_rows",
             md_rows(&r.distortion, |d| {
