@@ -1,4 +1,4 @@
-//! Tests of the study library (`hvs_host::study`) through its public API, one module per
-//! study.
+//! Tests of the studies' library modules (`hvs_host::study`) through their public API, one
+//! module per study.
 
 mod posture;

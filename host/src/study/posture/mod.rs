@@ -516,9 +516,7 @@ pub fn distortion_study(cfg: &StudyConfig) -> Result<Vec<DistortionRow>> {
         for p in &test_pts {
             let Some(px) = project(p) else { continue };
             if let Ok(ideal) = plain.project_rounded(&j, p) {
-                for k in 0..4 {
-                    shift = shift.max((ideal[k] - px[k]).abs());
-                }
+                shift = (0..4).fold(shift, |m, k| m.max((ideal[k] - px[k]).abs()));
             }
             for (_, blob, acc) in &mut nets {
                 acc.add(p, net_xyz(blob, &px));
