@@ -3,5 +3,6 @@
 
 mod accuracy;
 mod engine;
+mod posture;
 mod template;
 mod thesis;
