@@ -53,6 +53,11 @@ impl Series {
             color,
         }
     }
+
+    /// A dashed horizontal line at `y` from `x0` to `x1` (a reference level).
+    pub fn level(name: impl Into<String>, [x0, x1]: [f64; 2], y: f64, color: usize) -> Self {
+        Series::new(name, &[x0, x1], &[y, y], Style::Dashed, color)
+    }
 }
 
 /// Where the legend goes (`UpperLeft`, `UpperRight`, `LowerRight`, `LowerLeft`, ...).
@@ -75,6 +80,21 @@ pub struct Panel {
     pub legend: Legend,
     /// Label only whole numbers on the x axis (e.g. case numbers, neuron counts).
     pub integer_x: bool,
+}
+
+impl Panel {
+    /// A panel with a linear y axis, the legend upper left and any x ticks (set the fields
+    /// for others).
+    pub fn new(
+        title: impl Into<String>,
+        x_label: impl Into<String>,
+        y_label: impl Into<String>,
+        series: Vec<Series>,
+    ) -> Self {
+        let (title, x_label, y_label) = (title.into(), x_label.into(), y_label.into());
+        let (log_y, legend, integer_x) = (false, Legend::UpperLeft, false);
+        Panel { title, x_label, y_label, log_y, series, legend, integer_x }
+    }
 }
 
 /// A grid of panels with a common title.

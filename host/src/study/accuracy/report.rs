@@ -9,7 +9,7 @@ use super::{
 use crate::fmt::{join, num, pct, roman, stages, times};
 use crate::sim::board::{Board, Pixels};
 use crate::study::engine::{table_markdown, Files, Progress, Study};
-use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
+use crate::study::plot::{Figure, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::Result;
 use std::fmt::Write as _;
 
@@ -135,15 +135,8 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
                 };
                 Series::new(name, &x, &y, style, color)
             });
-            panels.push(Panel {
-                title: format!("{} board ({} points)", board_words(board), 6 * board.len()),
-                x_label: x_label.into(),
-                y_label: y_label.into(),
-                log_y: false,
-                series: series.to_vec(),
-                legend: Legend::UpperLeft,
-                integer_x: false,
-            });
+            let title = format!("{} board ({} points)", board_words(board), 6 * board.len());
+            panels.push(Panel::new(title, x_label, y_label, series.to_vec()));
         }
     }
     Figure { title, panels, cols: 2 }

@@ -60,13 +60,6 @@ const TURNS: [(usize, &str, usize); 4] =
 const TERM_COLORS: [usize; 5] = [0, 2, 3, 4, 6];
 const NET_COLORS: [usize; 3] = [0, 2, 4];
 
-/// A panel with a linear y axis, the legend upper left and any x ticks.
-fn panel(title: impl Into<String>, x: impl Into<String>, y: &str, series: Vec<Series>) -> Panel {
-    let (title, x_label, y_label) = (title.into(), x.into(), y.into());
-    let (log_y, legend, integer_x) = (false, Legend::UpperLeft, false);
-    Panel { title, x_label, y_label, log_y, series, legend, integer_x }
-}
-
 /// A series of `(x, y)` points.
 fn line(
     name: impl Into<String>,
@@ -75,11 +68,6 @@ fn line(
     color: usize,
 ) -> Series {
     Series { name: name.into(), points: xy.into_iter().collect(), style, color }
-}
-
-/// A dashed horizontal line at `y` from `x0` to `x1`.
-fn level(name: impl Into<String>, [x0, x1]: [f64; 2], y: f64, color: usize) -> Series {
-    Series::new(name, &[x0, x1], &[y, y], Style::Dashed, color)
 }
 
 fn goal_name() -> String {
@@ -108,8 +96,12 @@ fn fixed_figure(r: &Posture) -> Figure {
         line(floor_name, at(|f| f.floor.z_pct), Style::Dashed, FLOOR_COLOR),
     ];
     let vergence_y = "error (% of true depth or distance)";
-    let vergence =
-        panel("vergence (neck, tilt and version at 0)", "vergence (deg)", vergence_y, vergence);
+    let vergence = Panel::new(
+        "vergence (neck, tilt and version at 0)",
+        "vergence (deg)",
+        vergence_y,
+        vergence,
+    );
     let turned: Vec<&FixedRow> =
         r.fixed.iter().filter(|f| PostureRange::gaze_terms(&f.joints)[4].abs() < 0.05).collect();
     let angles =
@@ -130,8 +122,8 @@ fn fixed_figure(r: &Posture) -> Figure {
             .collect();
         let (flo, fhi) = span(turned.iter().map(|f| value(&f.floor)));
         let name = format!("floor at these postures ({flo:.2}-{fhi:.2} %), mean");
-        series.push(level(name, [0.0, xmax], (flo + fhi) / 2.0, FLOOR_COLOR));
-        panel(title, "angle of the one moved term (deg)", y_label, series)
+        series.push(Series::level(name, [0.0, xmax], (flo + fhi) / 2.0, FLOOR_COLOR));
+        Panel::new(title, "angle of the one moved term (deg)", y_label, series)
     };
     let (case, points) = (roman(r.config.case), r.config.fixed_points);
     let title = format!(
@@ -158,8 +150,8 @@ fn bands_figure(r: &Posture) -> Figure {
             line(term, xy, Style::LinePoints, color)
         })
         .collect();
-    ratios.push(level(goal_name(), [1.0, 3.0], GOAL_RATIO, GOAL_COLOR));
-    ratios.push(level("the floor (1.00)", [1.0, 3.0], 1.0, FLOOR_COLOR));
+    ratios.push(Series::level(goal_name(), [1.0, 3.0], GOAL_RATIO, GOAL_COLOR));
+    ratios.push(Series::level("the floor (1.00)", [1.0, 3.0], 1.0, FLOOR_COLOR));
     let at = |f: fn(&BandRow) -> f64| (1..).zip(bands).map(move |(k, b)| (f64::from(k), f(b)));
     let floor_name = "optimal triangulation at the same postures (floor)";
     let errors = vec![
@@ -191,8 +183,8 @@ fn bands_figure(r: &Posture) -> Figure {
     Figure {
         title: format!("The posture-aware 9-{}-3 net per posture band vs. the floor", c.hidden),
         panels: vec![
-            bands(panel(ratio_title, ratio_x, RATIO_LABEL, ratios)),
-            bands(panel(errors_title, errors_x, EMA_LABEL, errors)),
+            bands(Panel::new(ratio_title, ratio_x, RATIO_LABEL, ratios)),
+            bands(Panel::new(errors_title, errors_x, EMA_LABEL, errors)),
         ],
         // One panel a row: the band key under the second needs the width.
         cols: 1,
@@ -220,8 +212,8 @@ fn hidden_figure(r: &Posture) -> Figure {
         line("test, random postures", at(&rows, |h| h.test.z_pct), Style::LinePoints, 0),
         line("training set", at(&rows, |h| h.train_pct), Style::LinePoints, 2),
         line(lattice_name, at(&lattice, |h| h.test.z_pct), Style::Points, 4),
-        level("floor on the test points", ends, floor, FLOOR_COLOR),
-        level(goal_name(), ends, floor * GOAL_RATIO, GOAL_COLOR),
+        Series::level("floor on the test points", ends, floor, FLOOR_COLOR),
+        Series::level(goal_name(), ends, floor * GOAL_RATIO, GOAL_COLOR),
     ];
     let ratios = vec![
         line(
@@ -232,7 +224,7 @@ fn hidden_figure(r: &Posture) -> Figure {
         ),
         line("worst posture band", at(&rows, |h| h.worst_band_ratio), Style::LinePoints, 3),
         line(lattice_name, at(&lattice, |h| h.worst_band_ratio), Style::Points, 4),
-        level(goal_name(), ends, GOAL_RATIO, GOAL_COLOR),
+        Series::level(goal_name(), ends, GOAL_RATIO, GOAL_COLOR),
     ];
     let x = "hidden neurons of the 9-H-3 net";
     let upper_right = |p: Panel| Panel { legend: Legend::UpperRight, integer_x: true, ..p };
@@ -243,8 +235,8 @@ fn hidden_figure(r: &Posture) -> Figure {
             r.aware.train_rows, r.aware.train_postures, r.config.test_points
         ),
         panels: vec![
-            upper_right(panel("depth e_ma vs. hidden neurons", x, EMA_LABEL, errors)),
-            upper_right(panel("net / floor vs. hidden neurons", x, RATIO_LABEL, ratios)),
+            upper_right(Panel::new("depth e_ma vs. hidden neurons", x, EMA_LABEL, errors)),
+            upper_right(Panel::new("net / floor vs. hidden neurons", x, RATIO_LABEL, ratios)),
         ],
         cols: 2,
     }
@@ -275,8 +267,8 @@ fn distortion_figure(r: &Posture) -> Figure {
             r.config.test_points
         ),
         panels: vec![
-            upper_right(panel("depth e_ma vs. k1", x, EMA_LABEL, series)),
-            upper_right(panel(shift_title, x, "displacement (px)", shift)),
+            upper_right(Panel::new("depth e_ma vs. k1", x, EMA_LABEL, series)),
+            upper_right(Panel::new(shift_title, x, "displacement (px)", shift)),
         ],
         cols: 2,
     }
