@@ -95,17 +95,10 @@ pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Result<Values>
         ("builtin_phi", Calibration::BUILT_IN.phi.to_string()),
         ("posture_link", if posture { phrase("posture_link", &link)? + "\n\n" } else { "".into() }),
     ];
-    let sections: [fn(&Thesis) -> Result<Values>; 8] = [
-        phi_values,
-        traditional_values,
-        net_case4_values,
-        sweep_values,
-        proposed_values,
-        fewer_values,
-        algo_values,
-        noise_values,
-    ];
-    for section in sections {
+    for section in [phi_values, traditional_values, net_case4_values, sweep_values] {
+        v.extend(section(t)?);
+    }
+    for section in [proposed_values, fewer_values, algo_values, noise_values] {
         v.extend(section(t)?);
     }
     Ok(v)
@@ -153,7 +146,7 @@ fn phi_values(t: &Thesis) -> Result<Values> {
 }
 
 fn traditional_values(t: &Thesis) -> Result<Values> {
-    let (mut glance, mut table) = (Vec::new(), Vec::new());
+    let (mut glance, mut table, mut within) = (Vec::new(), Vec::new(), Vec::new());
     for c in &t.traditional {
         let k = usize::from(c.case - 1);
         let th = reported::traditional_range(c.case).unwrap_or_default();
@@ -163,13 +156,10 @@ fn traditional_values(t: &Thesis) -> Result<Values> {
         glance.push(row([fig, th.clone(), ours.clone()]));
         let rig = LABELS[k].split(": ").nth(1).unwrap_or("");
         table.push(row([format!("{case} ({rig})"), th, ours, pct(c.optimal.worst())]));
+        if matches_thesis_traditional(c.case, c.traditional.best(), c.traditional.worst()) {
+            within.push(case);
+        }
     }
-    let within: Vec<&str> = t
-        .traditional
-        .iter()
-        .filter(|c| matches_thesis_traditional(c.case, c.traditional.best(), c.traditional.worst()))
-        .map(|c| roman(c.case))
-        .collect();
     let (k, n) = (within.len(), t.traditional.len());
     let count = if k == n { "all four".to_string() } else { format!("{k} of {n}") };
     let floor = t.traditional.iter().map(|c| c.optimal.worst()).fold(0.0, f64::max);
@@ -373,12 +363,10 @@ fn algo_values(t: &Thesis) -> Result<Values> {
     let (bt, lt) = (sum(Algo::Bp, |r| r.wall_s), sum(Algo::Lm, |r| r.wall_s));
     let (be, le) =
         (sum(Algo::Bp, |r| r.test_worst_pct) / 4.0, sum(Algo::Lm, |r| r.test_worst_pct) / 4.0);
-    let verdict = if (be - le).abs() < 0.25 * le {
-        "algo_close"
-    } else if be > le {
-        "algo_lm"
-    } else {
-        "algo_bp"
+    let verdict = match ((be - le).abs() < 0.25 * le, be > le) {
+        (true, _) => "algo_close",
+        (_, true) => "algo_lm",
+        _ => "algo_bp",
     };
     Ok(vec![
         ("bp_rate", bp.learning_rate.to_string()),
@@ -416,10 +404,8 @@ fn noise_values(t: &Thesis) -> Result<Values> {
         format!("{} {}-{}", roman(case), pct_value(a), pct(b))
     });
     let (lo_v, hi_v) = training_volume();
-    let volume_box = format!(
-        "X {}..{}, Y {}..{}, Z {}..{} cm",
-        lo_v[0], hi_v[0], lo_v[1], hi_v[1], lo_v[2], hi_v[2]
-    );
+    let range = |k: usize| format!("{}..{}", lo_v[k], hi_v[k]);
+    let volume_box = format!("X {}, Y {}, Z {} cm", range(0), range(1), range(2));
     Ok(vec![
         ("noise_repeats", t.config.noise_repeats().to_string()),
         ("volume_box", volume_box),

@@ -132,16 +132,13 @@ fn per_case_files(o: &mut Files, t: &Thesis, net: bool) -> Result<()> {
     } else {
         t.traditional.iter().map(|c| (c.case, &c.traditional, &c.optimal)).collect()
     };
-    let (stem, column, first_fig) = if net {
-        ("fig4_16_19_proposed", "network_pct", 16)
+    let (stem, column, first_fig, method, color, title) = if net {
+        let title = "The proposed net in cases I-IV (thesis Figs. 4.16-4.19)";
+        ("fig4_16_19_proposed", "network_pct", 16, "proposed 4-5-3 net", 0, title)
     } else {
-        ("fig4_08_11_traditional", "traditional_pct", 8)
-    };
-    let (title, method, color) = if net {
-        ("The proposed net in cases I-IV (thesis Figs. 4.16-4.19)", "proposed 4-5-3 net", 0)
-    } else {
+        let method = "traditional, eq. 3.1-17, one Phi";
         let title = "Traditional method vs. depth, cases I-IV (thesis Figs. 4.8-4.11)";
-        (title, "traditional, eq. 3.1-17, one Phi", 1)
+        ("fig4_08_11_traditional", "traditional_pct", 8, method, 1, title)
     };
     let rows = cases.iter().flat_map(|(case, c, f)| depth_rows(&[case.to_string()], &[c, f]));
     let head = format!("case,z_cm,{column},optimal_pct");
@@ -253,18 +250,14 @@ fn fewer_files(o: &mut Files, t: &Thesis) -> Result<()> {
 }
 
 fn algo_files(o: &mut Files, t: &Thesis) -> Result<()> {
-    let name = |a: Algo| match a {
-        Algo::Lm => "lm",
-        Algo::Bp => "bp",
-        Algo::Adam => "adam",
-    };
+    let name = |a: Algo| format!("{a:?}").to_lowercase();
     let head = "case,algorithm,train_pct,test_mean_pct,test_worst_depth_pct";
     o.rows("bp_vs_lm.csv", head, &t.algos, |r| {
         let v = [r.train_pct, r.test_mean_pct, r.test_worst_pct].map(num);
-        [r.case.to_string(), name(r.algo).to_string()].into_iter().chain(v).collect()
+        [r.case.to_string(), name(r.algo)].into_iter().chain(v).collect()
     })?;
     o.rows("bp_vs_lm_timing.csv", "case,algorithm,wall_s", &t.algos, |r| {
-        vec![r.case.to_string(), name(r.algo).to_string(), format!("{:.4}", r.wall_s)]
+        vec![r.case.to_string(), name(r.algo), format!("{:.4}", r.wall_s)]
     })?;
     let pick = |a: Algo, f: fn(&AlgoRow) -> f64| -> (Vec<f64>, Vec<f64>) {
         t.algos.iter().filter(|r| r.algo == a).map(|r| (r.case as f64, f(r))).unzip()
