@@ -26,6 +26,9 @@ const PHRASES: &str = include_str!("../../../templates/results_phrases.md");
 /// The posture study's page in the thesis' directory (`hvs experiment posture`'s default).
 pub const POSTURE_REPORT: &str = "posture/POSTURE.md";
 
+/// Points of one training board.
+const N_BOARD: usize = TRAIN_BOARD_X.len() * TRAIN_BOARD_Y.len();
+
 /// Page values, `(placeholder, text)`.
 type Values = Vec<(&'static str, String)>;
 
@@ -66,19 +69,18 @@ fn net_shape() -> String {
 pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Result<Values> {
     let cfg = &t.config;
     let case1 = presets::CASE_1;
-    let n_board = n_board();
     let quick = if cfg.quick { " --quick" } else { "" };
     let link = [("posture_report", POSTURE_REPORT.to_string())];
     let mut v: Values = vec![
         ("command", format!("hvs experiment thesis --seed {}{quick}", cfg.seed)),
         ("total_s", format!("{total_s:.1}")),
         ("threads", t.threads.to_string()),
-        ("board_points", n_board.to_string()),
+        ("board_points", N_BOARD.to_string()),
         ("board_x", join(TRAIN_BOARD_X, ", ")),
         ("board_y", join(TRAIN_BOARD_Y, ", ")),
         ("board_x_count", number_word(TRAIN_BOARD_X.len())),
         ("train_grid", depth_grid(&TRAIN_DEPTHS)),
-        ("train_points", (n_board * TRAIN_DEPTHS.len()).to_string()),
+        ("train_points", (N_BOARD * TRAIN_DEPTHS.len()).to_string()),
         ("test_xy_count", number_word(TEST_POINTS_XY.len())),
         ("test_x", signed_list(TEST_POINTS_XY.iter().map(|p| p[0]))),
         ("test_grid", depth_grid(&TEST_DEPTHS)),
@@ -191,12 +193,10 @@ fn net_case4_values(t: &Thesis) -> Result<Values> {
         })
         .collect();
     let twins_values = [("case", roman(GENERAL_CASE).into()), ("twins", twins.join(", and "))];
-    let (twins_sentence, twins_note) = if twins.is_empty() {
-        (phrase("twins_none", &[])?, String::new())
-    } else {
-        let note = twins.join("; ").replace(" has identical pixels at", "'s identical pixels at");
-        (phrase("twins_some", &twins_values)?, format!(" ({note})"))
-    };
+    let twins_sentence =
+        phrase(if twins.is_empty() { "twins_none" } else { "twins_some" }, &twins_values)?;
+    let note = twins.join("; ").replace(" has identical pixels at", "'s identical pixels at");
+    let twins_note = if twins.is_empty() { note } else { format!(" ({note})") };
     let above = p.net.pct.iter().zip(&p.optimal.pct).map(|(a, b)| a - b).fold(0.0, f64::max);
     let [th_lo, th_hi] = reported::NET_CASE4_PCT;
     // Fig. 4.13: the sweep's nets with the proposed shape.
@@ -310,7 +310,7 @@ fn fewer_values(t: &Thesis) -> Result<Values> {
     let (first, last) = (TRAIN_DEPTHS[0], TRAIN_DEPTHS[TRAIN_DEPTHS.len() - 1]);
     let (step, count) = (TRAIN_DEPTHS[1] - first, number_word(TRAIN_DEPTHS.len()));
     let all = format!("{first}-{last} step {step} (all {count})");
-    let points = (n_board() * TRAIN_DEPTHS.len()).to_string();
+    let points = (N_BOARD * TRAIN_DEPTHS.len()).to_string();
     table.push(row([all, points, format!("< {}", bound()), both(&p4.net), bp4]));
     let (two, four) = (&t.fewer[0], &t.fewer[FEWER_DEPTHS.len() - 1]);
     let th = reported::TWO_DEPTHS_MEAN_PCT;
@@ -340,10 +340,6 @@ fn fewer_values(t: &Thesis) -> Result<Values> {
     ])
 }
 
-fn n_board() -> usize {
-    TRAIN_BOARD_X.len() * TRAIN_BOARD_Y.len()
-}
-
 fn algo_row(t: &Thesis, case: u8, algo: Algo) -> Option<&AlgoRow> {
     t.algos.iter().find(|r| r.case == case && r.algo == algo)
 }
@@ -357,12 +353,10 @@ fn algo_values(t: &Thesis) -> Result<Values> {
         let times = [format!("{:.2} s", b.wall_s), format!("{:.3} s", l.wall_s)];
         Some(row([roman(case).to_string(), three(b), three(l), floor].into_iter().chain(times)))
     });
-    let sum = |a: Algo, f: fn(&AlgoRow) -> f64| -> f64 {
-        t.algos.iter().filter(|r| r.algo == a).map(f).sum::<f64>()
-    };
-    let (bt, lt) = (sum(Algo::Bp, |r| r.wall_s), sum(Algo::Lm, |r| r.wall_s));
-    let (be, le) =
-        (sum(Algo::Bp, |r| r.test_worst_pct) / 4.0, sum(Algo::Lm, |r| r.test_worst_pct) / 4.0);
+    let [(bt, be), (lt, le)] = [Algo::Bp, Algo::Lm].map(|a| {
+        let rs = t.algos.iter().filter(|r| r.algo == a);
+        (rs.clone().map(|r| r.wall_s).sum::<f64>(), rs.map(|r| r.test_worst_pct).sum::<f64>() / 4.0)
+    });
     let verdict = match ((be - le).abs() < 0.25 * le, be > le) {
         (true, _) => "algo_close",
         (_, true) => "algo_lm",

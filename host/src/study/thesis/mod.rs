@@ -9,6 +9,7 @@ pub mod report;
 
 use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
+use crate::fmt::mean;
 use crate::sim::sets::{simulate, Sample, SetKind, SimOptions};
 use crate::study::engine::{par_stage, timed, Progress};
 use crate::train::fallback;
@@ -20,6 +21,7 @@ use hvs_shared::runtime::traditional::{phi_estimate, Calibration};
 use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::metrics::EmaAcc;
 use hvs_shared::sim::presets;
+use std::collections::BTreeSet;
 use std::time::Instant;
 
 /// Depths of the Phi experiment (Figs. 4.3, 4.4), cm.
@@ -132,13 +134,11 @@ fn curve(test: &Dataset, z_hat: Vec<f64>) -> DepthCurve {
     }
 }
 
-/// A net trained on `set` by `tc` (`what` names errors): training e_ma (%), curve, wall time (s).
-fn net(
-    set: &Dataset,
-    test: &Dataset,
-    tc: &TrainConfig,
-    what: String,
-) -> Result<(f64, DepthCurve, f64)> {
+/// A trained net's training e_ma (%), curve on the test set and training wall time (s).
+type Trained = (f64, DepthCurve, f64);
+
+/// The net trained on `set` by `tc` (`what` names it in errors), tested on `test`.
+fn net(set: &Dataset, test: &Dataset, tc: &TrainConfig, what: String) -> Result<Trained> {
     let t = Instant::now();
     let out = train(set, tc).context(what)?;
     let wall_s = t.elapsed().as_secs_f64();
@@ -283,10 +283,7 @@ pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>
 
 /// The hidden-neuron counts present in `rows`, ascending.
 pub fn hidden_counts(rows: &[NetRow]) -> Vec<usize> {
-    let mut h: Vec<usize> = rows.iter().map(|r| r.hidden).collect();
-    h.sort_unstable();
-    h.dedup();
-    h
+    rows.iter().map(|r| r.hidden).collect::<BTreeSet<_>>().into_iter().collect()
 }
 
 /// The thesis' `e_ma_Hn`: the nets' mean worst per-depth e_ma per count of [`hidden_counts`].
@@ -300,14 +297,8 @@ pub fn mean_e_ma_hn(rows: &[NetRow], outputs: OutputKind) -> Vec<f64> {
 }
 
 fn per_hidden(rows: &[NetRow], outputs: OutputKind, f: impl Fn(&NetRow) -> f64) -> Vec<f64> {
-    hidden_counts(rows)
-        .iter()
-        .map(|&h| {
-            let v: Vec<f64> =
-                rows.iter().filter(|r| r.outputs == outputs && r.hidden == h).map(&f).collect();
-            v.iter().sum::<f64>() / v.len() as f64
-        })
-        .collect()
+    let of = |h| rows.iter().filter(move |r| r.outputs == outputs && r.hidden == h).map(&f);
+    hidden_counts(rows).into_iter().map(|h| mean(&of(h).collect::<Vec<_>>())).collect()
 }
 
 /// The proposed net by LM and by back-propagation trained at `depths` (cm) of case IV.
@@ -480,23 +471,4 @@ fn stage<T>(
     let out = timed(stage_s, name, f);
     progress.finish();
     out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn phi_points_are_symmetric_about_each_camera() {
-        let b = board_about(HALF_BASELINE_CM, 95.0);
-        let sum_xr: f64 = b.iter().map(|p| p[0] - HALF_BASELINE_CM).sum();
-        assert_eq!(sum_xr, 0.0);
-        assert!(b.iter().all(|p| p[2] == 95.0));
-        // On an ideal parallel rig without rounding, eq. 4.1-3 is exact.
-        let rig = Rig::parallel(300.0);
-        let pairs: Vec<_> = b.iter().map(|p| rig.project(p).map(|px| (px[0], px[2]))).collect();
-        let pairs: Vec<(f64, f64)> = pairs.into_iter().map(Result::unwrap).collect();
-        let phi = phi_estimate(&pairs, 95.0, HALF_BASELINE_CM).unwrap();
-        assert!((phi - 300.0).abs() < 1e-9, "{phi}");
-    }
 }

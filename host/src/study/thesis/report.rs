@@ -97,8 +97,6 @@ fn depth_rows(lead: &[String], curves: &[&DepthCurve]) -> Vec<Vec<String>> {
     curves[0].z.iter().enumerate().map(row).collect()
 }
 
-const PHI_Z: &str = "board depth Z (cm)";
-
 fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let head = "case,z_cm,phi_l_px,phi_r_px,true_phi_l_px,true_phi_r_px";
     o.rows("fig4_03_04_phi.csv", head, &t.phi, |r| {
@@ -111,8 +109,8 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let phi_panel = |fig: usize, which: &str, est: Vec<f64>, truth: f64, color: usize| {
         let est = line(format!("{which}, 12 symmetric points, rounded pixels"), &z, &est, color);
         let truth = level(format!("true {which} of the rig"), ends, truth, FLOOR_COLOR);
-        let (title, axes) =
-            (format!("Fig. 4.{fig}: {which} by eq. 4.1-3, case I"), (PHI_Z, "", false));
+        let title = format!("Fig. 4.{fig}: {which} by eq. 4.1-3, case I");
+        let axes = ("board depth Z (cm)", "", false);
         let p = panel(title, axes, false, Legend::LowerRight, vec![est, truth]);
         Panel { y_label: format!("{which} = k_u f (px)"), ..p }
     };
@@ -284,8 +282,6 @@ fn algo_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.figure("bp_vs_lm", &grid(title, vec![errors, times]))
 }
 
-const TRADITIONAL_REFIT: &str = "traditional (points with an estimate), Phi refitted";
-
 fn noise_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let head =
         "case,sigma_px,repeats,traditional_pct,traditional_no_estimate_pct,network_pct,optimal_pct";
@@ -297,9 +293,9 @@ fn noise_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let panels = (1..=4u8).map(|case| {
         let rs: Vec<_> = t.noise.iter().filter(|r| r.case == case).collect();
         let col = |f: fn(&NoiseRow) -> f64| rs.iter().map(|r| f(r)).collect::<Vec<f64>>();
-        let s = col(|r| r.sigma);
+        let (s, trad) = (col(|r| r.sigma), col(|r| r.traditional_pct));
         let series = vec![
-            line(TRADITIONAL_REFIT, &s, &col(|r| r.traditional_pct), 1),
+            line("traditional (points with an estimate), Phi refitted", &s, &trad, 1),
             line("proposed net", &s, &col(|r| r.network_pct), 0),
             floor(&s, &col(|r| r.optimal_pct)),
         ];
