@@ -48,14 +48,8 @@ fn bound() -> String {
     format!("{} %", reported::NET_BOUND_PCT)
 }
 
-/// A markdown table row of `cells`.
 fn row<S: ToString>(cells: impl IntoIterator<Item = S>) -> String {
     format!("| {} |", join(cells.into_iter().map(|c| c.to_string()), " | "))
-}
-
-/// Table rows, one a line.
-fn rows(v: impl IntoIterator<Item = String>) -> String {
-    join(v, "\n")
 }
 
 /// The proposed net's shape, `4-5-3`: the default `hvs train` net.
@@ -64,8 +58,7 @@ fn net_shape() -> String {
     format!("4-{}-{}", tc.hidden, tc.outputs.len())
 }
 
-/// The values of `RESULTS.md`'s placeholders for a run that took `total_s` seconds;
-/// `posture`: link the posture report.
+/// The page's placeholder values for a run of `total_s` s; `posture`: link the posture report.
 pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Result<Values> {
     let cfg = &t.config;
     let case1 = presets::CASE_1;
@@ -107,16 +100,13 @@ pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Result<Values>
 }
 
 fn phi_values(t: &Thesis) -> Result<Values> {
-    let [l1, r1, l2, r2] = [(1, true), (1, false), (2, true), (2, false)]
-        .map(|(case, left)| phi_stats(&t.phi, case, left));
-    let table = [(1u8, "Phi_L", l1), (1, "Phi_R", r1), (2, "Phi_L", l2), (2, "Phi_R", r2)].map(
-        |(case, which, s)| {
-            let (mean, truth, bias) = (s.mean, s.truth, s.bias_pct());
-            let (dev, sd) = (s.max_dev_pct, s.sd_pct);
-            let fixed = format!("{mean:.3} | {truth:.3} | {bias:+.3} % | {dev:.3} % | {sd:.3} %");
-            row([roman(case), which, fixed.as_str()])
-        },
-    );
+    let which = [(1u8, "Phi_L"), (1, "Phi_R"), (2, "Phi_L"), (2, "Phi_R")];
+    let [l1, r1, l2, r2] = which.map(|(case, w)| phi_stats(&t.phi, case, w == "Phi_L"));
+    let table = which.iter().zip([l1, r1, l2, r2]).map(|(&(case, w), s)| {
+        let (mean, truth, bias, dev, sd) = (s.mean, s.truth, s.bias_pct(), s.max_dev_pct, s.sd_pct);
+        let fixed = format!("{mean:.3} | {truth:.3} | {bias:+.3} % | {dev:.3} % | {sd:.3} %");
+        row([roman(case), w, fixed.as_str()])
+    });
     // The far boards of the Phi experiment: the last two depths.
     let far = &PHI_DEPTHS[PHI_DEPTHS.len() - 2..];
     let d = presets::CASE_1.half_baseline;
@@ -139,7 +129,7 @@ fn phi_values(t: &Thesis) -> Result<Values> {
         ("case2_phi_l", format!("{:.1}", l2.truth)),
         ("case2_phi_r", format!("{:.1}", r2.truth)),
         ("case2_phi_r_dev", format!("{:.2}", r2.max_dev_pct)),
-        ("phi_rows", rows(table)),
+        ("phi_rows", join(table, "\n")),
         ("far_depths", join(far, "-")),
         ("far_disparity", format!("{far_disp:.0}")),
         ("half_px_pct", format!("{:.1}", 50.0 / far_disp)),
@@ -166,8 +156,8 @@ fn traditional_values(t: &Thesis) -> Result<Values> {
     let count = if k == n { "all four".to_string() } else { format!("{k} of {n}") };
     let floor = t.traditional.iter().map(|c| c.optimal.worst()).fold(0.0, f64::max);
     Ok(vec![
-        ("glance_traditional_rows", rows(glance)),
-        ("traditional_rows", rows(table)),
+        ("glance_traditional_rows", join(glance, "\n")),
+        ("traditional_rows", join(table, "\n")),
         ("trad_within", if within.is_empty() { "none".to_string() } else { within.join(", ") }),
         ("trad_within_count", count),
         ("trad_floor_worst", pct(floor)),
@@ -180,17 +170,12 @@ fn net_case4_values(t: &Thesis) -> Result<Values> {
     let table = (p.net.z.iter().enumerate())
         .map(|(k, z)| row([z.to_string(), pct(p.net.pct[k]), pct(p.optimal.pct[k])]));
     let wz = worst_depth(&p.optimal);
-    // Test points that have the same pixels at two neighbouring depths, one of them the
-    // floor's worst.
-    let twins: Vec<String> = TEST_POINTS_XY
-        .iter()
-        .enumerate()
-        .flat_map(|(k, xy)| {
-            identical_pixel_depths(&rig, *xy, &TEST_DEPTHS)
-                .into_iter()
-                .filter(|(a, b)| *a == wz || *b == wz)
-                .map(move |(a, b)| format!("P{} has identical pixels at {a} and {b} cm", k + 1))
-        })
+    // Test points with the same pixels at two neighbouring depths, one of them the floor's worst.
+    let at = |xy| identical_pixel_depths(&rig, xy, &TEST_DEPTHS);
+    let twins: Vec<String> = ((1..).zip(TEST_POINTS_XY))
+        .flat_map(|(k, xy)| at(xy).into_iter().map(move |d| (k, d)))
+        .filter(|(_, (a, b))| *a == wz || *b == wz)
+        .map(|(k, (a, b))| format!("P{k} has identical pixels at {a} and {b} cm"))
         .collect();
     let twins_values = [("case", roman(GENERAL_CASE).into()), ("twins", twins.join(", and "))];
     let twins_sentence =
@@ -206,7 +191,7 @@ fn net_case4_values(t: &Thesis) -> Result<Values> {
     let (mlo, mhi) = span(ten.iter().map(|r| r.test_mean_pct));
     let below = ten.iter().filter(|r| r.test_worst_pct < reported::NET_BOUND_PCT).count();
     Ok(vec![
-        ("net_case4_rows", rows(table)),
+        ("net_case4_rows", join(table, "\n")),
         ("th_net_case4", format!("{th_lo} .. {th_hi} %")),
         ("th_net_case4_worst", th_hi.to_string()),
         ("net_case4_best", pct(p.net.best())),
@@ -243,7 +228,7 @@ fn sweep_values(t: &Thesis) -> Result<Values> {
     let best = |e: &[f64]| hs.get(argmin(e)).copied().unwrap_or(0).to_string();
     Ok(vec![
         ("nets", t.config.nets().to_string()),
-        ("hidden_rows", rows(table)),
+        ("hidden_rows", join(table, "\n")),
         ("hidden_counts", join(&hs, ", ")),
         ("hn_one", pct(mean(&z1))),
         ("hn_three", pct(mean(&x3))),
@@ -285,7 +270,7 @@ fn proposed_values(t: &Thesis) -> Result<Values> {
         .map(|r| format!("{:.2}", r.network_pct / r.optimal_pct));
     let glance = t.proposed.iter().map(|p| format!("{} {}", roman(p.case), pct(p.net.worst())));
     Ok(vec![
-        ("proposed_rows", rows(table)),
+        ("proposed_rows", join(table, "\n")),
         ("proposed_worst", join(glance, ", ")),
         ("proposed_bound_sentence", bound_sentence),
         ("proposed_floor_sentence", floor_sentence),
@@ -330,7 +315,7 @@ fn fewer_values(t: &Thesis) -> Result<Values> {
     let means =
         t.fewer.iter().map(|f| format!("{} depths: mean {}", f.depths.len(), pct(f.net.mean)));
     Ok(vec![
-        ("fewer_rows", rows(table)),
+        ("fewer_rows", join(table, "\n")),
         ("fewer_two_mean", pct(two.net.mean)),
         ("fewer_four_mean", pct(four.net.mean)),
         ("fewer_why", phrase(why, &values)?),
@@ -366,7 +351,7 @@ fn algo_values(t: &Thesis) -> Result<Values> {
         ("bp_rate", bp.learning_rate.to_string()),
         ("bp_e_max", bp.e_max.to_string()),
         ("bp_cycles", bp.max_cycles.to_string()),
-        ("algo_rows", rows(table)),
+        ("algo_rows", join(table, "\n")),
         ("lm_worst_mean", pct(le)),
         ("bp_worst_mean", pct(be)),
         ("floor_worst_mean", pct(t.proposed.iter().map(|p| p.optimal.worst()).sum::<f64>() / 4.0)),
@@ -388,11 +373,9 @@ fn noise_values(t: &Thesis) -> Result<Values> {
     });
     let (lo, hi) = span(t.noise.iter().map(|r| r.network_pct / r.optimal_pct));
     let top = levels[levels.len() - 1];
-    let at = |case: u8, sigma: f64| t.noise.iter().find(|r| r.case == case && r.sigma == sigma);
-    let grow = match (at(1, 0.0), at(1, top)) {
-        (Some(a), Some(b)) => b.optimal_pct / a.optimal_pct,
-        _ => f64::NAN,
-    };
+    let case1 = t.noise.iter().filter(|r| r.case == 1);
+    let floor = |s: f64| case1.clone().find(|r| r.sigma == s).map_or(f64::NAN, |r| r.optimal_pct);
+    let grow = floor(top) / floor(0.0);
     let trad = (1..=4u8).map(|case| {
         let (a, b) = span(t.noise.iter().filter(|r| r.case == case).map(|r| r.traditional_pct));
         format!("{} {}-{}", roman(case), pct_value(a), pct(b))
@@ -403,7 +386,7 @@ fn noise_values(t: &Thesis) -> Result<Values> {
     Ok(vec![
         ("noise_repeats", t.config.noise_repeats().to_string()),
         ("volume_box", volume_box),
-        ("noise_rows", rows(table)),
+        ("noise_rows", join(table, "\n")),
         ("noise_ratio_lo", format!("{lo:.2}")),
         ("noise_ratio_hi", format!("{hi:.2}")),
         ("noise_floor_growth", format!("{grow:.1}")),

@@ -1,5 +1,5 @@
 //! `hvs experiment thesis`: the thesis' chapter 4 on the four preset rigs, plus three
-//! experiments it did not run; [`run`] computes, [`report::write`] writes the files.
+//! experiments it did not run; [`run`] computes, the `Study` impl of [`Config`] writes the files.
 //! Every random step takes a seed derived from [`Config::seed`] and results are collected in a
 //! fixed order, so the same seed gives the same CSV bytes; only the wall times vary.
 
@@ -12,8 +12,7 @@ use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths
 use crate::fmt::mean;
 use crate::sim::sets::{simulate, Sample, SetKind, SimOptions};
 use crate::study::engine::{par_stage, timed, Progress};
-use crate::train::fallback;
-use crate::train::{train, Algo, BpParams, TrainConfig};
+use crate::train::{fallback, train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, OutputKind};
 use hvs_shared::runtime::gaze::HALF_BASELINE_CM;
@@ -124,7 +123,6 @@ impl DepthCurve {
     }
 }
 
-/// The per-depth curve of the estimates `z_hat` against the truth of `test`.
 fn curve(test: &Dataset, z_hat: Vec<f64>) -> DepthCurve {
     let ev = evaluate(test, &[Method { name: String::new(), z: z_hat }]);
     DepthCurve {
@@ -157,7 +155,6 @@ fn rig(case: u8) -> Result<Rig> {
     presets::case(case).ok_or_else(|| anyhow!("no case {case}"))
 }
 
-/// The rounded pixels of the point `p` (cm) in `r`'s cameras.
 fn pixels(r: &Rig, p: [f64; 3]) -> Result<[f64; 4]> {
     r.project_rounded(&p).map_err(|e| anyhow!("point {p:?} has no image: {e:?}"))
 }
@@ -198,8 +195,7 @@ pub fn phi() -> Result<Vec<PhiRow>> {
                 let pairs = px.into_iter().collect::<Result<Vec<_>>>()?;
                 phi_estimate(&pairs, z, d).map_err(|e| anyhow!("case {case}, Z = {z} cm: {e}"))
             };
-            let (phi_l, phi_r) = (est(d)?, est(-d)?);
-            let (true_l, true_r) = (r.phi_u_left, r.phi_u_right);
+            let (phi_l, phi_r, true_l, true_r) = (est(d)?, est(-d)?, r.phi_u_left, r.phi_u_right);
             rows.push(PhiRow { case, z, phi_l, phi_r, true_l, true_r });
         }
     }
@@ -249,8 +245,7 @@ pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCas
         .collect()
 }
 
-/// One net of the hidden-neuron sweep (case IV): shape, 0-based number, seed, and training,
-/// mean and worst per-depth test e_ma (%; the worst is the net's error in the thesis' sense).
+/// One net of the case IV sweep: shape, 0-based number, seed, training/mean/worst-depth e_ma (%).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NetRow {
     pub outputs: OutputKind,
@@ -327,8 +322,7 @@ pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDe
             let (_, bp, _) =
                 net(&set, &test, &bp_tc, format!("training depths {depths:?}, back-propagation"))?;
             progress.inc();
-            let (depths, points) = (depths.to_vec(), set.len());
-            Ok(FewerDepths { depths, points, net: net_curve, bp })
+            Ok(FewerDepths { depths: depths.to_vec(), points: set.len(), net: net_curve, bp })
         })
         .collect()
 }
@@ -361,8 +355,8 @@ pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
     Ok(rows)
 }
 
-/// One noise level sigma (px) of one case, e_ma means over `repeats` draws (%): traditional
-/// (refitted Phi; `traditional_missing_pct` of the points get none), the net and the floor.
+/// One noise sigma (px) of a case, e_ma means over `repeats` draws (%): traditional (refitted
+/// Phi; `traditional_missing_pct` of the points get none), the net and the floor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoiseRow {
     pub case: u8,
@@ -395,10 +389,9 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
             let boards = sim(SetKind::Train, 0, TAG_NOISE_TRAIN)?;
             let test = sim(SetKind::Volume, cfg.volume_points(), TAG_NOISE_TEST)?;
             let (_, c, _) = net(&boards, &test, &tc, format!("case {case}, noise {sigma} px"))?;
-            let trad = match fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0) {
-                Some(f) => traditional_depths(&f.calibration, &test),
-                None => vec![f64::NAN; test.len()],
-            };
+            let fit = fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0);
+            let nan = vec![f64::NAN; test.len()];
+            let trad = fit.map_or(nan, |f| traditional_depths(&f.calibration, &test));
             // The traditional method over the points it answers for (the others are
             // counted): one zero disparity would make its mean infinite.
             let mut acc = EmaAcc::default();
@@ -407,9 +400,8 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
             }
             missing += trad.iter().filter(|zh| !zh.is_finite()).count();
             points += test.len();
-            sums[0] += acc.e_ma_pct();
-            sums[1] += c.mean;
-            sums[2] += curve(&test, optimal_depths(&r, &test)).mean;
+            let floor = curve(&test, optimal_depths(&r, &test)).mean;
+            sums = [sums[0] + acc.e_ma_pct(), sums[1] + c.mean, sums[2] + floor];
         }
         let [traditional_pct, network_pct, optimal_pct] = sums.map(|s| s / repeats as f64);
         let traditional_missing_pct = missing as f64 / points as f64 * 100.0;
@@ -445,9 +437,7 @@ pub struct Thesis {
 pub fn run(cfg: &Config, progress: &dyn Progress) -> Result<Thesis> {
     let mut s = Vec::new();
     let (phi, traditional) = stage(progress, &mut s, "Figs. 4.3-4.11", 2, || {
-        let phi = phi()?;
-        progress.inc();
-        Ok((phi, traditional().inspect(|_| progress.inc())?))
+        Ok((phi().inspect(|_| progress.inc())?, traditional().inspect(|_| progress.inc())?))
     })?;
     let proposed = stage(progress, &mut s, "Figs. 4.12, 4.16-4.19", 4, || proposed(cfg, progress))?;
     let sweep = timed(&mut s, SWEEP, || hidden_sweep(cfg, progress))?;

@@ -2,8 +2,8 @@
 //! equal bytes) and one plot (SVG and PNG) per experiment, and `RESULTS.md`.
 
 use super::markdown::{results_values, POSTURE_REPORT, TEMPLATE};
-use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Config, DepthCurve, NetRow, NoiseRow};
-use super::{Thesis, GENERAL_CASE, PHI_DEPTHS};
+use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Config, DepthCurve, FewerDepths};
+use super::{NetRow, NoiseRow, Thesis, GENERAL_CASE, PHI_DEPTHS};
 use crate::fmt::{join, num, roman};
 use crate::study::engine::{Files, Progress, Study};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
@@ -13,8 +13,7 @@ use anyhow::Result;
 use hvs_shared::runtime::blob::OutputKind;
 use hvs_shared::sim::presets::TEST_DEPTHS;
 
-/// The stems of the files [`write()`] produces (each as `.csv`, `.svg`, `.png`), besides
-/// `bp_vs_lm_timing.csv` and `RESULTS.md`.
+/// The file stems, each as `.csv`, `.svg`, `.png` (besides `bp_vs_lm_timing.csv`, `RESULTS.md`).
 pub const STEMS: [&str; 9] = [
     "fig4_03_04_phi",
     "fig4_08_11_traditional",
@@ -27,20 +26,6 @@ pub const STEMS: [&str; 9] = [
     "noise",
 ];
 
-/// Writes every CSV, plot and `RESULTS.md`; `total_s` is the run's wall time.
-pub fn write(o: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
-    phi_files(o, t)?;
-    per_case_files(o, t, false)?;
-    net_case4_files(o, t)?;
-    sweep_files(o, t)?;
-    per_case_files(o, t, true)?;
-    fewer_files(o, t)?;
-    algo_files(o, t)?;
-    noise_files(o, t)?;
-    let values = results_values(t, total_s, o.dir().join(POSTURE_REPORT).is_file())?;
-    o.page("RESULTS.md", "host/templates/results.md", TEMPLATE, &values)
-}
-
 impl Study for Config {
     type Results = Thesis;
     fn page(&self) -> &'static str {
@@ -52,8 +37,18 @@ impl Study for Config {
     fn compute(&self, progress: &dyn Progress) -> Result<(usize, Thesis)> {
         super::run(self, progress).map(|t| (t.threads, t))
     }
-    fn write(&self, files: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
-        write(files, t, total_s)
+    /// Writes every CSV, plot and `RESULTS.md`; `total_s` is the run's wall time.
+    fn write(&self, o: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
+        phi_files(o, t)?;
+        per_case_files(o, t, false)?;
+        net_case4_files(o, t)?;
+        sweep_files(o, t)?;
+        per_case_files(o, t, true)?;
+        fewer_files(o, t)?;
+        algo_files(o, t)?;
+        noise_files(o, t)?;
+        let values = results_values(t, total_s, o.dir().join(POSTURE_REPORT).is_file())?;
+        o.page("RESULTS.md", "host/templates/results.md", TEMPLATE, &values)
     }
 }
 
@@ -77,7 +72,6 @@ fn line(name: impl Into<String>, x: &[f64], y: &[f64], color: usize) -> Series {
     Series::new(name, x, y, Style::LinePoints, color)
 }
 
-/// A dashed horizontal line at `y` from `x0` to `x1`.
 fn level(name: impl Into<String>, [x0, x1]: [f64; 2], y: f64, color: usize) -> Series {
     Series::new(name, &[x0, x1], &[y, y], Style::Dashed, color)
 }
@@ -122,8 +116,7 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.figure("fig4_03_04_phi", &grid(title, panels))
 }
 
-/// Figs. 4.8-4.11 (the traditional method) or, with `net`, 4.16-4.19 (the proposed net): the
-/// CSV `case,z_cm,<method>,optimal_pct` and one panel per case of the method and the floor.
+/// Figs. 4.8-4.11 (traditional) or, with `net`, 4.16-4.19 (the net): CSV and a panel per case.
 fn per_case_files(o: &mut Files, t: &Thesis, net: bool) -> Result<()> {
     let cases: Vec<(u8, &DepthCurve, &DepthCurve)> = if net {
         t.proposed.iter().map(|c| (c.case, &c.net, &c.optimal)).collect()
@@ -205,13 +198,12 @@ fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
         let three = line(format!("three outputs (X, Y, Z){}", figs[1]), &h, &xyz, 0);
         panel(title, HIDDEN, false, Legend::UpperRight, vec![one, three, fl])
     };
+    let fl = |name, y| level(name, [1.0, 10.0], y, FLOOR_COLOR);
+    let title = "e_ma_Hn: mean over the nets of their worst per-depth e_ma";
     let figs = [", Fig. 4.14", ", Fig. 4.15"];
-    let fl = level(WORST_FLOOR, [1.0, 10.0], opt.worst(), FLOOR_COLOR);
-    let worst =
-        of_nets("e_ma_Hn: mean over the nets of their worst per-depth e_ma", e_ma_hn, figs, fl);
+    let worst = of_nets(title, e_ma_hn, figs, fl(WORST_FLOOR, opt.worst()));
     let title = "mean over the nets of their mean test e_ma (all 22 points)";
-    let fl = level(MEAN_FLOOR, [1.0, 10.0], opt.mean, FLOOR_COLOR);
-    let mean = of_nets(title, mean_e_ma_hn, ["", ""], fl);
+    let mean = of_nets(title, mean_e_ma_hn, ["", ""], fl(MEAN_FLOOR, opt.mean));
     let title = format!(
         "e_ma vs. hidden neurons, one output (Z) vs. three (X, Y, Z), case IV, {} nets each (thesis Figs. 4.14, 4.15)",
         t.config.nets()
@@ -221,10 +213,8 @@ fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
 
 fn fewer_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let full = &t.proposed[usize::from(GENERAL_CASE - 1)];
-    let rows = t
-        .fewer
-        .iter()
-        .flat_map(|f| depth_rows(&[join(&f.depths, " "), f.points.to_string()], &[&f.net, &f.bp]));
+    let lead = |f: &FewerDepths| [join(&f.depths, " "), f.points.to_string()];
+    let rows = t.fewer.iter().flat_map(|f| depth_rows(&lead(f), &[&f.net, &f.bp]));
     let head = "training_depths_cm,training_points,z_cm,network_lm_pct,network_bp_pct";
     o.csv("fig4_20_22_fewer_depths.csv", head, &rows.collect::<Vec<_>>())?;
     let fewer_panel = |title: &str, bp: bool| {
