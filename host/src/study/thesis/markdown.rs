@@ -2,7 +2,7 @@
 //! results: `results_phrases.md`); this module computes every value it names and fills it in.
 
 use super::facts::*;
-use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, DepthCurve, Thesis};
+use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, DepthCurve, FewerDepths, Thesis};
 use super::{FEWER_DEPTHS, GENERAL_CASE, PHI_DEPTHS};
 use crate::fmt::{join, mean, pct, pct_value, roman, span, stages};
 use crate::sim::sets::training_volume;
@@ -283,12 +283,11 @@ fn proposed_values(t: &Thesis) -> Result<Values> {
 fn fewer_values(t: &Thesis) -> Result<Values> {
     let p4 = &t.proposed[usize::from(GENERAL_CASE - 1)];
     let both = |c: &DepthCurve| format!("{} / {}", pct(c.mean), pct(c.worst()));
-    let mut table: Vec<String> = (t.fewer.iter())
-        .map(|f| {
-            let th = reported::fewer_depths(f.depths.len());
-            row([join(&f.depths, ", "), f.points.to_string(), th, both(&f.net), both(&f.bp)])
-        })
-        .collect();
+    let fewer_row = |f: &FewerDepths| {
+        let th = reported::fewer_depths(f.depths.len());
+        row([join(&f.depths, ", "), f.points.to_string(), th, both(&f.net), both(&f.bp)])
+    };
+    let mut table: Vec<String> = t.fewer.iter().map(fewer_row).collect();
     let bp4 = algo_row(t, GENERAL_CASE, Algo::Bp).map_or("-".to_string(), |r| {
         format!("{} / {}", pct(r.test_mean_pct), pct(r.test_worst_pct))
     });

@@ -118,18 +118,15 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
 
 /// Figs. 4.8-4.11 (traditional) or, with `net`, 4.16-4.19 (the net): CSV and a panel per case.
 fn per_case_files(o: &mut Files, t: &Thesis, net: bool) -> Result<()> {
-    let cases: Vec<(u8, &DepthCurve, &DepthCurve)> = if net {
-        t.proposed.iter().map(|c| (c.case, &c.net, &c.optimal)).collect()
-    } else {
-        t.traditional.iter().map(|c| (c.case, &c.traditional, &c.optimal)).collect()
-    };
-    let (stem, column, first_fig, method, color, title) = if net {
+    let (cases, stem, column, first_fig, method, color, title) = if net {
+        let cases: Vec<_> = t.proposed.iter().map(|c| (c.case, &c.net, &c.optimal)).collect();
         let title = "The proposed net in cases I-IV (thesis Figs. 4.16-4.19)";
-        ("fig4_16_19_proposed", "network_pct", 16, "proposed 4-5-3 net", 0, title)
+        (cases, "fig4_16_19_proposed", "network_pct", 16, "proposed 4-5-3 net", 0, title)
     } else {
+        let cases = t.traditional.iter().map(|c| (c.case, &c.traditional, &c.optimal)).collect();
         let method = "traditional, eq. 3.1-17, one Phi";
         let title = "Traditional method vs. depth, cases I-IV (thesis Figs. 4.8-4.11)";
-        ("fig4_08_11_traditional", "traditional_pct", 8, method, 1, title)
+        (cases, "fig4_08_11_traditional", "traditional_pct", 8, method, 1, title)
     };
     let rows = cases.iter().flat_map(|(case, c, f)| depth_rows(&[case.to_string()], &[c, f]));
     let head = format!("case,z_cm,{column},optimal_pct");
