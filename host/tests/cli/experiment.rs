@@ -5,7 +5,7 @@
 use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok};
 
 use assert_cmd::Command;
-use hvs_host::study::engine::{Files, Quiet};
+use hvs_host::study::engine::{Files, Quiet, Study};
 use hvs_host::study::thesis::{
     e_ma_hn, hidden_counts, report, run, Config, Thesis, FEWER_DEPTHS, PHI_DEPTHS,
 };
@@ -157,7 +157,7 @@ fn quick_run_invariants_files_and_determinism() {
     check_invariants(&t);
     let lib_dir = tempfile::tempdir().unwrap();
     let mut files = Files::new(lib_dir.path()).unwrap();
-    report::write(&mut files, &t, 0.0).unwrap();
+    t.config.write(&mut files, &t, 0.0).unwrap();
     let written = files.into_written();
     assert_eq!(written.len(), 3 * report::STEMS.len() + 2);
 

@@ -5,6 +5,9 @@ use hvs_host::study::thesis::facts::*;
 use hvs_host::study::thesis::{derive_seed, e_ma_hn, hidden_counts, mean_e_ma_hn};
 use hvs_host::study::thesis::{DepthCurve, NetRow, PhiRow};
 use hvs_shared::runtime::blob::OutputKind;
+use hvs_shared::runtime::gaze::HALF_BASELINE_CM;
+use hvs_shared::runtime::traditional::phi_estimate;
+use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::presets::{self, CASE_1, CASE_2, CASE_4, TEST_DEPTHS, TEST_POINTS_XY};
 
 fn row(case: u8, phi_l: f64, phi_r: f64) -> PhiRow {
@@ -115,4 +118,19 @@ fn per_hidden_means_follow_the_rows() {
     assert_eq!(e_ma_hn(&rows, OutputKind::Z), vec![8.0, 5.0]);
     assert_eq!(mean_e_ma_hn(&rows, OutputKind::Z), vec![3.0, 1.5]);
     assert_eq!(e_ma_hn(&rows, OutputKind::Xyz), vec![2.0, 3.0]);
+}
+
+#[test]
+fn phi_points_are_symmetric_about_each_camera() {
+    // The Phi experiment's board about the left camera's axis (X -3, -1, 1, 3 cm around it).
+    let b = presets::board_points(95.0).map(|[x, y, z]| [HALF_BASELINE_CM + x, y, z]);
+    let sum_xr: f64 = b.iter().map(|p| p[0] - HALF_BASELINE_CM).sum();
+    assert_eq!(sum_xr, 0.0);
+    assert!(b.iter().all(|p| p[2] == 95.0));
+    // On an ideal parallel rig without rounding, eq. 4.1-3 is exact.
+    let rig = Rig::parallel(300.0);
+    let pairs: Vec<_> = b.iter().map(|p| rig.project(p).map(|px| (px[0], px[2]))).collect();
+    let pairs: Vec<(f64, f64)> = pairs.into_iter().map(Result::unwrap).collect();
+    let phi = phi_estimate(&pairs, 95.0, HALF_BASELINE_CM).unwrap();
+    assert!((phi - 300.0).abs() < 1e-9, "{phi}");
 }

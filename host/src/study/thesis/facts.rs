@@ -1,14 +1,11 @@
-//! The facts `RESULTS.md` states, each derived from the presets, the protocol or a run's
-//! results by a small pure function, so that no number is typed into the report's prose.
+//! The facts `RESULTS.md` states, as small pure functions of the presets, protocol or results.
 
 use super::{DepthCurve, PhiRow};
 use crate::fmt::join;
 use crate::study::reported;
 use hvs_shared::sim::camera::Rig;
 
-/// Statistics of the Phi_L or Phi_R estimates of one case over the depths: their mean and the
-/// rig's true value (px); the largest deviation of one estimate from the mean and their
-/// standard deviation, in % of the mean.
+/// Phi_L or Phi_R of one case over the depths: mean, truth (px), max deviation, SD (% of mean).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PhiStats {
     pub mean: f64,
@@ -41,30 +38,18 @@ pub fn apart_pct(a: f64, b: f64) -> f64 {
     (a - b).abs() / a * 100.0
 }
 
-/// Consecutive `depths` (cm) at which the point `(x, y)` has the same rounded pixels in
-/// both cameras of `rig`: where no method can tell the depths apart.
+/// Neighbouring `depths` (cm) at which the point `xy` has the same rounded pixels in `rig`.
 pub fn identical_pixel_depths(rig: &Rig, xy: [f64; 2], depths: &[f64]) -> Vec<(f64, f64)> {
     let px = |z: f64| rig.project_rounded(&[xy[0], xy[1], z]).ok();
-    depths
-        .windows(2)
-        .filter(|w| {
-            let (a, b) = (px(w[0]), px(w[1]));
-            a.is_some() && a == b
-        })
-        .map(|w| (w[0], w[1]))
-        .collect()
+    let same = |w: &&[f64]| px(w[0]).is_some() && px(w[0]) == px(w[1]);
+    depths.windows(2).filter(same).map(|w| (w[0], w[1])).collect()
 }
 
-/// The mean horizontal disparity `u_l - u_r` (px, rounded pixels) of the 12 board points
-/// centred at `centre_x` at depth `z`, or None when a point has no image.
+/// The mean disparity `u_l - u_r` (px, rounded) of the board about `centre_x` at depth `z`.
 pub fn board_disparity_px(rig: &Rig, centre_x: f64, z: f64) -> Option<f64> {
     let points = super::board_about(centre_x, z);
-    let mut sum = 0.0;
-    for p in points {
-        let px = rig.project_rounded(&p).ok()?;
-        sum += px[0] - px[2];
-    }
-    Some(sum / points.len() as f64)
+    let d = points.iter().map(|p| rig.project_rounded(p).ok().map(|px| px[0] - px[2]));
+    Some(d.sum::<Option<f64>>()? / points.len() as f64)
 }
 
 /// The depth (cm) of a curve's worst per-depth e_ma (the first, on ties; NaN when empty).
@@ -88,14 +73,12 @@ pub fn signed_list(v: impl IntoIterator<Item = f64>) -> String {
     join(v.into_iter().map(|x| if x > 0.0 { format!("+{x}") } else { format!("{x}") }), ", ")
 }
 
-/// Whether a traditional-method range (lowest, highest per-depth e_ma, %) matches the
-/// thesis' range of `case` within 10 % at both ends (at the low end, at least 0.1 points).
+/// Whether the range `lo`..`hi` (%) is the thesis' for `case` within 10 % (0.1 at the low end).
 pub fn matches_thesis_traditional(case: u8, lo: f64, hi: f64) -> bool {
-    let Some(th) = usize::from(case).checked_sub(1).and_then(|k| reported::TRADITIONAL_PCT.get(k))
-    else {
-        return false;
-    };
-    (lo - th[0]).abs() <= 0.1 * th[0].max(1.0) && (hi - th[1]).abs() <= 0.1 * th[1]
+    let th = usize::from(case).checked_sub(1).and_then(|k| reported::TRADITIONAL_PCT.get(k));
+    th.is_some_and(|th| {
+        (lo - th[0]).abs() <= 0.1 * th[0].max(1.0) && (hi - th[1]).abs() <= 0.1 * th[1]
+    })
 }
 
 /// The index of the smallest value (the first, on ties; 0 when empty).

@@ -2,7 +2,7 @@
 //! results: `results_phrases.md`); this module computes every value it names and fills it in.
 
 use super::facts::*;
-use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, DepthCurve, Thesis};
+use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, DepthCurve, FewerDepths, Thesis};
 use super::{FEWER_DEPTHS, GENERAL_CASE, PHI_DEPTHS};
 use crate::fmt::{join, mean, pct, pct_value, roman, span, stages};
 use crate::sim::sets::training_volume;
@@ -26,6 +26,9 @@ const PHRASES: &str = include_str!("../../../templates/results_phrases.md");
 /// The posture study's page in the thesis' directory (`hvs experiment posture`'s default).
 pub const POSTURE_REPORT: &str = "posture/POSTURE.md";
 
+/// Points of one training board.
+const N_BOARD: usize = TRAIN_BOARD_X.len() * TRAIN_BOARD_Y.len();
+
 /// Page values, `(placeholder, text)`.
 type Values = Vec<(&'static str, String)>;
 
@@ -45,14 +48,8 @@ fn bound() -> String {
     format!("{} %", reported::NET_BOUND_PCT)
 }
 
-/// A markdown table row of `cells`.
 fn row<S: ToString>(cells: impl IntoIterator<Item = S>) -> String {
     format!("| {} |", join(cells.into_iter().map(|c| c.to_string()), " | "))
-}
-
-/// Table rows, one a line.
-fn rows(v: impl IntoIterator<Item = String>) -> String {
-    join(v, "\n")
 }
 
 /// The proposed net's shape, `4-5-3`: the default `hvs train` net.
@@ -61,24 +58,22 @@ fn net_shape() -> String {
     format!("4-{}-{}", tc.hidden, tc.outputs.len())
 }
 
-/// The values of `RESULTS.md`'s placeholders for a run that took `total_s` seconds;
-/// `posture`: link the posture report.
+/// The page's placeholder values for a run of `total_s` s; `posture`: link the posture report.
 pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Result<Values> {
     let cfg = &t.config;
     let case1 = presets::CASE_1;
-    let n_board = n_board();
     let quick = if cfg.quick { " --quick" } else { "" };
     let link = [("posture_report", POSTURE_REPORT.to_string())];
     let mut v: Values = vec![
         ("command", format!("hvs experiment thesis --seed {}{quick}", cfg.seed)),
         ("total_s", format!("{total_s:.1}")),
         ("threads", t.threads.to_string()),
-        ("board_points", n_board.to_string()),
+        ("board_points", N_BOARD.to_string()),
         ("board_x", join(TRAIN_BOARD_X, ", ")),
         ("board_y", join(TRAIN_BOARD_Y, ", ")),
         ("board_x_count", number_word(TRAIN_BOARD_X.len())),
         ("train_grid", depth_grid(&TRAIN_DEPTHS)),
-        ("train_points", (n_board * TRAIN_DEPTHS.len()).to_string()),
+        ("train_points", (N_BOARD * TRAIN_DEPTHS.len()).to_string()),
         ("test_xy_count", number_word(TEST_POINTS_XY.len())),
         ("test_x", signed_list(TEST_POINTS_XY.iter().map(|p| p[0]))),
         ("test_grid", depth_grid(&TEST_DEPTHS)),
@@ -95,33 +90,23 @@ pub fn results_values(t: &Thesis, total_s: f64, posture: bool) -> Result<Values>
         ("builtin_phi", Calibration::BUILT_IN.phi.to_string()),
         ("posture_link", if posture { phrase("posture_link", &link)? + "\n\n" } else { "".into() }),
     ];
-    let sections: [fn(&Thesis) -> Result<Values>; 8] = [
-        phi_values,
-        traditional_values,
-        net_case4_values,
-        sweep_values,
-        proposed_values,
-        fewer_values,
-        algo_values,
-        noise_values,
-    ];
-    for section in sections {
+    for section in [phi_values, traditional_values, net_case4_values, sweep_values] {
+        v.extend(section(t)?);
+    }
+    for section in [proposed_values, fewer_values, algo_values, noise_values] {
         v.extend(section(t)?);
     }
     Ok(v)
 }
 
 fn phi_values(t: &Thesis) -> Result<Values> {
-    let [l1, r1, l2, r2] = [(1, true), (1, false), (2, true), (2, false)]
-        .map(|(case, left)| phi_stats(&t.phi, case, left));
-    let table = [(1u8, "Phi_L", l1), (1, "Phi_R", r1), (2, "Phi_L", l2), (2, "Phi_R", r2)].map(
-        |(case, which, s)| {
-            let (mean, truth, bias) = (s.mean, s.truth, s.bias_pct());
-            let (dev, sd) = (s.max_dev_pct, s.sd_pct);
-            let fixed = format!("{mean:.3} | {truth:.3} | {bias:+.3} % | {dev:.3} % | {sd:.3} %");
-            row([roman(case), which, fixed.as_str()])
-        },
-    );
+    let which = [(1u8, "Phi_L"), (1, "Phi_R"), (2, "Phi_L"), (2, "Phi_R")];
+    let [l1, r1, l2, r2] = which.map(|(case, w)| phi_stats(&t.phi, case, w == "Phi_L"));
+    let table = which.iter().zip([l1, r1, l2, r2]).map(|(&(case, w), s)| {
+        let (mean, truth, bias, dev, sd) = (s.mean, s.truth, s.bias_pct(), s.max_dev_pct, s.sd_pct);
+        let fixed = format!("{mean:.3} | {truth:.3} | {bias:+.3} % | {dev:.3} % | {sd:.3} %");
+        row([roman(case), w, fixed.as_str()])
+    });
     // The far boards of the Phi experiment: the last two depths.
     let far = &PHI_DEPTHS[PHI_DEPTHS.len() - 2..];
     let d = presets::CASE_1.half_baseline;
@@ -144,7 +129,7 @@ fn phi_values(t: &Thesis) -> Result<Values> {
         ("case2_phi_l", format!("{:.1}", l2.truth)),
         ("case2_phi_r", format!("{:.1}", r2.truth)),
         ("case2_phi_r_dev", format!("{:.2}", r2.max_dev_pct)),
-        ("phi_rows", rows(table)),
+        ("phi_rows", join(table, "\n")),
         ("far_depths", join(far, "-")),
         ("far_disparity", format!("{far_disp:.0}")),
         ("half_px_pct", format!("{:.1}", 50.0 / far_disp)),
@@ -153,7 +138,7 @@ fn phi_values(t: &Thesis) -> Result<Values> {
 }
 
 fn traditional_values(t: &Thesis) -> Result<Values> {
-    let (mut glance, mut table) = (Vec::new(), Vec::new());
+    let (mut glance, mut table, mut within) = (Vec::new(), Vec::new(), Vec::new());
     for c in &t.traditional {
         let k = usize::from(c.case - 1);
         let th = reported::traditional_range(c.case).unwrap_or_default();
@@ -163,19 +148,16 @@ fn traditional_values(t: &Thesis) -> Result<Values> {
         glance.push(row([fig, th.clone(), ours.clone()]));
         let rig = LABELS[k].split(": ").nth(1).unwrap_or("");
         table.push(row([format!("{case} ({rig})"), th, ours, pct(c.optimal.worst())]));
+        if matches_thesis_traditional(c.case, c.traditional.best(), c.traditional.worst()) {
+            within.push(case);
+        }
     }
-    let within: Vec<&str> = t
-        .traditional
-        .iter()
-        .filter(|c| matches_thesis_traditional(c.case, c.traditional.best(), c.traditional.worst()))
-        .map(|c| roman(c.case))
-        .collect();
     let (k, n) = (within.len(), t.traditional.len());
     let count = if k == n { "all four".to_string() } else { format!("{k} of {n}") };
     let floor = t.traditional.iter().map(|c| c.optimal.worst()).fold(0.0, f64::max);
     Ok(vec![
-        ("glance_traditional_rows", rows(glance)),
-        ("traditional_rows", rows(table)),
+        ("glance_traditional_rows", join(glance, "\n")),
+        ("traditional_rows", join(table, "\n")),
         ("trad_within", if within.is_empty() { "none".to_string() } else { within.join(", ") }),
         ("trad_within_count", count),
         ("trad_floor_worst", pct(floor)),
@@ -188,25 +170,18 @@ fn net_case4_values(t: &Thesis) -> Result<Values> {
     let table = (p.net.z.iter().enumerate())
         .map(|(k, z)| row([z.to_string(), pct(p.net.pct[k]), pct(p.optimal.pct[k])]));
     let wz = worst_depth(&p.optimal);
-    // Test points that have the same pixels at two neighbouring depths, one of them the
-    // floor's worst.
-    let twins: Vec<String> = TEST_POINTS_XY
-        .iter()
-        .enumerate()
-        .flat_map(|(k, xy)| {
-            identical_pixel_depths(&rig, *xy, &TEST_DEPTHS)
-                .into_iter()
-                .filter(|(a, b)| *a == wz || *b == wz)
-                .map(move |(a, b)| format!("P{} has identical pixels at {a} and {b} cm", k + 1))
-        })
+    // Test points with the same pixels at two neighbouring depths, one of them the floor's worst.
+    let at = |xy| identical_pixel_depths(&rig, xy, &TEST_DEPTHS);
+    let twins: Vec<String> = ((1..).zip(TEST_POINTS_XY))
+        .flat_map(|(k, xy)| at(xy).into_iter().map(move |d| (k, d)))
+        .filter(|(_, (a, b))| *a == wz || *b == wz)
+        .map(|(k, (a, b))| format!("P{k} has identical pixels at {a} and {b} cm"))
         .collect();
     let twins_values = [("case", roman(GENERAL_CASE).into()), ("twins", twins.join(", and "))];
-    let (twins_sentence, twins_note) = if twins.is_empty() {
-        (phrase("twins_none", &[])?, String::new())
-    } else {
-        let note = twins.join("; ").replace(" has identical pixels at", "'s identical pixels at");
-        (phrase("twins_some", &twins_values)?, format!(" ({note})"))
-    };
+    let twins_sentence =
+        phrase(if twins.is_empty() { "twins_none" } else { "twins_some" }, &twins_values)?;
+    let note = twins.join("; ").replace(" has identical pixels at", "'s identical pixels at");
+    let twins_note = if twins.is_empty() { note } else { format!(" ({note})") };
     let above = p.net.pct.iter().zip(&p.optimal.pct).map(|(a, b)| a - b).fold(0.0, f64::max);
     let [th_lo, th_hi] = reported::NET_CASE4_PCT;
     // Fig. 4.13: the sweep's nets with the proposed shape.
@@ -216,7 +191,7 @@ fn net_case4_values(t: &Thesis) -> Result<Values> {
     let (mlo, mhi) = span(ten.iter().map(|r| r.test_mean_pct));
     let below = ten.iter().filter(|r| r.test_worst_pct < reported::NET_BOUND_PCT).count();
     Ok(vec![
-        ("net_case4_rows", rows(table)),
+        ("net_case4_rows", join(table, "\n")),
         ("th_net_case4", format!("{th_lo} .. {th_hi} %")),
         ("th_net_case4_worst", th_hi.to_string()),
         ("net_case4_best", pct(p.net.best())),
@@ -253,7 +228,7 @@ fn sweep_values(t: &Thesis) -> Result<Values> {
     let best = |e: &[f64]| hs.get(argmin(e)).copied().unwrap_or(0).to_string();
     Ok(vec![
         ("nets", t.config.nets().to_string()),
-        ("hidden_rows", rows(table)),
+        ("hidden_rows", join(table, "\n")),
         ("hidden_counts", join(&hs, ", ")),
         ("hn_one", pct(mean(&z1))),
         ("hn_three", pct(mean(&x3))),
@@ -295,7 +270,7 @@ fn proposed_values(t: &Thesis) -> Result<Values> {
         .map(|r| format!("{:.2}", r.network_pct / r.optimal_pct));
     let glance = t.proposed.iter().map(|p| format!("{} {}", roman(p.case), pct(p.net.worst())));
     Ok(vec![
-        ("proposed_rows", rows(table)),
+        ("proposed_rows", join(table, "\n")),
         ("proposed_worst", join(glance, ", ")),
         ("proposed_bound_sentence", bound_sentence),
         ("proposed_floor_sentence", floor_sentence),
@@ -308,19 +283,18 @@ fn proposed_values(t: &Thesis) -> Result<Values> {
 fn fewer_values(t: &Thesis) -> Result<Values> {
     let p4 = &t.proposed[usize::from(GENERAL_CASE - 1)];
     let both = |c: &DepthCurve| format!("{} / {}", pct(c.mean), pct(c.worst()));
-    let mut table: Vec<String> = (t.fewer.iter())
-        .map(|f| {
-            let th = reported::fewer_depths(f.depths.len());
-            row([join(&f.depths, ", "), f.points.to_string(), th, both(&f.net), both(&f.bp)])
-        })
-        .collect();
+    let fewer_row = |f: &FewerDepths| {
+        let th = reported::fewer_depths(f.depths.len());
+        row([join(&f.depths, ", "), f.points.to_string(), th, both(&f.net), both(&f.bp)])
+    };
+    let mut table: Vec<String> = t.fewer.iter().map(fewer_row).collect();
     let bp4 = algo_row(t, GENERAL_CASE, Algo::Bp).map_or("-".to_string(), |r| {
         format!("{} / {}", pct(r.test_mean_pct), pct(r.test_worst_pct))
     });
     let (first, last) = (TRAIN_DEPTHS[0], TRAIN_DEPTHS[TRAIN_DEPTHS.len() - 1]);
     let (step, count) = (TRAIN_DEPTHS[1] - first, number_word(TRAIN_DEPTHS.len()));
     let all = format!("{first}-{last} step {step} (all {count})");
-    let points = (n_board() * TRAIN_DEPTHS.len()).to_string();
+    let points = (N_BOARD * TRAIN_DEPTHS.len()).to_string();
     table.push(row([all, points, format!("< {}", bound()), both(&p4.net), bp4]));
     let (two, four) = (&t.fewer[0], &t.fewer[FEWER_DEPTHS.len() - 1]);
     let th = reported::TWO_DEPTHS_MEAN_PCT;
@@ -340,7 +314,7 @@ fn fewer_values(t: &Thesis) -> Result<Values> {
     let means =
         t.fewer.iter().map(|f| format!("{} depths: mean {}", f.depths.len(), pct(f.net.mean)));
     Ok(vec![
-        ("fewer_rows", rows(table)),
+        ("fewer_rows", join(table, "\n")),
         ("fewer_two_mean", pct(two.net.mean)),
         ("fewer_four_mean", pct(four.net.mean)),
         ("fewer_why", phrase(why, &values)?),
@@ -348,10 +322,6 @@ fn fewer_values(t: &Thesis) -> Result<Values> {
         ("th_four_depths", reported::fewer_depths(4)),
         ("fewer_means", join(means, "; ")),
     ])
-}
-
-fn n_board() -> usize {
-    TRAIN_BOARD_X.len() * TRAIN_BOARD_Y.len()
 }
 
 fn algo_row(t: &Thesis, case: u8, algo: Algo) -> Option<&AlgoRow> {
@@ -367,24 +337,20 @@ fn algo_values(t: &Thesis) -> Result<Values> {
         let times = [format!("{:.2} s", b.wall_s), format!("{:.3} s", l.wall_s)];
         Some(row([roman(case).to_string(), three(b), three(l), floor].into_iter().chain(times)))
     });
-    let sum = |a: Algo, f: fn(&AlgoRow) -> f64| -> f64 {
-        t.algos.iter().filter(|r| r.algo == a).map(f).sum::<f64>()
-    };
-    let (bt, lt) = (sum(Algo::Bp, |r| r.wall_s), sum(Algo::Lm, |r| r.wall_s));
-    let (be, le) =
-        (sum(Algo::Bp, |r| r.test_worst_pct) / 4.0, sum(Algo::Lm, |r| r.test_worst_pct) / 4.0);
-    let verdict = if (be - le).abs() < 0.25 * le {
-        "algo_close"
-    } else if be > le {
-        "algo_lm"
-    } else {
-        "algo_bp"
+    let [(bt, be), (lt, le)] = [Algo::Bp, Algo::Lm].map(|a| {
+        let rs = t.algos.iter().filter(|r| r.algo == a);
+        (rs.clone().map(|r| r.wall_s).sum::<f64>(), rs.map(|r| r.test_worst_pct).sum::<f64>() / 4.0)
+    });
+    let verdict = match ((be - le).abs() < 0.25 * le, be > le) {
+        (true, _) => "algo_close",
+        (_, true) => "algo_lm",
+        _ => "algo_bp",
     };
     Ok(vec![
         ("bp_rate", bp.learning_rate.to_string()),
         ("bp_e_max", bp.e_max.to_string()),
         ("bp_cycles", bp.max_cycles.to_string()),
-        ("algo_rows", rows(table)),
+        ("algo_rows", join(table, "\n")),
         ("lm_worst_mean", pct(le)),
         ("bp_worst_mean", pct(be)),
         ("floor_worst_mean", pct(t.proposed.iter().map(|p| p.optimal.worst()).sum::<f64>() / 4.0)),
@@ -406,24 +372,20 @@ fn noise_values(t: &Thesis) -> Result<Values> {
     });
     let (lo, hi) = span(t.noise.iter().map(|r| r.network_pct / r.optimal_pct));
     let top = levels[levels.len() - 1];
-    let at = |case: u8, sigma: f64| t.noise.iter().find(|r| r.case == case && r.sigma == sigma);
-    let grow = match (at(1, 0.0), at(1, top)) {
-        (Some(a), Some(b)) => b.optimal_pct / a.optimal_pct,
-        _ => f64::NAN,
-    };
+    let case1 = t.noise.iter().filter(|r| r.case == 1);
+    let floor = |s: f64| case1.clone().find(|r| r.sigma == s).map_or(f64::NAN, |r| r.optimal_pct);
+    let grow = floor(top) / floor(0.0);
     let trad = (1..=4u8).map(|case| {
         let (a, b) = span(t.noise.iter().filter(|r| r.case == case).map(|r| r.traditional_pct));
         format!("{} {}-{}", roman(case), pct_value(a), pct(b))
     });
     let (lo_v, hi_v) = training_volume();
-    let volume_box = format!(
-        "X {}..{}, Y {}..{}, Z {}..{} cm",
-        lo_v[0], hi_v[0], lo_v[1], hi_v[1], lo_v[2], hi_v[2]
-    );
+    let range = |k: usize| format!("{}..{}", lo_v[k], hi_v[k]);
+    let volume_box = format!("X {}, Y {}, Z {} cm", range(0), range(1), range(2));
     Ok(vec![
         ("noise_repeats", t.config.noise_repeats().to_string()),
         ("volume_box", volume_box),
-        ("noise_rows", rows(table)),
+        ("noise_rows", join(table, "\n")),
         ("noise_ratio_lo", format!("{lo:.2}")),
         ("noise_ratio_hi", format!("{hi:.2}")),
         ("noise_floor_growth", format!("{grow:.1}")),

@@ -1,12 +1,7 @@
-//! `hvs experiment thesis`: every experiment of the thesis' chapter 4, regenerated on the
-//! simulated HVS (the four preset rigs of `hvs_shared::sim::presets`), plus three the thesis did
-//! not run. [`run`] computes; [`report::write`] writes one CSV and one plot (SVG and PNG) per
-//! experiment and `RESULTS.md`, which puts the thesis' reported values beside ours.
-//! One function per experiment, each named in its doc by the thesis' figures it redoes.
-//!
-//! Determinism: every random step takes a seed derived from [`Config::seed`], the trainer's
-//! result does not depend on the thread count and results are collected in a fixed order, so
-//! the same seed gives the same CSV bytes; only the wall times vary.
+//! `hvs experiment thesis`: the thesis' chapter 4 on the four preset rigs, plus three
+//! experiments it did not run; [`run`] computes, the `Study` impl of [`Config`] writes the files.
+//! Every random step takes a seed derived from [`Config::seed`] and results are collected in a
+//! fixed order, so the same seed gives the same CSV bytes; only the wall times vary.
 
 pub mod facts;
 pub mod markdown;
@@ -14,10 +9,10 @@ pub mod report;
 
 use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
+use crate::fmt::mean;
 use crate::sim::sets::{simulate, Sample, SetKind, SimOptions};
 use crate::study::engine::{par_stage, timed, Progress};
-use crate::train::fallback;
-use crate::train::{train, Algo, BpParams, TrainConfig};
+use crate::train::{fallback, train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, OutputKind};
 use hvs_shared::runtime::gaze::HALF_BASELINE_CM;
@@ -25,6 +20,7 @@ use hvs_shared::runtime::traditional::{phi_estimate, Calibration};
 use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::metrics::EmaAcc;
 use hvs_shared::sim::presets;
+use std::collections::BTreeSet;
 use std::time::Instant;
 
 /// Depths of the Phi experiment (Figs. 4.3, 4.4), cm.
@@ -108,14 +104,11 @@ const TAG_NOISE_TEST: u64 = 3;
 const SWEEP: &str = "Figs. 4.13-4.15";
 const NOISE: &str = "pixel noise";
 
-/// Per-depth e_ma of an estimator on a test set (the thesis': P1, P2 at the test depths).
+/// e_ma (%) of an estimator per test depth `z` (cm) and over all test points (`mean`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DepthCurve {
-    /// Test depths (cm).
     pub z: Vec<f64>,
-    /// e_ma (%) per depth.
     pub pct: Vec<f64>,
-    /// e_ma (%) over all test points.
     pub mean: f64,
 }
 
@@ -130,7 +123,6 @@ impl DepthCurve {
     }
 }
 
-/// The per-depth curve of the estimates `z_hat` against the truth of `test`.
 fn curve(test: &Dataset, z_hat: Vec<f64>) -> DepthCurve {
     let ev = evaluate(test, &[Method { name: String::new(), z: z_hat }]);
     DepthCurve {
@@ -140,14 +132,11 @@ fn curve(test: &Dataset, z_hat: Vec<f64>) -> DepthCurve {
     }
 }
 
-/// A net trained on `set` by `tc` (`what` names it in errors): its training e_ma (%), its
-/// curve on `test` and the training's wall time (s).
-fn net(
-    set: &Dataset,
-    test: &Dataset,
-    tc: &TrainConfig,
-    what: String,
-) -> Result<(f64, DepthCurve, f64)> {
+/// A trained net's training e_ma (%), curve on the test set and training wall time (s).
+type Trained = (f64, DepthCurve, f64);
+
+/// The net trained on `set` by `tc` (`what` names it in errors), tested on `test`.
+fn net(set: &Dataset, test: &Dataset, tc: &TrainConfig, what: String) -> Result<Trained> {
     let t = Instant::now();
     let out = train(set, tc).context(what)?;
     let wall_s = t.elapsed().as_secs_f64();
@@ -166,7 +155,6 @@ fn rig(case: u8) -> Result<Rig> {
     presets::case(case).ok_or_else(|| anyhow!("no case {case}"))
 }
 
-/// The rounded pixels of the point `p` (cm) in `r`'s cameras.
 fn pixels(r: &Rig, p: [f64; 3]) -> Result<[f64; 4]> {
     r.project_rounded(&p).map_err(|e| anyhow!("point {p:?} has no image: {e:?}"))
 }
@@ -178,11 +166,7 @@ pub fn protocol(case: u8) -> Result<(Dataset, Dataset)> {
     Ok((set(SetKind::Train)?, set(SetKind::Test)?))
 }
 
-// Figs. 4.3, 4.4
-
-/// One depth (cm) of the Phi experiment in case 1 or 2 (the parallel rigs): Phi_L and Phi_R
-/// by eq. 4.1-3 over the 12 points symmetric about the other camera's axis and the rig's
-/// true values (px).
+/// One depth (cm) of the Phi experiment in case 1 or 2: Phi_L, Phi_R and the true values (px).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PhiRow {
     pub case: u8,
@@ -198,8 +182,8 @@ fn board_about(centre_x: f64, z: f64) -> [[f64; 3]; 12] {
     presets::board_points(z).map(|[x, y, z]| [centre_x + x, y, z])
 }
 
-/// Figs. 4.3, 4.4: Phi_L and Phi_R of cases I and II by eq. 4.1-3 from rounded pixels; the
-/// points symmetric about the other camera's axis cancel the `X_R (Phi_L - Phi_R)` terms.
+/// Figs. 4.3, 4.4: Phi_L, Phi_R of cases I, II by eq. 4.1-3 from rounded pixels (the points
+/// symmetric about the other camera's axis cancel the `X_R (Phi_L - Phi_R)` terms).
 pub fn phi() -> Result<Vec<PhiRow>> {
     let mut rows = Vec::new();
     for case in [1u8, 2] {
@@ -211,18 +195,14 @@ pub fn phi() -> Result<Vec<PhiRow>> {
                 let pairs = px.into_iter().collect::<Result<Vec<_>>>()?;
                 phi_estimate(&pairs, z, d).map_err(|e| anyhow!("case {case}, Z = {z} cm: {e}"))
             };
-            let (phi_l, phi_r) = (est(d)?, est(-d)?);
-            let (true_l, true_r) = (r.phi_u_left, r.phi_u_right);
+            let (phi_l, phi_r, true_l, true_r) = (est(d)?, est(-d)?, r.phi_u_left, r.phi_u_right);
             rows.push(PhiRow { case, z, phi_l, phi_r, true_l, true_r });
         }
     }
     Ok(rows)
 }
 
-// Figs. 4.8-4.11 and 4.12, 4.16-4.19
-
-/// One case's test set: eq. 3.1-17 with the thesis' single Phi ([`Calibration::BUILT_IN`])
-/// and the floor (optimal triangulation with the true rig).
+/// One case's test set: eq. 3.1-17 with [`Calibration::BUILT_IN`], and the floor.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TraditionalCase {
     pub case: u8,
@@ -230,8 +210,7 @@ pub struct TraditionalCase {
     pub optimal: DepthCurve,
 }
 
-/// Figs. 4.8-4.11: eq. 3.1-17 with one Phi for both cameras, calibrated once by eq. 4.1-3 on
-/// case I's board at 65 cm (284.76 px), on each case's test points, as in the thesis.
+/// Figs. 4.8-4.11: eq. 3.1-17 with the thesis' one Phi (case I, 65 cm) on each case's test set.
 pub fn traditional() -> Result<Vec<TraditionalCase>> {
     (1..=4u8)
         .map(|case| {
@@ -243,8 +222,7 @@ pub fn traditional() -> Result<Vec<TraditionalCase>> {
         .collect()
 }
 
-/// The proposed net on one case: training e_ma (%) of the exported f32 model, and the net and
-/// the floor on the test set.
+/// The proposed net on one case: training e_ma (%), the net and the floor on the test set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProposedCase {
     pub case: u8,
@@ -253,8 +231,7 @@ pub struct ProposedCase {
     pub optimal: DepthCurve,
 }
 
-/// Figs. 4.12 (case IV) and 4.16-4.19: the proposed net (default `hvs train`) trained on the
-/// 72 board points of each case, tested on its 22 test points.
+/// Figs. 4.12 (case IV) and 4.16-4.19: the default `hvs train` net on each case's protocol.
 pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCase>> {
     (1..=4u8)
         .map(|case| {
@@ -268,11 +245,7 @@ pub fn proposed(cfg: &Config, progress: &dyn Progress) -> Result<Vec<ProposedCas
         .collect()
 }
 
-// Figs. 4.13-4.15
-
-/// One net of the hidden-neuron sweep (case IV): its shape, number (0-based) among the nets of
-/// that shape and training seed; its training e_ma, test e_ma over all 22 points and worst
-/// per-depth test e_ma (the net's error in the thesis' sense), in %.
+/// One net of the case IV sweep: shape, 0-based number, seed, training/mean/worst-depth e_ma (%).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NetRow {
     pub outputs: OutputKind,
@@ -284,8 +257,7 @@ pub struct NetRow {
     pub test_worst_pct: f64,
 }
 
-/// Figs. 4.13-4.15: [`Config::nets`] nets per hidden-neuron count and output kind, each from
-/// one seeded random start on case IV's boards (as each of the thesis' nets is one BP run).
+/// Figs. 4.13-4.15: [`Config::nets`] nets per hidden count and output kind, one start each.
 pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>> {
     let (train_set, test) = protocol(GENERAL_CASE)?;
     let mut jobs = Vec::new();
@@ -306,10 +278,7 @@ pub fn hidden_sweep(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NetRow>
 
 /// The hidden-neuron counts present in `rows`, ascending.
 pub fn hidden_counts(rows: &[NetRow]) -> Vec<usize> {
-    let mut h: Vec<usize> = rows.iter().map(|r| r.hidden).collect();
-    h.sort_unstable();
-    h.dedup();
-    h
+    rows.iter().map(|r| r.hidden).collect::<BTreeSet<_>>().into_iter().collect()
 }
 
 /// The thesis' `e_ma_Hn`: the nets' mean worst per-depth e_ma per count of [`hidden_counts`].
@@ -323,20 +292,11 @@ pub fn mean_e_ma_hn(rows: &[NetRow], outputs: OutputKind) -> Vec<f64> {
 }
 
 fn per_hidden(rows: &[NetRow], outputs: OutputKind, f: impl Fn(&NetRow) -> f64) -> Vec<f64> {
-    hidden_counts(rows)
-        .iter()
-        .map(|&h| {
-            let v: Vec<f64> =
-                rows.iter().filter(|r| r.outputs == outputs && r.hidden == h).map(&f).collect();
-            v.iter().sum::<f64>() / v.len() as f64
-        })
-        .collect()
+    let of = |h| rows.iter().filter(move |r| r.outputs == outputs && r.hidden == h).map(&f);
+    hidden_counts(rows).into_iter().map(|h| mean(&of(h).collect::<Vec<_>>())).collect()
 }
 
-// Figs. 4.20-4.22
-
-/// The proposed net (LM) and the same net trained by back-propagation on the training depths
-/// (cm) of one subset (case IV), on the full test set.
+/// The proposed net by LM and by back-propagation trained at `depths` (cm) of case IV.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FewerDepths {
     pub depths: Vec<f64>,
@@ -345,8 +305,7 @@ pub struct FewerDepths {
     pub bp: DepthCurve,
 }
 
-/// Figs. 4.20-4.22: the proposed net, and the same net by back-propagation, trained on case
-/// IV's boards at only [`FEWER_DEPTHS`], tested on all 22 test points.
+/// Figs. 4.20-4.22: the proposed net (LM and BP) on case IV's boards at [`FEWER_DEPTHS`] only.
 pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDepths>> {
     let r = rig(GENERAL_CASE)?;
     let (_, test) = protocol(GENERAL_CASE)?;
@@ -363,16 +322,12 @@ pub fn fewer_depths(cfg: &Config, progress: &dyn Progress) -> Result<Vec<FewerDe
             let (_, bp, _) =
                 net(&set, &test, &bp_tc, format!("training depths {depths:?}, back-propagation"))?;
             progress.inc();
-            let (depths, points) = (depths.to_vec(), set.len());
-            Ok(FewerDepths { depths, points, net: net_curve, bp })
+            Ok(FewerDepths { depths: depths.to_vec(), points: set.len(), net: net_curve, bp })
         })
         .collect()
 }
 
-// Beyond the thesis
-
-/// One training algorithm on one case's protocol: training e_ma, test e_ma over all points and
-/// worst per-depth test e_ma (%), and the training's wall time (s; not deterministic).
+/// One algorithm on one case: training, mean and worst per-depth test e_ma (%), wall time (s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AlgoRow {
     pub case: u8,
@@ -383,8 +338,7 @@ pub struct AlgoRow {
     pub wall_s: f64,
 }
 
-/// Back-propagation (the thesis') vs. Levenberg-Marquardt, same net, restarts and seed, per
-/// case; the trainings run one after the other so that their wall times compare.
+/// BP vs. LM per case, same net and seed; run one after the other so their wall times compare.
 pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
     let mut rows = Vec::new();
     for case in 1..=4u8 {
@@ -401,10 +355,8 @@ pub fn bp_vs_lm(cfg: &Config, progress: &dyn Progress) -> Result<Vec<AlgoRow>> {
     Ok(rows)
 }
 
-/// One pixel-noise level sigma (px, Gaussian before rounding) of one case, means over
-/// `repeats` draws (%): the traditional method with Phi refitted on the noisy boards (where it
-/// has an estimate; `traditional_missing_pct` of the points have none), the proposed net
-/// trained on them, and the floor on the noisy pixels.
+/// One noise sigma (px) of a case, e_ma means over `repeats` draws (%): traditional (refitted
+/// Phi; `traditional_missing_pct` of the points get none), the net and the floor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoiseRow {
     pub case: u8,
@@ -416,8 +368,7 @@ pub struct NoiseRow {
     pub optimal_pct: f64,
 }
 
-/// e_ma vs. pixel noise on the boards and [`Config::volume_points`] random test points: the
-/// proposed net and the traditional Phi fitted on the noisy boards, and the floor.
+/// e_ma vs. pixel noise on the boards and [`Config::volume_points`] random test points.
 pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
     let levels = cfg.noise_levels();
     let jobs: Vec<(u8, usize, f64)> = (1..=4u8)
@@ -438,10 +389,9 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
             let boards = sim(SetKind::Train, 0, TAG_NOISE_TRAIN)?;
             let test = sim(SetKind::Volume, cfg.volume_points(), TAG_NOISE_TEST)?;
             let (_, c, _) = net(&boards, &test, &tc, format!("case {case}, noise {sigma} px"))?;
-            let trad = match fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0) {
-                Some(f) => traditional_depths(&f.calibration, &test),
-                None => vec![f64::NAN; test.len()],
-            };
+            let fit = fallback::fit(&boards, HALF_BASELINE_CM, r.u0, r.v0);
+            let nan = vec![f64::NAN; test.len()];
+            let trad = fit.map_or(nan, |f| traditional_depths(&f.calibration, &test));
             // The traditional method over the points it answers for (the others are
             // counted): one zero disparity would make its mean infinite.
             let mut acc = EmaAcc::default();
@@ -450,9 +400,8 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
             }
             missing += trad.iter().filter(|zh| !zh.is_finite()).count();
             points += test.len();
-            sums[0] += acc.e_ma_pct();
-            sums[1] += c.mean;
-            sums[2] += curve(&test, optimal_depths(&r, &test)).mean;
+            let floor = curve(&test, optimal_depths(&r, &test)).mean;
+            sums = [sums[0] + acc.e_ma_pct(), sums[1] + c.mean, sums[2] + floor];
         }
         let [traditional_pct, network_pct, optimal_pct] = sums.map(|s| s / repeats as f64);
         let traditional_missing_pct = missing as f64 / points as f64 * 100.0;
@@ -468,19 +417,15 @@ pub fn noise(cfg: &Config, progress: &dyn Progress) -> Result<Vec<NoiseRow>> {
     })
 }
 
-/// Everything [`run`] measured: the configuration, the results of each experiment (of the
-/// function of the same name), the stage times and the worker threads used.
+/// Everything [`run`] measured, per experiment, with the stage times and threads used.
 #[derive(Debug, Clone)]
 pub struct Thesis {
     pub config: Config,
     pub phi: Vec<PhiRow>,
     pub traditional: Vec<TraditionalCase>,
     pub proposed: Vec<ProposedCase>,
-    /// [`hidden_sweep`].
     pub sweep: Vec<NetRow>,
-    /// [`fewer_depths`].
     pub fewer: Vec<FewerDepths>,
-    /// [`bp_vs_lm`].
     pub algos: Vec<AlgoRow>,
     pub noise: Vec<NoiseRow>,
     /// Wall time of each stage (s), in run order; not deterministic.
@@ -492,9 +437,7 @@ pub struct Thesis {
 pub fn run(cfg: &Config, progress: &dyn Progress) -> Result<Thesis> {
     let mut s = Vec::new();
     let (phi, traditional) = stage(progress, &mut s, "Figs. 4.3-4.11", 2, || {
-        let phi = phi()?;
-        progress.inc();
-        Ok((phi, traditional().inspect(|_| progress.inc())?))
+        Ok((phi().inspect(|_| progress.inc())?, traditional().inspect(|_| progress.inc())?))
     })?;
     let proposed = stage(progress, &mut s, "Figs. 4.12, 4.16-4.19", 4, || proposed(cfg, progress))?;
     let sweep = timed(&mut s, SWEEP, || hidden_sweep(cfg, progress))?;
@@ -518,23 +461,4 @@ fn stage<T>(
     let out = timed(stage_s, name, f);
     progress.finish();
     out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn phi_points_are_symmetric_about_each_camera() {
-        let b = board_about(HALF_BASELINE_CM, 95.0);
-        let sum_xr: f64 = b.iter().map(|p| p[0] - HALF_BASELINE_CM).sum();
-        assert_eq!(sum_xr, 0.0);
-        assert!(b.iter().all(|p| p[2] == 95.0));
-        // On an ideal parallel rig without rounding, eq. 4.1-3 is exact.
-        let rig = Rig::parallel(300.0);
-        let pairs: Vec<_> = b.iter().map(|p| rig.project(p).map(|px| (px[0], px[2]))).collect();
-        let pairs: Vec<(f64, f64)> = pairs.into_iter().map(Result::unwrap).collect();
-        let phi = phi_estimate(&pairs, 95.0, HALF_BASELINE_CM).unwrap();
-        assert!((phi - 300.0).abs() < 1e-9, "{phi}");
-    }
 }

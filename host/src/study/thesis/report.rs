@@ -2,8 +2,8 @@
 //! equal bytes) and one plot (SVG and PNG) per experiment, and `RESULTS.md`.
 
 use super::markdown::{results_values, POSTURE_REPORT, TEMPLATE};
-use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Config, DepthCurve, NetRow, NoiseRow};
-use super::{Thesis, GENERAL_CASE, PHI_DEPTHS};
+use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Config, DepthCurve, FewerDepths};
+use super::{NetRow, NoiseRow, Thesis, GENERAL_CASE, PHI_DEPTHS};
 use crate::fmt::{join, num, roman};
 use crate::study::engine::{Files, Progress, Study};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
@@ -13,8 +13,7 @@ use anyhow::Result;
 use hvs_shared::runtime::blob::OutputKind;
 use hvs_shared::sim::presets::TEST_DEPTHS;
 
-/// The stems of the files [`write()`] produces (each as `.csv`, `.svg`, `.png`), besides
-/// `bp_vs_lm_timing.csv` and `RESULTS.md`.
+/// The file stems, each as `.csv`, `.svg`, `.png` (besides `bp_vs_lm_timing.csv`, `RESULTS.md`).
 pub const STEMS: [&str; 9] = [
     "fig4_03_04_phi",
     "fig4_08_11_traditional",
@@ -27,20 +26,6 @@ pub const STEMS: [&str; 9] = [
     "noise",
 ];
 
-/// Writes every CSV, plot and `RESULTS.md`; `total_s` is the run's wall time.
-pub fn write(o: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
-    phi_files(o, t)?;
-    per_case_files(o, t, false)?;
-    net_case4_files(o, t)?;
-    sweep_files(o, t)?;
-    per_case_files(o, t, true)?;
-    fewer_files(o, t)?;
-    algo_files(o, t)?;
-    noise_files(o, t)?;
-    let values = results_values(t, total_s, o.dir().join(POSTURE_REPORT).is_file())?;
-    o.page("RESULTS.md", "host/templates/results.md", TEMPLATE, &values)
-}
-
 impl Study for Config {
     type Results = Thesis;
     fn page(&self) -> &'static str {
@@ -52,8 +37,18 @@ impl Study for Config {
     fn compute(&self, progress: &dyn Progress) -> Result<(usize, Thesis)> {
         super::run(self, progress).map(|t| (t.threads, t))
     }
-    fn write(&self, files: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
-        write(files, t, total_s)
+    /// Writes every CSV, plot and `RESULTS.md`; `total_s` is the run's wall time.
+    fn write(&self, o: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
+        phi_files(o, t)?;
+        per_case_files(o, t, false)?;
+        net_case4_files(o, t)?;
+        sweep_files(o, t)?;
+        per_case_files(o, t, true)?;
+        fewer_files(o, t)?;
+        algo_files(o, t)?;
+        noise_files(o, t)?;
+        let values = results_values(t, total_s, o.dir().join(POSTURE_REPORT).is_file())?;
+        o.page("RESULTS.md", "host/templates/results.md", TEMPLATE, &values)
     }
 }
 
@@ -77,7 +72,6 @@ fn line(name: impl Into<String>, x: &[f64], y: &[f64], color: usize) -> Series {
     Series::new(name, x, y, Style::LinePoints, color)
 }
 
-/// A dashed horizontal line at `y` from `x0` to `x1`.
 fn level(name: impl Into<String>, [x0, x1]: [f64; 2], y: f64, color: usize) -> Series {
     Series::new(name, &[x0, x1], &[y, y], Style::Dashed, color)
 }
@@ -97,8 +91,6 @@ fn depth_rows(lead: &[String], curves: &[&DepthCurve]) -> Vec<Vec<String>> {
     curves[0].z.iter().enumerate().map(row).collect()
 }
 
-const PHI_Z: &str = "board depth Z (cm)";
-
 fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let head = "case,z_cm,phi_l_px,phi_r_px,true_phi_l_px,true_phi_r_px";
     o.rows("fig4_03_04_phi.csv", head, &t.phi, |r| {
@@ -111,8 +103,8 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let phi_panel = |fig: usize, which: &str, est: Vec<f64>, truth: f64, color: usize| {
         let est = line(format!("{which}, 12 symmetric points, rounded pixels"), &z, &est, color);
         let truth = level(format!("true {which} of the rig"), ends, truth, FLOOR_COLOR);
-        let (title, axes) =
-            (format!("Fig. 4.{fig}: {which} by eq. 4.1-3, case I"), (PHI_Z, "", false));
+        let title = format!("Fig. 4.{fig}: {which} by eq. 4.1-3, case I");
+        let axes = ("board depth Z (cm)", "", false);
         let p = panel(title, axes, false, Legend::LowerRight, vec![est, truth]);
         Panel { y_label: format!("{which} = k_u f (px)"), ..p }
     };
@@ -124,24 +116,17 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.figure("fig4_03_04_phi", &grid(title, panels))
 }
 
-/// Figs. 4.8-4.11 (the traditional method) or, with `net`, 4.16-4.19 (the proposed net): the
-/// CSV `case,z_cm,<method>,optimal_pct` and one panel per case of the method and the floor.
+/// Figs. 4.8-4.11 (traditional) or, with `net`, 4.16-4.19 (the net): CSV and a panel per case.
 fn per_case_files(o: &mut Files, t: &Thesis, net: bool) -> Result<()> {
-    let cases: Vec<(u8, &DepthCurve, &DepthCurve)> = if net {
-        t.proposed.iter().map(|c| (c.case, &c.net, &c.optimal)).collect()
+    let (cases, stem, column, first_fig, method, color, title) = if net {
+        let cases: Vec<_> = t.proposed.iter().map(|c| (c.case, &c.net, &c.optimal)).collect();
+        let title = "The proposed net in cases I-IV (thesis Figs. 4.16-4.19)";
+        (cases, "fig4_16_19_proposed", "network_pct", 16, "proposed 4-5-3 net", 0, title)
     } else {
-        t.traditional.iter().map(|c| (c.case, &c.traditional, &c.optimal)).collect()
-    };
-    let (stem, column, first_fig) = if net {
-        ("fig4_16_19_proposed", "network_pct", 16)
-    } else {
-        ("fig4_08_11_traditional", "traditional_pct", 8)
-    };
-    let (title, method, color) = if net {
-        ("The proposed net in cases I-IV (thesis Figs. 4.16-4.19)", "proposed 4-5-3 net", 0)
-    } else {
+        let cases = t.traditional.iter().map(|c| (c.case, &c.traditional, &c.optimal)).collect();
+        let method = "traditional, eq. 3.1-17, one Phi";
         let title = "Traditional method vs. depth, cases I-IV (thesis Figs. 4.8-4.11)";
-        (title, "traditional, eq. 3.1-17, one Phi", 1)
+        (cases, "fig4_08_11_traditional", "traditional_pct", 8, method, 1, title)
     };
     let rows = cases.iter().flat_map(|(case, c, f)| depth_rows(&[case.to_string()], &[c, f]));
     let head = format!("case,z_cm,{column},optimal_pct");
@@ -210,13 +195,12 @@ fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
         let three = line(format!("three outputs (X, Y, Z){}", figs[1]), &h, &xyz, 0);
         panel(title, HIDDEN, false, Legend::UpperRight, vec![one, three, fl])
     };
+    let fl = |name, y| level(name, [1.0, 10.0], y, FLOOR_COLOR);
+    let title = "e_ma_Hn: mean over the nets of their worst per-depth e_ma";
     let figs = [", Fig. 4.14", ", Fig. 4.15"];
-    let fl = level(WORST_FLOOR, [1.0, 10.0], opt.worst(), FLOOR_COLOR);
-    let worst =
-        of_nets("e_ma_Hn: mean over the nets of their worst per-depth e_ma", e_ma_hn, figs, fl);
+    let worst = of_nets(title, e_ma_hn, figs, fl(WORST_FLOOR, opt.worst()));
     let title = "mean over the nets of their mean test e_ma (all 22 points)";
-    let fl = level(MEAN_FLOOR, [1.0, 10.0], opt.mean, FLOOR_COLOR);
-    let mean = of_nets(title, mean_e_ma_hn, ["", ""], fl);
+    let mean = of_nets(title, mean_e_ma_hn, ["", ""], fl(MEAN_FLOOR, opt.mean));
     let title = format!(
         "e_ma vs. hidden neurons, one output (Z) vs. three (X, Y, Z), case IV, {} nets each (thesis Figs. 4.14, 4.15)",
         t.config.nets()
@@ -226,10 +210,8 @@ fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
 
 fn fewer_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let full = &t.proposed[usize::from(GENERAL_CASE - 1)];
-    let rows = t
-        .fewer
-        .iter()
-        .flat_map(|f| depth_rows(&[join(&f.depths, " "), f.points.to_string()], &[&f.net, &f.bp]));
+    let lead = |f: &FewerDepths| [join(&f.depths, " "), f.points.to_string()];
+    let rows = t.fewer.iter().flat_map(|f| depth_rows(&lead(f), &[&f.net, &f.bp]));
     let head = "training_depths_cm,training_points,z_cm,network_lm_pct,network_bp_pct";
     o.csv("fig4_20_22_fewer_depths.csv", head, &rows.collect::<Vec<_>>())?;
     let fewer_panel = |title: &str, bp: bool| {
@@ -253,18 +235,14 @@ fn fewer_files(o: &mut Files, t: &Thesis) -> Result<()> {
 }
 
 fn algo_files(o: &mut Files, t: &Thesis) -> Result<()> {
-    let name = |a: Algo| match a {
-        Algo::Lm => "lm",
-        Algo::Bp => "bp",
-        Algo::Adam => "adam",
-    };
+    let name = |a: Algo| format!("{a:?}").to_lowercase();
     let head = "case,algorithm,train_pct,test_mean_pct,test_worst_depth_pct";
     o.rows("bp_vs_lm.csv", head, &t.algos, |r| {
         let v = [r.train_pct, r.test_mean_pct, r.test_worst_pct].map(num);
-        [r.case.to_string(), name(r.algo).to_string()].into_iter().chain(v).collect()
+        [r.case.to_string(), name(r.algo)].into_iter().chain(v).collect()
     })?;
     o.rows("bp_vs_lm_timing.csv", "case,algorithm,wall_s", &t.algos, |r| {
-        vec![r.case.to_string(), name(r.algo).to_string(), format!("{:.4}", r.wall_s)]
+        vec![r.case.to_string(), name(r.algo), format!("{:.4}", r.wall_s)]
     })?;
     let pick = |a: Algo, f: fn(&AlgoRow) -> f64| -> (Vec<f64>, Vec<f64>) {
         t.algos.iter().filter(|r| r.algo == a).map(|r| (r.case as f64, f(r))).unzip()
@@ -291,8 +269,6 @@ fn algo_files(o: &mut Files, t: &Thesis) -> Result<()> {
     o.figure("bp_vs_lm", &grid(title, vec![errors, times]))
 }
 
-const TRADITIONAL_REFIT: &str = "traditional (points with an estimate), Phi refitted";
-
 fn noise_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let head =
         "case,sigma_px,repeats,traditional_pct,traditional_no_estimate_pct,network_pct,optimal_pct";
@@ -304,9 +280,9 @@ fn noise_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let panels = (1..=4u8).map(|case| {
         let rs: Vec<_> = t.noise.iter().filter(|r| r.case == case).collect();
         let col = |f: fn(&NoiseRow) -> f64| rs.iter().map(|r| f(r)).collect::<Vec<f64>>();
-        let s = col(|r| r.sigma);
+        let (s, trad) = (col(|r| r.sigma), col(|r| r.traditional_pct));
         let series = vec![
-            line(TRADITIONAL_REFIT, &s, &col(|r| r.traditional_pct), 1),
+            line("traditional (points with an estimate), Phi refitted", &s, &trad, 1),
             line("proposed net", &s, &col(|r| r.network_pct), 0),
             floor(&s, &col(|r| r.optimal_pct)),
         ];
