@@ -60,8 +60,7 @@ const CASES: Axes = ("case (1 = I ... 4 = IV)", EMA, true);
 const HIDDEN: Axes = ("hidden neurons H_n", EMA, true);
 
 fn panel(title: impl Into<String>, a: Axes, log_y: bool, legend: Legend, s: Vec<Series>) -> Panel {
-    let (x_label, y_label, integer_x) = (a.0.into(), a.1.into(), a.2);
-    Panel { title: title.into(), x_label, y_label, log_y, series: s, legend, integer_x }
+    Panel { log_y, legend, integer_x: a.2, ..Panel::new(title, a.0, a.1, s) }
 }
 
 fn grid(title: impl Into<String>, panels: Vec<Panel>) -> Figure {
@@ -70,10 +69,6 @@ fn grid(title: impl Into<String>, panels: Vec<Panel>) -> Figure {
 
 fn line(name: impl Into<String>, x: &[f64], y: &[f64], color: usize) -> Series {
     Series::new(name, x, y, Style::LinePoints, color)
-}
-
-fn level(name: impl Into<String>, [x0, x1]: [f64; 2], y: f64, color: usize) -> Series {
-    Series::new(name, &[x0, x1], &[y, y], Style::Dashed, color)
 }
 
 fn floor(x: &[f64], y: &[f64]) -> Series {
@@ -102,7 +97,7 @@ fn phi_files(o: &mut Files, t: &Thesis) -> Result<()> {
     let ends = [PHI_DEPTHS[0], PHI_DEPTHS[PHI_DEPTHS.len() - 1]];
     let phi_panel = |fig: usize, which: &str, est: Vec<f64>, truth: f64, color: usize| {
         let est = line(format!("{which}, 12 symmetric points, rounded pixels"), &z, &est, color);
-        let truth = level(format!("true {which} of the rig"), ends, truth, FLOOR_COLOR);
+        let truth = Series::level(format!("true {which} of the rig"), ends, truth, FLOOR_COLOR);
         let title = format!("Fig. 4.{fig}: {which} by eq. 4.1-3, case I");
         let axes = ("board depth Z (cm)", "", false);
         let p = panel(title, axes, false, Legend::LowerRight, vec![est, truth]);
@@ -132,7 +127,7 @@ fn per_case_files(o: &mut Files, t: &Thesis, net: bool) -> Result<()> {
     let head = format!("case,z_cm,{column},optimal_pct");
     o.csv(&format!("{stem}.csv"), &head, &rows.collect::<Vec<_>>())?;
     let ends = [TEST_DEPTHS[0], TEST_DEPTHS[TEST_DEPTHS.len() - 1]];
-    let bound = level(format!("thesis' bound, {NET_BOUND_PCT} %"), ends, NET_BOUND_PCT, 1);
+    let bound = Series::level(format!("thesis' bound, {NET_BOUND_PCT} %"), ends, NET_BOUND_PCT, 1);
     let panels = cases.iter().map(|(case, c, f)| {
         let mut series = vec![line(method, &c.z, &c.pct, color), floor(&f.z, &f.pct)];
         series.extend(net.then(|| bound.clone()));
@@ -170,8 +165,8 @@ fn net_case4_files(o: &mut Files, t: &Thesis) -> Result<()> {
         points("worst per-depth test e_ma (the net's error)", |r| r.test_worst_pct, 0),
         points("mean test e_ma", |r| r.test_mean_pct, 2),
         points("training e_ma", |r| r.train_pct, 3),
-        level(WORST_FLOOR, ends, p.optimal.worst(), FLOOR_COLOR),
-        level(MEAN_FLOOR, ends, p.optimal.mean, 6),
+        Series::level(WORST_FLOOR, ends, p.optimal.worst(), FLOOR_COLOR),
+        Series::level(MEAN_FLOOR, ends, p.optimal.mean, 6),
     ];
     let title = "each net: one training from one seeded random start";
     let panel_13 = panel(title, ("net number", EMA, true), false, Legend::UpperLeft, series);
@@ -195,7 +190,7 @@ fn sweep_files(o: &mut Files, t: &Thesis) -> Result<()> {
         let three = line(format!("three outputs (X, Y, Z){}", figs[1]), &h, &xyz, 0);
         panel(title, HIDDEN, false, Legend::UpperRight, vec![one, three, fl])
     };
-    let fl = |name, y| level(name, [1.0, 10.0], y, FLOOR_COLOR);
+    let fl = |name, y| Series::level(name, [1.0, 10.0], y, FLOOR_COLOR);
     let title = "e_ma_Hn: mean over the nets of their worst per-depth e_ma";
     let figs = [", Fig. 4.14", ", Fig. 4.15"];
     let worst = of_nets(title, e_ma_hn, figs, fl(WORST_FLOOR, opt.worst()));
