@@ -462,22 +462,23 @@ pub struct Capture {
 /// One corner of one capture: a row of `truth.csv`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TruthRow {
-    /// Index of the capture in [`CaptureSet::captures`].
+    /// Index of the capture in [`RenderedSet::captures`].
     pub capture: usize,
     /// The corner.
     pub corner: CornerTruth,
 }
 
-/// A set of rendered captures: images, the captures table and the truth rows.
+/// A set of rendered captures in memory: images, the captures table and the truth rows
+/// (written out as a capture set by `hvs render`; read back as `hvs_host::data::captures`).
 #[derive(Debug, Clone, PartialEq)]
-pub struct CaptureSet {
+pub struct RenderedSet {
     /// The board every capture shows.
     pub board: Board,
     /// The pairs, in order of depth as given.
     pub captures: Vec<Capture>,
 }
 
-impl CaptureSet {
+impl RenderedSet {
     /// Every corner of every capture, capture by capture.
     pub fn truth_rows(&self) -> Vec<TruthRow> {
         self.captures
@@ -531,7 +532,7 @@ pub fn render_capture_set(
     depths: &[f64],
     opt: &RenderOptions,
     seed: u64,
-) -> Result<CaptureSet, RenderError> {
+) -> Result<RenderedSet, RenderError> {
     if depths.is_empty() || depths.len() > 99 {
         return Err(invalid("depths", format!("need 1..=99 depths, got {}", depths.len())));
     }
@@ -551,7 +552,7 @@ pub fn render_capture_set(
             render,
         });
     }
-    Ok(CaptureSet { board: *board, captures })
+    Ok(RenderedSet { board: *board, captures })
 }
 
 /// The thesis' training captures: the board centred on the optic axis of the head
@@ -561,7 +562,7 @@ pub fn training_captures(
     board: &Board,
     opt: &RenderOptions,
     seed: u64,
-) -> Result<CaptureSet, RenderError> {
+) -> Result<RenderedSet, RenderError> {
     render_capture_set(
         &HeadRig::new(*rig),
         &Joints::HOME,

@@ -67,7 +67,7 @@ where
 /// what `hvs board detect` reads.
 pub fn write_capture_set(
     dir: &Path,
-    set: &render::CaptureSet,
+    set: &render::RenderedSet,
     joints: Option<&Joints>,
 ) -> Result<()> {
     std::fs::create_dir_all(dir)
@@ -103,7 +103,7 @@ mod tests {
     use hvs_vision::board::Board;
 
     /// Two clean pairs of the OpenCV board at (1, -2, 65 | 85) cm through case I at home.
-    fn two_pairs() -> render::CaptureSet {
+    fn two_pairs() -> render::RenderedSet {
         render::render_capture_set(
             &hvs_shared::sim::posture::HeadRig::new(presets::CASE_1),
             &Joints::HOME,
