@@ -10,7 +10,7 @@ mod common;
 
 use common::{board_set, grid_board_set};
 use criterion::{criterion_group, criterion_main, Criterion};
-use hvs_host::sim::board::Board;
+use hvs_host::sim::board::TrainingBoard;
 use hvs_host::train::{train, Algo, TrainConfig};
 use hvs_shared::runtime::blob::Family;
 use std::hint::black_box;
@@ -19,7 +19,7 @@ use std::time::Duration;
 fn bench(c: &mut Criterion) {
     let sets = [
         ("board72", board_set()),
-        ("board324_9x6", grid_board_set(Board::Grid { nx: 9, ny: 6, pitch: 6.0 })),
+        ("board324_9x6", grid_board_set(TrainingBoard::Grid { nx: 9, ny: 6, pitch: 6.0 })),
     ];
     let families = [("default", hvs_host::train::DEFAULT_FAMILY), ("thesis", Family::THESIS)];
     let mut g = c.benchmark_group("train");

@@ -4,7 +4,7 @@ use super::value_enum;
 use crate::cli::RigArgs;
 use crate::data::output::check_not_input;
 use crate::data::output::write_output;
-use crate::sim::board::{Board, Pixels};
+use crate::sim::board::{Pixels, TrainingBoard};
 use crate::sim::posture;
 use crate::sim::sets::{simulate, write_csv, SetKind, SimOptions};
 
@@ -92,12 +92,12 @@ pub struct Args {
     /// Training board: `thesis` (4 x 3 points at 2 cm) or NXxNY:PITCH, e.g. 9x6:6 (inner
     /// corners, cm) [default: thesis].
     #[arg(long, value_name = "thesis|NXxNY:PITCH", value_parser = parse_board)]
-    board: Option<Board>,
+    board: Option<TrainingBoard>,
 }
 
-/// clap's parser of `--board`: [`Board::parse`], its error as the message.
-fn parse_board(s: &str) -> Result<Board, String> {
-    Board::parse(s).map_err(|e| {
+/// clap's parser of `--board`: [`TrainingBoard::parse`], its error as the message.
+fn parse_board(s: &str) -> Result<TrainingBoard, String> {
+    TrainingBoard::parse(s).map_err(|e| {
         let m = e.to_string();
         m.strip_prefix("--board ").unwrap_or(&m).to_string()
     })
@@ -125,7 +125,7 @@ pub fn run(a: Args) -> Result<()> {
         points: a.points.unwrap_or(SimOptions::default().points),
         noise_px: a.noise_px,
         seed: a.seed,
-        board: a.board.unwrap_or(Board::Thesis),
+        board: a.board.unwrap_or(TrainingBoard::Thesis),
         pixels: a.pixels.into(),
     };
     let postures = a.postures.postures(a.seed)?;

@@ -1,7 +1,8 @@
-//! What a simulated set is made of besides the rig: the calibration board
-//! ([`Board`]: the thesis' 4x3 points at 2 cm, or any `NXxNY:PITCH` grid of inner corners such
-//! as the 9x6 chessboard at 6 cm) and how the camera reports its pixels ([`Pixels`]: rounded
-//! as the thesis' cameras do, or exact, unrounded, as a sub-pixel corner detector gives them).
+//! What a simulated set is made of besides the rig: the calibration board ([`TrainingBoard`]:
+//! the thesis' 4x3 points at 2 cm, or any `NXxNY:PITCH` grid of inner corners such as the 9x6
+//! chessboard at 6 cm; the board of photos is `hvs_vision::board::Board`) and how the camera
+//! reports its pixels ([`Pixels`]: rounded as the thesis' cameras do, or exact, unrounded, as
+//! a sub-pixel corner detector gives them).
 
 use anyhow::{bail, Result};
 use hvs_shared::sim::camera::Vec3;
@@ -13,7 +14,7 @@ pub const MAX_SIDE: usize = 100;
 /// The calibration board of a training set, centred on the optical axis of the stereo frame
 /// (X right, Y down) at each of the thesis' training depths.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Board {
+pub enum TrainingBoard {
     /// The thesis' board: X in `presets::TRAIN_BOARD_X`, Y in `presets::TRAIN_BOARD_Y`
     /// (4 x 3 points at 2 cm).
     Thesis,
@@ -28,12 +29,12 @@ pub enum Board {
     },
 }
 
-impl Board {
+impl TrainingBoard {
     /// Parses `thesis` or `NXxNY:PITCH` (e.g. `9x6:6`: 9 x 6 inner corners at 6 cm); errors
     /// say what was expected.
-    pub fn parse(s: &str) -> Result<Board> {
+    pub fn parse(s: &str) -> Result<TrainingBoard> {
         if s == "thesis" {
-            return Ok(Board::Thesis);
+            return Ok(TrainingBoard::Thesis);
         }
         let form = "takes `thesis` or NXxNY:PITCH (e.g. 9x6:6: 9 x 6 inner corners 6 cm apart)";
         let Some((grid, pitch)) = s.split_once(':') else {
@@ -55,22 +56,22 @@ impl Board {
             Ok(p) if f64::is_finite(p) && p > 0.0 && p <= 100.0 => p,
             _ => bail!("--board `{s}`: PITCH must be a number of cm above 0 and at most 100, got `{pitch}`"),
         };
-        Ok(Board::Grid { nx, ny, pitch })
+        Ok(TrainingBoard::Grid { nx, ny, pitch })
     }
 
     /// The name `parse` takes back (`thesis`, `9x6:6`).
     pub fn name(&self) -> String {
         match self {
-            Board::Thesis => "thesis".into(),
-            Board::Grid { nx, ny, pitch } => format!("{nx}x{ny}:{pitch}"),
+            TrainingBoard::Thesis => "thesis".into(),
+            TrainingBoard::Grid { nx, ny, pitch } => format!("{nx}x{ny}:{pitch}"),
         }
     }
 
     /// Points per board.
     pub fn len(&self) -> usize {
         match self {
-            Board::Thesis => presets::TRAIN_BOARD_X.len() * presets::TRAIN_BOARD_Y.len(),
-            Board::Grid { nx, ny, .. } => nx * ny,
+            TrainingBoard::Thesis => presets::TRAIN_BOARD_X.len() * presets::TRAIN_BOARD_Y.len(),
+            TrainingBoard::Grid { nx, ny, .. } => nx * ny,
         }
     }
 
@@ -83,8 +84,8 @@ impl Board {
     /// `presets::board_points`.
     pub fn points(&self, z: f64) -> Vec<Vec3> {
         match *self {
-            Board::Thesis => presets::board_points(z).to_vec(),
-            Board::Grid { nx, ny, pitch } => {
+            TrainingBoard::Thesis => presets::board_points(z).to_vec(),
+            TrainingBoard::Grid { nx, ny, pitch } => {
                 let (cx, cy) = ((nx - 1) as f64 / 2.0, (ny - 1) as f64 / 2.0);
                 (0..ny)
                     .flat_map(|j| {
@@ -133,7 +134,7 @@ mod tests {
 
     #[test]
     fn thesis_board_is_the_presets() {
-        let b = Board::parse("thesis").unwrap();
+        let b = TrainingBoard::parse("thesis").unwrap();
         assert_eq!(b.len(), 12);
         assert_eq!(b.points(85.0), presets::board_points(85.0).to_vec());
         assert_eq!(b.volume(), ([-3.0, -2.0, 65.0], [3.0, 2.0, 165.0]));
@@ -142,17 +143,17 @@ mod tests {
 
     #[test]
     fn grid_board_is_centred_and_round_trips() {
-        let b = Board::parse("9x6:6").unwrap();
-        assert_eq!(b, Board::Grid { nx: 9, ny: 6, pitch: 6.0 });
+        let b = TrainingBoard::parse("9x6:6").unwrap();
+        assert_eq!(b, TrainingBoard::Grid { nx: 9, ny: 6, pitch: 6.0 });
         assert_eq!(b.name(), "9x6:6");
-        assert_eq!(Board::parse(&b.name()).unwrap(), b);
+        assert_eq!(TrainingBoard::parse(&b.name()).unwrap(), b);
         assert_eq!(b.train_points().len(), 324);
         assert_eq!(b.volume(), ([-24.0, -15.0, 65.0], [24.0, 15.0, 165.0]));
         let p = b.points(65.0);
         assert_eq!(p[0], [-24.0, -15.0, 65.0]);
         assert_eq!(p[1], [-18.0, -15.0, 65.0]);
         assert_eq!(p[53], [24.0, 15.0, 65.0]);
-        assert_eq!(Board::parse("4X3:2.5").unwrap().name(), "4x3:2.5");
+        assert_eq!(TrainingBoard::parse("4X3:2.5").unwrap().name(), "4x3:2.5");
     }
 
     #[test]
@@ -168,7 +169,7 @@ mod tests {
             ("axb:6", "NX must be"),
             ("101x6:1", "NX must be"),
         ] {
-            let e = Board::parse(s).unwrap_err().to_string();
+            let e = TrainingBoard::parse(s).unwrap_err().to_string();
             assert!(e.contains(needle), "{s}: {e}");
         }
     }

@@ -3,7 +3,7 @@
 //! pixel noise before the rounding, or unrounded pixels), on the thesis' board or a larger grid
 //! board ([`crate::sim::board`]), and their CSV form.
 
-use crate::sim::board::{Board, Pixels};
+use crate::sim::board::{Pixels, TrainingBoard};
 use anyhow::{bail, Result};
 use hvs_shared::sim::camera::{Rig, StereoPixels, Vec3};
 use hvs_shared::sim::presets;
@@ -42,7 +42,7 @@ pub struct SimOptions {
     /// Seed of every random draw.
     pub seed: u64,
     /// The training board (`train` sets, and the box of `volume` sets).
-    pub board: Board,
+    pub board: TrainingBoard,
     /// Rounded (the thesis) or exact pixels.
     pub pixels: Pixels,
 }
@@ -53,7 +53,7 @@ impl Default for SimOptions {
             points: 500,
             noise_px: 0.0,
             seed: 0,
-            board: Board::Thesis,
+            board: TrainingBoard::Thesis,
             pixels: Pixels::Rounded,
         }
     }
@@ -99,9 +99,9 @@ pub fn board_points(kind: SetKind) -> Vec<Vec3> {
 /// The true positions of a board set on `board`: [`board_points`] for the thesis board; a
 /// grid board has training boards only (its test points P1, P2 are the thesis'), so
 /// `test` with a grid board is an error.
-pub fn set_points(kind: SetKind, board: &Board) -> Result<Vec<Vec3>> {
+pub fn set_points(kind: SetKind, board: &TrainingBoard) -> Result<Vec<Vec3>> {
     match (kind, board) {
-        (_, Board::Thesis) => Ok(board_points(kind)),
+        (_, TrainingBoard::Thesis) => Ok(board_points(kind)),
         (SetKind::Train, b) => Ok(b.train_points()),
         (SetKind::Test, b) => bail!(
             "--set test is the thesis' test points P1, P2; --board {} applies to --set train and --set volume",
@@ -113,9 +113,9 @@ pub fn set_points(kind: SetKind, board: &Board) -> Result<Vec<Vec3>> {
 
 /// The box random volume points come from: [`training_volume`] for the thesis board, the box
 /// a grid board spans otherwise.
-pub fn volume_of(board: &Board) -> (Vec3, Vec3) {
+pub fn volume_of(board: &TrainingBoard) -> (Vec3, Vec3) {
     match board {
-        Board::Thesis => training_volume(),
+        TrainingBoard::Thesis => training_volume(),
         b => b.volume(),
     }
 }
@@ -321,7 +321,7 @@ mod tests {
     fn a_grid_board_trains_at_the_thesis_depths_and_has_no_test_set() {
         let rig = presets::CASE_2;
         let opt = SimOptions {
-            board: Board::parse("9x6:6").unwrap(),
+            board: TrainingBoard::parse("9x6:6").unwrap(),
             points: 200,
             ..SimOptions::default()
         };

@@ -157,7 +157,7 @@ pub(crate) fn decay(noise: Option<&PixelNoise>) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::board::{Board, Pixels};
+    use crate::sim::board::{Pixels, TrainingBoard};
     use crate::sim::posture::simulate;
     use crate::sim::sets::{SetKind, SimOptions};
     use hvs_shared::runtime::blob::InputKind;
@@ -172,7 +172,7 @@ mod tests {
         let head =
             HeadRig::new(presets::case(4).unwrap()).with_distortion(Distortion { k1, k2: 0.0 });
         let opt = SimOptions {
-            board: Board::parse("9x6:6").unwrap(),
+            board: TrainingBoard::parse("9x6:6").unwrap(),
             pixels: Pixels::Exact,
             noise_px: 0.01,
             seed: 5,

@@ -782,14 +782,14 @@ mod tests {
         // The 9x6 board at 6 cm through case IV and k1 = -0.1 lenses, 0.01 px Gaussian noise
         // (the rendered barrel images' corner error), against optimal triangulation with the
         // true rig and lenses on 500 volume points.
-        use crate::sim::board::{Board, Pixels};
+        use crate::sim::board::{Pixels, TrainingBoard};
         use crate::sim::sets::{SetKind, SimOptions};
         use hvs_shared::sim::camera::Distortion;
         let lens = Distortion { k1: -0.1, k2: 0.0 };
         let rig = presets::case(4).unwrap();
         let set = |lens: Distortion, noise_px: f64, kind: SetKind, seed: u64| {
             let opt = SimOptions {
-                board: Board::parse("9x6:6").unwrap(),
+                board: TrainingBoard::parse("9x6:6").unwrap(),
                 pixels: Pixels::Exact,
                 noise_px,
                 points: 500,

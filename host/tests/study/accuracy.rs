@@ -1,7 +1,7 @@
 //! `hvs_host::study::accuracy`: the facts of the page, its seeds and levels, the commands it
 //! prints, and the real pair's calibration.
 
-use hvs_host::sim::board::Board;
+use hvs_host::sim::board::TrainingBoard;
 use hvs_host::study::accuracy::real_pair::{cameras, floor_depths, sets};
 use hvs_host::study::accuracy::{
     floor_span, protocol_rows, regime_rows, set_seed, simulate_command, worst_over_cases,
@@ -18,27 +18,27 @@ fn quick() -> AccuracyConfig {
     }
 }
 
-fn row(board: Board, regime: usize, case: u8, s: [f64; 4]) -> RegimeRow {
+fn row(board: TrainingBoard, regime: usize, case: u8, s: [f64; 4]) -> RegimeRow {
     RegimeRow { board, regime: REGIMES[regime], case, scores: Scores(s) }
 }
 
 #[test]
 fn worst_over_cases_is_the_largest_ratio_or_the_largest_exact_error() {
     let rows = [
-        row(Board::Thesis, 0, 1, [1.0, 1.1, 1.5, 1.2]),
-        row(Board::Thesis, 0, 2, [0.5, 0.6, 0.55, 0.7]),
+        row(TrainingBoard::Thesis, 0, 1, [1.0, 1.1, 1.5, 1.2]),
+        row(TrainingBoard::Thesis, 0, 2, [0.5, 0.6, 0.55, 0.7]),
         row(BIG_BOARD, 0, 1, [1.0, 9.0, 9.0, 9.0]),
-        row(Board::Thesis, 2, 1, [0.0, 1e-9, 0.3, 0.001]),
-        row(Board::Thesis, 2, 3, [0.0, 2e-9, 0.2, 0.002]),
+        row(TrainingBoard::Thesis, 2, 1, [0.0, 1e-9, 0.3, 0.001]),
+        row(TrainingBoard::Thesis, 2, 3, [0.0, 2e-9, 0.2, 0.002]),
     ];
-    let (w, case) = worst_over_cases(&rows, &Board::Thesis, "int", 3).unwrap();
+    let (w, case) = worst_over_cases(&rows, &TrainingBoard::Thesis, "int", 3).unwrap();
     assert_eq!(case, 2);
     assert!((w - 1.4).abs() < 1e-12);
-    assert_eq!(worst_over_cases(&rows, &Board::Thesis, "int", 2), Some((1.5, 1)));
-    assert_eq!(worst_over_cases(&rows, &Board::Thesis, "exact", 2), Some((0.3, 1)));
-    assert_eq!(worst_over_cases(&rows, &Board::Thesis, "exact", 3), Some((0.002, 3)));
+    assert_eq!(worst_over_cases(&rows, &TrainingBoard::Thesis, "int", 2), Some((1.5, 1)));
+    assert_eq!(worst_over_cases(&rows, &TrainingBoard::Thesis, "exact", 2), Some((0.3, 1)));
+    assert_eq!(worst_over_cases(&rows, &TrainingBoard::Thesis, "exact", 3), Some((0.002, 3)));
     assert!(worst_over_cases(&rows, &BIG_BOARD, "sub", 1).is_none());
-    assert_eq!(floor_span(&rows, &Board::Thesis, "int"), (0.5, 1.0));
+    assert_eq!(floor_span(&rows, &TrainingBoard::Thesis, "int"), (0.5, 1.0));
 }
 
 #[test]
@@ -74,7 +74,7 @@ fn seeds_are_distinct_and_levels_span_the_issue() {
 fn the_floor_is_zero_on_exact_pixels_and_the_dlt_is_exact_there() {
     let cfg = quick();
     let rows = regime_rows(&cfg, &Quiet).unwrap();
-    for r in rows.iter().filter(|r| r.board == Board::Thesis) {
+    for r in rows.iter().filter(|r| r.board == TrainingBoard::Thesis) {
         let s = r.scores;
         let [floor, dlt, thesis, default] = s.0;
         assert!(s.0.iter().all(|v| v.is_finite()), "{r:?}");
@@ -103,7 +103,7 @@ fn simulate_command_names_every_flag_of_the_regime() {
         c,
         "hvs simulate --case 4 --set volume --board 9x6:6 --pixels exact --noise-px 0.05 --points N --seed 17"
     );
-    let c = simulate_command(1, &Board::Thesis, &REGIMES[3], "train", 3);
+    let c = simulate_command(1, &TrainingBoard::Thesis, &REGIMES[3], "train", 3);
     assert_eq!(c, "hvs simulate --case 1 --set train --distortion -0.1");
 }
 

@@ -10,7 +10,7 @@ pub mod report;
 
 use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths_lens, Evaluation, Method};
-use crate::sim::board::{Board, Pixels};
+use crate::sim::board::{Pixels, TrainingBoard};
 use crate::sim::sets::{SetKind, SimOptions};
 use crate::study::engine::{par_stage, timed, Progress, Quiet};
 use crate::train::{train, TrainConfig};
@@ -52,9 +52,9 @@ pub const REGIMES: [Regime; 4] = [
 /// The pixels of the lens sweep: the `sub` regime's, so that no rounding hides the lens.
 pub const LENS_SWEEP_PIXELS: Regime = REGIMES[1];
 /// The bigger board: 9 x 6 inner corners at 6 cm (the board `hvs demo --images` renders).
-pub const BIG_BOARD: Board = Board::Grid { nx: 9, ny: 6, pitch: 6.0 };
+pub const BIG_BOARD: TrainingBoard = TrainingBoard::Grid { nx: 9, ny: 6, pitch: 6.0 };
 /// The two training boards.
-pub const BOARDS: [Board; 2] = [Board::Thesis, BIG_BOARD];
+pub const BOARDS: [TrainingBoard; 2] = [TrainingBoard::Thesis, BIG_BOARD];
 /// The case of the sweeps and the images: IV, the thesis' general case.
 pub const SWEEP_CASE: u8 = 4;
 /// The training seed of both nets, as `hvs train --seed 7` sets it.
@@ -152,7 +152,7 @@ impl Scores {
 /// worst per-depth e_ma, as the thesis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegimeRow {
-    pub board: Board,
+    pub board: TrainingBoard,
     pub regime: Regime,
     pub case: u8,
     pub scores: Scores,
@@ -162,7 +162,7 @@ pub struct RegimeRow {
 /// volume test points.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SweepRow {
-    pub board: Board,
+    pub board: TrainingBoard,
     pub x: f64,
     pub scores: Scores,
 }
@@ -215,9 +215,15 @@ pub fn simulate_set(
 }
 
 /// The `hvs simulate` command that writes the same set.
-pub fn simulate_command(case: u8, board: &Board, r: &Regime, kind: &str, seed: u64) -> String {
+pub fn simulate_command(
+    case: u8,
+    board: &TrainingBoard,
+    r: &Regime,
+    kind: &str,
+    seed: u64,
+) -> String {
     let flags = [
-        (*board != Board::Thesis, format!(" --board {}", board.name())),
+        (*board != TrainingBoard::Thesis, format!(" --board {}", board.name())),
         (r.pixels == Pixels::Exact, " --pixels exact".into()),
         (r.noise_px > 0.0, format!(" --noise-px {}", r.noise_px)),
         (r.k1 != 0.0, format!(" --distortion {}", r.k1)),
@@ -272,7 +278,7 @@ pub fn estimate(
 fn cell(
     cfg: &AccuracyConfig,
     (part, b, level): (u64, usize, usize),
-    board: Board,
+    board: TrainingBoard,
     r: &Regime,
     (case, test): (u8, SetKind),
 ) -> Result<Evaluation> {
@@ -308,7 +314,7 @@ pub fn regime_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<
 /// on P1, P2 at the 11 test depths.
 pub fn protocol_rows(cfg: &AccuracyConfig) -> Result<Vec<RegimeRow>> {
     par_stage(&Quiet, "protocol", &cfg.cases(), |&case| {
-        let (board, regime) = (Board::Thesis, REGIMES[0]);
+        let (board, regime) = (TrainingBoard::Thesis, REGIMES[0]);
         let ev = cell(cfg, (0, 0, 0), board, &regime, (case, SetKind::Test))?;
         Ok(RegimeRow { board, regime, case, scores: Scores::worst(&ev) })
     })
@@ -363,7 +369,7 @@ pub fn run(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Accuracy> {
 /// `(ratio to the floor, or in an exact regime e_ma (%), case)`; `None` without a row.
 pub fn worst_over_cases(
     rows: &[RegimeRow],
-    board: &Board,
+    board: &TrainingBoard,
     regime: &str,
     m: usize,
 ) -> Option<(f64, u8)> {
@@ -374,7 +380,7 @@ pub fn worst_over_cases(
 }
 
 /// The range `(min, max)` of the floor's e_ma over the cases of `board` and `regime`.
-pub fn floor_span(rows: &[RegimeRow], board: &Board, regime: &str) -> (f64, f64) {
+pub fn floor_span(rows: &[RegimeRow], board: &TrainingBoard, regime: &str) -> (f64, f64) {
     let rows = rows.iter().filter(|r| r.board == *board && r.regime.name == regime);
     crate::fmt::span(rows.map(|r| r.scores.floor()))
 }

@@ -7,7 +7,7 @@ use super::{
     SWEEP_CASE, TRAIN_SEED,
 };
 use crate::fmt::{join, num, pct, roman, stages, times};
-use crate::sim::board::{Board, Pixels};
+use crate::sim::board::{Pixels, TrainingBoard};
 use crate::study::engine::{table_markdown, Files, Progress, Study};
 use crate::study::plot::{Figure, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::Result;
@@ -102,10 +102,10 @@ pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
     ]
 }
 
-fn board_words(b: &Board) -> String {
+fn board_words(b: &TrainingBoard) -> String {
     match b {
-        Board::Thesis => "thesis 4x3 at 2 cm".into(),
-        Board::Grid { nx, ny, pitch } => format!("{nx}x{ny} at {pitch} cm"),
+        TrainingBoard::Thesis => "thesis 4x3 at 2 cm".into(),
+        TrainingBoard::Grid { nx, ny, pitch } => format!("{nx}x{ny} at {pitch} cm"),
     }
 }
 
@@ -326,7 +326,7 @@ fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, 
     ];
     // The protocol's worst ratio over cases per method, with its case.
     for (m, name) in [(3, "protocol_default"), (2, "protocol_thesis"), (1, "protocol_dlt")] {
-        let worst = worst_over_cases(&a.protocol, &Board::Thesis, REGIMES[0].name, m);
+        let worst = worst_over_cases(&a.protocol, &TrainingBoard::Thesis, REGIMES[0].name, m);
         let (w, case) = worst.unwrap_or((f64::NEG_INFINITY, 0));
         values.push((name, format!("{} (case {})", times(w), roman(case))));
     }
