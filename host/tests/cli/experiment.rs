@@ -2,10 +2,10 @@
 //! experiment, the files written, and determinism (the library run and the CLI run with the
 //! same seed write the same CSV bytes).
 
-use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok};
+use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok, written_by};
 
 use assert_cmd::Command;
-use hvs_host::study::engine::{Files, Quiet, Study};
+use hvs_host::study::engine::Quiet;
 use hvs_host::study::thesis::{
     e_ma_hn, hidden_counts, report, run, Config, Thesis, FEWER_DEPTHS, PHI_DEPTHS,
 };
@@ -155,10 +155,7 @@ fn quick_run_invariants_files_and_determinism() {
 
     let t = run(&cfg, &Quiet).unwrap();
     check_invariants(&t);
-    let lib_dir = tempfile::tempdir().unwrap();
-    let mut files = Files::new(lib_dir.path()).unwrap();
-    t.config.write(&mut files, &t, 0.0).unwrap();
-    let written = files.into_written();
+    let (lib_dir, written) = written_by(&t.config, &t);
     assert_eq!(written.len(), 3 * report::STEMS.len() + 2);
 
     let (stdout, _) = wait_ok(cli.child);

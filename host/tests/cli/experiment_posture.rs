@@ -2,11 +2,11 @@
 //! part, the files written, and determinism (the library run and the CLI run on one thread
 //! with the same seed write the same CSV bytes).
 
-use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok};
+use crate::common::{plot_svg, read, same_csv, spawn_quick_experiment, wait_ok, written_by};
 
 use hvs_host::data::dataset::JOINT_COLUMNS;
-use hvs_host::study::engine::{Files, Quiet};
-use hvs_host::study::posture::page::{self as posture, STEMS};
+use hvs_host::study::engine::Quiet;
+use hvs_host::study::posture::page::STEMS;
 use hvs_host::study::posture::{
     fixed_postures, run as posture_run, Posture, StudyConfig, HIDDEN_SWEEP_QUICK,
 };
@@ -112,10 +112,7 @@ fn quick_run_invariants_files_and_determinism() {
 
     let run = posture_run(&cfg, &Quiet).unwrap();
     check_invariants(&run);
-    let lib_dir = tempfile::tempdir().unwrap();
-    let mut files = Files::new(lib_dir.path()).unwrap();
-    posture::write(&mut files, &run, 0.0).unwrap();
-    let written = files.into_written();
+    let (lib_dir, written) = written_by(&cfg, &run);
     assert_eq!(written.len(), 3 * STEMS.len() + 2);
 
     let (stdout, stderr) = wait_ok(cli.child);

@@ -14,22 +14,9 @@ use hvs_shared::runtime::blob::{Family, OutputFrame};
 use hvs_shared::sim::posture::PostureRange;
 use std::fmt::Write as _;
 
-/// The stems of the files [`write()`] produces (each as `.csv`, `.svg`, `.png`), besides
+/// The stems of the files the study writes (each as `.csv`, `.svg`, `.png`), besides
 /// `timing.csv` and `POSTURE.md`.
 pub const STEMS: [&str; 4] = ["fixed", "bands", "hidden", "distortion"];
-
-/// Writes the CSVs ([`csv_tables`]), one plot per part (SVG and PNG) and `POSTURE.md`;
-/// `total_s` is the run's wall time.
-pub fn write(files: &mut Files, r: &Posture, total_s: f64) -> Result<()> {
-    for (name, header, rows) in csv_tables(r) {
-        files.csv(name, &header, &rows)?;
-    }
-    let figures = [fixed_figure(r), bands_figure(r), hidden_figure(r), distortion_figure(r)];
-    for (stem, fig) in STEMS.iter().zip(&figures) {
-        files.figure(stem, fig)?;
-    }
-    files.page("POSTURE.md", "host/templates/posture.md", TEMPLATE, &values(r, total_s))
-}
 
 impl Study for StudyConfig {
     type Results = Posture;
@@ -42,8 +29,16 @@ impl Study for StudyConfig {
     fn compute(&self, progress: &dyn Progress) -> Result<(usize, Posture)> {
         run(self, progress).map(|r| (r.threads, r))
     }
+    /// The CSVs ([`csv_tables`]), one plot per part (SVG and PNG) and `POSTURE.md`.
     fn write(&self, files: &mut Files, r: &Posture, total_s: f64) -> Result<()> {
-        write(files, r, total_s)
+        for (name, header, rows) in csv_tables(r) {
+            files.csv(name, &header, &rows)?;
+        }
+        let figures = [fixed_figure(r), bands_figure(r), hidden_figure(r), distortion_figure(r)];
+        for (stem, fig) in STEMS.iter().zip(&figures) {
+            files.figure(stem, fig)?;
+        }
+        files.page("POSTURE.md", "host/templates/posture.md", TEMPLATE, &values(r, total_s))
     }
 }
 
