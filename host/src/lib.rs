@@ -6,13 +6,14 @@
 //! - [`data`]: data sets, CSV in and out (errors name file, line, column), rig files, model
 //!   files, and the one atomic writer every output goes through.
 //! - [`sim`]: simulated point sets through a rig: the thesis' board protocol, random volumes,
-//!   at many head postures and through distorting lenses.
+//!   at many head postures and through distorting lenses; and the simulated head (the
+//!   firmware's loop step, every safety rule checked on every tick).
 //! - [`train`]: fits the f32 MLP (Levenberg-Marquardt, the thesis' back-propagation, Adam),
 //!   seeded restarts in parallel, and the traditional method's fallback calibration.
 //! - [`infer`]: batch inference, bit-identical to the head's.
 //! - [`evaluate`]: e_ma per depth for several estimators side by side.
-//! - [`study`]: the thesis' chapter-4 experiments and the posture study: facts computed and
-//!   unit-tested, plots (`plotters`), and the reports written from templates.
+//! - [`study`]: the thesis' chapter-4 experiments, the posture and accuracy studies and `hvs
+//!   demo`'s report, on one engine: results computed, plots (`plotters`), pages from templates.
 //! - [`vision`]: images around `hvs-vision`: image files, board photos into a training set,
 //!   pixels located in a stereo pair through a model.
 //! - [`track`]: the head in the loop: scene files, the simulated head and its virtual
