@@ -302,7 +302,7 @@ mod tests {
         assert!(template(&p, 36.0, 26.0, w, [1.0, 1.0], &[], &mut t).is_some());
         assert!(template(&p, 36.5, 26.0, w, [1.0, 1.0], &[], &mut t).is_none());
         // Clipped at the border: the part that fits.
-        let c = w.clip(40, 30, 1.5, 1.5, 28.0, 28.0, [1.0, 1.0]);
+        let c = w.clip([40, 30], [1.5, 1.5], [28.0, 28.0], [1.0, 1.0]);
         assert_eq!(c, Win { x0: -1, x1: 3, y0: -3, y1: 1 });
         assert!(template(&p, 1.5, 28.0, c, [1.0, 1.0], &[], &mut t[..2 * c.len()]).is_some());
     }

@@ -24,6 +24,20 @@ impl Search {
     }
 }
 
+/// One search along an epipolar line: the template of `shape` at `at` in one image (the
+/// left one searching `Forward`), scored at whole `u` in `u_range` along `line` in the other;
+/// `only`: just around these `u`; `check_unique`: whether the uniqueness step applies.
+#[derive(Clone, Copy)]
+struct LineQuery<'a> {
+    side: Side,
+    at: [f64; 2],
+    shape: Win,
+    line: [f64; 3],
+    u_range: [f64; 2],
+    only: Option<&'a [i64]>,
+    check_unique: bool,
+}
+
 /// Which image a search runs in.
 #[derive(Clone, Copy)]
 enum Side {
@@ -112,18 +126,16 @@ impl Matcher {
     ) -> Match {
         let slack = self.params.interval_slack_px;
         let line = self.f.line_in_right([q.ul, q.vl]);
-        let Some(s) = self.search_from(
-            Side::Forward,
-            q.ul,
-            q.vl,
+        let forward = LineQuery {
+            side: Side::Forward,
+            at: [q.ul, q.vl],
             shape,
             line,
-            q.ul - q.d_max - slack,
-            q.ul - q.d_min + slack,
+            u_range: [q.ul - q.d_max - slack, q.ul - q.d_min + slack],
             only,
-            true,
-            buf,
-        ) else {
+            check_unique: true,
+        };
+        let Some(s) = self.search_from(&forward, buf) else {
             return Match::fail(MatchStatus::Outside);
         };
         *peaks = s.peaks;
@@ -135,18 +147,16 @@ impl Matcher {
         let back_line = self.f.line_in_left([s.u, s.v]);
         let back_only: Option<Vec<i64>> =
             only.map(|o| o.iter().map(|&c| (q.ul + (c as f64 - s.u)).round() as i64).collect());
-        let b = self.search_from(
-            Side::Back,
-            s.u,
-            s.v,
+        let back = LineQuery {
+            side: Side::Back,
+            at: [s.u, s.v],
             shape,
-            back_line,
-            s.u + q.d_min - slack,
-            s.u + q.d_max + slack,
-            back_only.as_deref(),
-            false,
-            buf,
-        );
+            line: back_line,
+            u_range: [s.u + q.d_min - slack, s.u + q.d_max + slack],
+            only: back_only.as_deref(),
+            check_unique: false,
+        };
+        let b = self.search_from(&back, buf);
         let back_ok = b.is_some_and(|b| {
             // `dist` is NaN when the back search found nothing: that fails too.
             let dist = ((b.u - q.ul).powi(2) + (b.v - q.vl).powi(2)).sqrt();
@@ -158,23 +168,11 @@ impl Matcher {
         out
     }
 
-    /// The template of `shape` at `(u, v)` in one image, searched along `line` in the other
-    /// at whole `u` in `[u_lo, u_hi]`. `None` when the window, clipped to both images, is too
-    /// small (the point is too close to a border).
-    #[allow(clippy::too_many_arguments)]
-    fn search_from(
-        &self,
-        side: Side,
-        u: f64,
-        v: f64,
-        shape: Win,
-        line: [f64; 3],
-        u_lo: f64,
-        u_hi: f64,
-        only: Option<&[i64]>,
-        check_unique: bool,
-        buf: &mut Vec<f32>,
-    ) -> Option<Search> {
+    /// The search `q` ([`LineQuery`]); `buf` holds the template. `None` when the window,
+    /// clipped to both images, is too small (the point is too close to a border).
+    fn search_from(&self, q: &LineQuery, buf: &mut Vec<f32>) -> Option<Search> {
+        let LineQuery { side, at: [u, v], shape, line, u_range: [u_lo, u_hi], only, check_unique } =
+            *q;
         let (src, dst) = match side {
             Side::Forward => (&self.left, &self.right),
             Side::Back => (&self.right, &self.left),
@@ -212,13 +210,10 @@ impl Matcher {
         let (va, vb) = (v_at(ka), v_at(kb));
         // Clip the window to the source image at the point and to the destination image
         // over the candidates of the interval proper.
-        let win = shape.clip(src.w, src.h, u, u, v, v, s_src).clip(
-            dst.w,
-            dst.h,
-            k_lo as f64,
-            k_hi as f64,
-            va.min(vb),
-            va.max(vb),
+        let win = shape.clip([src.w, src.h], [u, u], [v, v], s_src).clip(
+            [dst.w, dst.h],
+            [k_lo as f64, k_hi as f64],
+            [va.min(vb), va.max(vb)],
             s_dst,
         );
         if !win.usable(i64::from(self.params.half_window) + 1) {

@@ -57,15 +57,11 @@ impl Win {
     /// around every centre with `u` in `[u_lo, u_hi]` and `v` in `[v_lo, v_hi]` when window
     /// offset `(dx, dy)` lands at `(u + scale[0] dx, v + scale[1] dy)` (centres clamped to
     /// the image first: candidates off the image are dropped, not the window).
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn clip(
         &self,
-        w: usize,
-        h: usize,
-        u_lo: f64,
-        u_hi: f64,
-        v_lo: f64,
-        v_hi: f64,
+        [w, h]: [usize; 2],
+        [u_lo, u_hi]: [f64; 2],
+        [v_lo, v_hi]: [f64; 2],
         scale: [f64; 2],
     ) -> Win {
         let (wm, hm) = ((w - 1) as f64, (h - 1) as f64);
@@ -124,7 +120,6 @@ pub(super) fn bilinear(img: &Plane, x: f64, y: f64) -> Option<f32> {
 /// weighted covariance over `s`. Weights: [`MatchParams::support_gamma`]. Returns the
 /// window's (unweighted) standard deviation, or `None` when the window (with its
 /// interpolation support) leaves the image.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn template(
     img: &Plane,
     u: f64,
