@@ -223,8 +223,6 @@ pub fn number_word(n: usize) -> String {
     }
 }
 
-// Added for the accuracy study: a parallel stage with progress, and stage wall times.
-
 /// Runs `job` on every item of `jobs` in parallel as the stage `name` of `progress`; the
 /// results in the jobs' order, or the first error.
 pub fn par_stage<J: Sync, R: Send>(

@@ -11,7 +11,7 @@ pub mod page;
 use crate::data::dataset::{Dataset, JOINT_COLUMNS};
 use crate::sim::posture::{self, PostureOptions, PostureSample, Sampling};
 use crate::sim::sets::{SetKind, SimOptions};
-use crate::study::engine::Progress;
+use crate::study::engine::{timed, Progress};
 use crate::train::{default_frame, train, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{Family, InputKind, ModelBlob, OutputFrame};
@@ -561,9 +561,8 @@ pub struct Posture {
 /// numbers do not depend on the thread count; only the wall times do.
 pub fn run(study: &StudyConfig, progress: &dyn Progress) -> Result<Posture> {
     progress.start("fixed-posture 4-5-3 net", 1);
-    let t = Instant::now();
-    let (_, fixed) = fixed_posture_study(study)?;
-    let fixed_s = t.elapsed().as_secs_f64();
+    let mut stage_s = Vec::new();
+    let (_, fixed) = timed(&mut stage_s, "fixed-posture net", || fixed_posture_study(study))?;
     progress.inc();
     progress.finish();
 
@@ -578,7 +577,6 @@ pub fn run(study: &StudyConfig, progress: &dyn Progress) -> Result<Posture> {
     jobs.sort_by_key(|j| j.0);
     let n = jobs.len() + 1;
     progress.start("posture-aware nets, lens", n as u64);
-    let t = Instant::now();
     let queue = Mutex::new(jobs);
     let worker = |_| -> Result<Vec<PostureAware>> {
         let mut done = Vec::new();
@@ -598,13 +596,11 @@ pub fn run(study: &StudyConfig, progress: &dyn Progress) -> Result<Posture> {
         d.map(|d| (d, t0.elapsed().as_secs_f64()))
     };
     let threads = rayon::current_num_threads().min(n);
-    let (nets, lens) =
-        rayon::join(|| (0..threads).into_par_iter().map(worker).collect::<Result<Vec<_>>>(), lens);
+    let (nets, lens) = timed(&mut stage_s, "posture-aware nets and lens", || {
+        let all = || (0..threads).into_par_iter().map(worker).collect::<Result<Vec<_>>>();
+        Ok(rayon::join(all, lens))
+    })?;
     progress.finish();
-    let stage_s = vec![
-        ("fixed-posture net", fixed_s),
-        ("posture-aware nets and lens", t.elapsed().as_secs_f64()),
-    ];
     let mut nets: Vec<PostureAware> = nets?.into_iter().flatten().collect();
     let (distortion, lens_s) = lens?;
     let mut sweep: Vec<HiddenRow> = nets.iter().flat_map(|a| a.sweep.clone()).collect();
@@ -614,7 +610,7 @@ pub fn run(study: &StudyConfig, progress: &dyn Progress) -> Result<Posture> {
         |a: &PostureAware| (a.sweep[0].postures, a.sweep[0].hidden) == ("grid", study.hidden);
     let k = nets.iter().position(chosen).ok_or_else(|| anyhow!("no 9-{}-3 net", study.hidden))?;
     let aware = PostureAware { sweep, ..nets.swap_remove(k) };
-    let seconds = [fixed_s, aware_s, lens_s];
+    let seconds = [stage_s[0].1, aware_s, lens_s];
     Ok(Posture { config: study.clone(), fixed, aware, distortion, seconds, stage_s, threads })
 }
 
