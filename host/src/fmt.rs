@@ -49,11 +49,6 @@ pub fn join<T: std::fmt::Display>(v: impl IntoIterator<Item = T>, sep: &str) -> 
     v.into_iter().map(|x| x.to_string()).collect::<Vec<_>>().join(sep)
 }
 
-/// The links under a figure of a report: its CSV, SVG and PNG.
-pub fn files_line(stem: &str) -> String {
-    format!("[CSV]({stem}.csv) · [SVG]({stem}.svg) · [PNG]({stem}.png)")
-}
-
 /// Stage times as `name 1.2, name 3.4` (seconds, 1 decimal).
 pub fn stages(stage_s: &[(&str, f64)]) -> String {
     join(stage_s.iter().map(|(n, v)| format!("{n} {v:.1}")), ", ")
@@ -110,7 +105,6 @@ mod tests {
     fn small_helpers() {
         assert_eq!(times(1.234), "1.23 x");
         assert_eq!(join([65.0, 85.0, 105.5], ", "), "65, 85, 105.5");
-        assert_eq!(files_line("noise"), "[CSV](noise.csv) · [SVG](noise.svg) · [PNG](noise.png)");
         assert_eq!(stages(&[("a", 1.26), ("b", 0.0)]), "a 1.3, b 0.0");
         assert_eq!((roman(1), roman(4), roman(5)), ("I", "IV", "?"));
         assert_eq!(span([3.0, -1.0, 2.0]), (-1.0, 3.0));
