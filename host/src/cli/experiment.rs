@@ -8,9 +8,9 @@
 
 use crate::fmt::{join, roman};
 use crate::study::accuracy::{self as accuracy, AccuracyConfig};
-use crate::study::engine::{self, Study};
+use crate::study::engine::{self, Progress, Report};
 use crate::study::posture::{self, StudyConfig};
-use crate::study::thesis::Config;
+use crate::study::thesis::{self, Config};
 use anyhow::Result;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -149,32 +149,31 @@ fn accuracy_study(a: AccuracyArgs) -> Result<()> {
         seed_base: a.seed_base,
         quick: a.quick,
     };
-    study(&cfg, &a.output)
+    study(&a.output, |p| accuracy::run(&cfg, p))
 }
 
 fn posture_study(a: PostureArgs) -> Result<()> {
-    study(&StudyConfig::experiment(a.seed, a.quick), &a.output)
+    study(&a.output, |p| posture::run(&StudyConfig::experiment(a.seed, a.quick), p))
 }
 
 fn thesis(a: ThesisArgs) -> Result<()> {
-    let cfg = Config { seed: a.seed, quick: a.quick };
-    study(&cfg, &a.output)
+    study(&a.output, |p| thesis::run(&Config { seed: a.seed, quick: a.quick }, p))
 }
 
 /// Runs a study into `output` with progress bars on a terminal and says what it wrote and
 /// where its page is.
-fn study<S: Study>(s: &S, output: &Path) -> Result<()> {
+fn study<R: Report>(output: &Path, compute: impl FnOnce(&dyn Progress) -> Result<R>) -> Result<()> {
     let bars = Bars::new(std::io::stderr().is_terminal());
-    let ran = engine::run(s, output, &bars)?;
+    let ran = engine::run(output, &bars, compute)?;
     crate::cli::say(format_args!(
         "wrote {} files ({}) to {} in {:.1} s with {} threads",
         ran.files.len(),
-        s.what(),
+        ran.kinds(),
         output.display(),
         ran.seconds,
         ran.threads,
     ))?;
-    crate::cli::say(format_args!("see {}", output.join(s.page()).display()))
+    crate::cli::say(format_args!("see {}", output.join(R::PAGE).display()))
 }
 
 /// `indicatif` bars on stderr, one per stage, left on screen when done.

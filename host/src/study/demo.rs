@@ -1,11 +1,13 @@
 //! `hvs demo`'s results and files: per camera case the default net next to the traditional
 //! method and the floor ([`CaseResult`]), the comparison table, `REPORT.md` from
 //! `host/templates/demo.md` (a section per case from `demo_case.md`) and the printed summary
-//! from `demo.txt`.
+//! from `demo.txt`; for `hvs demo --images` ([`ImageCase`]) `IMAGES.md` from
+//! `demo_images.md` and the printed table from `demo_images.txt`.
 
 use crate::evaluate::{text_table, Evaluation};
 use crate::fmt::{join, pct, roman};
 use crate::sim::sets::training_volume;
+use crate::study::accuracy::images::{Detected, TEST_CENTRE};
 use crate::study::engine::{table_markdown, table_text, Files};
 use crate::study::reported::{self, NET_BOUND_PCT};
 use crate::study::template::fill;
@@ -15,6 +17,7 @@ use hvs_shared::runtime::traditional::Calibration;
 use hvs_shared::sim::presets::{
     LABELS, TEST_DEPTHS, TEST_POINTS_XY, TRAIN_BOARD_X, TRAIN_BOARD_Y, TRAIN_DEPTHS,
 };
+use hvs_vision::render::{opencv_board, RenderOptions};
 use std::path::Path;
 
 /// Random points of the training volume used for the accuracy-floor comparison.
@@ -25,6 +28,9 @@ pub const VOLUME_TRAIN_POINTS: usize = 1000;
 const REPORT: &str = include_str!("../../templates/demo.md");
 const CASE: &str = include_str!("../../templates/demo_case.md");
 const SUMMARY: &str = include_str!("../../templates/demo.txt");
+const IMAGES: &str = include_str!("../../templates/demo_images.md");
+const IMAGES_CASE: &str = include_str!("../../templates/demo_images_case.md");
+const IMAGES_SUMMARY: &str = include_str!("../../templates/demo_images.txt");
 
 /// Seed of case `n`'s random volume training set.
 pub fn volume_train_seed(seed: u64, n: u8) -> u64 {
@@ -194,4 +200,69 @@ pub fn summary(d: &Demo, output: &Path) -> Result<String> {
             ("total_s", format!("{:.2}", d.total_s)),
         ],
     )
+}
+
+/// What `hvs demo --images` found for one case.
+#[derive(Debug, Clone)]
+pub struct ImageCase {
+    /// The case.
+    pub case: u8,
+    /// The corners detected in its training and test images.
+    pub detected: Detected,
+    /// The test evaluation: the default model, then the floor.
+    pub test: Evaluation,
+}
+
+/// The image demo's table, one row per case.
+fn images_table(cases: &[ImageCase]) -> String {
+    let head = ["case", "train corners", "test corners", "corner err", "network", "floor", "ratio"];
+    let rows: Vec<Vec<String>> = cases
+        .iter()
+        .map(|r| {
+            let (net, floor) = (r.test.methods[0].mean.e_ma_pct, r.test.methods[1].mean.e_ma_pct);
+            let d = &r.detected;
+            let [t, u] = [d.train_corners, d.test_corners].map(|[f, n]| format!("{f}/{n}"));
+            let err = format!("{:.3} px", d.corner_error_px);
+            vec![
+                roman(r.case).into(),
+                t,
+                u,
+                err,
+                pct(net),
+                pct(floor),
+                format!("{:.2}x", net / floor),
+            ]
+        })
+        .collect();
+    table_text(&head, &rows)
+}
+
+/// Writes `IMAGES.md` of `hvs demo --images` and returns what it prints.
+pub fn write_images(files: &mut Files, cases: &[ImageCase], output: &Path) -> Result<String> {
+    let case = |r: &ImageCase| {
+        let d = &r.detected;
+        let [t, u] = [d.train_corners, d.test_corners].map(|[f, n]| format!("{f}/{n}"));
+        let values = [
+            ("label", LABELS.get(usize::from(r.case) - 1).copied().unwrap_or("").to_string()),
+            ("train_corners", t),
+            ("corner_error_px", format!("{:.3}", d.corner_error_px)),
+            ("test_corners", u),
+            ("test_table", text_table(&r.test)),
+        ];
+        fill("demo_images_case.md", IMAGES_CASE, &values)
+    };
+    let (board, opt) = (opencv_board(), RenderOptions::default());
+    let [x, y] = TEST_CENTRE;
+    let values = [
+        ("board", format!("{}x{}", board.cols, board.rows)),
+        ("square_cm", board.square_cm.to_string()),
+        ("blur_px", opt.blur_sigma_px.to_string()),
+        ("noise_grey", opt.noise_sigma.to_string()),
+        ("test_centre", format!("X {x} cm, Y {y} cm")),
+        ("table", images_table(cases)),
+        ("cases", join(cases.iter().map(case).collect::<Result<Vec<_>>>()?, "")),
+    ];
+    files.page("IMAGES.md", "demo_images.md", IMAGES, &values)?;
+    let out = [("table", images_table(cases)), ("output", output.display().to_string())];
+    fill("demo_images.txt", IMAGES_SUMMARY, &out)
 }

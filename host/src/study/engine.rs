@@ -1,5 +1,5 @@
 //! The study engine: what every study (thesis, posture, accuracy, `hvs demo`) shares. A study
-//! ([`Study`]) has its configuration, computes typed results and writes them through one
+//! has its configuration and computes typed results, which write themselves ([`Report`]) through one
 //! [`Files`] writer (CSVs, figures, pages from templates, the list of files written); [`run`]
 //! is the one runner (progress, timing); [`table_text`] and [`table_markdown`] the one table
 //! formatter.
@@ -126,18 +126,26 @@ impl Files {
     }
 }
 
-/// One study as the engine runs it.
-pub trait Study {
-    /// Its typed results.
-    type Results;
-    /// The page [`Study::write`] writes (the report to read first).
-    fn page(&self) -> &'static str;
-    /// What it writes, for the run's summary line (`9 experiments: CSV, SVG, PNG; ...`).
-    fn what(&self) -> String;
-    /// Computes the results; returns the worker threads used too.
-    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Self::Results)>;
-    /// Writes the results' files; `total_s` is the run's wall time so far.
-    fn write(&self, files: &mut Files, results: &Self::Results, total_s: f64) -> Result<()>;
+/// A study's configuration with a reduced run (for tests): fewer restarts, nets and points.
+pub trait Reduced {
+    /// Whether this is the reduced run.
+    fn quick(&self) -> bool;
+    /// `full`, or `quick` on the reduced run.
+    fn pick<T>(&self, full: T, quick: T) -> T {
+        if self.quick() {
+            quick
+        } else {
+            full
+        }
+    }
+}
+
+/// The results of one study, as the engine writes them: its files, then its page.
+pub trait Report {
+    /// The page [`Report::write`] writes last (the one to read first).
+    const PAGE: &'static str;
+    /// Writes the files; `total_s` is the run's wall time so far.
+    fn write(&self, files: &mut Files, total_s: f64) -> Result<()>;
 }
 
 /// What a run did.
@@ -151,13 +159,36 @@ pub struct Ran {
     pub seconds: f64,
 }
 
-/// Runs `study` into `output` (created if missing), reporting progress to `progress`, and
-/// writes its files with the run's wall time.
-pub fn run<S: Study>(study: &S, output: &Path, progress: &dyn Progress) -> Result<Ran> {
+impl Ran {
+    /// The files written, counted by kind: `12 CSV, 9 SVG, 9 PNG, 1 MD` (in order of first
+    /// appearance).
+    pub fn kinds(&self) -> String {
+        let mut kinds: Vec<(String, usize)> = Vec::new();
+        for f in &self.files {
+            let ext = Path::new(f)
+                .extension()
+                .map_or(String::new(), |e| e.to_string_lossy().to_uppercase());
+            match kinds.iter_mut().find(|(k, _)| *k == ext) {
+                Some((_, n)) => *n += 1,
+                None => kinds.push((ext, 1)),
+            }
+        }
+        kinds.iter().map(|(k, n)| format!("{n} {k}")).collect::<Vec<_>>().join(", ")
+    }
+}
+
+/// Runs one study into `output` (created if missing): `compute` gives its results, reporting
+/// to `progress`, then they write their files with the run's wall time.
+pub fn run<R: Report>(
+    output: &Path,
+    progress: &dyn Progress,
+    compute: impl FnOnce(&dyn Progress) -> Result<R>,
+) -> Result<Ran> {
     let start = Instant::now();
     let mut files = Files::new(output)?;
-    let (threads, results) = study.compute(progress)?;
-    study.write(&mut files, &results, start.elapsed().as_secs_f64())?;
+    let results = compute(progress)?;
+    results.write(&mut files, start.elapsed().as_secs_f64())?;
+    let threads = rayon::current_num_threads();
     Ok(Ran { files: files.into_written(), threads, seconds: start.elapsed().as_secs_f64() })
 }
 

@@ -406,6 +406,28 @@ fn demo_writes_models_data_and_report() {
 }
 
 #[test]
+fn demo_images_renders_detects_trains_and_reports() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("demo");
+    let stdout = ok(&["demo", "--images", "-o", s(&out), "--restarts", "1"]);
+    let report = std::fs::read_to_string(out.join("IMAGES.md")).unwrap();
+    for case in ["I", "II", "III", "IV"] {
+        let row = stdout.lines().find(|l| l.starts_with(&format!("{case} "))).expect(case);
+        // Every corner of the 9x6 board found at the six training and eleven test depths, and
+        // the model within 1.5 times the floor even with one restart.
+        let cells: Vec<&str> = row.split_whitespace().collect();
+        assert_eq!(cells[1..3], ["324/324", "594/594"], "{row}");
+        let ratio: f64 = cells.last().unwrap().trim_end_matches('x').parse().unwrap();
+        assert!((0.9..1.5).contains(&ratio), "{row}");
+        assert!(report.contains(&format!("## Case {case}:")), "{report}");
+        let n = ["I", "II", "III", "IV"].iter().position(|c| *c == case).unwrap() + 1;
+        let model = out.join(format!("case{n}_images/model.hvsw"));
+        assert!(blob::decode(&std::fs::read(&model).unwrap()).is_ok());
+    }
+    assert!(report.contains(&stdout.lines().next().unwrap().to_string()), "{report}");
+}
+
+#[test]
 fn bad_settings_are_refused_before_anything_is_written() {
     let dir = TempDir::new().unwrap();
     let tr = dir.path().join("t.csv");

@@ -155,7 +155,7 @@ fn quick_run_invariants_files_and_determinism() {
 
     let t = run(&cfg, &Quiet).unwrap();
     check_invariants(&t);
-    let (lib_dir, written) = written_by(&t.config, &t);
+    let (lib_dir, written) = written_by(&t);
     assert_eq!(written.len(), 3 * report::STEMS.len() + 2);
 
     let (stdout, _) = wait_ok(cli.child);

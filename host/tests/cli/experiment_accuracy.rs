@@ -6,7 +6,7 @@ use crate::common::{read, spawn_quick_experiment, wait_ok, QuickExperiment};
 
 use hvs_host::study::accuracy::report::{csv_tables, STEMS, SUBDIR};
 use hvs_host::study::accuracy::{self as accuracy, AccuracyConfig, BOARDS, REGIMES};
-use hvs_host::study::engine::{Files, Quiet, Study};
+use hvs_host::study::engine::{Files, Quiet, Report};
 
 #[test]
 fn quick_run_files_facts_and_determinism() {
@@ -27,7 +27,7 @@ fn quick_run_files_facts_and_determinism() {
     }
     let lib = dir.path().join("lib");
     let mut writer = Files::new(&lib).unwrap();
-    cfg.write(&mut writer, &run, 1.0).unwrap();
+    run.write(&mut writer, 1.0).unwrap();
     let files = writer.into_written();
     assert_eq!(files.len(), STEMS.len() + 2 * 2 + 2);
     for f in &files {
@@ -59,8 +59,8 @@ fn quick_run_files_facts_and_determinism() {
     // Rendered images: every corner found, sub-pixel corners, the floor well below the
     // rounding floor.
     let im = &run.images[0];
-    assert_eq!(im.train_corners[0], im.train_corners[1], "{im:?}");
-    assert!(im.corner_error_px < 0.1, "{im:?}");
+    assert_eq!(im.detected.train_corners[0], im.detected.train_corners[1], "{im:?}");
+    assert!(im.detected.corner_error_px < 0.1, "{im:?}");
     assert!(im.scores.floor() < 0.5, "{im:?}");
     // The real pair: the floor and the DLT are exact (projective ground truth); the default
     // within the 0.15 % goal even with the quick run's 2 restarts, the thesis net not.

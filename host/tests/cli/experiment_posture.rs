@@ -112,7 +112,7 @@ fn quick_run_invariants_files_and_determinism() {
 
     let run = posture_run(&cfg, &Quiet).unwrap();
     check_invariants(&run);
-    let (lib_dir, written) = written_by(&cfg, &run);
+    let (lib_dir, written) = written_by(&run);
     assert_eq!(written.len(), 3 * STEMS.len() + 2);
 
     let (stdout, stderr) = wait_ok(cli.child);

@@ -226,14 +226,13 @@ pub fn csv_rows<'a>(text: &'a str, header: &str) -> Vec<Vec<&'a str>> {
     lines.map(|l| l.split(',').collect()).collect()
 }
 
-/// What `study` writes of `results` (wall time 0) into a new temporary directory, and the
+/// What `results` write (wall time 0) into a new temporary directory, and the
 /// names of the files written.
-pub fn written_by<S: hvs_host::study::engine::Study>(
-    study: &S,
-    results: &S::Results,
+pub fn written_by<R: hvs_host::study::engine::Report>(
+    results: &R,
 ) -> (tempfile::TempDir, Vec<String>) {
     let dir = tempfile::tempdir().unwrap();
     let mut files = hvs_host::study::engine::Files::new(dir.path()).unwrap();
-    study.write(&mut files, results, 0.0).unwrap();
+    results.write(&mut files, 0.0).unwrap();
     (dir, files.into_written())
 }

@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use hvs_host::study::engine::{
-    number_word, run, table_markdown, table_text, Align, Files, Progress, Quiet, Study,
+    number_word, run, table_markdown, table_text, Align, Files, Progress, Quiet, Report,
 };
 use std::path::PathBuf;
 
@@ -39,35 +39,32 @@ fn a_page_with_an_unfilled_placeholder_fails_and_writes_nothing() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-struct Count(usize);
+struct Count(Vec<usize>);
 
-impl Study for Count {
-    type Results = Vec<usize>;
-    fn page(&self) -> &'static str {
-        "COUNT.md"
+impl Report for Count {
+    const PAGE: &'static str = "COUNT.md";
+    fn write(&self, files: &mut Files, _: f64) -> Result<()> {
+        files.rows("count.csv", "k", &self.0, |k| vec![k.to_string()])?;
+        files.page(Self::PAGE, "count.md", "{n} rows\n", &[("n", self.0.len().to_string())])
     }
-    fn what(&self) -> String {
-        "a count".into()
-    }
-    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Vec<usize>)> {
-        progress.start("count", self.0 as u64);
-        let v = (0..self.0).inspect(|_| progress.inc()).collect();
-        progress.finish();
-        Ok((1, v))
-    }
-    fn write(&self, files: &mut Files, r: &Vec<usize>, _: f64) -> Result<()> {
-        files.rows("count.csv", "k", r, |k| vec![k.to_string()])?;
-        files.page(self.page(), "count.md", "{n} rows\n", &[("n", r.len().to_string())])
-    }
+}
+
+fn count(n: usize, progress: &dyn Progress) -> Result<Count> {
+    progress.start("count", n as u64);
+    let v = (0..n).inspect(|_| progress.inc()).collect();
+    progress.finish();
+    Ok(Count(v))
 }
 
 #[test]
 fn the_runner_computes_then_writes() {
     let d = tmp("run");
-    let ran = run(&Count(3), &d.join("out"), &Quiet).unwrap();
+    let ran = run(&d.join("out"), &Quiet, |p| count(3, p)).unwrap();
     assert_eq!(ran.files, ["count.csv", "COUNT.md"]);
-    assert_eq!(ran.threads, 1);
+    assert_eq!(ran.kinds(), "1 CSV, 1 MD");
+    assert_eq!(ran.threads, rayon::current_num_threads());
     assert_eq!(std::fs::read_to_string(d.join("out/count.csv")).unwrap(), "k\n0\n1\n2\n");
+    assert_eq!(std::fs::read_to_string(d.join("out/COUNT.md")).unwrap(), "3 rows\n");
     let _ = std::fs::remove_dir_all(&d);
 }
 

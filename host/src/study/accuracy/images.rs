@@ -3,10 +3,9 @@
 //! --images`), corners detected in memory; the four estimators fitted and scored on them.
 
 use super::{case_rig, estimate, set_seed, AccuracyConfig, Scores, SWEEP_CASE};
-pub use crate::cli::demo::images::TEST_CENTRE;
 use crate::data::dataset::Dataset;
 use crate::evaluate::optimal_depths_lens;
-use crate::study::engine::{par_stage, Progress};
+use crate::study::engine::{par_stage, Progress, Reduced};
 use crate::vision::detected_set;
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::gaze::Joints;
@@ -37,15 +36,27 @@ pub fn image_regimes() -> [ImageRegime; 3] {
     ]
 }
 
-/// What one image regime gave: training and test corners detected and rendered, the mean
-/// |detected - exact| per image coordinate of the detected training corners (px), and the
-/// mean e_ma on the detected test corners.
+/// Where the test boards' centre is (cm): off the training boards' axis, so that no test
+/// corner is a training corner.
+pub const TEST_CENTRE: [f64; 2] = [3.0, -2.0];
+
+/// What detection found in the rendered boards of one run (this part's, or `hvs demo
+/// --images`'s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detected {
+    /// Training corners detected, of those rendered.
+    pub train_corners: [usize; 2],
+    /// Test corners detected, of those rendered.
+    pub test_corners: [usize; 2],
+    /// Mean |detected - exact| per image coordinate of the detected training corners (px).
+    pub corner_error_px: f64,
+}
+
+/// What one image regime gave: its detection and the scores on the detected test corners.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImageRow {
     pub regime: ImageRegime,
-    pub train_corners: [usize; 2],
-    pub test_corners: [usize; 2],
-    pub corner_error_px: f64,
+    pub detected: Detected,
     pub scores: Scores,
 }
 
@@ -104,12 +115,8 @@ pub fn image_rows(cfg: &AccuracyConfig, progress: &dyn Progress) -> Result<Vec<I
         }
         let ev = estimate(cfg, optimal_depths_lens(&rig, lens, &test), &train, &test)
             .with_context(|| format!("images {}", regime.name))?;
-        Ok(ImageRow {
-            regime: *regime,
-            train_corners: [train.len(), train_n],
-            test_corners: [test.len(), test_n],
-            corner_error_px,
-            scores: Scores::mean(&ev),
-        })
+        let (train_corners, test_corners) = ([train.len(), train_n], [test.len(), test_n]);
+        let detected = Detected { train_corners, test_corners, corner_error_px };
+        Ok(ImageRow { regime: *regime, detected, scores: Scores::mean(&ev) })
     })
 }

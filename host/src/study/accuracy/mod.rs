@@ -12,7 +12,7 @@ use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths_lens, Evaluation, Method};
 use crate::sim::board::{Pixels, TrainingBoard};
 use crate::sim::sets::{SetKind, SimOptions};
-use crate::study::engine::{par_stage, timed, Progress, Quiet};
+use crate::study::engine::{par_stage, timed, Progress, Quiet, Reduced};
 use crate::train::{train, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::{blob::Family, blob::InputKind, gaze::Joints};
@@ -74,15 +74,13 @@ pub struct AccuracyConfig {
     pub quick: bool,
 }
 
-impl AccuracyConfig {
-    /// `full`, or `quick` in a quick run.
-    fn pick<T>(&self, full: T, quick: T) -> T {
-        if self.quick {
-            quick
-        } else {
-            full
-        }
+impl Reduced for AccuracyConfig {
+    fn quick(&self) -> bool {
+        self.quick
     }
+}
+
+impl AccuracyConfig {
     /// The cases of the regime table (I-IV; IV when quick).
     pub fn cases(&self) -> Vec<u8> {
         self.pick(vec![1, 2, 3, 4], vec![SWEEP_CASE])

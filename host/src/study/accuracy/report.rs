@@ -8,7 +8,7 @@ use super::{
 };
 use crate::fmt::{join, num, pct, roman, stages, times};
 use crate::sim::board::{Pixels, TrainingBoard};
-use crate::study::engine::{table_markdown, Files, Progress, Study};
+use crate::study::engine::{table_markdown, Files, Report};
 use crate::study::plot::{Figure, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::Result;
 use std::fmt::Write as _;
@@ -81,9 +81,10 @@ pub fn csv_tables(a: &Accuracy) -> Vec<(&'static str, String)> {
         (cells![r.board.name(), g.name, pixels, g.noise_px, g.k1, r.case], &r.scores)
     });
     let images = a.images.iter().map(|r| {
-        let (g, [tf, tn], [sf, sn]) = (&r.regime, r.train_corners, r.test_corners);
+        let (g, d) = (&r.regime, &r.detected);
+        let ([tf, tn], [sf, sn]) = (d.train_corners, d.test_corners);
         (
-            cells![g.name, g.blur_px, g.noise_grey, g.k1, tf, tn, sf, sn, num(r.corner_error_px)],
+            cells![g.name, g.blur_px, g.noise_grey, g.k1, tf, tn, sf, sn, num(d.corner_error_px)],
             &r.scores,
         )
     });
@@ -142,19 +143,11 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
     Figure { title, panels, cols: 2 }
 }
 
-impl Study for AccuracyConfig {
-    type Results = Accuracy;
-    fn page(&self) -> &'static str {
-        "ACCURACY.md"
-    }
-    fn what(&self) -> String {
-        format!("{} parts: CSV; 2 plots: SVG, PNG; timing.csv; ACCURACY.md", STEMS.len())
-    }
-    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Accuracy)> {
-        super::run(self, progress).map(|r| (r.threads, r))
-    }
+impl Report for Accuracy {
+    const PAGE: &'static str = "ACCURACY.md";
     /// The CSVs, plots and `timing.csv` in `accuracy/`, then `ACCURACY.md`.
-    fn write(&self, files: &mut Files, a: &Accuracy, total_s: f64) -> Result<()> {
+    fn write(&self, files: &mut Files, total_s: f64) -> Result<()> {
+        let a = self;
         let mut sub = files.sub(SUBDIR)?;
         for (stem, text) in csv_tables(a) {
             sub.bytes(&format!("{stem}.csv"), text.as_bytes())?;
@@ -171,7 +164,7 @@ impl Study for AccuracyConfig {
         sub.rows("timing.csv", "stage,wall_s", &stages, |(n, s)| cells![n, format!("{s:.3}")])?;
         files.absorb(sub);
         let values = accuracy_values(a, total_s, &files.dir().display().to_string());
-        files.page("ACCURACY.md", "accuracy.md", TEMPLATE, &values)
+        files.page(Self::PAGE, "accuracy.md", TEMPLATE, &values)
     }
 }
 
@@ -282,8 +275,9 @@ fn accuracy_values(a: &Accuracy, total_s: f64, dir: &str) -> Vec<(&'static str, 
     let list = |v: Vec<f64>| join(v, ", ");
     let images = a.images.iter().map(|r| {
         let g = &r.regime;
-        let [t, u] = [r.train_corners, r.test_corners].map(|[f, n]| format!("{f}/{n}"));
-        let err = format!("{:.3}", r.corner_error_px);
+        let [t, u] =
+            [r.detected.train_corners, r.detected.test_corners].map(|[f, n]| format!("{f}/{n}"));
+        let err = format!("{:.3}", r.detected.corner_error_px);
         (cells![g.name, g.blur_px, g.noise_grey, g.k1, t, u, err], &r.scores, false)
     });
     let real_pair = a.real_pair.iter().map(|r| {

@@ -3,11 +3,11 @@
 //! `host/templates/posture.md`.
 
 use super::{
-    csv_tables, run, BandRow, DistortionRow, Errors, FixedRow, HiddenRow, Posture, StudyConfig,
+    csv_tables, BandRow, DistortionRow, Errors, FixedRow, HiddenRow, Posture, StudyConfig,
     GOAL_RATIO, TERMS, WIDE_BOARD_U, WIDE_BOARD_V,
 };
 use crate::fmt::{join, pct, roman, span, stages, times};
-use crate::study::engine::{number_word, Files, Progress, Study};
+use crate::study::engine::{number_word, Files, Report};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use anyhow::Result;
 use hvs_shared::runtime::blob::{Family, OutputFrame};
@@ -18,19 +18,11 @@ use std::fmt::Write as _;
 /// `timing.csv` and `POSTURE.md`.
 pub const STEMS: [&str; 4] = ["fixed", "bands", "hidden", "distortion"];
 
-impl Study for StudyConfig {
-    type Results = Posture;
-    fn page(&self) -> &'static str {
-        "POSTURE.md"
-    }
-    fn what(&self) -> String {
-        format!("{} parts: CSV, SVG, PNG; timing.csv, POSTURE.md", STEMS.len())
-    }
-    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Posture)> {
-        run(self, progress).map(|r| (r.threads, r))
-    }
+impl Report for Posture {
+    const PAGE: &'static str = "POSTURE.md";
     /// The CSVs ([`csv_tables`]), one plot per part (SVG and PNG) and `POSTURE.md`.
-    fn write(&self, files: &mut Files, r: &Posture, total_s: f64) -> Result<()> {
+    fn write(&self, files: &mut Files, total_s: f64) -> Result<()> {
+        let r = self;
         for (name, header, rows) in csv_tables(r) {
             files.csv(name, &header, &rows)?;
         }
@@ -38,7 +30,7 @@ impl Study for StudyConfig {
         for (stem, fig) in STEMS.iter().zip(&figures) {
             files.figure(stem, fig)?;
         }
-        files.page("POSTURE.md", "host/templates/posture.md", TEMPLATE, &values(r, total_s))
+        files.page(Self::PAGE, "host/templates/posture.md", TEMPLATE, &values(r, total_s))
     }
 }
 

@@ -11,7 +11,7 @@ use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
 use crate::fmt::mean;
 use crate::sim::sets::{simulate, Sample, SetKind, SimOptions};
-use crate::study::engine::{par_stage, timed, Progress};
+use crate::study::engine::{par_stage, timed, Progress, Reduced};
 use crate::train::{fallback, train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
 use hvs_shared::runtime::blob::{InputKind, OutputKind};
@@ -40,15 +40,13 @@ pub struct Config {
     pub quick: bool,
 }
 
-impl Config {
-    /// `full`, or `quick` on the reduced run.
-    fn pick<T>(&self, full: T, quick: T) -> T {
-        if self.quick {
-            quick
-        } else {
-            full
-        }
+impl Reduced for Config {
+    fn quick(&self) -> bool {
+        self.quick
     }
+}
+
+impl Config {
     /// Restarts of the proposed net (the trainer's default, 10; 2 when quick).
     pub fn restarts(&self) -> usize {
         self.pick(TrainConfig::default().restarts, 2)

@@ -2,10 +2,10 @@
 //! equal bytes) and one plot (SVG and PNG) per experiment, and `RESULTS.md`.
 
 use super::markdown::{results_values, POSTURE_REPORT, TEMPLATE};
-use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, Config, DepthCurve, FewerDepths};
+use super::{e_ma_hn, hidden_counts, mean_e_ma_hn, AlgoRow, DepthCurve, FewerDepths};
 use super::{NetRow, NoiseRow, Thesis, GENERAL_CASE, PHI_DEPTHS};
 use crate::fmt::{join, num, roman};
-use crate::study::engine::{Files, Progress, Study};
+use crate::study::engine::{Files, Report};
 use crate::study::plot::{Figure, Legend, Panel, Series, Style, FLOOR_COLOR};
 use crate::study::reported::NET_BOUND_PCT;
 use crate::train::Algo;
@@ -26,29 +26,20 @@ pub const STEMS: [&str; 9] = [
     "noise",
 ];
 
-impl Study for Config {
-    type Results = Thesis;
-    fn page(&self) -> &'static str {
-        "RESULTS.md"
-    }
-    fn what(&self) -> String {
-        format!("{} experiments: CSV, SVG, PNG; RESULTS.md", STEMS.len())
-    }
-    fn compute(&self, progress: &dyn Progress) -> Result<(usize, Thesis)> {
-        super::run(self, progress).map(|t| (t.threads, t))
-    }
+impl Report for Thesis {
+    const PAGE: &'static str = "RESULTS.md";
     /// Writes every CSV, plot and `RESULTS.md`; `total_s` is the run's wall time.
-    fn write(&self, o: &mut Files, t: &Thesis, total_s: f64) -> Result<()> {
-        phi_files(o, t)?;
-        per_case_files(o, t, false)?;
-        net_case4_files(o, t)?;
-        sweep_files(o, t)?;
-        per_case_files(o, t, true)?;
-        fewer_files(o, t)?;
-        algo_files(o, t)?;
-        noise_files(o, t)?;
-        let values = results_values(t, total_s, o.dir().join(POSTURE_REPORT).is_file())?;
-        o.page("RESULTS.md", "host/templates/results.md", TEMPLATE, &values)
+    fn write(&self, o: &mut Files, total_s: f64) -> Result<()> {
+        phi_files(o, self)?;
+        per_case_files(o, self, false)?;
+        net_case4_files(o, self)?;
+        sweep_files(o, self)?;
+        per_case_files(o, self, true)?;
+        fewer_files(o, self)?;
+        algo_files(o, self)?;
+        noise_files(o, self)?;
+        let values = results_values(self, total_s, o.dir().join(POSTURE_REPORT).is_file())?;
+        o.page(Self::PAGE, "host/templates/results.md", TEMPLATE, &values)
     }
 }
 
