@@ -35,6 +35,16 @@ pub enum OutputsArg {
     Z,
 }
 
+impl OutputsArg {
+    /// The net's outputs.
+    pub fn kind(self) -> OutputKind {
+        match self {
+            OutputsArg::Xyz => OutputKind::Xyz,
+            OutputsArg::Z => OutputKind::Z,
+        }
+    }
+}
+
 /// Model family (command-line form).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ArchArg {
@@ -164,31 +174,10 @@ pub struct Args {
     v0: f64,
 }
 
-impl Args {
-    /// The arguments of an update from the model `from`.
-    fn update_args(&self, from: &Path) -> UpdateArgs {
-        UpdateArgs {
-            data: self.data.clone(),
-            from: from.to_path_buf(),
-            output: self.output.clone(),
-            seed: self.seed,
-            hidden: self.hidden,
-            outputs: self.outputs.map(|o| match o {
-                OutputsArg::Xyz => OutputKind::Xyz,
-                OutputsArg::Z => OutputKind::Z,
-            }),
-            family: self.arch.map(ArchArg::family),
-            frame: self.frame.map(FrameArg::frame),
-            algo: self.algo,
-            fallback: (self.half_baseline, self.u0, self.v0),
-        }
-    }
-}
-
 /// Runs `hvs train`.
 pub fn run(a: Args) -> Result<()> {
     if let Some(from) = &a.from {
-        return run_update(&a.update_args(from));
+        return run_update(&a, from);
     }
     let hidden = a.hidden.unwrap_or(5);
     if hidden == 0 || hidden > MAX_HIDDEN {
@@ -216,10 +205,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     let config = TrainConfig {
         hidden,
-        outputs: match a.outputs.unwrap_or(OutputsArg::Xyz) {
-            OutputsArg::Xyz => OutputKind::Xyz,
-            OutputsArg::Z => OutputKind::Z,
-        },
+        outputs: a.outputs.unwrap_or(OutputsArg::Xyz).kind(),
         algo: match a.algo.unwrap_or(AlgoArg::Lm) {
             AlgoArg::Lm => Algo::Lm,
             AlgoArg::Bp => Algo::Bp,
@@ -261,38 +247,13 @@ fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<(
     Ok(())
 }
 
-/// What `hvs train` passes on with `--from`.
-#[derive(Debug, Clone)]
-struct UpdateArgs {
-    /// The new points.
-    pub data: PathBuf,
-    /// The model to update.
-    pub from: PathBuf,
-    /// The updated model.
-    pub output: PathBuf,
-    /// Seed of the samples of the old volume.
-    pub seed: u64,
-    /// `--hidden`, if given.
-    pub hidden: Option<usize>,
-    /// `--outputs`, if given.
-    pub outputs: Option<OutputKind>,
-    /// `--arch`, if given.
-    pub family: Option<Family>,
-    /// `--frame`, if given.
-    pub frame: Option<OutputFrame>,
-    /// `--algo`, if given.
-    pub algo: Option<AlgoArg>,
-    /// Half baseline, u0, v0 of a fallback fitted on the new points.
-    pub fallback: (f64, f64, f64),
-}
-
 /// Runs `hvs train --from OLD.hvsw`: updates a trained model with new points
 /// ([`crate::train::update`]) and writes the next generation.
-fn run_update(a: &UpdateArgs) -> Result<()> {
-    check_not_input("-o", &a.output, &[("--data", &a.data), ("--from", &a.from)])?;
-    let old = model::load(&a.from)?;
+fn run_update(a: &Args, from_path: &Path) -> Result<()> {
+    check_not_input("-o", &a.output, &[("--data", &a.data), ("--from", from_path)])?;
+    let old = model::load(from_path)?;
     let b = &old.blob;
-    let from = a.from.display();
+    let from = from_path.display();
     if let Some(h) = a.hidden {
         if h != b.topology.hidden as usize {
             bail!(
@@ -301,12 +262,12 @@ fn run_update(a: &UpdateArgs) -> Result<()> {
             );
         }
     }
-    if let Some(o) = a.outputs {
+    if let Some(o) = a.outputs.map(OutputsArg::kind) {
         if o != b.topology.outputs {
             bail!("--outputs does not match {from}'s outputs: an update keeps the old model's topology");
         }
     }
-    if let Some(f) = a.family {
+    if let Some(f) = a.arch.map(ArchArg::family) {
         if f != b.family {
             bail!(
                 "--arch {} does not match {from} ({}): an update keeps the old model's family",
@@ -315,7 +276,7 @@ fn run_update(a: &UpdateArgs) -> Result<()> {
             );
         }
     }
-    if let Some(f) = a.frame {
+    if let Some(f) = a.frame.map(FrameArg::frame) {
         if f != b.frame {
             bail!("--frame does not match {from}'s output frame: an update keeps it");
         }
@@ -351,7 +312,7 @@ fn run_update(a: &UpdateArgs) -> Result<()> {
     blob.set_parent(Some(Parent { crc: old.crc, generation: b.generation }));
     blob.set_image_size(b.image_size().or(table.image_size));
     blob.matcher = crate::train::matcher::matcher_geometry(&up.learned).or(b.matcher);
-    let (half_baseline, u0, v0) = a.fallback;
+    let (half_baseline, u0, v0) = (a.half_baseline, a.u0, a.v0);
     // The traditional method's calibration follows a camera that moved; otherwise it stays.
     if up.cameras.iter().any(|c| c.moved) {
         blob.fallback =

@@ -29,6 +29,13 @@ fn train_case(dir: &Path, n: u8, restarts: usize) -> (PathBuf, PathBuf, PathBuf)
     (tr, te, m)
 }
 
+/// `hvs simulate --set volume` of case `n` with `args` (`--points 300 ...`) into `dir/name`.
+fn volume(dir: &Path, n: u8, args: &str, name: &str) -> PathBuf {
+    let p = dir.join(name);
+    ok_line(&format!("simulate --case {n} --set volume {args} -o {}", s(&p)));
+    p
+}
+
 fn eval_json(model: &Path, data: &Path) -> Value {
     let out = ok(&["eval", "--model", s(model), "--data", s(data), "--json"]);
     serde_json::from_str(&out).expect("eval --json prints JSON")
@@ -155,8 +162,7 @@ fn network_is_near_the_rounding_floor_and_beats_the_traditional_method_on_the_de
 fn predict_gives_the_bits_of_the_shared_inference() {
     let dir = TempDir::new().unwrap();
     let (_, _, model) = train_case(dir.path(), 4, 2);
-    let pts = dir.path().join("vol.csv");
-    ok_line(&format!("simulate --case 4 --set volume --points 3000 --noise-px 0.8 -o {}", s(&pts)));
+    let pts = volume(dir.path(), 4, "--points 3000 --noise-px 0.8", "vol.csv");
     let out = dir.path().join("pred.csv");
     ok_line(&format!("predict --model {} --points {} -o {}", s(&model), s(&pts), s(&out)));
     let blob: ModelBlob = blob::decode(&std::fs::read(&model).unwrap()).unwrap();
@@ -239,8 +245,7 @@ fn train_stores_the_thesis_calibration_as_fallback() {
 fn eval_reports_the_optimal_floor_with_a_true_rig() {
     let dir = TempDir::new().unwrap();
     let (_, _, m) = train_case(dir.path(), 2, 2);
-    let vol = dir.path().join("v.csv");
-    ok_line(&format!("simulate --case 2 --set volume --points 300 -o {}", s(&vol)));
+    let vol = volume(dir.path(), 2, "--points 300", "v.csv");
     let out = ok_line(&format!("eval --model {} --data {} --json --case 2", s(&m), s(&vol)));
     let r: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(r["evaluation"]["exact_depths"], false);
