@@ -104,16 +104,12 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], o: &AdamOptions) -> AdamResult 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::train::net::tests::{random_params, random_problem};
+    use crate::train::net::tests::random_start;
     use crate::train::net::Shape;
-    use hvs_shared::runtime::mlp::Activation;
 
     #[test]
     fn lowers_the_cost() {
-        let shape = Shape::new(2, 3, 2, false);
-        let prob = random_problem(shape, Activation::Linear, 30, 1);
-        let mut p = random_params(&shape, 2);
-        let start = prob.cost(&p);
+        let (prob, mut p, start) = random_start(Shape::new(2, 3, 2, false), 30, [1, 2]);
         let opts = AdamOptions { epochs: 500, weight_decay: 0.0, ..AdamOptions::default() };
         let res = fit(&prob, &mut p, &opts);
         assert_eq!(res.epochs, 500);

@@ -762,6 +762,18 @@ pub(crate) mod tests {
         Problem { shape, output, n, x, t, c }
     }
 
+    /// [`random_problem`] with a linear output, random parameters from `seeds[1]` and their cost.
+    pub(crate) fn random_start(
+        shape: Shape,
+        n: usize,
+        seeds: [u64; 2],
+    ) -> (Problem, Vec<f64>, f64) {
+        let prob = random_problem(shape, Activation::Linear, n, seeds[0]);
+        let p = random_params(&shape, seeds[1]);
+        let cost = prob.cost(&p);
+        (prob, p, cost)
+    }
+
     pub(crate) fn random_params(shape: &Shape, seed: u64) -> Vec<f64> {
         let mut g = SplitMix64::new(seed);
         (0..shape.n_params()).map(|_| g.uniform(-1.5, 1.5)).collect()

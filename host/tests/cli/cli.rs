@@ -14,15 +14,17 @@ fn fixture(name: &str) -> PathBuf {
 
 /// Simulates case `n`'s train and test sets and trains the default net (with `restarts`)
 /// into `dir`; returns (train csv, test csv, model).
+/// `hvs simulate --case n --set set` into `dir/name`.
+fn simulated(dir: &Path, n: u8, set: &str, name: &str) -> PathBuf {
+    let p = dir.join(name);
+    ok(&["simulate", "--case", &n.to_string(), "--set", set, "-o", s(&p)]);
+    p
+}
+
 fn train_case(dir: &Path, n: u8, restarts: usize) -> (PathBuf, PathBuf, PathBuf) {
-    let (tr, te, m) = (
-        dir.join(format!("case{n}_train.csv")),
-        dir.join(format!("case{n}_test.csv")),
-        dir.join(format!("case{n}.hvsw")),
-    );
-    let case = n.to_string();
-    ok(&["simulate", "--case", &case, "--set", "train", "-o", s(&tr)]);
-    ok(&["simulate", "--case", &case, "--set", "test", "-o", s(&te)]);
+    let tr = simulated(dir, n, "train", &format!("case{n}_train.csv"));
+    let te = simulated(dir, n, "test", &format!("case{n}_test.csv"));
+    let m = dir.join(format!("case{n}.hvsw"));
     let r = restarts.to_string();
     let out = ok(&["train", "--data", s(&tr), "-o", s(&m), "--restarts", &r]);
     assert!(out.contains("training e_ma"), "{out}");
@@ -187,9 +189,8 @@ fn predict_gives_the_bits_of_the_shared_inference() {
 #[test]
 fn z_only_models_leave_x_and_y_empty() {
     let dir = TempDir::new().unwrap();
-    let tr = dir.path().join("t.csv");
+    let tr = simulated(dir.path(), 2, "train", "t.csv");
     let m = dir.path().join("z.hvsw");
-    ok(&["simulate", "--case", "2", "--set", "train", "-o", s(&tr)]);
     ok_line(&format!("train --data {} -o {} --outputs z --restarts 2", s(&tr), s(&m)));
     let out = ok(&["predict", "--model", s(&m), "--points", s(&tr)]);
     let r = rows(&out);
@@ -204,8 +205,7 @@ fn z_only_models_leave_x_and_y_empty() {
 #[test]
 fn the_same_seed_gives_the_same_model_bytes() {
     let dir = TempDir::new().unwrap();
-    let tr = dir.path().join("t.csv");
-    ok(&["simulate", "--case", "3", "--set", "train", "-o", s(&tr)]);
+    let tr = simulated(dir.path(), 3, "train", "t.csv");
     let train = |seed: &str, name: &str| {
         let m = dir.path().join(name);
         ok(&["train", "--data", s(&tr), "-o", s(&m), "--seed", seed, "--restarts", "4"]);
@@ -435,9 +435,8 @@ fn demo_images_renders_detects_trains_and_reports() {
 #[test]
 fn bad_settings_are_refused_before_anything_is_written() {
     let dir = TempDir::new().unwrap();
-    let tr = dir.path().join("t.csv");
+    let tr = simulated(dir.path(), 1, "train", "t.csv");
     let m = dir.path().join("m.hvsw");
-    ok(&["simulate", "--case", "1", "--set", "train", "-o", s(&tr)]);
     let base = ["train", "--data", s(&tr), "-o", s(&m)];
     let run = |extra: &[&str], want: &str| {
         let args: Vec<&str> = base.iter().chain(extra).copied().collect();

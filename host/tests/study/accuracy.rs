@@ -43,19 +43,10 @@ fn worst_over_cases_is_the_largest_ratio_or_the_largest_exact_error() {
 
 #[test]
 fn seeds_are_distinct_and_levels_span_the_issue() {
-    let mut seen = std::collections::HashSet::new();
-    for part in 0..3 {
-        for b in 0..2 {
-            for level in 0..11 {
-                for case in 1..=4 {
-                    for set in 1..=2 {
-                        let seed = set_seed(HELD_OUT_SEED_BASE, part, b, level, case, set);
-                        assert!(seen.insert(seed));
-                    }
-                }
-            }
-        }
-    }
+    let seeds = crate::grid([3, 2, 11, 4, 2]).map(|[part, b, level, case, set]| {
+        set_seed(HELD_OUT_SEED_BASE, part, b as usize, level as usize, case as u8 + 1, set + 1)
+    });
+    assert!(crate::distinct(seeds));
     let full = AccuracyConfig { quick: false, ..quick() };
     let n = full.noise_levels();
     assert_eq!((n.len(), n[0], n[10]), (11, 0.0, 0.5));

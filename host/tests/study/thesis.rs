@@ -83,16 +83,8 @@ fn traditional_ranges_within_ten_percent() {
 
 #[test]
 fn derived_seeds_differ_per_item_and_per_run() {
-    let mut seen = std::collections::HashSet::new();
-    for seed in 0..3 {
-        for tag in 1..4 {
-            for a in 0..10 {
-                for b in 0..10 {
-                    assert!(seen.insert(derive_seed(seed, tag, a, b)));
-                }
-            }
-        }
-    }
+    let seeds = crate::grid([3, 3, 10, 10]).map(|[s, tag, a, b]| derive_seed(s, tag + 1, a, b));
+    assert!(crate::distinct(seeds));
     assert_eq!(derive_seed(5, 1, 2, 3), derive_seed(5, 1, 2, 3));
 }
 
