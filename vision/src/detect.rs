@@ -44,13 +44,16 @@ impl core::fmt::Display for Side {
 }
 
 /// Why no labelled board came out of an image or a pair.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DetectError {
     /// The image is too small to hold a board (width, height).
+    #[error("image {0}x{1} is too small to hold a board")]
     ImageTooSmall(u32, u32),
     /// No chessboard grid was found at all.
+    #[error("board not found")]
     BoardNotFound,
     /// A grid was found, but not with `cols x rows` corners.
+    #[error("wrong corner count: found {found} labelled corners spanning {}x{}, the board has {expected}", extent.0, extent.1)]
     WrongCornerCount {
         /// Corners the grid builder labelled.
         found: usize,
@@ -60,12 +63,16 @@ pub enum DetectError {
         extent: (u32, u32),
     },
     /// The corners are there but do not form a consistent grid (the reason).
+    #[error("inconsistent grid: {0}")]
     InconsistentGrid(String),
     /// The board's orientation in the image cannot be told (the reason).
+    #[error("board orientation ambiguous: {0}")]
     AmbiguousOrientation(String),
     /// One image of a pair failed.
+    #[error("{0} image: {1}")]
     InImage(Side, Box<DetectError>),
     /// The two images of a pair differ in size.
+    #[error("image size mismatch: left {}x{}, right {}x{}", left.0, left.1, right.0, right.1)]
     SizeMismatch {
         /// Left image (width, height).
         left: (u32, u32),
@@ -74,6 +81,7 @@ pub enum DetectError {
     },
     /// The left and right labellings disagree: a left -> right homography over the labels
     /// leaves a residual too large for one board.
+    #[error("left and right labels disagree: corner ({}, {}) is {max_px:.2} px off the left -> right homography (limit {limit_px:.2} px)", worst.0, worst.1)]
     LabelMismatch {
         /// Largest residual (px).
         max_px: f64,
@@ -84,6 +92,7 @@ pub enum DetectError {
     },
     /// The board's `i` axis points in clearly different directions in the two images
     /// (degrees from `+u`), so the two labellings cannot both be right.
+    #[error("left and right labels disagree: the board's i axis is at {left_deg:.1} degrees in the left image and {right_deg:.1} in the right (limit {MAX_ROLL_DIFF_DEG:.0} apart)")]
     OrientationMismatch {
         /// Left image's `i` axis angle.
         left_deg: f64,
@@ -91,10 +100,12 @@ pub enum DetectError {
         right_deg: f64,
     },
     /// A geometric fit failed.
+    #[error("geometry: {0}")]
     Geometry(GeomError),
     /// The corner detector found more candidates than detection goes through (a texture
     /// of corners, not a board): refused before the grid is built, so that time stays
     /// bounded.
+    #[error("{found} corner candidates, more than the {limit} detection goes through: the image is a texture of corners, not one board in view")]
     TooManyCorners {
         /// Corner candidates found.
         found: usize,
@@ -102,8 +113,12 @@ pub enum DetectError {
         limit: usize,
     },
     /// The board has more corners than detection handles ([`MAX_BOARD_CORNERS`]).
+    #[error(
+        "the board has {0} inner corners, more than the {MAX_BOARD_CORNERS} detection handles"
+    )]
     BoardTooLarge(usize),
     /// Another chessboard grid lies beside the board (its corner count, its centre).
+    #[error("several boards in view: another chessboard grid of {corners} corners lies around ({:.0}, {:.0}); show one board per image", at[0], at[1])]
     SeveralBoards {
         /// Corners of the other grid.
         corners: usize,
@@ -113,6 +128,7 @@ pub enum DetectError {
     /// The board's `i` axis (its `cols` corners) runs down the image: its labels cannot
     /// follow the convention ((0, 0) top left, `i` to the right); the description has
     /// `cols` and `rows` swapped, or the board is held turned by a quarter.
+    #[error("the labels cannot follow the board convention: the board's {cols}-corner side (inner_corners[0]) runs down the image ({roll_deg:.0} degrees from +u), so (0, 0) could not be the top-left corner with i to the right; if the board shows {rows} corners across and {cols} down, describe it as \"inner_corners\": [{rows}, {cols}] (else hold it with its {cols}-corner side across)")]
     Turned {
         /// The description's `cols`.
         cols: u32,
@@ -123,76 +139,8 @@ pub enum DetectError {
     },
 }
 
-impl core::fmt::Display for DetectError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            DetectError::ImageTooSmall(w, h) => {
-                write!(f, "image {w}x{h} is too small to hold a board")
-            }
-            DetectError::BoardNotFound => f.write_str("board not found"),
-            DetectError::WrongCornerCount {
-                found,
-                expected,
-                extent,
-            } => write!(
-                f,
-                "wrong corner count: found {found} labelled corners spanning {}x{}, the board has {expected}",
-                extent.0, extent.1
-            ),
-            DetectError::InconsistentGrid(why) => write!(f, "inconsistent grid: {why}"),
-            DetectError::AmbiguousOrientation(why) => {
-                write!(f, "board orientation ambiguous: {why}")
-            }
-            DetectError::InImage(side, e) => write!(f, "{side} image: {e}"),
-            DetectError::SizeMismatch { left, right } => write!(
-                f,
-                "image size mismatch: left {}x{}, right {}x{}",
-                left.0, left.1, right.0, right.1
-            ),
-            DetectError::LabelMismatch {
-                max_px,
-                limit_px,
-                worst,
-            } => write!(
-                f,
-                "left and right labels disagree: corner ({}, {}) is {max_px:.2} px off the left -> right homography (limit {limit_px:.2} px)",
-                worst.0, worst.1
-            ),
-            DetectError::OrientationMismatch {
-                left_deg,
-                right_deg,
-            } => write!(
-                f,
-                "left and right labels disagree: the board's i axis is at {left_deg:.1} degrees in the left image and {right_deg:.1} in the right (limit {MAX_ROLL_DIFF_DEG:.0} apart)"
-            ),
-            DetectError::Geometry(e) => write!(f, "geometry: {e}"),
-            DetectError::TooManyCorners { found, limit } => write!(
-                f,
-                "{found} corner candidates, more than the {limit} detection goes through: the image is a texture of corners, not one board in view"
-            ),
-            DetectError::BoardTooLarge(n) => write!(
-                f,
-                "the board has {n} inner corners, more than the {MAX_BOARD_CORNERS} detection handles"
-            ),
-            DetectError::SeveralBoards { corners, at } => write!(
-                f,
-                "several boards in view: another chessboard grid of {corners} corners lies around ({:.0}, {:.0}); show one board per image",
-                at[0], at[1]
-            ),
-            DetectError::Turned {
-                cols,
-                rows,
-                roll_deg,
-            } => write!(
-                f,
-                "the labels cannot follow the board convention: the board's {cols}-corner side (inner_corners[0]) runs down the image ({roll_deg:.0} degrees from +u), so (0, 0) could not be the top-left corner with i to the right; if the board shows {rows} corners across and {cols} down, describe it as \"inner_corners\": [{rows}, {cols}] (else hold it with its {cols}-corner side across)"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for DetectError {}
-
+// By hand, not `#[from]`: that would make the fit's error this one's source too, and a chain
+// printed with `{:#}` would say it twice.
 impl From<GeomError> for DetectError {
     fn from(e: GeomError) -> Self {
         DetectError::Geometry(e)

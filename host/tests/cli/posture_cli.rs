@@ -53,14 +53,13 @@ fn bad_posture_flags_are_refused() {
 fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     let dir = Scratch::new();
     // A coarse grid (2 cells per axis, 32 postures), so the test stays quick.
-    posture_model(
+    let info = posture_model(
         &dir,
         "--case 1",
         "--postures grid --posture-levels 2,2,2,2,2",
         "--postures random --posture-count 20",
         "--hidden 8 --restarts 2",
     );
-    let info = ok(&["info", &dir.p("m.hvsw")]);
     assert!(info.contains("9-8-3"), "{info}");
     // Without --arch and --frame a posture-aware set gets the default family with its points
     // in the eye platform's frame.
@@ -88,14 +87,13 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
 #[test]
 fn arch_gives_the_default_family_on_a_posture_aware_set() {
     let dir = Scratch::new();
-    posture_model(
+    let info = posture_model(
         &dir,
         "--case 3",
         "--postures grid --posture-levels 1,1,1,1,2",
         "--postures random --posture-count 4",
         "--hidden 4 --restarts 1 --arch inverse-depth-skip --frame head",
     );
-    let info = ok(&["info", &dir.p("m.hvsw")]);
     assert!(info.contains("9-4-3"), "{info}");
     assert!(info.contains("inverse-depth-skip"), "{info}");
     assert!(info.contains("frame:       head "), "{info}");

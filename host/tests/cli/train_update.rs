@@ -43,13 +43,19 @@ fn network_and_floor(model: &str, data: &str, rig: &str) -> (f64, f64) {
     (pct("network"), pct("optimal"))
 }
 
+/// A case III model in `d` (`old.csv` from the board at its six depths with `seed`, then
+/// `hvs train TRAIN` into `model`).
+fn old_model(d: &Scratch, seed: u64, train: &str, model: &str) {
+    simulate_into(&format!("--case 3 --set train {BOARD} --seed {seed}"), &d.p("old.csv"));
+    train_into(&d.p("old.csv"), &d.p(model), train);
+}
+
 #[test]
 fn a_knocked_camera_is_learned_from_one_board_at_one_depth() {
     let d = Scratch::new();
     let rig = d.p("knocked.json");
     std::fs::write(&rig, KNOCKED).unwrap();
-    simulate_into(&format!("--case 3 --set train {BOARD} --seed 31"), &d.p("old.csv"));
-    train_into(&d.p("old.csv"), &d.p("old.hvsw"), "--seed 32");
+    old_model(&d, 31, "--seed 32", "old.hvsw");
     simulate_into(&format!("--rig {rig} --set train {BOARD} --seed 33"), &d.p("all.csv"));
     assert_eq!(one_depth(&d.p("all.csv"), 105.0, &d.p("new.csv")), 54);
     simulate_into(
@@ -102,8 +108,7 @@ fn a_knocked_camera_is_learned_from_one_board_at_one_depth() {
 #[test]
 fn ten_updates_of_an_unchanged_rig_do_not_forget() {
     let d = Scratch::new();
-    simulate_into(&format!("--case 3 --set train {BOARD} --seed 41"), &d.p("old.csv"));
-    train_into(&d.p("old.csv"), &d.p("m0.hvsw"), "--seed 42");
+    old_model(&d, 41, "--seed 42", "m0.hvsw");
     simulate_into(
         &format!("--case 3 --set volume {BOARD} --points 500 --seed 43"),
         &d.p("volume.csv"),
@@ -129,8 +134,7 @@ fn ten_updates_of_an_unchanged_rig_do_not_forget() {
 #[test]
 fn an_update_keeps_the_old_model_or_says_why_not() {
     let d = Scratch::new();
-    simulate_into(&format!("--case 3 --set train {BOARD} --seed 61"), &d.p("old.csv"));
-    train_into(&d.p("old.csv"), &d.p("old.hvsw"), "--restarts 2");
+    old_model(&d, 61, "--restarts 2", "old.hvsw");
     let base = |extra: &str| {
         format!(
             "train --data {} --from {} -o {} {extra}",

@@ -165,11 +165,19 @@ impl Scratch {
 
 /// A posture-aware model and its sets in `dir`: `train.csv` and `test.csv` from
 /// `hvs simulate FLAGS --set train|test TRAIN_SET|TEST_SET`, and `m.hvsw` from
-/// `hvs train --data train.csv TRAIN` (flags split at white space).
-pub fn posture_model(dir: &Scratch, flags: &str, train_set: &str, test_set: &str, train: &str) {
+/// `hvs train --data train.csv TRAIN` (flags split at white space); returns `hvs info` of the
+/// model.
+pub fn posture_model(
+    dir: &Scratch,
+    flags: &str,
+    train_set: &str,
+    test_set: &str,
+    train: &str,
+) -> String {
     simulate_into(&format!("{flags} --set train {train_set}"), &dir.p("train.csv"));
     simulate_into(&format!("{flags} --set test {test_set}"), &dir.p("test.csv"));
     train_into(&dir.p("train.csv"), &dir.p("m.hvsw"), train);
+    ok(&["info", &dir.p("m.hvsw")])
 }
 
 /// The text of `STEM.csv` written by two runs of a study, into `a` and `b`, after checking

@@ -229,7 +229,7 @@ pub fn match_points(
 #[cfg(test)]
 mod tests {
     use super::window::{template, weight_lut, Plane, Win};
-    use super::zncc::zncc_at;
+    use super::zncc::{zncc_at, Probe};
     use super::*;
 
     #[test]
@@ -292,9 +292,9 @@ mod tests {
             assert!(s.abs() < 1e-4 && (ws - 1.0).abs() < 1e-4 && (ss - 1.0).abs() < 1e-3);
             // The same window correlates with itself at 1, and not with its neighbour.
             template(&p, 20.0, 14.0, w, [1.0, 1.0], &weight_lut(gamma, 0.2), &mut t).unwrap();
-            let z = zncc_at(&p, &t, w, [1.0, 1.0], 20, 14.0).unwrap();
+            let z = zncc_at(&p, Probe { t: &t, win: w, scale: [1.0, 1.0] }, 20, 14.0).unwrap();
             assert!((z - 1.0).abs() < 1e-4, "{z}");
-            let z = zncc_at(&p, &t, w, [1.0, 1.0], 21, 14.0).unwrap();
+            let z = zncc_at(&p, Probe { t: &t, win: w, scale: [1.0, 1.0] }, 21, 14.0).unwrap();
             assert!(z < 0.999, "{z}");
         }
         assert!(template(&p, 2.5, 14.0, w, [1.0, 1.0], &[], &mut t).is_none());

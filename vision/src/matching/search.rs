@@ -2,7 +2,7 @@
 //! (decisions 4-6), the left-right check and the retries with shifted or grown windows.
 
 use super::window::{template, Plane, Win};
-use super::zncc::{zncc_at, zncc_scaled};
+use super::zncc::{zncc_at, zncc_scaled, Probe};
 use super::{Match, MatchParams, MatchStatus, Matcher, Query};
 
 /// The outcome of one search along a line.
@@ -228,8 +228,12 @@ impl Matcher {
                 Side::Back => MatchStatus::LrCheckFailed,
             }));
         }
-        let ctx =
-            LineSearch { img: dst, t: buf, win, scale: s_dst, v_at: &v_at, params: &self.params };
+        let ctx = LineSearch {
+            img: dst,
+            probe: Probe { t: buf, win, scale: s_dst },
+            v_at: &v_at,
+            params: &self.params,
+        };
         let s = ctx.scan(k_lo, k_hi, only, check_unique);
         // A peak found only thanks to the slack must still be near the interval.
         Some(s)
@@ -241,9 +245,7 @@ impl Matcher {
 /// line `v_at` (`v` for each `u`), under `params`.
 struct LineSearch<'a> {
     img: &'a Plane,
-    t: &'a [f32],
-    win: Win,
-    scale: [f64; 2],
+    probe: Probe<'a>,
     v_at: &'a dyn Fn(f64) -> f64,
     params: &'a MatchParams,
 }
@@ -253,7 +255,7 @@ impl LineSearch<'_> {
     /// decisions 4-6 of the module documentation to the peak in `k_lo..=k_hi` (`only`: score
     /// only around these `u`; `check_unique`: whether step 5 applies).
     fn scan(&self, k_lo: i64, k_hi: i64, only: Option<&[i64]>, check_unique: bool) -> Search {
-        let LineSearch { img, t, win, scale, v_at, params: p } = *self;
+        let LineSearch { img, probe, v_at, params: p } = *self;
         // Scores at k_lo - 1 ..= k_hi + 1 (index 0 is the extra one on the left).
         let len = (k_hi - k_lo + 3) as usize;
         let mut s = [f64::NAN; 64];
@@ -270,7 +272,7 @@ impl LineSearch<'_> {
             if only.is_some_and(|o| !o.iter().any(|&c| (c - u).abs() <= 1)) {
                 continue;
             }
-            if let Some(zn) = zncc_at(img, t, win, scale, u, v_at(u as f64)) {
+            if let Some(zn) = zncc_at(img, probe, u, v_at(u as f64)) {
                 *sc = zn;
                 if idx >= 1 && idx + 1 < len {
                     any = true;
@@ -324,7 +326,7 @@ impl LineSearch<'_> {
                     return c;
                 }
                 let u = (k_lo - 1 + idx as i64) as f64 + off;
-                zncc_scaled(img, t, win, scale, u, v_at(u)).map_or(c, |z| z.max(c))
+                zncc_scaled(img, probe, u, v_at(u)).map_or(c, |z| z.max(c))
             };
             let sb_top = refined(best);
             let sep = p.min_peak_separation_px;

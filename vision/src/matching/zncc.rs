@@ -31,22 +31,24 @@ impl Sums {
     }
 }
 
-/// Weighted ZNCC of the template `t` ([`template`]: coefficients then weights, window `win`)
-/// with the window of `img` around whole column `u` and sub-pixel row `v` (linear in `v`),
-/// or `None` when the window leaves the image.
-pub(super) fn zncc_at(
-    img: &Plane,
-    t: &[f32],
-    win: Win,
-    scale: [f64; 2],
-    u: i64,
-    v: f64,
-) -> Option<f64> {
+/// A template ([`template`]: coefficients then weights) with its window, and the scale of
+/// the other image's window against it (right/left focal lengths).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Probe<'a> {
+    pub t: &'a [f32],
+    pub win: Win,
+    pub scale: [f64; 2],
+}
+
+/// Weighted ZNCC of the probe's template with the window of `img` around whole column `u`
+/// and sub-pixel row `v` (linear in `v`), or `None` when the window leaves the image.
+pub(super) fn zncc_at(img: &Plane, probe: Probe, u: i64, v: f64) -> Option<f64> {
+    let Probe { t, win, scale } = probe;
     if !v.is_finite() {
         return None;
     }
     if scale != [1.0, 1.0] {
-        return zncc_scaled(img, t, win, scale, u as f64, v);
+        return zncc_scaled(img, probe, u as f64, v);
     }
     let y0 = v.floor();
     let fy = (v - y0) as f32;
@@ -83,14 +85,8 @@ pub(super) fn zncc_at(
 
 /// [`zncc_at`] with window offset `(dx, dy)` at `(u + scale[0] dx, v + scale[1] dy)`,
 /// bilinear.
-pub(super) fn zncc_scaled(
-    img: &Plane,
-    t: &[f32],
-    win: Win,
-    scale: [f64; 2],
-    u: f64,
-    v: f64,
-) -> Option<f64> {
+pub(super) fn zncc_scaled(img: &Plane, probe: Probe, u: f64, v: f64) -> Option<f64> {
+    let Probe { t, win, scale } = probe;
     let n = win.len();
     let (coef, wts) = t.split_at(n);
     let ww = win.width();
