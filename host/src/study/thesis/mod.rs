@@ -1,5 +1,5 @@
 //! `hvs experiment thesis`: the thesis' chapter 4 on the four preset rigs, plus three
-//! experiments it did not run; [`run`] computes, the `Study` impl of [`Config`] writes the files.
+//! experiments it did not run; [`run`] computes, the `Report` impl of [`Thesis`] writes the files.
 //! Every random step takes a seed derived from [`Config::seed`] and results are collected in a
 //! fixed order, so the same seed gives the same CSV bytes; only the wall times vary.
 
