@@ -18,8 +18,8 @@
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
 use hvs_host::cli::train::{ArchArg, FrameArg};
-use hvs_host::study::engine::{self, Quiet, Study};
-use hvs_host::study::posture::StudyConfig;
+use hvs_host::study::engine::{self, Quiet, Report};
+use hvs_host::study::posture::{self, Posture, StudyConfig};
 use hvs_host::train::default_frame;
 use hvs_shared::runtime::blob::InputKind;
 use std::path::PathBuf;
@@ -78,8 +78,8 @@ fn main() -> Result<()> {
             other => bail!("unknown argument {other}"),
         }
     }
-    engine::run(&cfg, &out, &Quiet)?;
-    let page = out.join(cfg.page());
+    engine::run(&out, &Quiet, |p| posture::run(&cfg, p))?;
+    let page = out.join(Posture::PAGE);
     let text = std::fs::read_to_string(&page)
         .with_context(|| format!("{}: cannot read", page.display()))?;
     print!("{text}");
