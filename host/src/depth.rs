@@ -6,6 +6,7 @@
 //! Nothing but the model and the two images is used.
 
 use crate::infer::Predictor;
+use crate::vision::{matcher_geometry, training_disparities};
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
 use hvs_vision::dense::{dense_match, DenseMap, DenseParams};
@@ -13,10 +14,6 @@ use hvs_vision::geometry::Fundamental;
 use hvs_vision::matching::model_disparity_interval;
 use image::GrayImage;
 use std::path::Path;
-
-/// The training set's disparities widened by this share of their span on each side, as the
-/// range the model's depth box is looked for in (as [`crate::vision::DISPARITY_SLACK`]).
-pub const DISPARITY_SLACK: f64 = crate::vision::DISPARITY_SLACK;
 
 /// Left pixels per side of the grid on which the model's disparity interval is sampled to
 /// bound the whole image's disparity range.
@@ -52,21 +49,9 @@ impl Depth {
     }
 }
 
-/// The model's matcher geometry, or the error every image command gives without it.
-pub fn matcher_geometry(blob: &ModelBlob) -> Result<MatcherGeometry> {
-    blob.matcher.ok_or_else(|| {
-        anyhow!(
-            "the model has no matcher geometry: its training set could not give one (fewer \
-             than 8 rows, joint columns, or no fundamental matrix fits its pixels, e.g. all \
-             on one board plane), or it was written before blob format v2: retrain it with \
-             `hvs train` on board points seen at one head posture, at two or more depths"
-        )
-    })
-}
-
 /// The whole disparities the model allows anywhere in a `w x h` left image: the union of
 /// [`model_disparity_interval`] on a [`RANGE_GRID`]-square grid of pixels, widened by one
-/// pixel; the training disparities (widened by [`DISPARITY_SLACK`]) when no grid pixel has
+/// pixel; the training disparities ([`training_disparities`]) when no grid pixel has
 /// an interval.
 pub fn disparity_range(
     g: &MatcherGeometry,
@@ -75,11 +60,7 @@ pub fn disparity_range(
     h: u32,
 ) -> [i32; 2] {
     let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
-    let span = f64::from(g.disparity[1] - g.disparity[0]);
-    let d_range = [
-        f64::from(g.disparity[0]) - DISPARITY_SLACK * span,
-        f64::from(g.disparity[1]) + DISPARITY_SLACK * span,
-    ];
+    let d_range = training_disparities(g);
     let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;

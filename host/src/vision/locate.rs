@@ -4,7 +4,7 @@
 
 use super::files::{check_same_size, read_pair};
 use anyhow::{anyhow, bail, Result};
-use hvs_shared::runtime::blob::ModelBlob;
+use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
 use hvs_vision::geometry::Fundamental;
 use hvs_vision::matching::{model_disparity_interval, MatchParams, MatchStatus, Matcher, Query};
 use image::{GrayImage, Rgb, RgbImage};
@@ -90,10 +90,32 @@ impl Located {
 /// search range the model's depth range is looked for in.
 pub const DISPARITY_SLACK: f64 = 0.1;
 
+/// The model's matcher geometry, or the error every image command gives without it.
+pub fn matcher_geometry(blob: &ModelBlob) -> Result<MatcherGeometry> {
+    blob.matcher.ok_or_else(|| {
+        anyhow!(
+            "the model has no matcher geometry: its training set could not give one (fewer \
+             than 8 rows, joint columns, or no fundamental matrix fits its pixels, e.g. all \
+             on one board plane), or it was written before blob format v2: retrain it with \
+             `hvs train` on board points seen at one head posture, at two or more depths"
+        )
+    })
+}
+
+/// The training set's disparities (`u_l - u_r`, px) widened by [`DISPARITY_SLACK`] of their
+/// span on each side.
+pub fn training_disparities(g: &MatcherGeometry) -> [f64; 2] {
+    let span = f64::from(g.disparity[1] - g.disparity[0]);
+    [
+        f64::from(g.disparity[0]) - DISPARITY_SLACK * span,
+        f64::from(g.disparity[1]) + DISPARITY_SLACK * span,
+    ]
+}
+
 /// Finds each left pixel of `points` in the right image along its epipolar line, inside the
 /// disparities the model maps into its training depths at that pixel, and gives the model's
 /// X, Y, Z of every trustworthy match. Everything comes from the model
-/// ([`MatcherGeometry`](hvs_shared::runtime::blob::MatcherGeometry): learned at training time from the training pixels); the images must
+/// ([`MatcherGeometry`]: learned at training time from the training pixels); the images must
 /// have the same size.
 pub fn locate(
     blob: &ModelBlob,
@@ -101,25 +123,14 @@ pub fn locate(
     right: &GrayImage,
     points: &[[f64; 2]],
 ) -> Result<Vec<Located>> {
-    let g = blob.matcher.ok_or_else(|| {
-        anyhow!(
-            "the model has no matcher geometry: its training set could not give one (fewer \
-             than 8 rows, joint columns, or no fundamental matrix fits its pixels, e.g. all \
-             on one board plane), or it was written before blob format v2: retrain it with \
-             `hvs train` on board points seen at one head posture, at two or more depths"
-        )
-    })?;
+    let g = matcher_geometry(blob)?;
     check_same_size(left, right)?;
     check_image_size(blob, left.dimensions())?;
     let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
     let params =
         MatchParams { right_scale: g.right_scale.map(f64::from), ..MatchParams::default() };
     let matcher = Matcher::new(left, right, &f, params).map_err(|e| anyhow!("{e}"))?;
-    let span = f64::from(g.disparity[1] - g.disparity[0]);
-    let d_range = [
-        f64::from(g.disparity[0]) - DISPARITY_SLACK * span,
-        f64::from(g.disparity[1]) + DISPARITY_SLACK * span,
-    ];
+    let d_range = training_disparities(&g);
     let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
     let predict = model_xyz(blob);
     Ok(points

@@ -15,5 +15,5 @@ pub use detection::{
 pub use files::{check_same_size, png_bytes, read_grey, read_pair, write_capture_set};
 pub use locate::{
     check_image_size, load_stereo_model, locate, locate_files, locate_overlay, locate_with,
-    model_xyz, Located, DISPARITY_SLACK,
+    matcher_geometry, model_xyz, training_disparities, Located, DISPARITY_SLACK,
 };
