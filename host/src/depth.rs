@@ -3,10 +3,11 @@
 //! [`hvs_vision::dense`] (census + semi-global matching along the model's epipolar lines,
 //! inside the disparities its depth box allows), then every matched `(u_l, v_l, u_r, v_r)`
 //! through the model (the same bits as `hvs predict`: [`crate::infer`]) into X, Y, Z.
-//! Nothing but the model and the two images is used.
+//! Nothing but the model and the two images is used. `hvs locate` answers its points from the
+//! same matches ([`locate`]).
 
 use crate::infer::Predictor;
-use crate::vision::{matcher_geometry, training_disparities};
+use crate::vision::{matcher_geometry, model_xyz, training_disparities, Located};
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
 use hvs_vision::dense::{dense_match, DenseMap, DenseParams};
@@ -24,7 +25,8 @@ pub const RANGE_GRID: usize = 9;
 pub struct Depth {
     /// Every left pixel's match (right pixel and confidence; `+inf`/0 where none).
     pub matches: DenseMap,
-    /// X, Y, Z (cm) by the model per left pixel, rows first (`+inf` where none).
+    /// X, Y, Z (cm) by the model per left pixel, rows first (`+inf` where none; X and Y NaN
+    /// for a Z-only model).
     pub xyz: Vec<[f32; 3]>,
     /// The whole disparities searched (`u_l - u_r`, px).
     pub d_range: [i32; 2],
@@ -133,11 +135,13 @@ pub fn depth(
         let (x, y) = (p as u32 % w, p as u32 / w);
         inputs.extend_from_slice(&[x as f32, y as f32, matches.ur[p], matches.vr[p]]);
     }
-    let mut out = vec![0.0f32; idx.len() * 3];
+    // A Z-only model (`hvs train --outputs z`) gives Z alone: X and Y are NaN.
+    let no = blob.n_outputs().min(3);
+    let mut out = vec![0.0f32; idx.len() * no];
     let predictor = Predictor::new(blob);
     if predictor.run(&inputs, &mut out).is_err() {
         // Some point has no estimate: point by point, keeping the others.
-        for (x, o) in inputs.chunks_exact(4).zip(out.chunks_exact_mut(3)) {
+        for (x, o) in inputs.chunks_exact(4).zip(out.chunks_exact_mut(no)) {
             if blob.infer(x, o).is_err() {
                 o.fill(f32::INFINITY);
             }
@@ -146,9 +150,9 @@ pub fn depth(
     let mut xyz = vec![[f32::INFINITY; 3]; matches.ur.len()];
     let mut matches = matches;
     let mut no_estimate = 0usize;
-    for (&p, o) in idx.iter().zip(out.chunks_exact(3)) {
+    for (&p, o) in idx.iter().zip(out.chunks_exact(no)) {
         if o.iter().all(|v| v.is_finite()) {
-            xyz[p] = [o[0], o[1], o[2]];
+            xyz[p] = if no == 3 { [o[0], o[1], o[2]] } else { [f32::NAN, f32::NAN, o[0]] };
         } else {
             no_estimate += 1;
             matches.ur[p] = f32::INFINITY;
@@ -178,4 +182,106 @@ pub fn depth_files(model_path: &Path, left: &Path, right: &Path) -> Result<(Dept
     let d = depth(&m.blob, &l, &r, &DenseParams::default())
         .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))?;
     Ok((d, l))
+}
+
+/// Where the left pixels `points` are seen in the right image, answered from the dense
+/// matches `d` of the pair (`hvs locate`, `hvs head look`, a click in `hvs view`), and the
+/// model's X, Y, Z of each: a whole pixel takes its own match; between pixels the disparity
+/// is interpolated from the four around it when all four have a match within a pixel of each
+/// other, else the nearest one's is taken, and `v_r` lies on the point's epipolar line. A
+/// match outside the disparities the model maps into its training depths at that pixel is
+/// refused (`out_of_depth_range`), as is a pixel without one (`no_match`).
+pub fn locate_in(d: &Depth, blob: &ModelBlob, points: &[[f64; 2]]) -> Result<Vec<Located>> {
+    let g = matcher_geometry(blob)?;
+    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
+    let (d_range, z_range) =
+        (training_disparities(&g), [f64::from(g.out_min[2]), f64::from(g.out_max[2])]);
+    let predict = model_xyz(blob);
+    let m = &d.matches;
+    let (w, h) = (m.width as usize, m.height as usize);
+    // The disparity `u_l - u_r` of whole pixel (x, y), if it has a match.
+    let disparity = |x: usize, y: usize| {
+        let ur = m.ur[y * w + x];
+        ur.is_finite().then(|| x as f64 - f64::from(ur))
+    };
+    let one = |[ul, vl]: [f64; 2]| -> Located {
+        let none =
+            |status| Located { left: [ul, vl], right: None, xyz: None, score: f64::NAN, status };
+        if !(ul.is_finite() && vl.is_finite()) {
+            return none("nan_input");
+        }
+        if !(ul > -0.5 && vl > -0.5 && ul < w as f64 - 0.5 && vl < h as f64 - 0.5) {
+            return none("outside");
+        }
+        let (x, y) = (ul.round() as usize, vl.round() as usize);
+        let Some(nearest) = disparity(x, y) else { return none("no_match") };
+        let (x0, y0) = (ul.floor().max(0.0) as usize, vl.floor().max(0.0) as usize);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (fx, fy) = (ul - x0 as f64, vl - y0 as f64);
+        let four = [disparity(x0, y0), disparity(x1, y0), disparity(x0, y1), disparity(x1, y1)];
+        let disp = match four {
+            [Some(a), Some(b), Some(c), Some(e)]
+                if [b, c, e].iter().all(|v| (v - a).abs() <= 1.0) =>
+            {
+                (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + e * fx) * fy
+            }
+            _ => nearest,
+        };
+        let line = f.line_in_right([ul, vl]);
+        let within = model_disparity_interval(&predict, ul, vl, line, z_range, d_range)
+            .is_some_and(|(lo, hi)| disp >= lo - 1.0 && disp <= hi + 1.0);
+        let score = f64::from(m.conf[y * w + x]);
+        if !within {
+            return Located { score, ..none("out_of_depth_range") };
+        }
+        let ur = ul - disp;
+        let vr = if line[1] != 0.0 { -(line[0] * ur + line[2]) / line[1] } else { f64::NAN };
+        match predict([ul as f32, vl as f32, ur as f32, vr as f32]).filter(|_| vr.is_finite()) {
+            Some(xyz) => Located {
+                left: [ul, vl],
+                right: Some([ur, vr]),
+                xyz: Some(xyz),
+                score,
+                status: "ok",
+            },
+            None => Located { score, ..none("no_estimate") },
+        }
+    };
+    Ok(points.iter().map(|&p| one(p)).collect())
+}
+
+/// Dense matches of `left` and `right` ([`depth`] with the default parameters), then
+/// [`locate_in`]: every point of `points` found in the right image.
+pub fn locate(
+    blob: &ModelBlob,
+    left: &GrayImage,
+    right: &GrayImage,
+    points: &[[f64; 2]],
+) -> Result<Vec<Located>> {
+    let d = depth(blob, left, right, &DenseParams::default())?;
+    locate_in(&d, blob, points)
+}
+
+/// [`locate`] with a model read from `model_path`: its errors name the file.
+pub fn locate_with(
+    model_path: &Path,
+    blob: &ModelBlob,
+    left: &GrayImage,
+    right: &GrayImage,
+    points: &[[f64; 2]],
+) -> Result<Vec<Located>> {
+    locate(blob, left, right, points).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))
+}
+
+/// Loads the model and both images, then locates `points` (`hvs locate`).
+pub fn locate_files(
+    model_path: &Path,
+    left: &Path,
+    right: &Path,
+    points: &[[f64; 2]],
+) -> Result<(Vec<Located>, GrayImage, GrayImage)> {
+    let m = crate::vision::load_stereo_model(model_path)?;
+    let (l, r) = crate::vision::read_pair(left, right)?;
+    let found = locate_with(model_path, &m.blob, &l, &r, points)?;
+    Ok((found, l, r))
 }

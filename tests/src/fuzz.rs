@@ -618,22 +618,12 @@ pub fn locate(data: &[u8]) {
     if m.blob.n_inputs() != 4 || l.dimensions() != r.dimensions() {
         return;
     }
-    let found = match hvs_host::vision::locate(&m.blob, &l, &r, &pixels.points) {
+    let found = match hvs_host::depth::locate(&m.blob, &l, &r, &pixels.points) {
         Ok(f) => f,
         Err(e) => return one_line(&format!("{e:#}")),
     };
     assert_eq!(found.len(), pixels.points.len());
-    let known = [
-        "ok",
-        "outside",
-        "no_texture",
-        "ambiguous",
-        "lr_check_failed",
-        "no_candidate",
-        "out_of_depth_range",
-        "nan_input",
-        "no_estimate",
-    ];
+    let known = hvs_host::vision::STATUSES;
     let (w, h) = (f64::from(r.width()), f64::from(r.height()));
     for f in &found {
         assert!(known.contains(&f.status), "{}", f.status);

@@ -6,7 +6,7 @@ use crate::data::output::check_outputs;
 use crate::data::output::write_bytes;
 use crate::depth::{depth_files, Depth};
 use crate::vision::png_bytes;
-use anyhow::Result;
+use anyhow::{bail, Result};
 use hvs_vision::pfm::{pfm_bytes, ply_bytes, FloatImage};
 use std::path::{Path, PathBuf};
 
@@ -29,7 +29,7 @@ pub struct Args {
     /// Matches: three-channel PFM, u_r, v_r and a confidence 0..1 (+inf, +inf, 0 where none).
     #[arg(long, value_name = "MATCHES.pfm")]
     pub matches: Option<PathBuf>,
-    /// X, Y, Z in cm: three-channel PFM.
+    /// X, Y, Z in cm: three-channel PFM (X and Y NaN for a Z-only model).
     #[arg(long, value_name = "XYZ.pfm")]
     pub xyz: Option<PathBuf>,
     /// A colour-mapped depth image with a legend in cm (the model's depth box).
@@ -57,6 +57,12 @@ pub fn run(a: Args) -> Result<()> {
     }
     check_outputs(&outputs, &inputs)?;
     let (d, left) = depth_files(&a.pair.model, &a.pair.left, &a.pair.right)?;
+    if a.ply.is_some() && d.xyz.iter().any(|p| p[2].is_finite() && p[0].is_nan()) {
+        bail!(
+            "--ply: {} is a Z-only model (hvs train --outputs z): it gives no X and Y, so no point cloud",
+            a.pair.model.display()
+        );
+    }
     // Every output in memory first, then each written atomically.
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let z: Vec<f32> = d.xyz.iter().map(|p| p[2]).collect();

@@ -130,7 +130,7 @@ pub fn run(args: &Args) -> Result<()> {
             model: Some(m), left: Some(l), right: Some(r), at: Some(at), ..
         } => {
             let p = crate::cli::parse_at(at)?;
-            let (found, _, _) = crate::vision::locate_files(m, l, r, &[p])?;
+            let (found, _, _) = crate::depth::locate_files(m, l, r, &[p])?;
             let f = found[0];
             let Some(rp) = f.right else {
                 bail!("--at {at}: no trustworthy match in {}: {}", r.display(), f.status);

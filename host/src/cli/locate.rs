@@ -1,12 +1,13 @@
 //! `hvs locate`: points of the left image found in the right one and turned into X, Y, Z by the
-//! model, with nothing but the model and the two images ([`crate::vision::locate()`]).
+//! model, with nothing but the model and the two images ([`crate::depth::locate()`]).
 
 use super::StereoArgs;
 use crate::data::csv::{
     check_row_len, check_unique_names, csv_error, csv_reader, missing_column, LineCounter,
 };
 use crate::data::output::{check_outputs, write_bytes, write_output};
-use crate::vision::{locate_files, locate_overlay, png_bytes, Located};
+use crate::depth::locate_files;
+use crate::vision::{locate_overlay, png_bytes, Located};
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::{Path, PathBuf};
 
@@ -14,14 +15,15 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, clap::Args)]
 #[command(
     about = "Find left-image points in the right image and give their X, Y, Z",
-    long_about = "Find points of the left image in the right one (zero-mean normalised \
-    cross-correlation along the epipolar line, inside the disparities the model maps into its \
-    training depths at that pixel, sub-pixel, with texture, uniqueness and left-right checks) \
-    and give the model's X, Y, Z of each trustworthy match. The model carries the geometry the \
-    search needs, learned from its training pixels (`hvs train` stores it); no camera parameter \
-    is used. A point without a trustworthy match keeps u_r..z empty and says why in `status`: \
-    outside, no_texture, ambiguous, lr_check_failed, no_candidate, out_of_depth_range, \
-    no_estimate. A Z-only model gives z and leaves x, y empty."
+    long_about = "Find points of the left image in the right one and give the model's X, Y, Z \
+    of each trustworthy match. The points are answered from the dense matches of the pair, \
+    those of `hvs depth` (census and semi-global matching along the model's epipolar lines, \
+    inside the disparities its depth box allows, with uniqueness, left-right and speckle \
+    checks, sub-pixel), interpolated between pixels. The model carries the geometry the search \
+    needs, learned from its training pixels (`hvs train` stores it); no camera parameter is \
+    used. A point without a trustworthy match keeps u_r..z empty and says why in `status`: \
+    outside, nan_input, no_match, out_of_depth_range, no_estimate; `score` is the match's \
+    confidence (0..1). A Z-only model gives z and leaves x, y empty."
 )]
 pub struct Args {
     #[command(flatten)]

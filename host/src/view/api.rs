@@ -241,9 +241,9 @@ mod tests {
         );
         assert_eq!((v["u_r"].as_str(), v["z"].as_str()), (Some("273.98587"), Some("115.02975")));
         assert_eq!(v["score"], "0.999");
-        let none = Located { right: None, xyz: None, status: "ambiguous", ..l };
+        let none = Located { right: None, xyz: None, status: "no_match", ..l };
         let v = located(0, &none, 1.0);
-        assert_eq!(v["line"], "no trustworthy match: ambiguous");
+        assert_eq!(v["line"], "no trustworthy match: no_match");
         assert!(v["x"].is_null() && v["right"].is_null());
         // Requests are strict.
         assert!(serde_json::from_str::<LocateRequest>(r#"{"pair":0,"u":1,"v":2}"#).is_ok());

@@ -114,6 +114,8 @@ pub struct DepthView {
     pub d_range: [i32; 2],
     /// What `hvs depth` warns about (a blank or saturated image, matches without estimate).
     pub warnings: Vec<String>,
+    /// The dense matches themselves, which clicks are located in.
+    pub depth: crate::depth::Depth,
     /// Time it took (ms).
     pub ms: f64,
 }
@@ -238,12 +240,14 @@ impl Session {
         if let Some(why) = &self.locate_refused {
             return Err(Refused::Unprocessable(why.clone()));
         }
-        let (l, r) = self.frames.grey(pair).ok_or_else(|| {
+        let (l, _) = self.frames.grey(pair).ok_or_else(|| {
             Refused::Bad(format!("pair {pair}: no such pair, or its images are unreadable"))
         })?;
         check_pixel(u, v, l.dimensions())?;
-        let found = vision::locate_with(&self.model_path, &self.model.blob, &l, &r, &[[u, v]])
-            .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
+        // The pair's dense matches (kept for a still pair), as `hvs locate` finds its points.
+        let d = self.depth(pair)?;
+        let found = crate::depth::locate_in(&d.depth, &self.model.blob, &[[u, v]])
+            .map_err(|e| Refused::Unprocessable(format!("{}: {e:#}", self.model_path.display())))?;
         found.into_iter().next().ok_or_else(|| Refused::Unprocessable("no result".into()))
     }
 
@@ -278,8 +282,9 @@ impl Session {
                 pixels: d.xyz.len(),
                 z_box: d.z_box,
                 d_range: d.d_range,
-                warnings: d.warnings,
+                warnings: d.warnings.clone(),
                 ms: t0.elapsed().as_secs_f64() * 1e3,
+                depth: d,
             }))
         };
         if self.frames.live() {

@@ -1,14 +1,11 @@
-//! `hvs locate`: left pixels found in the right image along their epipolar lines, inside the
-//! disparities the model maps into its training depths, and the model's X, Y, Z of each
-//! match; the overlay of what was found.
+//! What `hvs locate` answers ([`Located`]) and draws ([`locate_overlay`]), and the model's side
+//! of every image command: its matcher geometry, the disparities it was trained on, its X, Y,
+//! Z of a stereo pixel pair, the image size it holds for. The points themselves are found in
+//! the dense matches of the pair ([`crate::depth::locate`]).
 
-use super::files::{check_same_size, read_pair};
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
-use hvs_vision::geometry::Fundamental;
-use hvs_vision::matching::{model_disparity_interval, MatchParams, MatchStatus, Matcher, Query};
 use image::{GrayImage, Rgb, RgbImage};
-use rayon::prelude::*;
 use std::path::Path;
 
 /// The model's X, Y, Z (cm) of a stereo pixel pair, `None` where it gives no finite estimate;
@@ -38,6 +35,12 @@ pub fn check_image_size(blob: &ModelBlob, (w, h): (u32, u32)) -> Result<()> {
     }
 }
 
+/// Every status of a located point: `ok`, or why there is no trustworthy match (the pixel is
+/// outside the image or not a number; the dense matching kept no match there; the match lies
+/// outside the depths the model was trained on at that pixel; the model gives no estimate).
+pub const STATUSES: [&str; 6] =
+    ["ok", "outside", "nan_input", "no_match", "out_of_depth_range", "no_estimate"];
+
 /// One point located in the right image and triangulated by the model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Located {
@@ -47,10 +50,9 @@ pub struct Located {
     pub right: Option<[f64; 2]>,
     /// The model's X, Y, Z (cm) of the matched pair (X and Y NaN for a Z-only model).
     pub xyz: Option<[f32; 3]>,
-    /// Zero-mean normalised cross-correlation of the match (NaN when none was scored).
+    /// The dense match's confidence, 0..1 (NaN when there is no match).
     pub score: f64,
-    /// `ok`, or why there is no trustworthy match (`outside`, `no_texture`, `ambiguous`,
-    /// `lr_check_failed`, `no_candidate`, `out_of_depth_range`, `nan_input`, `no_estimate`).
+    /// `ok`, or why there is no trustworthy match ([`STATUSES`]).
     pub status: &'static str,
 }
 
@@ -112,68 +114,6 @@ pub fn training_disparities(g: &MatcherGeometry) -> [f64; 2] {
     ]
 }
 
-/// Finds each left pixel of `points` in the right image along its epipolar line, inside the
-/// disparities the model maps into its training depths at that pixel, and gives the model's
-/// X, Y, Z of every trustworthy match. Everything comes from the model
-/// ([`MatcherGeometry`]: learned at training time from the training pixels); the images must
-/// have the same size.
-pub fn locate(
-    blob: &ModelBlob,
-    left: &GrayImage,
-    right: &GrayImage,
-    points: &[[f64; 2]],
-) -> Result<Vec<Located>> {
-    let g = matcher_geometry(blob)?;
-    check_same_size(left, right)?;
-    check_image_size(blob, left.dimensions())?;
-    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
-    let params =
-        MatchParams { right_scale: g.right_scale.map(f64::from), ..MatchParams::default() };
-    let matcher = Matcher::new(left, right, &f, params).map_err(|e| anyhow!("{e}"))?;
-    let d_range = training_disparities(&g);
-    let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
-    let predict = model_xyz(blob);
-    Ok(points
-        .par_iter()
-        .map(|&[ul, vl]| {
-            let none = |status| Located {
-                left: [ul, vl],
-                right: None,
-                xyz: None,
-                score: f64::NAN,
-                status,
-            };
-            if !(ul.is_finite() && vl.is_finite()) {
-                return none("nan_input");
-            }
-            let (w, h) = (f64::from(left.width()), f64::from(left.height()));
-            if !(ul > -0.5 && vl > -0.5 && ul < w - 0.5 && vl < h - 0.5) {
-                return none("outside");
-            }
-            let line = f.line_in_right([ul, vl]);
-            let Some((d_min, d_max)) =
-                model_disparity_interval(&predict, ul, vl, line, z_range, d_range)
-            else {
-                return none("out_of_depth_range");
-            };
-            let m = matcher.find(&Query { ul, vl, d_min, d_max });
-            if m.status != MatchStatus::Ok {
-                return Located { score: m.score, ..none(m.status.name()) };
-            }
-            match predict([ul as f32, vl as f32, m.ur as f32, m.vr as f32]) {
-                Some(xyz) => Located {
-                    left: [ul, vl],
-                    right: Some([m.ur, m.vr]),
-                    xyz: Some(xyz),
-                    score: m.score,
-                    status: "ok",
-                },
-                None => Located { score: m.score, ..none("no_estimate") },
-            }
-        })
-        .collect())
-}
-
 /// Loads a model that can locate from an image pair alone (4 inputs: u_l, v_l, u_r, v_r).
 pub fn load_stereo_model(model_path: &Path) -> Result<crate::data::model::ModelFile> {
     let m = crate::data::model::load(model_path)?;
@@ -184,30 +124,6 @@ pub fn load_stereo_model(model_path: &Path) -> Result<crate::data::model::ModelF
         );
     }
     Ok(m)
-}
-
-/// [`locate`] with a model read from `model_path`: its errors name the file.
-pub fn locate_with(
-    model_path: &Path,
-    blob: &ModelBlob,
-    left: &GrayImage,
-    right: &GrayImage,
-    points: &[[f64; 2]],
-) -> Result<Vec<Located>> {
-    locate(blob, left, right, points).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))
-}
-
-/// Loads the model and both images, then locates `points` (`hvs locate`).
-pub fn locate_files(
-    model_path: &Path,
-    left: &Path,
-    right: &Path,
-    points: &[[f64; 2]],
-) -> Result<(Vec<Located>, image::GrayImage, image::GrayImage)> {
-    let m = load_stereo_model(model_path)?;
-    let (l, r) = read_pair(left, right)?;
-    let found = locate_with(model_path, &m.blob, &l, &r, points)?;
-    Ok((found, l, r))
 }
 
 /// The two images side by side, each located point drawn in both (a cross, a line between

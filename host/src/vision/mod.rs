@@ -1,6 +1,6 @@
 //! Images on the host, around `hvs-vision`, one module per job: image files in and out
 //! ([`files`]), board photos of a capture set into a training set ([`detection`], `hvs board
-//! detect`), and pixels located in a stereo pair through a model ([`mod@locate`], `hvs locate`).
+//! detect`), and the model's side of locating pixels in a stereo pair ([`mod@locate`]).
 //! The detection, rendering and matching themselves live in the `hvs-vision` crate; the
 //! capture-set file (`CAPTURES.csv`) is read and written in [`crate::data::captures`].
 
@@ -14,6 +14,6 @@ pub use detection::{
 };
 pub use files::{check_same_size, png_bytes, read_grey, read_pair, write_capture_set};
 pub use locate::{
-    check_image_size, load_stereo_model, locate, locate_files, locate_overlay, locate_with,
-    matcher_geometry, model_xyz, training_disparities, Located, DISPARITY_SLACK,
+    check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_xyz,
+    training_disparities, Located, DISPARITY_SLACK, STATUSES,
 };

@@ -206,3 +206,33 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
     assert!(!no.exists());
     let _ = ok(&["depth", "--help"]);
 }
+
+/// A Z-only model (`hvs train --outputs z`): depth and `hvs locate` from its Z, X and Y NaN in
+/// the XYZ file, and a point cloud refused (nothing written).
+#[test]
+fn a_z_only_model_gives_depth_and_refuses_a_point_cloud() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (data, model) = (d.join("train.csv"), d.join("z.hvsw"));
+    training_csv(&data);
+    ok(&["train", "--data", s(&data), "-o", s(&model), "--outputs", "z", "--restarts", "1"]);
+    let (l, r) = pair(d);
+    let (depth, xyz, ply) = (d.join("d.pfm"), d.join("xyz.pfm"), d.join("c.ply"));
+    let args = ["-o", s(&depth), "--xyz", s(&xyz)];
+    let err = stderr_with_code(locate_args(&["depth"], &model, &l, &r, &args), 0);
+    assert!(err.contains("0 warning(s)"), "{err}");
+    let z = read_pfm(&std::fs::read(&depth).unwrap(), "d.pfm").unwrap();
+    let p = z.data.iter().position(|v| v.is_finite()).expect("some depth");
+    assert!((100.0..300.0).contains(&z.data[p]), "{}", z.data[p]);
+    let xyz = read_pfm(&std::fs::read(&xyz).unwrap(), "xyz.pfm").unwrap();
+    assert!(xyz.data[3 * p].is_nan() && xyz.data[3 * p + 1].is_nan());
+    assert_eq!(xyz.data[3 * p + 2], z.data[p]);
+    let o = locate_args(&["depth"], &model, &l, &r, &["-o", s(&depth), "--ply", s(&ply)]);
+    fails(&o, "Z-only model");
+    assert!(!ply.exists());
+    // `hvs locate` at the same pixel (`read_pfm` gives the rows top to bottom).
+    let (x, y) = (p as u32 % z.width, p as u32 / z.width);
+    let at = format!("{x},{y}");
+    let out = ok(&locate_args(&["locate"], &model, &l, &r, &["--at", &at]));
+    assert!(out.contains(" z=") && !out.contains("x="), "{out}");
+}

@@ -219,19 +219,19 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
             okc += 1;
             let e = (f[2].parse::<f64>().unwrap() - f[10].parse::<f64>().unwrap())
                 .hypot(f[3].parse::<f64>().unwrap() - f[11].parse::<f64>().unwrap());
+            // Dense matches interpolated between pixels: every returned corner within 1 px
+            // (the depth within 2 %), nearly all within half a pixel.
+            assert!(e < 1.0, "{f:?}");
             good += usize::from(e < 0.5);
             let z: f64 = f[6].parse().unwrap();
-            assert!((z - 95.0).abs() < 1.0, "{f:?}");
+            assert!((z - 95.0).abs() < 1.9, "{f:?}");
         } else {
             assert!(f[2..7].iter().all(|v| v.is_empty()), "{f:?}");
-            assert!(
-                ["ambiguous", "no_candidate", "lr_check_failed", "no_texture"].contains(&f[8]),
-                "{f:?}"
-            );
+            assert!(["no_match", "out_of_depth_range"].contains(&f[8]), "{f:?}");
         }
     }
     assert!(okc >= 40, "{okc} of 54 returned");
-    assert_eq!(good, okc, "every returned corner within 0.5 px");
+    assert!(good * 10 >= okc * 9, "{good} of {okc} returned corners within 0.5 px");
     assert_eq!(rows[54][8], "outside");
     // NaN is refused as infinities are (one rule with every CSV input), naming the line.
     for bad in ["NaN", "inf"] {

@@ -49,3 +49,54 @@ fn motorcycle_1000_points_default_within_goal() {
     let dlt = ev.methods[0].mean.e_ma_pct;
     assert!(dlt < 0.01, "DLT {dlt} %");
 }
+
+/// `hvs locate` on the real pair, through the CLI: the 2000 held-back pixels of `test.csv`
+/// (seed 8, none of them a training point) located with a model trained on `train.csv`, and
+/// scored against their true `u_r`. Not run by default (the images are not in the repository;
+/// `vision/tests/dense_real.rs` says how to get them):
+/// `HVS_MOTORCYCLE_DIR=/tmp/motorcycle cargo test --release -p hvs-host --test cli locate_on_the_real_pair -- --ignored --nocapture`
+#[test]
+#[ignore = "needs HVS_MOTORCYCLE_DIR (the Motorcycle images)"]
+fn locate_on_the_real_pair() {
+    let images = PathBuf::from(std::env::var("HVS_MOTORCYCLE_DIR").expect("HVS_MOTORCYCLE_DIR"));
+    let dir = Scratch::new();
+    let (train, test) = (fixture("train.csv"), fixture("test.csv"));
+    let model = dir.p("m.hvsw");
+    ok_line(&format!("train --data {} -o {model} --seed 7", train.display()));
+    let truth = std::fs::read_to_string(&test).unwrap();
+    let mut pixels = String::from("u_l,v_l,true_u_r\n");
+    for l in truth.lines().skip(1) {
+        let f: Vec<&str> = l.split(',').collect();
+        pixels.push_str(&format!("{},{},{}\n", f[0], f[1], f[2]));
+    }
+    std::fs::write(dir.p("px.csv"), pixels).unwrap();
+    let (l, r) = (images.join("motorcycle_left.png"), images.join("motorcycle_right.png"));
+    let out = ok_line(&format!(
+        "locate --model {model} --left {} --right {} --points {}",
+        l.display(),
+        r.display(),
+        dir.p("px.csv")
+    ));
+    let (mut n, mut returned, mut within_1, mut off_2) = (0, 0, 0, 0);
+    for row in out.lines().skip(1) {
+        let f: Vec<&str> = row.split(',').collect();
+        n += 1;
+        if f[8] != "ok" {
+            continue;
+        }
+        returned += 1;
+        let e = (f[2].parse::<f64>().unwrap() - f[9].parse::<f64>().unwrap()).abs();
+        within_1 += usize::from(e <= 1.0);
+        off_2 += usize::from(e >= 2.0);
+    }
+    let pct = |a: usize, b: usize| 100.0 * a as f64 / b as f64;
+    let (w1, o2) = (pct(within_1, n), pct(off_2, returned));
+    eprintln!(
+        "hvs locate, Motorcycle, {n} held-back pixels: {:.1} % returned, {w1:.1} % within 1 px, \
+         {o2:.2} % of the returned 2 px or more off",
+        pct(returned, n)
+    );
+    assert_eq!(n, 2000);
+    // Regression bounds (the issue's goals are 85 % and 2 %).
+    assert!(w1 >= 80.0 && o2 <= 4.0, "{w1} % within 1 px, {o2} % off");
+}
