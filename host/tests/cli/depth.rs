@@ -4,12 +4,12 @@
 //! bad input (another size, no matcher geometry, a posture model, blank images, an output
 //! onto an input).
 
-use crate::common::{fails, locate_args, ok, s, stderr_with_code, train_restarts};
+use crate::common::{fails, locate_args, ok, s, stderr_with_code};
 use hvs_shared::runtime::blob::{self, MAX_BLOB_LEN};
 use hvs_shared::test_support::splitmix64;
 use hvs_vision::pfm::read_pfm;
 use image::GrayImage;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The dense matcher's synthetic pairs (`vision/tests/dense_common`), for its texture.
 #[path = "../../../vision/tests/dense_common/mod.rs"]
@@ -77,14 +77,21 @@ fn median(mut v: Vec<f32>) -> f32 {
     v[v.len() / 2]
 }
 
+/// A model trained in `d` on [`training_csv`] (one restart, then `extra`) and the [`pair`].
+fn model_and_pair(d: &Path, extra: &[&str]) -> (PathBuf, PathBuf, PathBuf) {
+    let (data, model) = (d.join("train.csv"), d.join("m.hvsw"));
+    training_csv(&data);
+    let base = ["train", "--data", s(&data), "-o", s(&model), "--restarts", "1"];
+    ok(&[&base[..], extra].concat());
+    let (l, r) = pair(d);
+    (model, l, r)
+}
+
 #[test]
 fn depth_of_a_wall_and_a_box_and_its_files() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (data, model) = (d.join("train.csv"), d.join("m.hvsw"));
-    training_csv(&data);
-    train_restarts(&data, &model, "1");
-    let (l, r) = pair(d);
+    let (model, l, r) = model_and_pair(d, &[]);
     let out = |n: &str| d.join(n);
     let (depth, matches, xyz, colour, ply) =
         (out("d.pfm"), out("m.pfm"), out("xyz.pfm"), out("d.png"), out("c.ply"));
@@ -213,10 +220,7 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
 fn a_z_only_model_gives_depth_and_refuses_a_point_cloud() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (data, model) = (d.join("train.csv"), d.join("z.hvsw"));
-    training_csv(&data);
-    ok(&["train", "--data", s(&data), "-o", s(&model), "--outputs", "z", "--restarts", "1"]);
-    let (l, r) = pair(d);
+    let (model, l, r) = model_and_pair(d, &["--outputs", "z"]);
     let (depth, xyz, ply) = (d.join("d.pfm"), d.join("xyz.pfm"), d.join("c.ply"));
     let args = ["-o", s(&depth), "--xyz", s(&xyz)];
     let err = stderr_with_code(locate_args(&["depth"], &model, &l, &r, &args), 0);
