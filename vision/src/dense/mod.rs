@@ -239,31 +239,52 @@ fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> Vec<u8> {
     let (w, d) = (geo.w, geo.d);
     let mut cost = vec![census::MAX_COST / 2; w * geo.h * d];
     cost.par_chunks_mut(w * d).enumerate().for_each(|(y, row)| {
-        for x in 0..w {
-            let Some(line) = geo.line(x, y) else { continue };
-            let Some((lo, hi)) = geo.valid_range(x, line) else {
-                continue;
-            };
-            let c = reference[y * w + x];
-            let cells = &mut row[x * d..(x + 1) * d];
-            if line.1 == 0.0 {
-                // Rows: one row of the other image.
-                let Some(v) = geo.v_at(line, 0) else { continue };
-                let other_row = &other[v * w..(v + 1) * w];
-                for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
-                    *cell = (c ^ other_row[geo.u_at(x, k) as usize]).count_ones() as u8;
+        fast(
+            #[inline(always)]
+            || cost_row(geo, reference, other, y, row),
+        )
+    });
+    cost
+}
+
+/// Row `y` of [`cost_volume`] (`row`: `w * d` cells).
+#[inline(always)]
+fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8]) {
+    let (w, d) = (geo.w, geo.d);
+    for x in 0..w {
+        let Some(line) = geo.line(x, y) else { continue };
+        let Some((lo, hi)) = geo.valid_range(x, line) else {
+            continue;
+        };
+        let c = reference[y * w + x];
+        let cells = &mut row[x * d..(x + 1) * d];
+        if line.1 == 0.0 {
+            // Rows: one row of the other image, its pixels `u_at(x, k)` for `k` in `lo..=hi`
+            // (one run, falling with `k` for the left image as reference, rising for the right).
+            let Some(v) = geo.v_at(line, 0) else { continue };
+            let other_row = &other[v * w..(v + 1) * w];
+            let (u_lo, u_hi) = (geo.u_at(x, lo) as usize, geo.u_at(x, hi) as usize);
+            let cells = &mut cells[lo..hi + 1];
+            if geo.sign < 0 {
+                let run = &other_row[u_hi..u_lo + 1];
+                for (cell, &o) in cells.iter_mut().zip(run.iter().rev()) {
+                    *cell = (c ^ o).count_ones() as u8;
                 }
             } else {
-                for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
-                    let u = geo.u_at(x, k);
-                    if let Some(v) = geo.v_at(line, u) {
-                        *cell = (c ^ other[v * w + u as usize]).count_ones() as u8;
-                    }
+                let run = &other_row[u_lo..u_hi + 1];
+                for (cell, &o) in cells.iter_mut().zip(run) {
+                    *cell = (c ^ o).count_ones() as u8;
+                }
+            }
+        } else {
+            for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                let u = geo.u_at(x, k);
+                if let Some(v) = geo.v_at(line, u) {
+                    *cell = (c ^ other[v * w + u as usize]).count_ones() as u8;
                 }
             }
         }
-    });
-    cost
+    }
 }
 
 /// Whether `f` is a rectified pair's (every left row's line is the same row of the right
@@ -331,6 +352,23 @@ pub fn dense_match(
     post::speckle_filter(w, h, &mut best, params.speckle_size, params.speckle_range_px);
     post::refine(&lgeo, left.as_raw(), right.as_raw(), &mut best);
     Ok(post::to_map(&lgeo, &best, params.lr_tolerance_px))
+}
+
+/// Runs `f` compiled for the best instruction set of this CPU (AVX2 and its companions where
+/// present, by [`pulp`]'s runtime check; plain x86-64 otherwise). Only the speed differs:
+/// integer code gives the same integers, and float code the same floats (Rust does not fuse
+/// or reorder float operations).
+#[inline(always)]
+pub(crate) fn fast<R>(f: impl FnOnce() -> R) -> R {
+    struct Op<F>(F);
+    impl<R, F: FnOnce() -> R> pulp::WithSimd for Op<F> {
+        type Output = R;
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _: S) -> R {
+            (self.0)()
+        }
+    }
+    pulp::Arch::new().dispatch(Op(f))
 }
 
 fn penalties(p: &DenseParams) -> sgm::Penalties {

@@ -33,37 +33,48 @@ pub(crate) fn winners(geo: &Geo, sum: &[i16], uniqueness: f32) -> Vec<Option<Bes
     let (w, h, d) = (geo.w, geo.h, geo.d);
     let mut out = vec![None; w * h];
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, slot) in row.iter_mut().enumerate() {
-            let Some(line) = geo.line(x, y) else { continue };
-            let Some((lo, hi)) = geo.valid_range(x, line) else {
-                continue;
-            };
-            let s = &sum[(y * w + x) * d..(y * w + x + 1) * d];
-            let mut k1 = lo;
-            let mut s1 = i32::from(s[lo]);
-            for (k, &v) in s.iter().enumerate().take(hi + 1).skip(lo + 1) {
-                if i32::from(v) < s1 {
-                    s1 = i32::from(v);
-                    k1 = k;
+        super::fast(
+            #[inline(always)]
+            || {
+                for (x, slot) in row.iter_mut().enumerate() {
+                    let s = &sum[(y * w + x) * d..(y * w + x + 1) * d];
+                    *slot = winner(geo, x, y, s, uniqueness);
                 }
-            }
-            // The minimum at an end of the range (or of the image): the match is not inside
-            // the range.
-            if k1 == lo || k1 == hi {
-                continue;
-            }
-            let below = s[lo..k1 - 1].iter().copied().min();
-            let above = s.get(k1 + 2..hi + 1).and_then(|r| r.iter().copied().min());
-            let s2 = below.into_iter().chain(above).min().map_or(i32::MAX, i32::from);
-            if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
-                continue;
-            }
-            let offset = subpixel(i32::from(s[k1 - 1]), s1, i32::from(s[k1 + 1]));
-            *slot =
-                Some(Best { disparity: (geo.d_min as f32) + k1 as f32 + offset, s1, s2, lr: 0.0 });
-        }
+            },
+        )
     });
     out
+}
+
+/// The smallest of `s` (`i16::MAX` when empty).
+#[inline(always)]
+fn min_of(s: &[i16]) -> i16 {
+    s.iter().fold(i16::MAX, |m, &v| m.min(v))
+}
+
+/// The winner of pixel `(x, y)` of `geo`'s reference image from its sums `s` (`d` long).
+#[inline(always)]
+fn winner(geo: &Geo, x: usize, y: usize, s: &[i16], uniqueness: f32) -> Option<Best> {
+    let line = geo.line(x, y)?;
+    let (lo, hi) = geo.valid_range(x, line)?;
+    let run = &s[lo..hi + 1];
+    // The first smallest sum.
+    let m = min_of(run);
+    let k1 = lo + run.iter().position(|&v| v == m)?;
+    let s1 = i32::from(m);
+    // The minimum at an end of the range (or of the image): the match is not inside the
+    // range.
+    if k1 == lo || k1 == hi {
+        return None;
+    }
+    let below = min_of(&s[lo..k1 - 1]);
+    let above = min_of(&s[k1 + 2..hi + 1]);
+    let s2 = if k1 - 1 > lo || k1 + 2 <= hi { i32::from(below.min(above)) } else { i32::MAX };
+    if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
+        return None;
+    }
+    let offset = subpixel(i32::from(s[k1 - 1]), s1, i32::from(s[k1 + 1]));
+    Some(Best { disparity: (geo.d_min as f32) + k1 as f32 + offset, s1, s2, lr: 0.0 })
 }
 
 /// For a rectified pair: the right image's whole disparities read off the left volume

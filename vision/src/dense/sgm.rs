@@ -19,50 +19,66 @@ pub struct Penalties {
     pub eight: bool,
 }
 
+/// Padding of the path-cost rows: each holds `BIG` before disparity 0 and after the last, so
+/// that one loop serves every disparity (`BIG + P1` is never the minimum: a path cost is at
+/// most `MAX_COST + P2 <= 2062`).
+const BIG: i16 = 0x3FFF;
+
 /// One path step over the `d` disparities: `out = c + min(prev, prev+-1 + p1, pmin + p2) -
-/// pmin`; returns `min(out)`.
-#[inline]
+/// pmin`; returns `min(out)`. `prev` and `out` are padded (`d + 2` long, `BIG` at both ends;
+/// `out`'s ends are left alone).
+#[inline(always)]
 fn step(prev: &[i16], pmin: i16, c: &[u8], p1: i16, p2: i16, out: &mut [i16]) -> i16 {
     let d = c.len();
-    let (prev, out) = (&prev[..d], &mut out[..d]);
     let cap = pmin + p2;
-    if d == 1 {
-        out[0] = i16::from(c[0]) + prev[0].min(cap) - pmin;
-        return out[0];
-    }
-    out[0] = i16::from(c[0]) + prev[0].min(prev[1] + p1).min(cap) - pmin;
-    out[d - 1] = i16::from(c[d - 1]) + prev[d - 1].min(prev[d - 2] + p1).min(cap) - pmin;
-    for k in 1..d - 1 {
-        let v = prev[k].min(prev[k - 1].min(prev[k + 1]) + p1).min(cap);
-        out[k] = i16::from(c[k]) + v - pmin;
-    }
+    let (centre, below, above) = (&prev[1..d + 1], &prev[..d], &prev[2..d + 2]);
     let mut m = i16::MAX;
-    for &v in out.iter() {
+    for ((((o, &cc), &a), &b), &e) in
+        out[1..d + 1].iter_mut().zip(c).zip(centre).zip(below).zip(above)
+    {
+        let v = i16::from(cc) + a.min(b.min(e) + p1).min(cap) - pmin;
+        *o = v;
         m = m.min(v);
     }
     m
 }
 
+/// The first step of a path: `out = c` (padded as in [`step`]); returns `min(c)`.
+#[inline(always)]
+fn start(c: &[u8], out: &mut [i16]) -> i16 {
+    let mut m = i16::MAX;
+    for (o, &cc) in out[1..c.len() + 1].iter_mut().zip(c) {
+        *o = i16::from(cc);
+        m = m.min(*o);
+    }
+    m
+}
+
 /// One pass (forward: rows top to bottom, left to right; backward: the reverse) writing the
-/// sum of its paths into `sum` (`w * h * d`, overwritten).
-fn pass(
+/// sum of its paths into `sum` (`w * h * d`), or adding it there when `add`.
+#[inline(always)]
+fn pass_body(
     cost: &[u8],
     img: &[u8],
     (w, h, d): (usize, usize, usize),
     pen: &Penalties,
     backward: bool,
+    add: bool,
     sum: &mut [i16],
 ) {
     // Row buffers of the three paths that come from the previous row, by iteration column:
-    // slot 0 from the same column, 1 from the column before, 2 from the column after.
+    // slot 0 from the same column, 1 from the column before, 2 from the column after. Each
+    // cell is `d + 2` long (padded, see [`BIG`]).
+    let dp = d + 2;
     let slots = if pen.eight { 3 } else { 1 };
-    let mut prev = vec![0i16; slots * w * d];
-    let mut cur = vec![0i16; slots * w * d];
+    let mut prev = vec![BIG; slots * w * dp];
+    let mut cur = vec![BIG; slots * w * dp];
     let mut prev_min = vec![0i16; slots * w];
     let mut cur_min = vec![0i16; slots * w];
-    let mut lprev = vec![0i16; d];
-    let mut lcur = vec![0i16; d];
+    let mut lprev = vec![BIG; dp];
+    let mut lcur = vec![BIG; dp];
     let mut lmin = 0i16;
+    let mut acc = vec![0i16; d];
     let at = |xi: usize, yi: usize| -> usize {
         if backward {
             (h - 1 - yi) * w + (w - 1 - xi)
@@ -70,23 +86,19 @@ fn pass(
             yi * w + xi
         }
     };
-    let grey_diff = |a: usize, b: usize| -> usize { usize::from(img[a].abs_diff(img[b])) };
+    let p2 = |a: u8, b: u8| -> i16 { pen.p2[usize::from(a.abs_diff(b))] };
     for yi in 0..h {
         for xi in 0..w {
             let p = at(xi, yi);
             let c = &cost[p * d..(p + 1) * d];
+            let g = img[p];
             // Along the row.
-            if xi == 0 {
-                for (o, &cc) in lcur.iter_mut().zip(c) {
-                    *o = i16::from(cc);
-                }
-                lmin = lcur.iter().copied().fold(i16::MAX, i16::min);
+            lmin = if xi == 0 {
+                start(c, &mut lcur)
             } else {
-                let q = at(xi - 1, yi);
-                lmin = step(&lprev, lmin, c, pen.p1, pen.p2[grey_diff(p, q)], &mut lcur);
-            }
-            let s = &mut sum[p * d..(p + 1) * d];
-            s.copy_from_slice(&lcur);
+                step(&lprev, lmin, c, pen.p1, p2(g, img[at(xi - 1, yi)]), &mut lcur)
+            };
+            acc.copy_from_slice(&lcur[1..d + 1]);
             std::mem::swap(&mut lprev, &mut lcur);
             // From the previous row.
             for slot in 0..slots {
@@ -95,24 +107,27 @@ fn pass(
                     1 => xi.checked_sub(1),
                     _ => (xi + 1 < w).then_some(xi + 1),
                 };
-                let out = &mut cur[(slot * w + xi) * d..(slot * w + xi + 1) * d];
+                let out = &mut cur[(slot * w + xi) * dp..(slot * w + xi + 1) * dp];
                 let m = match from {
                     Some(fx) if yi > 0 => {
+                        let pv = &prev[(slot * w + fx) * dp..(slot * w + fx + 1) * dp];
                         let q = at(fx, yi - 1);
-                        let pv = &prev[(slot * w + fx) * d..(slot * w + fx + 1) * d];
-                        step(pv, prev_min[slot * w + fx], c, pen.p1, pen.p2[grey_diff(p, q)], out)
+                        step(pv, prev_min[slot * w + fx], c, pen.p1, p2(g, img[q]), out)
                     }
-                    _ => {
-                        for (o, &cc) in out.iter_mut().zip(c) {
-                            *o = i16::from(cc);
-                        }
-                        out.iter().copied().fold(i16::MAX, i16::min)
-                    }
+                    _ => start(c, out),
                 };
                 cur_min[slot * w + xi] = m;
-                for (a, &b) in s.iter_mut().zip(out.iter()) {
+                for (a, &b) in acc.iter_mut().zip(&out[1..d + 1]) {
                     *a += b;
                 }
+            }
+            let s = &mut sum[p * d..(p + 1) * d];
+            if add {
+                for (a, &b) in s.iter_mut().zip(&acc) {
+                    *a += b;
+                }
+            } else {
+                s.copy_from_slice(&acc);
             }
         }
         std::mem::swap(&mut prev, &mut cur);
@@ -120,8 +135,27 @@ fn pass(
     }
 }
 
+/// [`pass_body`], compiled for AVX2 where the CPU has it ([`super::fast`]: the same
+/// integers either way).
+fn pass(
+    cost: &[u8],
+    img: &[u8],
+    dims: (usize, usize, usize),
+    pen: &Penalties,
+    backward: bool,
+    add: bool,
+    sum: &mut [i16],
+) {
+    super::fast(
+        #[inline(always)]
+        || pass_body(cost, img, dims, pen, backward, add, sum),
+    );
+}
+
 /// The aggregated cost `S(p, d)` of `cost` (`w * h * d`, rows first, disparities innermost)
-/// with `img` the reference image's grey levels (for the adaptive `P2`).
+/// with `img` the reference image's grey levels (for the adaptive `P2`). With one thread
+/// the backward pass adds into the forward pass's sums; with more the two passes run side
+/// by side into two volumes, then added (the same integers either way).
 pub fn aggregate(
     cost: &[u8],
     img: &[u8],
@@ -132,10 +166,15 @@ pub fn aggregate(
 ) -> Vec<i16> {
     let n = w * h * d;
     let mut fwd = vec![0i16; n];
+    if rayon::current_num_threads() < 2 {
+        pass(cost, img, (w, h, d), pen, false, false, &mut fwd);
+        pass(cost, img, (w, h, d), pen, true, true, &mut fwd);
+        return fwd;
+    }
     let mut bwd = vec![0i16; n];
     rayon::join(
-        || pass(cost, img, (w, h, d), pen, false, &mut fwd),
-        || pass(cost, img, (w, h, d), pen, true, &mut bwd),
+        || pass(cost, img, (w, h, d), pen, false, false, &mut fwd),
+        || pass(cost, img, (w, h, d), pen, true, false, &mut bwd),
     );
     use rayon::prelude::*;
     fwd.par_chunks_mut(1 << 16).zip(bwd.par_chunks(1 << 16)).for_each(|(a, b)| {
@@ -156,12 +195,12 @@ mod tests {
 
     #[test]
     fn step_follows_the_recursion() {
-        let prev = [5i16, 0, 9, 30];
+        let prev = [BIG, 5i16, 0, 9, 30, BIG];
         let c = [1u8, 2, 3, 4];
-        let mut out = [0i16; 4];
+        let mut out = [BIG; 6];
         let m = step(&prev, 0, &c, 3, 20, &mut out);
         // d0: 1 + min(5, 0+3, 20) = 4; d1: 2 + 0; d2: 3 + min(9, 0+3) = 6; d3: 4 + min(30, 9+3, 20) = 16.
-        assert_eq!(out, [4, 2, 6, 16]);
+        assert_eq!(out, [BIG, 4, 2, 6, 16, BIG]);
         assert_eq!(m, 2);
     }
 
