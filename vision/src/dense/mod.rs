@@ -333,21 +333,32 @@ pub fn dense_match(
     let pen = penalties(params);
     let lgeo = Geo { m: f.m, sign: -1, d_min: d_range[0], d, w, h };
     let cost = cost_volume(&lgeo, &cl, &cr);
-    let sum = sgm::aggregate(&cost, left.as_raw(), w, h, d, &pen);
+    let rectified = is_rectified(f, w, h);
+    // Each row of the aggregated volume as soon as it is complete: its winners and, for a
+    // rectified pair, the right image's disparities of the same row.
+    let rows = sgm::aggregate_rows(&cost, left.as_raw(), (w, h, d), &pen, |y, sums| {
+        let best = post::winners_row(&lgeo, y, sums, params.uniqueness);
+        (best, rectified.then(|| post::right_from_left_row(&lgeo, sums)))
+    });
     drop(cost);
-    let mut best = post::winners(&lgeo, &sum, params.uniqueness);
-    // The right image's disparities for the left-right check.
-    let right_disp = if is_rectified(f, w, h) {
-        post::right_from_left_volume(&lgeo, &sum)
-    } else {
-        drop(sum);
+    let mut best = Vec::with_capacity(w * h);
+    let mut right_disp = Vec::with_capacity(if rectified { w * h } else { 0 });
+    for (b, r) in rows {
+        best.extend(b);
+        right_disp.extend(r.into_iter().flatten());
+    }
+    // The right image's disparities for the left-right check, by a second aggregation when
+    // the pair is not rectified.
+    if !rectified {
         let mt = core::array::from_fn(|i| core::array::from_fn(|j| f.m[j][i]));
         let rgeo = Geo { m: mt, sign: 1, ..lgeo };
         let cost = cost_volume(&rgeo, &cr, &cl);
-        let sum = sgm::aggregate(&cost, right.as_raw(), w, h, d, &pen);
+        let rows = sgm::aggregate_rows(&cost, right.as_raw(), (w, h, d), &pen, |y, sums| {
+            post::winners_row(&rgeo, y, sums, 0.0)
+        });
         drop(cost);
-        post::winners(&rgeo, &sum, 0.0).into_iter().map(|b| b.map(|b| b.disparity)).collect()
-    };
+        right_disp = rows.into_iter().flatten().map(|b| b.map(|b| b.disparity)).collect();
+    }
     post::left_right_check(&lgeo, &mut best, &right_disp, params.lr_tolerance_px);
     post::speckle_filter(w, h, &mut best, params.speckle_size, params.speckle_range_px);
     post::refine(&lgeo, left.as_raw(), right.as_raw(), &mut best);

@@ -6,7 +6,8 @@
 //! The paths are run as two passes, each over the whole image once: top-left to bottom-right
 //! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
 //! bottom-left); with two cores the passes run side by side ([`rayon::join`]). Costs are `u8`,
-//! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`).
+//! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`), stored disparities innermost
+//! and computed [`LANES`] disparities at a time (AVX2 where the CPU has it).
 
 /// Penalties of the aggregation.
 #[derive(Debug, Clone, Copy)]
@@ -24,6 +25,18 @@ pub struct Penalties {
 /// most `MAX_COST + P2 <= 2062`).
 const BIG: i16 = 0x3FFF;
 
+/// Disparities per chunk of the inner loops (16 `i16` lanes: one AVX2 register). A range of
+/// at least this many is covered by whole chunks, the last one overlapping its predecessor
+/// (its cells are computed twice from the same inputs, so the same values).
+const LANES: usize = 16;
+
+/// The chunk starts covering `0..d` ([`LANES`] apart, the last at `d - LANES`), for `d >=
+/// LANES`.
+#[inline(always)]
+fn chunks(d: usize) -> impl Iterator<Item = usize> {
+    (0..d.div_ceil(LANES)).map(move |i| (i * LANES).min(d - LANES))
+}
+
 /// One path step over the `d` disparities: `out = c + min(prev, prev+-1 + p1, pmin + p2) -
 /// pmin`; returns `min(out)`. `prev` and `out` are padded (`d + 2` long, `BIG` at both ends;
 /// `out`'s ends are left alone).
@@ -31,16 +44,31 @@ const BIG: i16 = 0x3FFF;
 fn step(prev: &[i16], pmin: i16, c: &[u8], p1: i16, p2: i16, out: &mut [i16]) -> i16 {
     let d = c.len();
     let cap = pmin + p2;
-    let (centre, below, above) = (&prev[1..d + 1], &prev[..d], &prev[2..d + 2]);
-    let mut m = i16::MAX;
-    for ((((o, &cc), &a), &b), &e) in
-        out[1..d + 1].iter_mut().zip(c).zip(centre).zip(below).zip(above)
-    {
-        let v = i16::from(cc) + a.min(b.min(e) + p1).min(cap) - pmin;
-        *o = v;
-        m = m.min(v);
+    let cell =
+        |cc: u8, a: i16, b: i16, e: i16| i16::from(cc) + a.min(b.min(e) + p1).min(cap) - pmin;
+    if d < LANES {
+        let mut m = i16::MAX;
+        for k in 0..d {
+            let v = cell(c[k], prev[k + 1], prev[k], prev[k + 2]);
+            out[k + 1] = v;
+            m = m.min(v);
+        }
+        return m;
     }
-    m
+    let mut m = [i16::MAX; LANES];
+    for k0 in chunks(d) {
+        let cc: &[u8; LANES] = c[k0..k0 + LANES].try_into().expect("chunk");
+        let below: &[i16; LANES] = prev[k0..k0 + LANES].try_into().expect("chunk");
+        let centre: &[i16; LANES] = prev[k0 + 1..k0 + 1 + LANES].try_into().expect("chunk");
+        let above: &[i16; LANES] = prev[k0 + 2..k0 + 2 + LANES].try_into().expect("chunk");
+        let o: &mut [i16; LANES] = (&mut out[k0 + 1..k0 + 1 + LANES]).try_into().expect("chunk");
+        for i in 0..LANES {
+            let v = cell(cc[i], centre[i], below[i], above[i]);
+            o[i] = v;
+            m[i] = m[i].min(v);
+        }
+    }
+    m.iter().fold(i16::MAX, |a, &b| a.min(b))
 }
 
 /// The first step of a path: `out = c` (padded as in [`step`]); returns `min(c)`.
@@ -54,9 +82,44 @@ fn start(c: &[u8], out: &mut [i16]) -> i16 {
     m
 }
 
-/// One pass (forward: rows top to bottom, left to right; backward: the reverse) writing the
-/// sum of its paths into `sum` (`w * h * d`), or adding it there when `add`.
+/// `s = a + b + c + e` (or `s += ...` when `add`) over the `d = s.len()` disparities; the
+/// path rows are padded (`d + 2`, see [`step`]), `c` and `e` may be absent (4 paths).
 #[inline(always)]
+fn accumulate(s: &mut [i16], a: &[i16], b: &[i16], c: Option<(&[i16], &[i16])>, add: bool) {
+    let d = s.len();
+    let ab = a[1..d + 1].iter().zip(&b[1..d + 1]);
+    match c {
+        Some((c, e)) => {
+            let terms = ab.zip(&c[1..d + 1]).zip(&e[1..d + 1]);
+            if add {
+                for (s, (((&a, &b), &c), &e)) in s.iter_mut().zip(terms) {
+                    *s += a + b + c + e;
+                }
+            } else {
+                for (s, (((&a, &b), &c), &e)) in s.iter_mut().zip(terms) {
+                    *s = a + b + c + e;
+                }
+            }
+        }
+        None => {
+            if add {
+                for (s, (&a, &b)) in s.iter_mut().zip(ab) {
+                    *s += a + b;
+                }
+            } else {
+                for (s, (&a, &b)) in s.iter_mut().zip(ab) {
+                    *s = a + b;
+                }
+            }
+        }
+    }
+}
+
+/// One pass (forward: rows top to bottom, left to right; backward: the reverse) writing the
+/// sum of its paths into `sum` (`w * h * d`), or adding it there when `add`; `on_row(y,
+/// row)` is called with each row of `sum` once it is done.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn pass_body(
     cost: &[u8],
     img: &[u8],
@@ -65,6 +128,7 @@ fn pass_body(
     backward: bool,
     add: bool,
     sum: &mut [i16],
+    on_row: &mut dyn FnMut(usize, &[i16]),
 ) {
     // Row buffers of the three paths that come from the previous row, by iteration column:
     // slot 0 from the same column, 1 from the column before, 2 from the column after. Each
@@ -78,7 +142,6 @@ fn pass_body(
     let mut lprev = vec![BIG; dp];
     let mut lcur = vec![BIG; dp];
     let mut lmin = 0i16;
-    let mut acc = vec![0i16; d];
     let at = |xi: usize, yi: usize| -> usize {
         if backward {
             (h - 1 - yi) * w + (w - 1 - xi)
@@ -98,7 +161,6 @@ fn pass_body(
             } else {
                 step(&lprev, lmin, c, pen.p1, p2(g, img[at(xi - 1, yi)]), &mut lcur)
             };
-            acc.copy_from_slice(&lcur[1..d + 1]);
             std::mem::swap(&mut lprev, &mut lcur);
             // From the previous row.
             for slot in 0..slots {
@@ -117,26 +179,22 @@ fn pass_body(
                     _ => start(c, out),
                 };
                 cur_min[slot * w + xi] = m;
-                for (a, &b) in acc.iter_mut().zip(&out[1..d + 1]) {
-                    *a += b;
-                }
             }
             let s = &mut sum[p * d..(p + 1) * d];
-            if add {
-                for (a, &b) in s.iter_mut().zip(&acc) {
-                    *a += b;
-                }
-            } else {
-                s.copy_from_slice(&acc);
-            }
+            let cell = |slot: usize| &cur[(slot * w + xi) * dp..(slot * w + xi + 1) * dp];
+            let diagonals = (slots == 3).then(|| (cell(1), cell(2)));
+            accumulate(s, &lprev, cell(0), diagonals, add);
         }
         std::mem::swap(&mut prev, &mut cur);
         std::mem::swap(&mut prev_min, &mut cur_min);
+        let y = if backward { h - 1 - yi } else { yi };
+        on_row(y, &sum[y * w * d..(y + 1) * w * d]);
     }
 }
 
 /// [`pass_body`], compiled for AVX2 where the CPU has it ([`super::fast`]: the same
 /// integers either way).
+#[allow(clippy::too_many_arguments)]
 fn pass(
     cost: &[u8],
     img: &[u8],
@@ -145,17 +203,59 @@ fn pass(
     backward: bool,
     add: bool,
     sum: &mut [i16],
+    on_row: &mut dyn FnMut(usize, &[i16]),
 ) {
     super::fast(
         #[inline(always)]
-        || pass_body(cost, img, dims, pen, backward, add, sum),
+        || pass_body(cost, img, dims, pen, backward, add, sum, on_row),
     );
 }
 
 /// The aggregated cost `S(p, d)` of `cost` (`w * h * d`, rows first, disparities innermost)
-/// with `img` the reference image's grey levels (for the adaptive `P2`). With one thread
-/// the backward pass adds into the forward pass's sums; with more the two passes run side
-/// by side into two volumes, then added (the same integers either way).
+/// with `img` the reference image's grey levels (for the adaptive `P2`), handed row by row
+/// to `per_row(y, S of row y)` (`w * d`) as soon as the row is complete; its answers by row.
+///
+/// With one thread the backward pass adds into the forward pass's volume and each row is
+/// handed over as the backward pass leaves it (still in cache); with more, the two passes
+/// run side by side into two volumes, then the rows are added and handed over in parallel.
+/// The same integers either way.
+pub fn aggregate_rows<R: Send>(
+    cost: &[u8],
+    img: &[u8],
+    (w, h, d): (usize, usize, usize),
+    pen: &Penalties,
+    per_row: impl Fn(usize, &[i16]) -> R + Sync,
+) -> Vec<R> {
+    use rayon::prelude::*;
+    let n = w * h * d;
+    let mut fwd = vec![0i16; n];
+    if rayon::current_num_threads() < 2 {
+        pass(cost, img, (w, h, d), pen, false, false, &mut fwd, &mut |_, _| {});
+        let mut out: Vec<Option<R>> = (0..h).map(|_| None).collect();
+        pass(cost, img, (w, h, d), pen, true, true, &mut fwd, &mut |y, row| {
+            out[y] = Some(per_row(y, row));
+        });
+        return out.into_iter().map(|r| r.expect("every row is handed over")).collect();
+    }
+    let mut bwd = vec![0i16; n];
+    rayon::join(
+        || pass(cost, img, (w, h, d), pen, false, false, &mut fwd, &mut |_, _| {}),
+        || pass(cost, img, (w, h, d), pen, true, false, &mut bwd, &mut |_, _| {}),
+    );
+    let row = (w * d).max(1);
+    fwd.par_chunks_mut(row)
+        .zip(bwd.par_chunks(row))
+        .enumerate()
+        .map(|(y, (a, b))| {
+            for (s, &t) in a.iter_mut().zip(b) {
+                *s += t;
+            }
+            per_row(y, a)
+        })
+        .collect()
+}
+
+/// The whole aggregated volume `S` (`w * h * d`) of [`aggregate_rows`].
 pub fn aggregate(
     cost: &[u8],
     img: &[u8],
@@ -164,25 +264,7 @@ pub fn aggregate(
     d: usize,
     pen: &Penalties,
 ) -> Vec<i16> {
-    let n = w * h * d;
-    let mut fwd = vec![0i16; n];
-    if rayon::current_num_threads() < 2 {
-        pass(cost, img, (w, h, d), pen, false, false, &mut fwd);
-        pass(cost, img, (w, h, d), pen, true, true, &mut fwd);
-        return fwd;
-    }
-    let mut bwd = vec![0i16; n];
-    rayon::join(
-        || pass(cost, img, (w, h, d), pen, false, false, &mut fwd),
-        || pass(cost, img, (w, h, d), pen, true, false, &mut bwd),
-    );
-    use rayon::prelude::*;
-    fwd.par_chunks_mut(1 << 16).zip(bwd.par_chunks(1 << 16)).for_each(|(a, b)| {
-        for (x, &y) in a.iter_mut().zip(b) {
-            *x += y;
-        }
-    });
-    fwd
+    aggregate_rows(cost, img, (w, h, d), pen, |_, row| row.to_vec()).concat()
 }
 
 #[cfg(test)]
