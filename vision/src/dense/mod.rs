@@ -258,31 +258,36 @@ fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8
         };
         let c = reference[y * w + x];
         let cells = &mut row[x * d..(x + 1) * d];
-        if line.1 == 0.0 {
-            // Rows: one row of the other image, its pixels `u_at(x, k)` for `k` in `lo..=hi`
-            // (one run, falling with `k` for the left image as reference, rising for the right).
-            let Some(v) = geo.v_at(line, 0) else { continue };
+        // The other image's row `v` is a monotonic step function of `k` (`u` and the line's
+        // `v` are linear in `k`, and rounding is monotonic): runs of one row, each found by
+        // bisection, then a contiguous stretch of that row. A rectified pair has one run.
+        let v_of = |k: usize| geo.v_at(line, geo.u_at(x, k)).expect("inside: valid_range");
+        let mut k = lo;
+        while k <= hi {
+            let v = v_of(k);
+            // The last `k` of this row: v_of(end) == v, v_of(end + 1) != v (or end == hi).
+            let (mut end, mut past) = (k, hi + 1);
+            while past - end > 1 {
+                let mid = end + (past - end) / 2;
+                if v_of(mid) == v {
+                    end = mid;
+                } else {
+                    past = mid;
+                }
+            }
             let other_row = &other[v * w..(v + 1) * w];
-            let (u_lo, u_hi) = (geo.u_at(x, lo) as usize, geo.u_at(x, hi) as usize);
-            let cells = &mut cells[lo..hi + 1];
+            let (u_a, u_b) = (geo.u_at(x, k) as usize, geo.u_at(x, end) as usize);
+            let run = &mut cells[k..end + 1];
             if geo.sign < 0 {
-                let run = &other_row[u_hi..u_lo + 1];
-                for (cell, &o) in cells.iter_mut().zip(run.iter().rev()) {
+                for (cell, &o) in run.iter_mut().zip(other_row[u_b..u_a + 1].iter().rev()) {
                     *cell = (c ^ o).count_ones() as u8;
                 }
             } else {
-                let run = &other_row[u_lo..u_hi + 1];
-                for (cell, &o) in cells.iter_mut().zip(run) {
+                for (cell, &o) in run.iter_mut().zip(&other_row[u_a..u_b + 1]) {
                     *cell = (c ^ o).count_ones() as u8;
                 }
             }
-        } else {
-            for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
-                let u = geo.u_at(x, k);
-                if let Some(v) = geo.v_at(line, u) {
-                    *cell = (c ^ other[v * w + u as usize]).count_ones() as u8;
-                }
-            }
+            k = end + 1;
         }
     }
 }
