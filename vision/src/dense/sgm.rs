@@ -286,6 +286,81 @@ mod tests {
         assert_eq!(m, 2);
     }
 
+    /// The step as first written, disparity by disparity with its two ends apart.
+    fn step_reference(prev: &[i16], pmin: i16, c: &[u8], p1: i16, p2: i16) -> Vec<i16> {
+        let d = c.len();
+        let cap = pmin + p2;
+        (0..d)
+            .map(|k| {
+                let mut v = prev[k].min(cap);
+                if k > 0 {
+                    v = v.min(prev[k - 1] + p1);
+                }
+                if k + 1 < d {
+                    v = v.min(prev[k + 1] + p1);
+                }
+                i16::from(c[k]) + v - pmin
+            })
+            .collect()
+    }
+
+    /// The chunked step (the last chunk overlapping) gives the reference's values for every
+    /// range length, below one chunk, at it and above.
+    #[test]
+    fn chunked_step_matches_the_reference() {
+        let mut s = 7u64;
+        for d in [1usize, 2, 5, 15, 16, 17, 31, 33, 62, 66, 137] {
+            for _ in 0..20 {
+                let c: Vec<u8> = (0..d)
+                    .map(|_| (hvs_shared::test_support::splitmix64(&mut s) % 63) as u8)
+                    .collect();
+                let prev: Vec<i16> = (0..d)
+                    .map(|_| (hvs_shared::test_support::splitmix64(&mut s) % 300) as i16)
+                    .collect();
+                let pmin = *prev.iter().min().unwrap();
+                let mut padded = vec![BIG; d + 2];
+                padded[1..d + 1].copy_from_slice(&prev);
+                let mut out = vec![BIG; d + 2];
+                let m = step(&padded, pmin, &c, 7, 40, &mut out);
+                let want = step_reference(&prev, pmin, &c, 7, 40);
+                assert_eq!(&out[1..d + 1], &want[..], "d = {d}");
+                assert_eq!((out[0], out[d + 1]), (BIG, BIG));
+                assert_eq!(m, *want.iter().min().unwrap());
+            }
+        }
+    }
+
+    /// The aggregation compiled for this CPU's best instruction set (AVX2 here) and for plain
+    /// x86-64 give the same sums, one thread or more.
+    #[test]
+    fn every_instruction_set_and_thread_count_gives_the_same_sums() {
+        let mut s = 11u64;
+        for (w, h, d, eight) in
+            [(23usize, 9usize, 7usize, true), (17, 12, 40, true), (19, 8, 33, false)]
+        {
+            let cost: Vec<u8> = (0..w * h * d)
+                .map(|_| (hvs_shared::test_support::splitmix64(&mut s) % 63) as u8)
+                .collect();
+            let img: Vec<u8> =
+                (0..w * h).map(|_| hvs_shared::test_support::splitmix64(&mut s) as u8).collect();
+            let mut p2 = [0i16; 256];
+            for (g, v) in p2.iter_mut().enumerate() {
+                *v = (96 * 8 / (8 + g as i32)).max(17) as i16;
+            }
+            let pen = Penalties { p1: 16, p2, eight };
+            let dims = (w, h, d);
+            let mut plain = vec![0i16; w * h * d];
+            pass_body(&cost, &img, dims, &pen, false, false, &mut plain, &mut |_, _| {});
+            pass_body(&cost, &img, dims, &pen, true, true, &mut plain, &mut |_, _| {});
+            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+            for pool in [one, two] {
+                let fast = pool.install(|| aggregate(&cost, &img, w, h, d, &pen));
+                assert_eq!(fast, plain, "{w}x{h}x{d}, eight paths: {eight}");
+            }
+        }
+    }
+
     #[test]
     fn a_lone_wrong_cost_is_outvoted_by_its_neighbours() {
         // 9 x 9 pixels, 5 disparities: every pixel prefers d = 2 except the centre, which
