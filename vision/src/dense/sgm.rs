@@ -7,7 +7,7 @@
 //! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
 //! bottom-left); with two cores the passes run side by side ([`rayon::join`]). Costs are `u8`,
 //! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`), stored disparities innermost
-//! and computed [`LANES`] disparities at a time (AVX2 where the CPU has it).
+//! and computed 16 disparities at a time (AVX2 where the CPU has it).
 
 /// Penalties of the aggregation.
 #[derive(Debug, Clone, Copy)]
