@@ -19,7 +19,10 @@ pub fn read_grey(path: &Path) -> Result<GrayImage> {
 
 /// Reads a left and a right image of the same size as grey levels.
 pub fn read_pair(left: &Path, right: &Path) -> Result<(GrayImage, GrayImage)> {
-    let (l, r) = (read_grey(left)?, read_grey(right)?);
+    // Both decoded at once when there are two cores (PNG decoding is some 12 ms of `hvs depth` on the 741x500 Motorcycle pair);
+    // the left image's error first, as when read one after the other.
+    let (l, r) = rayon::join(|| read_grey(left), || read_grey(right));
+    let (l, r) = (l?, r?);
     if l.dimensions() != r.dimensions() {
         bail!(
             "{} and {}: the images differ in size ({}x{} and {}x{})",

@@ -30,23 +30,33 @@ pub fn census(img: &GrayImage) -> Vec<u64> {
     }
     let mut out = vec![0u64; w * h];
     out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        let centre = &pad[(y + hh) * pw + hw..(y + hh) * pw + hw + w];
-        let mut acc = vec![0u64; w];
-        for j in 0..2 * hh + 1 {
-            let r = &pad[(y + j) * pw..(y + j + 1) * pw];
-            for i in 0..2 * hw + 1 {
-                if j == hh && i == hw {
-                    continue;
-                }
-                let shifted = &r[i..i + w];
-                for ((a, &n), &c) in acc.iter_mut().zip(shifted).zip(centre) {
-                    *a = (*a << 1) | u64::from(n < c);
-                }
-            }
-        }
-        row.copy_from_slice(&acc);
+        super::fast(
+            #[inline(always)]
+            || census_row(&pad, pw, y, row),
+        )
     });
     out
+}
+
+/// The census words of row `y` (`row`, `w` long) from the padded image `pad` (`pw` wide).
+#[inline(always)]
+fn census_row(pad: &[u8], pw: usize, y: usize, row: &mut [u64]) {
+    let (hw, hh) = (HALF_W as usize, HALF_H as usize);
+    let w = row.len();
+    let centre = &pad[(y + hh) * pw + hw..(y + hh) * pw + hw + w];
+    row.fill(0);
+    for j in 0..2 * hh + 1 {
+        let r = &pad[(y + j) * pw..(y + j + 1) * pw];
+        for i in 0..2 * hw + 1 {
+            if j == hh && i == hw {
+                continue;
+            }
+            let shifted = &r[i..i + w];
+            for ((a, &n), &c) in row.iter_mut().zip(shifted).zip(centre) {
+                *a = (*a << 1) | u64::from(n < c);
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -27,8 +27,15 @@
 //!    along the epipolar line (zero-mean, gain-matched), at most half a pixel.
 //! 8. A confidence in `0..1` per kept pixel ([`confidence`]).
 //!
-//! Memory: 5 bytes per cell of the volume (`u8` costs, two `i16` sums while the two passes
-//! run); [`MAX_CELLS`] bounds it.
+//! Memory: 5 bytes per cell of the volume with two or more threads (`u8` costs, two `i16`
+//! sums while the two passes run side by side), 3 with one (the backward pass adds into the
+//! forward pass's sums); [`MAX_CELLS`] bounds it.
+//!
+//! Speed: the loops over disparities are written for the compiler to vectorise and run
+//! compiled for AVX2 where the CPU has it ([`pulp`]'s runtime check; the same integers and
+//! floats as without), census costs by hardware popcount; rows go to the winners as soon as
+//! the aggregation completes them. Every stage is the same arithmetic on one thread or many,
+//! so the output does not depend on the thread count.
 
 pub mod census;
 mod post;
@@ -239,31 +246,57 @@ fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> Vec<u8> {
     let (w, d) = (geo.w, geo.d);
     let mut cost = vec![census::MAX_COST / 2; w * geo.h * d];
     cost.par_chunks_mut(w * d).enumerate().for_each(|(y, row)| {
-        for x in 0..w {
-            let Some(line) = geo.line(x, y) else { continue };
-            let Some((lo, hi)) = geo.valid_range(x, line) else {
-                continue;
-            };
-            let c = reference[y * w + x];
-            let cells = &mut row[x * d..(x + 1) * d];
-            if line.1 == 0.0 {
-                // Rows: one row of the other image.
-                let Some(v) = geo.v_at(line, 0) else { continue };
-                let other_row = &other[v * w..(v + 1) * w];
-                for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
-                    *cell = (c ^ other_row[geo.u_at(x, k) as usize]).count_ones() as u8;
-                }
-            } else {
-                for (k, cell) in cells.iter_mut().enumerate().take(hi + 1).skip(lo) {
-                    let u = geo.u_at(x, k);
-                    if let Some(v) = geo.v_at(line, u) {
-                        *cell = (c ^ other[v * w + u as usize]).count_ones() as u8;
-                    }
-                }
-            }
-        }
+        fast(
+            #[inline(always)]
+            || cost_row(geo, reference, other, y, row),
+        )
     });
     cost
+}
+
+/// Row `y` of [`cost_volume`] (`row`: `w * d` cells).
+#[inline(always)]
+fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8]) {
+    let (w, d) = (geo.w, geo.d);
+    for x in 0..w {
+        let Some(line) = geo.line(x, y) else { continue };
+        let Some((lo, hi)) = geo.valid_range(x, line) else {
+            continue;
+        };
+        let c = reference[y * w + x];
+        let cells = &mut row[x * d..(x + 1) * d];
+        // The other image's row `v` is a monotonic step function of `k` (`u` and the line's
+        // `v` are linear in `k`, and rounding is monotonic): runs of one row, each found by
+        // bisection, then a contiguous stretch of that row. A rectified pair has one run.
+        let v_of = |k: usize| geo.v_at(line, geo.u_at(x, k)).expect("inside: valid_range");
+        let mut k = lo;
+        while k <= hi {
+            let v = v_of(k);
+            // The last `k` of this row: v_of(end) == v, v_of(end + 1) != v (or end == hi).
+            let (mut end, mut past) = (k, hi + 1);
+            while past - end > 1 {
+                let mid = end + (past - end) / 2;
+                if v_of(mid) == v {
+                    end = mid;
+                } else {
+                    past = mid;
+                }
+            }
+            let other_row = &other[v * w..(v + 1) * w];
+            let (u_a, u_b) = (geo.u_at(x, k) as usize, geo.u_at(x, end) as usize);
+            let run = &mut cells[k..end + 1];
+            if geo.sign < 0 {
+                for (cell, &o) in run.iter_mut().zip(other_row[u_b..u_a + 1].iter().rev()) {
+                    *cell = (c ^ o).count_ones() as u8;
+                }
+            } else {
+                for (cell, &o) in run.iter_mut().zip(&other_row[u_a..u_b + 1]) {
+                    *cell = (c ^ o).count_ones() as u8;
+                }
+            }
+            k = end + 1;
+        }
+    }
 }
 
 /// Whether `f` is a rectified pair's (every left row's line is the same row of the right
@@ -312,25 +345,53 @@ pub fn dense_match(
     let pen = penalties(params);
     let lgeo = Geo { m: f.m, sign: -1, d_min: d_range[0], d, w, h };
     let cost = cost_volume(&lgeo, &cl, &cr);
-    let sum = sgm::aggregate(&cost, left.as_raw(), w, h, d, &pen);
+    let rectified = is_rectified(f, w, h);
+    // Each row of the aggregated volume as soon as it is complete: its winners and, for a
+    // rectified pair, the right image's disparities of the same row.
+    let rows = sgm::aggregate_rows(&cost, left.as_raw(), (w, h, d), &pen, |y, sums| {
+        let best = post::winners_row(&lgeo, y, sums, params.uniqueness);
+        (best, rectified.then(|| post::right_from_left_row(&lgeo, sums)))
+    });
     drop(cost);
-    let mut best = post::winners(&lgeo, &sum, params.uniqueness);
-    // The right image's disparities for the left-right check.
-    let right_disp = if is_rectified(f, w, h) {
-        post::right_from_left_volume(&lgeo, &sum)
-    } else {
-        drop(sum);
+    let mut best = Vec::with_capacity(w * h);
+    let mut right_disp = Vec::with_capacity(if rectified { w * h } else { 0 });
+    for (b, r) in rows {
+        best.extend(b);
+        right_disp.extend(r.into_iter().flatten());
+    }
+    // The right image's disparities for the left-right check, by a second aggregation when
+    // the pair is not rectified.
+    if !rectified {
         let mt = core::array::from_fn(|i| core::array::from_fn(|j| f.m[j][i]));
         let rgeo = Geo { m: mt, sign: 1, ..lgeo };
         let cost = cost_volume(&rgeo, &cr, &cl);
-        let sum = sgm::aggregate(&cost, right.as_raw(), w, h, d, &pen);
+        let rows = sgm::aggregate_rows(&cost, right.as_raw(), (w, h, d), &pen, |y, sums| {
+            post::winners_row(&rgeo, y, sums, 0.0)
+        });
         drop(cost);
-        post::winners(&rgeo, &sum, 0.0).into_iter().map(|b| b.map(|b| b.disparity)).collect()
-    };
+        right_disp = rows.into_iter().flatten().map(|b| b.map(|b| b.disparity)).collect();
+    }
     post::left_right_check(&lgeo, &mut best, &right_disp, params.lr_tolerance_px);
     post::speckle_filter(w, h, &mut best, params.speckle_size, params.speckle_range_px);
     post::refine(&lgeo, left.as_raw(), right.as_raw(), &mut best);
     Ok(post::to_map(&lgeo, &best, params.lr_tolerance_px))
+}
+
+/// Runs `f` compiled for the best instruction set of this CPU (AVX2 and its companions where
+/// present, by [`pulp`]'s runtime check; plain x86-64 otherwise). Only the speed differs:
+/// integer code gives the same integers, and float code the same floats (Rust does not fuse
+/// or reorder float operations).
+#[inline(always)]
+pub(crate) fn fast<R>(f: impl FnOnce() -> R) -> R {
+    struct Op<F>(F);
+    impl<R, F: FnOnce() -> R> pulp::WithSimd for Op<F> {
+        type Output = R;
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _: S) -> R {
+            (self.0)()
+        }
+    }
+    pulp::Arch::new().dispatch(Op(f))
 }
 
 fn penalties(p: &DenseParams) -> sgm::Penalties {

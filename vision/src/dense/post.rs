@@ -28,79 +28,80 @@ pub(crate) fn subpixel(a: i32, b: i32, c: i32) -> f32 {
     ((a - c) as f32 / (2 * rise) as f32).clamp(-0.5, 0.5)
 }
 
-/// The winner of every pixel of `geo`'s reference image (`None`: refused).
-pub(crate) fn winners(geo: &Geo, sum: &[i16], uniqueness: f32) -> Vec<Option<Best>> {
-    let (w, h, d) = (geo.w, geo.h, geo.d);
-    let mut out = vec![None; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, slot) in row.iter_mut().enumerate() {
-            let Some(line) = geo.line(x, y) else { continue };
-            let Some((lo, hi)) = geo.valid_range(x, line) else {
-                continue;
-            };
-            let s = &sum[(y * w + x) * d..(y * w + x + 1) * d];
-            let mut k1 = lo;
-            let mut s1 = i32::from(s[lo]);
-            for (k, &v) in s.iter().enumerate().take(hi + 1).skip(lo + 1) {
-                if i32::from(v) < s1 {
-                    s1 = i32::from(v);
-                    k1 = k;
-                }
-            }
-            // The minimum at an end of the range (or of the image): the match is not inside
-            // the range.
-            if k1 == lo || k1 == hi {
-                continue;
-            }
-            let below = s[lo..k1 - 1].iter().copied().min();
-            let above = s.get(k1 + 2..hi + 1).and_then(|r| r.iter().copied().min());
-            let s2 = below.into_iter().chain(above).min().map_or(i32::MAX, i32::from);
-            if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
-                continue;
-            }
-            let offset = subpixel(i32::from(s[k1 - 1]), s1, i32::from(s[k1 + 1]));
-            *slot =
-                Some(Best { disparity: (geo.d_min as f32) + k1 as f32 + offset, s1, s2, lr: 0.0 });
-        }
-    });
-    out
+/// The winners of row `y` of `geo`'s reference image (`None`: refused) from its aggregated
+/// sums `sums` (`w * d`).
+pub(crate) fn winners_row(geo: &Geo, y: usize, sums: &[i16], uniqueness: f32) -> Vec<Option<Best>> {
+    let d = geo.d;
+    super::fast(
+        #[inline(always)]
+        || (0..geo.w).map(|x| winner(geo, x, y, &sums[x * d..(x + 1) * d], uniqueness)).collect(),
+    )
 }
 
-/// For a rectified pair: the right image's whole disparities read off the left volume
-/// (right pixel `(x, y)` at disparity index `k` is left pixel `(x + d_min + k, y)`).
-pub(crate) fn right_from_left_volume(geo: &Geo, sum: &[i16]) -> Vec<Option<f32>> {
-    let (w, h, d) = (geo.w, geo.h, geo.d);
-    let mut out = vec![None; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (xr, slot) in row.iter_mut().enumerate() {
-            let mut best: Option<(i16, usize)> = None;
-            for k in 0..d {
-                let x = xr as i64 + i64::from(geo.d_min) + k as i64;
-                if x < 0 || x >= w as i64 {
-                    continue;
-                }
-                let v = sum[(y * w + x as usize) * d + k];
-                if best.is_none_or(|(b, _)| v < b) {
-                    best = Some((v, k));
+/// The smallest of `s` (`i16::MAX` when empty).
+#[inline(always)]
+fn min_of(s: &[i16]) -> i16 {
+    s.iter().fold(i16::MAX, |m, &v| m.min(v))
+}
+
+/// The winner of pixel `(x, y)` of `geo`'s reference image from its sums `s` (`d` long).
+#[inline(always)]
+fn winner(geo: &Geo, x: usize, y: usize, s: &[i16], uniqueness: f32) -> Option<Best> {
+    let line = geo.line(x, y)?;
+    let (lo, hi) = geo.valid_range(x, line)?;
+    let run = &s[lo..hi + 1];
+    // The first smallest sum.
+    let m = min_of(run);
+    let k1 = lo + run.iter().position(|&v| v == m)?;
+    let s1 = i32::from(m);
+    // The minimum at an end of the range (or of the image): the match is not inside the
+    // range.
+    if k1 == lo || k1 == hi {
+        return None;
+    }
+    let below = min_of(&s[lo..k1 - 1]);
+    let above = min_of(&s[k1 + 2..hi + 1]);
+    let s2 = if k1 - 1 > lo || k1 + 2 <= hi { i32::from(below.min(above)) } else { i32::MAX };
+    if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
+        return None;
+    }
+    let offset = subpixel(i32::from(s[k1 - 1]), s1, i32::from(s[k1 + 1]));
+    Some(Best { disparity: (geo.d_min as f32) + k1 as f32 + offset, s1, s2, lr: 0.0 })
+}
+
+/// For a rectified pair: the right image's whole disparities of row `y` read off the left
+/// volume's row `sums` (`w * d`; right pixel `(x, y)` at disparity index `k` is left pixel
+/// `(x + d_min + k, y)`).
+pub(crate) fn right_from_left_row(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
+    let (w, d) = (geo.w, geo.d);
+    (0..w)
+        .map(|xr| {
+            // The disparity indices whose left pixel lies inside the image.
+            let base = xr as i64 + i64::from(geo.d_min);
+            let lo = (-base).max(0);
+            let hi = (w as i64 - 1 - base).min(d as i64 - 1);
+            if lo > hi {
+                return None;
+            }
+            let (lo, hi) = (lo as usize, hi as usize);
+            let at = |k: usize| sums[(base + k as i64) as usize * d + k];
+            // The first smallest.
+            let (mut s1, mut k1) = (at(lo), lo);
+            for k in lo + 1..=hi {
+                let v = at(k);
+                if v < s1 {
+                    (s1, k1) = (v, k);
                 }
             }
             // Sub-pixel by the same fit as the left winners where both neighbours exist.
-            *slot = best.map(|(s1, k)| {
-                let at = |k: usize| -> Option<i32> {
-                    let x = xr as i64 + i64::from(geo.d_min) + k as i64;
-                    (x >= 0 && x < w as i64).then(|| i32::from(sum[(y * w + x as usize) * d + k]))
-                };
-                let offset =
-                    match (k.checked_sub(1).and_then(at), (k + 1 < d).then(|| at(k + 1)).flatten())
-                    {
-                        (Some(a), Some(c)) => subpixel(a, i32::from(s1), c),
-                        _ => 0.0,
-                    };
-                (geo.d_min as f32) + k as f32 + offset
-            });
-        }
-    });
-    out
+            let offset = if k1 > lo && k1 < hi {
+                subpixel(i32::from(at(k1 - 1)), i32::from(s1), i32::from(at(k1 + 1)))
+            } else {
+                0.0
+            };
+            Some((geo.d_min as f32) + k1 as f32 + offset)
+        })
+        .collect()
 }
 
 /// Drops every left winner whose right pixel's disparity (`right`, indexed by right pixel)
@@ -218,6 +219,7 @@ const REFINE_SIDE: usize = 2 * REFINE_HALF as usize + 1;
 /// into `out` (row by row), or `false` if one lies outside the image (as [`bilinear`] says).
 /// Inside, the samples share their fractional offsets: one patch of whole pixels, its rows
 /// interpolated along x, then along y (the same products as [`bilinear`]'s).
+#[inline(always)]
 fn window_samples(img: &[u8], w: usize, h: usize, x: f64, y: f64, out: &mut [f64]) -> bool {
     const N: usize = REFINE_SIDE;
     let half = REFINE_HALF as f64;
@@ -255,80 +257,109 @@ fn window_samples(img: &[u8], w: usize, h: usize, x: f64, y: f64, out: &mut [f64
 /// Lucas-Kanade), which removes most of the pull of the cost fit towards whole pixels. A step
 /// that would move the match by more than half a pixel, or leave the image, is not taken.
 pub(crate) fn refine(geo: &Geo, left: &[u8], right: &[u8], best: &mut [Option<Best>]) {
-    let (w, h) = (geo.w, geo.h);
-    let n = (2 * REFINE_HALF + 1) * (2 * REFINE_HALF + 1);
+    let w = geo.w;
     best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let mut lw = vec![0.0f64; n as usize];
-        for (x, slot) in row.iter_mut().enumerate() {
-            let Some(b) = slot else { continue };
-            let Some((alpha, beta)) = geo.line(x, y) else {
-                continue;
-            };
-            let (xi, yi) = (x as i64, y as i64);
-            if xi < REFINE_HALF
-                || yi < REFINE_HALF
-                || xi + REFINE_HALF >= w as i64
-                || yi + REFINE_HALF >= h as i64
-            {
-                continue;
-            }
-            let mut k = 0;
-            for j in -REFINE_HALF..=REFINE_HALF {
-                for i in -REFINE_HALF..=REFINE_HALF {
-                    lw[k] = f64::from(left[(yi + j) as usize * w + (xi + i) as usize]);
-                    k += 1;
+        super::fast(
+            #[inline(always)]
+            || {
+                for (x, slot) in row.iter_mut().enumerate() {
+                    if let Some(b) = slot {
+                        if let Some(u) = refined(geo, left, right, x, y, b.disparity) {
+                            b.disparity = (x as f64 - u) as f32;
+                        }
+                    }
                 }
-            }
-            let lmean = lw.iter().sum::<f64>() / n as f64;
-            let lvar = lw.iter().map(|v| (v - lmean).powi(2)).sum::<f64>();
-            if lvar < 1e-6 {
-                continue;
-            }
-            let u0 = x as f64 - f64::from(b.disparity);
-            let mut u = u0;
-            let mut ok = true;
-            for _ in 0..2 {
-                let v = alpha + beta * u;
-                // Right window and its derivative along the line (1, beta).
-                let mut rw = [0.0f64; REFINE_SIDE * REFINE_SIDE];
-                let (mut before, mut after) = (rw, rw);
-                if !(window_samples(right, w, h, u, v, &mut rw)
-                    && window_samples(right, w, h, u - 0.5, v - 0.5 * beta, &mut before)
-                    && window_samples(right, w, h, u + 0.5, v + 0.5 * beta, &mut after))
-                {
-                    ok = false;
-                    break;
-                }
-                let mut gw = after;
-                for (g, b) in gw.iter_mut().zip(&before) {
-                    *g -= b;
-                }
-                let rmean = rw.iter().sum::<f64>() / n as f64;
-                let gmean = gw.iter().sum::<f64>() / n as f64;
-                let rvar = rw.iter().map(|v| (v - rmean).powi(2)).sum::<f64>();
-                if rvar < 1e-6 {
-                    ok = false;
-                    break;
-                }
-                let gain = (lvar / rvar).sqrt();
-                let (mut num, mut den) = (0.0, 0.0);
-                for ((l, r), gr) in lw.iter().zip(&rw).zip(&gw) {
-                    let e = (l - lmean) - gain * (r - rmean);
-                    let g = gain * (gr - gmean);
-                    num += g * e;
-                    den += g * g;
-                }
-                if den <= 1e-9 {
-                    ok = false;
-                    break;
-                }
-                u += (num / den).clamp(-0.5, 0.5);
-            }
-            if ok && (u - u0).abs() <= 0.5 {
-                b.disparity = (x as f64 - u) as f32;
-            }
-        }
+            },
+        )
     });
+}
+
+/// The refined right `u` of left pixel `(x, y)` at `disparity` ([`refine`]), `None` where
+/// the step is not taken. The window sums are gathered in one sweep each (six independent
+/// running sums, not a chain of means then deviations): `sum (r - mean r)^2 = sum r^2 - mean
+/// r sum r` and the like, the same quantities to rounding.
+#[inline(always)]
+fn refined(
+    geo: &Geo,
+    left: &[u8],
+    right: &[u8],
+    x: usize,
+    y: usize,
+    disparity: f32,
+) -> Option<f64> {
+    const N: usize = REFINE_SIDE * REFINE_SIDE;
+    let (w, h) = (geo.w, geo.h);
+    let (alpha, beta) = geo.line(x, y)?;
+    let (xi, yi) = (x as i64, y as i64);
+    if xi < REFINE_HALF
+        || yi < REFINE_HALF
+        || xi + REFINE_HALF >= w as i64
+        || yi + REFINE_HALF >= h as i64
+    {
+        return None;
+    }
+    let mut lw = [0.0f64; N];
+    let half = REFINE_HALF as usize;
+    for (j, out) in lw.chunks_exact_mut(REFINE_SIDE).enumerate() {
+        let r = (y + j - half) * w + x - half;
+        for (o, &p) in out.iter_mut().zip(&left[r..r + REFINE_SIDE]) {
+            *o = f64::from(p);
+        }
+    }
+    let n = N as f64;
+    let (mut sl, mut sll) = (0.0, 0.0);
+    for &l in &lw {
+        sl += l;
+        sll += l * l;
+    }
+    let lmean = sl / n;
+    let lvar = sll - sl * lmean;
+    if lvar < 1e-6 {
+        return None;
+    }
+    for l in lw.iter_mut() {
+        *l -= lmean;
+    }
+    let u0 = x as f64 - f64::from(disparity);
+    let mut u = u0;
+    for _ in 0..2 {
+        let v = alpha + beta * u;
+        // Right window and its derivative along the line (1, beta).
+        let mut rw = [0.0f64; N];
+        let (mut before, mut after) = (rw, rw);
+        if !(window_samples(right, w, h, u, v, &mut rw)
+            && window_samples(right, w, h, u - 0.5, v - 0.5 * beta, &mut before)
+            && window_samples(right, w, h, u + 0.5, v + 0.5 * beta, &mut after))
+        {
+            return None;
+        }
+        let (mut sr, mut srr, mut sg, mut sgg, mut sgl, mut sgr) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for k in 0..N {
+            let (r, g, l) = (rw[k], after[k] - before[k], lw[k]);
+            sr += r;
+            srr += r * r;
+            sg += g;
+            sgg += g * g;
+            sgl += g * l;
+            sgr += g * r;
+        }
+        let rmean = sr / n;
+        let rvar = srr - sr * rmean;
+        if rvar < 1e-6 {
+            return None;
+        }
+        let gain = (lvar / rvar).sqrt();
+        // With g' = gain (g - mean g) and e = l' - gain (r - mean r) (l' zero-mean):
+        // sum g' e = gain (sum g l' - gain (sum g r - sum g mean r)), sum g'^2 = gain^2 (sum g^2 -
+        // sum g mean g).
+        let num = gain * (sgl - gain * (sgr - sg * rmean));
+        let den = gain * gain * (sgg - sg * (sg / n));
+        if den <= 1e-9 {
+            return None;
+        }
+        u += (num / den).clamp(-0.5, 0.5);
+    }
+    ((u - u0).abs() <= 0.5).then_some(u)
 }
 
 /// The confidence of a kept pixel in `0..1`: its uniqueness margin `(s2 - s1) / s2` over

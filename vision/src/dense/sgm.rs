@@ -6,7 +6,8 @@
 //! The paths are run as two passes, each over the whole image once: top-left to bottom-right
 //! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
 //! bottom-left); with two cores the passes run side by side ([`rayon::join`]). Costs are `u8`,
-//! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`).
+//! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`), stored disparities innermost
+//! and computed 16 disparities at a time (AVX2 where the CPU has it).
 
 /// Penalties of the aggregation.
 #[derive(Debug, Clone, Copy)]
@@ -19,49 +20,127 @@ pub struct Penalties {
     pub eight: bool,
 }
 
+/// Padding of the path-cost rows: each holds `BIG` before disparity 0 and after the last, so
+/// that one loop serves every disparity (`BIG + P1` is never the minimum: a path cost is at
+/// most `MAX_COST + P2 <= 2062`).
+const BIG: i16 = 0x3FFF;
+
+/// Disparities per chunk of the inner loops (16 `i16` lanes: one AVX2 register). A range of
+/// at least this many is covered by whole chunks, the last one overlapping its predecessor
+/// (its cells are computed twice from the same inputs, so the same values).
+const LANES: usize = 16;
+
+/// The chunk starts covering `0..d` ([`LANES`] apart, the last at `d - LANES`), for `d >=
+/// LANES`.
+#[inline(always)]
+fn chunks(d: usize) -> impl Iterator<Item = usize> {
+    (0..d.div_ceil(LANES)).map(move |i| (i * LANES).min(d - LANES))
+}
+
 /// One path step over the `d` disparities: `out = c + min(prev, prev+-1 + p1, pmin + p2) -
-/// pmin`; returns `min(out)`.
-#[inline]
+/// pmin`; returns `min(out)`. `prev` and `out` are padded (`d + 2` long, `BIG` at both ends;
+/// `out`'s ends are left alone).
+#[inline(always)]
 fn step(prev: &[i16], pmin: i16, c: &[u8], p1: i16, p2: i16, out: &mut [i16]) -> i16 {
     let d = c.len();
-    let (prev, out) = (&prev[..d], &mut out[..d]);
     let cap = pmin + p2;
-    if d == 1 {
-        out[0] = i16::from(c[0]) + prev[0].min(cap) - pmin;
-        return out[0];
+    let cell =
+        |cc: u8, a: i16, b: i16, e: i16| i16::from(cc) + a.min(b.min(e) + p1).min(cap) - pmin;
+    if d < LANES {
+        let mut m = i16::MAX;
+        for k in 0..d {
+            let v = cell(c[k], prev[k + 1], prev[k], prev[k + 2]);
+            out[k + 1] = v;
+            m = m.min(v);
+        }
+        return m;
     }
-    out[0] = i16::from(c[0]) + prev[0].min(prev[1] + p1).min(cap) - pmin;
-    out[d - 1] = i16::from(c[d - 1]) + prev[d - 1].min(prev[d - 2] + p1).min(cap) - pmin;
-    for k in 1..d - 1 {
-        let v = prev[k].min(prev[k - 1].min(prev[k + 1]) + p1).min(cap);
-        out[k] = i16::from(c[k]) + v - pmin;
+    let mut m = [i16::MAX; LANES];
+    for k0 in chunks(d) {
+        let cc: &[u8; LANES] = c[k0..k0 + LANES].try_into().expect("chunk");
+        let below: &[i16; LANES] = prev[k0..k0 + LANES].try_into().expect("chunk");
+        let centre: &[i16; LANES] = prev[k0 + 1..k0 + 1 + LANES].try_into().expect("chunk");
+        let above: &[i16; LANES] = prev[k0 + 2..k0 + 2 + LANES].try_into().expect("chunk");
+        let o: &mut [i16; LANES] = (&mut out[k0 + 1..k0 + 1 + LANES]).try_into().expect("chunk");
+        for i in 0..LANES {
+            let v = cell(cc[i], centre[i], below[i], above[i]);
+            o[i] = v;
+            m[i] = m[i].min(v);
+        }
     }
+    m.iter().fold(i16::MAX, |a, &b| a.min(b))
+}
+
+/// The first step of a path: `out = c` (padded as in [`step`]); returns `min(c)`.
+#[inline(always)]
+fn start(c: &[u8], out: &mut [i16]) -> i16 {
     let mut m = i16::MAX;
-    for &v in out.iter() {
-        m = m.min(v);
+    for (o, &cc) in out[1..c.len() + 1].iter_mut().zip(c) {
+        *o = i16::from(cc);
+        m = m.min(*o);
     }
     m
 }
 
+/// `s = a + b + c + e` (or `s += ...` when `add`) over the `d = s.len()` disparities; the
+/// path rows are padded (`d + 2`, see [`step`]), `c` and `e` may be absent (4 paths).
+#[inline(always)]
+fn accumulate(s: &mut [i16], a: &[i16], b: &[i16], c: Option<(&[i16], &[i16])>, add: bool) {
+    let d = s.len();
+    let ab = a[1..d + 1].iter().zip(&b[1..d + 1]);
+    match c {
+        Some((c, e)) => {
+            let terms = ab.zip(&c[1..d + 1]).zip(&e[1..d + 1]);
+            if add {
+                for (s, (((&a, &b), &c), &e)) in s.iter_mut().zip(terms) {
+                    *s += a + b + c + e;
+                }
+            } else {
+                for (s, (((&a, &b), &c), &e)) in s.iter_mut().zip(terms) {
+                    *s = a + b + c + e;
+                }
+            }
+        }
+        None => {
+            if add {
+                for (s, (&a, &b)) in s.iter_mut().zip(ab) {
+                    *s += a + b;
+                }
+            } else {
+                for (s, (&a, &b)) in s.iter_mut().zip(ab) {
+                    *s = a + b;
+                }
+            }
+        }
+    }
+}
+
 /// One pass (forward: rows top to bottom, left to right; backward: the reverse) writing the
-/// sum of its paths into `sum` (`w * h * d`, overwritten).
-fn pass(
+/// sum of its paths into `sum` (`w * h * d`), or adding it there when `add`; `on_row(y,
+/// row)` is called with each row of `sum` once it is done.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn pass_body(
     cost: &[u8],
     img: &[u8],
     (w, h, d): (usize, usize, usize),
     pen: &Penalties,
     backward: bool,
+    add: bool,
     sum: &mut [i16],
+    on_row: &mut dyn FnMut(usize, &[i16]),
 ) {
     // Row buffers of the three paths that come from the previous row, by iteration column:
-    // slot 0 from the same column, 1 from the column before, 2 from the column after.
+    // slot 0 from the same column, 1 from the column before, 2 from the column after. Each
+    // cell is `d + 2` long (padded, see [`BIG`]).
+    let dp = d + 2;
     let slots = if pen.eight { 3 } else { 1 };
-    let mut prev = vec![0i16; slots * w * d];
-    let mut cur = vec![0i16; slots * w * d];
+    let mut prev = vec![BIG; slots * w * dp];
+    let mut cur = vec![BIG; slots * w * dp];
     let mut prev_min = vec![0i16; slots * w];
     let mut cur_min = vec![0i16; slots * w];
-    let mut lprev = vec![0i16; d];
-    let mut lcur = vec![0i16; d];
+    let mut lprev = vec![BIG; dp];
+    let mut lcur = vec![BIG; dp];
     let mut lmin = 0i16;
     let at = |xi: usize, yi: usize| -> usize {
         if backward {
@@ -70,23 +149,18 @@ fn pass(
             yi * w + xi
         }
     };
-    let grey_diff = |a: usize, b: usize| -> usize { usize::from(img[a].abs_diff(img[b])) };
+    let p2 = |a: u8, b: u8| -> i16 { pen.p2[usize::from(a.abs_diff(b))] };
     for yi in 0..h {
         for xi in 0..w {
             let p = at(xi, yi);
             let c = &cost[p * d..(p + 1) * d];
+            let g = img[p];
             // Along the row.
-            if xi == 0 {
-                for (o, &cc) in lcur.iter_mut().zip(c) {
-                    *o = i16::from(cc);
-                }
-                lmin = lcur.iter().copied().fold(i16::MAX, i16::min);
+            lmin = if xi == 0 {
+                start(c, &mut lcur)
             } else {
-                let q = at(xi - 1, yi);
-                lmin = step(&lprev, lmin, c, pen.p1, pen.p2[grey_diff(p, q)], &mut lcur);
-            }
-            let s = &mut sum[p * d..(p + 1) * d];
-            s.copy_from_slice(&lcur);
+                step(&lprev, lmin, c, pen.p1, p2(g, img[at(xi - 1, yi)]), &mut lcur)
+            };
             std::mem::swap(&mut lprev, &mut lcur);
             // From the previous row.
             for slot in 0..slots {
@@ -95,33 +169,93 @@ fn pass(
                     1 => xi.checked_sub(1),
                     _ => (xi + 1 < w).then_some(xi + 1),
                 };
-                let out = &mut cur[(slot * w + xi) * d..(slot * w + xi + 1) * d];
+                let out = &mut cur[(slot * w + xi) * dp..(slot * w + xi + 1) * dp];
                 let m = match from {
                     Some(fx) if yi > 0 => {
+                        let pv = &prev[(slot * w + fx) * dp..(slot * w + fx + 1) * dp];
                         let q = at(fx, yi - 1);
-                        let pv = &prev[(slot * w + fx) * d..(slot * w + fx + 1) * d];
-                        step(pv, prev_min[slot * w + fx], c, pen.p1, pen.p2[grey_diff(p, q)], out)
+                        step(pv, prev_min[slot * w + fx], c, pen.p1, p2(g, img[q]), out)
                     }
-                    _ => {
-                        for (o, &cc) in out.iter_mut().zip(c) {
-                            *o = i16::from(cc);
-                        }
-                        out.iter().copied().fold(i16::MAX, i16::min)
-                    }
+                    _ => start(c, out),
                 };
                 cur_min[slot * w + xi] = m;
-                for (a, &b) in s.iter_mut().zip(out.iter()) {
-                    *a += b;
-                }
             }
+            let s = &mut sum[p * d..(p + 1) * d];
+            let cell = |slot: usize| &cur[(slot * w + xi) * dp..(slot * w + xi + 1) * dp];
+            let diagonals = (slots == 3).then(|| (cell(1), cell(2)));
+            accumulate(s, &lprev, cell(0), diagonals, add);
         }
         std::mem::swap(&mut prev, &mut cur);
         std::mem::swap(&mut prev_min, &mut cur_min);
+        let y = if backward { h - 1 - yi } else { yi };
+        on_row(y, &sum[y * w * d..(y + 1) * w * d]);
     }
 }
 
+/// [`pass_body`], compiled for AVX2 where the CPU has it ([`super::fast`]: the same
+/// integers either way).
+#[allow(clippy::too_many_arguments)]
+fn pass(
+    cost: &[u8],
+    img: &[u8],
+    dims: (usize, usize, usize),
+    pen: &Penalties,
+    backward: bool,
+    add: bool,
+    sum: &mut [i16],
+    on_row: &mut dyn FnMut(usize, &[i16]),
+) {
+    super::fast(
+        #[inline(always)]
+        || pass_body(cost, img, dims, pen, backward, add, sum, on_row),
+    );
+}
+
 /// The aggregated cost `S(p, d)` of `cost` (`w * h * d`, rows first, disparities innermost)
-/// with `img` the reference image's grey levels (for the adaptive `P2`).
+/// with `img` the reference image's grey levels (for the adaptive `P2`), handed row by row
+/// to `per_row(y, S of row y)` (`w * d`) as soon as the row is complete; its answers by row.
+///
+/// With one thread the backward pass adds into the forward pass's volume and each row is
+/// handed over as the backward pass leaves it (still in cache); with more, the two passes
+/// run side by side into two volumes, then the rows are added and handed over in parallel.
+/// The same integers either way.
+pub fn aggregate_rows<R: Send>(
+    cost: &[u8],
+    img: &[u8],
+    (w, h, d): (usize, usize, usize),
+    pen: &Penalties,
+    per_row: impl Fn(usize, &[i16]) -> R + Sync,
+) -> Vec<R> {
+    use rayon::prelude::*;
+    let n = w * h * d;
+    let mut fwd = vec![0i16; n];
+    if rayon::current_num_threads() < 2 {
+        pass(cost, img, (w, h, d), pen, false, false, &mut fwd, &mut |_, _| {});
+        let mut out: Vec<Option<R>> = (0..h).map(|_| None).collect();
+        pass(cost, img, (w, h, d), pen, true, true, &mut fwd, &mut |y, row| {
+            out[y] = Some(per_row(y, row));
+        });
+        return out.into_iter().map(|r| r.expect("every row is handed over")).collect();
+    }
+    let mut bwd = vec![0i16; n];
+    rayon::join(
+        || pass(cost, img, (w, h, d), pen, false, false, &mut fwd, &mut |_, _| {}),
+        || pass(cost, img, (w, h, d), pen, true, false, &mut bwd, &mut |_, _| {}),
+    );
+    let row = (w * d).max(1);
+    fwd.par_chunks_mut(row)
+        .zip(bwd.par_chunks(row))
+        .enumerate()
+        .map(|(y, (a, b))| {
+            for (s, &t) in a.iter_mut().zip(b) {
+                *s += t;
+            }
+            per_row(y, a)
+        })
+        .collect()
+}
+
+/// The whole aggregated volume `S` (`w * h * d`) of [`aggregate_rows`].
 pub fn aggregate(
     cost: &[u8],
     img: &[u8],
@@ -130,20 +264,7 @@ pub fn aggregate(
     d: usize,
     pen: &Penalties,
 ) -> Vec<i16> {
-    let n = w * h * d;
-    let mut fwd = vec![0i16; n];
-    let mut bwd = vec![0i16; n];
-    rayon::join(
-        || pass(cost, img, (w, h, d), pen, false, &mut fwd),
-        || pass(cost, img, (w, h, d), pen, true, &mut bwd),
-    );
-    use rayon::prelude::*;
-    fwd.par_chunks_mut(1 << 16).zip(bwd.par_chunks(1 << 16)).for_each(|(a, b)| {
-        for (x, &y) in a.iter_mut().zip(b) {
-            *x += y;
-        }
-    });
-    fwd
+    aggregate_rows(cost, img, (w, h, d), pen, |_, row| row.to_vec()).concat()
 }
 
 #[cfg(test)]
@@ -156,13 +277,88 @@ mod tests {
 
     #[test]
     fn step_follows_the_recursion() {
-        let prev = [5i16, 0, 9, 30];
+        let prev = [BIG, 5i16, 0, 9, 30, BIG];
         let c = [1u8, 2, 3, 4];
-        let mut out = [0i16; 4];
+        let mut out = [BIG; 6];
         let m = step(&prev, 0, &c, 3, 20, &mut out);
         // d0: 1 + min(5, 0+3, 20) = 4; d1: 2 + 0; d2: 3 + min(9, 0+3) = 6; d3: 4 + min(30, 9+3, 20) = 16.
-        assert_eq!(out, [4, 2, 6, 16]);
+        assert_eq!(out, [BIG, 4, 2, 6, 16, BIG]);
         assert_eq!(m, 2);
+    }
+
+    /// The step as first written, disparity by disparity with its two ends apart.
+    fn step_reference(prev: &[i16], pmin: i16, c: &[u8], p1: i16, p2: i16) -> Vec<i16> {
+        let d = c.len();
+        let cap = pmin + p2;
+        (0..d)
+            .map(|k| {
+                let mut v = prev[k].min(cap);
+                if k > 0 {
+                    v = v.min(prev[k - 1] + p1);
+                }
+                if k + 1 < d {
+                    v = v.min(prev[k + 1] + p1);
+                }
+                i16::from(c[k]) + v - pmin
+            })
+            .collect()
+    }
+
+    /// The chunked step (the last chunk overlapping) gives the reference's values for every
+    /// range length, below one chunk, at it and above.
+    #[test]
+    fn chunked_step_matches_the_reference() {
+        let mut s = 7u64;
+        for d in [1usize, 2, 5, 15, 16, 17, 31, 33, 62, 66, 137] {
+            for _ in 0..20 {
+                let c: Vec<u8> = (0..d)
+                    .map(|_| (hvs_shared::test_support::splitmix64(&mut s) % 63) as u8)
+                    .collect();
+                let prev: Vec<i16> = (0..d)
+                    .map(|_| (hvs_shared::test_support::splitmix64(&mut s) % 300) as i16)
+                    .collect();
+                let pmin = *prev.iter().min().unwrap();
+                let mut padded = vec![BIG; d + 2];
+                padded[1..d + 1].copy_from_slice(&prev);
+                let mut out = vec![BIG; d + 2];
+                let m = step(&padded, pmin, &c, 7, 40, &mut out);
+                let want = step_reference(&prev, pmin, &c, 7, 40);
+                assert_eq!(&out[1..d + 1], &want[..], "d = {d}");
+                assert_eq!((out[0], out[d + 1]), (BIG, BIG));
+                assert_eq!(m, *want.iter().min().unwrap());
+            }
+        }
+    }
+
+    /// The aggregation compiled for this CPU's best instruction set (AVX2 here) and for plain
+    /// x86-64 give the same sums, one thread or more.
+    #[test]
+    fn every_instruction_set_and_thread_count_gives_the_same_sums() {
+        let mut s = 11u64;
+        for (w, h, d, eight) in
+            [(23usize, 9usize, 7usize, true), (17, 12, 40, true), (19, 8, 33, false)]
+        {
+            let cost: Vec<u8> = (0..w * h * d)
+                .map(|_| (hvs_shared::test_support::splitmix64(&mut s) % 63) as u8)
+                .collect();
+            let img: Vec<u8> =
+                (0..w * h).map(|_| hvs_shared::test_support::splitmix64(&mut s) as u8).collect();
+            let mut p2 = [0i16; 256];
+            for (g, v) in p2.iter_mut().enumerate() {
+                *v = (96 * 8 / (8 + g as i32)).max(17) as i16;
+            }
+            let pen = Penalties { p1: 16, p2, eight };
+            let dims = (w, h, d);
+            let mut plain = vec![0i16; w * h * d];
+            pass_body(&cost, &img, dims, &pen, false, false, &mut plain, &mut |_, _| {});
+            pass_body(&cost, &img, dims, &pen, true, true, &mut plain, &mut |_, _| {});
+            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+            for pool in [one, two] {
+                let fast = pool.install(|| aggregate(&cost, &img, w, h, d, &pen));
+                assert_eq!(fast, plain, "{w}x{h}x{d}, eight paths: {eight}");
+            }
+        }
     }
 
     #[test]
