@@ -1,7 +1,7 @@
 //! What one `hvs view` serves: the model (with what `hvs info` says about it), the frames
 //! ([`super::frames`]) and, for a capture set, its detection; and the two actions the page
 //! asks for, each a call of the function the CLI uses: [`Session::locate`] is
-//! `hvs locate --at` ([`crate::vision::locate_with`]), [`Session::retrain`] is
+//! `hvs locate --at` ([`crate::depth::locate_in`] on the pair's kept depth), [`Session::retrain`] is
 //! `hvs board detect` + `hvs train` on the ticked pairs ([`crate::train::model::train_model`]);
 //! [`Session::depth`], the dense depth of a pair, is `hvs depth --colour` ([`crate::depth`]).
 
