@@ -253,16 +253,17 @@ pub fn write_images(files: &mut Files, cases: &[ImageCase], output: &Path) -> Re
     };
     let (board, opt) = (opencv_board(), RenderOptions::default());
     let [x, y] = TEST_CENTRE;
+    let table = images_table(cases);
     let values = [
         ("board", format!("{}x{}", board.cols, board.rows)),
         ("square_cm", board.square_cm.to_string()),
         ("blur_px", opt.blur_sigma_px.to_string()),
         ("noise_grey", opt.noise_sigma.to_string()),
         ("test_centre", format!("X {x} cm, Y {y} cm")),
-        ("table", images_table(cases)),
+        ("table", table.clone()),
         ("cases", join(cases.iter().map(case).collect::<Result<Vec<_>>>()?, "")),
     ];
     files.page("IMAGES.md", "demo_images.md", IMAGES, &values)?;
-    let out = [("table", images_table(cases)), ("output", output.display().to_string())];
+    let out = [("table", table), ("output", output.display().to_string())];
     fill("demo_images.txt", IMAGES_SUMMARY, &out)
 }

@@ -158,11 +158,11 @@ fn f32_json(v: f32) -> Value {
 pub fn depth(pair: usize, d: &DepthView) -> Value {
     json!({
         "pair": pair,
-        "returned": d.returned,
-        "pixels": d.pixels,
-        "z_box_cm": d.z_box,
-        "disparity_px": d.d_range,
-        "warnings": d.warnings,
+        "returned": d.depth.returned(),
+        "pixels": d.depth.xyz.len(),
+        "z_box_cm": d.depth.z_box,
+        "disparity_px": d.depth.d_range,
+        "warnings": d.depth.warnings,
         "ms": d.ms,
     })
 }

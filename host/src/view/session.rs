@@ -104,17 +104,8 @@ pub struct Session {
 pub struct DepthView {
     /// The colour-mapped depth image with its legend (PNG; `hvs depth --colour`).
     pub png: Arc<Vec<u8>>,
-    /// Left pixels with a depth.
-    pub returned: usize,
-    /// Left pixels.
-    pub pixels: usize,
-    /// The model's training depths (cm): the colour scale's ends.
-    pub z_box: [f32; 2],
-    /// The disparities searched (px).
-    pub d_range: [i32; 2],
-    /// What `hvs depth` warns about (a blank or saturated image, matches without estimate).
-    pub warnings: Vec<String>,
-    /// The dense matches themselves, which clicks are located in.
+    /// The depth itself (the count with a depth, the depth box, the disparities searched,
+    /// the warnings), whose matches clicks are located in.
     pub depth: crate::depth::Depth,
     /// Time it took (ms).
     pub ms: f64,
@@ -278,11 +269,6 @@ impl Session {
                 .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
             Ok(Arc::new(DepthView {
                 png: Arc::new(png),
-                returned: d.returned(),
-                pixels: d.xyz.len(),
-                z_box: d.z_box,
-                d_range: d.d_range,
-                warnings: d.warnings.clone(),
                 ms: t0.elapsed().as_secs_f64() * 1e3,
                 depth: d,
             }))
