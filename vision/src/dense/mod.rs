@@ -17,9 +17,10 @@
 //! 4. Winner takes all, with a uniqueness ratio against the best disparity more than one
 //!    step away; a minimum at either end of the range is refused (the match lies outside the
 //!    depth box); sub-pixel by an equiangular fit through the three sums around the minimum.
-//! 5. Left-right check: the same with the right image as reference (`F^T`); for a rectified
-//!    pair (every line is its own row) read off the same aggregated volume, otherwise a
-//!    second aggregation. A left match whose right pixel disagrees by more than
+//! 5. Left-right check: the same with the right image as reference (`F^T`); when every
+//!    candidate of step 2 lay on its left pixel's own row (a rectified pair, or lines that
+//!    round to their own rows) read off the same aggregated volume, otherwise a second
+//!    aggregation. A left match whose right pixel disagrees by more than
 //!    [`DenseParams::lr_tolerance_px`] is dropped.
 //! 6. Speckle filter: connected regions of similar disparity smaller than
 //!    [`DenseParams::speckle_size`] pixels are dropped.
@@ -241,23 +242,32 @@ impl Geo {
 
 /// The census cost volume of `geo` (`w * h * d`, `u8`): out-of-image candidates cost half
 /// the most, so that the aggregation carries the neighbours' answer across them (they are
-/// never chosen).
-fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> Vec<u8> {
+/// never chosen). With it, whether every candidate lay on its reference pixel's own row (the
+/// volume is then that of a rectified pair, whatever `geo`'s lines are before rounding).
+fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> (Vec<u8>, bool) {
     let (w, d) = (geo.w, geo.d);
     let mut cost = vec![census::MAX_COST / 2; w * geo.h * d];
-    cost.par_chunks_mut(w * d).enumerate().for_each(|(y, row)| {
-        fast(
-            #[inline(always)]
-            || cost_row(geo, reference, other, y, row),
-        )
-    });
-    cost
+    // Every row is computed (no short cut on the first row off its line).
+    let own_rows: Vec<bool> = cost
+        .par_chunks_mut(w * d)
+        .enumerate()
+        .map(|(y, row)| {
+            fast(
+                #[inline(always)]
+                || cost_row(geo, reference, other, y, row),
+            )
+        })
+        .collect();
+    let own_rows = own_rows.into_iter().all(|own| own);
+    (cost, own_rows)
 }
 
-/// Row `y` of [`cost_volume`] (`row`: `w * d` cells).
+/// Row `y` of [`cost_volume`] (`row`: `w * d` cells); whether every candidate lay on row `y`
+/// of the other image.
 #[inline(always)]
-fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8]) {
+fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8]) -> bool {
     let (w, d) = (geo.w, geo.d);
+    let mut own_row = true;
     for x in 0..w {
         let Some(line) = geo.line(x, y) else { continue };
         let Some((lo, hi)) = geo.valid_range(x, line) else {
@@ -282,6 +292,7 @@ fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8
                     past = mid;
                 }
             }
+            own_row &= v == y;
             let other_row = &other[v * w..(v + 1) * w];
             let (u_a, u_b) = (geo.u_at(x, k) as usize, geo.u_at(x, end) as usize);
             let run = &mut cells[k..end + 1];
@@ -297,18 +308,7 @@ fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8
             k = end + 1;
         }
     }
-}
-
-/// Whether `f` is a rectified pair's (every left row's line is the same row of the right
-/// image, within 0.01 px, at the four corners).
-fn is_rectified(f: &Fundamental, w: usize, h: usize) -> bool {
-    let (w, h) = (w as f64 - 1.0, h as f64 - 1.0);
-    [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]].iter().all(|&[x, y]| {
-        let l = f.line_in_right([x, y]);
-        l[1] != 0.0
-            && (l[0] / l[1]).abs() < 1e-5
-            && [0.0, w].iter().all(|&u| ((-(l[0] * u + l[2]) / l[1]) - y).abs() < 0.01)
-    })
+    own_row
 }
 
 /// Matches every pixel of `left` in `right` (same size) with `f` (`r^T F l = 0`) over the
@@ -344,8 +344,9 @@ pub fn dense_match(
     let (cl, cr) = rayon::join(|| census::census(left), || census::census(right));
     let pen = penalties(params);
     let lgeo = Geo { m: f.m, sign: -1, d_min: d_range[0], d, w, h };
-    let cost = cost_volume(&lgeo, &cl, &cr);
-    let rectified = is_rectified(f, w, h);
+    // Rectified when every candidate lay on its own row: the right image's disparities are
+    // then read off the same volume (no second aggregation).
+    let (cost, rectified) = cost_volume(&lgeo, &cl, &cr);
     // Each row of the aggregated volume as soon as it is complete: its winners and, for a
     // rectified pair, the right image's disparities of the same row.
     let rows = sgm::aggregate_rows(&cost, left.as_raw(), (w, h, d), &pen, |y, sums| {
@@ -364,7 +365,7 @@ pub fn dense_match(
     if !rectified {
         let mt = core::array::from_fn(|i| core::array::from_fn(|j| f.m[j][i]));
         let rgeo = Geo { m: mt, sign: 1, ..lgeo };
-        let cost = cost_volume(&rgeo, &cr, &cl);
+        let (cost, _) = cost_volume(&rgeo, &cr, &cl);
         let rows = sgm::aggregate_rows(&cost, right.as_raw(), (w, h, d), &pen, |y, sums| {
             post::winners_row(&rgeo, y, sums, 0.0)
         });
@@ -435,10 +436,19 @@ mod tests {
     }
 
     #[test]
-    fn rectified_pairs_are_recognised() {
-        let f = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
-        assert!(is_rectified(&f, 100, 80));
+    fn a_volume_on_its_own_rows_is_recognised_as_rectified() {
+        let (w, h) = (100, 80);
+        let census = vec![0u64; w * h];
+        let geo = |f: Fundamental| Geo { m: f.m, sign: -1, d_min: 0, d: 8, w, h };
+        let rectified = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
+        assert!(cost_volume(&geo(rectified), &census, &census).1);
+        // Lines 0.3 px below their rows round to them: still rectified.
+        let near = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.3]] };
+        assert!(cost_volume(&geo(near), &census, &census).1);
         let shifted = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 2.0]] };
-        assert!(!is_rectified(&shifted, 100, 80));
+        assert!(!cost_volume(&geo(shifted), &census, &census).1);
+        // A line tilted by 1 px over the image's width leaves its row somewhere.
+        let tilted = Fundamental { m: [[0.0, 0.0, 0.01], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
+        assert!(!cost_volume(&geo(tilted), &census, &census).1);
     }
 }
