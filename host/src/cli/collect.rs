@@ -74,8 +74,8 @@ pub fn run(a: Args) -> Result<()> {
     let Some(scene_path) = &a.scene else {
         if a.port.is_some() {
             bail!(
-                "--port/--cameras: collecting with a real head needs live cameras (V4L2), which \
-                 this build of hvs does not have yet; collect with the virtual head (--scene)"
+                "--port/--cameras: collecting with a real head needs the head to take posture \
+                 commands, which its protocol has not yet; collect with the virtual head (--scene)"
             );
         }
         return Err(usage(

@@ -19,11 +19,12 @@ use std::path::PathBuf;
     with its detected corners, homography and epipolar residuals; untick pairs and retrain as \
     `hvs train` does) or the virtual head in a scene, live (--scene: both frames as they are \
     grabbed; click a pixel and \"look\" to make the head look at the object there and follow \
-    it, as `hvs track --target U,V` does; the joints and the loop's status update live), and \
-    the model (what `hvs info` prints). It listens on 127.0.0.1 unless \
+    it, as `hvs track --target U,V` does; the joints and the loop's status update live), or two \
+    real cameras, live (--cameras v4l:A,B, on no head: click a pixel for its X, Y, Z; needs a \
+    build with the v4l feature), and the model (what `hvs info` prints). It listens on 127.0.0.1 unless \
     --listen names another address, and then every request needs the token in the printed URL. \
     Ctrl-C stops it.",
-    group(clap::ArgGroup::new("source").required(true).args(["left", "board", "scene"]))
+    group(clap::ArgGroup::new("source").required(true).args(["left", "board", "scene", "cameras"]))
 )]
 pub struct Args {
     /// The model (from `hvs train`).
@@ -44,6 +45,18 @@ pub struct Args {
     /// A scene for the virtual head (as `hvs track`): the head in the loop, live.
     #[arg(long, value_name = "SCENE.json", conflicts_with_all = ["left", "board"])]
     pub scene: Option<PathBuf>,
+    /// Two real cameras, live: v4l:LEFT,RIGHT (device paths or numbers, e.g. v4l:0,2; a build
+    /// with the `v4l` feature). They stand on no head: the model is used at the home posture.
+    #[arg(long, value_name = "v4l:A,B", conflicts_with_all = ["left", "board", "scene"])]
+    pub cameras: Option<String>,
+    /// With --cameras: the image size to ask of them (default: the model's training images'
+    /// size when it records one, else 640x480).
+    #[arg(long, value_name = "WxH", requires = "cameras")]
+    pub camera_size: Option<String>,
+    /// With --cameras: the head's serial port (not supported yet: the head cannot report its
+    /// joints over the protocol).
+    #[arg(long, value_name = "PATH", requires = "cameras")]
+    pub port: Option<PathBuf>,
     /// With --scene, where the loop runs.
     #[arg(long, value_enum, default_value = "emulate", requires = "scene")]
     pub head: super::HeadKind,
@@ -70,18 +83,55 @@ pub fn run(a: Args) -> Result<()> {
         bail!("--restarts must be at least 1");
     }
     a.head.check()?;
-    let source = match (a.left, a.right, a.board, a.captures, a.scene) {
-        (Some(left), Some(right), None, None, None) => Source::Pair { left, right },
-        (None, None, Some(board), Some(captures), None) => Source::Captures { board, captures },
-        (None, None, None, None, Some(scene)) => Source::Scene {
-            scene,
-            seed: a.seed,
+    if a.port.is_some() {
+        bail!(
+            "--port: hvs view cannot drive a real head yet (the head's protocol does not report \
+             its joints); leave --port out to view the cameras on no head"
+        );
+    }
+    let source = match (a.left, a.right, a.board, a.captures, a.scene, a.cameras) {
+        (Some(left), Some(right), None, None, None, None) => Source::Pair { left, right },
+        (None, None, Some(board), Some(captures), None, None) => {
+            Source::Captures { board, captures }
+        }
+        (None, None, None, None, Some(scene), None) => Source::Scene { scene, seed: a.seed },
+        (None, None, None, None, None, Some(cameras)) => Source::Cameras {
+            spec: crate::track::cameras::CameraSpec::parse(&cameras)
+                .map_err(|e| crate::cli::usage(e.to_string()))?,
+            size: a.camera_size.as_deref().map(parse_size).transpose()?,
         },
         _ => bail!(
-            "give --left L --right R, --board BOARD.json --captures CAPTURES.csv, or --scene SCENE.json"
+            "give --left L --right R, --board BOARD.json --captures CAPTURES.csv, --scene \
+             SCENE.json or --cameras v4l:A,B"
         ),
     };
     let options = RetrainOptions { restarts: a.restarts, seed: a.seed };
     let session = Session::open(&a.model, &source, options)?;
     serve(session, listen, |url| crate::cli::say(format_args!("hvs view: serving {url}")))
+}
+
+/// `WxH` of `--camera-size`: two whole numbers from 16 to 8192.
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let parsed = s
+        .split_once(['x', 'X'])
+        .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
+    match parsed {
+        Some((w, h)) if (16..=8192).contains(&w) && (16..=8192).contains(&h) => Ok((w, h)),
+        _ => Err(crate::cli::usage(format!(
+            "--camera-size: expected WxH, two whole numbers from 16 to 8192 (e.g. 640x480), got {s:?}"
+        ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn camera_sizes_are_parsed_and_checked() {
+        assert_eq!(super::parse_size("640x480").unwrap(), (640, 480));
+        assert_eq!(super::parse_size("1280X720").unwrap(), (1280, 720));
+        for bad in ["640", "640x", "x480", "-640x480", "8x8", "640x480x3", "99999x10"] {
+            let e = super::parse_size(bad).unwrap_err().to_string();
+            assert!(e.starts_with("--camera-size"), "{bad}: {e}");
+        }
+    }
 }

@@ -1,7 +1,7 @@
 //! Where the pairs come from: the [`FrameSource`] interface, and the virtual cameras that
 //! render a scene at the posture the head's servos are in.
 //!
-//! Real cameras (V4L2) are not built yet: they would implement the same trait.
+//! Real cameras ([`super::cameras`], V4L2) implement the same trait.
 
 use anyhow::{anyhow, Result};
 use hvs_shared::runtime::gaze::Joints;

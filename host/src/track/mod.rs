@@ -3,6 +3,7 @@
 //! - [`scene_file`]: scene files (the `hvs_vision::scene` JSON with its rig).
 //! - [`head_sim`]: the simulated head (servos following the commanded trajectories).
 //! - [`frames`]: the [`frames::FrameSource`] interface and the virtual cameras.
+//! - [`cameras`]: real cameras (`--cameras v4l:A,B`; V4L2 with the `v4l` feature).
 //! - [`target`]: finding the target (nearest object, or the object under a pixel, followed).
 //!
 //! [`run`] is the loop of `hvs track --head emulate`: at each camera frame (time
@@ -10,6 +11,7 @@
 //! [`hvs_shared::runtime::fixation::step`] (the same step the head runs) gives the joint
 //! targets the servos then follow until the next frame. One [`LogRow`] per frame.
 
+pub mod cameras;
 pub mod frames;
 pub mod head_sim;
 pub mod scene_file;

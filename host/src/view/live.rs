@@ -1,13 +1,14 @@
-//! The live source of `hvs view --scene`: the virtual head in the loop on the wall clock. A
-//! thread grabs a frame from the virtual cameras ([`crate::track::frames::VirtualCameras`])
-//! at the servos' posture every camera frame (the scene's `camera_fps`, or as fast as
-//! rendering allows), runs the loop's frame ([`crate::track::Tracker::frame`], the one `hvs
-//! track` runs) while the page has asked the head to look at something, and keeps the
-//! latest pair and the head's state for the page. [`LiveHead`] is the page's
-//! [`PairStore`]: one pair, live.
+//! The live source of `hvs view --scene` and `hvs view --cameras`: the virtual head in the
+//! loop on the wall clock, or real cameras on no head. A thread grabs a frame from the
+//! cameras (the virtual ones, [`crate::track::frames::VirtualCameras`], at the servos'
+//! posture; or real ones, [`crate::track::cameras`]) every camera frame (the scene's
+//! `camera_fps`, or as fast as the cameras allow), runs the loop's frame
+//! ([`crate::track::Tracker::frame`], the one `hvs track` runs) while the page has asked the
+//! head to look at something, and keeps the latest pair and the head's state for the page.
+//! [`LiveHead`] is the page's [`PairStore`]: one pair, live.
 
 use super::frames::{Frame, GreyPair, PairStore, View};
-use crate::track::frames::{FrameSource, VirtualCameras};
+use crate::track::frames::FrameSource;
 use crate::track::head_sim::VirtualHead;
 use crate::track::target::TargetMode;
 use crate::track::Tracker;
@@ -73,34 +74,45 @@ pub struct LiveHead {
     goal: Mutex<Option<Goal>>,
     stop: AtomicBool,
     size: (u32, u32),
+    moves: bool,
 }
 
 impl LiveHead {
-    /// Starts the head at home with `cameras` on it; `estimator` and `loop_cfg` are the loop's
-    /// (`hvs track`'s). Returns once the first frame is there (or its error).
+    /// Starts the head at home with `cameras` (images of `size`) on it: a virtual head whose
+    /// loop (`hvs track`'s) runs with `loop_cfg`, or with `None` no head (the cameras stay
+    /// where they are, taken to be at the home posture). `estimator` is the loop's. Returns
+    /// once the first frame is there (or its error).
     pub fn start(
-        cameras: VirtualCameras,
+        cameras: Box<dyn FrameSource + Send>,
+        size: (u32, u32),
         estimator: Estimator,
-        loop_cfg: LoopConfig,
+        loop_cfg: Option<LoopConfig>,
         fps: f64,
     ) -> anyhow::Result<Arc<LiveHead>> {
-        let head = VirtualHead::new(&hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT)?;
-        let size = (cameras.head.rig.width, cameras.head.rig.height);
+        let moves = loop_cfg.is_some();
+        let head = match loop_cfg {
+            Some(cfg) => Some((
+                VirtualHead::new(&hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT)?,
+                cfg,
+            )),
+            None => None,
+        };
         let live = Arc::new(LiveHead {
             latest: Mutex::new(None),
             goal: Mutex::new(None),
             stop: AtomicBool::new(false),
             size,
+            moves,
         });
         let weak = Arc::downgrade(&live);
         let (first_tx, first_rx) = std::sync::mpsc::channel();
         std::thread::Builder::new()
             .name("hvs-view-head".into())
-            .spawn(move || run(weak, Loop { cameras, head, estimator, loop_cfg, fps }, first_tx))?;
+            .spawn(move || run(weak, Loop { cameras, head, estimator, fps }, first_tx))?;
         match first_rx.recv_timeout(Duration::from_secs(60)) {
             Ok(Ok(())) => Ok(live),
             Ok(Err(e)) => Err(anyhow::anyhow!("{e}")),
-            Err(_) => Err(anyhow::anyhow!("the virtual cameras gave no first frame within 60 s")),
+            Err(_) => Err(anyhow::anyhow!("the cameras gave no first frame within 60 s")),
         }
     }
 
@@ -117,6 +129,11 @@ impl LiveHead {
     /// The left image's size (px).
     pub fn size(&self) -> (u32, u32) {
         self.size
+    }
+
+    /// Whether there is a head to move the cameras (`false`: cameras on no head).
+    pub fn moves(&self) -> bool {
+        self.moves
     }
 
     fn latest(&self) -> Option<Arc<Latest>> {
@@ -162,10 +179,10 @@ impl PairStore for LiveHead {
 
 /// What the head's thread owns.
 struct Loop {
-    cameras: VirtualCameras,
-    head: VirtualHead,
+    cameras: Box<dyn FrameSource + Send>,
+    /// The virtual head and its loop's settings (`None`: cameras on no head).
+    head: Option<(VirtualHead, LoopConfig)>,
     estimator: Estimator,
-    loop_cfg: LoopConfig,
     fps: f64,
 }
 
@@ -189,24 +206,31 @@ fn run(
         }
         if let Some(g) = me.goal.lock().unwrap_or_else(|e| e.into_inner()).take() {
             goal = g;
-            tracker = match g {
-                Goal::Pixel(px) => Some(Tracker::new(TargetMode::Pixel(px), lp.loop_cfg)),
-                Goal::Nearest => Some(Tracker::new(TargetMode::Nearest, lp.loop_cfg)),
-                Goal::Idle | Goal::Home => None,
-            };
-            if g == Goal::Home {
-                lp.head.command(&Joints::HOME);
+            if let Some((head, cfg)) = lp.head.as_mut() {
+                tracker = match g {
+                    Goal::Pixel(px) => Some(Tracker::new(TargetMode::Pixel(px), *cfg)),
+                    Goal::Nearest => Some(Tracker::new(TargetMode::Nearest, *cfg)),
+                    Goal::Idle | Goal::Home => None,
+                };
+                if g == Goal::Home {
+                    head.command(&Joints::HOME);
+                }
             }
         }
         let t = start.elapsed().as_secs_f64();
-        let grabbed = match tracker.as_mut() {
-            Some(tr) => tr
-                .frame(&mut lp.cameras, &mut lp.head, &lp.estimator, t)
+        let grabbed = match (tracker.as_mut(), lp.head.as_mut().map(|(h, _)| h)) {
+            (Some(tr), Some(head)) => tr
+                .frame(&mut *lp.cameras, head, &lp.estimator, t)
                 .map(|(f, row)| (f, row.status, row.joints, row.px, row.xyz, row.err_px)),
-            None => lp.head.advance_to(t).and_then(|()| {
-                let joints = lp.head.joints();
-                lp.cameras.grab(t, &joints).map(|f| (f, "idle", joints, None, None, None))
-            }),
+            (_, head) => {
+                let advanced = match head {
+                    Some(head) => head.advance_to(t).map(|()| head.joints()),
+                    None => Ok(Joints::HOME),
+                };
+                advanced.and_then(|joints| {
+                    lp.cameras.grab(t, &joints).map(|f| (f, "idle", joints, None, None, None))
+                })
+            }
         };
         let previous = me.latest();
         let next = match grabbed {
@@ -231,7 +255,7 @@ fn run(
                         goal,
                         status,
                         joints,
-                        moving: lp.head.is_moving(),
+                        moving: lp.head.as_ref().is_some_and(|(h, _)| h.is_moving()),
                         target_px,
                         xyz,
                         err_px,
@@ -263,5 +287,79 @@ fn run(
         if wait > 0.0 {
             std::thread::sleep(Duration::from_secs_f64(wait));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::track::frames::Frame as Pair;
+    use hvs_shared::runtime::blob::{InputKind, OutputKind};
+    use image::GrayImage;
+    use std::sync::atomic::AtomicU64;
+
+    /// Cameras whose frames carry their number in the first pixel, and that give errors
+    /// while `broken` is set (a camera that stops, then comes back).
+    struct Fake {
+        grabs: Arc<AtomicU64>,
+        broken: Arc<AtomicBool>,
+    }
+
+    impl FrameSource for Fake {
+        fn grab(&mut self, _t_s: f64, joints: &Joints) -> anyhow::Result<Pair> {
+            assert_eq!(*joints, Joints::HOME, "cameras on no head stay at home");
+            if self.broken.load(Ordering::SeqCst) {
+                anyhow::bail!("/dev/video9: no frame within 2 s");
+            }
+            let n = self.grabs.fetch_add(1, Ordering::SeqCst);
+            let mut left = GrayImage::new(32, 24);
+            left.as_mut()[0] = (n % 256) as u8;
+            Ok(Pair { right: left.clone(), left, truth: None })
+        }
+    }
+
+    fn wait_for(what: &str, mut ok: impl FnMut() -> bool) {
+        let start = Instant::now();
+        while !ok() {
+            assert!(start.elapsed() < Duration::from_secs(20), "waited 20 s for {what}");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    #[test]
+    fn cameras_on_no_head_stream_report_a_stop_and_recover() {
+        let (grabs, broken) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicBool::new(false)));
+        let fake = Fake { grabs: grabs.clone(), broken: broken.clone() };
+        let blob = crate::infer::tests::blob(5, OutputKind::Xyz, InputKind::Stereo);
+        let estimator = crate::track::estimator_of(blob).unwrap();
+        let live = LiveHead::start(Box::new(fake), (32, 24), estimator, None, 240.0).unwrap();
+        assert!(!live.moves() && live.size() == (32, 24));
+        wait_for("five frames", || live.state().is_some_and(|s| s.frames >= 5));
+        let s = live.state().unwrap();
+        assert_eq!(
+            (s.status, s.joints, s.moving, s.error.is_none()),
+            ("idle", Joints::HOME, false, true)
+        );
+        // A goal is ignored without a head (the session refuses it before it gets here).
+        live.set_goal(Goal::Nearest);
+        // The camera stops: the last pair stays, the error is reported.
+        broken.store(true, Ordering::SeqCst);
+        wait_for("the error", || live.state().is_some_and(|s| s.error.is_some()));
+        let stopped = live.state().unwrap();
+        assert!(stopped.error.as_deref().unwrap().contains("/dev/video9"), "{stopped:?}");
+        assert_eq!(stopped.status, "idle");
+        let seq = stopped.frames;
+        // It comes back: new frames, no error.
+        broken.store(false, Ordering::SeqCst);
+        wait_for("new frames", || {
+            live.state().is_some_and(|s| s.error.is_none() && s.frames > seq)
+        });
+        assert!(live.grey(0).is_some() && live.frame(0, View::Left).is_some());
+        drop(live);
+        // The thread stops once the head is dropped: no more grabs.
+        std::thread::sleep(Duration::from_millis(50));
+        let after = grabs.load(Ordering::SeqCst);
+        std::thread::sleep(Duration::from_millis(100));
+        assert_eq!(grabs.load(Ordering::SeqCst), after);
     }
 }

@@ -21,6 +21,9 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
+/// The cameras' image size when neither `--camera-size` nor the model gives one.
+pub const DEFAULT_CAMERA_SIZE: (u32, u32) = (640, 480);
+
 /// What to show.
 #[derive(Debug, Clone)]
 pub enum Source {
@@ -44,6 +47,13 @@ pub enum Source {
         scene: PathBuf,
         /// Seed of the cameras' sensor noise.
         seed: u64,
+    },
+    /// Real cameras on no head, live (`--cameras v4l:A,B`).
+    Cameras {
+        /// The two devices.
+        spec: track::cameras::CameraSpec,
+        /// Their image size (`None`: the model's, else 640 x 480).
+        size: Option<(u32, u32)>,
     },
 }
 
@@ -194,14 +204,34 @@ impl Session {
                     track::frames::loop_render_options(),
                     *seed,
                 );
+                let size = (loaded.rig.width, loaded.rig.height);
                 let live = LiveHead::start(
-                    cameras,
+                    Box::new(cameras),
+                    size,
                     estimator,
-                    track::loop_config(&loaded.rig, track::DEFAULT_CORRECTION_GAIN),
+                    Some(track::loop_config(&loaded.rig, track::DEFAULT_CORRECTION_GAIN)),
                     loaded.scene.camera_fps,
                 )
                 .map_err(|e| anyhow!("{}: {e:#}", scene.display()))?;
                 let name = format!("virtual head: {}", file_name(scene));
+                (
+                    live.clone() as Arc<dyn PairStore>,
+                    vec![PairMeta { name, z: None }],
+                    None,
+                    Some(live),
+                )
+            }
+            Source::Cameras { spec, size } => {
+                let estimator = track::estimator_of(model.blob.clone())
+                    .map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
+                let size = size
+                    .or_else(|| model.blob.image_size().map(|(w, h)| (w.into(), h.into())))
+                    .unwrap_or(DEFAULT_CAMERA_SIZE);
+                let cameras = track::cameras::open(spec, size)?;
+                // No head: the cameras stay where they are (the home posture); frames as fast
+                // as the cameras give them.
+                let live = LiveHead::start(cameras, size, estimator, None, 240.0)?;
+                let name = format!("cameras: {} | {}", spec.left.display(), spec.right.display());
                 (
                     live.clone() as Arc<dyn PairStore>,
                     vec![PairMeta { name, z: None }],
@@ -285,6 +315,13 @@ impl Session {
             .head
             .as_ref()
             .ok_or_else(|| Refused::Bad("not a live head: start hvs view with --scene".into()))?;
+        if !head.moves() {
+            return Err(Refused::Bad(
+                "these cameras are on no head: nothing to turn (a real head in the loop is not \
+                 supported by hvs view yet)"
+                    .into(),
+            ));
+        }
         if let Goal::Pixel([u, v]) = goal {
             check_pixel(u, v, head.size())?;
         }

@@ -110,7 +110,7 @@ fn collect_refuses_bad_input_naming_it() {
         assert!(e.contains(want), "{e}");
     };
     usage(&["--postures", "grid"], "--scene");
-    run(&["--postures", "grid", "--port", "/dev/null", "--cameras", "v4l:0,1"], "V4L2");
+    run(&["--postures", "grid", "--port", "/dev/null", "--cameras", "v4l:0,1"], "posture commands");
     fs::write(&p, "x,y,z\n0,0,70\n").unwrap();
     usage(&["--scene", &s], "--postures");
     run(&["--postures", "grid", "--posture-levels", "3,3", "--scene", &s], "five counts");

@@ -532,6 +532,19 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
     assert!(err.contains("--head qemu: not yet"), "{err}");
     let err = crate::common::stderr_with_code(sc, 1);
     assert!(err.contains("scene.json") && err.contains("wall"), "{err}");
+    // Real cameras: a bad spec or size is bad usage; a real head is refused; a build without
+    // the v4l feature says how to get one, a build with it names the missing device.
+    let cams = |more: &[&str]| with(view(&["--listen", "127.0.0.1:0"]), more);
+    let err = crate::common::stderr_with_code(cams(&["--cameras", "v4l:3,3"]), 2);
+    assert!(err.contains("the same device (/dev/video3)"), "{err}");
+    let size = ["--cameras", "v4l:/nonexistent/l,/nonexistent/r", "--camera-size", "640"];
+    let err = crate::common::stderr_with_code(cams(&size), 2);
+    assert!(err.contains("--camera-size"), "{err}");
+    let err = crate::common::stderr_with_code(cams(&["--cameras", "v4l:0,2", "--port", "x"]), 1);
+    assert!(err.contains("--port: hvs view cannot drive a real head"), "{err}");
+    crate::common::stderr_with_code(cams(&["--cameras", "v4l:0,2", "--left", &l]), 2);
+    let err = crate::common::stderr_with_code(cams(&size[..2]), 1);
+    assert!(err.contains("built without V4L2 cameras") || err.contains("/nonexistent/l"), "{err}");
     // SIGINT stops it at once, even with a client connected.
     let mut sv = start_pair();
     let _idle = TcpStream::connect(&sv.addr).unwrap();
