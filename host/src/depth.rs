@@ -43,6 +43,23 @@ impl Depth {
         self.xyz.iter().filter(|p| p[2].is_finite()).count()
     }
 
+    /// The point cloud as a binary PLY ([`hvs_vision::pfm::ply_bytes`]): every pixel with a
+    /// depth, coloured with `left`'s grey level (`hvs depth --ply` and `hvs view`'s 3-D view).
+    /// A Z-only model gives no X and Y, so no cloud: an error.
+    pub fn cloud(&self, left: &GrayImage) -> Result<Vec<u8>> {
+        if self.xyz.iter().any(|p| p[2].is_finite() && p[0].is_nan()) {
+            bail!("a Z-only model (hvs train --outputs z) gives no X and Y, so no point cloud");
+        }
+        let (pts, grey): (Vec<[f32; 3]>, Vec<u8>) = self
+            .xyz
+            .iter()
+            .zip(left.as_raw())
+            .filter(|(p, _)| p[2].is_finite())
+            .map(|(p, &g)| (*p, g))
+            .unzip();
+        Ok(hvs_vision::pfm::ply_bytes(&pts, &grey))
+    }
+
     /// The colour-mapped depth image with its legend in cm over the model's depth box
     /// ([`hvs_vision::pfm::colour_depth`]): `hvs depth --colour` and `hvs view`'s overlay.
     pub fn colour(&self) -> image::RgbImage {

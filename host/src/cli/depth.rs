@@ -6,8 +6,8 @@ use crate::data::output::check_outputs;
 use crate::data::output::write_bytes;
 use crate::depth::{depth_files, Depth};
 use crate::vision::png_bytes;
-use anyhow::{bail, Result};
-use hvs_vision::pfm::{pfm_bytes, ply_bytes, FloatImage};
+use anyhow::{anyhow, Result};
+use hvs_vision::pfm::{pfm_bytes, FloatImage};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `hvs depth`.
@@ -57,12 +57,13 @@ pub fn run(a: Args) -> Result<()> {
     }
     check_outputs(&outputs, &inputs)?;
     let (d, left) = depth_files(&a.pair.model, &a.pair.left, &a.pair.right)?;
-    if a.ply.is_some() && d.xyz.iter().any(|p| p[2].is_finite() && p[0].is_nan()) {
-        bail!(
-            "--ply: {} is a Z-only model (hvs train --outputs z): it gives no X and Y, so no point cloud",
-            a.pair.model.display()
-        );
-    }
+    // The cloud first: a Z-only model has none, and nothing is written then.
+    let cloud = match &a.ply {
+        Some(_) => {
+            Some(d.cloud(&left).map_err(|e| anyhow!("--ply: {}: {e}", a.pair.model.display()))?)
+        }
+        None => None,
+    };
     // Every output in memory first, then each written atomically.
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let z: Vec<f32> = d.xyz.iter().map(|p| p[2]).collect();
@@ -79,15 +80,8 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(p) = &a.colour {
         files.push((p, png_bytes(&d.colour())?));
     }
-    if let Some(p) = &a.ply {
-        let (pts, grey): (Vec<[f32; 3]>, Vec<u8>) = d
-            .xyz
-            .iter()
-            .zip(left.as_raw())
-            .filter(|(p, _)| p[2].is_finite())
-            .map(|(p, &g)| (*p, g))
-            .unzip();
-        files.push((p, ply_bytes(&pts, &grey)));
+    if let (Some(p), Some(cloud)) = (&a.ply, cloud) {
+        files.push((p, cloud));
     }
     for (p, bytes) in &files {
         write_bytes(p, bytes)?;

@@ -91,6 +91,7 @@ pub fn session(s: &Session) -> Value {
         },
         "live": s.frames.live(),
         "head": s.head.is_some(),
+        "head_moves": s.head.as_ref().is_some_and(|h| h.moves()),
         "pairs": pairs,
         "locate_refused": s.locate_refused,
         "captures": s.captures.is_some(),

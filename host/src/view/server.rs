@@ -113,6 +113,7 @@ fn router(app: Shared) -> Router {
         .route("/api/look", post(look))
         .route("/api/depth/{pair}", get(depth))
         .route("/api/depth/{pair}/image", get(depth_image))
+        .route("/api/depth/{pair}/cloud.ply", get(depth_cloud))
         .route("/api/captures", get(captures))
         .route("/api/retrain", post(retrain))
         .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
@@ -234,6 +235,23 @@ async fn depth_image(
     Path(pair): Path<usize>,
 ) -> Result<Response, ApiError> {
     Ok(png_response(&depth_of(&app, pair).await?.png))
+}
+
+/// `GET /api/depth/{pair}/cloud.ply`: the pair's point cloud, the bytes of `hvs depth --ply`.
+async fn depth_cloud(
+    State(app): State<Shared>,
+    Path(pair): Path<usize>,
+) -> Result<Response, ApiError> {
+    let d = depth_of(&app, pair).await?;
+    let cloud = tokio::task::spawn_blocking(move || d.cloud())
+        .await
+        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
+        .map_err(ApiError::from)?;
+    let mut r = Response::new(Body::from(cloud.to_vec()));
+    let h = r.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static("application/octet-stream"));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    Ok(r)
 }
 
 async fn captures(State(app): State<Shared>) -> Result<Response, ApiError> {

@@ -119,6 +119,20 @@ pub struct DepthView {
     pub depth: crate::depth::Depth,
     /// Time it took (ms).
     pub ms: f64,
+    /// The left image the depth is of (the cloud's grey levels).
+    left: Arc<image::GrayImage>,
+    /// The point cloud (PLY, `hvs depth --ply`), made when first asked for.
+    cloud: OnceLock<Result<Arc<Vec<u8>>, String>>,
+}
+
+impl DepthView {
+    /// The pair's point cloud as `hvs depth --ply` writes it (binary PLY, grey levels).
+    pub fn cloud(&self) -> Result<Arc<Vec<u8>>, Refused> {
+        self.cloud
+            .get_or_init(|| self.depth.cloud(&self.left).map(Arc::new).map_err(|e| e.to_string()))
+            .clone()
+            .map_err(Refused::Unprocessable)
+    }
 }
 
 /// What a retrain gave.
@@ -301,6 +315,8 @@ impl Session {
                 png: Arc::new(png),
                 ms: t0.elapsed().as_secs_f64() * 1e3,
                 depth: d,
+                left: l,
+                cloud: OnceLock::new(),
             }))
         };
         if self.frames.live() {

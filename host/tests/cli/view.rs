@@ -290,13 +290,14 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
     let shown = image::load_from_memory(&png).unwrap().to_rgb8();
     let dir = tempfile::tempdir().unwrap();
     let (pfm, colour) = (dir.path().join("d.pfm"), dir.path().join("d.png"));
+    let ply = dir.path().join("d.ply");
     let out = crate::common::hvs()
         .args(crate::common::locate_args(
             &["depth"],
             &f.model,
             &f.left,
             &f.right,
-            &["-o", s(&pfm), "--colour", s(&colour)],
+            &["-o", s(&pfm), "--colour", s(&colour), "--ply", s(&ply)],
         ))
         .output()
         .unwrap();
@@ -304,9 +305,13 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
     assert!(out.status.success(), "{said}");
     assert!(said.contains(&format!("{returned} of {} pixels", w * h)), "{said}");
     assert_eq!(shown, image::open(&colour).unwrap().to_rgb8());
+    // The 3-D view's cloud: the bytes of `hvs depth --ply`.
+    let (st, cloud) = http(&sv.addr, "GET", "/api/depth/0/cloud.ply", None);
+    assert_eq!(st, 200);
+    assert!(cloud == std::fs::read(&ply).unwrap(), "the cloud differs from hvs depth --ply");
     // Asked again: the same map, kept.
     assert_eq!(json(&sv.addr, "GET", "/api/depth/0", None, 200)["returned"], returned);
-    for path in ["/api/depth/1", "/api/depth/1/image"] {
+    for path in ["/api/depth/1", "/api/depth/1/image", "/api/depth/1/cloud.ply"] {
         assert_eq!(http(&sv.addr, "GET", path, None).0, 400, "{path}");
     }
     assert_eq!(http(&sv.addr, "GET", "/api/depth/x", None).0, 400);
@@ -830,6 +835,30 @@ fn browser_click_and_retrain_in_chromium() {
         assert!(status.contains("pixels with a depth"), "{status}");
         eprintln!("depth: {status}");
         shot(&c, "pair-depth.png").await;
+        // The 3-D view: the cloud of every pixel with a depth, drawn; a drag turns it.
+        click_id(&c, "show-cloud").await;
+        let points = wait_js(&c, "document.getElementById('cloud').dataset.points").await;
+        let returned = status.split(' ').next().unwrap();
+        assert_eq!(points.as_str().unwrap(), returned, "the cloud holds the depth's points");
+        let drawn = wait_js(&c, "Number(document.getElementById('cloud').dataset.drawn)").await;
+        assert!(drawn.as_f64().unwrap() > 1000.0, "{drawn} points drawn");
+        {
+            use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+            let canvas = c.find(fantoccini::Locator::Id("cloud")).await.unwrap();
+            let before = c.execute("return document.getElementById('cloud').toDataURL();", vec![]).await.unwrap();
+            let drag = MouseActions::new("mouse".into())
+                .then(PointerAction::MoveToElement { element: canvas, duration: None, x: 0.0, y: 0.0 })
+                .then(PointerAction::Down { button: MOUSE_BUTTON_LEFT })
+                .then(PointerAction::MoveBy { duration: None, x: 60.0, y: 20.0 })
+                .then(PointerAction::Up { button: MOUSE_BUTTON_LEFT });
+            c.perform_actions(drag).await.unwrap();
+            let after = c.execute("return document.getElementById('cloud').toDataURL();", vec![]).await.unwrap();
+            assert_ne!(before, after, "a drag turns the cloud");
+        }
+        c.execute("document.getElementById('cloud').scrollIntoView({block: 'end'});", vec![])
+            .await
+            .unwrap();
+        shot(&c, "pair-cloud.png").await;
         drop(sv);
         // A capture set: untick a pair, retrain, the summary changes.
         let sv = start_captures();

@@ -110,6 +110,117 @@ async function loadDepth() {
   }
 }
 
+// The 3-D view: the pair's point cloud, the bytes of `hvs depth --ply` (binary little-endian:
+// float x, y, z; uchar red, green, blue), drawn by hand on a canvas (no library): each point
+// turned with the view, projected with a pinhole, nearest point wins a pixel.
+const cloud = {points: null, grey: null, n: 0, yaw: 0, pitch: 0, zoom: 1, centre: [0, 0, 0], size: 1};
+
+function parsePly(buf) {
+  const bytes = new Uint8Array(buf);
+  const text = new TextDecoder().decode(bytes.subarray(0, Math.min(bytes.length, 1024)));
+  const end = text.indexOf('end_header\n');
+  const count = /element vertex (\d+)/.exec(text);
+  if (end < 0 || !count || !text.startsWith('ply\nformat binary_little_endian 1.0\n')) throw new Error('not a PLY of hvs depth');
+  const n = Number(count[1]);
+  const start = end + 'end_header\n'.length;
+  if (bytes.length !== start + 15 * n) throw new Error(`the PLY says ${n} points but holds ${bytes.length - start} bytes`);
+  const dv = new DataView(buf, start);
+  const points = new Float32Array(3 * n);
+  const grey = new Uint8Array(n);
+  for (let i = 0; i < n; i++) {
+    for (let k = 0; k < 3; k++) points[3 * i + k] = dv.getFloat32(15 * i + 4 * k, true);
+    grey[i] = dv.getUint8(15 * i + 12);
+  }
+  return {points, grey, n};
+}
+
+function resetCloud() {
+  const p = cloud.points;
+  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+  for (let i = 0; i < cloud.n; i++) for (let k = 0; k < 3; k++) {
+    lo[k] = Math.min(lo[k], p[3 * i + k]); hi[k] = Math.max(hi[k], p[3 * i + k]);
+  }
+  cloud.centre = lo.map((l, k) => cloud.n ? (l + hi[k]) / 2 : 0);
+  cloud.size = cloud.n ? Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1) : 1;
+  cloud.yaw = 0; cloud.pitch = 0; cloud.zoom = 1;
+}
+
+function drawCloud() {
+  const canvas = $('cloud');
+  const ctx = canvas.getContext('2d');
+  const w = canvas.width, h = canvas.height;
+  const img = ctx.createImageData(w, h);
+  const px = img.data;
+  for (let i = 3; i < px.length; i += 4) { px[i] = 255; px[i - 3] = 17; px[i - 2] = 17; px[i - 1] = 17; }
+  const zbuf = new Float32Array(w * h).fill(Infinity);
+  const [cx, cy, cz] = cloud.centre;
+  const cyw = Math.cos(cloud.yaw), syw = Math.sin(cloud.yaw), cp = Math.cos(cloud.pitch), sp = Math.sin(cloud.pitch);
+  // The camera looks along +Z at the cloud's centre from 1.5 sizes away (the head's view at
+  // the start: X right, Y down as in the images).
+  const dist = 1.5 * cloud.size / cloud.zoom, f = 0.9 * w;
+  const p = cloud.points;
+  let drawn = 0;
+  for (let i = 0; i < cloud.n; i++) {
+    const x0 = p[3 * i] - cx, y0 = p[3 * i + 1] - cy, z0 = p[3 * i + 2] - cz;
+    const x1 = cyw * x0 + syw * z0, z1 = -syw * x0 + cyw * z0;
+    const y2 = cp * y0 - sp * z1, z2 = sp * y0 + cp * z1 + dist;
+    if (!(z2 > 1e-3)) continue;
+    const u = Math.round(w / 2 + f * x1 / z2), v = Math.round(h / 2 + f * y2 / z2);
+    if (u < 0 || v < 0 || u >= w || v >= h) continue;
+    const k = v * w + u;
+    if (z2 >= zbuf[k]) continue;
+    zbuf[k] = z2;
+    const g = cloud.grey[i];
+    px[4 * k] = g; px[4 * k + 1] = g; px[4 * k + 2] = g;
+    drawn++;
+  }
+  ctx.putImageData(img, 0, 0);
+  canvas.dataset.drawn = String(drawn);
+}
+
+async function loadCloud() {
+  const fig = $('cloud-figure');
+  fig.hidden = !$('show-cloud').checked;
+  if (fig.hidden) return;
+  const asked = pair;
+  $('cloud-status').textContent = 'matching every pixel…';
+  delete $('cloud').dataset.points;
+  try {
+    const r = await fetch(q(`/api/depth/${asked}/cloud.ply`));
+    if (!r.ok) throw new Error((await r.json()).error || r.statusText);
+    const parsed = parsePly(await r.arrayBuffer());
+    if (asked !== pair) return;
+    Object.assign(cloud, parsed);
+    resetCloud();
+    drawCloud();
+    $('cloud').dataset.points = String(cloud.n);
+    $('cloud-status').textContent = `${cloud.n} points, ${cloud.size.toFixed(0)} cm across; grey levels of the left image`;
+  } catch (err) {
+    $('cloud-status').textContent = 'no point cloud: ' + err.message;
+  }
+}
+
+function cloudControls() {
+  const canvas = $('cloud');
+  let drag = null;
+  canvas.addEventListener('mousedown', (e) => { drag = {x: e.clientX, y: e.clientY}; });
+  window.addEventListener('mouseup', () => { drag = null; });
+  window.addEventListener('mousemove', (e) => {
+    if (!drag || !cloud.points) return;
+    cloud.yaw += (e.clientX - drag.x) * 0.01;
+    cloud.pitch = Math.max(-1.5, Math.min(1.5, cloud.pitch - (e.clientY - drag.y) * 0.01));
+    drag = {x: e.clientX, y: e.clientY};
+    drawCloud();
+  });
+  canvas.addEventListener('wheel', (e) => {
+    if (!cloud.points) return;
+    e.preventDefault();
+    cloud.zoom = Math.max(0.2, Math.min(20, cloud.zoom * Math.exp(-e.deltaY * 0.001)));
+    drawCloud();
+  }, {passive: false});
+  canvas.addEventListener('dblclick', () => { if (cloud.points) { resetCloud(); drawCloud(); } });
+}
+
 async function click(e) {
   const img = e.currentTarget;
   const left = $('left');
@@ -232,6 +343,7 @@ function choosePair() {
   $('mark-right').hidden = true;
   loadFrames();
   loadDepth();
+  loadCloud();
 }
 
 async function start() {
@@ -248,12 +360,18 @@ async function start() {
   $('left').addEventListener('click', click);
   $('depth').addEventListener('click', click);
   $('show-depth').addEventListener('change', loadDepth);
+  $('show-cloud').addEventListener('change', loadCloud);
+  cloudControls();
   $('pair').addEventListener('change', choosePair);
   $('show-corners').addEventListener('change', loadFrames);
   $('retrain').addEventListener('click', retrain);
   if (session.captures) await loadCaptures();
   if (session.head) {
     $('head').hidden = false;
+    if (!session.head_moves) {
+      $('head-kind').textContent = 'Cameras (on no head)';
+      $('head-buttons').hidden = true;
+    }
     $('look').addEventListener('click', () => clicked && look({target: 'pixel', u: clicked.u, v: clicked.v}));
     $('look-nearest').addEventListener('click', () => look({target: 'nearest'}));
     $('home').addEventListener('click', () => look({target: 'home'}));
