@@ -2,7 +2,9 @@
 //! Levenberg-Marquardt): the default family (`hvs_host::train::DEFAULT_FAMILY`, the one definition)
 //! side by side with the thesis family, on the thesis' case-IV board set (72 points) and on
 //! the 9x6 board at 6 cm (324 points, `hvs simulate --board 9x6:6`); and the thesis'
-//! back-propagation on the 72 points. `cargo bench -p hvs-host --bench train`.
+//! back-propagation on the 72 points; and a 9-16-3 posture-aware net on the 23,328 rows of
+//! `hvs simulate --case 3 --set train --postures grid --seed 1`, trained as `hvs train --hidden
+//! 16 --restarts 1` trains it (goal: at most 3 s). `cargo bench -p hvs-host --bench train`.
 //! Goals for the whole `hvs train` command: under 0.1 s wall on 72 points and
 //! under 1 s on 324 on the project's 2-core machine.
 
@@ -37,6 +39,18 @@ fn bench(c: &mut Criterion) {
     g.bench_function("bp_case4_board72_10restarts", |b| {
         let cfg = TrainConfig { algo: Algo::Bp, ..TrainConfig::default() };
         b.iter(|| train(black_box(&sets[0].1), &cfg).unwrap())
+    });
+    g.bench_function("posture_9_16_3_grid23328_1restart", |b| {
+        let data = common::posture_grid_set();
+        let kind = data.input_kind().expect("joint columns");
+        let cfg = TrainConfig {
+            hidden: 16,
+            restarts: 1,
+            family: hvs_host::train::DEFAULT_FAMILY,
+            frame: hvs_host::train::default_frame(hvs_host::train::DEFAULT_FAMILY, kind),
+            ..TrainConfig::default()
+        };
+        b.iter(|| train(black_box(&data), &cfg).unwrap())
     });
     g.finish();
 }

@@ -24,3 +24,27 @@ pub fn grid_board_set(board: TrainingBoard) -> Dataset {
     }
     d
 }
+
+/// `hvs simulate --case 3 --set train --postures grid --seed 1` (23,328 rows), read back
+/// through the CSV reader `hvs train` uses.
+pub fn posture_grid_set() -> Dataset {
+    use hvs_host::sim::posture::{postures, simulate, write_csv, PostureOptions, Sampling};
+    use hvs_shared::sim::posture::HeadRig;
+    let opt = PostureOptions { sampling: Sampling::Grid, ..PostureOptions::default() };
+    let joints = postures(&opt, 1 ^ hvs_host::cli::POSTURE_SEED_MIX).expect("grid postures");
+    let head = HeadRig::new(presets::CASE_3);
+    let samples =
+        simulate(&head, SetKind::Train, &joints, &SimOptions::default()).expect("case III");
+    let mut csv = Vec::new();
+    write_csv(&mut csv, &samples, true).expect("in memory");
+    let name = std::path::Path::new("posture_train.csv");
+    let table = hvs_host::data::csv::read_set_from(
+        name,
+        csv.as_slice(),
+        hvs_host::data::csv::Inputs::Auto,
+        true,
+    )
+    .expect("the simulated set reads back");
+    assert_eq!(table.data.len(), 23_328, "the grid set");
+    table.data
+}

@@ -282,9 +282,9 @@ fn axpy(dst: &mut [f64], a: f64, src: &[f64]) {
 /// `t` in `0..len`: each element adds its products in the order of `t`, so the result has
 /// the bits of adding one sample after the other ([`axpy`] per sample). `rows` and `cols`
 /// are whole tiles: the elements are summed in register tiles of 4 x `W` while they fit, then
-/// 4 x 4 (SIMD pairs of f64 on the x86-64 baseline, `W` = 4; quadruples and `W` = 8 in
-/// [`Problem::accumulate`]'s AVX build; plain multiplies and adds, no fused multiply-add, so
-/// every machine gives the same bits).
+/// 4 x 8 and 4 x 4 (SIMD pairs of f64 on the x86-64 baseline, `W` = 4; quadruples and `W` =
+/// 8 in [`Problem::accumulate`]'s AVX build, eights and `W` = 16 in its AVX-512 build; plain
+/// multiplies and adds, no fused multiply-add, so every machine gives the same bits).
 #[inline(always)]
 fn add_products_in<const W: usize>(
     dst: &mut [f64],
@@ -302,7 +302,10 @@ fn add_products_in<const W: usize>(
         while c0 < cols {
             let d = &mut dst[r0 * ldd + c0..];
             let (u, x) = ((&u[r0..], ldu), (&x[c0..], ldx));
-            if W == 8 && cols - c0 >= 8 {
+            if W >= 16 && cols - c0 >= 16 {
+                tile::<16>(d, ldd, u, x, len);
+                c0 += 16;
+            } else if W >= 8 && cols - c0 >= 8 {
                 tile::<8>(d, ldd, u, x, len);
                 c0 += 8;
             } else {
@@ -573,6 +576,11 @@ impl Problem {
     ) -> f64 {
         let at = (p, act, xpk);
         #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: this CPU has AVX-512F (checked just above).
+            return unsafe { self.accumulate_avx512(at, range, part) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx") {
             // SAFETY: this CPU has AVX (checked just above).
             return unsafe { self.accumulate_avx(at, range, part) };
@@ -594,6 +602,21 @@ impl Problem {
         part: &mut Part,
     ) -> f64 {
         self.accumulate_in::<8>(at, range, part)
+    }
+
+    /// [`Problem::accumulate`] compiled for AVX-512F (tiles of 4 x 16: eight f64 a register).
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn accumulate_avx512(
+        &self,
+        at: (&[f64], &Activations, &[f64]),
+        range: std::ops::Range<usize>,
+        part: &mut Part,
+    ) -> f64 {
+        self.accumulate_in::<16>(at, range, part)
     }
 
     /// The body of [`Problem::accumulate`], its tiles `W` columns wide ([`add_products_in`]).
@@ -881,12 +904,12 @@ pub(crate) mod tests {
         }
     }
 
-    /// The tiled sums, 4 x 8 tiles and 4 x 4, give the bits of adding the samples one after
+    /// The tiled sums, 4 x 16 tiles, 4 x 8 and 4 x 4, give the bits of adding the samples one after
     /// the other, over chunks that do not fill a tile of 8.
     #[test]
     fn tiled_products_have_the_bits_of_one_sample_at_a_time() {
         let mut g = SplitMix64::new(5);
-        for (rows, cols, len) in [(4, 4, 1), (8, 12, 7), (16, 56, 32), (12, 20, 3)] {
+        for (rows, cols, len) in [(4, 4, 1), (8, 12, 7), (16, 56, 32), (12, 20, 3), (8, 28, 5)] {
             let (ldu, ldx) = (rows + 3, cols + 1);
             let u: Vec<f64> = (0..len * ldu).map(|_| g.uniform(-2.0, 2.0)).collect();
             let x: Vec<f64> = (0..len * ldx).map(|_| g.uniform(-2.0, 2.0)).collect();
@@ -901,16 +924,18 @@ pub(crate) mod tests {
                     );
                 }
             }
-            let (mut wide, mut portable) = (start.clone(), start);
+            let (mut wider, mut wide, mut portable) = (start.clone(), start.clone(), start);
+            add_products_in::<16>(&mut wider, (rows, cols, cols), (&u, ldu), (&x, ldx), len);
             add_products_in::<8>(&mut wide, (rows, cols, cols), (&u, ldu), (&x, ldx), len);
             add_products_in::<4>(&mut portable, (rows, cols, cols), (&u, ldu), (&x, ldx), len);
             let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&wider), bits(&want), "{rows}x{cols}, {len} samples");
             assert_eq!(bits(&wide), bits(&want), "{rows}x{cols}, {len} samples");
             assert_eq!(bits(&portable), bits(&want), "{rows}x{cols}, {len} samples");
         }
     }
 
-    /// The normal equations' sums as this CPU runs them (AVX where it has it) have the bits
+    /// The normal equations' sums as this CPU runs them (AVX-512 or AVX where it has them) have the bits
     /// of the portable build, on chunks full and not (a 9-16-3 skip net, 75 samples).
     #[test]
     fn the_avx_sums_have_the_portable_bits() {
