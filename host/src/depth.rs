@@ -119,7 +119,8 @@ pub fn image_warning(img: &GrayImage) -> Option<&'static str> {
     }
 }
 
-/// Dense depth of `left` and `right` by `blob` with `params`. The images must be the model's
+/// Dense depth of `left` and `right` by `blob` with `params` (its `right_scale` replaced by
+/// the model's). The images must be the model's
 /// size (when the model records it) and each other's; the model needs matcher geometry and 4
 /// inputs.
 pub fn depth(
@@ -138,7 +139,9 @@ pub fn depth(
     let (w, h) = left.dimensions();
     let d_range = disparity_range(&g, &predict, w, h);
     let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
-    let matches = dense_match(left, right, &f, d_range, params).map_err(|e| anyhow!("{e}"))?;
+    // The refinement compares windows at the model's right/left image scale.
+    let params = DenseParams { right_scale: g.right_scale, ..*params };
+    let matches = dense_match(left, right, &f, d_range, &params).map_err(|e| anyhow!("{e}"))?;
     let mut warnings = Vec::new();
     for (side, img) in [("left", left), ("right", right)] {
         if let Some(why) = image_warning(img) {

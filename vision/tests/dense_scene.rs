@@ -2,8 +2,8 @@
 //! IV with a right focal length 0.8 times the left one), on textured scenes rendered with
 //! exact per-pixel truth by [`hvs_vision::scene`]: spheres and boxes before a wall at 300 cm,
 //! 70-300 cm. The matcher gets the pinhole pair's fundamental matrix (what a trained model
-//! carries) and the disparity range the scene's depths span widened by 3 px (what a model
-//! trained over 70-300 cm bounds); nothing per pixel. Scored against the true match of every
+//! carries), its right/left image scale, and the disparity range the scene's depths span
+//! widened by 3 px (what a model trained over 70-300 cm bounds); nothing per pixel. Scored against the true match of every
 //! left pixel seen by both cameras; depth by optimal triangulation with the true cameras (the
 //! model's part is tested in `host/tests/cli/depth.rs`).
 
@@ -62,7 +62,11 @@ fn run(case: u8, scale: f64) -> Rates {
         }
     }
     let d_range = [lo.floor() as i32 - 3, hi.ceil() as i32 + 3];
-    let m = dense_match(&r.left, &r.right, &f, d_range, &DenseParams::default()).unwrap();
+    // The right/left image scale, as a model reads it off its training set.
+    let right_scale =
+        [(rig.phi_u_right / rig.phi_u_left) as f32, (rig.phi_v_right / rig.phi_v_left) as f32];
+    let params = DenseParams { right_scale, ..DenseParams::default() };
+    let m = dense_match(&r.left, &r.right, &f, d_range, &params).unwrap();
     let (mut seen, mut ret, mut within, mut errs) = (0usize, 0usize, 0usize, Vec::new());
     let border = 4;
     for y in border..h - border {

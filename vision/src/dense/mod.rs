@@ -24,7 +24,7 @@
 //!    [`DenseParams::lr_tolerance_px`] is dropped.
 //! 6. Speckle filter: connected regions of similar disparity smaller than
 //!    [`DenseParams::speckle_size`] pixels are dropped.
-//! 7. Sub-pixel refinement on the grey levels: a 1-D Lucas-Kanade step of a 5 x 5 window
+//! 7. Sub-pixel refinement on the grey levels: a 1-D Lucas-Kanade step of a 7 x 7 window
 //!    along the epipolar line (zero-mean, gain-matched), at most half a pixel.
 //! 8. A confidence in `0..1` per kept pixel ([`confidence`]).
 //!
@@ -73,6 +73,11 @@ pub struct DenseParams {
     pub speckle_size: usize,
     /// Most disparity step (px) between neighbours of one speckle region.
     pub speckle_range_px: f32,
+    /// The right image's scale against the left's along `u` and `v` (the right camera's
+    /// focal lengths over the left's; a model's matcher geometry carries it): the sub-pixel
+    /// refinement compares a left window with the right window of that scale. `[1, 1]` for
+    /// cameras alike.
+    pub right_scale: [f32; 2],
 }
 
 impl Default for DenseParams {
@@ -88,6 +93,7 @@ impl Default for DenseParams {
             lr_tolerance_px: 1.5,
             speckle_size: 100,
             speckle_range_px: 1.0,
+            right_scale: [1.0, 1.0],
         }
     }
 }
@@ -112,6 +118,15 @@ impl DenseParams {
         in_range("params.uniqueness", self.uniqueness, 0.0, 0.99)?;
         in_range("params.lr_tolerance_px", self.lr_tolerance_px, 0.0, 100.0)?;
         in_range("params.speckle_range_px", self.speckle_range_px, 0.0, 100.0)?;
+        for (field, v) in [
+            ("params.right_scale[0]", self.right_scale[0]),
+            ("params.right_scale[1]", self.right_scale[1]),
+        ] {
+            if !v.is_finite() {
+                return Err(InvalidField::new(field, format!("must be finite, got {v}")));
+            }
+            in_range(field, v, 0.25, 4.0)?;
+        }
         Ok(())
     }
 }
@@ -374,7 +389,10 @@ pub fn dense_match(
     }
     post::left_right_check(&lgeo, &mut best, &right_disp, params.lr_tolerance_px);
     post::speckle_filter(w, h, &mut best, params.speckle_size, params.speckle_range_px);
-    post::refine(&lgeo, left.as_raw(), right.as_raw(), &mut best);
+    // A scale within 0.5 % of 1 is 1 (across the 7-px window, under 0.02 px): the faster path.
+    let scale =
+        params.right_scale.map(|s| if (s - 1.0).abs() < 0.005 { 1.0 } else { f64::from(s) });
+    post::refine(&lgeo, left.as_raw(), right.as_raw(), scale, &mut best);
     Ok(post::to_map(&lgeo, &best, params.lr_tolerance_px))
 }
 
