@@ -5,6 +5,7 @@ use crate::data::captures::{captures_csv, CaptureRow};
 use crate::data::output::{write_atomically, write_bytes};
 use crate::track::{self, frames::VirtualCameras, head_sim::VirtualHead, target::TargetMode};
 use anyhow::{anyhow, Result};
+use hvs_shared::runtime::fixation::LoopConfig;
 use hvs_shared::runtime::trajectory::ControllerConfig;
 use hvs_shared::sim::posture::HeadRig;
 use std::path::PathBuf;
@@ -38,6 +39,9 @@ pub struct Args {
     /// kinematics alone, no image correction).
     #[arg(long, value_name = "G", default_value_t = track::DEFAULT_CORRECTION_GAIN)]
     pub correction_gain: f32,
+    /// Frames of a moving target's motion the fixation leads it by (0: aim where it is seen).
+    #[arg(long, value_name = "F", default_value_t = track::DEFAULT_LEAD_FRAMES)]
+    pub lead_frames: f32,
     /// Seed of the cameras' sensor noise (same seed, same log bytes).
     #[arg(long, value_name = "S", default_value_t = 0)]
     pub seed: u64,
@@ -77,6 +81,12 @@ pub fn run(a: Args) -> Result<()> {
             a.correction_gain
         )));
     }
+    if !(a.lead_frames.is_finite() && (0.0..=30.0).contains(&a.lead_frames)) {
+        return Err(crate::cli::usage(format!(
+            "--lead-frames: must be from 0 to 30, got {}",
+            a.lead_frames
+        )));
+    }
     let target = parse_target(&a.target)?;
     let mut inputs = vec![("--model", a.model.as_path()), ("--scene", a.scene.as_path())];
     crate::data::output::check_outputs(&[("--log", a.log.as_path())], &inputs)?;
@@ -100,7 +110,10 @@ pub fn run(a: Args) -> Result<()> {
         seconds: a.seconds,
         fps: loaded.scene.camera_fps,
         target,
-        loop_cfg: track::loop_config(&loaded.rig, a.correction_gain),
+        loop_cfg: LoopConfig {
+            lead_frames: a.lead_frames,
+            ..track::loop_config(&loaded.rig, a.correction_gain)
+        },
     };
     let opt = track::frames::loop_render_options();
     let mut cameras = VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, opt, a.seed);

@@ -241,6 +241,10 @@ pub fn estimator_of(blob: hvs_shared::runtime::blob::ModelBlob) -> Result<Estima
         })
 }
 
+/// Frames a moving target's fixation leads it by (`hvs track --lead-frames`, `hvs view
+/// --scene`): see [`hvs_shared::runtime::fixation`].
+pub const DEFAULT_LEAD_FRAMES: f32 = 0.0;
+
 /// Share of the kinematics' measured miss the image correction takes per frame, by default
 /// (`hvs track --correction-gain`, `hvs view --scene`).
 pub const DEFAULT_CORRECTION_GAIN: f32 = 0.5;
@@ -257,6 +261,7 @@ pub fn loop_config(rig: &hvs_shared::sim::camera::Rig, gain: f32) -> LoopConfig 
             rig.phi_v_right as f32,
         ],
         gain,
+        lead_frames: DEFAULT_LEAD_FRAMES,
         ..LoopConfig::DEFAULT
     }
 }

@@ -196,7 +196,8 @@ fn zncc_row(lc: &Centred, r: &Plane, rr: i32, (c0, c1): (i32, i32), out: &mut Ve
 }
 
 /// The best right window for the left window at `(cl, rl)` over columns `cols` and rows
-/// `rows` (inclusive), with a parabola's sub-pixel offset on each axis: `(u, v, score)`.
+/// `rows` (inclusive), with a parabola's sub-pixel offset on each axis: `(u, v, score)`;
+/// `None` below [`MIN_SCORE`] or without [`UNIQUENESS`].
 fn search(
     l: &Plane,
     r: &Plane,
@@ -295,6 +296,8 @@ struct Last {
     offset: [f64; 2],
     z: f32,
     extent: f64,
+    /// Matched points when it was last found (0 for a seed not yet matched densely).
+    points: usize,
 }
 
 /// Frames a `nearest` target is followed (only its region matched, as a `U,V` target is)
@@ -310,6 +313,19 @@ pub struct Finder {
     last: Option<Last>,
     /// `nearest`: frames followed since the last scan.
     followed: u32,
+}
+
+impl Last {
+    /// What a frame's target leaves for the next frame.
+    fn of(f: &Found, extent: f64) -> Last {
+        Last {
+            centre: [f.px[0], f.px[1]],
+            offset: [f.px[0] - f.px[2], f.px[1] - f.px[3]],
+            z: f.z,
+            extent: extent.min(MAX_EXTENT),
+            points: f.points.len(),
+        }
+    }
 }
 
 fn depth_of(est: &Estimator, joints: &Joints, l: [i32; 2], r: [f64; 2]) -> Option<f32> {
@@ -373,24 +389,40 @@ impl Finder {
                     offset: [f64::from(c[0]) - p.r[0], f64::from(c[1]) - p.r[1]],
                     z: p.z,
                     extent: 40.0,
+                    points: 0,
                 })
             }
             (TargetMode::Nearest, Some(last)) if self.followed < RESCAN_FRAMES => {
                 self.followed += 1;
                 Some(last.clone())
             }
-            (TargetMode::Nearest, _) => {
+            (TargetMode::Nearest, last) => {
                 self.followed = 0;
-                nearest_seed(&l, &r, joints, est)
+                let scanned = nearest_seed(&l, &r, joints, est);
+                // The object held stays held while it is still there and the scan found nothing
+                // nearer: a scan whose grid misses a small object would otherwise drop it for
+                // the wall behind it. Still there: at least half the points it had, and its
+                // points matched again over the scan's whole disparity range land at its
+                // disparity ([`confirmed`]); one that left keeps only the background's matches
+                // in its narrow band (a periodic texture matches there), and the scan's is taken.
+                match (scanned, last) {
+                    (Some(s), Some(held)) if s.offset[0] < held.offset[0] - DISPARITY_BAND_PX => {
+                        let kept = dense(&l, &r, held, joints, est).filter(|(f, _)| {
+                            2 * f.points.len() >= held.points && confirmed(&l, &r, f, joints, est)
+                        });
+                        if kept.is_some() {
+                            self.last = kept.as_ref().map(|(f, extent)| Last::of(f, *extent));
+                            return kept.map(|(f, _)| f);
+                        }
+                        Some(s)
+                    }
+                    (None, Some(held)) => Some(held.clone()),
+                    (scanned, _) => scanned,
+                }
             }
         };
         let found = seed.and_then(|s| dense(&l, &r, &s, joints, est));
-        self.last = found.as_ref().map(|(f, extent)| Last {
-            centre: [f.px[0], f.px[1]],
-            offset: [f.px[0] - f.px[2], f.px[1] - f.px[3]],
-            z: f.z,
-            extent: extent.min(MAX_EXTENT),
-        });
+        self.last = found.as_ref().map(|(f, extent)| Last::of(f, *extent));
         found.map(|(f, _)| f)
     }
 }
@@ -424,6 +456,22 @@ fn coarse_match_in(
     let (ur, vr, _) = search(l, r, c[0], c[1], [u2 - 2, u2 + 2], [v2 - 2, v2 + 2], 5)?;
     let z = depth_of(est, joints, c, [ur, vr])?;
     Some(Pt { l: c, r: [ur, vr], z })
+}
+
+/// Whether a followed target's points, matched afresh over the scan's whole disparity range
+/// (up to nine of them, spread over its points), land at its disparity: at least
+/// [`MIN_CLUSTER`] do.
+fn confirmed(l: &Plane, r: &Plane, f: &Found, joints: &Joints, est: &Estimator) -> bool {
+    let (lh, rh) = (l.half(), r.half());
+    let d = f.px[0] - f.px[2];
+    let every = f.points.len().div_ceil(9).max(1);
+    f.points
+        .iter()
+        .step_by(every)
+        .filter_map(|&p| coarse_match_in(&lh, &rh, l, r, p, joints, est))
+        .filter(|q| ((f64::from(q.l[0]) - q.r[0]) - d).abs() <= DISPARITY_BAND_PX)
+        .count()
+        >= MIN_CLUSTER
 }
 
 /// The nearest depth cluster on the coarse grid of the front region.
@@ -471,6 +519,7 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
                 offset: [du, dv],
                 z: median(members.iter().map(|q| q.z).collect()),
                 extent: extent + f64::from(grid_step(l.w)),
+                points: 0,
             });
         }
     }

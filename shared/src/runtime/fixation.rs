@@ -15,7 +15,11 @@
 //!    kinematics' miss. The state keeps a low-pass filtered miss (the integral part, gain
 //!    [`LoopConfig::gain`], never more than [`LoopConfig::max_correction_deg`]) and adds it to
 //!    the fixation; the proportional part is the fresh fixation itself.
-//! 4. The result is quantised to the drives' 0.18 degree steps and clamped to the limits:
+//! 4. **Lead**: a moving target is aimed at where it will be: the state keeps the estimate's
+//!    change per frame, low-pass filtered (gain [`LoopConfig::velocity_gain`]), and the
+//!    kinematics fixate the estimate plus [`LoopConfig::lead_frames`] frames of it (the image
+//!    correction still compares the fixation of the estimate itself with what the images show).
+//! 5. The result is quantised to the drives' 0.18 degree steps and clamped to the limits:
 //!    whatever the input (NaN, infinities, huge pixels), the command is within the limits.
 //!
 //! Without a target (lost), the head holds the last command; without an estimate (the
@@ -39,6 +43,10 @@ pub struct LoopConfig {
     pub gain: f32,
     /// Largest correction of any eye axis (degrees).
     pub max_correction_deg: f32,
+    /// Frames of the target's motion the fixation leads it by (0: aim where it is seen).
+    pub lead_frames: f32,
+    /// Share of the newest change of the estimate taken into its filtered velocity per frame.
+    pub velocity_gain: f32,
 }
 
 impl LoopConfig {
@@ -50,6 +58,8 @@ impl LoopConfig {
         focal_px: [285.836; 4],
         gain: 0.5,
         max_correction_deg: 10.0,
+        lead_frames: 0.0,
+        velocity_gain: 0.3,
     };
 }
 
@@ -60,6 +70,10 @@ pub struct LoopState {
     pub correction_deg: [f32; 3],
     /// The last command (held when the target is lost).
     pub last: Joints,
+    /// The last frame's estimate (cm, head frame), `None` when it had none.
+    pub last_estimate: Option<[f32; 3]>,
+    /// The estimate's filtered change per frame (cm).
+    pub velocity: [f32; 3],
 }
 
 /// One frame's input.
@@ -97,6 +111,14 @@ pub struct Command {
 const EYE_AXES: [Axis; 3] = [Axis::EyeTilt, Axis::LeftEyePan, Axis::RightEyePan];
 
 const RAD_TO_DEG: f32 = 180.0 / core::f32::consts::PI;
+
+/// Largest filtered velocity kept (cm per frame): anything faster is a wrong estimate.
+const MAX_VELOCITY_CM: f32 = 50.0;
+/// Slowest sideways motion (cm per frame, filtered) the fixation leads: below it the
+/// estimate's frame-to-frame noise, not motion (20 cm/s at 30 frames/s is 0.67).
+const MIN_LEAD_VELOCITY_CM: f32 = 0.25;
+/// Largest lead (frames).
+const MAX_LEAD_FRAMES: f32 = 30.0;
 
 /// The angles (degrees) by which the eyes miss the target at pixels `p`:
 /// `[tilt, left pan, right pan]` to add to the joints. `None` if not finite.
@@ -145,7 +167,11 @@ pub fn step(
         *c = clamp_abs(*c, cfg.max_correction_deg);
     }
     next.last = safe(&cfg.gaze, &next.last);
+    for v in next.velocity.iter_mut() {
+        *v = clamp_abs(*v, MAX_VELOCITY_CM);
+    }
     let Some(p) = obs.target else {
+        (next.last_estimate, next.velocity) = (None, [0.0; 3]);
         return (next, Command { joints: next.last, estimate: None, status: LoopStatus::Lost });
     };
     let now = safe(&cfg.gaze, &obs.joints);
@@ -156,6 +182,29 @@ pub fn step(
         .map(|e| [e.x, e.y, e.z])
         .filter(|e| e.iter().all(|x| x.is_finite()));
     let fix = estimate.and_then(|e| gaze::fixate(&cfg.gaze, e).ok());
+    // The lead: the fixation of where the target will be `lead_frames` on.
+    let (lead, vg) =
+        (clamp_abs(cfg.lead_frames, MAX_LEAD_FRAMES), clamp_abs(cfg.velocity_gain, 1.0));
+    match (estimate, next.last_estimate.filter(|l| l.iter().all(|x| x.is_finite()))) {
+        (Some(e), Some(l)) => {
+            for k in 0..3 {
+                let v = next.velocity[k] + vg * ((e[k] - l[k]) - next.velocity[k]);
+                next.velocity[k] = clamp_abs(v, MAX_VELOCITY_CM);
+            }
+        }
+        _ => next.velocity = [0.0; 3],
+    }
+    next.last_estimate = estimate;
+    let aim = match (estimate, fix) {
+        (Some(e), Some(f))
+            if lead > 0.0
+                && libm::hypotf(next.velocity[0], next.velocity[1]) >= MIN_LEAD_VELOCITY_CM =>
+        {
+            let ahead: [f32; 3] = core::array::from_fn(|k| e[k] + lead * next.velocity[k]);
+            Some(gaze::fixate(&cfg.gaze, ahead).unwrap_or(f))
+        }
+        _ => fix,
+    };
     let gain = if cfg.gain > 0.0 { cfg.gain.min(1.0) } else { 0.0 };
     let (target, status) = match (fix, miss) {
         (Some(f), miss) => {
@@ -170,7 +219,7 @@ pub fn step(
                     }
                 }
             }
-            let mut j = f.joints;
+            let mut j = aim.unwrap_or(f).joints;
             for (k, axis) in EYE_AXES.iter().enumerate() {
                 j[*axis] += next.correction_deg[k];
             }
@@ -270,6 +319,50 @@ mod tests {
         assert!((d - 0.9).abs() < 0.1, "{d}");
     }
 
+    /// A target moving sideways at a steady pace: with a lead the command turns ahead of the
+    /// fixation of where it is seen, by about the lead's worth of motion; without one (the
+    /// default) it is that fixation; losing the target forgets the motion.
+    #[test]
+    fn a_moving_target_is_led() {
+        let est = fallback();
+        // The target moves right in both images by 2 px a frame (about 1 cm at 150 cm).
+        let seen = |k: usize| {
+            let du = 2.0 * k as f32;
+            Observation {
+                target: Some(point([330.0 + du, 240.0, 310.0 + du, 240.0])),
+                joints: Joints::HOME,
+            }
+        };
+        let run = |cfg: &LoopConfig| {
+            let mut s = LoopState::default();
+            let mut c = None;
+            for k in 0..30 {
+                let (n, cmd) = step(cfg, &est, &s, &seen(k));
+                (s, c) = (n, Some(cmd));
+            }
+            (s, c.unwrap())
+        };
+        let plain = LoopConfig { gain: 0.0, ..LoopConfig::DEFAULT };
+        let (s0, c0) = run(&plain);
+        let (s4, c4) = run(&LoopConfig { lead_frames: 4.0, ..plain });
+        // The velocity is learnt either way (about 1 cm a frame in X), used only with a lead.
+        assert!(
+            (0.6..1.6).contains(&s0.velocity[0]) && s4.velocity == s0.velocity,
+            "{:?}",
+            s0.velocity
+        );
+        let ahead = c0.joints[Axis::NeckPan] - c4.joints[Axis::NeckPan]
+            + c0.joints[Axis::LeftEyePan]
+            - c4.joints[Axis::LeftEyePan];
+        // Moving right (+X) turns the gaze to negative pans: the lead turns further.
+        assert!(ahead > 0.5, "lead turned {ahead} degrees further");
+        let last_fix = gaze::fixate(&plain.gaze, c0.estimate.unwrap()).unwrap();
+        assert_eq!(c0.joints, safe(&plain.gaze, &last_fix.joints));
+        let lost = Observation { target: None, joints: Joints::HOME };
+        let (s, _) = step(&plain, &est, &s4, &lost);
+        assert_eq!((s.velocity, s.last_estimate), ([0.0; 3], None));
+    }
+
     proptest! {
         #[test]
         fn never_outside_limits(
@@ -279,9 +372,16 @@ mod tests {
             last in proptest::array::uniform5(any_f32()),
             gain in any_f32(),
             seen in any::<bool>(),
+            (lead, velocity_gain) in (any_f32(), any_f32()),
+            (est, vel) in (proptest::array::uniform3(any_f32()), proptest::array::uniform3(any_f32())),
         ) {
-            let cfg = LoopConfig { gain, ..LoopConfig::DEFAULT };
-            let state = LoopState { correction_deg: corr, last: Joints(last) };
+            let cfg = LoopConfig { gain, lead_frames: lead, velocity_gain, ..LoopConfig::DEFAULT };
+            let state = LoopState {
+                correction_deg: corr,
+                last: Joints(last),
+                last_estimate: Some(est),
+                velocity: vel,
+            };
             let obs = Observation {
                 target: seen.then(|| point(px)),
                 joints: Joints(joints),
@@ -293,6 +393,7 @@ mod tests {
                 prop_assert!((steps - libm::roundf(steps)).abs() < 1e-3);
             }
             prop_assert!(s.correction_deg.iter().all(|x| x.is_finite() && x.abs() <= cfg.max_correction_deg));
+            prop_assert!(s.velocity.iter().all(|v| v.is_finite() && v.abs() <= MAX_VELOCITY_CM));
             // And again from the returned state.
             let (_, c2) = step(&cfg, &fallback(), &s, &obs);
             prop_assert!(cfg.gaze.limits.contains(&c2.joints));
