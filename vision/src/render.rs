@@ -318,6 +318,12 @@ fn sample(cam: &LensCamera, board: &Board, margin_cm: f64, centre: &Vec3, u: f64
     let Some((o, d)) = cam.ray(u, v) else {
         return Class::Background;
     };
+    sample_ray(board, margin_cm, centre, &o, &d)
+}
+
+/// The board's colour class seen along the ray from `o` along `d`.
+#[inline(always)]
+fn sample_ray(board: &Board, margin_cm: f64, centre: &Vec3, o: &Vec3, d: &Vec3) -> Class {
     if d[2].is_nan() || d[2] <= 0.0 {
         return Class::Background;
     }
@@ -345,10 +351,17 @@ fn shade(
     let (wu, hu) = (w as usize, h as usize);
     // Classes at the pixel corners (c - 0.5, r - 0.5), (w + 1) x (h + 1).
     let mut corner = Vec::with_capacity((wu + 1) * (hu + 1));
+    let grid = RayGrid::new(cam, wu + 1, hu + 1, -0.5, -0.5);
     for r in 0..=hu {
         let v = r as f64 - 0.5;
         for c in 0..=wu {
-            corner.push(sample(cam, board, opt.margin_cm, &centre, c as f64 - 0.5, v));
+            corner.push(match &grid {
+                Some(g) => {
+                    let (o, d) = g.ray(c, r);
+                    sample_ray(board, opt.margin_cm, &centre, &o, &d)
+                }
+                None => sample(cam, board, opt.margin_cm, &centre, c as f64 - 0.5, v),
+            });
         }
     }
     let n = opt.supersample as usize;
@@ -403,23 +416,33 @@ pub(crate) fn blur(buf: &mut [f32], w: usize, h: usize, sigma: f64) {
     k.iter_mut().for_each(|x| *x /= s);
     let mut tmp = vec![0.0f32; buf.len()];
     let clamp = |x: isize, n: usize| x.clamp(0, n as isize - 1) as usize;
+    // Every output is the same sum as ever (taps in order from 0.0); only the clamping of the
+    // index is skipped inside the row and the vertical pass runs along rows.
     for r in 0..h {
         let row = &buf[r * w..(r + 1) * w];
-        for c in 0..w {
+        let out = &mut tmp[r * w..(r + 1) * w];
+        for (c, o) in out.iter_mut().enumerate() {
             let mut acc = 0.0;
-            for (t, kt) in k.iter().enumerate() {
-                acc += kt * row[clamp(c as isize + t as isize - radius as isize, w)];
+            if c >= radius && c + radius < w {
+                for (kt, x) in k.iter().zip(&row[c - radius..=c + radius]) {
+                    acc += kt * x;
+                }
+            } else {
+                for (t, kt) in k.iter().enumerate() {
+                    acc += kt * row[clamp(c as isize + t as isize - radius as isize, w)];
+                }
             }
-            tmp[r * w + c] = acc;
+            *o = acc;
         }
     }
     for r in 0..h {
-        for c in 0..w {
-            let mut acc = 0.0;
-            for (t, kt) in k.iter().enumerate() {
-                acc += kt * tmp[clamp(r as isize + t as isize - radius as isize, h) * w + c];
+        let out = &mut buf[r * w..(r + 1) * w];
+        out.fill(0.0);
+        for (t, kt) in k.iter().enumerate() {
+            let src = clamp(r as isize + t as isize - radius as isize, h) * w;
+            for (o, x) in out.iter_mut().zip(&tmp[src..src + w]) {
+                *o += kt * x;
             }
-            buf[r * w + c] = acc;
         }
     }
 }
@@ -618,5 +641,67 @@ mod tests {
         let s: f32 = b.iter().sum();
         assert!((s - 1.0).abs() < 1e-5);
         assert!(b[20 * 41 + 20] > b[20 * 41 + 21] && b[20 * 41 + 21] > b[20 * 41 + 22]);
+    }
+}
+
+/// The rays of a grid of pixel coordinates `u = c + off_u`, `v = r + off_v` of a camera
+/// without lens distortion, with the per-column and per-row parts of
+/// [`LensCamera::ray`] computed once: `d = Omega^T [x, y, 1]` is summed as that function sums it
+/// (`(m0 x + m1 y) + m2 * 1`), from the same products, so every ray has the same bits.
+pub(crate) struct RayGrid {
+    center: Vec3,
+    /// `Omega[0][k] x(u)` per column.
+    col: Vec<[f64; 3]>,
+    /// `Omega[1][k] y(v)` per row.
+    row: Vec<[f64; 3]>,
+    /// `Omega[2][k] * 1`.
+    z: [f64; 3],
+}
+
+impl RayGrid {
+    /// The grid of `cols x rows` coordinates `(c + off_u, r + off_v)`, or `None` when the lens
+    /// distorts (then [`LensCamera::ray`] is the way).
+    pub(crate) fn new(
+        cam: &LensCamera,
+        cols: usize,
+        rows: usize,
+        off_u: f64,
+        off_v: f64,
+    ) -> Option<RayGrid> {
+        if !cam.distortion.is_none() {
+            return None;
+        }
+        let k = &cam.camera;
+        let m = &k.rotation;
+        // LensCamera::ray: the offset from (u0, v0), undone (the identity), back to a pixel.
+        let x = |u: f64| ((u - k.u0) + k.u0 - k.u0) / k.phi_u;
+        let y = |v: f64| ((v - k.v0) + k.v0 - k.v0) / k.phi_v;
+        let col = (0..cols)
+            .map(|c| {
+                let x = x(c as f64 + off_u);
+                [m[0][0] * x, m[0][1] * x, m[0][2] * x]
+            })
+            .collect();
+        let row = (0..rows)
+            .map(|r| {
+                let y = y(r as f64 + off_v);
+                [m[1][0] * y, m[1][1] * y, m[1][2] * y]
+            })
+            .collect();
+        Some(RayGrid {
+            center: k.center,
+            col,
+            row,
+            z: [m[2][0] * 1.0, m[2][1] * 1.0, m[2][2] * 1.0],
+        })
+    }
+
+    /// The ray of grid point `(c, r)`, as [`LensCamera::ray`] gives it.
+    #[inline(always)]
+    pub(crate) fn ray(&self, c: usize, r: usize) -> (Vec3, Vec3) {
+        let (a, b) = (&self.col[c], &self.row[r]);
+        let d = [a[0] + b[0] + self.z[0], a[1] + b[1] + self.z[1], a[2] + b[2] + self.z[2]];
+        let n = libm::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        (self.center, [d[0] / n, d[1] / n, d[2] / n])
     }
 }

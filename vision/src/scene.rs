@@ -43,7 +43,7 @@
 
 use crate::board::Board;
 use crate::invalid::InvalidField;
-use crate::render::{blur, class, quantise, Class, RenderError, RenderOptions};
+use crate::render::{blur, class, quantise, Class, RayGrid, RenderError, RenderOptions};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::{LensCamera, Vec3};
 use hvs_shared::sim::posture::HeadRig;
@@ -453,6 +453,17 @@ fn intersect(p: &Placed, o: &Vec3, d: &Vec3) -> Option<f64> {
             }
         }
         Shape::Box { size_cm } => {
+            // A ray that misses the box's bounding sphere (its radius 1 % larger, far more than
+            // any rounding) misses the box: `None` as the slabs below would say, without their
+            // six divisions. A NaN goes on to the slabs.
+            let oc = [o[0] - c[0], o[1] - c[1], o[2] - c[2]];
+            let hs = size_cm.map(|x| 0.5 * x);
+            let r2 = dot(&hs, &hs) * 1.0201 + 1e-6;
+            let b = dot(&oc, d);
+            let disc = b * b - (dot(&oc, &oc) - r2);
+            if disc < 0.0 {
+                return None;
+            }
             let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
             for k in 0..3 {
                 let h = 0.5 * size_cm[k];
@@ -515,11 +526,15 @@ impl SceneAt {
     }
 
     /// The grey level and colour class of a hit (the class tells edges for anti-aliasing).
-    fn shade(&self, hit: &Hit, opt: &RenderOptions) -> (f32, u8) {
+    fn shade(&self, hit: &Hit, opt: &RenderOptions, cells: &mut [Cell; 2]) -> (f32, u8) {
         if hit.object == BACKGROUND {
             let p = hit.point;
-            let g =
-                texture([p[0], p[1], 0.0], self.background.texture_seed, [1.0 / 6.0, 1.0 / 2.5]);
+            let g = texture_cached(
+                [p[0], p[1], 0.0],
+                self.background.texture_seed,
+                [1.0 / 6.0, 1.0 / 2.5],
+                cells,
+            );
             return (g, 0);
         }
         let o = &self.objects[usize::from(hit.object - 1)];
@@ -534,7 +549,7 @@ impl SceneAt {
                 };
                 (f32::from(level), if k == Class::Black { 1 } else { 2 })
             }
-            _ => (texture(rel, o.texture_seed, [1.0 / 2.0, 1.0 / 0.8]), 0),
+            _ => (texture_cached(rel, o.texture_seed, [1.0 / 2.0, 1.0 / 0.8], cells), 0),
         }
     }
 }
@@ -557,29 +572,103 @@ fn lattice(x: i64, y: i64, z: i64, seed: u64) -> f64 {
 }
 
 /// Value noise at `p` (cells of size 1): smooth trilinear interpolation of lattice values.
+#[cfg(test)]
 fn value_noise(p: Vec3, seed: u64) -> f64 {
-    let (fx, fy, fz) = (p[0].floor(), p[1].floor(), p[2].floor());
+    value_noise_cached(p, seed, &mut Cell::EMPTY)
+}
+
+/// The lattice values of the last cell [`value_noise_cached`] used: consecutive samples of a
+/// row mostly fall in the same cell, whose 4 or 8 hashes are then not recomputed (the lattice
+/// is a pure function, so the values, and every bit of the noise, are the same).
+#[derive(Clone, Copy)]
+struct Cell {
+    key: (i64, i64, i64, u64),
+    /// The corners `(ix + i, iy + j, iz)` at `[j * 2 + i]`, then those of `iz + 1`.
+    value: [f64; 8],
+    /// Whether the corners of `iz + 1` are filled.
+    upper: bool,
+    /// Whether `key` is valid.
+    valid: bool,
+}
+
+impl Cell {
+    const EMPTY: Cell = Cell { key: (0, 0, 0, 0), value: [0.0; 8], upper: false, valid: false };
+}
+
+/// `x.floor()` without the call to the library's `floor` (no SSE4.1 in the default target):
+/// for `|x| < 2^52` the truncation is exact and one below it for a negative fraction. Only the
+/// sign of a zero may differ (`-0.0` gives `0.0`), which changes neither the cell `fx as i64`
+/// nor the fraction's `smooth(x - fx)` (both zeros give `+0.0`).
+#[inline(always)]
+fn floor(x: f64) -> f64 {
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let t = x as i64 as f64;
+        if t > x {
+            t - 1.0
+        } else {
+            t
+        }
+    } else {
+        x.floor()
+    }
+}
+
+/// [`value_noise`] with the lattice values of the last cell kept in `cell`.
+#[inline(always)]
+fn value_noise_cached(p: Vec3, seed: u64, cell: &mut Cell) -> f64 {
+    let (fx, fy, fz) = (floor(p[0]), floor(p[1]), floor(p[2]));
     let (ix, iy, iz) = (fx as i64, fy as i64, fz as i64);
     let smooth = |x: f64| x * x * (3.0 - 2.0 * x);
     let (sx, sy, sz) = (smooth(p[0] - fx), smooth(p[1] - fy), smooth(p[2] - fz));
     let lerp = |a: f64, b: f64, t: f64| a + t * (b - a);
-    let plane = |z: i64| {
-        let a = lerp(lattice(ix, iy, z, seed), lattice(ix + 1, iy, z, seed), sx);
-        let b = lerp(lattice(ix, iy + 1, z, seed), lattice(ix + 1, iy + 1, z, seed), sx);
+    let key = (ix, iy, iz, seed);
+    if !cell.valid || cell.key != key {
+        cell.key = key;
+        cell.valid = true;
+        cell.upper = false;
+        cell.value[0] = lattice(ix, iy, iz, seed);
+        cell.value[1] = lattice(ix + 1, iy, iz, seed);
+        cell.value[2] = lattice(ix, iy + 1, iz, seed);
+        cell.value[3] = lattice(ix + 1, iy + 1, iz, seed);
+    }
+    let v = &cell.value;
+    let lower = {
+        let a = lerp(v[0], v[1], sx);
+        let b = lerp(v[2], v[3], sx);
         lerp(a, b, sy)
     };
     if sz == 0.0 {
         // A surface at a whole z (the wall): the four corners of one plane.
-        return plane(iz);
+        return lower;
     }
-    lerp(plane(iz), plane(iz + 1), sz)
+    if !cell.upper {
+        cell.upper = true;
+        cell.value[4] = lattice(ix, iy, iz + 1, seed);
+        cell.value[5] = lattice(ix + 1, iy, iz + 1, seed);
+        cell.value[6] = lattice(ix, iy + 1, iz + 1, seed);
+        cell.value[7] = lattice(ix + 1, iy + 1, iz + 1, seed);
+    }
+    let v = &cell.value;
+    let upper = {
+        let a = lerp(v[4], v[5], sx);
+        let b = lerp(v[6], v[7], sx);
+        lerp(a, b, sy)
+    };
+    lerp(lower, upper, sz)
 }
 
 /// The grey level of a textured surface at `p` (relative to the object): two octaves of
 /// value noise of frequencies `freq` (1/cm), contrast stretched to about 25..235.
+#[cfg(test)]
 fn texture(p: Vec3, seed: u64, freq: [f64; 2]) -> f32 {
-    let a = value_noise(p.map(|x| x * freq[0]), seed);
-    let b = value_noise(p.map(|x| x * freq[1]), mix(seed.wrapping_add(1)));
+    texture_cached(p, seed, freq, &mut [Cell::EMPTY; 2])
+}
+
+/// [`texture`] with the last cell of each octave kept in `cells`.
+#[inline(always)]
+fn texture_cached(p: Vec3, seed: u64, freq: [f64; 2], cells: &mut [Cell; 2]) -> f32 {
+    let a = value_noise_cached(p.map(|x| x * freq[0]), seed, &mut cells[0]);
+    let b = value_noise_cached(p.map(|x| x * freq[1]), mix(seed.wrapping_add(1)), &mut cells[1]);
     let x = 0.6 * a + 0.4 * b; // mean 0.5, mostly 0.2..0.8
     ((x - 0.5) * 2.2 * 150.0 + 130.0).clamp(10.0, 245.0) as f32
 }
@@ -727,21 +816,35 @@ fn shade_camera(
     use rayon::prelude::*;
     let (wu, hu) = (w as usize, h as usize);
     let n = wu * hu;
-    let sample = |u: f64, v: f64| -> Option<(Hit, f32, u8)> {
+    let sample_ray = |o: &Vec3, d: &Vec3, cells: &mut [Cell; 2]| -> Option<(Hit, f32, u8)> {
+        let hit = scene.cast(o, d)?;
+        let (g, k) = scene.shade(&hit, opt, cells);
+        Some((hit, g, k))
+    };
+    let sample = |u: f64, v: f64, cells: &mut [Cell; 2]| -> Option<(Hit, f32, u8)> {
         let (o, d) = cam.ray(u, v)?;
         let hit = scene.cast(&o, &d)?;
-        let (g, k) = scene.shade(&hit, opt);
+        let (g, k) = scene.shade(&hit, opt, cells);
         Some((hit, g, k))
     };
     let background = f32::from(opt.background);
+    let grid = RayGrid::new(cam, wu, hu, 0.0, 0.0);
     // One sample per pixel, rows in parallel (each pixel's value depends on nothing else,
     // so the image is the same on any number of threads).
     let rows: Vec<_> = (0..hu)
         .into_par_iter()
         .map(|r| {
             let mut row = Vec::with_capacity(wu);
+            let mut cells = [Cell::EMPTY; 2];
             for c in 0..wu {
-                row.push(match sample(c as f64, r as f64) {
+                let s = match &grid {
+                    Some(g) => {
+                        let (o, d) = g.ray(c, r);
+                        sample_ray(&o, &d, &mut cells)
+                    }
+                    None => sample(c as f64, r as f64, &mut cells),
+                };
+                row.push(match s {
                     Some((hit, g, k)) => {
                         (g, (hit.object, k), hit.point.map(|x| x as f32), hit.object)
                     }
@@ -766,6 +869,7 @@ fn shade_camera(
     let ns = opt.supersample as usize;
     if ns > 1 {
         grey.par_chunks_mut(wu).enumerate().for_each(|(r, row)| {
+            let mut cells = [Cell::EMPTY; 2];
             for (c, g) in row.iter_mut().enumerate() {
                 let i = r * wu + c;
                 let k = key[i];
@@ -777,7 +881,7 @@ fn shade_camera(
                     continue;
                 }
                 *g = crate::render::supersample(c, r, ns, |u, v| {
-                    sample(u, v).map_or(background, |s| s.1)
+                    sample(u, v, &mut cells).map_or(background, |s| s.1)
                 });
             }
         });
