@@ -597,53 +597,6 @@ pub fn training_captures(
     )
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn polarity_top_left_square_is_black() {
-        let b = opencv_board();
-        let m = RenderOptions::default().margin_cm;
-        let class = |x, y| class(&b, m, x, y);
-        let [dx, dy] = b.corner_offset(0, 0);
-        let e = 0.1 * b.square_cm;
-        assert_eq!(class(dx - e, dy - e), Class::Black);
-        assert_eq!(class(dx + e, dy - e), Class::White);
-        assert_eq!(class(dx - e, dy + e), Class::White);
-        assert_eq!(class(dx + e, dy + e), Class::Black);
-        // Corner (1, 0): up-left square white.
-        let [dx, dy] = b.corner_offset(1, 0);
-        assert_eq!(class(dx - e, dy - e), Class::White);
-        // Border is white, beyond it background.
-        let hx = 5.0 * b.square_cm;
-        assert_eq!(class(-hx - 0.5 * m, 0.0), Class::White);
-        assert_eq!(class(-hx - 1.5 * m, 0.0), Class::Background);
-    }
-
-    #[test]
-    fn bad_parameters_name_the_field() {
-        let o = RenderOptions { margin_cm: 1.0, ..RenderOptions::default() };
-        let r = render_rig(&presets::CASE_1, &opencv_board(), [0.0, 0.0, 100.0], &o, 0);
-        crate::invalid::assert_refused(r, "margin_cm");
-        let o = RenderOptions { blur_sigma_px: f64::NAN, ..RenderOptions::default() };
-        crate::invalid::assert_refused(o.validate(), "blur_sigma_px");
-    }
-
-    #[test]
-    fn blur_keeps_a_constant_image_and_the_mean() {
-        let mut b = vec![7.0f32; 30 * 20];
-        blur(&mut b, 30, 20, 1.3);
-        assert!(b.iter().all(|&x| (x - 7.0).abs() < 1e-4));
-        let mut b = vec![0.0f32; 41 * 41];
-        b[20 * 41 + 20] = 1.0;
-        blur(&mut b, 41, 41, 1.0);
-        let s: f32 = b.iter().sum();
-        assert!((s - 1.0).abs() < 1e-5);
-        assert!(b[20 * 41 + 20] > b[20 * 41 + 21] && b[20 * 41 + 21] > b[20 * 41 + 22]);
-    }
-}
-
 /// The rays of a grid of pixel coordinates `u = c + off_u`, `v = r + off_v` of a camera
 /// without lens distortion, with the per-column and per-row parts of
 /// [`LensCamera::ray`] computed once: `d = Omega^T [x, y, 1]` is summed as that function sums it
@@ -703,5 +656,52 @@ impl RayGrid {
         let d = [a[0] + b[0] + self.z[0], a[1] + b[1] + self.z[1], a[2] + b[2] + self.z[2]];
         let n = libm::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         (self.center, [d[0] / n, d[1] / n, d[2] / n])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn polarity_top_left_square_is_black() {
+        let b = opencv_board();
+        let m = RenderOptions::default().margin_cm;
+        let class = |x, y| class(&b, m, x, y);
+        let [dx, dy] = b.corner_offset(0, 0);
+        let e = 0.1 * b.square_cm;
+        assert_eq!(class(dx - e, dy - e), Class::Black);
+        assert_eq!(class(dx + e, dy - e), Class::White);
+        assert_eq!(class(dx - e, dy + e), Class::White);
+        assert_eq!(class(dx + e, dy + e), Class::Black);
+        // Corner (1, 0): up-left square white.
+        let [dx, dy] = b.corner_offset(1, 0);
+        assert_eq!(class(dx - e, dy - e), Class::White);
+        // Border is white, beyond it background.
+        let hx = 5.0 * b.square_cm;
+        assert_eq!(class(-hx - 0.5 * m, 0.0), Class::White);
+        assert_eq!(class(-hx - 1.5 * m, 0.0), Class::Background);
+    }
+
+    #[test]
+    fn bad_parameters_name_the_field() {
+        let o = RenderOptions { margin_cm: 1.0, ..RenderOptions::default() };
+        let r = render_rig(&presets::CASE_1, &opencv_board(), [0.0, 0.0, 100.0], &o, 0);
+        crate::invalid::assert_refused(r, "margin_cm");
+        let o = RenderOptions { blur_sigma_px: f64::NAN, ..RenderOptions::default() };
+        crate::invalid::assert_refused(o.validate(), "blur_sigma_px");
+    }
+
+    #[test]
+    fn blur_keeps_a_constant_image_and_the_mean() {
+        let mut b = vec![7.0f32; 30 * 20];
+        blur(&mut b, 30, 20, 1.3);
+        assert!(b.iter().all(|&x| (x - 7.0).abs() < 1e-4));
+        let mut b = vec![0.0f32; 41 * 41];
+        b[20 * 41 + 20] = 1.0;
+        blur(&mut b, 41, 41, 1.0);
+        let s: f32 = b.iter().sum();
+        assert!((s - 1.0).abs() < 1e-5);
+        assert!(b[20 * 41 + 20] > b[20 * 41 + 21] && b[20 * 41 + 21] > b[20 * 41 + 22]);
     }
 }

@@ -571,12 +571,6 @@ fn lattice(x: i64, y: i64, z: i64, seed: u64) -> f64 {
     (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
-/// Value noise at `p` (cells of size 1): smooth trilinear interpolation of lattice values.
-#[cfg(test)]
-fn value_noise(p: Vec3, seed: u64) -> f64 {
-    value_noise_cached(p, seed, &mut Cell::EMPTY)
-}
-
 /// The lattice values of the last cell [`value_noise_cached`] used: consecutive samples of a
 /// row mostly fall in the same cell, whose 4 or 8 hashes are then not recomputed (the lattice
 /// is a pure function, so the values, and every bit of the noise, are the same).
@@ -613,7 +607,8 @@ fn floor(x: f64) -> f64 {
     }
 }
 
-/// [`value_noise`] with the lattice values of the last cell kept in `cell`.
+/// Value noise at `p` (cells of size 1): smooth trilinear interpolation of lattice values,
+/// with the lattice values of the last cell kept in `cell`.
 #[inline(always)]
 fn value_noise_cached(p: Vec3, seed: u64, cell: &mut Cell) -> f64 {
     let (fx, fy, fz) = (floor(p[0]), floor(p[1]), floor(p[2]));
