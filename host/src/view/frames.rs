@@ -5,7 +5,7 @@
 //! virtual cameras today): a live store fed from such a source keeps the latest pair and bumps
 //! the sequence number, and the page, which polls, shows each new frame.
 
-use crate::vision::png_bytes;
+use crate::vision::png_bytes_fast;
 use hvs_vision::detect::StereoCorners;
 use image::GrayImage;
 use std::sync::{Arc, OnceLock};
@@ -65,6 +65,17 @@ pub trait PairStore: Send + Sync {
     /// The latest frame of `view` of pair `pair`, `None` if there is none (an unreadable
     /// image, corners of a pair where none were found).
     fn frame(&self, pair: usize, view: View) -> Option<Frame>;
+    /// The frame of `view` of pair `pair` grabbed as number `seq`, when the store still keeps
+    /// it (a live store keeps the last few, so that a page that got the left frame of `seq`
+    /// can ask for the right one of the same pair); else the latest, as [`Self::frame`].
+    fn frame_at(&self, pair: usize, view: View, seq: u64) -> Option<Frame> {
+        let _ = seq;
+        self.frame(pair, view)
+    }
+    /// The sequence number of the latest frame (0 for a still store, which never changes).
+    fn latest_seq(&self) -> u64 {
+        0
+    }
     /// The latest grey images of pair `pair`, for the matcher.
     fn grey(&self, pair: usize) -> Option<GreyPair>;
 }
@@ -90,13 +101,13 @@ impl StillPair {
         let (l, r) = self.grey.as_ref()?;
         let corners = || self.corners.as_ref();
         match view {
-            View::Left => png_bytes(&**l).ok(),
-            View::Right => png_bytes(&**r).ok(),
+            View::Left => png_bytes_fast(&**l).ok(),
+            View::Right => png_bytes_fast(&**r).ok(),
             View::LeftCorners => {
-                png_bytes(&hvs_vision::overlay::draw_corners(l, &corners()?.left)).ok()
+                png_bytes_fast(&hvs_vision::overlay::draw_corners(l, &corners()?.left)).ok()
             }
             View::RightCorners => {
-                png_bytes(&hvs_vision::overlay::draw_corners(r, &corners()?.right)).ok()
+                png_bytes_fast(&hvs_vision::overlay::draw_corners(r, &corners()?.right)).ok()
             }
         }
     }

@@ -12,7 +12,7 @@ use crate::track::frames::FrameSource;
 use crate::track::head_sim::VirtualHead;
 use crate::track::target::TargetMode;
 use crate::track::Tracker;
-use crate::vision::png_bytes;
+use crate::vision::png_bytes_fast;
 use hvs_shared::runtime::fixation::LoopConfig;
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::head::Estimator;
@@ -68,9 +68,13 @@ struct Latest {
     state: HeadState,
 }
 
+/// How many of the latest frames a [`LiveHead`] keeps for [`PairStore::frame_at`].
+const KEPT: usize = 4;
+
 /// The virtual head in the loop, running on its own thread until dropped.
 pub struct LiveHead {
-    latest: Mutex<Option<Arc<Latest>>>,
+    /// The latest frames, newest last (at most [`KEPT`]).
+    latest: Mutex<std::collections::VecDeque<Arc<Latest>>>,
     goal: Mutex<Option<Goal>>,
     stop: AtomicBool,
     size: (u32, u32),
@@ -98,7 +102,7 @@ impl LiveHead {
             None => None,
         };
         let live = Arc::new(LiveHead {
-            latest: Mutex::new(None),
+            latest: Mutex::new(Default::default()),
             goal: Mutex::new(None),
             stop: AtomicBool::new(false),
             size,
@@ -137,7 +141,24 @@ impl LiveHead {
     }
 
     fn latest(&self) -> Option<Arc<Latest>> {
-        self.latest.lock().unwrap_or_else(|e| e.into_inner()).clone()
+        self.latest.lock().unwrap_or_else(|e| e.into_inner()).back().cloned()
+    }
+
+    fn kept(&self, seq: u64) -> Option<Arc<Latest>> {
+        let kept = self.latest.lock().unwrap_or_else(|e| e.into_inner());
+        kept.iter().rev().find(|l| l.seq == seq).or(kept.back()).cloned()
+    }
+
+    fn push(&self, next: Latest) {
+        let mut kept = self.latest.lock().unwrap_or_else(|e| e.into_inner());
+        // A failed grab keeps the last pair's number: it replaces it.
+        if kept.back().is_some_and(|l| l.seq == next.seq) {
+            kept.pop_back();
+        }
+        kept.push_back(Arc::new(next));
+        while kept.len() > KEPT {
+            kept.pop_front();
+        }
     }
 }
 
@@ -157,23 +178,36 @@ impl PairStore for LiveHead {
     }
 
     fn frame(&self, pair: usize, view: View) -> Option<Frame> {
+        self.encoded(pair, view, self.latest()?)
+    }
+
+    fn frame_at(&self, pair: usize, view: View, seq: u64) -> Option<Frame> {
+        self.encoded(pair, view, self.kept(seq)?)
+    }
+
+    fn latest_seq(&self) -> u64 {
+        self.latest().map_or(0, |l| l.seq)
+    }
+
+    fn grey(&self, pair: usize) -> Option<GreyPair> {
+        (pair == 0).then(|| self.latest().map(|l| l.grey.clone()))?
+    }
+}
+
+impl LiveHead {
+    fn encoded(&self, pair: usize, view: View, l: Arc<Latest>) -> Option<Frame> {
         let side = match (pair, view) {
             (0, View::Left) => 0,
             (0, View::Right) => 1,
             _ => return None,
         };
-        let l = self.latest()?;
         let png = l.png[side]
             .get_or_init(|| {
                 let img = if side == 0 { &l.grey.0 } else { &l.grey.1 };
-                png_bytes(&**img).ok().map(Arc::new)
+                png_bytes_fast(&**img).ok().map(Arc::new)
             })
             .clone()?;
         Some(Frame { seq: l.seq, png })
-    }
-
-    fn grey(&self, pair: usize) -> Option<GreyPair> {
-        (pair == 0).then(|| self.latest().map(|l| l.grey.clone()))?
     }
 }
 
@@ -276,7 +310,7 @@ fn run(
                 Latest { seq: p.seq, grey: p.grey.clone(), png: Default::default(), state }
             }
         };
-        *me.latest.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(next));
+        me.push(next);
         if let Some(tx) = first.take() {
             let _ = tx.send(Ok(()));
         }
@@ -355,6 +389,45 @@ mod tests {
             live.state().is_some_and(|s| s.error.is_none() && s.frames > seq)
         });
         assert!(live.grey(0).is_some() && live.frame(0, View::Left).is_some());
+        drop(live);
+        // The thread stops once the head is dropped: no more grabs.
+        std::thread::sleep(Duration::from_millis(50));
+        let after = grabs.load(Ordering::SeqCst);
+        std::thread::sleep(Duration::from_millis(100));
+        assert_eq!(grabs.load(Ordering::SeqCst), after);
+    }
+
+    /// The first pixel of a frame's PNG (the fake camera's frame number).
+    fn first_pixel(f: &Frame) -> u8 {
+        image::load_from_memory(&f.png).unwrap().to_luma8().as_raw()[0]
+    }
+
+    #[test]
+    fn the_last_frames_are_kept_by_number() {
+        let (grabs, broken) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicBool::new(false)));
+        let fake = Fake { grabs: grabs.clone(), broken: broken.clone() };
+        let blob = crate::infer::tests::blob(5, OutputKind::Xyz, InputKind::Stereo);
+        let estimator = crate::track::estimator_of(blob).unwrap();
+        let live = LiveHead::start(Box::new(fake), (32, 24), estimator, None, 240.0).unwrap();
+        wait_for("ten frames", || live.latest_seq() >= 10);
+        // A stopped camera keeps the frames still (its errors replace no kept frame).
+        broken.store(true, Ordering::SeqCst);
+        wait_for("the error", || live.state().is_some_and(|s| s.error.is_some()));
+        let newest = live.latest_seq();
+        // Frame `seq` is grab `seq - 1`: the last KEPT are given by number, left and right.
+        for seq in newest + 1 - KEPT as u64..=newest {
+            let (l, r) = (live.frame_at(0, View::Left, seq), live.frame_at(0, View::Right, seq));
+            let (l, r) = (l.unwrap(), r.unwrap());
+            assert_eq!((l.seq, r.seq), (seq, seq));
+            assert_eq!(first_pixel(&l), ((seq - 1) % 256) as u8);
+        }
+        // One long gone (or never grabbed): the latest instead.
+        for seq in [newest - KEPT as u64, newest + 1] {
+            assert_eq!(live.frame_at(0, View::Left, seq).unwrap().seq, newest);
+        }
+        assert!(live.frame_at(0, View::LeftCorners, newest).is_none());
+        assert!(live.frame_at(1, View::Left, newest).is_none());
+        assert!(live.latest.lock().unwrap().len() <= KEPT);
         drop(live);
         // The thread stops once the head is dropped: no more grabs.
         std::thread::sleep(Duration::from_millis(50));

@@ -10,7 +10,7 @@ use super::frames::View;
 use super::session::{DepthView, Refused, Session};
 use anyhow::{Context, Result};
 use axum::body::Body;
-use axum::extract::{DefaultBodyLimit, Path, Request, State};
+use axum::extract::{DefaultBodyLimit, Path, RawQuery, Request, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
@@ -162,9 +162,32 @@ async fn session(State(app): State<Shared>) -> Response {
     Json(api::session(&app.session)).into_response()
 }
 
+/// The longest a `?after=` request waits for a newer frame before it answers with the latest.
+pub const FRAME_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// A frame request's query: `after=S` waits (up to [`FRAME_WAIT`]) for a frame newer than
+/// number `S`, `seq=S` asks for frame `S` (while the store keeps it: the right image of the
+/// pair whose left one the page has). Other parameters (`token`, a cache-buster) are ignored.
+fn frame_query(query: Option<&str>) -> Result<(Option<u64>, Option<u64>), ApiError> {
+    let (mut after, mut seq) = (None, None);
+    for kv in query.unwrap_or("").split('&') {
+        let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
+        let slot = match k {
+            "after" => &mut after,
+            "seq" => &mut seq,
+            _ => continue,
+        };
+        *slot = Some(v.parse::<u64>().map_err(|_| {
+            ApiError(StatusCode::BAD_REQUEST, format!("{k}={v:?}: not a frame number"))
+        })?);
+    }
+    Ok((after, seq))
+}
+
 async fn frame(
     State(app): State<Shared>,
     Path((pair, view)): Path<(usize, String)>,
+    RawQuery(query): RawQuery,
 ) -> Result<Response, ApiError> {
     let view = View::parse(&view).ok_or_else(|| {
         ApiError(
@@ -172,11 +195,21 @@ async fn frame(
             format!("{view:?}: not a view (left, right, left-corners, right-corners)"),
         )
     })?;
+    let (after, seq) = frame_query(query.as_deref())?;
     let frames = app.session.frames.clone();
-    let f = tokio::task::spawn_blocking(move || frames.frame(pair, view))
-        .await
-        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
-        .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("pair {pair}: no such frame")))?;
+    if let Some(after) = after.filter(|_| frames.live()) {
+        let t0 = Instant::now();
+        while frames.latest_seq() <= after && t0.elapsed() < FRAME_WAIT {
+            tokio::time::sleep(std::time::Duration::from_millis(3)).await;
+        }
+    }
+    let f = tokio::task::spawn_blocking(move || match seq {
+        Some(seq) => frames.frame_at(pair, view, seq),
+        None => frames.frame(pair, view),
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
+    .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("pair {pair}: no such frame")))?;
     let mut r = png_response(&f.png);
     r.headers_mut().insert("x-frame-seq", HeaderValue::from(f.seq));
     Ok(r)

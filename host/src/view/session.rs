@@ -309,7 +309,7 @@ impl Session {
                 &hvs_vision::dense::DenseParams::default(),
             )
             .map_err(|e| Refused::Unprocessable(format!("{}: {e:#}", self.model_path.display())))?;
-            let png = crate::vision::png_bytes(&d.colour())
+            let png = crate::vision::png_bytes_fast(&d.colour())
                 .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
             Ok(Arc::new(DepthView {
                 png: Arc::new(png),

@@ -64,6 +64,26 @@ where
     Ok(out.into_inner())
 }
 
+/// PNG bytes for the screen: the fast deflate level with adaptive row filters, about 0.5 ms for
+/// a 640x480 grey frame where [`png_bytes`]'s default level takes about 7.5 ms, for files
+/// about 12 % larger (what `hvs view` serves; files on disk keep [`png_bytes`]).
+pub fn png_bytes_fast<P, C>(img: &image::ImageBuffer<P, C>) -> Result<Vec<u8>>
+where
+    P: image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+    C: std::ops::Deref<Target = [P::Subpixel]>,
+{
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    let mut out = Vec::new();
+    img.write_with_encoder(PngEncoder::new_with_quality(
+        &mut out,
+        CompressionType::Fast,
+        FilterType::Adaptive,
+    ))
+    .map_err(|e| anyhow!("cannot encode a PNG: {e}"))?;
+    Ok(out)
+}
+
 /// Writes a rendered capture set into `dir` (created if missing), each file atomically: the
 /// PNG pairs, `captures.csv` ([`captures_csv`], with the joint columns when `joints` is
 /// given), `truth.csv` and `board.json`, which is

@@ -12,7 +12,9 @@ pub use detection::{
     detect_set, detect_set_with_images, detected_set, found_corners, points_csv, Detection,
     FoundCorner, GroupFit, PairImages, PairOutcome, MAX_HELD_OUT_EPIPOLAR_PX,
 };
-pub use files::{check_same_size, png_bytes, read_grey, read_pair, write_capture_set};
+pub use files::{
+    check_same_size, png_bytes, png_bytes_fast, read_grey, read_pair, write_capture_set,
+};
 pub use locate::{
     check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_xyz,
     training_disparities, Located, DISPARITY_SLACK, STATUSES,

@@ -144,6 +144,27 @@ pub fn start_pair_with(rest: &[&str]) -> Server {
 
 /// One HTTP/1.1 request (`Connection: close`): the status and the body.
 pub fn http(addr: &str, method: &str, path: &str, body: Option<&[u8]>) -> (u16, Vec<u8>) {
+    let (status, _, body) = http_with_head(addr, method, path, body);
+    (status, body)
+}
+
+/// A frame: the status, the `x-frame-seq` header and the PNG bytes.
+fn get_frame(addr: &str, path: &str) -> (u16, Option<u64>, Vec<u8>) {
+    let (status, head, body) = http_with_head(addr, "GET", path, None);
+    let seq = head.lines().find_map(|l| {
+        let (k, v) = l.split_once(':')?;
+        k.eq_ignore_ascii_case("x-frame-seq").then(|| v.trim().parse().unwrap())
+    });
+    (status, seq, body)
+}
+
+/// [`http`], with the response's head (status line and headers) as text.
+fn http_with_head(
+    addr: &str,
+    method: &str,
+    path: &str,
+    body: Option<&[u8]>,
+) -> (u16, String, Vec<u8>) {
     let mut c = TcpStream::connect(addr).unwrap();
     c.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
     let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
@@ -159,7 +180,7 @@ pub fn http(addr: &str, method: &str, path: &str, body: Option<&[u8]>) -> (u16, 
     raw_response(c)
 }
 
-fn raw_response(mut c: TcpStream) -> (u16, Vec<u8>) {
+fn raw_response(mut c: TcpStream) -> (u16, String, Vec<u8>) {
     let mut all = Vec::new();
     let _ = c.read_to_end(&mut all);
     let end = all
@@ -174,9 +195,9 @@ fn raw_response(mut c: TcpStream) -> (u16, Vec<u8>) {
         .unwrap_or_else(|| panic!("bad status line in {head:?}"));
     let body = all[end + 4..].to_vec();
     if head.to_ascii_lowercase().contains("transfer-encoding: chunked") {
-        return (status, unchunk(&body));
+        return (status, head, unchunk(&body));
     }
-    (status, body)
+    (status, head, body)
 }
 
 fn unchunk(mut b: &[u8]) -> Vec<u8> {
@@ -357,6 +378,21 @@ fn view_runs_the_virtual_head_live_and_looks_where_asked() {
     assert_eq!(st, 200);
     let img = image::load_from_memory(&png).unwrap();
     assert_eq!((img.width(), img.height()), (160, 120));
+    // `after=S` waits for a frame newer than S; `seq=S` gives the other image of pair S.
+    let (st, s0, _) = get_frame(&sv.addr, "/api/frame/0/left");
+    let s0 = s0.expect("a live frame has a number");
+    assert!(st == 200 && s0 > 0);
+    let (st, s1, left) = get_frame(&sv.addr, &format!("/api/frame/0/left?after={s0}&n=7"));
+    let s1 = s1.unwrap();
+    assert!(st == 200 && s1 > s0, "{s0} -> {s1}");
+    let (st, s2, right) = get_frame(&sv.addr, &format!("/api/frame/0/right?seq={s1}"));
+    assert_eq!((st, s2), (200, Some(s1)));
+    assert_ne!(left, right, "the left and the right image of the pair");
+    for q in ["after=-1", "after=x", "seq=1.5", "after="] {
+        let (st, _, body) = get_frame(&sv.addr, &format!("/api/frame/0/left?{q}"));
+        assert_eq!(st, 400, "{q}: {}", String::from_utf8_lossy(&body));
+        assert!(String::from_utf8_lossy(&body).contains("not a frame number"), "{q}");
+    }
     // Look at the nearest object: the loop runs and the joints leave home.
     look(&sv.addr, r#"{"target":"nearest"}"#, 200);
     let h = head_until(&sv.addr, "the head to turn", |h| !joints_at_home(h));
@@ -426,7 +462,7 @@ fn view_refuses_bad_requests_and_stays_up() {
     // Not HTTP at all.
     let mut c = TcpStream::connect(&sv.addr).unwrap();
     c.write_all(b"\x00\x01garbage\r\n\r\n").unwrap();
-    let (st, _) = raw_response(c);
+    let (st, _, _) = raw_response(c);
     assert_eq!(st, 400);
     // A body sent without a JSON content type.
     let mut c = TcpStream::connect(&sv.addr).unwrap();
@@ -926,4 +962,72 @@ fn browser_click_and_retrain_in_chromium() {
         shot(&c, "live-look.png").await;
         c.close().await.unwrap();
     });
+}
+
+/// The frame rate of the live page in chromium on the README's scene (case III, 640 x 480, a
+/// 5 cm sphere on a textured wall) with the README's small posture-aware model: frames shown
+/// per second by the page (distinct pairs), idle and while the head follows the nearest
+/// object, and the head's own rate. A measurement, not a pass/fail on speed:
+/// `cargo test --release -p hvs-host --test cli fps_live_page -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn fps_live_page_in_chromium() {
+    let dir = crate::common::Scratch::new();
+    let (train, m, scene) = (dir.p("train.csv"), dir.p("small.hvsw"), dir.p("static.json"));
+    ok(&["simulate", "--case", "3", "--set", "train", "--postures", "grid"]
+        .into_iter()
+        .chain(["--posture-levels", "2,2,2,2,2", "--seed", "1", "-o", &train])
+        .collect::<Vec<_>>());
+    ok(&["train", "--data", &train, "-o", &m, "--hidden", "12", "--restarts", "1"]);
+    std::fs::write(
+        &scene,
+        r#"{ "rig": {"case": 3}, "camera_fps": 30,
+  "background": {"z_cm": 300, "texture_seed": 1},
+  "objects": [ {"shape": "sphere", "radius_cm": 5, "centre_cm": [20, -8, 100],
+                "velocity_cm_s": [0, 0, 0], "texture_seed": 2} ] }"#,
+    )
+    .unwrap();
+    let sv = start(&["--model", &m, "--scene", &scene]);
+    let driver = chromedriver();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let c = browser(&driver).await;
+        c.goto(&sv.url).await.unwrap();
+        wait_js(&c, "document.getElementById('frames-status').textContent.startsWith('live')").await;
+        let secs = 8;
+        let mut rates = vec![];
+        for (what, look_at) in [("idle", None), ("following the nearest object", Some("nearest"))] {
+            if let Some(t) = look_at {
+                look(&sv.addr, &format!(r#"{{"target":"{t}"}}"#), 200);
+            }
+            tokio::time::sleep(Duration::from_secs(2)).await;
+            let seq = |v: Value| v.as_str().unwrap().parse::<u64>().unwrap();
+            // Distinct pairs the page has put on screen.
+            let shown = "document.getElementById('frames-status').dataset.shown";
+            let (f0, h0) = (seq(wait_js(&c, shown).await), head_frames(&sv.addr));
+            let t0 = Instant::now();
+            tokio::time::sleep(Duration::from_secs(secs)).await;
+            let (f1, h1) = (seq(wait_js(&c, shown).await), head_frames(&sv.addr));
+            let el = t0.elapsed().as_secs_f64();
+            let page = text(&c, "frames-status").await;
+            let h = json(&sv.addr, "GET", "/api/head", None, 200);
+            eprintln!(
+                "{what}: the page showed {} new pairs in {el:.1} s ({:.1} frames/s; it says {page:?}); the head grabbed {:.1} frames/s; status {}",
+                f1 - f0,
+                (f1 - f0) as f64 / el,
+                (h1 - h0) as f64 / el,
+                h["status"]
+            );
+            assert!(f1 > f0 && h1 > h0, "frames keep coming");
+            rates.push(h["status"].as_str().unwrap().to_string());
+        }
+        assert_eq!(rates, ["idle", "tracking"]);
+        shot(&c, "live-fps.png").await;
+        c.close().await.unwrap();
+    });
+}
+
+/// The live head's frame count.
+fn head_frames(addr: &str) -> u64 {
+    json(addr, "GET", "/api/head", None, 200)["frames"].as_u64().unwrap()
 }

@@ -6,7 +6,6 @@ const $ = (id) => document.getElementById(id);
 let session = null;
 let pair = 0;
 let frameCount = 0;
-let frameStart = performance.now();
 let clicked = null;
 
 async function getJson(path) {
@@ -52,28 +51,40 @@ function loadFrames() {
   }
 }
 
-async function fetchFrame(side) {
-  const r = await fetch(q(`/api/frame/${pair}/${view(side)}?n=${frameCount}`));
+// A live frame: `after` waits on the server for a frame newer than the one shown (no busy
+// polling), `seq` asks for the right image of the same pair as the left one.
+async function fetchFrame(side, query) {
+  const r = await fetch(q(`/api/frame/${pair}/${view(side)}?${query}`));
   if (!r.ok) throw new Error(`no ${side} frame (${r.status})`);
+  const seq = Number(r.headers.get('x-frame-seq'));
   const url = URL.createObjectURL(await r.blob());
   const pre = new Image();
   pre.src = url;
-  await pre.decode();
-  return url;
+  return {seq, url, decoded: pre.decode()};
 }
 
+let lastSeq = 0, shown = 0;
+const shownAt = [];
 async function liveFrames() {
   try {
-    const urls = await Promise.all(['left', 'right'].map(fetchFrame));
-    ['left', 'right'].forEach((side, k) => {
-      const img = $(side), old = img.src;
-      img.src = urls[k];
+    const left = await fetchFrame('left', `after=${lastSeq}`);
+    const right = await fetchFrame('right', `seq=${left.seq}`);
+    await Promise.all([left.decoded, right.decoded]);
+    [left, right].forEach((f, k) => {
+      const img = $(k ? 'right' : 'left'), old = img.src;
+      img.src = f.url;
       if (old.startsWith('blob:')) setTimeout(() => URL.revokeObjectURL(old), 2000);
     });
+    const now = performance.now();
+    if (left.seq !== lastSeq) { shownAt.push(now); shown += 1; }
+    while (shownAt.length > 2 && now - shownAt[0] > 2000) shownAt.shift();
+    lastSeq = left.seq;
     frameCount += 1;
-    const fps = frameCount / ((performance.now() - frameStart) / 1000);
-    $('frames-status').textContent = `live, ${fps.toFixed(1)} pairs fetched/s`;
+    const span = (now - shownAt[0]) / 1000;
+    const fps = shownAt.length > 1 && span > 0 ? (shownAt.length - 1) / span : 0;
+    $('frames-status').textContent = `live, frame ${left.seq}, ${fps.toFixed(1)} frames/s shown`;
     $('frames-status').dataset.loaded = 'yes';
+    $('frames-status').dataset.shown = shown;
     setTimeout(liveFrames, 0);
   } catch (err) {
     $('frames-status').textContent = 'live: ' + err.message;
