@@ -179,6 +179,7 @@ fn init_head(place: &'static mut MaybeUninit<Head>) -> &'static mut Head {
         },
         gaze: GAZE,
         controller,
+        ticks: 0,
     })
 }
 

@@ -41,6 +41,8 @@ fn requests() -> Vec<(&'static str, Request)> {
         ("request look", r(300, RequestBody::Look(P))),
         ("request home", r(70_000, RequestBody::Home)),
         ("request bench", r(u32::MAX, RequestBody::Bench { point: P, count: 1000 })),
+        ("request posture", r(301, RequestBody::Posture(Joints([12.5, -3.25, 0.0, -0.0, 1e-30])))),
+        ("request state", r(302, RequestBody::State)),
     ]
 }
 
@@ -105,6 +107,18 @@ fn responses() -> Vec<(&'static str, Response)> {
                     ticks: 4_900,
                     overhead_ticks: 12,
                     tick_hz: 168_000_000,
+                }),
+            ),
+        ),
+        (
+            "response state",
+            r(
+                302,
+                ResponseBody::State(StateData {
+                    joints: Joints([1.08, -0.18, 2.52, -3.6, 3.6]),
+                    goal: Joints([12.42, -3.24, 0.0, 0.0, 0.0]),
+                    ticks: 70_000,
+                    moving: true,
                 }),
             ),
         ),

@@ -7,6 +7,7 @@ use crate::sim::SimHead;
 use hvs_host::data::csv::{self as csv_io, Inputs};
 use hvs_host::data::dataset::{JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
 use hvs_shared::runtime::blob::{self, HEADER_LEN, MAGIC, MAX_BLOB_LEN, VERSION};
+use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::protocol::{
     self, FrameAccumulator, ProtocolError, Request, RequestBody, Response, StereoPoint,
     MAX_FRAME_LEN,
@@ -174,11 +175,13 @@ fn run_head_stream(data: &[u8]) -> Result<(), crate::sim::Violation> {
         for (k, r) in rest.chunks_exact(17).enumerate() {
             let f = |i: usize| f32::from_le_bytes([r[i], r[i + 1], r[i + 2], r[i + 3]]);
             let p = StereoPoint { u_l: f(1), v_l: f(5), u_r: f(9), v_r: f(13) };
-            let body = match r[0] % 5 {
+            let body = match r[0] % 7 {
                 0 => RequestBody::Look(p),
                 1 => RequestBody::Estimate(p),
                 2 => RequestBody::Home,
                 3 => RequestBody::Info,
+                4 => RequestBody::Posture(Joints([p.u_l, p.v_l, p.u_r, p.v_r, f(1) - f(13)])),
+                5 => RequestBody::State,
                 _ => RequestBody::Ping,
             };
             let id = k as u32 + 1;
@@ -334,6 +337,8 @@ pub fn seeds() -> Vec<Seed> {
         ("look", RequestBody::Look(p)),
         ("home", RequestBody::Home),
         ("bench", RequestBody::Bench { point: p, count: 10 }),
+        ("posture", RequestBody::Posture(Joints([10.0, -200.0, f32::NAN, 3.0, -3.0]))),
+        ("state", RequestBody::State),
     ];
     let mut stream = Vec::new();
     for (k, (name, body)) in bodies.iter().enumerate() {

@@ -60,6 +60,9 @@ fn any_body() -> impl Strategy<Value = RequestBody> {
         1 => Just(RequestBody::Ping),
         1 => Just(RequestBody::Info),
         1 => (any_point(), any::<u32>()).prop_map(|(point, count)| RequestBody::Bench { point, count }),
+        3 => (any_f32(), any_f32(), any_f32(), any_f32(), any_f32())
+            .prop_map(|(a, b, c, d, e)| RequestBody::Posture(Joints([a, b, c, d, e]))),
+        1 => Just(RequestBody::State),
     ]
 }
 
@@ -112,6 +115,17 @@ fn answer_fits(body: &RequestBody, resp: &ResponseBody, limits: &JointLimits) ->
             matches!(c, ErrorCode::NonFinite | ErrorCode::NoSolution | ErrorCode::Unreachable)
         }
         (RequestBody::Bench { .. }, ResponseBody::Error(ErrorCode::Unsupported)) => true,
+        (RequestBody::Posture(j), ResponseBody::State(s)) => {
+            // Accepted only when no joint is infinite; the goal within the limits, on the grid.
+            !j.0.iter().any(|a| a.is_infinite())
+                && limits.contains(&s.goal)
+                && s.goal == Joints(s.goal.0.map(gaze::quantize))
+                && limits.contains(&s.joints)
+        }
+        (RequestBody::Posture(j), ResponseBody::Error(ErrorCode::NonFinite)) => {
+            j.0.iter().any(|a| a.is_infinite())
+        }
+        (RequestBody::State, ResponseBody::State(s)) => limits.contains(&s.joints),
         _ => false,
     }
 }

@@ -11,7 +11,7 @@
 use hvs_host::device::link::{Endpoint, Link};
 use hvs_host::device::qemu::{find_firmware, free_port, Emulator, EmulatorConfig, FIRMWARE_BUILD};
 use hvs_shared::runtime::blob::{self, BlobError, ModelBlob, MAX_BLOB_LEN};
-use hvs_shared::runtime::gaze::{Axis, GazeConfig, Joints};
+use hvs_shared::runtime::gaze::{self, Axis, GazeConfig, Joints};
 use hvs_shared::runtime::head::{self, Head};
 use hvs_shared::runtime::protocol::{
     self, ErrorCode, Mode, Request, RequestBody, Response, ResponseBody, Slot, SlotStatus, Source,
@@ -463,6 +463,56 @@ fn look_sequence_commands_follow_the_trajectory_within_limits() {
         for w in got[i].windows(2) {
             assert!((w[1] - w[0]).abs() <= max[i], "{axis:?} jumped {w:?}");
         }
+    }
+}
+
+/// `Posture` (protocol 3): the head moves to the clamped goal and `State` reports where it
+/// is and its clock; an infinite joint is refused; the servo log stays within the limits and
+/// ends at the goal's counts.
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn posture_moves_the_head_and_state_reports_it() {
+    require_qemu();
+    let mut run = boot("posture", None, None);
+    let limits = GazeConfig::DEFAULT.limits;
+    let state = |run: &mut Run| match run.link.request(RequestBody::State).unwrap() {
+        ResponseBody::State(s) => s,
+        r => panic!("State answered {r:?}"),
+    };
+    let s0 = state(&mut run);
+    assert_eq!((s0.joints, s0.moving), (Joints::HOME, false));
+    let asked = Joints([20.0, -90.0, 4.0, f32::NAN, -3.0]);
+    let ResponseBody::State(s) = run.link.request(RequestBody::Posture(asked)).unwrap() else {
+        panic!("posture refused")
+    };
+    // The host's head computes the same goal from the same request.
+    let mut host =
+        Head::new(head::boot(&[], &[]), GazeConfig::DEFAULT, &ControllerConfig::DEFAULT).unwrap();
+    host.controller.start(&asked);
+    assert_eq!(s.goal, host.goal());
+    assert!(limits.contains(&s.goal) && s.moving);
+    assert_eq!(s.goal.0[1], gaze::from_steps(limits.step_range(Axis::NeckTilt).0), "clamped");
+    let inf = Joints([0.0, 0.0, f32::NEG_INFINITY, 0.0, 0.0]);
+    assert_eq!(
+        run.link.request(RequestBody::Posture(inf)).unwrap(),
+        ResponseBody::Error(ErrorCode::NonFinite)
+    );
+    // The neck takes 0.7 s; QEMU's SysTick follows the host clock.
+    std::thread::sleep(Duration::from_millis(1500));
+    let s1 = state(&mut run);
+    assert_eq!((s1.joints, s1.goal, s1.moving), (s.goal, s.goal, false));
+    assert!(s1.ticks >= s.ticks + 100, "the head's clock ran: {} -> {}", s.ticks, s1.ticks);
+    run.emu.kill();
+    let cfg = McdcConfig::DEFAULT;
+    let got = mcdc_sequences(&run.servo_log(), &cfg);
+    for axis in Axis::ALL {
+        let i = axis.index();
+        let (lo, hi) = (
+            cfg.counts(&limits, axis, f32::NEG_INFINITY),
+            cfg.counts(&limits, axis, f32::INFINITY),
+        );
+        assert!(got[i].iter().all(|c| (lo..=hi).contains(c)), "{axis:?}: {:?}", got[i]);
+        assert_eq!(got[i].last(), Some(&cfg.counts(&limits, axis, s.goal[axis])), "{axis:?}");
     }
 }
 

@@ -20,13 +20,13 @@
 //! head falls back to the traditional method with [`Calibration::BUILT_IN`].
 
 use crate::runtime::blob::{self, InputKind, ModelBlob, OutputKind};
-use crate::runtime::gaze::{self, Axis, GazeConfig, GazeError, Joints};
+use crate::runtime::gaze::{self, GazeConfig, GazeError, Joints};
 use crate::runtime::layout::Slot;
 use crate::runtime::mlp::{self, FixedMlp, Mlp, MlpError};
 use crate::runtime::protocol::{
     self, ErrorCode, EstimateData, FirmwareVersion, InfoData, LookData, Mode, ModelInfo,
-    ProtocolError, Request, RequestBody, Response, ResponseBody, SlotStatus, Source, StereoPoint,
-    PROTOCOL_VERSION,
+    ProtocolError, Request, RequestBody, Response, ResponseBody, SlotStatus, Source, StateData,
+    StereoPoint, PROTOCOL_VERSION,
 };
 use crate::runtime::slots::{self, SlotState};
 use crate::runtime::traditional::{self, Calibration};
@@ -431,9 +431,11 @@ impl Boot {
                 Ok(e) => ResponseBody::Estimate(e),
                 Err(c) => ResponseBody::Error(c),
             },
-            RequestBody::Look(_) | RequestBody::Home | RequestBody::Bench { .. } => {
-                ResponseBody::Error(ErrorCode::Unsupported)
-            }
+            RequestBody::Look(_)
+            | RequestBody::Home
+            | RequestBody::Bench { .. }
+            | RequestBody::Posture(_)
+            | RequestBody::State => ResponseBody::Error(ErrorCode::Unsupported),
         };
         Response { id: req.id, body }
     }
@@ -448,6 +450,8 @@ pub struct Head {
     pub gaze: GazeConfig,
     /// Trajectories of the five axes.
     pub controller: GazeController,
+    /// Control ticks since boot (wrapping): the clock [`StateData::ticks`] reports.
+    pub ticks: u32,
 }
 
 impl Head {
@@ -457,7 +461,7 @@ impl Head {
         gaze: GazeConfig,
         controller: &ControllerConfig,
     ) -> Result<Head, ConfigError> {
-        Ok(Head { boot, gaze, controller: GazeController::new(controller)? })
+        Ok(Head { boot, gaze, controller: GazeController::new(controller)?, ticks: 0 })
     }
 
     /// Answers `req`; `Look` and `Home` start a move. `Bench` is the firmware's (answered
@@ -476,6 +480,15 @@ impl Head {
                 Ok(e) => ResponseBody::Estimate(e),
                 Err(c) => ResponseBody::Error(c),
             },
+            RequestBody::Posture(j) if j.0.iter().any(|a| a.is_infinite()) => {
+                ResponseBody::Error(ErrorCode::NonFinite)
+            }
+            RequestBody::Posture(j) => {
+                // `start` clamps every joint to its limits; a NaN keeps that joint's goal.
+                self.controller.start(&j);
+                ResponseBody::State(self.state())
+            }
+            RequestBody::State => ResponseBody::State(self.state()),
             _ => return self.boot.respond(req, version),
         };
         Response { id: req.id, body }
@@ -503,19 +516,29 @@ impl Head {
                 },
             )?;
         self.controller.start(&fix.joints);
-        // Where the setpoints will settle: the goal on the step grid, within the limits.
-        let goal = self.controller.goal();
-        let limits = &self.gaze.limits;
-        let target = Joints(Axis::ALL.map(|axis| {
-            let (lo, hi) = limits.step_range(axis);
-            gaze::from_steps(gaze::to_steps(goal[axis]).clamp(lo, hi))
-        }));
-        Ok(LookData { estimate, target, limited: fix.clamped })
+        Ok(LookData { estimate, target: self.goal(), limited: fix.clamped })
+    }
+
+    /// Where the setpoints of the current move settle: its goal on the step grid, within the
+    /// controller's limits (the ones every setpoint obeys).
+    pub fn goal(&self) -> Joints {
+        self.controller.settled_goal()
     }
 
     /// One control tick: the next setpoint (degrees) for the servos.
     pub fn tick(&mut self) -> Joints {
+        self.ticks = self.ticks.wrapping_add(1);
         self.controller.tick()
+    }
+
+    /// The posture and clock [`RequestBody::State`] reports.
+    pub fn state(&self) -> StateData {
+        StateData {
+            joints: self.joints(),
+            goal: self.goal(),
+            ticks: self.ticks,
+            moving: self.controller.is_moving(),
+        }
     }
 }
 
@@ -567,7 +590,11 @@ impl MainLoop {
         match read_frame(frame) {
             Ok(req) => {
                 let resp = answer(&req);
-                self.armed |= matches!(resp.body, ResponseBody::Look(_) | ResponseBody::Home);
+                self.armed |= matches!(resp.body, ResponseBody::Look(_) | ResponseBody::Home)
+                    || matches!(
+                        (req.body, resp.body),
+                        (RequestBody::Posture(_), ResponseBody::State(_))
+                    );
                 resp
             }
             Err(e) => e,
@@ -615,6 +642,7 @@ pub(crate) mod tests {
 
     use super::*;
     use crate::runtime::blob::{BlobError, MAX_BLOB_LEN};
+    use crate::runtime::gaze::Axis;
     use crate::test_support::SampleSpec;
     use std::vec::Vec as StdVec;
 
@@ -1022,6 +1050,60 @@ pub(crate) mod tests {
             last = h.tick();
         }
         assert_eq!(last, Joints::HOME);
+    }
+
+    #[test]
+    fn posture_moves_to_the_clamped_goal_and_state_reports_the_clock() {
+        let mut h = head(boot(&[], &[]));
+        let limits = GazeConfig::DEFAULT.limits;
+        let st = |h: &mut Head| match h.respond(&req(2, RequestBody::State), V).body {
+            ResponseBody::State(s) => s,
+            b => panic!("{b:?}"),
+        };
+        let s0 = st(&mut h);
+        assert_eq!(
+            (s0.joints, s0.goal, s0.ticks, s0.moving),
+            (Joints::HOME, Joints::HOME, 0, false)
+        );
+        // Far beyond the limits, off the grid, one joint NaN (keeps its goal: home).
+        let asked = Joints([500.0, -500.0, f32::NAN, 1.0, -1.0]);
+        let ResponseBody::State(s) = h.respond(&req(3, RequestBody::Posture(asked)), V).body else {
+            panic!("posture refused")
+        };
+        assert!(limits.contains(&s.goal) && s.moving && s.ticks == 0);
+        assert_eq!(s.goal, Joints(s.goal.0.map(gaze::quantize)));
+        let (lo, hi) = (limits.step_range(Axis::NeckPan).1, limits.step_range(Axis::NeckTilt).0);
+        assert_eq!((s.goal.0[0], s.goal.0[1]), (gaze::from_steps(lo), gaze::from_steps(hi)));
+        assert_eq!(s.goal.0[2], 0.0);
+        assert_eq!((s.goal.0[3], s.goal.0[4]), (gaze::quantize(1.0), gaze::quantize(-1.0)));
+        for _ in 0..1000 {
+            assert!(limits.contains(&h.tick()));
+        }
+        let s = st(&mut h);
+        assert_eq!((s.joints, s.ticks, s.moving), (s.goal, 1000, false));
+        // An infinite joint: refused, nothing moves.
+        let inf = Joints([0.0, f32::INFINITY, 0.0, 0.0, 0.0]);
+        let r = h.respond(&req(4, RequestBody::Posture(inf)), V);
+        assert_eq!(r.body, ResponseBody::Error(ErrorCode::NonFinite));
+        assert_eq!(st(&mut h).goal, s.goal);
+        // Before the head is built (boot only): unsupported.
+        let b = boot(&[], &[]);
+        for body in [RequestBody::Posture(Joints::HOME), RequestBody::State] {
+            let r = b.respond(&req(5, body), V);
+            assert_eq!(r.body, ResponseBody::Error(ErrorCode::Unsupported));
+        }
+        // A posture arms the loop; a state query or a refused posture does not.
+        for (body, arms) in [
+            (RequestBody::State, false),
+            (RequestBody::Posture(inf), false),
+            (RequestBody::Posture(Joints::HOME), true),
+        ] {
+            let mut ml = MainLoop::new();
+            let mut buf = [0u8; protocol::MAX_FRAME_LEN];
+            let n = protocol::encode_request(&req(6, body), &mut buf).unwrap().len();
+            ml.frame(Ok(&mut buf[..n - 1]), |r| h.respond(r, V));
+            assert_eq!(ml.armed(), arms, "{body:?}");
+        }
     }
 
     #[test]

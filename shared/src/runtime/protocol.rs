@@ -20,8 +20,9 @@ pub use crate::runtime::traditional::Calibration;
 use serde::{Deserialize, Serialize};
 
 /// Version of this protocol, reported by [`ResponseBody::Ready`] and [`InfoData`]. Bumped on
-/// every incompatible change of the message types (2: [`InfoData::stack_peak`]).
-pub const PROTOCOL_VERSION: u16 = 2;
+/// every incompatible change of the message types (2: [`InfoData::stack_peak`]; 3:
+/// [`RequestBody::Posture`] and [`RequestBody::State`], answered by [`ResponseBody::State`]).
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Request id reserved for messages the head sends without being asked.
 pub const UNSOLICITED_ID: u32 = 0;
@@ -90,6 +91,15 @@ pub enum RequestBody {
         /// Number of inferences (the head caps it, see [`BenchData::count`]).
         count: u32,
     },
+    /// Move the head to these joint angles (degrees, [`Axis`](crate::runtime::gaze::Axis)
+    /// order): each clamped to its limits, on the 0.18 degree grid, along the gaze
+    /// controller's trajectories, as `Look` moves. What a loop on the host sends once it has
+    /// decided where to look (`hvs track --head qemu`, a real head). A NaN joint keeps its
+    /// current goal; an infinite one is refused ([`ErrorCode::NonFinite`]) and nothing moves.
+    /// Answered by [`ResponseBody::State`] after the move has started.
+    Posture(Joints),
+    /// Where the head is now; answered by [`ResponseBody::State`].
+    State,
 }
 
 /// A response of the head.
@@ -123,6 +133,22 @@ pub enum ResponseBody {
     Bench(BenchData),
     /// The request could not be served; nothing was changed.
     Error(ErrorCode),
+    /// Answer to [`RequestBody::State`] and [`RequestBody::Posture`].
+    State(StateData),
+}
+
+/// The head's posture and clock: answer to [`RequestBody::State`] and [`RequestBody::Posture`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StateData {
+    /// The joints now: the gaze controller's current setpoints, the angles the servos are
+    /// commanded to and posture-aware networks see (degrees, within the limits, on the grid).
+    pub joints: Joints,
+    /// Where the current move ends (degrees, within the limits, on the grid).
+    pub goal: Joints,
+    /// Control ticks since boot (wrapping): the head's clock.
+    pub ticks: u32,
+    /// Whether a move is under way.
+    pub moving: bool,
 }
 
 /// Why a request failed.
@@ -500,7 +526,7 @@ mod tests {
         }
     }
 
-    fn all_requests() -> [Request; 6] {
+    fn all_requests() -> [Request; 8] {
         [
             Request { id: 1, body: RequestBody::Ping },
             Request { id: 2, body: RequestBody::Info },
@@ -508,10 +534,21 @@ mod tests {
             Request { id: u32::MAX, body: RequestBody::Look(point(-3.0)) },
             Request { id: 70_000, body: RequestBody::Home },
             Request { id: 9, body: RequestBody::Bench { point: point(0.5), count: u32::MAX } },
+            Request {
+                id: u32::MAX,
+                body: RequestBody::Posture(Joints([
+                    f32::MAX,
+                    -f32::MAX,
+                    f32::MIN_POSITIVE,
+                    -0.0,
+                    1e-30,
+                ])),
+            },
+            Request { id: u32::MAX, body: RequestBody::State },
         ]
     }
 
-    fn all_responses() -> [Response; 14] {
+    fn all_responses() -> [Response; 15] {
         let est = EstimateData {
             x: -1.5,
             y: f32::MAX,
@@ -549,6 +586,12 @@ mod tests {
             ResponseBody::Error(ErrorCode::Unreachable),
             ResponseBody::Error(ErrorCode::NoSolution),
             ResponseBody::Error(ErrorCode::Unsupported),
+            ResponseBody::State(StateData {
+                joints: Joints([f32::MAX, -f32::MAX, 0.18, -0.0, 1e-30]),
+                goal: Joints([-f32::MAX; 5]),
+                ticks: u32::MAX,
+                moving: true,
+            }),
         ];
         bodies.map(|body| Response { id: u32::MAX, body })
     }

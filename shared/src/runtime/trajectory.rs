@@ -228,11 +228,7 @@ impl GazeController {
         let t = self.ticks as f32 / self.hz;
         for i in 0..5 {
             let (x, _, _) = self.refs[i].eval(t);
-            let want = if x.is_finite() {
-                (roundf(x / crate::runtime::gaze::STEP_DEG) as i32).max(self.lo[i]).min(self.hi[i])
-            } else {
-                self.steps[i]
-            };
+            let want = if x.is_finite() { self.grid(i, x) } else { self.steps[i] };
             let m = self.max_step[i];
             // max/min rather than `clamp`, which carries a panic path.
             let delta = want.saturating_sub(self.steps[i]).max(-m).min(m);
@@ -265,12 +261,24 @@ impl GazeController {
     /// quantised goal.
     pub fn is_moving(&self) -> bool {
         let t = self.ticks as f32 / self.hz;
-        (0..5).any(|i| {
-            let goal = (roundf(self.refs[i].goal / crate::runtime::gaze::STEP_DEG) as i32)
-                .max(self.lo[i])
-                .min(self.hi[i]);
-            t < self.refs[i].dur || self.steps[i] != goal
-        })
+        (0..5).any(|i| t < self.refs[i].dur || self.steps[i] != self.goal_step(i))
+    }
+
+    /// Where the setpoints of the current move settle (degrees): each goal on the step grid,
+    /// within the limits.
+    pub fn settled_goal(&self) -> Joints {
+        Joints(core::array::from_fn(|i| from_steps(self.goal_step(i))))
+    }
+
+    /// Axis `i`'s goal in whole steps, within the limits.
+    fn goal_step(&self, i: usize) -> i32 {
+        self.grid(i, self.refs[i].goal)
+    }
+
+    /// `x` degrees of axis `i` to the nearest whole step within the limits (NaN: 0, clamped).
+    #[inline(never)]
+    fn grid(&self, i: usize, x: f32) -> i32 {
+        (roundf(x / crate::runtime::gaze::STEP_DEG) as i32).max(self.lo[i]).min(self.hi[i])
     }
 }
 
