@@ -341,16 +341,16 @@ pub fn exit_code(e: &anyhow::Error) -> i32 {
 pub enum HeadKind {
     /// The `shared::runtime` logic on the host.
     Emulate,
-    /// The firmware in QEMU (not yet).
+    /// The firmware in QEMU (`hvs track`; `hvs view` not yet).
     Qemu,
 }
 
 impl HeadKind {
-    /// Refuses the head that is not there yet (QEMU: the protocol has no posture command).
+    /// Refuses QEMU where the command cannot run it yet (`hvs view`).
     pub fn check(self) -> anyhow::Result<()> {
         if self == HeadKind::Qemu {
             anyhow::bail!(
-                "--head qemu: not yet (the protocol has no posture command yet); use --head emulate"
+                "--head qemu: not yet in hvs view (hvs track --head qemu runs it); use --head emulate"
             );
         }
         Ok(())

@@ -2,6 +2,8 @@
 //!
 //! - [`scene_file`]: scene files (the `hvs_vision::scene` JSON with its rig).
 //! - [`head_sim`]: the simulated head (servos following the commanded trajectories).
+//! - [`servo_head`]: the head the loop commands ([`servo_head::ServoHead`]): the simulated
+//!   one, or a head controller on a link (`--head qemu`, a real head) through `Posture`/`State`.
 //! - [`frames`]: the [`frames::FrameSource`] interface and the virtual cameras.
 //! - [`cameras`]: real cameras (`--cameras v4l:A,B`; V4L2 with the `v4l` feature).
 //! - [`target`]: finding the target (nearest object, or the object under a pixel, followed).
@@ -15,15 +17,16 @@ pub mod cameras;
 pub mod frames;
 pub mod head_sim;
 pub mod scene_file;
+pub mod servo_head;
 pub mod target;
 
 use anyhow::Result;
 use frames::{Frame, FrameSource};
-use head_sim::VirtualHead;
 use hvs_shared::runtime::fixation::{self, LoopConfig, LoopState, LoopStatus, Observation};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::head::Estimator;
 use hvs_shared::runtime::protocol::StereoPoint;
+use servo_head::ServoHead;
 use std::fmt::Write as _;
 use std::sync::atomic::{AtomicBool, Ordering};
 use target::{Finder, TargetMode};
@@ -160,11 +163,12 @@ impl Tracker {
     pub fn frame(
         &mut self,
         source: &mut dyn FrameSource,
-        head: &mut VirtualHead,
+        head: &mut dyn ServoHead,
         estimator: &Estimator,
         t_s: f64,
     ) -> Result<(Frame, LogRow)> {
         head.advance_to(t_s)?;
+        let t_s = head.frame_time(t_s);
         let joints = head.joints();
         let t0 = std::time::Instant::now();
         let frame = source.grab(t_s, &joints)?;
@@ -181,7 +185,7 @@ impl Tracker {
         };
         let (next, cmd) = fixation::step(&self.loop_cfg, estimator, &self.state, &obs);
         self.state = next;
-        head.command(&cmd.joints);
+        head.command(&cmd.joints)?;
         self.times =
             FrameTimes { grab_s: (t1 - t0).as_secs_f64(), perceive_s: t1.elapsed().as_secs_f64() };
         let centre = self.loop_cfg.centre_px.map(f64::from);
@@ -208,7 +212,7 @@ impl Tracker {
 /// drops them: `on_row` sees each row as it is made, with its frame's wall times).
 pub fn run(
     source: &mut dyn FrameSource,
-    head: &mut VirtualHead,
+    head: &mut dyn ServoHead,
     estimator: &Estimator,
     cfg: &TrackConfig,
     stop: &AtomicBool,

@@ -85,7 +85,6 @@ fn track_refuses_bad_input_with_one_clear_line() {
         assert!(e.contains(want) && e.lines().count() == 1, "{e}");
     };
     run(base(&bad, &[]), "m.hvsw");
-    run(base(&bad, &["--head", "qemu"]), "not yet");
     usage(base(&bad, &["--seconds", "0"]), "--seconds");
     usage(base(&bad, &["--target", "1,x"]), "--target");
     // With a valid model the scene's unknown field is named.

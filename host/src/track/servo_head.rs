@@ -1,0 +1,165 @@
+//! The head the loop commands: [`ServoHead`], implemented by the simulated head
+//! ([`super::head_sim::VirtualHead`], on a simulated clock) and by a head controller on a link
+//! ([`RemoteHead`]: the firmware in QEMU, or a real head on a serial port), which moves on its
+//! own clock and is driven with the protocol's `Posture` and `State` requests.
+
+use super::head_sim::VirtualHead;
+use crate::device::client::{self, error_text};
+use crate::device::link::Link;
+use anyhow::{bail, Result};
+use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::runtime::protocol::{RequestBody, ResponseBody, StateData, PROTOCOL_VERSION};
+use std::time::{Duration, Instant};
+
+/// A head whose servos the loop commands.
+pub trait ServoHead {
+    /// Lets the head's clock run up to `t_s` (s since the loop started): a simulated head
+    /// runs its control ticks; a real one is waited for (at once when it is already there).
+    fn advance_to(&mut self, t_s: f64) -> Result<()>;
+    /// Commands a new goal (a repeated goal does not re-plan the move).
+    fn command(&mut self, goal: &Joints) -> Result<()>;
+    /// Where the servos are (degrees), as of the last [`ServoHead::advance_to`].
+    fn joints(&self) -> Joints;
+    /// Whether a move is still under way.
+    fn is_moving(&self) -> bool;
+    /// The head's clock (s since the loop started).
+    fn time_s(&self) -> f64;
+    /// The time a frame taken now is at: the asked `t_s` on a simulated clock, the head's
+    /// own clock for a head that runs on its own.
+    fn frame_time(&self, t_s: f64) -> f64 {
+        t_s
+    }
+}
+
+impl ServoHead for VirtualHead {
+    fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        VirtualHead::advance_to(self, t_s)
+    }
+    fn command(&mut self, goal: &Joints) -> Result<()> {
+        VirtualHead::command(self, goal);
+        Ok(())
+    }
+    fn joints(&self) -> Joints {
+        VirtualHead::joints(self)
+    }
+    fn is_moving(&self) -> bool {
+        VirtualHead::is_moving(self)
+    }
+    fn time_s(&self) -> f64 {
+        VirtualHead::time_s(self)
+    }
+}
+
+/// The longest a head's clock may stand still while the loop waits for it.
+pub const CLOCK_TIMEOUT: Duration = Duration::from_secs(3);
+
+/// A head controller on a link (the firmware in QEMU or a real head), protocol 3 or later.
+pub struct RemoteHead {
+    link: Link,
+    hz: u32,
+    /// The head's tick count when the loop started.
+    t0_ticks: u32,
+    state: StateData,
+    goal: Option<Joints>,
+}
+
+impl RemoteHead {
+    /// Takes over the head on `link`: checks that it speaks protocol 3 or later (`Posture`,
+    /// `State`), then starts the loop's clock at the head's current tick. `control_hz` is the
+    /// head's control rate (the firmware's: [`hvs_shared::runtime::trajectory::ControllerConfig`]).
+    pub fn new(mut link: Link, control_hz: u32) -> Result<RemoteHead> {
+        let info = client::expect(link.request(RequestBody::Info)?, "Info", |b| match b {
+            ResponseBody::Info(i) => Some(i),
+            _ => None,
+        })?;
+        if info.protocol < 3 {
+            bail!(
+                "{}: the head speaks protocol {} and cannot take posture commands (protocol 3, this hvs speaks {PROTOCOL_VERSION}): flash a newer firmware",
+                link.endpoint(),
+                info.protocol
+            );
+        }
+        if control_hz == 0 {
+            bail!("control rate 0 Hz");
+        }
+        let state = Self::query(&mut link)?;
+        Ok(RemoteHead { link, hz: control_hz, t0_ticks: state.ticks, state, goal: None })
+    }
+
+    fn query(link: &mut Link) -> Result<StateData> {
+        client::expect(link.request(RequestBody::State)?, "State", |b| match b {
+            ResponseBody::State(s) => Some(s),
+            _ => None,
+        })
+    }
+
+    /// The head's last reported state.
+    pub fn state(&self) -> StateData {
+        self.state
+    }
+
+    /// The link, for other requests.
+    pub fn link(&mut self) -> &mut Link {
+        &mut self.link
+    }
+
+    fn elapsed_s(&self, s: &StateData) -> f64 {
+        f64::from(s.ticks.wrapping_sub(self.t0_ticks)) / f64::from(self.hz)
+    }
+}
+
+impl ServoHead for RemoteHead {
+    fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        let mut last = (self.state.ticks, Instant::now());
+        loop {
+            self.state = Self::query(&mut self.link)?;
+            let now = self.elapsed_s(&self.state);
+            if now + 1e-9 >= t_s {
+                return Ok(());
+            }
+            if self.state.ticks != last.0 {
+                last = (self.state.ticks, Instant::now());
+            } else if last.1.elapsed() > CLOCK_TIMEOUT {
+                bail!(
+                    "{}: the head's clock stood still for {CLOCK_TIMEOUT:?} (tick {})",
+                    self.link.endpoint(),
+                    self.state.ticks
+                );
+            }
+            std::thread::sleep(Duration::from_secs_f64((t_s - now).clamp(0.0, 0.005)));
+        }
+    }
+
+    fn command(&mut self, goal: &Joints) -> Result<()> {
+        if self.goal == Some(*goal) {
+            return Ok(());
+        }
+        match self.link.request(RequestBody::Posture(*goal))? {
+            ResponseBody::State(s) => {
+                self.state = s;
+                self.goal = Some(*goal);
+                Ok(())
+            }
+            ResponseBody::Error(code) => {
+                bail!("the head refused the posture {:?}: {}", goal.0, error_text(code))
+            }
+            other => bail!("the head answered a posture with an unexpected {other:?}"),
+        }
+    }
+
+    fn joints(&self) -> Joints {
+        self.state.joints
+    }
+
+    fn is_moving(&self) -> bool {
+        self.state.moving
+    }
+
+    fn time_s(&self) -> f64 {
+        self.elapsed_s(&self.state)
+    }
+
+    fn frame_time(&self, _t_s: f64) -> f64 {
+        self.time_s()
+    }
+}
