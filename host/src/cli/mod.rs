@@ -341,20 +341,8 @@ pub fn exit_code(e: &anyhow::Error) -> i32 {
 pub enum HeadKind {
     /// The `shared::runtime` logic on the host.
     Emulate,
-    /// The firmware in QEMU (`hvs track`; `hvs view` not yet).
+    /// The firmware in QEMU, moved with posture commands.
     Qemu,
-}
-
-impl HeadKind {
-    /// Refuses QEMU where the command cannot run it yet (`hvs view`).
-    pub fn check(self) -> anyhow::Result<()> {
-        if self == HeadKind::Qemu {
-            anyhow::bail!(
-                "--head qemu: not yet in hvs view (hvs track --head qemu runs it); use --head emulate"
-            );
-        }
-        Ok(())
-    }
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 
 use crate::data::captures::{captures_csv, CaptureRow};
 use crate::data::output::{write_atomically, write_bytes};
-use crate::track::servo_head::{RemoteHead, ServoHead};
+use crate::track::servo_head::{QemuHead, ServoHead};
 use crate::track::{self, frames::VirtualCameras, head_sim::VirtualHead, target::TargetMode};
 use anyhow::{anyhow, Result};
 use hvs_shared::runtime::fixation::LoopConfig;
@@ -122,15 +122,9 @@ pub fn run(a: Args) -> Result<()> {
     };
     let opt = track::frames::loop_render_options();
     let mut cameras = VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, opt, a.seed);
-    // QEMU (and its servo log) live as long as the run.
-    let mut qemu = None;
     let mut head: Box<dyn ServoHead> = match a.head {
         super::HeadKind::Emulate => Box::new(VirtualHead::new(&ControllerConfig::DEFAULT)?),
-        super::HeadKind::Qemu => {
-            let (emu, head) = boot_qemu(&a.model, a.firmware.as_deref())?;
-            qemu = Some(emu);
-            Box::new(head)
-        }
+        super::HeadKind::Qemu => Box::new(QemuHead::boot(&a.model, a.firmware.as_deref())?),
     };
     let stop = track::stop_on_interrupt();
     let mut recorded = Vec::new();
@@ -149,7 +143,6 @@ pub fn run(a: Args) -> Result<()> {
         Ok(())
     })?;
     drop(head);
-    drop(qemu);
     let text = track::log_csv(&rows);
     write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
     if let Some(dir) = &a.record {
@@ -184,31 +177,6 @@ pub fn run(a: Args) -> Result<()> {
         if stop.load(std::sync::atomic::Ordering::Relaxed) { " (interrupted)" } else { "" }
     );
     Ok(())
-}
-
-/// The head firmware in QEMU with `model` in slot A (its servo log in a temporary folder),
-/// and the head on its protocol link.
-fn boot_qemu(
-    model: &std::path::Path,
-    firmware: Option<&std::path::Path>,
-) -> Result<((crate::device::qemu::Emulator, tempfile::TempDir), RemoteHead)> {
-    use crate::device::qemu::{find_firmware, free_port, Emulator, EmulatorConfig};
-    let dir = tempfile::tempdir().map_err(|e| anyhow!("a temporary folder for QEMU: {e}"))?;
-    let cfg = EmulatorConfig {
-        firmware: find_firmware(firmware),
-        slot_a: Some(model.to_path_buf()),
-        slot_b: None,
-        listen: format!("127.0.0.1:{}", free_port()?),
-        servo_log: dir.path().join("servo.log"),
-        qemu: "qemu-system-arm".into(),
-        extra: Vec::new(),
-    };
-    crate::cli::emulate::preflight(&cfg)?;
-    let emu = Emulator::start(&cfg)?;
-    let endpoint = emu.endpoint.parse()?;
-    let link = crate::device::client::connect(&endpoint, std::time::Duration::from_secs(20))?;
-    let head = RemoteHead::new(link, ControllerConfig::DEFAULT.control_hz)?;
-    Ok(((emu, dir), head))
 }
 
 /// The run's wall times a frame: perception and control (median, 95th percentile, worst)

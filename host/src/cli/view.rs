@@ -57,9 +57,13 @@ pub struct Args {
     /// joints over the protocol).
     #[arg(long, value_name = "PATH", requires = "cameras")]
     pub port: Option<PathBuf>,
-    /// With --scene, where the loop runs.
+    /// With --scene, the head: `emulate` (the head's logic on the host) or `qemu` (the head
+    /// firmware in QEMU, moved with posture commands).
     #[arg(long, value_enum, default_value = "emulate", requires = "scene")]
     pub head: super::HeadKind,
+    /// With --head qemu: the firmware ELF [default: as `hvs emulate`].
+    #[arg(long, value_name = "ELF", requires = "scene")]
+    pub firmware: Option<PathBuf>,
     /// Address to listen on; port 0 picks a free one (the URL printed says which).
     #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8080")]
     pub listen: String,
@@ -82,7 +86,6 @@ pub fn run(a: Args) -> Result<()> {
     if a.restarts == 0 {
         bail!("--restarts must be at least 1");
     }
-    a.head.check()?;
     if a.port.is_some() {
         bail!(
             "--port: hvs view cannot drive a real head yet (the head's protocol does not report \
@@ -94,7 +97,11 @@ pub fn run(a: Args) -> Result<()> {
         (None, None, Some(board), Some(captures), None, None) => {
             Source::Captures { board, captures }
         }
-        (None, None, None, None, Some(scene), None) => Source::Scene { scene, seed: a.seed },
+        (None, None, None, None, Some(scene), None) => Source::Scene {
+            scene,
+            seed: a.seed,
+            qemu: (a.head == super::HeadKind::Qemu).then(|| a.firmware.clone()),
+        },
         (None, None, None, None, None, Some(cameras)) => Source::Cameras {
             spec: crate::track::cameras::CameraSpec::parse(&cameras)
                 .map_err(|e| crate::cli::usage(e.to_string()))?,

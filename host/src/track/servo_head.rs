@@ -163,3 +163,58 @@ impl ServoHead for RemoteHead {
         self.time_s()
     }
 }
+
+/// The head firmware in QEMU with a model in slot A, on its protocol link: what `--head qemu`
+/// runs. QEMU (and its servo log, in a temporary folder) lives as long as this.
+pub struct QemuHead {
+    head: RemoteHead,
+    _emu: crate::device::qemu::Emulator,
+    _dir: tempfile::TempDir,
+}
+
+impl QemuHead {
+    /// Boots the firmware (`firmware`, or the default build path as `hvs emulate` finds it)
+    /// with `model` in slot A and takes over the head ([`RemoteHead::new`]).
+    pub fn boot(model: &std::path::Path, firmware: Option<&std::path::Path>) -> Result<QemuHead> {
+        use crate::device::qemu::{find_firmware, free_port, Emulator, EmulatorConfig};
+        let dir = tempfile::tempdir()
+            .map_err(|e| anyhow::anyhow!("a temporary folder for QEMU's servo log: {e}"))?;
+        let cfg = EmulatorConfig {
+            firmware: find_firmware(firmware),
+            slot_a: Some(model.to_path_buf()),
+            slot_b: None,
+            listen: format!("127.0.0.1:{}", free_port()?),
+            servo_log: dir.path().join("servo.log"),
+            qemu: "qemu-system-arm".into(),
+            extra: Vec::new(),
+        };
+        crate::cli::emulate::preflight(&cfg)?;
+        let emu = Emulator::start(&cfg)?;
+        let endpoint = emu.endpoint.parse()?;
+        let link = client::connect(&endpoint, Duration::from_secs(20))?;
+        let control_hz = hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT.control_hz;
+        let head = RemoteHead::new(link, control_hz)?;
+        Ok(QemuHead { head, _emu: emu, _dir: dir })
+    }
+}
+
+impl ServoHead for QemuHead {
+    fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        self.head.advance_to(t_s)
+    }
+    fn command(&mut self, goal: &Joints) -> Result<()> {
+        self.head.command(goal)
+    }
+    fn joints(&self) -> Joints {
+        self.head.joints()
+    }
+    fn is_moving(&self) -> bool {
+        self.head.is_moving()
+    }
+    fn time_s(&self) -> f64 {
+        self.head.time_s()
+    }
+    fn frame_time(&self, t_s: f64) -> f64 {
+        self.head.frame_time(t_s)
+    }
+}

@@ -9,7 +9,7 @@
 
 use super::frames::{Frame, GreyPair, PairStore, View};
 use crate::track::frames::FrameSource;
-use crate::track::head_sim::VirtualHead;
+use crate::track::servo_head::ServoHead;
 use crate::track::target::TargetMode;
 use crate::track::Tracker;
 use crate::vision::png_bytes_fast;
@@ -82,25 +82,18 @@ pub struct LiveHead {
 }
 
 impl LiveHead {
-    /// Starts the head at home with `cameras` (images of `size`) on it: a virtual head whose
-    /// loop (`hvs track`'s) runs with `loop_cfg`, or with `None` no head (the cameras stay
-    /// where they are, taken to be at the home posture). `estimator` is the loop's. Returns
+    /// Starts with `cameras` (images of `size`) on `head` (the simulated head or one in
+    /// QEMU, at home), whose loop (`hvs track`'s) runs with the given settings, or with `None`
+    /// no head (the cameras stay where they are, taken to be at the home posture). `estimator` is the loop's. Returns
     /// once the first frame is there (or its error).
     pub fn start(
         cameras: Box<dyn FrameSource + Send>,
         size: (u32, u32),
         estimator: Estimator,
-        loop_cfg: Option<LoopConfig>,
+        head: Option<(Box<dyn ServoHead + Send>, LoopConfig)>,
         fps: f64,
     ) -> anyhow::Result<Arc<LiveHead>> {
-        let moves = loop_cfg.is_some();
-        let head = match loop_cfg {
-            Some(cfg) => Some((
-                VirtualHead::new(&hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT)?,
-                cfg,
-            )),
-            None => None,
-        };
+        let moves = head.is_some();
         let live = Arc::new(LiveHead {
             latest: Mutex::new(Default::default()),
             goal: Mutex::new(None),
@@ -214,8 +207,8 @@ impl LiveHead {
 /// What the head's thread owns.
 struct Loop {
     cameras: Box<dyn FrameSource + Send>,
-    /// The virtual head and its loop's settings (`None`: cameras on no head).
-    head: Option<(VirtualHead, LoopConfig)>,
+    /// The head and its loop's settings (`None`: cameras on no head).
+    head: Option<(Box<dyn ServoHead + Send>, LoopConfig)>,
     estimator: Estimator,
     fps: f64,
 }
@@ -238,6 +231,7 @@ fn run(
         if me.stop.load(Ordering::SeqCst) {
             return;
         }
+        let mut failed = None;
         if let Some(g) = me.goal.lock().unwrap_or_else(|e| e.into_inner()).take() {
             goal = g;
             if let Some((head, cfg)) = lp.head.as_mut() {
@@ -247,16 +241,17 @@ fn run(
                     Goal::Idle | Goal::Home => None,
                 };
                 if g == Goal::Home {
-                    head.command(&Joints::HOME);
+                    failed = head.command(&Joints::HOME).err();
                 }
             }
         }
         let t = start.elapsed().as_secs_f64();
-        let grabbed = match (tracker.as_mut(), lp.head.as_mut().map(|(h, _)| h)) {
-            (Some(tr), Some(head)) => tr
-                .frame(&mut *lp.cameras, head, &lp.estimator, t)
+        let grabbed = match (failed, tracker.as_mut(), lp.head.as_mut().map(|(h, _)| h)) {
+            (Some(e), _, _) => Err(e),
+            (None, Some(tr), Some(head)) => tr
+                .frame(&mut *lp.cameras, &mut **head, &lp.estimator, t)
                 .map(|(f, row)| (f, row.status, row.joints, row.px, row.xyz, row.err_px)),
-            (_, head) => {
+            (None, _, head) => {
                 let advanced = match head {
                     Some(head) => head.advance_to(t).map(|()| head.joints()),
                     None => Ok(Joints::HOME),

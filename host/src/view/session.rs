@@ -10,6 +10,8 @@ use super::live::{Goal, HeadState, LiveHead};
 use crate::data::captures::{self, CaptureSet};
 use crate::data::csv::{read_set_from, Inputs};
 use crate::data::model::ModelFile;
+use crate::track::head_sim::VirtualHead;
+use crate::track::servo_head::{QemuHead, ServoHead};
 use crate::track::{self, frames::VirtualCameras};
 use crate::train::model::{train_model, Plan};
 use crate::train::{self, TrainConfig};
@@ -47,6 +49,9 @@ pub enum Source {
         scene: PathBuf,
         /// Seed of the cameras' sensor noise.
         seed: u64,
+        /// `Some(firmware)`: the head firmware in QEMU (`--head qemu`; `None` inside: the
+        /// default firmware path) moves the cameras; `None`: the simulated head.
+        qemu: Option<Option<PathBuf>>,
     },
     /// Real cameras on no head, live (`--cameras v4l:A,B`).
     Cameras {
@@ -208,7 +213,7 @@ impl Session {
                     None,
                 )
             }
-            Source::Scene { scene, seed } => {
+            Source::Scene { scene, seed, qemu } => {
                 let loaded = track::scene_file::load(scene)?;
                 let estimator = track::estimator_of(model.blob.clone())
                     .map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
@@ -219,11 +224,17 @@ impl Session {
                     *seed,
                 );
                 let size = (loaded.rig.width, loaded.rig.height);
+                let head: Box<dyn ServoHead + Send> = match qemu {
+                    None => Box::new(VirtualHead::new(
+                        &hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT,
+                    )?),
+                    Some(firmware) => Box::new(QemuHead::boot(model_path, firmware.as_deref())?),
+                };
                 let live = LiveHead::start(
                     Box::new(cameras),
                     size,
                     estimator,
-                    Some(track::loop_config(&loaded.rig, track::DEFAULT_CORRECTION_GAIN)),
+                    Some((head, track::loop_config(&loaded.rig, track::DEFAULT_CORRECTION_GAIN))),
                     loaded.scene.camera_fps,
                 )
                 .map_err(|e| anyhow!("{}: {e:#}", scene.display()))?;

@@ -343,3 +343,27 @@ fn track_moves_the_head_in_qemu_with_posture_commands() {
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("none.elf") && err.lines().count() == 1, "{err}");
 }
+
+/// `hvs view --scene --head qemu`: the page's live head is the firmware in QEMU; "look at the
+/// nearest object" turns it (joints within the limits), "home" brings it back.
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn view_runs_the_head_in_qemu() {
+    use crate::view::{head_until, joints_at_home, look, start};
+    assert_firmware_built();
+    let dir = crate::common::Scratch::new();
+    let m = crate::common::small_model(&dir);
+    let scene = crate::common::small_scene(&dir, "");
+    let sv = start(&["--model", &m, "--scene", &scene, "--head", "qemu"]);
+    let first = head_until(&sv.addr, "frames", |h| h["frames"].as_u64().unwrap() > 2);
+    assert!(joints_at_home(&first) && first["status"] == "idle", "{first}");
+    look(&sv.addr, r#"{"target":"nearest"}"#, 200);
+    let h = head_until(&sv.addr, "the head to turn", |h| !joints_at_home(h));
+    let limits = hvs_shared::runtime::gaze::GazeConfig::DEFAULT.limits;
+    let names = ["neck_pan", "neck_tilt", "eye_tilt", "left_eye_pan", "right_eye_pan"];
+    let j =
+        hvs_shared::runtime::gaze::Joints(names.map(|n| h["joints"][n].as_f64().unwrap() as f32));
+    assert!(limits.contains(&j), "{h}");
+    look(&sv.addr, r#"{"target":"home"}"#, 200);
+    head_until(&sv.addr, "the head at home", |h| joints_at_home(h) && h["moving"] == false);
+}

@@ -339,7 +339,7 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
 }
 
 /// Polls `GET /api/head` until `done` holds (60 s at most); the last state.
-fn head_until(addr: &str, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+pub fn head_until(addr: &str, what: &str, done: impl Fn(&Value) -> bool) -> Value {
     let t0 = Instant::now();
     loop {
         let h = json(addr, "GET", "/api/head", None, 200);
@@ -352,11 +352,11 @@ fn head_until(addr: &str, what: &str, done: impl Fn(&Value) -> bool) -> Value {
 }
 
 /// `POST /api/look` with `body`, answered with `want`.
-fn look(addr: &str, body: &str, want: u16) -> Value {
+pub fn look(addr: &str, body: &str, want: u16) -> Value {
     json(addr, "POST", "/api/look", Some(body), want)
 }
 
-fn joints_at_home(h: &Value) -> bool {
+pub fn joints_at_home(h: &Value) -> bool {
     h["joints"].as_object().unwrap().values().all(|v| v.as_f64() == Some(0.0))
 }
 
@@ -562,17 +562,23 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
     );
     assert!(err.contains("--listen"), "{err}");
     hvs().args(view(&[])).assert().code(2);
-    // A scene with a still pair is bad usage; the QEMU head is not there yet; a bad scene
-    // file is named.
+    // A scene with a still pair is bad usage; a bad scene file is named.
     let scene = f.shots.join("scene.json");
     std::fs::write(&scene, r#"{"rig": {"case": 1}, "camera_fps": 30, "objects": [], "wall": 1}"#)
         .unwrap();
     let sc = with(view(&[]), &["--scene", s(&scene)]);
     crate::common::stderr_with_code(with(sc.clone(), &["--left", &l, "--right", &r]), 2);
     let err = crate::common::stderr_with_code(with(sc.clone(), &["--head", "qemu"]), 1);
-    assert!(err.contains("--head qemu: not yet"), "{err}");
+    assert!(err.contains("scene.json") && err.contains("wall"), "{err}");
     let err = crate::common::stderr_with_code(sc, 1);
     assert!(err.contains("scene.json") && err.contains("wall"), "{err}");
+    // The QEMU head with a firmware that is not there: named, before QEMU is started.
+    let dir = crate::common::Scratch::new();
+    let good = crate::common::small_scene(&dir, "");
+    let none = dir.p("none.elf");
+    let qemu = with(view(&[]), &["--scene", &good, "--head", "qemu", "--firmware", &none]);
+    let err = crate::common::stderr_with_code(qemu, 1);
+    assert!(err.contains("none.elf"), "{err}");
     // Real cameras: a bad spec or size is bad usage; a real head is refused; a build without
     // the v4l feature says how to get one, a build with it names the missing device.
     let cams = |more: &[&str]| with(view(&["--listen", "127.0.0.1:0"]), more);
