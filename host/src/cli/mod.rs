@@ -345,6 +345,19 @@ pub enum HeadKind {
     Qemu,
 }
 
+/// `WxH` of `--camera-size`: two whole numbers from 16 to 8192.
+pub fn parse_camera_size(s: &str) -> Result<(u32, u32)> {
+    let parsed = s
+        .split_once(['x', 'X'])
+        .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
+    match parsed {
+        Some((w, h)) if (16..=8192).contains(&w) && (16..=8192).contains(&h) => Ok((w, h)),
+        _ => Err(crate::cli::usage(format!(
+            "--camera-size: expected WxH, two whole numbers from 16 to 8192 (e.g. 640x480), got {s:?}"
+        ))),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,11 +3,11 @@
 
 use crate::data::captures::{captures_csv, CaptureRow};
 use crate::data::output::{write_atomically, write_bytes};
-use crate::track::servo_head::{QemuHead, ServoHead};
-use crate::track::{self, frames::VirtualCameras, head_sim::VirtualHead, target::TargetMode};
+use crate::track::frames::FrameSource;
+use crate::track::servo_head::{self, parse_port, HeadChoice};
+use crate::track::{self, frames::VirtualCameras, target::TargetMode};
 use anyhow::{anyhow, Result};
 use hvs_shared::runtime::fixation::LoopConfig;
-use hvs_shared::runtime::trajectory::ControllerConfig;
 use hvs_shared::sim::posture::HeadRig;
 use std::path::PathBuf;
 
@@ -17,9 +17,21 @@ pub struct Args {
     /// The model (.hvsw): a stereo or posture-aware net.
     #[arg(long, value_name = "M.hvsw")]
     pub model: PathBuf,
-    /// The scene (JSON: rig, camera_fps, background, objects; see README).
-    #[arg(long, value_name = "SCENE.json")]
-    pub scene: PathBuf,
+    /// The scene (JSON: rig, camera_fps, background, objects; see README): the virtual cameras.
+    #[arg(long, value_name = "SCENE.json", required_unless_present = "cameras")]
+    pub scene: Option<PathBuf>,
+    /// Real cameras (`v4l:LEFT,RIGHT`, device paths or numbers; a build with the `v4l`
+    /// feature), on the head of --port.
+    #[arg(long, value_name = "v4l:A,B", conflicts_with = "scene", requires = "port")]
+    pub cameras: Option<String>,
+    /// With --cameras: their image size [default: the model's training images', else 640x480].
+    #[arg(long, value_name = "WxH", requires = "cameras")]
+    pub camera_size: Option<String>,
+    /// A head controller on a link: a real head's serial port (`/dev/ttyUSB0`,
+    /// `serial:PATH[@BAUD]`) or `tcp:HOST:PORT` (e.g. `hvs emulate`'s QEMU), moved with
+    /// posture commands (protocol 3).
+    #[arg(long, value_name = "PATH")]
+    pub port: Option<String>,
     /// Simulated time (s).
     #[arg(long, value_name = "S")]
     pub seconds: f64,
@@ -72,6 +84,10 @@ fn parse_target(s: &str) -> Result<TargetMode> {
     }
 }
 
+/// Frames per second the loop asks real cameras for (they give what they give; the loop runs
+/// on the head's clock).
+const REAL_CAMERA_FPS: f64 = 30.0;
+
 /// `hvs track`.
 pub fn run(a: Args) -> Result<()> {
     if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
@@ -93,17 +109,57 @@ pub fn run(a: Args) -> Result<()> {
         )));
     }
     let target = parse_target(&a.target)?;
-    let mut inputs = vec![("--model", a.model.as_path()), ("--scene", a.scene.as_path())];
+    let choice = match (&a.port, a.head) {
+        (Some(_), super::HeadKind::Qemu) => {
+            return Err(crate::cli::usage("--port and --head qemu: give one head"));
+        }
+        (Some(p), _) => {
+            HeadChoice::Port(parse_port(p).map_err(|e| crate::cli::usage(format!("{e:#}")))?)
+        }
+        (None, super::HeadKind::Qemu) => HeadChoice::Qemu(a.firmware.clone()),
+        (None, super::HeadKind::Emulate) => HeadChoice::Emulate,
+    };
+    let spec = a
+        .cameras
+        .as_deref()
+        .map(crate::track::cameras::CameraSpec::parse)
+        .transpose()
+        .map_err(|e| crate::cli::usage(e.to_string()))?;
+    let camera_size = a.camera_size.as_deref().map(crate::cli::parse_camera_size).transpose()?;
+    let mut inputs = vec![("--model", a.model.as_path())];
+    if let Some(scene) = &a.scene {
+        inputs.push(("--scene", scene.as_path()));
+    }
     crate::data::output::check_outputs(&[("--log", a.log.as_path())], &inputs)?;
     if let Some(dir) = &a.record {
         crate::data::output::check_dir_output("--record", dir)?;
         inputs.push(("--log", a.log.as_path()));
     }
     let model = crate::data::model::load(&a.model)?;
+    let blob = model.blob.clone();
     let estimator =
         track::estimator_of(model.blob).map_err(|e| anyhow!("{}: {e}", a.model.display()))?;
-    let loaded = track::scene_file::load(&a.scene)?;
-    let (w, h) = (loaded.rig.width, loaded.rig.height);
+    // The frames: the virtual cameras of a scene, or real ones.
+    let (mut cameras, (w, h), fps, loop_cfg): (Box<dyn FrameSource>, _, _, _) =
+        match (&a.scene, &spec) {
+            (Some(scene), _) => {
+                let loaded = track::scene_file::load(scene)?;
+                let size = (loaded.rig.width, loaded.rig.height);
+                let loop_cfg = track::loop_config(&loaded.rig, a.correction_gain);
+                let fps = loaded.scene.camera_fps;
+                let opt = track::frames::loop_render_options();
+                let cams = VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, opt, a.seed);
+                (Box::new(cams), size, fps, loop_cfg)
+            }
+            (None, Some(spec)) => {
+                let size = camera_size
+                    .or_else(|| blob.image_size().map(|(w, h)| (w.into(), h.into())))
+                    .unwrap_or((640, 480));
+                let loop_cfg = track::loop_config_for_cameras(&blob, size, a.correction_gain);
+                (track::cameras::open(spec, size)?, size, REAL_CAMERA_FPS, loop_cfg)
+            }
+            (None, None) => return Err(crate::cli::usage("give --scene or --cameras")),
+        };
     if let TargetMode::Pixel([u, v]) = target {
         if !(u >= 0.0 && v >= 0.0 && u <= f64::from(w) - 1.0 && v <= f64::from(h) - 1.0) {
             return Err(crate::cli::usage(format!(
@@ -113,24 +169,16 @@ pub fn run(a: Args) -> Result<()> {
     }
     let cfg = track::TrackConfig {
         seconds: a.seconds,
-        fps: loaded.scene.camera_fps,
+        fps,
         target,
-        loop_cfg: LoopConfig {
-            lead_frames: a.lead_frames,
-            ..track::loop_config(&loaded.rig, a.correction_gain)
-        },
+        loop_cfg: LoopConfig { lead_frames: a.lead_frames, ..loop_cfg },
     };
-    let opt = track::frames::loop_render_options();
-    let mut cameras = VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, opt, a.seed);
-    let mut head: Box<dyn ServoHead> = match a.head {
-        super::HeadKind::Emulate => Box::new(VirtualHead::new(&ControllerConfig::DEFAULT)?),
-        super::HeadKind::Qemu => Box::new(QemuHead::boot(&a.model, a.firmware.as_deref())?),
-    };
+    let mut head = servo_head::open(&choice, &a.model)?;
     let stop = track::stop_on_interrupt();
     let mut recorded = Vec::new();
     let mut times = Vec::new();
     let record = a.record.is_some();
-    let rows = track::run(&mut cameras, &mut *head, &estimator, &cfg, stop, |frame, row, t| {
+    let rows = track::run(&mut *cameras, &mut *head, &estimator, &cfg, stop, |frame, row, t| {
         times.push(t);
         if record {
             recorded.push((

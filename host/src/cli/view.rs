@@ -53,10 +53,11 @@ pub struct Args {
     /// size when it records one, else 640x480).
     #[arg(long, value_name = "WxH", requires = "cameras")]
     pub camera_size: Option<String>,
-    /// With --cameras: the head's serial port (not supported yet: the head cannot report its
-    /// joints over the protocol).
+    /// With --cameras: the head they stand on, a head controller on a link (a serial port
+    /// `/dev/ttyUSB0`, `serial:PATH[@BAUD]`, or `tcp:HOST:PORT`), moved with posture commands
+    /// (protocol 3): "look" then turns it.
     #[arg(long, value_name = "PATH", requires = "cameras")]
-    pub port: Option<PathBuf>,
+    pub port: Option<String>,
     /// With --scene, the head: `emulate` (the head's logic on the host) or `qemu` (the head
     /// firmware in QEMU, moved with posture commands).
     #[arg(long, value_enum, default_value = "emulate", requires = "scene")]
@@ -86,12 +87,6 @@ pub fn run(a: Args) -> Result<()> {
     if a.restarts == 0 {
         bail!("--restarts must be at least 1");
     }
-    if a.port.is_some() {
-        bail!(
-            "--port: hvs view cannot drive a real head yet (the head's protocol does not report \
-             its joints); leave --port out to view the cameras on no head"
-        );
-    }
     let source = match (a.left, a.right, a.board, a.captures, a.scene, a.cameras) {
         (Some(left), Some(right), None, None, None, None) => Source::Pair { left, right },
         (None, None, Some(board), Some(captures), None, None) => {
@@ -105,7 +100,13 @@ pub fn run(a: Args) -> Result<()> {
         (None, None, None, None, None, Some(cameras)) => Source::Cameras {
             spec: crate::track::cameras::CameraSpec::parse(&cameras)
                 .map_err(|e| crate::cli::usage(e.to_string()))?,
-            size: a.camera_size.as_deref().map(parse_size).transpose()?,
+            size: a.camera_size.as_deref().map(crate::cli::parse_camera_size).transpose()?,
+            port: a
+                .port
+                .as_deref()
+                .map(crate::track::servo_head::parse_port)
+                .transpose()
+                .map_err(|e| crate::cli::usage(format!("{e:#}")))?,
         },
         _ => bail!(
             "give --left L --right R, --board BOARD.json --captures CAPTURES.csv, --scene \
@@ -117,27 +118,14 @@ pub fn run(a: Args) -> Result<()> {
     serve(session, listen, |url| crate::cli::say(format_args!("hvs view: serving {url}")))
 }
 
-/// `WxH` of `--camera-size`: two whole numbers from 16 to 8192.
-fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let parsed = s
-        .split_once(['x', 'X'])
-        .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
-    match parsed {
-        Some((w, h)) if (16..=8192).contains(&w) && (16..=8192).contains(&h) => Ok((w, h)),
-        _ => Err(crate::cli::usage(format!(
-            "--camera-size: expected WxH, two whole numbers from 16 to 8192 (e.g. 640x480), got {s:?}"
-        ))),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     #[test]
     fn camera_sizes_are_parsed_and_checked() {
-        assert_eq!(super::parse_size("640x480").unwrap(), (640, 480));
-        assert_eq!(super::parse_size("1280X720").unwrap(), (1280, 720));
+        assert_eq!(crate::cli::parse_camera_size("640x480").unwrap(), (640, 480));
+        assert_eq!(crate::cli::parse_camera_size("1280X720").unwrap(), (1280, 720));
         for bad in ["640", "640x", "x480", "-640x480", "8x8", "640x480x3", "99999x10"] {
-            let e = super::parse_size(bad).unwrap_err().to_string();
+            let e = crate::cli::parse_camera_size(bad).unwrap_err().to_string();
             assert!(e.starts_with("--camera-size"), "{bad}: {e}");
         }
     }

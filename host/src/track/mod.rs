@@ -270,6 +270,25 @@ pub fn loop_config(rig: &hvs_shared::sim::camera::Rig, gain: f32) -> LoopConfig 
     }
 }
 
+/// The loop's settings for real cameras, whose parameters nobody measured: the image
+/// correction converts pixels to angles with the model's own fallback calibration (`Phi`
+/// learned from the board, the principal point given at training), else the thesis' Phi
+/// scaled to the image width and the image centre.
+pub fn loop_config_for_cameras(
+    blob: &hvs_shared::runtime::blob::ModelBlob,
+    size: (u32, u32),
+    gain: f32,
+) -> LoopConfig {
+    let (centre_px, phi) = match &blob.fallback {
+        Some(c) => ([c.u0, c.v0], c.phi),
+        None => (
+            [size.0 as f32 / 2.0, size.1 as f32 / 2.0],
+            LoopConfig::DEFAULT.focal_px[0] * size.0 as f32 / 640.0,
+        ),
+    };
+    LoopConfig { centre_px, focal_px: [phi; 4], gain, ..LoopConfig::DEFAULT }
+}
+
 static STOP: AtomicBool = AtomicBool::new(false);
 
 #[cfg(unix)]

@@ -218,3 +218,41 @@ impl ServoHead for QemuHead {
         self.head.frame_time(t_s)
     }
 }
+
+/// Which head the loop runs on.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum HeadChoice {
+    /// The head's logic on the host, on a simulated clock ([`VirtualHead`]).
+    Emulate,
+    /// The head firmware in QEMU ([`QemuHead`]; `None`: the default firmware path).
+    Qemu(Option<std::path::PathBuf>),
+    /// A head controller on a link ([`RemoteHead`]): a real head's serial port, or
+    /// `tcp:HOST:PORT` (e.g. `hvs emulate`'s QEMU).
+    Port(crate::device::link::Endpoint),
+}
+
+/// `--port`'s value: `tcp:HOST:PORT`, `serial:PATH[@BAUD]`, or a bare serial port path (at the
+/// protocol's baud rate).
+pub fn parse_port(s: &str) -> Result<crate::device::link::Endpoint> {
+    use crate::device::link::Endpoint;
+    if s.starts_with("tcp:") || s.starts_with("serial:") {
+        return s.parse();
+    }
+    if s.is_empty() {
+        bail!("--port: empty");
+    }
+    Ok(Endpoint::Serial { path: s.to_string(), baud: hvs_shared::runtime::protocol::BAUD_RATE })
+}
+
+/// Opens the head of `choice` (`model`: the model QEMU boots with).
+pub fn open(choice: &HeadChoice, model: &std::path::Path) -> Result<Box<dyn ServoHead + Send>> {
+    let control = hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT;
+    Ok(match choice {
+        HeadChoice::Emulate => Box::new(VirtualHead::new(&control)?),
+        HeadChoice::Qemu(firmware) => Box::new(QemuHead::boot(model, firmware.as_deref())?),
+        HeadChoice::Port(endpoint) => {
+            let link = client::connect(endpoint, Duration::from_secs(10))?;
+            Box::new(RemoteHead::new(link, control.control_hz)?)
+        }
+    })
+}

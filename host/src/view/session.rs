@@ -59,6 +59,8 @@ pub enum Source {
         spec: track::cameras::CameraSpec,
         /// Their image size (`None`: the model's, else 640 x 480).
         size: Option<(u32, u32)>,
+        /// The head they stand on (`--port`), or `None`: no head.
+        port: Option<crate::device::link::Endpoint>,
     },
 }
 
@@ -246,16 +248,30 @@ impl Session {
                     Some(live),
                 )
             }
-            Source::Cameras { spec, size } => {
+            Source::Cameras { spec, size, port } => {
                 let estimator = track::estimator_of(model.blob.clone())
                     .map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
                 let size = size
                     .or_else(|| model.blob.image_size().map(|(w, h)| (w.into(), h.into())))
                     .unwrap_or(DEFAULT_CAMERA_SIZE);
                 let cameras = track::cameras::open(spec, size)?;
-                // No head: the cameras stay where they are (the home posture); frames as fast
-                // as the cameras give them.
-                let live = LiveHead::start(cameras, size, estimator, None, 240.0)?;
+                // With no head the cameras stay where they are (the home posture); frames as
+                // fast as the cameras give them.
+                let head = match port {
+                    Some(p) => Some((
+                        track::servo_head::open(
+                            &track::servo_head::HeadChoice::Port(p.clone()),
+                            model_path,
+                        )?,
+                        track::loop_config_for_cameras(
+                            &model.blob,
+                            size,
+                            track::DEFAULT_CORRECTION_GAIN,
+                        ),
+                    )),
+                    None => None,
+                };
+                let live = LiveHead::start(cameras, size, estimator, head, 240.0)?;
                 let name = format!("cameras: {} | {}", spec.left.display(), spec.right.display());
                 (
                     live.clone() as Arc<dyn PairStore>,

@@ -262,17 +262,7 @@ fn track_moves_the_head_in_qemu_with_posture_commands() {
     assert_firmware_built();
     let dir = crate::common::Scratch::new();
     let m = crate::common::small_model(&dir);
-    let scene = crate::common::small_scene(&dir, "").replace("scene.json", "still.json");
-    // A still sphere, larger and off the axis.
-    let still = std::fs::read_to_string(dir.p("scene.json"))
-        .unwrap()
-        .replace("[5, 0, 0]", "[0, 0, 0]")
-        .replace(
-            r#""radius_cm": 8, "centre_cm": [10, -5, 90]"#,
-            r#""radius_cm": 20, "centre_cm": [15, -5, 90]"#,
-        );
-    assert!(still.contains("[0, 0, 0]") && still.contains(r#""radius_cm": 20"#));
-    std::fs::write(&scene, still).unwrap();
+    let scene = big_still_scene(&dir);
     let (q, e) = (dir.p("qemu.csv"), dir.p("emulate.csv"));
     let args = |log: &str, head: &str| {
         [
@@ -366,4 +356,62 @@ fn view_runs_the_head_in_qemu() {
     assert!(limits.contains(&j), "{h}");
     look(&sv.addr, r#"{"target":"home"}"#, 200);
     head_until(&sv.addr, "the head at home", |h| joints_at_home(h) && h["moving"] == false);
+}
+
+/// `hvs track --port tcp:...`: the loop drives a head controller on a link (here `hvs emulate`'s
+/// QEMU, as a real head on a serial port) with virtual cameras: the head turns to the object,
+/// every joint within the limits.
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
+fn track_drives_a_head_on_a_port() {
+    use hvs_shared::runtime::gaze::{GazeConfig, Joints};
+    assert_firmware_built();
+    let dir = crate::common::Scratch::new();
+    let m = crate::common::small_model(&dir);
+    let scene = big_still_scene(&dir);
+    let d = TempDir::new().unwrap();
+    let (_emu, connect) = emulate(Path::new(&m), d.path());
+    once_it_answers(&connect, &["info"]);
+    let log = dir.p("port.csv");
+    run(&[
+        "track",
+        "--model",
+        &m,
+        "--scene",
+        &scene,
+        "--seconds",
+        "1",
+        "--log",
+        &log,
+        "--port",
+        &connect,
+    ]);
+    let text = std::fs::read_to_string(&log).unwrap();
+    let limits = GazeConfig::DEFAULT.limits;
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').skip(10).take(5).map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 30, "{text}");
+    for j in &rows {
+        assert!(limits.contains(&Joints(std::array::from_fn(|i| j[i] as f32))), "{j:?}");
+    }
+    assert!(rows.iter().any(|j| j.iter().any(|a| *a != 0.0)), "the head turned:\n{text}");
+}
+
+/// The small rig's scene with its sphere still, larger (20 cm) and off the axis: the nearest
+/// object the small model's loop can hold.
+fn big_still_scene(dir: &crate::common::Scratch) -> String {
+    let scene = crate::common::small_scene(dir, "").replace("scene.json", "still.json");
+    let still = std::fs::read_to_string(dir.p("scene.json"))
+        .unwrap()
+        .replace("[5, 0, 0]", "[0, 0, 0]")
+        .replace(
+            r#""radius_cm": 8, "centre_cm": [10, -5, 90]"#,
+            r#""radius_cm": 20, "centre_cm": [15, -5, 90]"#,
+        );
+    assert!(still.contains("[0, 0, 0]") && still.contains(r#""radius_cm": 20"#));
+    std::fs::write(&scene, still).unwrap();
+    scene
 }

@@ -113,5 +113,22 @@ fn track_refuses_bad_input_with_one_clear_line() {
     .map(String::from)
     .collect();
     usage(v, "outside the 160x120 left image");
+    // Heads and cameras: one head; real cameras need a head's port; a port that is not
+    // there is named; a build without V4L2 says how to get one.
+    let with = |more: &[&str]| {
+        let mut v: Vec<String> = ["track", "--model", &good, "--seconds", "0.1", "--log", &log]
+            .map(String::from)
+            .to_vec();
+        v.extend(more.iter().map(|s| s.to_string()));
+        v
+    };
+    let e = stderr_with_code(with(&["--scene", &sc, "--port", "/dev/none", "--head", "qemu"]), 2);
+    assert!(e.contains("--port and --head qemu"), "{e}");
+    stderr_with_code(with(&["--cameras", "v4l:0,1"]), 2);
+    stderr_with_code(with(&["--scene", &sc, "--cameras", "v4l:0,1", "--port", "/dev/x"]), 2);
+    run(with(&["--scene", &sc, "--port", "/dev/hvs-no-such-port"]), "/dev/hvs-no-such-port");
+    if !cfg!(feature = "v4l") {
+        run(with(&["--cameras", "v4l:0,1", "--port", "/dev/x"]), "--features v4l");
+    }
     assert!(fs::metadata(&log).is_err(), "no log written on refusal");
 }
