@@ -3,7 +3,7 @@
 //! whole board is a capture with the five joints the head reports.
 //!
 //! The steps, each its own function so the CLI, the viewer and the tests share them:
-//! - [`visit`]: the head's moves on the control clock ([`VirtualHead`], the trajectories the
+//! - [`visit`]: the head's moves on the control clock (any [`ServoHead`], the trajectories the
 //!   firmware runs): command the posture, wait until the servos have settled (the controller
 //!   says the move is over, then [`Plan::settle_s`] more), read the joints.
 //! - [`board_in_view`]: whether the whole board (its outer squares included) projects inside
@@ -20,7 +20,8 @@
 use crate::data::captures::CaptureRow;
 use crate::data::positions::Placement;
 use crate::track::frames::mix;
-use crate::track::head_sim::VirtualHead;
+use crate::track::frames::FrameSource;
+use crate::track::servo_head::ServoHead;
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::posture::HeadRig;
@@ -70,29 +71,70 @@ pub struct Stop {
 
 /// Drives `head` through every posture at every placement (placement-major), waiting for the
 /// servos to settle at each. Errors if a move does not end within [`MOVE_TIMEOUT_S`].
-pub fn visit(head: &mut VirtualHead, plan: &Plan) -> Result<Vec<Stop>> {
-    if !(plan.settle_s.is_finite() && (0.0..=60.0).contains(&plan.settle_s)) {
-        bail!("the settle time must be 0 to 60 s, got {}", plan.settle_s);
-    }
-    let dt = 1.0 / f64::from(head.control_hz());
+pub fn visit(head: &mut dyn ServoHead, plan: &Plan) -> Result<Vec<Stop>> {
     let mut stops = Vec::with_capacity(plan.placements.len() * plan.postures.len());
     for placement in 0..plan.placements.len() {
-        for (posture, goal) in plan.postures.iter().enumerate() {
-            head.command(goal);
-            let start = head.time_s();
-            // At least one tick: the command is taken at the next control tick.
-            head.advance_to(head.time_s() + dt)?;
-            while head.is_moving() {
-                if head.time_s() - start > MOVE_TIMEOUT_S {
-                    bail!("the head did not reach posture {:?} within {MOVE_TIMEOUT_S} s", goal.0);
-                }
-                head.advance_to(head.time_s() + dt)?;
-            }
-            head.advance_to(head.time_s() + plan.settle_s)?;
-            stops.push(Stop { placement, posture, t_s: head.time_s(), joints: head.joints() });
+        for posture in 0..plan.postures.len() {
+            stops.push(stop_at(head, plan, placement, posture)?);
         }
     }
     Ok(stops)
+}
+
+/// Moves `head` to posture `posture` of `plan`, waits until the move has ended and
+/// [`Plan::settle_s`] more, and reads its joints.
+pub fn stop_at(
+    head: &mut dyn ServoHead,
+    plan: &Plan,
+    placement: usize,
+    posture: usize,
+) -> Result<Stop> {
+    if !(plan.settle_s.is_finite() && (0.0..=60.0).contains(&plan.settle_s)) {
+        bail!("the settle time must be 0 to 60 s, got {}", plan.settle_s);
+    }
+    let goal = &plan.postures[posture];
+    let dt = 1.0 / f64::from(head.control_hz().max(1));
+    head.command(goal)?;
+    let start = head.time_s();
+    // At least one tick: the command is taken at the next control tick.
+    head.advance_to(head.time_s() + dt)?;
+    while head.is_moving() {
+        if head.time_s() - start > MOVE_TIMEOUT_S {
+            bail!("the head did not reach posture {:?} within {MOVE_TIMEOUT_S} s", goal.0);
+        }
+        head.advance_to(head.time_s() + dt)?;
+    }
+    head.advance_to(head.time_s() + plan.settle_s)?;
+    Ok(Stop { placement, posture, t_s: head.time_s(), joints: head.joints() })
+}
+
+/// Cameras on a head (real ones, or any [`FrameSource`]): at placement `placement`, visits
+/// every posture ([`stop_at`]), grabs a pair there and keeps it when the whole board is
+/// detected in both images ([`hvs_vision::detect::detect_pair`]); `on_pair` gets each kept
+/// stop with its pair (to write it at once) and the count of postures skipped comes back.
+pub fn visit_with_cameras(
+    head: &mut dyn ServoHead,
+    cameras: &mut dyn FrameSource,
+    plan: &Plan,
+    placement: usize,
+    mut on_pair: impl FnMut(&Stop, &[GrayImage; 2]) -> Result<()>,
+) -> Result<usize> {
+    let mut skipped = 0;
+    for posture in 0..plan.postures.len() {
+        let stop = stop_at(head, plan, placement, posture)?;
+        let frame = cameras.grab(stop.t_s, &stop.joints)?;
+        match hvs_vision::detect::detect_pair(&frame.left, &frame.right, &plan.board) {
+            Ok(_) => on_pair(&stop, &[frame.left, frame.right])?,
+            Err(_) => skipped += 1,
+        }
+    }
+    Ok(skipped)
+}
+
+/// How many of the board's corners each image of a pair shows (what the user watches while
+/// placing the board): `[left, right]`, 0 where the board is not found whole.
+pub fn corners_seen(left: &GrayImage, right: &GrayImage, board: &Board) -> [usize; 2] {
+    [left, right].map(|img| hvs_vision::detect::detect(img, board).map_or(0, |c| c.points.len()))
 }
 
 /// The board's outline points in the head frame: its inner corners and the outer corners of
@@ -204,6 +246,7 @@ pub fn captures_csv(plan: &Plan, captured: &[Stop]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::track::head_sim::VirtualHead;
     use hvs_shared::runtime::trajectory::ControllerConfig;
     use hvs_shared::sim::presets;
 
@@ -279,6 +322,42 @@ mod tests {
         let away = Stop { joints: Joints([30.0, 0.0, 0.0, 0.0, 0.0]), ..stop };
         p.placements[0].xyz = [0.0, 0.0, 40.0];
         assert!(matches!(capture(&head, &clear, &p, &away).unwrap(), Shot::OutOfView));
+    }
+
+    /// Cameras on a head (here the virtual ones, as a real head's would be used): the pairs
+    /// where both cameras find the whole board are kept with the joints the head reported,
+    /// the one turned away is skipped.
+    #[test]
+    fn cameras_on_a_head_keep_the_pairs_that_show_the_whole_board() {
+        let rig = presets::case(3).unwrap();
+        let postures = vec![
+            Joints::HOME,
+            Joints([3.06, -1.98, 0.0, 1.08, 1.08]),
+            Joints([30.0, 0.0, 0.0, 0.0, 0.0]),
+        ];
+        let mut p = plan(postures);
+        p.placements.truncate(1);
+        p.placements[0].xyz = [0.0, 0.0, 60.0];
+        let scene = hvs_vision::scene::SceneFile::parse(
+            r#"{"rig": {"case": 3}, "camera_fps": 30, "background": {"z_cm": 300, "texture_seed": 3}}"#,
+        )
+        .unwrap()
+        .scene()
+        .unwrap();
+        let scene = with_board(&scene, &p.board, p.placements[0].xyz).unwrap();
+        let opt = crate::track::frames::loop_render_options();
+        let mut cams = crate::track::frames::VirtualCameras::new(HeadRig::new(rig), scene, opt, 1);
+        let mut head = VirtualHead::new(&ControllerConfig::DEFAULT).unwrap();
+        let mut kept = Vec::new();
+        let skipped = visit_with_cameras(&mut head, &mut cams, &p, 0, |stop, pair| {
+            assert_eq!(corners_seen(&pair[0], &pair[1], &p.board), [54, 54]);
+            kept.push(*stop);
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!((kept.len(), skipped), (2, 1));
+        assert_eq!(kept.iter().map(|s| s.posture).collect::<Vec<_>>(), [0, 1]);
+        assert_eq!(kept[1].joints.0, p.postures[1].0.map(hvs_shared::runtime::gaze::quantize));
     }
 
     #[test]

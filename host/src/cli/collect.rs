@@ -43,12 +43,17 @@ pub struct Args {
     /// added at each position).
     #[arg(long, value_name = "SCENE.json", conflicts_with_all = ["port", "cameras"])]
     pub scene: Option<PathBuf>,
-    /// A real head: its serial port.
+    /// A real head: its serial port (`/dev/ttyUSB0`, `serial:PATH[@BAUD]`, or `tcp:HOST:PORT`),
+    /// moved with posture commands (protocol 3).
     #[arg(long, value_name = "PATH", requires = "cameras")]
-    pub port: Option<PathBuf>,
-    /// A real head: its two cameras, v4l:LEFT,RIGHT (device numbers or paths).
+    pub port: Option<String>,
+    /// A real head: its two cameras, v4l:LEFT,RIGHT (device numbers or paths; a build with
+    /// the `v4l` feature).
     #[arg(long, value_name = "v4l:A,B", requires = "port")]
     pub cameras: Option<String>,
+    /// With --cameras: their image size [default: 640x480].
+    #[arg(long, value_name = "WxH", requires = "cameras")]
+    pub camera_size: Option<String>,
     /// Output folder (created if missing): the images, CAPTURES.csv and board.json.
     #[arg(short = 'o', long, value_name = "DIR")]
     pub output: PathBuf,
@@ -72,11 +77,8 @@ enum Outcome {
 /// `hvs collect`.
 pub fn run(a: Args) -> Result<()> {
     let Some(scene_path) = &a.scene else {
-        if a.port.is_some() {
-            bail!(
-                "--port/--cameras: collecting with a real head needs the head to take posture \
-                 commands, which its protocol has not yet; collect with the virtual head (--scene)"
-            );
+        if let (Some(port), Some(cameras)) = (&a.port, &a.cameras) {
+            return run_real_head(&a, port, cameras);
         }
         return Err(usage(
             "choose the head: --scene SCENE.json (virtual) or --port PATH --cameras v4l:A,B",
@@ -180,4 +182,107 @@ pub fn run(a: Args) -> Result<()> {
         head.time_s()
     );
     Ok(())
+}
+
+/// `hvs collect --port PATH --cameras v4l:A,B`: a real head. At each placement the user is
+/// asked to place the board (the corners both cameras see are counted live) and to press
+/// Enter; the head then visits the postures and every pair in which both cameras find the
+/// whole board is written at once.
+fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
+    use crate::track::servo_head::{self, HeadChoice};
+    let endpoint = servo_head::parse_port(port).map_err(|e| usage(format!("{e:#}")))?;
+    let spec =
+        crate::track::cameras::CameraSpec::parse(cameras).map_err(|e| usage(e.to_string()))?;
+    let size =
+        a.camera_size.as_deref().map(super::parse_camera_size).transpose()?.unwrap_or((640, 480));
+    check_dir_output("-o", &a.output)?;
+    let inputs: [(&str, &Path); 2] = [("--board", &a.board), ("--positions", &a.positions)];
+    if a.output.is_dir() {
+        for name in ["CAPTURES.csv", "board.json"] {
+            check_not_input("-o", &a.output.join(name), &inputs)?;
+        }
+    }
+    let board = Board::from_path(&a.board).map_err(|e| anyhow!("{e}"))?;
+    let placements = crate::data::positions::read(&a.positions)?;
+    let postures = a
+        .postures
+        .postures(a.seed)?
+        .ok_or_else(|| usage("choose the postures: --postures grid, lattice or random"))?;
+    let mut cams = crate::track::cameras::open(&spec, size)?;
+    let mut head = servo_head::open(&HeadChoice::Port(endpoint), Path::new(""))?;
+    let plan = Plan {
+        render: a.camera.options(board.square_cm, 4)?,
+        board,
+        placements,
+        postures,
+        seed: a.seed,
+        settle_s: a.settle_ms as f64 / 1000.0,
+    };
+    std::fs::create_dir_all(&a.output)
+        .map_err(|e| anyhow!("-o {}: cannot create the folder: {e}", a.output.display()))?;
+    let (mut captured, mut skipped) = (Vec::<Stop>::new(), 0usize);
+    for (k, p) in plan.placements.iter().enumerate() {
+        wait_for_board(&mut *cams, &*head, &plan.board, p.xyz, k + 1, plan.placements.len())?;
+        skipped += collect::visit_with_cameras(&mut *head, &mut *cams, &plan, k, |stop, pair| {
+            let [l, r] = collect::image_names(stop);
+            write_bytes(&a.output.join(l), &png_bytes(&pair[0])?)?;
+            write_bytes(&a.output.join(r), &png_bytes(&pair[1])?)?;
+            captured.push(*stop);
+            eprint!("\r  {} pairs", captured.len());
+            Ok(())
+        })?;
+        eprintln!();
+    }
+    if captured.is_empty() {
+        bail!("no posture saw the whole board with both cameras ({skipped} postures skipped)");
+    }
+    write_bytes(&a.output.join("board.json"), plan.board.to_json().as_bytes())?;
+    write_bytes(
+        &a.output.join("CAPTURES.csv"),
+        collect::captures_csv(&plan, &captured).as_bytes(),
+    )?;
+    eprintln!(
+        "collected {} pairs into {} ({} placements x {} postures; skipped {skipped} where a camera did not find the whole board)",
+        captured.len(),
+        a.output.display(),
+        plan.placements.len(),
+        plan.postures.len()
+    );
+    Ok(())
+}
+
+/// Asks the user to place the board at `xyz` and press Enter, showing meanwhile how many of
+/// its corners each camera finds.
+fn wait_for_board(
+    cams: &mut dyn crate::track::frames::FrameSource,
+    head: &dyn crate::track::servo_head::ServoHead,
+    board: &Board,
+    xyz: [f64; 3],
+    k: usize,
+    n: usize,
+) -> Result<()> {
+    use std::sync::mpsc::{channel, TryRecvError};
+    eprintln!(
+        "placement {k} of {n}: put the board's centre at x = {}, y = {}, z = {} cm (upright, facing the head), then press Enter",
+        xyz[0], xyz[1], xyz[2]
+    );
+    let (tx, rx) = channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = tx.send(std::io::stdin().read_line(&mut line));
+    });
+    let all = (board.cols * board.rows) as usize;
+    loop {
+        match rx.try_recv() {
+            Ok(Ok(0)) | Err(TryRecvError::Disconnected) => {
+                bail!("standard input closed before the board was placed (placement {k})")
+            }
+            Ok(Ok(_)) => return Ok(()),
+            Ok(Err(e)) => bail!("reading standard input: {e}"),
+            Err(TryRecvError::Empty) => {}
+        }
+        let f = cams.grab(head.time_s(), &head.joints())?;
+        let [l, r] = collect::corners_seen(&f.left, &f.right, board);
+        eprint!("\r  corners seen: left {l}/{all}, right {r}/{all}   ");
+    }
 }

@@ -24,6 +24,8 @@ pub trait ServoHead {
     fn is_moving(&self) -> bool;
     /// The head's clock (s since the loop started).
     fn time_s(&self) -> f64;
+    /// Control ticks per second of the head's clock.
+    fn control_hz(&self) -> u32;
     /// The time a frame taken now is at: the asked `t_s` on a simulated clock, the head's
     /// own clock for a head that runs on its own.
     fn frame_time(&self, t_s: f64) -> f64 {
@@ -47,6 +49,9 @@ impl ServoHead for VirtualHead {
     }
     fn time_s(&self) -> f64 {
         VirtualHead::time_s(self)
+    }
+    fn control_hz(&self) -> u32 {
+        VirtualHead::control_hz(self)
     }
 }
 
@@ -159,6 +164,10 @@ impl ServoHead for RemoteHead {
         self.elapsed_s(&self.state)
     }
 
+    fn control_hz(&self) -> u32 {
+        self.hz
+    }
+
     fn frame_time(&self, _t_s: f64) -> f64 {
         self.time_s()
     }
@@ -213,6 +222,9 @@ impl ServoHead for QemuHead {
     }
     fn time_s(&self) -> f64 {
         self.head.time_s()
+    }
+    fn control_hz(&self) -> u32 {
+        self.head.control_hz()
     }
     fn frame_time(&self, t_s: f64) -> f64 {
         self.head.frame_time(t_s)

@@ -110,8 +110,18 @@ fn collect_refuses_bad_input_naming_it() {
         assert!(e.contains(want), "{e}");
     };
     usage(&["--postures", "grid"], "--scene");
-    run(&["--postures", "grid", "--port", "/dev/null", "--cameras", "v4l:0,1"], "posture commands");
+    // A real head: the same input checks, then the cameras (a build without V4L2 says how
+    // to get them; a head port that is not there is named).
+    let real = ["--postures", "grid", "--port", "/dev/hvs-no-port", "--cameras", "v4l:0,1"];
+    run(&real, "positions.csv:3");
+    usage(&["--postures", "grid", "--port", "/dev/hvs-no-port"], "--cameras");
     fs::write(&p, "x,y,z\n0,0,70\n").unwrap();
+    let e = run(&real, "");
+    assert!(
+        e.contains("--features v4l") || e.contains("/dev/video0") || e.contains("/dev/hvs-no-port"),
+        "{e}"
+    );
+    assert!(!std::path::Path::new(&out).join("CAPTURES.csv").exists());
     usage(&["--scene", &s], "--postures");
     run(&["--postures", "grid", "--posture-levels", "3,3", "--scene", &s], "five counts");
     // A board far out to the side: no posture sees it, and nothing is written.
