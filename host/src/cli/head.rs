@@ -2,7 +2,8 @@
 //!
 //! Subcommands: `ping`, `info`, `estimate --points FILE.csv` (prints
 //! `u_l,v_l,u_r,v_r,x,y,z,source,in_range`, floats in shortest round-trip form so the bits can
-//! be compared with host inference), `look U_L V_L U_R V_R`, `home`, `bench`.
+//! be compared with host inference), `look U_L V_L U_R V_R`, `home`, `posture A,B,C,D,E`,
+//! `state`, `bench`.
 
 use crate::data::csv::read_stereo_points;
 use crate::data::output::check_not_input;
@@ -10,7 +11,7 @@ use crate::data::output::write_bytes;
 use crate::device::client::{connect, error_text, estimate_row, expect, write_info};
 use crate::device::link::Endpoint;
 use anyhow::{bail, Result};
-use hvs_shared::runtime::protocol::{RequestBody, ResponseBody, StereoPoint};
+use hvs_shared::runtime::protocol::{Joints, RequestBody, ResponseBody, StateData, StereoPoint};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -84,6 +85,16 @@ pub enum HeadCommand {
     },
     /// Move every axis to its home position.
     Home,
+    /// Move the head to these joint angles (degrees, in the order neck_pan, neck_tilt,
+    /// eye_tilt, left_eye_pan, right_eye_pan; each clamped to its limits by the head; `nan`
+    /// keeps that axis' goal). Prints the state the head answers with. Protocol 3.
+    Posture {
+        /// Five angles, NECK_PAN,NECK_TILT,EYE_TILT,LEFT_EYE_PAN,RIGHT_EYE_PAN (degrees).
+        #[arg(allow_hyphen_values = true, value_name = "A,B,C,D,E")]
+        joints: String,
+    },
+    /// Where the head is: its joints, the current move's goal, its clock. Protocol 3.
+    State,
     /// Instructions per inference (firmware built with `--features bench`, under QEMU with
     /// `-icount shift=0`).
     Bench {
@@ -246,6 +257,21 @@ pub fn run(args: &Args) -> Result<()> {
             })?;
             writeln!(out, "homing")?;
         }
+        HeadCommand::Posture { joints } => {
+            let j = parse_joints(joints)?;
+            let st = expect(link.request(RequestBody::Posture(j))?, "Posture", |b| match b {
+                ResponseBody::State(s) => Some(s),
+                _ => None,
+            })?;
+            write_state(&mut out, &st)?;
+        }
+        HeadCommand::State => {
+            let st = expect(link.request(RequestBody::State)?, "State", |b| match b {
+                ResponseBody::State(s) => Some(s),
+                _ => None,
+            })?;
+            write_state(&mut out, &st)?;
+        }
         HeadCommand::Bench { count } => {
             let p = StereoPoint { u_l: 330.0, v_l: 241.0, u_r: 300.0, v_r: 239.0 };
             let b = expect(
@@ -268,6 +294,41 @@ pub fn run(args: &Args) -> Result<()> {
             )?;
         }
     }
+    Ok(())
+}
+
+/// `A,B,C,D,E`: five joint angles in degrees (`nan` keeps an axis' goal; infinities refused).
+fn parse_joints(s: &str) -> Result<Joints> {
+    let v: Vec<&str> = s.split(',').map(str::trim).collect();
+    if v.len() != 5 {
+        return Err(crate::cli::usage(format!(
+            "posture: expected five angles NECK_PAN,NECK_TILT,EYE_TILT,LEFT_EYE_PAN,RIGHT_EYE_PAN, got {s:?}"
+        )));
+    }
+    let mut j = [0.0f32; 5];
+    for (k, x) in v.iter().enumerate() {
+        j[k] = match x.parse::<f32>() {
+            Ok(a) if !a.is_infinite() => a,
+            _ => {
+                return Err(crate::cli::usage(format!(
+                    "posture: angle {} ({x:?}) is not a finite number of degrees (or nan)",
+                    k + 1
+                )))
+            }
+        };
+    }
+    Ok(Joints(j))
+}
+
+/// The head's state: its joints and the move's goal in degrees, its clock, whether it moves.
+fn write_state(out: &mut impl Write, s: &StateData) -> Result<()> {
+    let names = ["neck_pan", "neck_tilt", "eye_tilt", "left_eye_pan", "right_eye_pan"];
+    let deg = |j: &Joints| {
+        names.iter().zip(j.0).map(|(n, a)| format!("{n}={a}")).collect::<Vec<_>>().join(" ")
+    };
+    writeln!(out, "joints deg: {}", deg(&s.joints))?;
+    writeln!(out, "goal deg: {}", deg(&s.goal))?;
+    writeln!(out, "ticks={} moving={}", s.ticks, s.moving)?;
     Ok(())
 }
 
@@ -312,6 +373,16 @@ fn check_runs(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn posture_takes_five_finite_angles_or_nan() {
+        let j = super::parse_joints("10, -200,nan,2,-2.5").unwrap();
+        assert_eq!((j.0[0], j.0[1], j.0[3], j.0[4]), (10.0, -200.0, 2.0, -2.5));
+        assert!(j.0[2].is_nan());
+        for bad in ["1,2,3,4", "1,2,3,4,5,6", "1,2,x,4,5", "1,2,inf,4,5", "1,2,3,4,-inf", ""] {
+            assert!(super::parse_joints(bad).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn endpoint_from_flags() {

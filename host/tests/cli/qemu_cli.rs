@@ -372,6 +372,14 @@ fn track_drives_a_head_on_a_port() {
     let d = TempDir::new().unwrap();
     let (_emu, connect) = emulate(Path::new(&m), d.path());
     once_it_answers(&connect, &["info"]);
+    // By hand first: a posture beyond the neck tilt's limit is clamped; the state follows.
+    let posture = run(&["head", "--connect", &connect, "posture", "10,-200,nan,2,-2"]);
+    assert!(posture.contains("goal deg: neck_pan=10.08 neck_tilt=-34.92"), "{posture}");
+    assert!(posture.contains("moving=true"), "{posture}");
+    std::thread::sleep(Duration::from_millis(1500));
+    let state = run(&["head", "--connect", &connect, "state"]);
+    assert!(state.contains("joints deg: neck_pan=10.08 neck_tilt=-34.92"), "{state}");
+    assert!(state.contains("moving=false"), "{state}");
     let log = dir.p("port.csv");
     run(&[
         "track",
