@@ -178,7 +178,9 @@ pub fn run(a: Args) -> Result<()> {
     let mut recorded = Vec::new();
     let mut times = Vec::new();
     let record = a.record.is_some();
-    let rows = track::run(&mut *cameras, &mut *head, &estimator, &cfg, stop, |frame, row, t| {
+    let mut so_far = Vec::new();
+    let result = track::run(&mut *cameras, &mut *head, &estimator, &cfg, stop, |frame, row, t| {
+        so_far.push(row.clone());
         times.push(t);
         if record {
             recorded.push((
@@ -189,8 +191,23 @@ pub fn run(a: Args) -> Result<()> {
             ));
         }
         Ok(())
-    })?;
+    });
     drop(head);
+    let rows = match result {
+        Ok(rows) => rows,
+        Err(e) => {
+            // A head or cameras that stop mid-run: the log keeps the frames before, then the
+            // error ends the command.
+            let text = track::log_csv(&so_far);
+            write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
+            return Err(e.context(format!(
+                "frame {}: the run stopped; {} has the {} frames before",
+                so_far.len(),
+                a.log.display(),
+                so_far.len()
+            )));
+        }
+    };
     let text = track::log_csv(&rows);
     write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
     if let Some(dir) = &a.record {

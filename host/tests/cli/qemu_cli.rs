@@ -406,6 +406,30 @@ fn track_drives_a_head_on_a_port() {
         assert!(limits.contains(&Joints(std::array::from_fn(|i| j[i] as f32))), "{j:?}");
     }
     assert!(rows.iter().any(|j| j.iter().any(|a| *a != 0.0)), "the head turned:\n{text}");
+    drop(_emu);
+    // A head that goes away mid-run (QEMU stopped after 4 s): one clear line, exit 1, and
+    // the log keeps the frames before.
+    let port = free_port().unwrap();
+    let listen = format!("127.0.0.1:{port}");
+    let _short = Emulate(
+        hvs()
+            .args(["emulate", "--model", &m, "--listen", &listen, "--timeout", "4"])
+            .args(["--servo-log", s(&d.path().join("servo2.log"))])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let connect = format!("tcp:{listen}");
+    once_it_answers(&connect, &["ping"]);
+    let args = ["track", "--model", &m, "--scene", &scene, "--seconds", "30", "--log", &log];
+    let out = hvs().args(args).args(["--port", &connect]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("the run stopped") && err.lines().count() == 1, "{err}");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let n = text.lines().count() - 1;
+    assert!(n > 0 && n < 900 && err.contains(&format!("the {n} frames before")), "{n}: {err}");
 }
 
 /// The small rig's scene with its sphere still, larger (20 cm) and off the axis: the nearest
