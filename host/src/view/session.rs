@@ -240,7 +240,8 @@ impl Session {
                     loaded.scene.camera_fps,
                 )
                 .map_err(|e| anyhow!("{}: {e:#}", scene.display()))?;
-                let name = format!("virtual head: {}", file_name(scene));
+                let who = if qemu.is_some() { "head firmware in QEMU" } else { "virtual head" };
+                let name = format!("{who}: {}", file_name(scene));
                 (
                     live.clone() as Arc<dyn PairStore>,
                     vec![PairMeta { name, z: None }],
@@ -272,7 +273,9 @@ impl Session {
                     None => None,
                 };
                 let live = LiveHead::start(cameras, size, estimator, head, 240.0)?;
-                let name = format!("cameras: {} | {}", spec.left.display(), spec.right.display());
+                let on = port.as_ref().map_or(String::new(), |p| format!(" on the head at {p}"));
+                let name =
+                    format!("cameras: {} | {}{on}", spec.left.display(), spec.right.display());
                 (
                     live.clone() as Arc<dyn PairStore>,
                     vec![PairMeta { name, z: None }],

@@ -345,6 +345,8 @@ fn view_runs_the_head_in_qemu() {
     let m = crate::common::small_model(&dir);
     let scene = crate::common::small_scene(&dir, "");
     let sv = start(&["--model", &m, "--scene", &scene, "--head", "qemu"]);
+    let session = crate::view::json(&sv.addr, "GET", "/api/session", None, 200);
+    assert!(session["pairs"][0]["name"].as_str().unwrap().starts_with("head firmware in QEMU"));
     let first = head_until(&sv.addr, "frames", |h| h["frames"].as_u64().unwrap() > 2);
     assert!(joints_at_home(&first) && first["status"] == "idle", "{first}");
     look(&sv.addr, r#"{"target":"nearest"}"#, 200);
