@@ -363,6 +363,19 @@ fn bad_frames_get_errors_and_the_next_frame_is_answered() {
 
 /// Per-axis sequences of the `LA` counts in an MCDC log, checking that every line parses, every
 /// `LA` is followed by `M` on the same node, and every node is one of the head's.
+/// Every count the servo log commanded lies within the default joint limits' counts.
+fn assert_within_limits(got: &[Vec<i32>; 5], cfg: &McdcConfig) {
+    let limits = GazeConfig::DEFAULT.limits;
+    for axis in Axis::ALL {
+        let (lo, hi) = (
+            cfg.counts(&limits, axis, f32::NEG_INFINITY),
+            cfg.counts(&limits, axis, f32::INFINITY),
+        );
+        let g = &got[axis.index()];
+        assert!(g.iter().all(|c| (lo..=hi).contains(c)), "{axis:?} outside [{lo}, {hi}]: {g:?}");
+    }
+}
+
 fn mcdc_sequences(log: &Path, cfg: &McdcConfig) -> [Vec<i32>; 5] {
     let text = std::fs::read(log).unwrap();
     let mut seqs: [Vec<i32>; 5] = Default::default();
@@ -441,17 +454,9 @@ fn look_sequence_commands_follow_the_trajectory_within_limits() {
     }
     run.emu.kill();
     let got = mcdc_sequences(&run.servo_log(), &cfg);
+    assert_within_limits(&got, &cfg);
     for axis in Axis::ALL {
         let i = axis.index();
-        let (lo, hi) = (
-            cfg.counts(&limits, axis, f32::NEG_INFINITY),
-            cfg.counts(&limits, axis, f32::INFINITY),
-        );
-        assert!(
-            got[i].iter().all(|c| (lo..=hi).contains(c)),
-            "{axis:?} outside [{lo}, {hi}]: {:?}",
-            got[i]
-        );
         assert_eq!(got[i], want[i], "{axis:?}: servo log vs host trajectory");
         assert_eq!(got[i].last(), Some(&0), "{axis:?} did not return home");
         assert!(got[i].len() > 3, "{axis:?} barely moved: {:?}", got[i]);
@@ -505,13 +510,9 @@ fn posture_moves_the_head_and_state_reports_it() {
     run.emu.kill();
     let cfg = McdcConfig::DEFAULT;
     let got = mcdc_sequences(&run.servo_log(), &cfg);
+    assert_within_limits(&got, &cfg);
     for axis in Axis::ALL {
         let i = axis.index();
-        let (lo, hi) = (
-            cfg.counts(&limits, axis, f32::NEG_INFINITY),
-            cfg.counts(&limits, axis, f32::INFINITY),
-        );
-        assert!(got[i].iter().all(|c| (lo..=hi).contains(c)), "{axis:?}: {:?}", got[i]);
         assert_eq!(got[i].last(), Some(&cfg.counts(&limits, axis, s.goal[axis])), "{axis:?}");
     }
 }

@@ -84,31 +84,9 @@ pub fn run(a: Args) -> Result<()> {
             "choose the head: --scene SCENE.json (virtual) or --port PATH --cameras v4l:A,B",
         ));
     };
-    check_dir_output("-o", &a.output)?;
-    let inputs: [(&str, &Path); 3] =
-        [("--board", &a.board), ("--positions", &a.positions), ("--scene", scene_path)];
-    if a.output.is_dir() {
-        // A new folder cannot hold an input; an existing one might.
-        for name in ["CAPTURES.csv", "board.json"] {
-            check_not_input("-o", &a.output.join(name), &inputs)?;
-        }
-    }
-    let board = Board::from_path(&a.board).map_err(|e| anyhow!("{e}"))?;
-    let placements = crate::data::positions::read(&a.positions)?;
-    let postures = a
-        .postures
-        .postures(a.seed)?
-        .ok_or_else(|| usage("choose the postures: --postures grid, lattice or random"))?;
+    let plan = plan_of(&a, Some(scene_path))?;
     let loaded = crate::track::scene_file::load(scene_path)?;
     let head_rig = HeadRig::new(loaded.rig);
-    let plan = Plan {
-        render: a.camera.options(board.square_cm, 4)?,
-        board,
-        placements,
-        postures,
-        seed: a.seed,
-        settle_s: a.settle_ms as f64 / 1000.0,
-    };
     let mut head = VirtualHead::new(&ControllerConfig::DEFAULT)?;
     let stops = collect::visit(&mut head, &plan)?;
 
@@ -184,6 +162,34 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
+/// The output folder checked against the inputs (and `scene`), the board, placements and
+/// postures read: what to collect.
+fn plan_of(a: &Args, scene: Option<&Path>) -> Result<Plan> {
+    check_dir_output("-o", &a.output)?;
+    let mut inputs: Vec<(&str, &Path)> = vec![("--board", &a.board), ("--positions", &a.positions)];
+    inputs.extend(scene.map(|s| ("--scene", s)));
+    if a.output.is_dir() {
+        // A new folder cannot hold an input; an existing one might.
+        for name in ["CAPTURES.csv", "board.json"] {
+            check_not_input("-o", &a.output.join(name), &inputs)?;
+        }
+    }
+    let board = Board::from_path(&a.board).map_err(|e| anyhow!("{e}"))?;
+    let placements = crate::data::positions::read(&a.positions)?;
+    let postures = a
+        .postures
+        .postures(a.seed)?
+        .ok_or_else(|| usage("choose the postures: --postures grid, lattice or random"))?;
+    Ok(Plan {
+        render: a.camera.options(board.square_cm, 4)?,
+        board,
+        placements,
+        postures,
+        seed: a.seed,
+        settle_s: a.settle_ms as f64 / 1000.0,
+    })
+}
+
 /// `hvs collect --port PATH --cameras v4l:A,B`: a real head. At each placement the user is
 /// asked to place the board (the corners both cameras see are counted live) and to press
 /// Enter; the head then visits the postures and every pair in which both cameras find the
@@ -195,29 +201,9 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
         crate::track::cameras::CameraSpec::parse(cameras).map_err(|e| usage(e.to_string()))?;
     let size =
         a.camera_size.as_deref().map(super::parse_camera_size).transpose()?.unwrap_or((640, 480));
-    check_dir_output("-o", &a.output)?;
-    let inputs: [(&str, &Path); 2] = [("--board", &a.board), ("--positions", &a.positions)];
-    if a.output.is_dir() {
-        for name in ["CAPTURES.csv", "board.json"] {
-            check_not_input("-o", &a.output.join(name), &inputs)?;
-        }
-    }
-    let board = Board::from_path(&a.board).map_err(|e| anyhow!("{e}"))?;
-    let placements = crate::data::positions::read(&a.positions)?;
-    let postures = a
-        .postures
-        .postures(a.seed)?
-        .ok_or_else(|| usage("choose the postures: --postures grid, lattice or random"))?;
+    let plan = plan_of(a, None)?;
     let mut cams = crate::track::cameras::open(&spec, size)?;
     let mut head = servo_head::open(&HeadChoice::Port(endpoint), Path::new(""))?;
-    let plan = Plan {
-        render: a.camera.options(board.square_cm, 4)?,
-        board,
-        placements,
-        postures,
-        seed: a.seed,
-        settle_s: a.settle_ms as f64 / 1000.0,
-    };
     std::fs::create_dir_all(&a.output)
         .map_err(|e| anyhow!("-o {}: cannot create the folder: {e}", a.output.display()))?;
     let (mut captured, mut skipped) = (Vec::<Stop>::new(), 0usize);

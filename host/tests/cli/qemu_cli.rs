@@ -39,12 +39,18 @@ fn assert_firmware_built() {
 /// Starts `hvs emulate --model model` on a free port (servo log in `d`): the guard and the
 /// `--connect` address.
 fn emulate(model: &Path, d: &Path) -> (Emulate, String) {
+    emulate_for(model, d, 120)
+}
+
+/// [`emulate`], QEMU stopped after `secs` seconds.
+fn emulate_for(model: &Path, d: &Path, secs: u32) -> (Emulate, String) {
     let port = free_port().expect("a free port");
     let listen = format!("127.0.0.1:{port}");
+    let log = d.join(format!("servo-{port}.log"));
     let emu = Emulate(
         hvs()
             .args(["emulate", "--model", s(model), "--listen", &listen])
-            .args(["--servo-log", s(&d.join("servo.log")), "--timeout", "120"])
+            .args(["--servo-log", s(&log), "--timeout", &secs.to_string()])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -411,18 +417,7 @@ fn track_drives_a_head_on_a_port() {
     drop(_emu);
     // A head that goes away mid-run (QEMU stopped after 4 s): one clear line, exit 1, and
     // the log keeps the frames before.
-    let port = free_port().unwrap();
-    let listen = format!("127.0.0.1:{port}");
-    let _short = Emulate(
-        hvs()
-            .args(["emulate", "--model", &m, "--listen", &listen, "--timeout", "4"])
-            .args(["--servo-log", s(&d.path().join("servo2.log"))])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    let connect = format!("tcp:{listen}");
+    let (_short, connect) = emulate_for(Path::new(&m), d.path(), 4);
     once_it_answers(&connect, &["ping"]);
     let args = ["track", "--model", &m, "--scene", &scene, "--seconds", "30", "--log", &log];
     let out = hvs().args(args).args(["--port", &connect]).output().unwrap();
