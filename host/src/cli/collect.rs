@@ -146,11 +146,7 @@ pub fn run(a: Args) -> Result<()> {
             plan.placements.len()
         );
     }
-    write_bytes(&a.output.join("board.json"), plan.board.to_json().as_bytes())?;
-    write_bytes(
-        &a.output.join("CAPTURES.csv"),
-        collect::captures_csv(&plan, &captured).as_bytes(),
-    )?;
+    write_set(&a.output, &plan, &captured)?;
     eprintln!(
         "collected {} pairs into {} ({} placements x {} postures; skipped {out_of_view} where the board was not fully in both images, {hidden} where the scene hid part of it; {:.1} s of head time)",
         captured.len(),
@@ -160,6 +156,12 @@ pub fn run(a: Args) -> Result<()> {
         head.time_s()
     );
     Ok(())
+}
+
+/// `board.json` and `CAPTURES.csv` of the captured stops, into `dir` (after the images).
+fn write_set(dir: &Path, plan: &Plan, captured: &[Stop]) -> Result<()> {
+    write_bytes(&dir.join("board.json"), plan.board.to_json().as_bytes())?;
+    write_bytes(&dir.join("CAPTURES.csv"), collect::captures_csv(plan, captured).as_bytes())
 }
 
 /// The output folder checked against the inputs (and `scene`), the board, placements and
@@ -222,11 +224,7 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
     if captured.is_empty() {
         bail!("no posture saw the whole board with both cameras ({skipped} postures skipped)");
     }
-    write_bytes(&a.output.join("board.json"), plan.board.to_json().as_bytes())?;
-    write_bytes(
-        &a.output.join("CAPTURES.csv"),
-        collect::captures_csv(&plan, &captured).as_bytes(),
-    )?;
+    write_set(&a.output, &plan, &captured)?;
     eprintln!(
         "collected {} pairs into {} ({} placements x {} postures; skipped {skipped} where a camera did not find the whole board)",
         captured.len(),
