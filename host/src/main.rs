@@ -30,7 +30,7 @@ enum Command {
     Experiment(cmd::experiment::Args),
     /// Stereo photos of a chessboard through a rig, with exact corner truth.
     Render(cmd::render::Args),
-    /// The head in the loop on a virtual scene: keeps a target in the middle of both eyes.
+    /// The head in the loop (virtual cameras on a scene, or real ones; the head emulated, in QEMU or on a port): keeps a target in the middle of both eyes.
     Track(cmd::track::Args),
     /// Board photos into a training set (`hvs board detect`).
     Board(cmd::board::Args),

@@ -1,5 +1,6 @@
-//! `hvs track`: the head in the loop on a virtual scene (`host::track`): keeps the nearest
-//! object (or the one under a pixel) in the middle of both eyes, one log row per frame.
+//! `hvs track`: the head in the loop (`host::track`): keeps the nearest object (or the one
+//! under a pixel) in the middle of both eyes, one log row per frame. Frames from a scene's
+//! virtual cameras or real ones; the head emulated, the firmware in QEMU, or on a port.
 
 use crate::data::captures::{captures_csv, CaptureRow};
 use crate::data::output::{write_atomically, write_bytes};
@@ -32,7 +33,8 @@ pub struct Args {
     /// posture commands (protocol 3).
     #[arg(long, value_name = "PATH")]
     pub port: Option<String>,
-    /// Simulated time (s).
+    /// How long to run (s): simulated time with `--head emulate`, the head's own clock with
+    /// a head in QEMU or on a port.
     #[arg(long, value_name = "S")]
     pub seconds: f64,
     /// The log: one row per frame.
