@@ -180,9 +180,11 @@ pub fn run(a: Args) -> Result<()> {
     let mut recorded = Vec::new();
     let mut times = Vec::new();
     let record = a.record.is_some();
-    let mut so_far = Vec::new();
+    // The rows as they come: a head or cameras that stop mid-run end the command with an
+    // error, and the log still gets the frames before.
+    let mut rows = Vec::new();
     let result = track::run(&mut *cameras, &mut *head, &estimator, &cfg, stop, |frame, row, t| {
-        so_far.push(row.clone());
+        rows.push(row.clone());
         times.push(t);
         if record {
             recorded.push((
@@ -195,23 +197,15 @@ pub fn run(a: Args) -> Result<()> {
         Ok(())
     });
     drop(head);
-    let rows = match result {
-        Ok(rows) => rows,
-        Err(e) => {
-            // A head or cameras that stop mid-run: the log keeps the frames before, then the
-            // error ends the command.
-            let text = track::log_csv(&so_far);
-            write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
-            return Err(e.context(format!(
-                "frame {}: the run stopped; {} has the {} frames before",
-                so_far.len(),
-                a.log.display(),
-                so_far.len()
-            )));
-        }
-    };
     let text = track::log_csv(&rows);
     write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
+    if let Err(e) = result {
+        let n = rows.len();
+        return Err(e.context(format!(
+            "frame {n}: the run stopped; {} has the {n} frames before",
+            a.log.display()
+        )));
+    }
     if let Some(dir) = &a.record {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow!("{}: cannot create the folder: {e}", dir.display()))?;

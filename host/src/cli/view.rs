@@ -95,7 +95,10 @@ pub fn run(a: Args) -> Result<()> {
         (None, None, None, None, Some(scene), None) => Source::Scene {
             scene,
             seed: a.seed,
-            qemu: (a.head == super::HeadKind::Qemu).then(|| a.firmware.clone()),
+            head: match a.head {
+                super::HeadKind::Emulate => crate::track::servo_head::HeadChoice::Emulate,
+                super::HeadKind::Qemu => crate::track::servo_head::HeadChoice::Qemu(a.firmware),
+            },
         },
         (None, None, None, None, None, Some(cameras)) => Source::Cameras {
             spec: crate::track::cameras::CameraSpec::parse(&cameras)

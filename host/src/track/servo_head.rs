@@ -66,6 +66,9 @@ pub struct RemoteHead {
     t0_ticks: u32,
     state: StateData,
     goal: Option<Joints>,
+    /// With [`RemoteHead::boot_qemu`]: QEMU and its servo log's folder, kept as long as the
+    /// head (dropped after the link).
+    _qemu: Option<(crate::device::qemu::Emulator, tempfile::TempDir)>,
 }
 
 impl RemoteHead {
@@ -88,7 +91,14 @@ impl RemoteHead {
             bail!("control rate 0 Hz");
         }
         let state = Self::query(&mut link)?;
-        Ok(RemoteHead { link, hz: control_hz, t0_ticks: state.ticks, state, goal: None })
+        Ok(RemoteHead {
+            link,
+            hz: control_hz,
+            t0_ticks: state.ticks,
+            state,
+            goal: None,
+            _qemu: None,
+        })
     }
 
     fn query(link: &mut Link) -> Result<StateData> {
@@ -98,14 +108,31 @@ impl RemoteHead {
         })
     }
 
-    /// The head's last reported state.
-    pub fn state(&self) -> StateData {
-        self.state
-    }
-
-    /// The link, for other requests.
-    pub fn link(&mut self) -> &mut Link {
-        &mut self.link
+    /// The head firmware in QEMU (`firmware`, or the default build path as `hvs emulate` finds
+    /// it) with `model` in slot A, taken over as [`RemoteHead::new`] does: what `--head qemu`
+    /// runs. QEMU lives as long as the head.
+    pub fn boot_qemu(
+        model: &std::path::Path,
+        firmware: Option<&std::path::Path>,
+        control_hz: u32,
+    ) -> Result<RemoteHead> {
+        use crate::device::qemu::{find_firmware, free_port, Emulator, EmulatorConfig};
+        let dir = tempfile::tempdir()
+            .map_err(|e| anyhow::anyhow!("a temporary folder for QEMU's servo log: {e}"))?;
+        let cfg = EmulatorConfig {
+            firmware: find_firmware(firmware),
+            slot_a: Some(model.to_path_buf()),
+            slot_b: None,
+            listen: format!("127.0.0.1:{}", free_port()?),
+            servo_log: dir.path().join("servo.log"),
+            qemu: "qemu-system-arm".into(),
+            extra: Vec::new(),
+        };
+        crate::cli::emulate::preflight(&cfg)?;
+        let emu = Emulator::start(&cfg)?;
+        let endpoint = emu.endpoint.parse()?;
+        let link = client::connect(&endpoint, Duration::from_secs(20))?;
+        Ok(RemoteHead { _qemu: Some((emu, dir)), ..RemoteHead::new(link, control_hz)? })
     }
 
     fn elapsed_s(&self, s: &StateData) -> f64 {
@@ -173,70 +200,12 @@ impl ServoHead for RemoteHead {
     }
 }
 
-/// The head firmware in QEMU with a model in slot A, on its protocol link: what `--head qemu`
-/// runs. QEMU (and its servo log, in a temporary folder) lives as long as this.
-pub struct QemuHead {
-    head: RemoteHead,
-    _emu: crate::device::qemu::Emulator,
-    _dir: tempfile::TempDir,
-}
-
-impl QemuHead {
-    /// Boots the firmware (`firmware`, or the default build path as `hvs emulate` finds it)
-    /// with `model` in slot A and takes over the head ([`RemoteHead::new`]).
-    pub fn boot(model: &std::path::Path, firmware: Option<&std::path::Path>) -> Result<QemuHead> {
-        use crate::device::qemu::{find_firmware, free_port, Emulator, EmulatorConfig};
-        let dir = tempfile::tempdir()
-            .map_err(|e| anyhow::anyhow!("a temporary folder for QEMU's servo log: {e}"))?;
-        let cfg = EmulatorConfig {
-            firmware: find_firmware(firmware),
-            slot_a: Some(model.to_path_buf()),
-            slot_b: None,
-            listen: format!("127.0.0.1:{}", free_port()?),
-            servo_log: dir.path().join("servo.log"),
-            qemu: "qemu-system-arm".into(),
-            extra: Vec::new(),
-        };
-        crate::cli::emulate::preflight(&cfg)?;
-        let emu = Emulator::start(&cfg)?;
-        let endpoint = emu.endpoint.parse()?;
-        let link = client::connect(&endpoint, Duration::from_secs(20))?;
-        let control_hz = hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT.control_hz;
-        let head = RemoteHead::new(link, control_hz)?;
-        Ok(QemuHead { head, _emu: emu, _dir: dir })
-    }
-}
-
-impl ServoHead for QemuHead {
-    fn advance_to(&mut self, t_s: f64) -> Result<()> {
-        self.head.advance_to(t_s)
-    }
-    fn command(&mut self, goal: &Joints) -> Result<()> {
-        self.head.command(goal)
-    }
-    fn joints(&self) -> Joints {
-        self.head.joints()
-    }
-    fn is_moving(&self) -> bool {
-        self.head.is_moving()
-    }
-    fn time_s(&self) -> f64 {
-        self.head.time_s()
-    }
-    fn control_hz(&self) -> u32 {
-        self.head.control_hz()
-    }
-    fn frame_time(&self, t_s: f64) -> f64 {
-        self.head.frame_time(t_s)
-    }
-}
-
 /// Which head the loop runs on.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum HeadChoice {
     /// The head's logic on the host, on a simulated clock ([`VirtualHead`]).
     Emulate,
-    /// The head firmware in QEMU ([`QemuHead`]; `None`: the default firmware path).
+    /// The head firmware in QEMU ([`RemoteHead::boot_qemu`]; `None`: the default firmware path).
     Qemu(Option<std::path::PathBuf>),
     /// A head controller on a link ([`RemoteHead`]): a real head's serial port, or
     /// `tcp:HOST:PORT` (e.g. `hvs emulate`'s QEMU).
@@ -261,7 +230,9 @@ pub fn open(choice: &HeadChoice, model: &std::path::Path) -> Result<Box<dyn Serv
     let control = hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT;
     Ok(match choice {
         HeadChoice::Emulate => Box::new(VirtualHead::new(&control)?),
-        HeadChoice::Qemu(firmware) => Box::new(QemuHead::boot(model, firmware.as_deref())?),
+        HeadChoice::Qemu(firmware) => {
+            Box::new(RemoteHead::boot_qemu(model, firmware.as_deref(), control.control_hz)?)
+        }
         HeadChoice::Port(endpoint) => {
             let link = client::connect(endpoint, Duration::from_secs(10))?;
             Box::new(RemoteHead::new(link, control.control_hz)?)

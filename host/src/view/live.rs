@@ -82,9 +82,9 @@ pub struct LiveHead {
 }
 
 impl LiveHead {
-    /// Starts with `cameras` (images of `size`) on `head` (the simulated head or one in
-    /// QEMU, at home), whose loop (`hvs track`'s) runs with the given settings, or with `None`
-    /// no head (the cameras stay where they are, taken to be at the home posture). `estimator` is the loop's. Returns
+    /// Starts with `cameras` (images of `size`) on `head` (any [`ServoHead`], at home), whose
+    /// loop (`hvs track`'s) runs with the given settings, or with `None` no head (the cameras
+    /// stay where they are, taken to be at the home posture). `estimator` is the loop's. Returns
     /// once the first frame is there (or its error).
     pub fn start(
         cameras: Box<dyn FrameSource + Send>,
@@ -171,11 +171,11 @@ impl PairStore for LiveHead {
     }
 
     fn frame(&self, pair: usize, view: View) -> Option<Frame> {
-        self.encoded(pair, view, self.latest()?)
+        self.latest()?.encoded(pair, view)
     }
 
     fn frame_at(&self, pair: usize, view: View, seq: u64) -> Option<Frame> {
-        self.encoded(pair, view, self.kept(seq)?)
+        self.kept(seq)?.encoded(pair, view)
     }
 
     fn latest_seq(&self) -> u64 {
@@ -187,20 +187,21 @@ impl PairStore for LiveHead {
     }
 }
 
-impl LiveHead {
-    fn encoded(&self, pair: usize, view: View, l: Arc<Latest>) -> Option<Frame> {
+impl Latest {
+    /// Its `view` of pair `pair` (only pair 0, left or right), encoded once when first asked.
+    fn encoded(&self, pair: usize, view: View) -> Option<Frame> {
         let side = match (pair, view) {
             (0, View::Left) => 0,
             (0, View::Right) => 1,
             _ => return None,
         };
-        let png = l.png[side]
+        let png = self.png[side]
             .get_or_init(|| {
-                let img = if side == 0 { &l.grey.0 } else { &l.grey.1 };
+                let img = if side == 0 { &self.grey.0 } else { &self.grey.1 };
                 png_bytes_fast(&**img).ok().map(Arc::new)
             })
             .clone()?;
-        Some(Frame { seq: l.seq, png })
+        Some(Frame { seq: self.seq, png })
     }
 }
 

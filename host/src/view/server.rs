@@ -140,8 +140,7 @@ async fn index() -> Response {
 /// Off loopback, every request needs `token=<the token>` in its query.
 async fn check_token(State(app): State<Shared>, req: Request, next: Next) -> Response {
     if let Some(want) = &app.token {
-        let given =
-            req.uri().query().unwrap_or("").split('&').find_map(|kv| kv.strip_prefix("token="));
+        let given = param(req.uri().query(), "token");
         if !given.is_some_and(|g| same(g.as_bytes(), want.as_bytes())) {
             return ApiError(
                 StatusCode::FORBIDDEN,
@@ -151,6 +150,18 @@ async fn check_token(State(app): State<Shared>, req: Request, next: Next) -> Res
         }
     }
     next.run(req).await
+}
+
+/// The value of the first `key=value` (or bare `key`: empty) of a request's query, if any.
+fn param<'a>(query: Option<&'a str>, key: &str) -> Option<&'a str> {
+    query?.split('&').find_map(|kv| {
+        let rest = kv.strip_prefix(key)?;
+        if rest.is_empty() {
+            Some(rest)
+        } else {
+            rest.strip_prefix('=')
+        }
+    })
 }
 
 /// Compares in time independent of where the strings differ.
@@ -169,19 +180,16 @@ pub const FRAME_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 /// number `S`, `seq=S` asks for frame `S` (while the store keeps it: the right image of the
 /// pair whose left one the page has). Other parameters (`token`, a cache-buster) are ignored.
 fn frame_query(query: Option<&str>) -> Result<(Option<u64>, Option<u64>), ApiError> {
-    let (mut after, mut seq) = (None, None);
-    for kv in query.unwrap_or("").split('&') {
-        let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
-        let slot = match k {
-            "after" => &mut after,
-            "seq" => &mut seq,
-            _ => continue,
-        };
-        *slot = Some(v.parse::<u64>().map_err(|_| {
-            ApiError(StatusCode::BAD_REQUEST, format!("{k}={v:?}: not a frame number"))
-        })?);
-    }
-    Ok((after, seq))
+    let number = |k: &str| {
+        param(query, k)
+            .map(|v| {
+                v.parse::<u64>().map_err(|_| {
+                    ApiError(StatusCode::BAD_REQUEST, format!("{k}={v:?}: not a frame number"))
+                })
+            })
+            .transpose()
+    };
+    Ok((number("after")?, number("seq")?))
 }
 
 async fn frame(
@@ -316,6 +324,18 @@ async fn retrain(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn query_parameters_are_found_by_their_whole_key() {
+        let q = Some("token=ab&after=3&afterx=9&seq");
+        assert_eq!(param(q, "after"), Some("3"));
+        assert_eq!(param(q, "token"), Some("ab"));
+        assert_eq!(param(q, "seq"), Some(""));
+        assert_eq!(param(q, "n"), None);
+        assert_eq!(param(None, "after"), None);
+        assert!(frame_query(Some("after=x")).is_err() && frame_query(Some("seq")).is_err());
+        assert!(matches!(frame_query(Some("n=4&after=7&seq=2")), Ok((Some(7), Some(2)))));
+    }
 
     #[test]
     fn tokens_are_needed_off_loopback_only_and_compared_whole() {

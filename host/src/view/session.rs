@@ -10,8 +10,7 @@ use super::live::{Goal, HeadState, LiveHead};
 use crate::data::captures::{self, CaptureSet};
 use crate::data::csv::{read_set_from, Inputs};
 use crate::data::model::ModelFile;
-use crate::track::head_sim::VirtualHead;
-use crate::track::servo_head::{QemuHead, ServoHead};
+use crate::track::servo_head::HeadChoice;
 use crate::track::{self, frames::VirtualCameras};
 use crate::train::model::{train_model, Plan};
 use crate::train::{self, TrainConfig};
@@ -49,9 +48,8 @@ pub enum Source {
         scene: PathBuf,
         /// Seed of the cameras' sensor noise.
         seed: u64,
-        /// `Some(firmware)`: the head firmware in QEMU (`--head qemu`; `None` inside: the
-        /// default firmware path) moves the cameras; `None`: the simulated head.
-        qemu: Option<Option<PathBuf>>,
+        /// The head the cameras stand on: emulated, or the firmware in QEMU (`--head qemu`).
+        head: HeadChoice,
     },
     /// Real cameras on no head, live (`--cameras v4l:A,B`).
     Cameras {
@@ -215,7 +213,7 @@ impl Session {
                     None,
                 )
             }
-            Source::Scene { scene, seed, qemu } => {
+            Source::Scene { scene, seed, head } => {
                 let loaded = track::scene_file::load(scene)?;
                 let estimator = track::estimator_of(model.blob.clone())
                     .map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
@@ -226,12 +224,11 @@ impl Session {
                     *seed,
                 );
                 let size = (loaded.rig.width, loaded.rig.height);
-                let head: Box<dyn ServoHead + Send> = match qemu {
-                    None => Box::new(VirtualHead::new(
-                        &hvs_shared::runtime::trajectory::ControllerConfig::DEFAULT,
-                    )?),
-                    Some(firmware) => Box::new(QemuHead::boot(model_path, firmware.as_deref())?),
+                let who = match head {
+                    HeadChoice::Qemu(_) => "head firmware in QEMU",
+                    _ => "virtual head",
                 };
+                let head = track::servo_head::open(head, model_path)?;
                 let live = LiveHead::start(
                     Box::new(cameras),
                     size,
@@ -240,7 +237,6 @@ impl Session {
                     loaded.scene.camera_fps,
                 )
                 .map_err(|e| anyhow!("{}: {e:#}", scene.display()))?;
-                let who = if qemu.is_some() { "head firmware in QEMU" } else { "virtual head" };
                 let name = format!("{who}: {}", file_name(scene));
                 (
                     live.clone() as Arc<dyn PairStore>,
