@@ -961,6 +961,10 @@ fn browser_click_and_retrain_in_chromium() {
             "idle"
         );
         click_left(&c, 90, 64).await;
+        // As a person would: read the answer, then press "look". Pressed while the answer
+        // was arriving, the button moved under the pointer when the answer's lines reflowed
+        // the page, and the press landed beside it (seen once in CI, debug build, 101 ms).
+        wait_js(&c, "document.getElementById('point').dataset.answered === '1'").await;
         click_id(&c, "look").await;
         wait_js(&c, "document.getElementById('head').dataset.asked === '1'").await;
         wait_js(&c, "document.getElementById('head').dataset.moved === 'yes'").await;
