@@ -317,3 +317,66 @@ pub fn stop_on_interrupt() -> &'static AtomicBool {
     }
     &STOP
 }
+
+/// The smallest error a fixation of the point `p` (cm, head frame) can have on `head`: the
+/// least, over the eye postures on the drives' 0.18 degree grid within 7.2 degrees of
+/// `near` (eye tilt, left and right eye pan; the neck held), of the larger distance from
+/// each image's centre `centre` to the point's projection (px). With case III's cameras,
+/// tilted 1 degree against each other, no posture centres a point in both images: the eye
+/// tilt is common to both eyes, so their vertical offset (about 5 px) is split at best.
+pub fn fixation_floor_px(
+    head: &hvs_shared::sim::posture::HeadRig,
+    p: &[f64; 3],
+    near: &Joints,
+    centre: [f64; 2],
+) -> Option<f64> {
+    const STEPS: i32 = 40;
+    let step = hvs_shared::runtime::gaze::STEP_DEG;
+    let off = |k: i32| k as f32 * step;
+    let miss = |q: [f64; 2]| (q[0] - centre[0]).hypot(q[1] - centre[1]);
+    let mut best: Option<f64> = None;
+    for t in -STEPS..=STEPS {
+        // With the tilt fixed, the left pan moves only the left image and the right pan
+        // only the right one: each eye's best pan on its own.
+        let eye = |side: usize| {
+            (-STEPS..=STEPS)
+                .filter_map(|k| {
+                    let mut j = *near;
+                    j.0[2] += off(t);
+                    j.0[3 + side] += off(k);
+                    let q = head.project(&j, p).ok()?;
+                    Some(miss([q[2 * side], q[2 * side + 1]]))
+                })
+                .min_by(f64::total_cmp)
+        };
+        if let (Some(l), Some(r)) = (eye(0), eye(1)) {
+            let e = l.max(r);
+            best = Some(best.map_or(e, |b: f64| b.min(e)));
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod floor_tests {
+    use super::*;
+    use hvs_shared::runtime::gaze::{fixate, GazeConfig};
+    use hvs_shared::sim::posture::HeadRig;
+    use hvs_shared::sim::presets;
+
+    /// Case III cannot hold a point within 2.4 px of both image centres (its cameras'
+    /// relative tilt), case I can within half a pixel: the static goal's floor per rig.
+    #[test]
+    fn case_three_splits_its_vertical_offset_case_one_centres_both() {
+        for p in [[20.0, -8.0, 100.0], [-30.0, 10.0, 80.0], [0.0, 0.0, 60.0], [35.0, 5.0, 160.0]] {
+            let near = fixate(&GazeConfig::DEFAULT, p.map(|x| x as f32)).unwrap().joints;
+            let floor = |case| {
+                let head = HeadRig::new(presets::case(case).unwrap());
+                fixation_floor_px(&head, &p, &near, [320.0, 240.0]).unwrap()
+            };
+            let (one, three) = (floor(1), floor(3));
+            assert!(one < 0.5, "case I at {p:?}: {one}");
+            assert!((2.4..2.8).contains(&three), "case III at {p:?}: {three}");
+        }
+    }
+}
