@@ -20,6 +20,7 @@
 //!   around it; later frames look for the same depth band around the last centroid
 //!   (followed).
 
+use hvs_shared::runtime::fixation::LoopConfig;
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::head::Estimator;
 use hvs_shared::runtime::protocol::StereoPoint;
@@ -30,11 +31,17 @@ use rayon::prelude::*;
 pub const MIN_CLUSTER: usize = 3;
 /// Spacing of the dense matches in the target's region (px).
 pub const DENSE_STEP: i32 = 3;
-/// Spacing of the coarse grid (full-resolution px): an 80th of the image width, at least 4
-/// (8 px at 640: a 5 cm sphere at 90 cm, 32 px across, gets a dozen grid points).
+/// Spacing of the coarse grid (full-resolution px): a 128th of the image width, at least 4
+/// (5 px at 640: a 5 cm sphere at 150 cm, 19 px across, gets the three grid points an
+/// object needs; at 8 px it was taken for the wall behind it).
 fn grid_step(w: i32) -> i32 {
-    (w / 80).max(4)
+    (w / 128).max(4)
 }
+/// Radius of the scan's windows at half resolution (px; 5 x 5, 10 px across at full
+/// resolution) and of its full-resolution refinement (7 x 7): small enough to fit inside a
+/// far object.
+const COARSE_RADIUS: i32 = 2;
+const FINE_RADIUS: i32 = 3;
 /// Share of the image width and height, around the centre, searched for the nearest object.
 const FRONT_SHARE: f64 = 0.7;
 /// Largest |disparity| searched at half resolution (half-resolution px).
@@ -66,8 +73,12 @@ pub enum TargetMode {
 /// The target found in one frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Found {
-    /// Its pixels: the centroids of its matched points, left and right.
+    /// Its pixels: the centre of its region in the left and in the right image.
     pub px: [f64; 4],
+    /// The mean offset of its matched points, left pixel minus right pixel (px): where to
+    /// look for its matches (for a sphere not `px[0] - px[2]`: the surface is nearer than
+    /// the centre).
+    pub offset: [f64; 2],
     /// Its depth (the median of its points' estimates, cm).
     pub z: f32,
     /// The matched left pixels of its region (for the log's truth lookup).
@@ -313,6 +324,10 @@ pub struct Finder {
     last: Option<Last>,
     /// `nearest`: frames followed since the last scan.
     followed: u32,
+    /// The posture of the frame the target was last looked for in.
+    seen_at: Option<Joints>,
+    /// Nominal focal lengths `[phi_u_left, phi_v_left, phi_u_right, phi_v_right]` (px).
+    focal_px: [f32; 4],
 }
 
 impl Last {
@@ -320,7 +335,7 @@ impl Last {
     fn of(f: &Found, extent: f64) -> Last {
         Last {
             centre: [f.px[0], f.px[1]],
-            offset: [f.px[0] - f.px[2], f.px[1] - f.px[3]],
+            offset: f.offset,
             z: f.z,
             extent: extent.min(MAX_EXTENT),
             points: f.points.len(),
@@ -357,9 +372,31 @@ fn median(mut v: Vec<f32>) -> f32 {
 }
 
 impl Finder {
-    /// A finder for `mode`.
+    /// A finder for `mode` with the thesis' cameras' nominal focal lengths.
     pub fn new(mode: TargetMode) -> Finder {
-        Finder { mode, last: None, followed: 0 }
+        Finder::with_focal(mode, LoopConfig::DEFAULT.focal_px)
+    }
+
+    /// A finder for `mode` whose cameras have about these focal lengths
+    /// (`[phi_u_left, phi_v_left, phi_u_right, phi_v_right]`, px): where the target is looked
+    /// for in a frame follows the head's own turn since the last one.
+    pub fn with_focal(mode: TargetMode, focal_px: [f32; 4]) -> Finder {
+        Finder { mode, last: None, followed: 0, seen_at: None, focal_px }
+    }
+
+    /// Moves the remembered target by the image motion the head's turn from `before` to
+    /// `now` gives: a joint turned by `a` degrees moves the image by about `phi tan(a)`
+    /// (the neck and eye pans to the right in the image, the tilts up).
+    fn follow_the_head(&mut self, before: &Joints, now: &Joints) {
+        let Some(last) = self.last.as_mut() else { return };
+        let d = |k: usize| f64::from(now.0[k] - before.0[k]).to_radians().tan();
+        let [fu_l, fv_l, fu_r, fv_r] = self.focal_px.map(f64::from);
+        let (du_l, du_r) = (fu_l * (d(0) + d(3)), fu_r * (d(0) + d(4)));
+        let (dv_l, dv_r) = (-fv_l * (d(1) + d(2)), -fv_r * (d(1) + d(2)));
+        if [du_l, du_r, dv_l, dv_r].iter().all(|x| x.is_finite() && x.abs() < 200.0) {
+            last.centre = [last.centre[0] + du_l, last.centre[1] + dv_l];
+            last.offset = [last.offset[0] + du_l - du_r, last.offset[1] + dv_l - dv_r];
+        }
     }
 
     /// Forgets the target (it is found afresh in the next frame).
@@ -377,6 +414,9 @@ impl Finder {
     ) -> Option<Found> {
         if left.dimensions() != right.dimensions() || left.width() < 32 || left.height() < 32 {
             return None;
+        }
+        if let Some(before) = self.seen_at.replace(*joints) {
+            self.follow_the_head(&before, joints);
         }
         let (l, r) = (Plane::new(left), Plane::new(right));
         let seed = match (self.mode, &self.last) {
@@ -408,7 +448,7 @@ impl Finder {
                 match (scanned, last) {
                     (Some(s), Some(held)) if s.offset[0] < held.offset[0] - DISPARITY_BAND_PX => {
                         let kept = dense(&l, &r, held, joints, est).filter(|(f, _)| {
-                            2 * f.points.len() >= held.points && confirmed(&l, &r, f, joints, est)
+                            2 * f.points.len() >= held.points && confirmed(&l, &r, f)
                         });
                         if kept.is_some() {
                             self.last = kept.as_ref().map(|(f, extent)| Last::of(f, *extent));
@@ -450,7 +490,7 @@ fn coarse_match_in(
         rw,
         [ch - HALF_DISPARITY, ch + HALF_DISPARITY],
         [rw - HALF_ROWS, rw + HALF_ROWS],
-        3,
+        COARSE_RADIUS,
     )?;
     // A best match at the end of the searched range is a peak cut off by the range (the true
     // one lies outside it, or there is none): the wall's texture there looks like a nearer
@@ -459,7 +499,7 @@ fn coarse_match_in(
         return None;
     }
     let (u2, v2) = ((2.0 * u).round() as i32, (2.0 * v).round() as i32);
-    let (ur, vr, _) = search(l, r, c[0], c[1], [u2 - 2, u2 + 2], [v2 - 2, v2 + 2], 5)?;
+    let (ur, vr, _) = search(l, r, c[0], c[1], [u2 - 2, u2 + 2], [v2 - 2, v2 + 2], FINE_RADIUS)?;
     let z = depth_of(est, joints, [f64::from(c[0]), f64::from(c[1])], [ur, vr])?;
     Some(Pt { l: c, r: [ur, vr], z })
 }
@@ -467,17 +507,31 @@ fn coarse_match_in(
 /// Whether a followed target's points, matched afresh over the scan's whole disparity range
 /// (up to nine of them, spread over its points), land at its disparity: at least
 /// [`MIN_CLUSTER`] do.
-fn confirmed(l: &Plane, r: &Plane, f: &Found, joints: &Joints, est: &Estimator) -> bool {
-    let (lh, rh) = (l.half(), r.half());
-    let d = f.px[0] - f.px[2];
-    let every = f.points.len().div_ceil(9).max(1);
-    f.points
-        .iter()
+///
+/// Matched at full resolution with the dense matches' window: the scan's half-resolution
+/// windows fail on some textures even where the object plainly is (a moving sphere was
+/// dropped for the wall behind it).
+fn confirmed(l: &Plane, r: &Plane, f: &Found) -> bool {
+    wide_matches_at(l, r, &f.points, f.offset) >= MIN_CLUSTER
+}
+
+/// How many of up to nine of the left pixels `at` (spread over them), matched at full
+/// resolution with the scan's refinement window over the scan's whole disparity range, land within
+/// [`DISPARITY_BAND_PX`] of the offset `d` (left minus right, px). An object's pixels do; the
+/// wall's chance matches at a near disparity (its texture alike at two offsets for a small
+/// window) mostly do not.
+fn wide_matches_at(l: &Plane, r: &Plane, at: &[[i32; 2]], d: [f64; 2]) -> usize {
+    let every = at.len().div_ceil(9).max(1);
+    let (reach, rows) = (2 * HALF_DISPARITY, 2 * HALF_ROWS);
+    at.iter()
         .step_by(every)
-        .filter_map(|&p| coarse_match_in(&lh, &rh, l, r, p, joints, est))
-        .filter(|q| ((f64::from(q.l[0]) - q.r[0]) - d).abs() <= DISPARITY_BAND_PX)
+        .filter_map(|&[x, y]| {
+            let vr = (f64::from(y) - d[1]).round() as i32;
+            search(l, r, x, y, [x - reach, x + reach], [vr - rows, vr + rows], FINE_RADIUS)
+                .map(|(u, _, _)| f64::from(x) - u)
+        })
+        .filter(|dq| (dq - d[0]).abs() <= DISPARITY_BAND_PX)
         .count()
-        >= MIN_CLUSTER
 }
 
 /// The nearest depth cluster on the coarse grid of the front region.
@@ -509,8 +563,29 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
         let d = disparity(p);
         let lo = pts.partition_point(|q| disparity(q) > d + DISPARITY_BAND_PX);
         let hi = pts.partition_point(|q| disparity(q) >= d - DISPARITY_BAND_PX);
-        let members: Vec<&Pt> = pts[lo..hi].iter().filter(|q| in_band(q.z, p.z)).collect();
-        if members.len() >= MIN_CLUSTER {
+        let near: Vec<&Pt> = pts[lo..hi].iter().filter(|q| in_band(q.z, p.z)).collect();
+        // One object: the points joined to `p` through neighbours on the grid (the wall's
+        // chance matches at a near disparity lie scattered, an object's side by side).
+        let mut members: Vec<&Pt> = vec![p];
+        let mut taken = vec![false; near.len()];
+        let mut k = 0;
+        while k < members.len() {
+            let a = members[k];
+            k += 1;
+            for (q, t) in near.iter().zip(taken.iter_mut()) {
+                let adjacent = (q.l[0] - a.l[0]).abs() <= step as i32
+                    && (q.l[1] - a.l[1]).abs() <= step as i32
+                    && q.l != p.l;
+                if !*t && adjacent {
+                    *t = true;
+                    members.push(q);
+                }
+            }
+        }
+        let d_v =
+            members.iter().map(|q| f64::from(q.l[1]) - q.r[1]).sum::<f64>() / members.len() as f64;
+        let at: Vec<[i32; 2]> = members.iter().map(|q| q.l).collect();
+        if members.len() >= MIN_CLUSTER && wide_matches_at(l, r, &at, [d, d_v]) >= MIN_CLUSTER {
             let n = members.len() as f64;
             let cu = members.iter().map(|q| f64::from(q.l[0])).sum::<f64>() / n;
             let cv = members.iter().map(|q| f64::from(q.l[1])).sum::<f64>() / n;
@@ -583,6 +658,7 @@ fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Op
     let n = pts.len() as f64;
     let mean = |f: &dyn Fn(&Dense) -> f64| pts.iter().map(f).sum::<f64>() / n;
     let mut px = [mean(&|p| p.l[0]), mean(&|p| p.l[1]), mean(&|p| p.r[0]), mean(&|p| p.r[1])];
+    let offset = [px[0] - px[2], px[1] - px[3]];
     let (lefts, rights): (Vec<[f64; 2]>, Vec<[f64; 2]>) = pts.iter().map(|p| (p.l, p.r)).unzip();
     if let (Some(to_r), Some(to_l)) = (Affine::fit(&lefts, &rights), Affine::fit(&rights, &lefts)) {
         let round = |v: &[[f64; 2]]| -> Vec<[i32; 2]> {
@@ -605,7 +681,7 @@ fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Op
     let extent = pts.iter().map(|p| (p.l[0] - px[0]).hypot(p.l[1] - px[1])).fold(0.0, f64::max);
     let z = median(pts.iter().map(|p| p.z).collect());
     let points = pts.iter().map(|p| [p.l[0] as i32, p.l[1] as i32]).collect();
-    Some((Found { px, z, points }, extent))
+    Some((Found { px, offset, z, points }, extent))
 }
 
 /// Smallest cost limit of an object's grown pixels (grey levels, see [`Plane::warp_cost`]).
@@ -894,7 +970,7 @@ mod tests {
     /// The target's pixels are the object's centre in both images, not the centroid of its
     /// window matches (which sat 2-4 px off: a window on the object's edge fails on one side
     /// more than on the other). Case III, a 5 cm sphere at three places (near the axis, off
-    /// it, near the head).
+    /// it, near the head, off it and far).
     #[test]
     fn the_target_is_the_objects_centre_in_both_images() {
         // The README's small posture-aware model of case III (see the fixture's README): its
@@ -914,7 +990,9 @@ mod tests {
             hvs_shared::runtime::gaze::fixate(&cfg, c.map(|x| x as f32)).unwrap().joints
         };
         for (k, centre) in
-            [[20.0, -8.0, 100.0], [-30.0, 10.0, 80.0], [0.0, 0.0, 60.0]].into_iter().enumerate()
+            [[20.0, -8.0, 100.0], [-30.0, 10.0, 80.0], [0.0, 0.0, 60.0], [40.0, 5.0, 150.0]]
+                .into_iter()
+                .enumerate()
         {
             let joints = towards(centre);
             let text = format!(

@@ -114,6 +114,9 @@ const RAD_TO_DEG: f32 = 180.0 / core::f32::consts::PI;
 
 /// Largest filtered velocity kept (cm per frame): anything faster is a wrong estimate.
 const MAX_VELOCITY_CM: f32 = 50.0;
+/// Largest change of the estimate between frames taken as the target's motion (cm): 3 m/s
+/// at 30 frames/s. A larger one resets the motion.
+const MAX_JUMP_CM: f32 = 10.0;
 /// Slowest sideways motion (cm per frame, filtered) the fixation leads: below it the
 /// estimate's frame-to-frame noise, not motion (20 cm/s at 30 frames/s is 0.67).
 const MIN_LEAD_VELOCITY_CM: f32 = 0.25;
@@ -186,6 +189,11 @@ pub fn step(
     let (lead, vg) =
         (clamp_abs(cfg.lead_frames, MAX_LEAD_FRAMES), clamp_abs(cfg.velocity_gain, 1.0));
     match (estimate, next.last_estimate.filter(|l| l.iter().all(|x| x.is_finite()))) {
+        // A jump is another target (the scan took a nearer one) or a wrong estimate, not
+        // motion: the motion starts again from rest.
+        (Some(e), Some(l)) if (0..3).any(|k| libm::fabsf(e[k] - l[k]) > MAX_JUMP_CM) => {
+            next.velocity = [0.0; 3];
+        }
         (Some(e), Some(l)) => {
             for k in 0..3 {
                 let v = next.velocity[k] + vg * ((e[k] - l[k]) - next.velocity[k]);
@@ -361,6 +369,13 @@ mod tests {
         let lost = Observation { target: None, joints: Joints::HOME };
         let (s, _) = step(&plain, &est, &s4, &lost);
         assert_eq!((s.velocity, s.last_estimate), ([0.0; 3], None));
+        // Another target (a nearer one, far to the left): a jump, not motion, and no lead.
+        let other =
+            Observation { target: Some(point([200.0, 240.0, 150.0, 240.0])), joints: Joints::HOME };
+        let (s, c) = step(&LoopConfig { lead_frames: 4.0, ..plain }, &est, &s4, &other);
+        assert_eq!(s.velocity, [0.0; 3]);
+        let fix = gaze::fixate(&plain.gaze, c.estimate.unwrap()).unwrap();
+        assert_eq!(c.joints, safe(&plain.gaze, &fix.joints));
     }
 
     proptest! {
