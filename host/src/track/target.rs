@@ -96,6 +96,9 @@ struct Plane {
     /// resolution), so every sum is a multiple of 1/16 below 2^37.
     sum: Vec<f64>,
     sq: Vec<f64>,
+    /// [`Plane::stats`] of every window of one radius, when made ([`Plane::with_stats`]):
+    /// the scan asks for each right window's about a hundred times.
+    cached: Option<(i32, Vec<(f32, f32)>)>,
 }
 
 impl Plane {
@@ -122,7 +125,28 @@ impl Plane {
                 sq[k] = sq[k - wu - 1] + rq;
             }
         }
-        Plane { w, h, p, sum, sq }
+        Plane { w, h, p, sum, sq, cached: None }
+    }
+
+    /// This plane with the statistics of every window of radius `rad` inside it made once
+    /// (the same values [`Plane::stats`] gives).
+    fn with_stats(mut self, rad: i32) -> Plane {
+        let mut v = vec![(0.0, -1.0); (self.w * self.h) as usize];
+        for r in rad..self.h - rad {
+            for c in rad..self.w - rad {
+                v[(r * self.w + c) as usize] = self.stats(c, r, rad);
+            }
+        }
+        self.cached = Some((rad, v));
+        self
+    }
+
+    /// [`Plane::stats`], from the cache when it holds that radius.
+    fn stats_of(&self, c: i32, r: i32, rad: i32) -> (f32, f32) {
+        match &self.cached {
+            Some((cr, v)) if *cr == rad => v[(r * self.w + c) as usize],
+            _ => self.stats(c, r, rad),
+        }
     }
 
     /// Half resolution: 2 x 2 means.
@@ -201,7 +225,7 @@ fn zncc_row(lc: &Centred, r: &Plane, rr: i32, (c0, c1): (i32, i32), out: &mut Ve
         }
     }
     for (k, o) in out.iter_mut().enumerate() {
-        let (mr, nr) = r.stats(c0 + k as i32, rr, rad);
+        let (mr, nr) = r.stats_of(c0 + k as i32, rr, rad);
         *o = if lc.norm <= 0.0 || nr <= 0.0 { -1.0 } else { (*o - mr * lc.sum) / (lc.norm * nr) };
     }
 }
@@ -536,7 +560,7 @@ fn wide_matches_at(l: &Plane, r: &Plane, at: &[[i32; 2]], d: [f64; 2]) -> usize 
 
 /// The nearest depth cluster on the coarse grid of the front region.
 fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Option<Last> {
-    let (lh, rh) = (l.half(), r.half());
+    let (lh, rh) = (l.half(), r.half().with_stats(COARSE_RADIUS));
     let (w, h) = (f64::from(l.w), f64::from(l.h));
     let (mx, my) = ((0.5 * (1.0 - FRONT_SHARE) * w) as i32, (0.5 * (1.0 - FRONT_SHARE) * h) as i32);
     // The grid's matches, rows in parallel, in row-major order (the same on any number of
