@@ -174,13 +174,15 @@ impl Tracker {
         let frame = source.grab(t_s, &joints)?;
         let t1 = std::time::Instant::now();
         let found = self.finder.find(&frame.left, &frame.right, &joints, estimator);
+        let pixels = |p: &[f64; 4]| StereoPoint {
+            u_l: p[0] as f32,
+            v_l: p[1] as f32,
+            u_r: p[2] as f32,
+            v_r: p[3] as f32,
+        };
         let obs = Observation {
-            target: found.as_ref().map(|f| StereoPoint {
-                u_l: f.px[0] as f32,
-                v_l: f.px[1] as f32,
-                u_r: f.px[2] as f32,
-                v_r: f.px[3] as f32,
-            }),
+            target: found.as_ref().map(|f| pixels(&f.px)),
+            surface: found.as_ref().map(|f| pixels(&f.surface)),
             joints,
         };
         let (next, cmd) = fixation::step(&self.loop_cfg, estimator, &self.state, &obs);

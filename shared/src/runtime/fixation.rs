@@ -79,8 +79,13 @@ pub struct LoopState {
 /// One frame's input.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Observation {
-    /// The target's pixels `(u_l, v_l, u_r, v_r)`, `None` when not found in this frame.
+    /// The target's pixels `(u_l, v_l, u_r, v_r)`, `None` when not found in this frame:
+    /// what the image correction brings to the image centres.
     pub target: Option<StereoPoint>,
+    /// Where the target is estimated, when not at `target`: the pixels of one point of its
+    /// visible surface (an object's centre seen in each image, `target`, is not a point of
+    /// its surface: a sphere's centre lies a radius behind the surface the eyes see).
+    pub surface: Option<StereoPoint>,
     /// Where the joints are (degrees) when the frame was taken.
     pub joints: Joints,
 }
@@ -180,7 +185,7 @@ pub fn step(
     let now = safe(&cfg.gaze, &obs.joints);
     let miss = image_miss(cfg, &p);
     let estimate = estimator
-        .estimate(&p, &now)
+        .estimate(&obs.surface.unwrap_or(p), &now)
         .ok()
         .map(|e| [e.x, e.y, e.z])
         .filter(|e| e.iter().all(|x| x.is_finite()));
@@ -273,8 +278,11 @@ mod tests {
         // 20 px of disparity: about 150 cm straight ahead. At home the fallback's estimate
         // and the images agree, so the kinematics need no correction.
         let cfg = LoopConfig::DEFAULT;
-        let obs =
-            Observation { target: Some(point([330.0, 240.0, 310.0, 240.0])), joints: Joints::HOME };
+        let obs = Observation {
+            target: Some(point([330.0, 240.0, 310.0, 240.0])),
+            joints: Joints::HOME,
+            surface: None,
+        };
         let (s, c) = step(&cfg, &fallback(), &LoopState::default(), &obs);
         assert_eq!(c.status, LoopStatus::Tracking);
         let z = c.estimate.unwrap()[2];
@@ -283,7 +291,7 @@ mod tests {
         // Converging eyes: left turns right (negative pan), right turns left.
         assert!(c.joints[Axis::LeftEyePan] < -1.0 && c.joints[Axis::RightEyePan] > 1.0);
         assert!(cfg.gaze.limits.contains(&c.joints));
-        let lost = Observation { target: None, joints: Joints::HOME };
+        let lost = Observation { target: None, joints: Joints::HOME, surface: None };
         let (_, c2) = step(&cfg, &fallback(), &s, &lost);
         assert_eq!(c2.status, LoopStatus::Lost);
         assert_eq!(c2.joints, c.joints);
@@ -293,8 +301,11 @@ mod tests {
     fn a_target_to_the_right_and_below_turns_the_eyes_there() {
         let cfg = LoopConfig { gain: 1.0, ..LoopConfig::DEFAULT };
         // From home, a target right of and below the centre in both images.
-        let obs =
-            Observation { target: Some(point([360.0, 270.0, 350.0, 270.0])), joints: Joints::HOME };
+        let obs = Observation {
+            target: Some(point([360.0, 270.0, 350.0, 270.0])),
+            joints: Joints::HOME,
+            surface: None,
+        };
         let (_, c) = step(&cfg, &fallback(), &LoopState::default(), &obs);
         let j = c.joints;
         assert!(j[Axis::LeftEyePan] < 0.0 && j[Axis::RightEyePan] < 0.0, "{j:?}");
@@ -310,6 +321,7 @@ mod tests {
         let mut s = LoopState::default();
         let obs = Observation {
             target: Some(point([330.0, 240.0, 310.0, 240.0])),
+            surface: None,
             joints: Joints([0.0, 0.0, 0.0, 0.9, 0.9]),
         };
         for _ in 0..20 {
@@ -338,6 +350,7 @@ mod tests {
             let du = 2.0 * k as f32;
             Observation {
                 target: Some(point([330.0 + du, 240.0, 310.0 + du, 240.0])),
+                surface: None,
                 joints: Joints::HOME,
             }
         };
@@ -366,12 +379,15 @@ mod tests {
         assert!(ahead > 0.5, "lead turned {ahead} degrees further");
         let last_fix = gaze::fixate(&plain.gaze, c0.estimate.unwrap()).unwrap();
         assert_eq!(c0.joints, safe(&plain.gaze, &last_fix.joints));
-        let lost = Observation { target: None, joints: Joints::HOME };
+        let lost = Observation { target: None, joints: Joints::HOME, surface: None };
         let (s, _) = step(&plain, &est, &s4, &lost);
         assert_eq!((s.velocity, s.last_estimate), ([0.0; 3], None));
         // Another target (a nearer one, far to the left): a jump, not motion, and no lead.
-        let other =
-            Observation { target: Some(point([200.0, 240.0, 150.0, 240.0])), joints: Joints::HOME };
+        let other = Observation {
+            target: Some(point([200.0, 240.0, 150.0, 240.0])),
+            joints: Joints::HOME,
+            surface: None,
+        };
         let (s, c) = step(&LoopConfig { lead_frames: 4.0, ..plain }, &est, &s4, &other);
         assert_eq!(s.velocity, [0.0; 3]);
         let fix = gaze::fixate(&plain.gaze, c.estimate.unwrap()).unwrap();
@@ -399,6 +415,8 @@ mod tests {
             };
             let obs = Observation {
                 target: seen.then(|| point(px)),
+                // Any surface pixels too (swapped: another point).
+                surface: seen.then(|| point([px[2], px[3], px[0], px[1]])),
                 joints: Joints(joints),
             };
             let (s, c) = step(&cfg, &fallback(), &state, &obs);
