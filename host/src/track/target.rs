@@ -11,14 +11,20 @@
 //!   pixel's for [`RESCAN_FRAMES`] frames, then scanned for again (at once when it is lost).
 //!   In a scan every grid point that matches is estimated (X, Y, Z by the model at the
 //!   current posture); the cluster of the largest disparity `u_l - u_r` (at least
-//!   [`MIN_CLUSTER`] points within a few pixels of one disparity and a few percent of one
-//!   depth) is the target (nearest by disparity: a net's depth outside its training box is
-//!   not to be trusted for the order); its region is then matched densely (every
-//!   [`DENSE_STEP`] px) and the target's pixels are the centroid of the matched points at that
-//!   depth, in the left and in the right image.
+//!   [`MIN_CLUSTER`] neighbouring grid points within a few pixels of one disparity and a few
+//!   percent of one depth, confirmed by full-resolution matches over the whole disparity
+//!   range) is the target (nearest by disparity: a net's depth outside its training box is
+//!   not to be trusted for the order).
 //! - **Pixel `(U, V)`**: the first frame matches `(U, V)` and grows the region of its depth
-//!   around it; later frames look for the same depth band around the last centroid
+//!   around it; later frames look for the same depth band around the last centre
 //!   (followed).
+//!
+//! Either way the target's region is then matched densely (every [`DENSE_STEP`] px, its
+//! largest connected group at its depth kept), its pixels grown in each image through an
+//! affine map fitted to those matches, and the target's pixels are the centres of the two
+//! regions ([`Found::px`], what the loop centres); it is estimated at the surface point seen
+//! at the left centre ([`Found::surface`]). A followed target is looked for where the head's
+//! own turn since the last frame has moved it.
 
 use hvs_shared::runtime::fixation::LoopConfig;
 use hvs_shared::runtime::gaze::Joints;
@@ -565,9 +571,9 @@ fn coarse_match_in(
 /// (up to nine of them, spread over its points), land at its disparity: at least
 /// [`MIN_CLUSTER`] do.
 ///
-/// Matched at full resolution with the dense matches' window: the scan's half-resolution
-/// windows fail on some textures even where the object plainly is (a moving sphere was
-/// dropped for the wall behind it).
+/// Matched at full resolution ([`wide_matches_at`]): the scan's half-resolution windows fail
+/// on some textures even where the object plainly is (a moving sphere was dropped for the
+/// wall behind it).
 fn confirmed(l: &Plane, r: &Plane, f: &Found) -> bool {
     wide_matches_at(l, r, &f.points, f.offset) >= MIN_CLUSTER
 }
