@@ -385,3 +385,53 @@ mod floor_tests {
         }
     }
 }
+
+#[cfg(test)]
+mod loop_tests {
+    use super::*;
+    use frames::{loop_render_options, VirtualCameras};
+    use head_sim::VirtualHead;
+    use hvs_shared::runtime::trajectory::ControllerConfig;
+    use hvs_shared::sim::posture::HeadRig;
+
+    /// The whole loop on the README's scene (case III, 640 x 480, a 5 cm sphere at (20, -8,
+    /// 100) before a textured wall) with the README's small posture-aware model: after 1 s
+    /// both eyes hold the sphere near the rig's floor (2.5 px: `fixation_floor_px`), and the
+    /// estimate is its surface's depth (95 cm) within 2 %. Before the target's pixels were
+    /// the centres of its grown regions the loop settled at 4.8/4.4 px.
+    #[test]
+    fn the_loop_holds_a_static_sphere_near_the_rigs_floor() {
+        let loaded = scene_file::parse(
+            r#"{ "rig": {"case": 3}, "camera_fps": 30,
+              "background": {"z_cm": 300, "texture_seed": 1},
+              "objects": [ {"shape": "sphere", "radius_cm": 5, "centre_cm": [20, -8, 100],
+                            "velocity_cm_s": [0, 0, 0], "texture_seed": 2} ] }"#,
+        )
+        .unwrap();
+        let blob = crate::data::model::check(include_bytes!(
+            "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
+        ))
+        .unwrap()
+        .blob;
+        let est = estimator_of(blob).unwrap();
+        let cfg = TrackConfig {
+            seconds: 1.2,
+            fps: loaded.scene.camera_fps,
+            target: TargetMode::Nearest,
+            loop_cfg: loop_config(&loaded.rig, DEFAULT_CORRECTION_GAIN),
+        };
+        let mut cams =
+            VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, loop_render_options(), 2);
+        let mut head = VirtualHead::new(&ControllerConfig::DEFAULT).unwrap();
+        let rows = run(&mut cams, &mut head, &est, &cfg, &AtomicBool::new(false), |_, _, _| Ok(()))
+            .unwrap();
+        let late: Vec<&LogRow> = rows.iter().filter(|r| r.t_s >= 1.0).collect();
+        assert!(!late.is_empty());
+        for r in late {
+            let [el, er] = r.err_px.expect("on the sphere");
+            assert!(el <= 3.5 && er <= 3.5, "frame {}: {el:.2} / {er:.2} px", r.frame);
+            let z = r.xyz.expect("an estimate")[2];
+            assert!((z - 95.0).abs() <= 0.02 * 95.0, "frame {}: z {z}", r.frame);
+        }
+    }
+}
