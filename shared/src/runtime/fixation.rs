@@ -297,6 +297,28 @@ mod tests {
         assert_eq!(c2.joints, c.joints);
     }
 
+    /// Given surface pixels, the estimate is made there (a nearer point here: 2 px more
+    /// disparity), and the image correction still centres the target's pixels.
+    #[test]
+    fn the_estimate_is_made_at_the_surface_pixels() {
+        let cfg = LoopConfig { gain: 1.0, ..LoopConfig::DEFAULT };
+        let (target, surface) =
+            (point([330.0, 240.0, 310.0, 240.0]), point([330.0, 240.0, 308.0, 240.0]));
+        let run = |surface| {
+            let obs = Observation { target: Some(target), surface, joints: Joints::HOME };
+            step(&cfg, &fallback(), &LoopState::default(), &obs).1
+        };
+        let (centre, front) = (run(None), run(Some(surface)));
+        let at = |p: &StereoPoint| {
+            let e = fallback().estimate(p, &Joints::HOME).unwrap();
+            [e.x, e.y, e.z]
+        };
+        assert_eq!(centre.estimate, Some(at(&target)));
+        assert_eq!(front.estimate, Some(at(&surface)));
+        assert!(front.estimate.unwrap()[2] < centre.estimate.unwrap()[2]);
+        assert_eq!(front.status, LoopStatus::Tracking);
+    }
+
     #[test]
     fn a_target_to_the_right_and_below_turns_the_eyes_there() {
         let cfg = LoopConfig { gain: 1.0, ..LoopConfig::DEFAULT };
