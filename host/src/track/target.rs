@@ -32,6 +32,7 @@ use hvs_shared::runtime::head::Estimator;
 use hvs_shared::runtime::protocol::StereoPoint;
 use image::GrayImage;
 use rayon::prelude::*;
+use std::collections::HashMap;
 
 /// Fewest matched points that make an object.
 pub const MIN_CLUSTER: usize = 3;
@@ -629,22 +630,15 @@ fn nearest_seed(l: &Plane, r: &Plane, joints: &Joints, est: &Estimator) -> Optio
         let near: Vec<&Pt> = pts[lo..hi].iter().filter(|q| in_band(q.z, p.z)).collect();
         // One object: the points joined to `p` through neighbours on the grid (the wall's
         // chance matches at a near disparity lie scattered, an object's side by side).
-        let mut members: Vec<&Pt> = vec![p];
+        let px = step as i32;
+        let cells: Vec<[i32; 2]> =
+            near.iter().map(|q| [(q.l[0] - mx) / px, (q.l[1] - my) / px]).collect();
+        let start = near.iter().position(|q| q.l == p.l).expect("p is in its own band");
         let mut taken = vec![false; near.len()];
-        let mut k = 0;
-        while k < members.len() {
-            let a = members[k];
-            k += 1;
-            for (q, t) in near.iter().zip(taken.iter_mut()) {
-                let adjacent = (q.l[0] - a.l[0]).abs() <= step as i32
-                    && (q.l[1] - a.l[1]).abs() <= step as i32
-                    && q.l != p.l;
-                if !*t && adjacent {
-                    *t = true;
-                    members.push(q);
-                }
-            }
-        }
+        let members: Vec<&Pt> = grid_group(&cells, &cell_index(&cells), start, &mut taken)
+            .into_iter()
+            .map(|k| near[k])
+            .collect();
         let d_v =
             members.iter().map(|q| f64::from(q.l[1]) - q.r[1]).sum::<f64>() / members.len() as f64;
         let at: Vec<[i32; 2]> = members.iter().map(|q| q.l).collect();
@@ -731,10 +725,10 @@ fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Op
         let (seeds_l, seeds_r) = (round(&lefts), round(&rights));
         // The mask's cost limit: twice the typical cost of the matched pixels themselves
         // (noise and the map's misfit), at least [`MIN_MASK_COST`].
-        let mut at_seeds: Vec<f32> =
+        let at_seeds: Vec<f32> =
             seeds_l.iter().filter_map(|p| l.warp_cost(r, &to_r, p[0], p[1])).collect();
         if !at_seeds.is_empty() {
-            let limit = (2.0 * median(std::mem::take(&mut at_seeds))).max(MIN_MASK_COST);
+            let limit = (2.0 * median(at_seeds)).max(MIN_MASK_COST);
             let grown_l = mask_centroid(l, r, &to_r, &seeds_l, limit, MASK_REACH);
             let grown_r = mask_centroid(r, l, &to_l, &seeds_r, limit, MASK_REACH);
             if let (Some(a), Some(b)) = (grown_l, grown_r) {
@@ -899,36 +893,61 @@ fn mask_centroid(
 /// (the first found on ties): the object, without the scattered matches of the
 /// background's texture at its depth (a wall's periodic pattern, a few windows around it).
 fn largest_component(pts: Vec<Dense>) -> Vec<Dense> {
-    use std::collections::HashMap;
-    let cell = |p: &Dense| p.cell;
-    let at: HashMap<[i32; 2], usize> = pts.iter().enumerate().map(|(k, p)| (cell(p), k)).collect();
-    let mut group = vec![usize::MAX; pts.len()];
+    let cells: Vec<[i32; 2]> = pts.iter().map(|p| p.cell).collect();
+    let at = cell_index(&cells);
+    let mut taken = vec![false; pts.len()];
     let mut best: Vec<usize> = Vec::new();
     for start in 0..pts.len() {
-        if group[start] != usize::MAX {
+        if taken[start] {
             continue;
         }
-        group[start] = start;
-        let mut members = vec![start];
-        let mut k = 0;
-        while k < members.len() {
-            let c = cell(&pts[members[k]]);
-            k += 1;
-            for (dx, dy) in [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
-                if let Some(&q) = at.get(&[c[0] + dx, c[1] + dy]) {
-                    if group[q] == usize::MAX {
-                        group[q] = start;
-                        members.push(q);
-                    }
-                }
-            }
-        }
-        if members.len() > best.len() {
-            best = members;
+        let group = grid_group(&cells, &at, start, &mut taken);
+        if group.len() > best.len() {
+            best = group;
         }
     }
     best.sort_unstable();
     best.into_iter().map(|k| pts[k]).collect()
+}
+
+/// Where each grid cell of `cells` is.
+fn cell_index(cells: &[[i32; 2]]) -> HashMap<[i32; 2], usize> {
+    cells.iter().enumerate().map(|(k, c)| (*c, k)).collect()
+}
+
+/// The 8-connected group of grid cells that holds `cells[start]` (`at`: [`cell_index`]),
+/// breadth first, each cell's new neighbours in the order of their index; every cell of it
+/// is marked in `taken`, and cells already marked are not entered.
+fn grid_group(
+    cells: &[[i32; 2]],
+    at: &HashMap<[i32; 2], usize>,
+    start: usize,
+    taken: &mut [bool],
+) -> Vec<usize> {
+    taken[start] = true;
+    let mut group = vec![start];
+    let mut next = Vec::with_capacity(8);
+    let mut k = 0;
+    while k < group.len() {
+        let c = cells[group[k]];
+        k += 1;
+        next.clear();
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                if let Some(&q) = at.get(&[c[0] + dx, c[1] + dy]) {
+                    if !taken[q] {
+                        next.push(q);
+                    }
+                }
+            }
+        }
+        next.sort_unstable();
+        for &q in &next {
+            taken[q] = true;
+            group.push(q);
+        }
+    }
+    group
 }
 
 #[cfg(test)]
