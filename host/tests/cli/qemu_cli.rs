@@ -264,11 +264,7 @@ fn head_looks_at_a_point_found_in_the_images() {
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn track_moves_the_head_in_qemu_with_posture_commands() {
-    use hvs_shared::runtime::gaze::{GazeConfig, Joints};
-    assert_firmware_built();
-    let dir = crate::common::Scratch::new();
-    let m = crate::common::small_model(&dir);
-    let scene = big_still_scene(&dir);
+    let (dir, m, scene) = track_setup();
     let (q, e) = (dir.p("qemu.csv"), dir.p("emulate.csv"));
     let args = |log: &str, head: &str| {
         [
@@ -290,25 +286,15 @@ fn track_moves_the_head_in_qemu_with_posture_commands() {
     let out = hvs().args(args(&q, "qemu")).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     run(&args(&e, "emulate").iter().map(String::as_str).collect::<Vec<_>>());
-    let read = |p: &str| {
-        let text = std::fs::read_to_string(p).unwrap();
-        let header = text.lines().next().unwrap().to_string();
-        let rows: Vec<Vec<String>> =
-            text.lines().skip(1).map(|l| l.split(',').map(String::from).collect()).collect();
-        (header, rows)
-    };
-    let ((hq, rq), (he, re)) = (read(&q), read(&e));
-    assert_eq!(hq, he);
+    let (tq, te) = (std::fs::read_to_string(&q).unwrap(), std::fs::read_to_string(&e).unwrap());
+    let (rq, re) = (track_log_rows(&tq), track_log_rows(&te));
     assert_eq!(rq.len(), re.len(), "one row per frame, as many frames");
-    let limits = GazeConfig::DEFAULT.limits;
-    let num = |r: &[String], i: usize| r[i].parse::<f64>().unwrap();
+    let num = |r: &[&str], i: usize| r[i].parse::<f64>().unwrap();
     let mut t_prev = -1.0;
     for r in &rq {
         let t = num(r, 0);
         assert!(t >= t_prev, "the head's clock runs forward: {t} after {t_prev}");
         t_prev = t;
-        let j = Joints(std::array::from_fn(|i| num(r, 10 + i) as f32));
-        assert!(limits.contains(&j), "{r:?}");
     }
     assert!(t_prev >= 1.4, "the head's clock reached the run's end: {t_prev}");
     // The head turned towards the object: after 0.5 s of the head's clock, the tracked frames'
@@ -372,11 +358,7 @@ fn view_runs_the_head_in_qemu() {
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF; run by .ci/run"]
 fn track_drives_a_head_on_a_port() {
-    use hvs_shared::runtime::gaze::{GazeConfig, Joints};
-    assert_firmware_built();
-    let dir = crate::common::Scratch::new();
-    let m = crate::common::small_model(&dir);
-    let scene = big_still_scene(&dir);
+    let (dir, m, scene) = track_setup();
     let d = TempDir::new().unwrap();
     let (_emu, connect) = emulate(Path::new(&m), d.path());
     once_it_answers(&connect, &["info"]);
@@ -403,17 +385,10 @@ fn track_drives_a_head_on_a_port() {
         &connect,
     ]);
     let text = std::fs::read_to_string(&log).unwrap();
-    let limits = GazeConfig::DEFAULT.limits;
-    let rows: Vec<Vec<f64>> = text
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').skip(10).take(5).map(|x| x.parse().unwrap()).collect())
-        .collect();
+    let rows = track_log_rows(&text);
     assert_eq!(rows.len(), 30, "{text}");
-    for j in &rows {
-        assert!(limits.contains(&Joints(std::array::from_fn(|i| j[i] as f32))), "{j:?}");
-    }
-    assert!(rows.iter().any(|j| j.iter().any(|a| *a != 0.0)), "the head turned:\n{text}");
+    let turned = |r: &Vec<&str>| r[10..15].iter().any(|a| a.parse::<f64>().unwrap() != 0.0);
+    assert!(rows.iter().any(turned), "the head turned:\n{text}");
     drop(_emu);
     // A head that goes away mid-run (QEMU stopped after 4 s): one clear line, exit 1, and
     // the log keeps the frames before.
@@ -427,6 +402,29 @@ fn track_drives_a_head_on_a_port() {
     let text = std::fs::read_to_string(&log).unwrap();
     let n = text.lines().count() - 1;
     assert!(n > 0 && n < 900 && err.contains(&format!("the {n} frames before")), "{n}: {err}");
+}
+
+/// What the `hvs track` tests on QEMU start from: the firmware built, a scratch directory,
+/// the small rig's model and its big still scene.
+fn track_setup() -> (crate::common::Scratch, String, String) {
+    assert_firmware_built();
+    let dir = crate::common::Scratch::new();
+    let m = crate::common::small_model(&dir);
+    let scene = big_still_scene(&dir);
+    (dir, m, scene)
+}
+
+/// The rows of an `hvs track` log (its header checked), every row's joints within the
+/// limits.
+fn track_log_rows(text: &str) -> Vec<Vec<&str>> {
+    use hvs_shared::runtime::gaze::{GazeConfig, Joints};
+    let rows = crate::common::csv_rows(text, hvs_host::track::LOG_HEADER);
+    let limits = GazeConfig::DEFAULT.limits;
+    for r in &rows {
+        let j = Joints(std::array::from_fn(|i| r[10 + i].parse::<f64>().unwrap() as f32));
+        assert!(limits.contains(&j), "{r:?}");
+    }
+    rows
 }
 
 /// The small rig's scene with its sphere still, larger (20 cm) and off the axis: the nearest
