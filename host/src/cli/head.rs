@@ -8,7 +8,7 @@
 use crate::data::csv::read_stereo_points;
 use crate::data::output::check_not_input;
 use crate::data::output::write_bytes;
-use crate::device::client::{connect, error_text, estimate_row, expect, write_info};
+use crate::device::client::{self, connect, error_text, estimate_row, expect, write_info};
 use crate::device::link::Endpoint;
 use anyhow::{bail, Result};
 use hvs_shared::runtime::protocol::{Joints, RequestBody, ResponseBody, StateData, StereoPoint};
@@ -259,18 +259,10 @@ pub fn run(args: &Args) -> Result<()> {
         }
         HeadCommand::Posture { joints } => {
             let j = parse_joints(joints)?;
-            let st = expect(link.request(RequestBody::Posture(j))?, "Posture", |b| match b {
-                ResponseBody::State(s) => Some(s),
-                _ => None,
-            })?;
-            write_state(&mut out, &st)?;
+            write_state(&mut out, &client::posture(&mut link, &j)?)?;
         }
         HeadCommand::State => {
-            let st = expect(link.request(RequestBody::State)?, "State", |b| match b {
-                ResponseBody::State(s) => Some(s),
-                _ => None,
-            })?;
-            write_state(&mut out, &st)?;
+            write_state(&mut out, &client::state(&mut link)?)?;
         }
         HeadCommand::Bench { count } => {
             let p = StereoPoint { u_l: 330.0, v_l: 241.0, u_r: 300.0, v_r: 239.0 };

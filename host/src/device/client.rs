@@ -6,8 +6,8 @@
 use crate::device::link::{Endpoint, Link};
 use anyhow::{bail, Result};
 use hvs_shared::runtime::protocol::{
-    ErrorCode, EstimateData, InfoData, Mode, RequestBody, ResponseBody, SlotStatus, Source,
-    StereoPoint,
+    ErrorCode, EstimateData, InfoData, Joints, Mode, RequestBody, ResponseBody, SlotStatus, Source,
+    StateData, StereoPoint,
 };
 use std::io::Write;
 use std::time::Duration;
@@ -24,6 +24,23 @@ pub fn connect(endpoint: &Endpoint, timeout: Duration) -> Result<Link> {
 pub fn estimate(link: &mut Link, p: &StereoPoint) -> Result<EstimateData> {
     expect(link.request(RequestBody::Estimate(*p))?, "Estimate", |b| match b {
         ResponseBody::Estimate(e) => Some(e),
+        _ => None,
+    })
+}
+
+/// The head's state (`State`, protocol 3): its joints, the move's goal, its clock.
+pub fn state(link: &mut Link) -> Result<StateData> {
+    expect(link.request(RequestBody::State)?, "State", |b| match b {
+        ResponseBody::State(s) => Some(s),
+        _ => None,
+    })
+}
+
+/// A posture command (`Posture`, protocol 3; the head clamps each joint to its limits) and
+/// the state the head answers with.
+pub fn posture(link: &mut Link, goal: &Joints) -> Result<StateData> {
+    expect(link.request(RequestBody::Posture(*goal))?, "Posture", |b| match b {
+        ResponseBody::State(s) => Some(s),
         _ => None,
     })
 }

@@ -4,9 +4,9 @@
 //! own clock and is driven with the protocol's `Posture` and `State` requests.
 
 use super::head_sim::VirtualHead;
-use crate::device::client::{self, error_text};
+use crate::device::client;
 use crate::device::link::Link;
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::protocol::{RequestBody, ResponseBody, StateData, PROTOCOL_VERSION};
 use std::time::{Duration, Instant};
@@ -90,7 +90,7 @@ impl RemoteHead {
         if control_hz == 0 {
             bail!("control rate 0 Hz");
         }
-        let state = Self::query(&mut link)?;
+        let state = client::state(&mut link)?;
         Ok(RemoteHead {
             link,
             hz: control_hz,
@@ -98,13 +98,6 @@ impl RemoteHead {
             state,
             goal: None,
             _qemu: None,
-        })
-    }
-
-    fn query(link: &mut Link) -> Result<StateData> {
-        client::expect(link.request(RequestBody::State)?, "State", |b| match b {
-            ResponseBody::State(s) => Some(s),
-            _ => None,
         })
     }
 
@@ -144,7 +137,7 @@ impl ServoHead for RemoteHead {
     fn advance_to(&mut self, t_s: f64) -> Result<()> {
         let mut last = (self.state.ticks, Instant::now());
         loop {
-            self.state = Self::query(&mut self.link)?;
+            self.state = client::state(&mut self.link)?;
             let now = self.elapsed_s(&self.state);
             if now + 1e-9 >= t_s {
                 return Ok(());
@@ -166,17 +159,10 @@ impl ServoHead for RemoteHead {
         if self.goal == Some(*goal) {
             return Ok(());
         }
-        match self.link.request(RequestBody::Posture(*goal))? {
-            ResponseBody::State(s) => {
-                self.state = s;
-                self.goal = Some(*goal);
-                Ok(())
-            }
-            ResponseBody::Error(code) => {
-                bail!("the head refused the posture {:?}: {}", goal.0, error_text(code))
-            }
-            other => bail!("the head answered a posture with an unexpected {other:?}"),
-        }
+        self.state = client::posture(&mut self.link, goal)
+            .with_context(|| format!("the posture {:?}", goal.0))?;
+        self.goal = Some(*goal);
+        Ok(())
     }
 
     fn joints(&self) -> Joints {
