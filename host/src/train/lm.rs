@@ -3,8 +3,8 @@
 //!
 //! The cost is `F(p) = 1/2 sum r^2 + 1/2 sum alpha_q p_q^2` (`alpha_q` is the weight decay,
 //! another one for the tail of skip weights, [`LmOptions::tail`]). Each iteration solves
-//! `(J^T J + alpha I + lambda D) delta = -(J^T r + alpha p)` by Cholesky (`nalgebra`), with `D`
-//! the diagonal of `J^T J + alpha I` (Marquardt's scaling, floored so that no direction is
+//! `(J^T J + alpha I + lambda D) delta = -(J^T r + alpha p)` by Cholesky ([`chol`]: the bits of
+//! `nalgebra`'s, faster), with `D` the diagonal of `J^T J + alpha I` (Marquardt's scaling, floored so that no direction is
 //! free), and updates `lambda` by Nielsen's rule from the ratio of actual to predicted
 //! reduction. The normal equations come from the analytic Jacobian without forming it
 //! ([`Problem::normal_equations`], reusing the forward pass of the accepted trial step);
@@ -16,8 +16,8 @@
 // Index loops mirror the equations (several arrays indexed by the same unit numbers).
 #![allow(clippy::needless_range_loop)]
 
+use super::chol;
 use super::net::{NormalWorkspace, Problem};
-use nalgebra::{linalg::Cholesky, DMatrix, DVector};
 
 /// Cost and stopping rules.
 #[derive(Debug, Clone, Copy)]
@@ -66,9 +66,9 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
     let mut ws = NormalWorkspace::new(prob);
     let mut jtj = vec![0.0; np * np];
     let mut jtr = vec![0.0; np];
-    let mut g = DVector::<f64>::zeros(np);
-    let mut a = DMatrix::<f64>::zeros(np, np);
-    let mut delta = DVector::<f64>::zeros(np);
+    let mut g = vec![0.0; np];
+    let mut a = vec![0.0; np * np + chol::SLACK];
+    let mut delta = vec![0.0; np];
     let mut diag = vec![0.0; np];
     let mut trial = vec![0.0; np];
     let mut act = prob.activations();
@@ -107,26 +107,25 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
             fresh = false;
         }
         iterations += 1;
+        // The damped matrix, column-major (the factor reads its lower triangle).
         for q in 0..np {
             for s in 0..np {
-                a[(q, s)] = jtj[q * np + s];
+                a[s * np + q] = jtj[q * np + s];
             }
-            a[(q, q)] += decay[q] + lambda * diag[q];
+            a[q * np + q] += decay[q] + lambda * diag[q];
         }
-        let m = std::mem::replace(&mut a, DMatrix::zeros(0, 0));
-        let Some(chol) = Cholesky::new(m) else {
-            a = DMatrix::zeros(np, np);
+        if !chol::factor(&mut a, np) {
             lambda *= nu;
             nu *= 2.0;
             if lambda > 1e16 {
                 break;
             }
             continue;
-        };
-        delta.copy_from(&g);
-        delta.neg_mut();
-        chol.solve_mut(&mut delta);
-        a = chol.unpack_dirty();
+        }
+        for q in 0..np {
+            delta[q] = -g[q];
+        }
+        chol::solve(&a[..np * np], np, &mut delta);
 
         // Predicted reduction of the quadratic model: 1/2 delta^T (lambda D delta - g).
         let mut pred = 0.0;
@@ -142,20 +141,18 @@ pub(crate) fn fit(prob: &Problem, p: &mut [f64], opts: &LmOptions) -> LmResult {
         if f_new.is_finite() && rho > 0.0 {
             let improvement = (f - f_new) / f.max(f64::MIN_POSITIVE);
             p.copy_from_slice(&trial);
+            stalled = if improvement < opts.rel_tol { stalled + 1 } else { 0 };
+            if stalled >= opts.patience || iterations >= opts.max_iter {
+                // The last step: the normal equations at `p` would not be used.
+                f = f_new;
+                break;
+            }
             std::mem::swap(&mut act, &mut act_trial);
             f = objective(prob.normal_equations(p, &act, &mut jtj, &mut jtr, &mut ws), p);
             fresh = true;
             lambda *= f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3));
             lambda = lambda.max(1e-12);
             nu = 2.0;
-            if improvement < opts.rel_tol {
-                stalled += 1;
-                if stalled >= opts.patience {
-                    break;
-                }
-            } else {
-                stalled = 0;
-            }
         } else {
             lambda *= nu;
             nu *= 2.0;

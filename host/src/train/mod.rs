@@ -39,8 +39,10 @@
 
 mod adam;
 mod bp;
+mod chol;
 mod decay;
 pub mod describe;
+mod exp_lanes;
 pub mod fallback;
 mod lm;
 pub mod matcher;

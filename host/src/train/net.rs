@@ -8,6 +8,7 @@
 // Index loops mirror the equations (several arrays indexed by the same unit numbers).
 #![allow(clippy::needless_range_loop)]
 
+use super::exp_lanes::{exp_lanes, LANES};
 use hvs_shared::runtime::mlp::Activation;
 
 /// Sizes of an `ni-nh-no` net and the index of every parameter in the shared layout: for each
@@ -119,6 +120,69 @@ pub(crate) fn forward(
             Activation::Linear => a,
             Activation::Sigmoid => sigmoid(a),
         };
+    }
+}
+
+/// [`forward`] of [`LANES`] samples (`x`: `LANES * ni` values, `h` and `y` likewise), the
+/// same bits: each sample's sums in the same order, the sigmoid's `exp` by [`exp_lanes`].
+#[inline(always)]
+fn forward_lanes(
+    s: &Shape,
+    output: Activation,
+    p: &[f64],
+    x: &[f64],
+    h: &mut [f64],
+    y: &mut [f64],
+) {
+    let sigmoid_lanes = |a: [f64; LANES]| -> [f64; LANES] {
+        let e = exp_lanes(&a.map(|v| -v));
+        e.map(|e| 1.0 / (1.0 + e))
+    };
+    // The hidden units' lanes: on the stack for the nets `hvs train` makes.
+    let mut stack = [[0.0; LANES]; 32];
+    let mut heap = Vec::new();
+    let hl: &mut [[f64; LANES]] = if s.nh <= stack.len() {
+        &mut stack[..s.nh]
+    } else {
+        heap.resize(s.nh, [0.0; LANES]);
+        &mut heap
+    };
+    for (j, hj) in hl.iter_mut().enumerate() {
+        let row = &p[s.w1(j, 0)..s.w1(j, 0) + s.ni + 1];
+        let mut a = [row[s.ni]; LANES];
+        for (i, w) in row[..s.ni].iter().enumerate() {
+            for l in 0..LANES {
+                a[l] += w * x[l * s.ni + i];
+            }
+        }
+        *hj = sigmoid_lanes(a);
+        for l in 0..LANES {
+            h[l * s.nh + j] = hj[l];
+        }
+    }
+    for k in 0..s.no {
+        let row = &p[s.w2(k, 0)..s.w2(k, 0) + s.nh + 1];
+        let mut a = [row[s.nh]; LANES];
+        for (w, hj) in row[..s.nh].iter().zip(hl.iter()) {
+            for l in 0..LANES {
+                a[l] += w * hj[l];
+            }
+        }
+        if s.skip {
+            for i in 0..s.ni {
+                let w = p[s.sk(k, i)];
+                for l in 0..LANES {
+                    a[l] += w * x[l * s.ni + i];
+                }
+            }
+        }
+        let a = match output {
+            Activation::Linear => a,
+            Activation::Sigmoid => sigmoid_lanes(a),
+        };
+        for l in 0..LANES {
+            y[l * s.no + k] = a[l];
+        }
     }
 }
 
@@ -403,16 +467,76 @@ impl Problem {
 
     /// The forward pass of the samples from `first` on into `h` and `y` (as many as they
     /// hold); returns their sum of squared residuals.
+    /// [`LANES`] samples at a time ([`forward_lanes`]), the rest one by one. Compiled for AVX
+    /// and AVX-512F too, picked at run time (the same bits).
     fn forward_range(&self, p: &[f64], first: usize, h: &mut [f64], y: &mut [f64]) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: this CPU has AVX-512F (checked just above).
+            return unsafe { self.forward_range_avx512(p, first, h, y) };
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: this CPU has AVX (checked just above).
+            return unsafe { self.forward_range_avx(p, first, h, y) };
+        }
+        self.forward_range_in(p, first, h, y)
+    }
+
+    /// [`Problem::forward_range`] compiled for AVX.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn forward_range_avx(
+        &self,
+        p: &[f64],
+        first: usize,
+        h: &mut [f64],
+        y: &mut [f64],
+    ) -> f64 {
+        self.forward_range_in(p, first, h, y)
+    }
+
+    /// [`Problem::forward_range`] compiled for AVX-512F.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn forward_range_avx512(
+        &self,
+        p: &[f64],
+        first: usize,
+        h: &mut [f64],
+        y: &mut [f64],
+    ) -> f64 {
+        self.forward_range_in(p, first, h, y)
+    }
+
+    #[inline(always)]
+    fn forward_range_in(&self, p: &[f64], first: usize, h: &mut [f64], y: &mut [f64]) -> f64 {
         let s = &self.shape;
+        let count = y.len() / s.no;
+        let whole = count - count % LANES;
+        for b in (0..whole).step_by(LANES) {
+            let n = first + b;
+            forward_lanes(
+                s,
+                self.output,
+                p,
+                &self.x[n * s.ni..(n + LANES) * s.ni],
+                &mut h[b * s.nh..(b + LANES) * s.nh],
+                &mut y[b * s.no..(b + LANES) * s.no],
+            );
+        }
         let mut cost = 0.0;
-        for ((n, h), y) in h
-            .chunks_exact_mut(s.nh)
-            .enumerate()
-            .map(|(i, h)| (first + i, h))
-            .zip(y.chunks_exact_mut(s.no))
-        {
-            forward(s, self.output, p, &self.x[n * s.ni..(n + 1) * s.ni], h, y);
+        for (i, (h, y)) in h.chunks_exact_mut(s.nh).zip(y.chunks_exact_mut(s.no)).enumerate() {
+            let n = first + i;
+            if i >= whole {
+                forward(s, self.output, p, &self.x[n * s.ni..(n + 1) * s.ni], h, y);
+            }
             for k in 0..s.no {
                 let idx = n * s.no + k;
                 let v = self.c[idx] * (y[k] - self.t[idx]);
@@ -952,6 +1076,59 @@ pub(crate) mod tests {
         assert_eq!(ca.to_bits(), cb.to_bits());
         for (x, y) in [(&a.m, &b.m), (&a.cross, &b.cross), (&a.jtr, &b.jtr)] {
             assert_eq!(bits(x), bits(y));
+        }
+    }
+
+    /// The forward passes eight samples at a time (as this CPU runs them, and the portable
+    /// build) have the bits of one sample at a time through `forward`, its `libm::exp`
+    /// included: sigmoid and linear outputs, with and without skip weights, sets that are and
+    /// are not whole blocks, large enough to run in two halves. Parameters up to +-8 reach the
+    /// sigmoid's saturation.
+    #[test]
+    fn the_forward_lanes_have_the_bits_of_one_sample_at_a_time() {
+        for (shape, output, n) in [
+            (Shape::new(4, 5, 3, true), Activation::Linear, 13),
+            (Shape::new(9, 16, 3, true), Activation::Linear, SPLIT_MIN_SAMPLES + 21),
+            (Shape::new(4, 40, 3, false), Activation::Sigmoid, 64),
+            (Shape::new(2, 1, 1, false), Activation::Sigmoid, 7),
+        ] {
+            let prob = random_problem(shape, output, n, 4);
+            for (seed, scale) in [(1, 1.0), (2, 8.0)] {
+                let mut g = SplitMix64::new(seed);
+                let p: Vec<f64> =
+                    (0..shape.n_params()).map(|_| scale * g.uniform(-1.0, 1.0)).collect();
+                let mut act = prob.activations();
+                let cost = prob.evaluate(&p, &mut act);
+                let mut portable = prob.activations();
+                prob.forward_range_in(&p, 0, &mut portable.h, &mut portable.y);
+                let (mut h, mut y) = (vec![0.0; shape.nh], vec![0.0; shape.no]);
+                let mut sse = 0.0;
+                for i in 0..n {
+                    forward(
+                        &shape,
+                        output,
+                        &p,
+                        &prob.x[i * shape.ni..(i + 1) * shape.ni],
+                        &mut h,
+                        &mut y,
+                    );
+                    for (a, b) in act.h[i * shape.nh..(i + 1) * shape.nh].iter().zip(&h) {
+                        assert_eq!(a.to_bits(), b.to_bits(), "{shape:?} sample {i} hidden");
+                    }
+                    for (a, b) in act.y[i * shape.no..(i + 1) * shape.no].iter().zip(&y) {
+                        assert_eq!(a.to_bits(), b.to_bits(), "{shape:?} sample {i} output");
+                    }
+                    for k in 0..shape.no {
+                        let v = prob.c[i * shape.no + k] * (y[k] - prob.t[i * shape.no + k]);
+                        sse += v * v;
+                    }
+                }
+                assert_eq!(portable.h, act.h);
+                assert_eq!(portable.y, act.y);
+                if n < SPLIT_MIN_SAMPLES {
+                    assert_eq!(cost.to_bits(), (0.5 * sse).to_bits(), "{shape:?}");
+                }
+            }
         }
     }
 

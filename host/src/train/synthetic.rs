@@ -31,7 +31,7 @@ use nalgebra::{DMatrix, DVector, Matrix3x4, SMatrix, SVector, Vector4};
 /// Exponent of the residual cost of the camera fit (reached through 2, 4, 8, 16). On the
 /// tuning seeds 8 is 1.11x on the protocol's worst depth of case I, 16 1.05x; 64 is no better
 /// on the volume and worse on case II's protocol.
-pub(crate) const LP_EXPONENT: i32 = 16;
+pub(crate) const LP_EXPONENT: u32 = 16;
 /// Largest reprojection residual (px, any coordinate, either camera) for which the pinhole
 /// fit is trusted: rounding alone gives at most 0.5 px with the true cameras.
 pub(crate) const MAX_RESIDUAL_PX: f64 = 0.6;
@@ -68,12 +68,28 @@ pub(crate) fn project(m: &Matrix3x4<f64>, p: &[f64; 3]) -> Option<[f64; 2]> {
 }
 
 /// `|x|^p` for the even integer exponents of the fit (2, 4, 8, 16 and the weights' 0, 2, 6,
-/// 14): repeated multiplication, several times faster than `powf` in the fit's inner loop.
-fn abs_pow(x: f64, p: i32) -> f64 {
-    x.abs().powi(p)
+/// 14): repeated squaring, the multiplies in the order of `powi` (the runtime's
+/// `__powidf2`), so the same bits; inlined, it unrolls where `p` is a constant, where `powi`
+/// with a variable exponent is a call.
+#[inline(always)]
+fn abs_pow(x: f64, p: u32) -> f64 {
+    let mut a = x.abs();
+    let mut n = p;
+    let mut mul = 1.0;
+    loop {
+        if n & 1 != 0 {
+            mul *= a;
+        }
+        n >>= 1;
+        if n == 0 {
+            return mul;
+        }
+        a *= a;
+    }
 }
 
-fn lp_cost(m: &Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: i32) -> f64 {
+#[inline(always)]
+fn lp_cost(m: &Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) -> f64 {
     let mut s = 0.0;
     for (q, x) in pts.iter().zip(px) {
         match project(m, q) {
@@ -91,7 +107,54 @@ fn lp_cost(m: &Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: i32) -> f64
 /// Minimises `sum |r|^p` of the reprojection residuals of `m` (unit Frobenius norm) by damped
 /// iteratively reweighted Gauss-Newton steps; `p` = 2 is the gold-standard fit. The normal
 /// equations (12 x 12) are accumulated point by point, without the 2n x 12 Jacobian.
-fn refine(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: i32) {
+fn refine(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: this CPU has AVX-512F (checked just above).
+        return unsafe { refine_avx512(m, pts, px, p) };
+    }
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: this CPU has AVX (checked just above).
+        return unsafe { refine_avx(m, pts, px, p) };
+    }
+    refine_exponents(m, pts, px, p)
+}
+
+/// [`refine`] compiled for AVX (plain multiplies and adds: the same bits).
+///
+/// # Safety
+/// The CPU must have AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn refine_avx(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
+    refine_exponents(m, pts, px, p)
+}
+
+/// [`refine`] compiled for AVX-512F.
+///
+/// # Safety
+/// The CPU must have AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn refine_avx512(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
+    refine_exponents(m, pts, px, p)
+}
+
+#[inline(always)]
+fn refine_exponents(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
+    // One copy per exponent the fit uses, each with its powers unrolled.
+    match p {
+        2 => refine_with(m, pts, px, 2),
+        4 => refine_with(m, pts, px, 4),
+        8 => refine_with(m, pts, px, 8),
+        16 => refine_with(m, pts, px, 16),
+        _ => refine_with(m, pts, px, p),
+    }
+}
+
+#[inline(always)]
+fn refine_with(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
     *m /= m.norm();
     let mut cost = lp_cost(m, pts, px, p);
     let mut lambda = 1e-3;
@@ -173,6 +236,7 @@ fn refine(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: i32) {
 /// most `tries` times, `propose(lambda)` gives a candidate and its cost (`None`: no solution
 /// at this damping); the first that lowers `cost` is returned, `cost` and `lambda` (x 0.3,
 /// at least 1e-12) updated, with whether it lowered the cost by more than `rel_tol` of it.
+#[inline(always)]
 fn damped_step<T>(
     lambda: &mut f64,
     cost: &mut f64,
@@ -596,6 +660,28 @@ mod tests {
             d.push(&px, Some(*p));
         }
         d
+    }
+
+    #[test]
+    fn abs_pow_has_the_bits_of_powi() {
+        // Residuals from tiny to large, both signs; every exponent up to 20.
+        let mut rng = SplitMix64::new(11);
+        for _ in 0..2000 {
+            let x = (rng.uniform(-1.0, 1.0)) * 10f64.powi((rng.uniform(-8.0, 3.0)) as i32);
+            for p in 0..=20u32 {
+                let want = x.abs().powi(p as i32);
+                assert_eq!(abs_pow(x, p).to_bits(), want.to_bits(), "{x}^{p}");
+                // The copies unrolled for the fit's constants.
+                let got = match p {
+                    2 => abs_pow(x, 2),
+                    6 => abs_pow(x, 6),
+                    14 => abs_pow(x, 14),
+                    16 => abs_pow(x, 16),
+                    _ => continue,
+                };
+                assert_eq!(got.to_bits(), want.to_bits(), "{x}^{p} unrolled");
+            }
+        }
     }
 
     #[test]
