@@ -221,10 +221,14 @@ impl Centred {
 /// window pixel and candidate, in a fixed order, so a candidate's score does not depend on
 /// the range it is computed in), the right windows' means and norms from the integral images.
 fn zncc_row(lc: &Centred, r: &Plane, rr: i32, (c0, c1): (i32, i32), out: &mut Vec<f32>) {
-    let rad = lc.rad;
-    let nc = (c1 - c0 + 1) as usize;
     out.clear();
-    out.resize(nc, 0.0);
+    out.resize((c1 - c0 + 1) as usize, 0.0);
+    zncc_into(lc, r, rr, c0, out);
+}
+
+/// [`zncc_row`] into `out` (zeros), the columns from `c0` on.
+fn zncc_into(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
+    let rad = lc.rad;
     products(lc, r, rr, c0, out);
     for (k, o) in out.iter_mut().enumerate() {
         let (mr, nr) = r.stats_of(c0 + k as i32, rr, rad);
@@ -300,36 +304,35 @@ fn search(
     }
     // Every candidate's score, a row at a time.
     let nc = (c1 - c0 + 1) as usize;
-    let mut scores = Vec::with_capacity(nc * (r1 - r0 + 1) as usize);
-    let mut row = Vec::with_capacity(nc);
-    for y in r0..=r1 {
-        zncc_row(&lc, r, y, (c0, c1), &mut row);
-        scores.extend_from_slice(&row);
+    let nr = (r1 - r0 + 1) as usize;
+    let mut scores = vec![0.0f32; nc * nr];
+    for (y, row) in (r0..=r1).zip(scores.chunks_exact_mut(nc)) {
+        zncc_into(&lc, r, y, c0, row);
     }
-    // The best score per column, then the best column and the best other column.
-    let mut best = (-2.0f32, 0, 0);
-    let mut per_col = Vec::with_capacity(nc);
-    for x in c0..=c1 {
-        let mut col = -2.0f32;
-        for y in r0..=r1 {
-            let s = scores[(y - r0) as usize * nc + (x - c0) as usize];
-            col = col.max(s);
-            if s > best.0 {
-                best = (s, x, y);
-            }
+    // The best score per column (rows taken in turn: `max` is order-free without NaN, and a
+    // NaN is skipped either way), then the best: the first column holding the highest score,
+    // its first row holding it (what a walk column by column, row by row, keeping only a
+    // strictly higher score, finds).
+    let mut per_col = vec![-2.0f32; nc];
+    for row in scores.chunks_exact(nc) {
+        for (c, s) in per_col.iter_mut().zip(row) {
+            *c = c.max(*s);
         }
-        per_col.push(col);
     }
-    let (s, x, y) = best;
+    let top = per_col.iter().fold(-2.0f32, |a, b| a.max(*b));
+    let Some(k) = per_col.iter().position(|c| *c == top) else {
+        return None;
+    };
+    let j = scores.chunks_exact(nc).position(|row| row[k] == top).unwrap_or(0);
+    let (s, x, y) = (top, c0 + k as i32, r0 + j as i32);
     if s < MIN_SCORE {
         return None;
     }
-    let second = per_col
+    // The best other column: more than 2 px from the best.
+    let second = per_col[..k.saturating_sub(2)]
         .iter()
-        .enumerate()
-        .filter(|(k, _)| (c0 + *k as i32 - x).abs() > 2)
-        .map(|(_, v)| *v)
-        .fold(-2.0f32, f32::max);
+        .chain(per_col.get(k + 3..).unwrap_or(&[]))
+        .fold(-2.0f32, |a, b| a.max(*b));
     if second > s - UNIQUENESS {
         return None;
     }
