@@ -152,14 +152,6 @@ impl Plane {
         self
     }
 
-    /// [`Plane::stats`], from the cache when it holds that radius.
-    fn stats_of(&self, c: i32, r: i32, rad: i32) -> (f32, f32) {
-        match &self.cached {
-            Some((cr, v)) if *cr == rad => v[(r * self.w + c) as usize],
-            _ => self.stats(c, r, rad),
-        }
-    }
-
     /// Half resolution: 2 x 2 means.
     fn half(&self) -> Plane {
         let (w, h) = (self.w / 2, self.h / 2);
@@ -226,49 +218,106 @@ fn zncc_row(lc: &Centred, r: &Plane, rr: i32, (c0, c1): (i32, i32), out: &mut Ve
     zncc_into(lc, r, rr, c0, out);
 }
 
-/// [`zncc_row`] into `out` (zeros), the columns from `c0` on.
+/// [`zncc_row`] into `out` (zeros), the columns from `c0` on. Compiled for AVX and AVX-512F
+/// too, picked at run time: plain multiplies, adds and divisions (Rust never fuses them) in
+/// the same order per candidate, so the same bits, eight or sixteen candidates a step
+/// instead of four.
 fn zncc_into(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
-    let rad = lc.rad;
-    products(lc, r, rr, c0, out);
-    for (k, o) in out.iter_mut().enumerate() {
-        let (mr, nr) = r.stats_of(c0 + k as i32, rr, rad);
-        *o = if lc.norm <= 0.0 || nr <= 0.0 { -1.0 } else { (*o - mr * lc.sum) / (lc.norm * nr) };
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: this CPU has AVX-512F (checked just above).
+        return unsafe { zncc_avx512(lc, r, rr, c0, out) };
     }
-}
-
-/// `out[k] += sum lc r` over the window of the right candidate at column `c0 + k` of row
-/// `rr` ([`zncc_row`]). Compiled for AVX too, picked at run time: plain multiplies and adds
-/// (Rust never fuses them) in the same order per candidate, so the same bits, eight
-/// candidates a step instead of four.
-fn products(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx") {
         // SAFETY: this CPU has AVX (checked just above).
-        return unsafe { products_avx(lc, r, rr, c0, out) };
+        return unsafe { zncc_avx(lc, r, rr, c0, out) };
     }
-    products_in(lc, r, rr, c0, out)
+    zncc_in::<8>(lc, r, rr, c0, out)
 }
 
-/// [`products`] compiled for AVX.
+/// [`zncc_into`] compiled for AVX.
 ///
 /// # Safety
 /// The CPU must have AVX.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
-unsafe fn products_avx(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
-    products_in(lc, r, rr, c0, out)
+unsafe fn zncc_avx(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
+    zncc_in::<16>(lc, r, rr, c0, out)
 }
 
+/// [`zncc_into`] compiled for AVX-512F.
+///
+/// # Safety
+/// The CPU must have AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn zncc_avx512(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
+    zncc_in::<32>(lc, r, rr, c0, out)
+}
+
+/// The body of [`zncc_into`]: `out[k] += sum lc r` over the window of the right candidate at
+/// column `c0 + k` of row `rr` ([`products_in`]), then each sum made a ZNCC with the right
+/// window's mean and norm (a slice of the cached statistics when the plane has them).
 #[inline(always)]
-fn products_in(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
+fn zncc_in<const W: usize>(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
+    let rad = lc.rad;
+    products_in::<W>(lc, r, rr, c0, out);
+    let score = |o: f32, (mr, nr): (f32, f32)| {
+        if lc.norm <= 0.0 || nr <= 0.0 {
+            -1.0
+        } else {
+            (o - mr * lc.sum) / (lc.norm * nr)
+        }
+    };
+    match &r.cached {
+        Some((cr, v)) if *cr == rad => {
+            let (first, nc) = ((rr * r.w + c0) as usize, out.len());
+            for (o, st) in out.iter_mut().zip(&v[first..first + nc]) {
+                *o = score(*o, *st);
+            }
+        }
+        _ => {
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = score(*o, r.stats(c0 + k as i32, rr, rad));
+            }
+        }
+    }
+}
+
+/// `out[k] += sum lc r` over the window of the right candidate at column `c0 + k` of row `rr`,
+/// the window's pixels taken row by row: blocks of `W` candidates kept in registers over the
+/// whole window (one load of the right image per pixel and candidate, none of `out`), the
+/// candidates past the last whole block one at a time in the same order.
+#[inline(always)]
+fn products_in<const W: usize>(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
     let rad = lc.rad;
     let (wd, nc) = ((2 * rad + 1) as usize, out.len());
-    for (dy, lrow) in lc.v.chunks_exact(wd).enumerate() {
-        let base = ((rr - rad + dy as i32) * r.w + c0 - rad) as usize;
-        for (dx, &lv) in lrow.iter().enumerate() {
-            let src = &r.p[base + dx..base + dx + nc];
-            for (o, v) in out.iter_mut().zip(src) {
-                *o += lv * v;
+    let row0 = ((rr - rad) * r.w + c0 - rad) as usize;
+    let rw = r.w as usize;
+    let whole = nc - nc % W;
+    for k0 in (0..whole).step_by(W) {
+        let mut acc = [0.0f32; W];
+        acc.copy_from_slice(&out[k0..k0 + W]);
+        for (dy, lrow) in lc.v.chunks_exact(wd).enumerate() {
+            let base = row0 + dy * rw + k0;
+            for (dx, &lv) in lrow.iter().enumerate() {
+                let src = &r.p[base + dx..base + dx + W];
+                for (a, v) in acc.iter_mut().zip(src) {
+                    *a += lv * v;
+                }
+            }
+        }
+        out[k0..k0 + W].copy_from_slice(&acc);
+    }
+    if whole < nc {
+        for (dy, lrow) in lc.v.chunks_exact(wd).enumerate() {
+            let base = row0 + dy * rw + whole;
+            for (dx, &lv) in lrow.iter().enumerate() {
+                let src = &r.p[base + dx..base + dx + nc - whole];
+                for (o, v) in out[whole..].iter_mut().zip(src) {
+                    *o += lv * v;
+                }
             }
         }
     }
