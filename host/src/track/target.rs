@@ -369,9 +369,7 @@ fn search(
         }
     }
     let top = per_col.iter().fold(-2.0f32, |a, b| a.max(*b));
-    let Some(k) = per_col.iter().position(|c| *c == top) else {
-        return None;
-    };
+    let k = per_col.iter().position(|c| *c == top)?;
     let j = scores.chunks_exact(nc).position(|row| row[k] == top).unwrap_or(0);
     let (s, x, y) = (top, c0 + k as i32, r0 + j as i32);
     if s < MIN_SCORE {
