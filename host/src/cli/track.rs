@@ -62,6 +62,10 @@ pub struct Args {
     /// Frames of a moving target's motion the fixation leads it by (0: aim where it is seen).
     #[arg(long, value_name = "F", default_value_t = track::DEFAULT_LEAD_FRAMES)]
     pub lead_frames: f32,
+    /// Frames in a row without a target after which the head turns home (straight ahead,
+    /// the widest view) to look for one again; 0: hold the last command.
+    #[arg(long, value_name = "FRAMES", default_value_t = LoopConfig::DEFAULT.home_after_frames)]
+    pub home_after: u32,
     /// Seed of the cameras' sensor noise (same seed, same log bytes).
     #[arg(long, value_name = "S", default_value_t = 0)]
     pub seed: u64,
@@ -173,7 +177,11 @@ pub fn run(a: Args) -> Result<()> {
         seconds: a.seconds,
         fps,
         target,
-        loop_cfg: LoopConfig { lead_frames: a.lead_frames, ..loop_cfg },
+        loop_cfg: LoopConfig {
+            lead_frames: a.lead_frames,
+            home_after_frames: a.home_after,
+            ..loop_cfg
+        },
     };
     let mut head = servo_head::open(&choice, &a.model)?;
     let stop = track::stop_on_interrupt();

@@ -392,8 +392,75 @@ mod loop_tests {
     use super::*;
     use frames::{loop_render_options, VirtualCameras};
     use head_sim::VirtualHead;
+    use hvs_shared::runtime::gaze::Axis;
     use hvs_shared::runtime::trajectory::ControllerConfig;
     use hvs_shared::sim::posture::HeadRig;
+
+    /// Cameras that see the scene until `dark_from_s`, then a uniform grey (a lens cap, a
+    /// camera that went dark).
+    struct DarkAfter {
+        cams: VirtualCameras,
+        dark_from_s: f64,
+    }
+
+    impl FrameSource for DarkAfter {
+        fn grab(&mut self, t_s: f64, joints: &Joints) -> anyhow::Result<Frame> {
+            if t_s < self.dark_from_s {
+                return self.cams.grab(t_s, joints);
+            }
+            let grey = image::GrayImage::from_pixel(640, 480, image::Luma([128]));
+            Ok(Frame { left: grey.clone(), right: grey, truth: None })
+        }
+    }
+
+    /// A target lost for `home_after_frames` frames in a row sends the head home, to look
+    /// again with the widest view; before that the last command is held.
+    #[test]
+    fn a_head_that_sees_nothing_for_long_turns_home() {
+        let loaded = scene_file::parse(
+            r#"{ "rig": {"case": 3}, "camera_fps": 30,
+              "background": {"z_cm": 300, "texture_seed": 1},
+              "objects": [ {"shape": "sphere", "radius_cm": 5, "centre_cm": [20, -8, 100],
+                            "velocity_cm_s": [0, 0, 0], "texture_seed": 2} ] }"#,
+        )
+        .unwrap();
+        let blob = crate::data::model::check(include_bytes!(
+            "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
+        ))
+        .unwrap()
+        .blob;
+        let est = estimator_of(blob).unwrap();
+        let cfg = TrackConfig {
+            seconds: 1.5,
+            fps: loaded.scene.camera_fps,
+            target: TargetMode::Nearest,
+            loop_cfg: LoopConfig {
+                home_after_frames: 6,
+                ..loop_config(&loaded.rig, DEFAULT_CORRECTION_GAIN)
+            },
+        };
+        let cams =
+            VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, loop_render_options(), 2);
+        let mut dark = DarkAfter { cams, dark_from_s: 0.3 };
+        let mut head = VirtualHead::new(&ControllerConfig::DEFAULT).unwrap();
+        let rows = run(&mut dark, &mut head, &est, &cfg, &AtomicBool::new(false), |_, _, _| Ok(()))
+            .unwrap();
+        let off_home =
+            |r: &LogRow| Axis::ALL.iter().map(|a| r.joints[*a].abs()).fold(0.0, f32::max);
+        // Frames 0-8 see the sphere (20 cm to the side): the head turns towards it.
+        let seen = &rows[8];
+        assert_eq!(seen.status, "tracking");
+        assert!(off_home(seen) > 2.0, "turned to the sphere: {:?}", seen.joints);
+        // Dark from frame 9: lost, the posture held for the first five lost frames.
+        for r in &rows[9..] {
+            assert_eq!(r.status, "lost", "frame {}", r.frame);
+        }
+        let held = off_home(&rows[13]);
+        assert!(held > 2.0, "held at frame 13: {:?}", rows[13].joints);
+        // Home commanded at the sixth lost frame (14); by the end (1.5 s) the servos are there.
+        let last = rows.last().unwrap();
+        assert!(off_home(last) < 0.01, "home at {} s: {:?}", last.t_s, last.joints);
+    }
 
     /// The whole loop on the README's scene (case III, 640 x 480, a 5 cm sphere at (20, -8,
     /// 100) before a textured wall) with the README's small posture-aware model: after 1 s

@@ -22,8 +22,10 @@
 //! 5. The result is quantised to the drives' 0.18 degree steps and clamped to the limits:
 //!    whatever the input (NaN, infinities, huge pixels), the command is within the limits.
 //!
-//! Without a target (lost), the head holds the last command; without an estimate (the
-//! estimator refused the pixels) it servos on the image alone (current joints + the miss).
+//! Without a target (lost), the head holds the last command, and after
+//! [`LoopConfig::home_after_frames`] lost frames in a row it turns home (straight ahead, the
+//! eyes parallel: the widest view) to look again; without an estimate (the estimator refused
+//! the pixels) it servos on the image alone (current joints + the miss).
 
 use crate::runtime::gaze::{self, Axis, GazeConfig, Joints};
 use crate::runtime::head::Estimator;
@@ -47,11 +49,14 @@ pub struct LoopConfig {
     pub lead_frames: f32,
     /// Share of the newest change of the estimate taken into its filtered velocity per frame.
     pub velocity_gain: f32,
+    /// Lost frames in a row after which the head turns home to look for a target again (0:
+    /// it holds the last command however long the target stays lost).
+    pub home_after_frames: u32,
 }
 
 impl LoopConfig {
     /// Default gaze settings, the thesis' 640 x 480 cameras (`phi` 285.8 px), gain 0.5, at
-    /// most 10 degrees of correction.
+    /// most 10 degrees of correction, home after 60 lost frames (2 s at 30 frames/s).
     pub const DEFAULT: LoopConfig = LoopConfig {
         gaze: GazeConfig::DEFAULT,
         centre_px: [320.0, 240.0],
@@ -60,6 +65,7 @@ impl LoopConfig {
         max_correction_deg: 10.0,
         lead_frames: 0.0,
         velocity_gain: 0.3,
+        home_after_frames: 60,
     };
 }
 
@@ -74,6 +80,8 @@ pub struct LoopState {
     pub last_estimate: Option<[f32; 3]>,
     /// The estimate's filtered change per frame (cm).
     pub velocity: [f32; 3],
+    /// Frames in a row without a target.
+    pub lost_frames: u32,
 }
 
 /// One frame's input.
@@ -97,7 +105,8 @@ pub enum LoopStatus {
     Tracking,
     /// The estimator refused the pixels: the image correction alone moved the eyes.
     ImageOnly,
-    /// No target in this frame: the last command is held.
+    /// No target in this frame: the last command is held (home after
+    /// [`LoopConfig::home_after_frames`] such frames in a row).
     Lost,
 }
 
@@ -180,8 +189,13 @@ pub fn step(
     }
     let Some(p) = obs.target else {
         (next.last_estimate, next.velocity) = (None, [0.0; 3]);
+        next.lost_frames = next.lost_frames.saturating_add(1);
+        if cfg.home_after_frames > 0 && next.lost_frames >= cfg.home_after_frames {
+            next.last = safe(&cfg.gaze, &Joints::HOME);
+        }
         return (next, Command { joints: next.last, estimate: None, status: LoopStatus::Lost });
     };
+    next.lost_frames = 0;
     let now = safe(&cfg.gaze, &obs.joints);
     let miss = image_miss(cfg, &p);
     let estimate = estimator
@@ -295,6 +309,42 @@ mod tests {
         let (_, c2) = step(&cfg, &fallback(), &s, &lost);
         assert_eq!(c2.status, LoopStatus::Lost);
         assert_eq!(c2.joints, c.joints);
+    }
+
+    #[test]
+    fn a_long_lost_target_sends_the_head_home_and_a_found_one_resets_the_count() {
+        let cfg = LoopConfig { home_after_frames: 5, ..LoopConfig::DEFAULT };
+        let seen = Observation {
+            target: Some(point([330.0, 240.0, 310.0, 240.0])),
+            joints: Joints::HOME,
+            surface: None,
+        };
+        let lost = Observation { target: None, joints: Joints::HOME, surface: None };
+        let (mut s, c) = step(&cfg, &fallback(), &LoopState::default(), &seen);
+        assert_ne!(c.joints, Joints::HOME, "the eyes converge on the target");
+        for k in 1..5 {
+            let c;
+            (s, c) = step(&cfg, &fallback(), &s, &lost);
+            assert_eq!((c.status, s.lost_frames), (LoopStatus::Lost, k));
+            assert_ne!(c.joints, Joints::HOME, "held for {k} lost frames");
+        }
+        let c;
+        (s, c) = step(&cfg, &fallback(), &s, &lost);
+        assert_eq!((c.status, c.joints), (LoopStatus::Lost, Joints::HOME), "home at the 5th");
+        assert_eq!(s.last, Joints::HOME);
+        // Found again: the count starts over, the target is fixated.
+        let (s2, c2) = step(&cfg, &fallback(), &s, &seen);
+        assert_eq!((c2.status, s2.lost_frames), (LoopStatus::Tracking, 0));
+        assert_ne!(c2.joints, Joints::HOME);
+        // 0: held however long.
+        let hold = LoopConfig { home_after_frames: 0, ..cfg };
+        let mut s3 = LoopState { lost_frames: u32::MAX - 1, ..s2 };
+        for _ in 0..3 {
+            let c3;
+            (s3, c3) = step(&hold, &fallback(), &s3, &lost);
+            assert_eq!(c3.joints, c2.joints);
+        }
+        assert_eq!(s3.lost_frames, u32::MAX, "the count saturates");
     }
 
     /// Given surface pixels, the estimate is made there (a nearer point here: 2 px more
@@ -427,13 +477,15 @@ mod tests {
             seen in any::<bool>(),
             (lead, velocity_gain) in (any_f32(), any_f32()),
             (est, vel) in (proptest::array::uniform3(any_f32()), proptest::array::uniform3(any_f32())),
+            (lost_frames, home_after_frames) in (any::<u32>(), 0u32..100),
         ) {
-            let cfg = LoopConfig { gain, lead_frames: lead, velocity_gain, ..LoopConfig::DEFAULT };
+            let cfg = LoopConfig { gain, lead_frames: lead, velocity_gain, home_after_frames, ..LoopConfig::DEFAULT };
             let state = LoopState {
                 correction_deg: corr,
                 last: Joints(last),
                 last_estimate: Some(est),
                 velocity: vel,
+                lost_frames: lost_frames % 100,
             };
             let obs = Observation {
                 target: seen.then(|| point(px)),
