@@ -396,6 +396,24 @@ mod loop_tests {
     use hvs_shared::runtime::trajectory::ControllerConfig;
     use hvs_shared::sim::posture::HeadRig;
 
+    /// The README's scene (case III, a 5 cm sphere at (20, -8, 100) cm before a wall at 300
+    /// cm) and the estimator of the fixture's posture-aware model of case III.
+    fn readme_scene() -> (scene_file::LoadedScene, Estimator) {
+        let loaded = scene_file::parse(
+            r#"{ "rig": {"case": 3}, "camera_fps": 30,
+              "background": {"z_cm": 300, "texture_seed": 1},
+              "objects": [ {"shape": "sphere", "radius_cm": 5, "centre_cm": [20, -8, 100],
+                            "velocity_cm_s": [0, 0, 0], "texture_seed": 2} ] }"#,
+        )
+        .unwrap();
+        let blob = crate::data::model::check(include_bytes!(
+            "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
+        ))
+        .unwrap()
+        .blob;
+        (loaded, estimator_of(blob).unwrap())
+    }
+
     /// Cameras that see the scene until `dark_from_s`, then a uniform grey (a lens cap, a
     /// camera that went dark).
     struct DarkAfter {
@@ -417,19 +435,7 @@ mod loop_tests {
     /// again with the widest view; before that the last command is held.
     #[test]
     fn a_head_that_sees_nothing_for_long_turns_home() {
-        let loaded = scene_file::parse(
-            r#"{ "rig": {"case": 3}, "camera_fps": 30,
-              "background": {"z_cm": 300, "texture_seed": 1},
-              "objects": [ {"shape": "sphere", "radius_cm": 5, "centre_cm": [20, -8, 100],
-                            "velocity_cm_s": [0, 0, 0], "texture_seed": 2} ] }"#,
-        )
-        .unwrap();
-        let blob = crate::data::model::check(include_bytes!(
-            "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
-        ))
-        .unwrap()
-        .blob;
-        let est = estimator_of(blob).unwrap();
+        let (loaded, est) = readme_scene();
         let cfg = TrackConfig {
             seconds: 1.5,
             fps: loaded.scene.camera_fps,
@@ -469,19 +475,7 @@ mod loop_tests {
     /// the centres of its grown regions the loop settled at 4.8/4.4 px.
     #[test]
     fn the_loop_holds_a_static_sphere_near_the_rigs_floor() {
-        let loaded = scene_file::parse(
-            r#"{ "rig": {"case": 3}, "camera_fps": 30,
-              "background": {"z_cm": 300, "texture_seed": 1},
-              "objects": [ {"shape": "sphere", "radius_cm": 5, "centre_cm": [20, -8, 100],
-                            "velocity_cm_s": [0, 0, 0], "texture_seed": 2} ] }"#,
-        )
-        .unwrap();
-        let blob = crate::data::model::check(include_bytes!(
-            "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
-        ))
-        .unwrap()
-        .blob;
-        let est = estimator_of(blob).unwrap();
+        let (loaded, est) = readme_scene();
         let cfg = TrackConfig {
             seconds: 1.2,
             fps: loaded.scene.camera_fps,
