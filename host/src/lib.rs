@@ -3,6 +3,8 @@
 //! listed before it, never one after it):
 //!
 //! - [`fmt`]: the number formats of every report and table (CSV numbers, percentages, lists).
+//! - `simd` (private): the run-time choice of instruction set (AVX-512F, AVX, portable) for
+//!   the hot loops of training and target finding, in one macro.
 //! - [`data`]: data sets, CSV in and out (errors name file, line, column), rig files, model
 //!   files, and the one atomic writer every output goes through.
 //! - [`sim`]: simulated point sets through a rig: the thesis' board protocol, random volumes,
@@ -35,6 +37,7 @@ pub mod evaluate;
 pub mod fmt;
 pub mod infer;
 pub mod sim;
+mod simd;
 pub mod study;
 pub mod track;
 pub mod train;

@@ -218,42 +218,16 @@ fn zncc_row(lc: &Centred, r: &Plane, rr: i32, (c0, c1): (i32, i32), out: &mut Ve
     zncc_into(lc, r, rr, c0, out);
 }
 
-/// [`zncc_row`] into `out` (zeros), the columns from `c0` on. Compiled for AVX and AVX-512F
-/// too, picked at run time: plain multiplies, adds and divisions (Rust never fuses them) in
-/// the same order per candidate, so the same bits, eight or sixteen candidates a step
-/// instead of four.
-fn zncc_into(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: this CPU has AVX-512F (checked just above).
-        return unsafe { zncc_avx512(lc, r, rr, c0, out) };
+crate::simd::x86_dispatch! {
+    /// [`zncc_row`] into `out` (zeros), the columns from `c0` on. Compiled for AVX and
+    /// AVX-512F too, picked at run time: plain multiplies, adds and divisions (Rust never fuses
+    /// them) in the same order per candidate, so the same bits, 16 or 32 candidates a step
+    /// instead of 8.
+    fn zncc_into(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
+        avx512: zncc_in::<32>(lc, r, rr, c0, out),
+        avx: zncc_in::<16>(lc, r, rr, c0, out),
+        portable: zncc_in::<8>(lc, r, rr, c0, out),
     }
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: this CPU has AVX (checked just above).
-        return unsafe { zncc_avx(lc, r, rr, c0, out) };
-    }
-    zncc_in::<8>(lc, r, rr, c0, out)
-}
-
-/// [`zncc_into`] compiled for AVX.
-///
-/// # Safety
-/// The CPU must have AVX.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn zncc_avx(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
-    zncc_in::<16>(lc, r, rr, c0, out)
-}
-
-/// [`zncc_into`] compiled for AVX-512F.
-///
-/// # Safety
-/// The CPU must have AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn zncc_avx512(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
-    zncc_in::<32>(lc, r, rr, c0, out)
 }
 
 /// The body of [`zncc_into`]: `out[k] += sum lc r` over the window of the right candidate at

@@ -20,44 +20,18 @@
 /// are loaded whole, and their rows below the matrix are discarded.
 pub(crate) const SLACK: usize = 32;
 
-/// Factors the symmetric positive definite `n x n` matrix in the first `n * n` elements of `a`
-/// (column-major; only its lower triangle, diagonal included, is read; `a` has [`SLACK`] more
-/// elements) into `L L^T` in place: `L` in the lower triangle, the strict upper triangle left
-/// as it was. `false` (and `a` half-factored) where a pivot is zero, negative or NaN, as
-/// nalgebra's `Cholesky::new` returns `None`.
-pub(crate) fn factor(a: &mut [f64], n: usize) -> bool {
-    assert!(a.len() >= n * n + SLACK, "a {n} x {n} matrix and its slack");
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: this CPU has AVX-512F (checked just above).
-        return unsafe { factor_avx512(a, n) };
+crate::simd::x86_dispatch! {
+    /// Factors the symmetric positive definite `n x n` matrix in the first `n * n` elements of
+    /// `a` (column-major; only its lower triangle, diagonal included, is read; `a` has
+    /// [`SLACK`] more elements) into `L L^T` in place: `L` in the lower triangle, the strict
+    /// upper triangle left as it was. `false` (and `a` half-factored) where a pivot is zero,
+    /// negative or NaN, as nalgebra's `Cholesky::new` returns `None`. Blocks of 32 rows with
+    /// AVX-512F, 16 with AVX, 8 otherwise.
+    pub(crate) fn factor(a: &mut [f64], n: usize) -> bool {
+        avx512: factor_in::<SLACK>(a, n),
+        avx: factor_in::<16>(a, n),
+        portable: factor_in::<8>(a, n),
     }
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: this CPU has AVX (checked just above).
-        return unsafe { factor_avx(a, n) };
-    }
-    factor_in::<8>(a, n)
-}
-
-/// [`factor`] compiled for AVX.
-///
-/// # Safety
-/// The CPU must have AVX.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn factor_avx(a: &mut [f64], n: usize) -> bool {
-    factor_in::<16>(a, n)
-}
-
-/// [`factor`] compiled for AVX-512F.
-///
-/// # Safety
-/// The CPU must have AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn factor_avx512(a: &mut [f64], n: usize) -> bool {
-    factor_in::<SLACK>(a, n)
 }
 
 /// The body of [`factor`], `W` rows at a time (`W` at most [`SLACK`]): each block of a column
@@ -65,6 +39,7 @@ unsafe fn factor_avx512(a: &mut [f64], n: usize) -> bool {
 /// independent sums, so the adds' latency is hidden.
 #[inline(always)]
 fn factor_in<const W: usize>(a: &mut [f64], n: usize) -> bool {
+    assert!(a.len() >= n * n + SLACK, "a {n} x {n} matrix and its slack");
     for j in 0..n {
         let mut i = j;
         while i < n {
@@ -97,48 +72,22 @@ fn factor_in<const W: usize>(a: &mut [f64], n: usize) -> bool {
     true
 }
 
-/// Solves `L L^T x = b` in place, `l` the factor [`factor`] left in an `n x n` column-major
-/// matrix (its lower triangle).
-pub(crate) fn solve(l: &[f64], n: usize, b: &mut [f64]) {
-    assert_eq!(l.len(), n * n, "a {n} x {n} factor");
-    assert_eq!(b.len(), n, "a right-hand side of {n}");
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: this CPU has AVX-512F (checked just above).
-        return unsafe { solve_avx512(l, n, b) };
+crate::simd::x86_dispatch! {
+    /// Solves `L L^T x = b` in place, `l` the factor [`factor`] left in an `n x n`
+    /// column-major matrix (its lower triangle).
+    pub(crate) fn solve(l: &[f64], n: usize, b: &mut [f64]) {
+        avx512: solve_in(l, n, b),
+        avx: solve_in(l, n, b),
+        portable: solve_in(l, n, b),
     }
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: this CPU has AVX (checked just above).
-        return unsafe { solve_avx(l, n, b) };
-    }
-    solve_in(l, n, b)
-}
-
-/// [`solve`] compiled for AVX.
-///
-/// # Safety
-/// The CPU must have AVX.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn solve_avx(l: &[f64], n: usize, b: &mut [f64]) {
-    solve_in(l, n, b)
-}
-
-/// [`solve`] compiled for AVX-512F.
-///
-/// # Safety
-/// The CPU must have AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn solve_avx512(l: &[f64], n: usize, b: &mut [f64]) {
-    solve_in(l, n, b)
 }
 
 /// The body of [`solve`]: nalgebra's `solve_lower_triangular_unchecked_mut`, then
 /// `ad_solve_lower_triangular_unchecked_mut` with its dot product.
 #[inline(always)]
 fn solve_in(l: &[f64], n: usize, b: &mut [f64]) {
+    assert_eq!(l.len(), n * n, "a {n} x {n} factor");
+    assert_eq!(b.len(), n, "a right-hand side of {n}");
     for i in 0..n {
         let coeff = b[i] / l[i * n + i];
         b[i] = coeff;
@@ -202,35 +151,12 @@ mod tests {
         m
     }
 
-    /// Every build this CPU can run: (name, factor, solve).
+    /// The builds: the portable one and the one this CPU runs (AVX-512F or AVX where it
+    /// has them).
     #[allow(clippy::type_complexity)]
     fn builds() -> Vec<(&'static str, fn(&mut [f64], usize) -> bool, fn(&[f64], usize, &mut [f64]))>
     {
-        let mut v: Vec<(
-            &'static str,
-            fn(&mut [f64], usize) -> bool,
-            fn(&[f64], usize, &mut [f64]),
-        )> = vec![("plain", factor_in::<8>, solve_in), ("dispatched", factor, solve)];
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx") {
-                // SAFETY: checked just above.
-                v.push((
-                    "avx",
-                    |a, n| unsafe { factor_avx(a, n) },
-                    |l, n, b| unsafe { solve_avx(l, n, b) },
-                ));
-            }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: checked just above.
-                v.push((
-                    "avx512",
-                    |a, n| unsafe { factor_avx512(a, n) },
-                    |l, n, b| unsafe { solve_avx512(l, n, b) },
-                ));
-            }
-        }
-        v
+        vec![("portable", factor_in::<8>, solve_in), ("dispatched", factor, solve)]
     }
 
     #[test]

@@ -123,6 +123,30 @@ pub(crate) fn forward(
     }
 }
 
+crate::simd::x86_dispatch! {
+    /// [`Problem::accumulate`] of `prob` (`at`: the parameters, their forward pass and the
+    /// packed inputs): tiles 16 columns wide with AVX-512F, 8 with AVX, 4 otherwise.
+    fn accumulate_on(
+        prob: &Problem,
+        at: (&[f64], &Activations, &[f64]),
+        range: std::ops::Range<usize>,
+        part: &mut Part,
+    ) -> f64 {
+        avx512: prob.accumulate_in::<16>(at, range, part),
+        avx: prob.accumulate_in::<8>(at, range, part),
+        portable: prob.accumulate_in::<4>(at, range, part),
+    }
+}
+
+crate::simd::x86_dispatch! {
+    /// [`Problem::forward_range`] of `prob`.
+    fn forward_range_on(prob: &Problem, p: &[f64], first: usize, h: &mut [f64], y: &mut [f64]) -> f64 {
+        avx512: prob.forward_range_in(p, first, h, y),
+        avx: prob.forward_range_in(p, first, h, y),
+        portable: prob.forward_range_in(p, first, h, y),
+    }
+}
+
 /// [`forward`] of [`LANES`] samples (`x`: `LANES * ni` values, `h` and `y` likewise), the
 /// same bits: each sample's sums in the same order, the sigmoid's `exp` by [`exp_lanes`].
 #[inline(always)]
@@ -470,49 +494,7 @@ impl Problem {
     /// [`LANES`] samples at a time ([`forward_lanes`]), the rest one by one. Compiled for AVX
     /// and AVX-512F too, picked at run time (the same bits).
     fn forward_range(&self, p: &[f64], first: usize, h: &mut [f64], y: &mut [f64]) -> f64 {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: this CPU has AVX-512F (checked just above).
-            return unsafe { self.forward_range_avx512(p, first, h, y) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
-            // SAFETY: this CPU has AVX (checked just above).
-            return unsafe { self.forward_range_avx(p, first, h, y) };
-        }
-        self.forward_range_in(p, first, h, y)
-    }
-
-    /// [`Problem::forward_range`] compiled for AVX.
-    ///
-    /// # Safety
-    /// The CPU must have AVX.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    unsafe fn forward_range_avx(
-        &self,
-        p: &[f64],
-        first: usize,
-        h: &mut [f64],
-        y: &mut [f64],
-    ) -> f64 {
-        self.forward_range_in(p, first, h, y)
-    }
-
-    /// [`Problem::forward_range`] compiled for AVX-512F.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn forward_range_avx512(
-        &self,
-        p: &[f64],
-        first: usize,
-        h: &mut [f64],
-        y: &mut [f64],
-    ) -> f64 {
-        self.forward_range_in(p, first, h, y)
+        forward_range_on(self, p, first, h, y)
     }
 
     #[inline(always)]
@@ -698,49 +680,7 @@ impl Problem {
         range: std::ops::Range<usize>,
         part: &mut Part,
     ) -> f64 {
-        let at = (p, act, xpk);
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: this CPU has AVX-512F (checked just above).
-            return unsafe { self.accumulate_avx512(at, range, part) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
-            // SAFETY: this CPU has AVX (checked just above).
-            return unsafe { self.accumulate_avx(at, range, part) };
-        }
-        self.accumulate_in::<4>(at, range, part)
-    }
-
-    /// [`Problem::accumulate`] compiled for AVX (`at`: the parameters, their forward pass and
-    /// the packed inputs).
-    ///
-    /// # Safety
-    /// The CPU must have AVX.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    unsafe fn accumulate_avx(
-        &self,
-        at: (&[f64], &Activations, &[f64]),
-        range: std::ops::Range<usize>,
-        part: &mut Part,
-    ) -> f64 {
-        self.accumulate_in::<8>(at, range, part)
-    }
-
-    /// [`Problem::accumulate`] compiled for AVX-512F (tiles of 4 x 16: eight f64 a register).
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn accumulate_avx512(
-        &self,
-        at: (&[f64], &Activations, &[f64]),
-        range: std::ops::Range<usize>,
-        part: &mut Part,
-    ) -> f64 {
-        self.accumulate_in::<16>(at, range, part)
+        accumulate_on(self, (p, act, xpk), range, part)
     }
 
     /// The body of [`Problem::accumulate`], its tiles `W` columns wide ([`add_products_in`]).

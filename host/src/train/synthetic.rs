@@ -104,41 +104,16 @@ fn lp_cost(m: &Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) -> f64
     }
 }
 
-/// Minimises `sum |r|^p` of the reprojection residuals of `m` (unit Frobenius norm) by damped
-/// iteratively reweighted Gauss-Newton steps; `p` = 2 is the gold-standard fit. The normal
-/// equations (12 x 12) are accumulated point by point, without the 2n x 12 Jacobian.
-fn refine(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: this CPU has AVX-512F (checked just above).
-        return unsafe { refine_avx512(m, pts, px, p) };
+crate::simd::x86_dispatch! {
+    /// Minimises `sum |r|^p` of the reprojection residuals of `m` (unit Frobenius norm) by damped
+    /// iteratively reweighted Gauss-Newton steps; `p` = 2 is the gold-standard fit. The normal
+    /// equations (12 x 12) are accumulated point by point, without the 2n x 12 Jacobian.
+    /// Compiled for AVX and AVX-512F too (plain multiplies and adds: the same bits).
+    fn refine(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
+        avx512: refine_exponents(m, pts, px, p),
+        avx: refine_exponents(m, pts, px, p),
+        portable: refine_exponents(m, pts, px, p),
     }
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: this CPU has AVX (checked just above).
-        return unsafe { refine_avx(m, pts, px, p) };
-    }
-    refine_exponents(m, pts, px, p)
-}
-
-/// [`refine`] compiled for AVX (plain multiplies and adds: the same bits).
-///
-/// # Safety
-/// The CPU must have AVX.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn refine_avx(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
-    refine_exponents(m, pts, px, p)
-}
-
-/// [`refine`] compiled for AVX-512F.
-///
-/// # Safety
-/// The CPU must have AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn refine_avx512(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
-    refine_exponents(m, pts, px, p)
 }
 
 #[inline(always)]
