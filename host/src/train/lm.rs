@@ -3,10 +3,10 @@
 //!
 //! The cost is `F(p) = 1/2 sum r^2 + 1/2 sum alpha_q p_q^2` (`alpha_q` is the weight decay,
 //! another one for the tail of skip weights, [`LmOptions::tail`]). Each iteration solves
-//! `(J^T J + alpha I + lambda D) delta = -(J^T r + alpha p)` by Cholesky ([`chol`]: the bits of
-//! `nalgebra`'s, faster), with `D` the diagonal of `J^T J + alpha I` (Marquardt's scaling, floored so that no direction is
-//! free), and updates `lambda` by Nielsen's rule from the ratio of actual to predicted
-//! reduction. The normal equations come from the analytic Jacobian without forming it
+//! `(J^T J + alpha I + lambda D) delta = -(J^T r + alpha p)` by Cholesky ([`chol`]: the bits
+//! of `nalgebra`'s, faster), with `D` the diagonal of `J^T J + alpha I` (Marquardt's scaling,
+//! floored so that no direction is free), and updates `lambda` by Nielsen's rule from the
+//! ratio of actual to predicted reduction. The normal equations come from the analytic Jacobian without forming it
 //! ([`Problem::normal_equations`], reusing the forward pass of the accepted trial step);
 //! every buffer is allocated once per fit. It stops when `F` has improved by less than
 //! [`LmOptions::rel_tol`] (relative) on [`LmOptions::patience`] consecutive accepted steps,
