@@ -224,8 +224,8 @@ crate::simd::x86_dispatch! {
     /// them) in the same order per candidate, so the same bits, 16 or 32 candidates a step
     /// instead of 8.
     fn zncc_into(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
-        avx512: zncc_in::<32>(lc, r, rr, c0, out),
-        avx: zncc_in::<16>(lc, r, rr, c0, out),
+        avx512 zncc_avx512: zncc_in::<32>(lc, r, rr, c0, out),
+        avx zncc_avx: zncc_in::<16>(lc, r, rr, c0, out),
         portable: zncc_in::<8>(lc, r, rr, c0, out),
     }
 }
@@ -982,6 +982,58 @@ mod tests {
     use hvs_shared::sim::presets;
     use hvs_vision::render::RenderOptions;
     use hvs_vision::scene::{render_scene, SceneFile, SceneRender};
+
+    /// Every compiled build of the ZNCC row this CPU runs has the portable build's bits: three
+    /// window radii, rows of candidates from 1 to the whole width (whole blocks and not), the
+    /// right windows' statistics cached and not.
+    #[test]
+    fn the_zncc_builds_have_the_portable_bits() {
+        let mut state = 7u64;
+        let mut texture = || {
+            GrayImage::from_fn(97, 61, |_, _| {
+                state = crate::track::frames::mix(state);
+                image::Luma([(state >> 56) as u8])
+            })
+        };
+        let (left, right) = (texture(), texture());
+        let l = Plane::new(&left);
+        let (r, cached) = (Plane::new(&right), Plane::new(&right).with_stats(3));
+        for rad in [2, 3, 4] {
+            for (cl, rl) in [(20, 20), (50, 30)] {
+                let lc = Centred::new(&l, (cl, rl), l.stats(cl, rl, rad), rad);
+                for rp in [&r, &cached] {
+                    for (c0, nc) in [(rad, 1), (rad, 7), (10, 40), (rad, (97 - 2 * rad) as usize)] {
+                        let mut want = vec![0.0; nc];
+                        zncc_in::<8>(&lc, rp, rl, c0, &mut want);
+                        let mut got = vec![0.0; nc];
+                        zncc_into(&lc, rp, rl, c0, &mut got);
+                        assert_eq!(got, want, "dispatched, radius {rad}, {nc} candidates");
+                        #[cfg(target_arch = "x86_64")]
+                        for (name, has) in [
+                            ("avx", std::arch::is_x86_feature_detected!("avx")),
+                            ("avx512", std::arch::is_x86_feature_detected!("avx512f")),
+                        ] {
+                            if !has {
+                                continue;
+                            }
+                            let mut got = vec![0.0; nc];
+                            // SAFETY: the CPU has the feature (checked above).
+                            unsafe {
+                                if name == "avx" {
+                                    zncc_avx(&lc, rp, rl, c0, &mut got);
+                                } else {
+                                    zncc_avx512(&lc, rp, rl, c0, &mut got);
+                                }
+                            }
+                            let bits =
+                                |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                            assert_eq!(bits(&got), bits(&want), "{name}, radius {rad}, {nc}");
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     const SCENE: &str = r#"{ "rig": {"case": 1}, "camera_fps": 30,
       "background": {"z_cm": 300, "texture_seed": 1},

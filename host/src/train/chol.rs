@@ -28,8 +28,8 @@ crate::simd::x86_dispatch! {
     /// negative or NaN, as nalgebra's `Cholesky::new` returns `None`. Blocks of 32 rows with
     /// AVX-512F, 16 with AVX, 8 otherwise.
     pub(crate) fn factor(a: &mut [f64], n: usize) -> bool {
-        avx512: factor_in::<SLACK>(a, n),
-        avx: factor_in::<16>(a, n),
+        avx512 factor_avx512: factor_in::<SLACK>(a, n),
+        avx factor_avx: factor_in::<16>(a, n),
         portable: factor_in::<8>(a, n),
     }
 }
@@ -76,8 +76,8 @@ crate::simd::x86_dispatch! {
     /// Solves `L L^T x = b` in place, `l` the factor [`factor`] left in an `n x n`
     /// column-major matrix (its lower triangle).
     pub(crate) fn solve(l: &[f64], n: usize, b: &mut [f64]) {
-        avx512: solve_in(l, n, b),
-        avx: solve_in(l, n, b),
+        avx512 solve_avx512: solve_in(l, n, b),
+        avx solve_avx: solve_in(l, n, b),
         portable: solve_in(l, n, b),
     }
 }
@@ -151,12 +151,35 @@ mod tests {
         m
     }
 
-    /// The builds: the portable one and the one this CPU runs (AVX-512F or AVX where it
-    /// has them).
+    /// Every build this CPU can run: (name, factor, solve).
     #[allow(clippy::type_complexity)]
     fn builds() -> Vec<(&'static str, fn(&mut [f64], usize) -> bool, fn(&[f64], usize, &mut [f64]))>
     {
-        vec![("portable", factor_in::<8>, solve_in), ("dispatched", factor, solve)]
+        let mut v: Vec<(
+            &'static str,
+            fn(&mut [f64], usize) -> bool,
+            fn(&[f64], usize, &mut [f64]),
+        )> = vec![("portable", factor_in::<8>, solve_in), ("dispatched", factor, solve)];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx") {
+                // SAFETY: checked just above.
+                v.push((
+                    "avx",
+                    |a, n| unsafe { factor_avx(a, n) },
+                    |l, n, b| unsafe { solve_avx(l, n, b) },
+                ));
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: checked just above.
+                v.push((
+                    "avx512",
+                    |a, n| unsafe { factor_avx512(a, n) },
+                    |l, n, b| unsafe { solve_avx512(l, n, b) },
+                ));
+            }
+        }
+        v
     }
 
     #[test]

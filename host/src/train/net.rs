@@ -132,8 +132,8 @@ crate::simd::x86_dispatch! {
         range: std::ops::Range<usize>,
         part: &mut Part,
     ) -> f64 {
-        avx512: prob.accumulate_in::<16>(at, range, part),
-        avx: prob.accumulate_in::<8>(at, range, part),
+        avx512 accumulate_avx512: prob.accumulate_in::<16>(at, range, part),
+        avx accumulate_avx: prob.accumulate_in::<8>(at, range, part),
         portable: prob.accumulate_in::<4>(at, range, part),
     }
 }
@@ -141,8 +141,8 @@ crate::simd::x86_dispatch! {
 crate::simd::x86_dispatch! {
     /// [`Problem::forward_range`] of `prob`.
     fn forward_range_on(prob: &Problem, p: &[f64], first: usize, h: &mut [f64], y: &mut [f64]) -> f64 {
-        avx512: prob.forward_range_in(p, first, h, y),
-        avx: prob.forward_range_in(p, first, h, y),
+        avx512 forward_range_avx512: prob.forward_range_in(p, first, h, y),
+        avx forward_range_avx: prob.forward_range_in(p, first, h, y),
         portable: prob.forward_range_in(p, first, h, y),
     }
 }
@@ -1017,6 +1017,30 @@ pub(crate) mod tests {
         for (x, y) in [(&a.m, &b.m), (&a.cross, &b.cross), (&a.jtr, &b.jtr)] {
             assert_eq!(bits(x), bits(y));
         }
+        // Each compiled build this CPU runs, not only the one dispatched to.
+        #[cfg(target_arch = "x86_64")]
+        for (name, has) in [
+            ("avx", std::arch::is_x86_feature_detected!("avx")),
+            ("avx512", std::arch::is_x86_feature_detected!("avx512f")),
+        ] {
+            if !has {
+                continue;
+            }
+            let mut c = ws.parts[0].clone();
+            let at = (p.as_slice(), &act, ws.xpk.as_slice());
+            // SAFETY: the CPU has the feature (checked above).
+            let cc = unsafe {
+                if name == "avx" {
+                    accumulate_avx(&prob, at, 0..prob.n, &mut c)
+                } else {
+                    accumulate_avx512(&prob, at, 0..prob.n, &mut c)
+                }
+            };
+            assert_eq!(cc.to_bits(), cb.to_bits(), "{name}");
+            for (x, y) in [(&c.m, &b.m), (&c.cross, &b.cross), (&c.jtr, &b.jtr)] {
+                assert_eq!(bits(x), bits(y), "{name}");
+            }
+        }
     }
 
     /// The forward passes eight samples at a time (as this CPU runs them, and the portable
@@ -1065,6 +1089,26 @@ pub(crate) mod tests {
                 }
                 assert_eq!(portable.h, act.h);
                 assert_eq!(portable.y, act.y);
+                // Each compiled build this CPU runs.
+                #[cfg(target_arch = "x86_64")]
+                for (name, has) in [
+                    ("avx", std::arch::is_x86_feature_detected!("avx")),
+                    ("avx512", std::arch::is_x86_feature_detected!("avx512f")),
+                ] {
+                    if !has {
+                        continue;
+                    }
+                    let mut b = prob.activations();
+                    // SAFETY: the CPU has the feature (checked above).
+                    unsafe {
+                        if name == "avx" {
+                            forward_range_avx(&prob, &p, 0, &mut b.h, &mut b.y);
+                        } else {
+                            forward_range_avx512(&prob, &p, 0, &mut b.h, &mut b.y);
+                        }
+                    }
+                    assert_eq!((&b.h, &b.y), (&portable.h, &portable.y), "{name}");
+                }
                 if n < SPLIT_MIN_SAMPLES {
                     assert_eq!(cost.to_bits(), (0.5 * sse).to_bits(), "{shape:?}");
                 }

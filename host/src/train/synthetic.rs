@@ -110,8 +110,8 @@ crate::simd::x86_dispatch! {
     /// equations (12 x 12) are accumulated point by point, without the 2n x 12 Jacobian.
     /// Compiled for AVX and AVX-512F too (plain multiplies and adds: the same bits).
     fn refine(m: &mut Matrix3x4<f64>, pts: &[[f64; 3]], px: &[[f64; 2]], p: u32) {
-        avx512: refine_exponents(m, pts, px, p),
-        avx: refine_exponents(m, pts, px, p),
+        avx512 refine_avx512: refine_exponents(m, pts, px, p),
+        avx refine_avx: refine_exponents(m, pts, px, p),
         portable: refine_exponents(m, pts, px, p),
     }
 }
@@ -655,6 +655,43 @@ mod tests {
                     _ => continue,
                 };
                 assert_eq!(got.to_bits(), want.to_bits(), "{x}^{p} unrolled");
+            }
+        }
+    }
+
+    /// The camera fit's compiled builds this CPU runs have the portable build's bits (case IV's
+    /// rounded board, each exponent the fit uses).
+    #[test]
+    fn the_camera_fits_builds_have_the_portable_bits() {
+        let head = HeadRig::new(presets::CASE_4);
+        let pts = thesis_points();
+        let d = set(&head, &pts, true);
+        let px: Vec<[f64; 2]> = (0..d.len()).map(|r| [d.row(r)[0], d.row(r)[1]]).collect();
+        let start = dlt_in_front(&pts, &px).unwrap();
+        for p in [2, 4, 8, 16] {
+            let mut want = start;
+            refine_exponents(&mut want, &pts, &px, p);
+            let mut got = start;
+            refine(&mut got, &pts, &px, p);
+            assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "dispatched, p {p}");
+            #[cfg(target_arch = "x86_64")]
+            for (name, has) in [
+                ("avx", std::arch::is_x86_feature_detected!("avx")),
+                ("avx512", std::arch::is_x86_feature_detected!("avx512f")),
+            ] {
+                if !has {
+                    continue;
+                }
+                let mut got = start;
+                // SAFETY: the CPU has the feature (checked above).
+                unsafe {
+                    if name == "avx" {
+                        refine_avx(&mut got, &pts, &px, p);
+                    } else {
+                        refine_avx512(&mut got, &pts, &px, p);
+                    }
+                }
+                assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "{name}, p {p}");
             }
         }
     }
