@@ -58,3 +58,20 @@ macro_rules! x86_dispatch {
     };
 }
 pub(crate) use x86_dispatch;
+
+/// The compiled builds of [`x86_dispatch!`] this CPU runs besides the portable one (`"avx"`,
+/// `"avx512"`), for the tests that compare each with it.
+#[cfg(test)]
+pub(crate) fn builds_here() -> Vec<&'static str> {
+    let mut v = Vec::new();
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx") {
+            v.push("avx");
+        }
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            v.push("avx512");
+        }
+    }
+    v
+}

@@ -1009,15 +1009,9 @@ mod tests {
                         zncc_into(&lc, rp, rl, c0, &mut got);
                         assert_eq!(got, want, "dispatched, radius {rad}, {nc} candidates");
                         #[cfg(target_arch = "x86_64")]
-                        for (name, has) in [
-                            ("avx", std::arch::is_x86_feature_detected!("avx")),
-                            ("avx512", std::arch::is_x86_feature_detected!("avx512f")),
-                        ] {
-                            if !has {
-                                continue;
-                            }
+                        for name in crate::simd::builds_here() {
                             let mut got = vec![0.0; nc];
-                            // SAFETY: the CPU has the feature (checked above).
+                            // SAFETY: `builds_here` lists only what this CPU has.
                             unsafe {
                                 if name == "avx" {
                                     zncc_avx(&lc, rp, rl, c0, &mut got);

@@ -161,23 +161,17 @@ mod tests {
             fn(&[f64], usize, &mut [f64]),
         )> = vec![("portable", factor_in::<8>, solve_in), ("dispatched", factor, solve)];
         #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx") {
-                // SAFETY: checked just above.
-                v.push((
-                    "avx",
-                    |a, n| unsafe { factor_avx(a, n) },
-                    |l, n, b| unsafe { solve_avx(l, n, b) },
-                ));
-            }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: checked just above.
-                v.push((
+        for name in crate::simd::builds_here() {
+            // SAFETY: `builds_here` lists only what this CPU has.
+            v.push(if name == "avx" {
+                ("avx", |a, n| unsafe { factor_avx(a, n) }, |l, n, b| unsafe { solve_avx(l, n, b) })
+            } else {
+                (
                     "avx512",
                     |a, n| unsafe { factor_avx512(a, n) },
                     |l, n, b| unsafe { solve_avx512(l, n, b) },
-                ));
-            }
+                )
+            });
         }
         v
     }

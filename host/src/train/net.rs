@@ -1019,16 +1019,10 @@ pub(crate) mod tests {
         }
         // Each compiled build this CPU runs, not only the one dispatched to.
         #[cfg(target_arch = "x86_64")]
-        for (name, has) in [
-            ("avx", std::arch::is_x86_feature_detected!("avx")),
-            ("avx512", std::arch::is_x86_feature_detected!("avx512f")),
-        ] {
-            if !has {
-                continue;
-            }
+        for name in crate::simd::builds_here() {
             let mut c = ws.parts[0].clone();
             let at = (p.as_slice(), &act, ws.xpk.as_slice());
-            // SAFETY: the CPU has the feature (checked above).
+            // SAFETY: `builds_here` lists only what this CPU has.
             let cc = unsafe {
                 if name == "avx" {
                     accumulate_avx(&prob, at, 0..prob.n, &mut c)
@@ -1091,15 +1085,9 @@ pub(crate) mod tests {
                 assert_eq!(portable.y, act.y);
                 // Each compiled build this CPU runs.
                 #[cfg(target_arch = "x86_64")]
-                for (name, has) in [
-                    ("avx", std::arch::is_x86_feature_detected!("avx")),
-                    ("avx512", std::arch::is_x86_feature_detected!("avx512f")),
-                ] {
-                    if !has {
-                        continue;
-                    }
+                for name in crate::simd::builds_here() {
                     let mut b = prob.activations();
-                    // SAFETY: the CPU has the feature (checked above).
+                    // SAFETY: `builds_here` lists only what this CPU has.
                     unsafe {
                         if name == "avx" {
                             forward_range_avx(&prob, &p, 0, &mut b.h, &mut b.y);

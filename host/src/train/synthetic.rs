@@ -675,15 +675,9 @@ mod tests {
             refine(&mut got, &pts, &px, p);
             assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "dispatched, p {p}");
             #[cfg(target_arch = "x86_64")]
-            for (name, has) in [
-                ("avx", std::arch::is_x86_feature_detected!("avx")),
-                ("avx512", std::arch::is_x86_feature_detected!("avx512f")),
-            ] {
-                if !has {
-                    continue;
-                }
+            for name in crate::simd::builds_here() {
                 let mut got = start;
-                // SAFETY: the CPU has the feature (checked above).
+                // SAFETY: `builds_here` lists only what this CPU has.
                 unsafe {
                     if name == "avx" {
                         refine_avx(&mut got, &pts, &px, p);
