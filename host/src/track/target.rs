@@ -207,22 +207,16 @@ impl Centred {
     }
 }
 
-/// ZNCC scores of the centred left window `lc` against the right windows of row `rr` at the
-/// columns `c0..=c1` (all inside the image), into `out`: `sum lc (r - mr) = sum lc r - mr sum
-/// lc`, the products summed for the whole row of candidates at once (one multiply-add per
-/// window pixel and candidate, in a fixed order, so a candidate's score does not depend on
-/// the range it is computed in), the right windows' means and norms from the integral images.
-fn zncc_row(lc: &Centred, r: &Plane, rr: i32, (c0, c1): (i32, i32), out: &mut Vec<f32>) {
-    out.clear();
-    out.resize((c1 - c0 + 1) as usize, 0.0);
-    zncc_into(lc, r, rr, c0, out);
-}
-
 crate::simd::x86_dispatch! {
-    /// [`zncc_row`] into `out` (zeros), the columns from `c0` on. Compiled for AVX and
-    /// AVX-512F too, picked at run time: plain multiplies, adds and divisions (Rust never fuses
-    /// them) in the same order per candidate, so the same bits, 16 or 32 candidates a step
-    /// instead of 8.
+    /// ZNCC scores of the centred left window `lc` against the right windows of row `rr` at
+    /// the columns from `c0` on (as many as `out` holds, all inside the image), into `out`
+    /// (zeros): `sum lc (r - mr) = sum lc r - mr sum lc`, the products summed for the whole row
+    /// of candidates at once (one multiply-add per window pixel and candidate, in a fixed
+    /// order, so a candidate's score does not depend on the range it is computed in), the
+    /// right windows' means and norms from the integral images. Compiled for AVX and AVX-512F
+    /// too, picked at run time: plain multiplies, adds and divisions (Rust never fuses them)
+    /// in the same order per candidate, so the same bits, 16 or 32 candidates a step instead
+    /// of 8.
     fn zncc_into(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &mut [f32]) {
         avx512 zncc_avx512: zncc_in::<32>(lc, r, rr, c0, out),
         avx zncc_avx: zncc_in::<16>(lc, r, rr, c0, out),
@@ -371,8 +365,8 @@ fn search(
         if (c0..=c1).contains(&x) && (r0..=r1).contains(&y) {
             return scores[(y - r0) as usize * nc + (x - c0) as usize];
         }
-        let mut one = Vec::with_capacity(1);
-        zncc_row(&lc, r, y, (x, x), &mut one);
+        let mut one = [0.0];
+        zncc_into(&lc, r, y, x, &mut one);
         one[0]
     };
     let sx = sub(at(x - 1, y), s, at(x + 1, y));

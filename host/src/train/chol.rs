@@ -9,9 +9,9 @@
 //! element of column `j` still takes the columns `k = 0..j` in turn), but a block of rows is
 //! kept in registers over all `k` (where nalgebra loads and stores the column for every `k`,
 //! and goes one element at a time through the rows past its last whole vector), and the whole
-//! is compiled for AVX and AVX-512F too, picked
-//! at run time: plain multiplies and adds (no fused multiply-add), so the same bits on every
-//! CPU. The unit tests compare all three builds with nalgebra bit for bit.
+//! is compiled for AVX and AVX-512F too, picked at run time: plain multiplies and adds (no
+//! fused multiply-add), so the same bits on every CPU. The unit tests compare every build the
+//! CPU runs with nalgebra bit for bit.
 
 // Index loops mirror nalgebra's (row i, column j of a column-major matrix).
 #![allow(clippy::needless_range_loop)]

@@ -148,28 +148,19 @@ crate::simd::x86_dispatch! {
 }
 
 /// [`forward`] of [`LANES`] samples (`x`: `LANES * ni` values, `h` and `y` likewise), the
-/// same bits: each sample's sums in the same order, the sigmoid's `exp` by [`exp_lanes`].
+/// same bits: each sample's sums in the same order, the sigmoid's `exp` by [`exp_lanes`];
+/// `hl` holds the hidden units' lanes (`nh` of them), the caller's scratch.
 #[inline(always)]
 fn forward_lanes(
     s: &Shape,
     output: Activation,
     p: &[f64],
-    x: &[f64],
-    h: &mut [f64],
-    y: &mut [f64],
+    (x, h, y): (&[f64], &mut [f64], &mut [f64]),
+    hl: &mut [[f64; LANES]],
 ) {
     let sigmoid_lanes = |a: [f64; LANES]| -> [f64; LANES] {
         let e = exp_lanes(&a.map(|v| -v));
         e.map(|e| 1.0 / (1.0 + e))
-    };
-    // The hidden units' lanes: on the stack for the nets `hvs train` makes.
-    let mut stack = [[0.0; LANES]; 32];
-    let mut heap = Vec::new();
-    let hl: &mut [[f64; LANES]] = if s.nh <= stack.len() {
-        &mut stack[..s.nh]
-    } else {
-        heap.resize(s.nh, [0.0; LANES]);
-        &mut heap
     };
     for (j, hj) in hl.iter_mut().enumerate() {
         let row = &p[s.w1(j, 0)..s.w1(j, 0) + s.ni + 1];
@@ -491,6 +482,7 @@ impl Problem {
 
     /// The forward pass of the samples from `first` on into `h` and `y` (as many as they
     /// hold); returns their sum of squared residuals.
+    ///
     /// [`LANES`] samples at a time ([`forward_lanes`]), the rest one by one. Compiled for AVX
     /// and AVX-512F too, picked at run time (the same bits).
     fn forward_range(&self, p: &[f64], first: usize, h: &mut [f64], y: &mut [f64]) -> f64 {
@@ -502,16 +494,15 @@ impl Problem {
         let s = &self.shape;
         let count = y.len() / s.no;
         let whole = count - count % LANES;
+        let mut hl = vec![[0.0; LANES]; s.nh];
         for b in (0..whole).step_by(LANES) {
             let n = first + b;
-            forward_lanes(
-                s,
-                self.output,
-                p,
+            let block = (
                 &self.x[n * s.ni..(n + LANES) * s.ni],
                 &mut h[b * s.nh..(b + LANES) * s.nh],
                 &mut y[b * s.no..(b + LANES) * s.no],
             );
+            forward_lanes(s, self.output, p, block, &mut hl);
         }
         let mut cost = 0.0;
         for (i, (h, y)) in h.chunks_exact_mut(s.nh).zip(y.chunks_exact_mut(s.no)).enumerate() {
