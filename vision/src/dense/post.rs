@@ -340,20 +340,33 @@ fn refined(
 ) -> Option<f64> {
     let (alpha, beta) = geo.line(x, y)?;
     let (w, h) = (geo.w, geo.h);
-    // The derivative along the line: the windows half a pixel either side.
-    let at = |u: f64, out: &mut [f64]| {
-        scaled_window_samples(right, (w, h), (u, alpha + beta * u), scale, out)
-    };
-    lucas_kanade(geo, left, (x, y), x as f64 - f64::from(disparity), 2, |u, rw, gw| {
-        let mut after = [0.0f64; REFINE_SIDE * REFINE_SIDE];
-        if !(at(u, rw) && at(u - 0.5, gw) && at(u + 0.5, &mut after)) {
-            return false;
-        }
-        for (g, a) in gw.iter_mut().zip(&after) {
-            *g = a - *g;
-        }
-        true
-    })
+    // The derivative along the line (1, beta): the windows half a pixel either side. The
+    // closure LK calls is inlined, so that it is compiled for the instruction set [`refine`]
+    // runs.
+    let at =
+        |x: f64, y: f64, out: &mut [f64]| scaled_window_samples(right, (w, h), (x, y), scale, out);
+    lucas_kanade(
+        geo,
+        left,
+        (x, y),
+        x as f64 - f64::from(disparity),
+        2,
+        #[inline(always)]
+        |u, rw, gw| {
+            let v = alpha + beta * u;
+            let mut after = [0.0f64; REFINE_SIDE * REFINE_SIDE];
+            if !(at(u, v, rw)
+                && at(u - 0.5, v - 0.5 * beta, gw)
+                && at(u + 0.5, v + 0.5 * beta, &mut after))
+            {
+                return false;
+            }
+            for (g, a) in gw.iter_mut().zip(&after) {
+                *g = a - *g;
+            }
+            true
+        },
+    )
 }
 
 /// The refined right `u` of left pixel `(x, y)` from `u0` ([`refine`] with the right window
@@ -366,9 +379,16 @@ fn refined_warped(
     u0: f64,
     warp: [f64; 2],
 ) -> Option<f64> {
-    lucas_kanade(geo, left, (x, y), u0, 1, |u, rw, gw| {
-        warped_window_samples(right, geo, (x, y), u, warp, rw, gw)
-    })
+    // Inlined, so that it is compiled for the instruction set [`refine`] runs.
+    lucas_kanade(
+        geo,
+        left,
+        (x, y),
+        u0,
+        1,
+        #[inline(always)]
+        |u, rw, gw| warped_window_samples(right, geo, (x, y), u, warp, rw, gw),
+    )
 }
 
 /// `steps` Gauss-Newton steps of [`refine`] for left pixel `(x, y)` from right `u0`:
