@@ -316,6 +316,9 @@ pub(crate) fn refine(
                             let u0 = x as f64 - f64::from(b.disparity);
                             refined_warped(geo, (left, grey), (x, y), u0, warp)
                         }
+                        None if warps.is_none() => {
+                            refined_rectified(geo, (left, right), (x, y), b.disparity)
+                        }
                         None => refined(geo, (left, right), scale, (x, y), b.disparity),
                     };
                     if let Some(u) = u {
@@ -367,6 +370,85 @@ fn refined(
             true
         },
     )
+}
+
+/// The refined right `u` of left pixel `(x, y)` at `disparity` for a rectified pair of
+/// cameras alike ([`refine`]), `None` where a step is not taken: the derivative is the left
+/// window's (central differences along its row, computed once), not the right one's at each
+/// step (the inverse-compositional form of Lucas-Kanade: one right window per step instead of
+/// three; at the match the two derivatives agree up to the gain).
+#[inline(always)]
+fn refined_rectified(
+    geo: &Geo,
+    (left, right): (&[u8], &[u8]),
+    (x, y): (usize, usize),
+    disparity: f32,
+) -> Option<f64> {
+    const N: usize = REFINE_SIDE * REFINE_SIDE;
+    let (alpha, beta) = geo.line(x, y)?;
+    let (w, h) = (geo.w, geo.h);
+    let (xi, yi) = (x as i64, y as i64);
+    if xi < REFINE_HALF + 1
+        || yi < REFINE_HALF
+        || xi + REFINE_HALF + 1 >= w as i64
+        || yi + REFINE_HALF >= h as i64
+    {
+        return None;
+    }
+    let half = REFINE_HALF as usize;
+    let mut lw = [0.0f64; N];
+    let mut gl = [0.0f64; N];
+    for j in 0..REFINE_SIDE {
+        let r = (y + j - half) * w + x - half;
+        for i in 0..REFINE_SIDE {
+            lw[j * REFINE_SIDE + i] = f64::from(left[r + i]);
+            gl[j * REFINE_SIDE + i] =
+                0.5 * (f64::from(left[r + i + 1]) - f64::from(left[r + i - 1]));
+        }
+    }
+    let n = N as f64;
+    let (mut sl, mut sll, mut sg, mut sgg) = (0.0, 0.0, 0.0, 0.0);
+    for k in 0..N {
+        sl += lw[k];
+        sll += lw[k] * lw[k];
+        sg += gl[k];
+        sgg += gl[k] * gl[k];
+    }
+    let lmean = sl / n;
+    let lvar = sll - sl * lmean;
+    let den = sgg - sg * (sg / n);
+    if lvar < 1e-6 || den <= 1e-9 {
+        return None;
+    }
+    let mut sgl = 0.0;
+    for k in 0..N {
+        lw[k] -= lmean;
+        sgl += gl[k] * lw[k];
+    }
+    let u0 = x as f64 - f64::from(disparity);
+    let mut u = u0;
+    let mut rw = [0.0f64; N];
+    for _ in 0..2 {
+        let v = alpha + beta * u;
+        if !scaled_window_samples(right, (w, h), (u, v), [1.0, 1.0], &mut rw) {
+            return None;
+        }
+        let (mut sr, mut srr, mut sgr) = (0.0, 0.0, 0.0);
+        for k in 0..N {
+            sr += rw[k];
+            srr += rw[k] * rw[k];
+            sgr += gl[k] * rw[k];
+        }
+        let rmean = sr / n;
+        let rvar = srr - sr * rmean;
+        if rvar < 1e-6 {
+            return None;
+        }
+        let gain = (lvar / rvar).sqrt();
+        let num = sgl - gain * (sgr - sg * rmean);
+        u += (num / den).clamp(-0.5, 0.5);
+    }
+    ((u - u0).abs() <= 0.5).then_some(u)
 }
 
 /// The refined right `u` of left pixel `(x, y)` from `u0` ([`refine`] with the right window
