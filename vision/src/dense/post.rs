@@ -291,44 +291,62 @@ pub(crate) fn refine(
     rectified: bool,
     best: &mut [Option<Best>],
 ) {
-    let w = geo.w;
+    let (w, h) = (geo.w, geo.h);
     // A rectified pair of cameras alike: every window's map is (nearly) a shift along its row.
-    let warps = if rectified && scale == [1.0, 1.0] {
-        None
-    } else {
-        let ur: Vec<f64> = best
-            .iter()
-            .enumerate()
-            .map(|(p, b)| b.map_or(f64::NAN, |b| (p % w) as f64 - f64::from(b.disparity)))
-            .collect();
-        let grey: Vec<f32> = right.iter().map(|&p| f32::from(p)).collect();
-        Some((local_warps(&ur, w, geo.h), grey))
-    };
-    best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        super::fast(
-            #[inline(always)]
-            || {
-                for (x, slot) in row.iter_mut().enumerate() {
-                    let Some(b) = slot else { continue };
-                    let warp = warps.as_ref().and_then(|(v, grey)| v[y * w + x].map(|a| (a, grey)));
-                    let u = match warp {
-                        Some((warp, grey)) => {
-                            let u0 = x as f64 - f64::from(b.disparity);
-                            refined_warped(geo, (left, grey), (x, y), u0, warp)
+    if rectified && scale == [1.0, 1.0] {
+        best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            super::fast(
+                #[inline(always)]
+                || {
+                    for (x, slot) in row.iter_mut().enumerate() {
+                        let Some(b) = slot else { continue };
+                        if let Some(u) = refined_rectified(geo, (left, right), (x, y), b.disparity)
+                        {
+                            b.disparity = (x as f64 - u) as f32;
                         }
-                        None if warps.is_none() => {
-                            refined_rectified(geo, (left, right), (x, y), b.disparity)
-                        }
-                        None => refined(geo, (left, right), scale, (x, y), b.disparity),
-                    };
-                    if let Some(u) = u {
-                        b.disparity = (x as f64 - u) as f32;
                     }
-                }
-            },
-        )
-    });
+                },
+            )
+        });
+        return;
+    }
+    // The warps come from the winners before refinement; a band of rows at a time, so that
+    // the warps' tables stay small whatever the image's size.
+    let ur: Vec<f64> = best
+        .iter()
+        .enumerate()
+        .map(|(p, b)| b.map_or(f64::NAN, |b| (p % w) as f64 - f64::from(b.disparity)))
+        .collect();
+    let grey: Vec<f32> = right.iter().map(|&p| f32::from(p)).collect();
+    for y0 in (0..h).step_by(WARP_BAND) {
+        let rows = y0..(y0 + WARP_BAND).min(h);
+        let warps = local_warps(&ur, w, h, rows.clone());
+        best[rows.start * w..rows.end * w].par_chunks_mut(w).enumerate().for_each(|(dy, row)| {
+            let y = y0 + dy;
+            super::fast(
+                #[inline(always)]
+                || {
+                    for (x, slot) in row.iter_mut().enumerate() {
+                        let Some(b) = slot else { continue };
+                        let u = match warps[dy * w + x] {
+                            Some(warp) => {
+                                let u0 = x as f64 - f64::from(b.disparity);
+                                refined_warped(geo, (left, &grey), (x, y), u0, warp)
+                            }
+                            None => refined(geo, (left, right), scale, (x, y), b.disparity),
+                        };
+                        if let Some(u) = u {
+                            b.disparity = (x as f64 - u) as f32;
+                        }
+                    }
+                },
+            )
+        });
+    }
 }
+
+/// Rows of [`refine`]'s bands of warps.
+const WARP_BAND: usize = 64;
 
 /// The refined right `u` of left pixel `(x, y)` at `disparity` ([`refine`] with the right
 /// window at the cameras' scale, on the pixel's own line; its derivative from the windows half
@@ -641,17 +659,26 @@ const WARP_HALF: usize = 4;
 /// `ur` (right `u` of each left pixel, NaN where none; [`refine`] passes the winners before
 /// refinement, whose sub-pixel noise the 81-pixel fit averages): `[du_r/dx, du_r/dy]` of the least-squares
 /// plane through the matched pixels of its 9 x 9 neighbourhood (box sums over summed-area
-/// tables), `None` with fewer than half of them matched or a degenerate fit. A slanted surface,
+/// tables of the rows it needs), for the pixels of `rows`, `None` with fewer than half of them matched or a degenerate fit. A slanted surface,
 /// a right camera of another scale or one rolled against the left all show here as a gradient
 /// of `u_r` that a window of fixed shape would not follow.
-fn local_warps(ur: &[f64], w: usize, h: usize) -> Vec<Option<[f64; 2]>> {
-    // Summed-area tables of 1, x, y, x^2, y^2, xy, u, xu, yu over the matched pixels, with x, y
+fn local_warps(
+    ur: &[f64],
+    w: usize,
+    h: usize,
+    rows: std::ops::Range<usize>,
+) -> Vec<Option<[f64; 2]>> {
+    // Summed-area tables of 1, x, y, x^2, y^2, xy, u, xu, yu over the matched pixels of the
+    // rows the band's neighbourhoods reach (table row t is image row lo + t - 1), with x, y
     // relative to the image centre (smaller sums, less cancellation).
     const K: usize = 9;
+    let r = WARP_HALF;
+    let (lo, hi) = (rows.start.saturating_sub(r), (rows.end + r).min(h));
     let (cx, cy) = (w as f64 / 2.0, h as f64 / 2.0);
     let stride = w + 1;
-    let mut sat = vec![[0.0f64; K]; stride * (h + 1)];
-    for y in 0..h {
+    let mut sat = vec![[0.0f64; K]; stride * (hi - lo + 1)];
+    for y in lo..hi {
+        let t = y - lo;
         let mut row = [0.0f64; K];
         for x in 0..w {
             let u = ur[y * w + x];
@@ -662,20 +689,19 @@ fn local_warps(ur: &[f64], w: usize, h: usize) -> Vec<Option<[f64; 2]>> {
                     *r += v;
                 }
             }
-            let above = sat[y * stride + x + 1];
-            sat[(y + 1) * stride + x + 1] = core::array::from_fn(|k| above[k] + row[k]);
+            let above = sat[t * stride + x + 1];
+            sat[(t + 1) * stride + x + 1] = core::array::from_fn(|k| above[k] + row[k]);
         }
     }
-    let r = WARP_HALF;
     let need = ((2 * r + 1) * (2 * r + 1) / 2) as f64;
-    (0..w * h)
+    (rows.start * w..rows.end * w)
         .into_par_iter()
         .map(|p| {
             let (x, y) = (p % w, p / w);
             if !ur[p].is_finite() || x < r || y < r || x + r >= w || y + r >= h {
                 return None;
             }
-            let (x0, y0, x1, y1) = (x - r, y - r, x + r + 1, y + r + 1);
+            let (x0, y0, x1, y1) = (x - r, y - r - lo, x + r + 1, y + r + 1 - lo);
             let s: [f64; K] = core::array::from_fn(|k| {
                 sat[y1 * stride + x1][k] - sat[y0 * stride + x1][k] - sat[y1 * stride + x0][k]
                     + sat[y0 * stride + x0][k]
@@ -817,7 +843,7 @@ mod tests {
         let (w, h) = (40usize, 30usize);
         let mut ur: Vec<f64> =
             (0..w * h).map(|k| 3.0 + 0.83 * (k % w) as f64 - 0.07 * (k / w) as f64).collect();
-        let warps = local_warps(&ur, w, h);
+        let warps = local_warps(&ur, w, h, 0..h);
         for y in 0..h {
             for x in 0..w {
                 let inside =
@@ -837,8 +863,21 @@ mod tests {
                 ur[y * w + x] = f64::NAN;
             }
         }
-        let warps = local_warps(&ur, w, h);
+        let warps = local_warps(&ur, w, h, 0..h);
         assert!(warps[15 * w + 20].is_none() && warps[15 * w + 31].is_some());
+        // A band of rows: the whole image's warps of those rows.
+        for rows in [0..7, 7..19, 19..h, 3..4] {
+            let band = local_warps(&ur, w, h, rows.clone());
+            assert_eq!(band.len(), rows.len() * w);
+            for (got, want) in band.iter().zip(&warps[rows.start * w..rows.end * w]) {
+                match (got, want) {
+                    (Some(g), Some(e)) => {
+                        assert!((g[0] - e[0]).abs() < 1e-9 && (g[1] - e[1]).abs() < 1e-9)
+                    }
+                    (g, e) => assert_eq!(g.is_some(), e.is_some()),
+                }
+            }
+        }
         assert!(warps[15 * w + 33]
             .is_some_and(|[a, b]| (a - 0.83).abs() < 1e-9 && (b + 0.07).abs() < 1e-9));
     }
