@@ -280,7 +280,8 @@ fn scaled_window_samples(
 /// 7 x 7 window's zero-mean, gain-matched difference along the epipolar line (a 1-D
 /// Lucas-Kanade), which removes most of the pull of the cost fit towards whole pixels. A
 /// `rectified` pair at unit `scale`: two steps of the window shifted along its row (bilinear
-/// samples sharing one fractional offset). Otherwise one step of the window under its
+/// samples sharing one fractional offset) with the left window's derivative
+/// ([`refined_rectified`]). Otherwise one step of the window under its
 /// [`local_warps`] warp ([`warped_window_samples`]), or two of the window at `scale` where the
 /// neighbourhood gives no warp. A step that would move the match by more than half a pixel,
 /// or leave the image, is not taken.
