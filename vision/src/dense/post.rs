@@ -406,42 +406,29 @@ fn refined_rectified(
     const N: usize = REFINE_SIDE * REFINE_SIDE;
     let (alpha, beta) = geo.line(x, y)?;
     let (w, h) = (geo.w, geo.h);
-    let (xi, yi) = (x as i64, y as i64);
-    if xi < REFINE_HALF + 1
-        || yi < REFINE_HALF
-        || xi + REFINE_HALF + 1 >= w as i64
-        || yi + REFINE_HALF >= h as i64
-    {
-        return None;
-    }
+    // One column more on each side for the central differences.
+    let (lw, lvar) = left_window(left, (w, h), (x, y), 1)?;
     let half = REFINE_HALF as usize;
-    let mut lw = [0.0f64; N];
     let mut gl = [0.0f64; N];
     for j in 0..REFINE_SIDE {
         let r = (y + j - half) * w + x - half;
         for i in 0..REFINE_SIDE {
-            lw[j * REFINE_SIDE + i] = f64::from(left[r + i]);
             gl[j * REFINE_SIDE + i] =
                 0.5 * (f64::from(left[r + i + 1]) - f64::from(left[r + i - 1]));
         }
     }
     let n = N as f64;
-    let (mut sl, mut sll, mut sg, mut sgg) = (0.0, 0.0, 0.0, 0.0);
-    for k in 0..N {
-        sl += lw[k];
-        sll += lw[k] * lw[k];
-        sg += gl[k];
-        sgg += gl[k] * gl[k];
+    let (mut sg, mut sgg) = (0.0, 0.0);
+    for &g in &gl {
+        sg += g;
+        sgg += g * g;
     }
-    let lmean = sl / n;
-    let lvar = sll - sl * lmean;
     let den = sgg - sg * (sg / n);
-    if lvar < 1e-6 || den <= 1e-9 {
+    if den <= 1e-9 {
         return None;
     }
     let mut sgl = 0.0;
     for k in 0..N {
-        lw[k] -= lmean;
         sgl += gl[k] * lw[k];
     }
     let u0 = x as f64 - f64::from(disparity);
@@ -492,26 +479,21 @@ fn refined_warped(
     )
 }
 
-/// `steps` Gauss-Newton steps of [`refine`] for left pixel `(x, y)` from right `u0`:
-/// `sample(u, window, slope)` fills the right window whose centre is at right `u` and its
-/// derivative along the line (`false` outside the image). The window sums are gathered in
-/// one sweep each (six independent running sums, not a chain of means then deviations): `sum
-/// (r - mean r)^2 = sum r^2 - mean r sum r` and the like, the same quantities to rounding.
+/// The 7 x 7 window of left pixel `(x, y)` (image `w x h`), less its mean, and its sum of
+/// squared deviations; `None` where the window, widened by `margin` columns on each side,
+/// leaves the image, or where it is flat.
 #[inline(always)]
-fn lucas_kanade(
-    geo: &Geo,
+fn left_window(
     left: &[u8],
+    (w, h): (usize, usize),
     (x, y): (usize, usize),
-    u0: f64,
-    steps: usize,
-    sample: impl Fn(f64, &mut [f64], &mut [f64]) -> bool,
-) -> Option<f64> {
+    margin: i64,
+) -> Option<([f64; REFINE_SIDE * REFINE_SIDE], f64)> {
     const N: usize = REFINE_SIDE * REFINE_SIDE;
-    let (w, h) = (geo.w, geo.h);
     let (xi, yi) = (x as i64, y as i64);
-    if xi < REFINE_HALF
+    if xi < REFINE_HALF + margin
         || yi < REFINE_HALF
-        || xi + REFINE_HALF >= w as i64
+        || xi + REFINE_HALF + margin >= w as i64
         || yi + REFINE_HALF >= h as i64
     {
         return None;
@@ -538,6 +520,26 @@ fn lucas_kanade(
     for l in lw.iter_mut() {
         *l -= lmean;
     }
+    Some((lw, lvar))
+}
+
+/// `steps` Gauss-Newton steps of [`refine`] for left pixel `(x, y)` from right `u0`:
+/// `sample(u, window, slope)` fills the right window whose centre is at right `u` and its
+/// derivative along the line (`false` outside the image). The window sums are gathered in
+/// one sweep each (six independent running sums, not a chain of means then deviations): `sum
+/// (r - mean r)^2 = sum r^2 - mean r sum r` and the like, the same quantities to rounding.
+#[inline(always)]
+fn lucas_kanade(
+    geo: &Geo,
+    left: &[u8],
+    (x, y): (usize, usize),
+    u0: f64,
+    steps: usize,
+    sample: impl Fn(f64, &mut [f64], &mut [f64]) -> bool,
+) -> Option<f64> {
+    const N: usize = REFINE_SIDE * REFINE_SIDE;
+    let (lw, lvar) = left_window(left, (geo.w, geo.h), (x, y), 0)?;
+    let n = N as f64;
     let mut u = u0;
     for _ in 0..steps {
         // Right window and its derivative along the line.
@@ -658,11 +660,12 @@ const WARP_HALF: usize = 4;
 
 /// The local map of each left pixel's neighbourhood into the right image from the matches
 /// `ur` (right `u` of each left pixel, NaN where none; [`refine`] passes the winners before
-/// refinement, whose sub-pixel noise the 81-pixel fit averages): `[du_r/dx, du_r/dy]` of the least-squares
-/// plane through the matched pixels of its 9 x 9 neighbourhood (box sums over summed-area
-/// tables of the rows it needs), for the pixels of `rows`, `None` with fewer than half of them matched or a degenerate fit. A slanted surface,
-/// a right camera of another scale or one rolled against the left all show here as a gradient
-/// of `u_r` that a window of fixed shape would not follow.
+/// refinement, whose sub-pixel noise the 81-pixel fit averages), for the pixels of `rows`:
+/// `[du_r/dx, du_r/dy]` of the least-squares plane through the matched pixels of its 9 x 9
+/// neighbourhood (box sums over summed-area tables of the rows it needs), `None` with fewer
+/// than half of them matched or a degenerate fit. A slanted surface, a right camera of
+/// another scale or one rolled against the left all show here as a gradient of `u_r` that a
+/// window of fixed shape would not follow.
 fn local_warps(
     ur: &[f64],
     w: usize,
@@ -670,7 +673,7 @@ fn local_warps(
     rows: std::ops::Range<usize>,
 ) -> Vec<Option<[f64; 2]>> {
     // Summed-area tables of 1, x, y, x^2, y^2, xy, u, xu, yu over the matched pixels of the
-    // rows the band's neighbourhoods reach (table row t is image row lo + t - 1), with x, y
+    // rows the band's neighbourhoods reach (table row t sums image rows lo..lo + t), with x, y
     // relative to the image centre (smaller sums, less cancellation).
     const K: usize = 9;
     let r = WARP_HALF;
@@ -884,7 +887,7 @@ mod tests {
     }
 
     /// Catmull-Rom bicubic grey level at `(x, y)`, tap by tap.
-    fn bicubic(img: &[u8], w: usize, _h: usize, x: f64, y: f64) -> Option<f64> {
+    fn bicubic(img: &[u8], w: usize, x: f64, y: f64) -> f64 {
         let (x0, y0) = (x.floor() as usize, y.floor() as usize);
         let (wx, wy) =
             (cubic_weights((x - x0 as f64) as f32), cubic_weights((y - y0 as f64) as f32));
@@ -895,7 +898,7 @@ mod tests {
                 acc += f64::from(wy[j]) * f64::from(wx[i]) * p;
             }
         }
-        Some(acc)
+        acc
     }
 
     /// The warped window's samples interpolate the image (whole offsets give the pixels), and
@@ -921,7 +924,7 @@ mod tests {
             let (i, j) = (k % REFINE_SIDE, k / REFINE_SIDE);
             let (us, ly) = (u + i as f64 - 3.0, y as f64 + j as f64 - 3.0);
             let vs = ly + 0.1 * us - 2.0;
-            let want = bicubic(&img, w, h, us, vs).unwrap();
+            let want = bicubic(&img, w, us, vs);
             // f32 arithmetic inside.
             assert!((v - want).abs() < 1e-3, "{k}: {v} vs {want}");
             if vs.fract() == 0.0 {
