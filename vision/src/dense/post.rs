@@ -32,16 +32,57 @@ pub(crate) fn subpixel(a: i32, b: i32, c: i32) -> f32 {
 /// sums `sums` (`w * d`).
 pub(crate) fn winners_row(geo: &Geo, y: usize, sums: &[i16], uniqueness: f32) -> Vec<Option<Best>> {
     let d = geo.d;
+    // A plain loop: an iterator's closure would not be inlined into the AVX2 body.
     super::fast(
         #[inline(always)]
-        || (0..geo.w).map(|x| winner(geo, x, y, &sums[x * d..(x + 1) * d], uniqueness)).collect(),
+        || {
+            let mut row = Vec::with_capacity(geo.w);
+            for x in 0..geo.w {
+                row.push(winner(geo, x, y, &sums[x * d..(x + 1) * d], uniqueness));
+            }
+            row
+        },
     )
 }
 
-/// The smallest of `s` (`i16::MAX` when empty).
+/// The smallest of `s` (`i16::MAX` when empty): chunks of [`CHUNK`] lanes (the last one
+/// overlapping its predecessor), element by element below one chunk.
 #[inline(always)]
 fn min_of(s: &[i16]) -> i16 {
-    s.iter().fold(i16::MAX, |m, &v| m.min(v))
+    let n = s.len();
+    if n < CHUNK {
+        return s.iter().fold(i16::MAX, |m, &v| m.min(v));
+    }
+    let mut m = [i16::MAX; CHUNK];
+    for j0 in (0..n.div_ceil(CHUNK)).map(|i| (i * CHUNK).min(n - CHUNK)) {
+        let c: &[i16; CHUNK] = s[j0..j0 + CHUNK].try_into().expect("chunk");
+        for i in 0..CHUNK {
+            m[i] = m[i].min(c[i]);
+        }
+    }
+    m.iter().fold(i16::MAX, |a, &b| a.min(b))
+}
+
+/// The smallest of `s` (not empty, no negative value) and the first index where it lies.
+/// Below 65,536 values, in one vector pass: the smallest of the keys `value << 16 | index`
+/// (8 `i32` lanes; the last chunk overlaps its predecessor).
+#[inline(always)]
+fn first_smallest(s: &[i16]) -> (i32, usize) {
+    const KEYS: usize = 8;
+    let n = s.len();
+    if !(KEYS..1 << 16).contains(&n) {
+        let m = min_of(s);
+        return (i32::from(m), s.iter().position(|&v| v == m).expect("not empty"));
+    }
+    let mut best = [i32::MAX; KEYS];
+    for j0 in (0..n.div_ceil(KEYS)).map(|i| (i * KEYS).min(n - KEYS)) {
+        let c: &[i16; KEYS] = s[j0..j0 + KEYS].try_into().expect("chunk");
+        for i in 0..KEYS {
+            best[i] = best[i].min(i32::from(c[i]) << 16 | (j0 + i) as i32);
+        }
+    }
+    let key = best.iter().fold(i32::MAX, |a, &b| a.min(b));
+    (key >> 16, (key & 0xFFFF) as usize)
 }
 
 /// The winner of pixel `(x, y)` of `geo`'s reference image from its sums `s` (`d` long).
@@ -50,10 +91,8 @@ fn winner(geo: &Geo, x: usize, y: usize, s: &[i16], uniqueness: f32) -> Option<B
     let line = geo.line(x, y)?;
     let (lo, hi) = geo.valid_range(x, line)?;
     let run = &s[lo..hi + 1];
-    // The first smallest sum.
-    let m = min_of(run);
-    let k1 = lo + run.iter().position(|&v| v == m)?;
-    let s1 = i32::from(m);
+    let (s1, k1) = first_smallest(run);
+    let k1 = lo + k1;
     // The minimum at an end of the range (or of the image): the match is not inside the
     // range.
     if k1 == lo || k1 == hi {
@@ -71,35 +110,94 @@ fn winner(geo: &Geo, x: usize, y: usize, s: &[i16], uniqueness: f32) -> Option<B
 
 /// For a rectified pair: the right image's whole disparities of row `y` read off the left
 /// volume's row `sums` (`w * d`; right pixel `(x, y)` at disparity index `k` is left pixel
-/// `(x + d_min + k, y)`).
+/// `(x + d_min + k, y)`), with the same sub-pixel fit as the left winners where both
+/// neighbours of the minimum exist.
+///
+/// The volume's row is read in its own order (left pixel by left pixel, disparities
+/// contiguous), each cell offered to the running minimum of its right pixel: right pixel
+/// `x_r` sees its disparities in increasing order, so keeping a candidate only when it is
+/// strictly smaller keeps the first smallest, as a scan of `x_r`'s own disparities would.
 pub(crate) fn right_from_left_row(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
+    super::fast(
+        #[inline(always)]
+        || right_from_left_row_body(geo, sums),
+    )
+}
+
+/// Cells per chunk of [`right_from_left_row`]'s inner loop (16 `i16` lanes: one AVX2
+/// register).
+const CHUNK: usize = 16;
+
+#[inline(always)]
+fn right_from_left_row_body(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
     let (w, d) = (geo.w, geo.d);
+    let d_min = i64::from(geo.d_min);
+    // The smallest sum of each right pixel and its disparity index, stored from the last
+    // right pixel to the first (slot `w - 1 - x_r`), so that a left pixel's disparities,
+    // contiguous in the volume, meet their right pixels' slots contiguous too.
+    let mut s1 = vec![i16::MAX; w];
+    let mut k1 = vec![0i16; w];
+    for x in 0..w {
+        // Right pixel x_r = top - k at disparity index k, in slot w - 1 - top + k.
+        let top = x as i64 - d_min;
+        let k_lo = (top - (w as i64 - 1)).max(0);
+        let k_hi = top.min(d as i64 - 1);
+        if k_lo > k_hi {
+            continue;
+        }
+        let (k_lo, k_hi) = (k_lo as usize, k_hi as usize);
+        let slot = (w as i64 - 1 - top) as usize;
+        let n = k_hi - k_lo + 1;
+        let cells = &sums[x * d + k_lo..x * d + k_lo + n];
+        let best = &mut s1[slot + k_lo..slot + k_lo + n];
+        let at = &mut k1[slot + k_lo..slot + k_lo + n];
+        // Chunks of 16 (the last one overlapping its predecessor: offering a cell twice
+        // changes nothing), or cell by cell when there are fewer.
+        let offer = |j: usize, best: &mut [i16], at: &mut [i16]| {
+            let better = cells[j] < best[j];
+            best[j] = if better { cells[j] } else { best[j] };
+            at[j] = if better { (k_lo + j) as i16 } else { at[j] };
+        };
+        if n < CHUNK {
+            for j in 0..n {
+                offer(j, best, at);
+            }
+            continue;
+        }
+        for j0 in (0..n.div_ceil(CHUNK)).map(|i| (i * CHUNK).min(n - CHUNK)) {
+            let c: &[i16; CHUNK] = cells[j0..j0 + CHUNK].try_into().expect("chunk");
+            let b: &mut [i16; CHUNK] = (&mut best[j0..j0 + CHUNK]).try_into().expect("chunk");
+            let a: &mut [i16; CHUNK] = (&mut at[j0..j0 + CHUNK]).try_into().expect("chunk");
+            // Every lane stored, selected by a mask (a store only where better would not
+            // be vectorised: AVX2 has no masked store of 16-bit lanes).
+            let k0 = (k_lo + j0) as i16;
+            let (mut nb, mut na) = (*b, *a);
+            for i in 0..CHUNK {
+                let better = -i16::from(c[i] < b[i]);
+                nb[i] = c[i].min(b[i]);
+                na[i] = ((k0 + i as i16) & better) | (a[i] & !better);
+            }
+            *b = nb;
+            *a = na;
+        }
+    }
     (0..w)
         .map(|xr| {
             // The disparity indices whose left pixel lies inside the image.
-            let base = xr as i64 + i64::from(geo.d_min);
+            let base = xr as i64 + d_min;
             let lo = (-base).max(0);
             let hi = (w as i64 - 1 - base).min(d as i64 - 1);
             if lo > hi {
                 return None;
             }
-            let (lo, hi) = (lo as usize, hi as usize);
-            let at = |k: usize| sums[(base + k as i64) as usize * d + k];
-            // The first smallest.
-            let (mut s1, mut k1) = (at(lo), lo);
-            for k in lo + 1..=hi {
-                let v = at(k);
-                if v < s1 {
-                    (s1, k1) = (v, k);
-                }
-            }
-            // Sub-pixel by the same fit as the left winners where both neighbours exist.
-            let offset = if k1 > lo && k1 < hi {
-                subpixel(i32::from(at(k1 - 1)), i32::from(s1), i32::from(at(k1 + 1)))
+            let (lo, hi, k) = (lo as usize, hi as usize, k1[w - 1 - xr] as usize);
+            let at = |k: usize| i32::from(sums[(base + k as i64) as usize * d + k]);
+            let offset = if k > lo && k < hi {
+                subpixel(at(k - 1), i32::from(s1[w - 1 - xr]), at(k + 1))
             } else {
                 0.0
             };
-            Some((geo.d_min as f32) + k1 as f32 + offset)
+            Some((geo.d_min as f32) + k as f32 + offset)
         })
         .collect()
 }
@@ -909,6 +1007,42 @@ fn refined_rectified_f64(
     ((u - u0).abs() <= 0.5).then_some(u)
 }
 
+/// [`right_from_left_row`] as first written, right pixel by right pixel (the tests'
+/// reference): the right image's whole disparities of row `y` read off the left volume's row `sums` (`w * d`; right pixel `(x, y)` at disparity index `k` is left pixel
+/// `(x + d_min + k, y)`).
+#[cfg(test)]
+fn right_from_left_row_reference(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
+    let (w, d) = (geo.w, geo.d);
+    (0..w)
+        .map(|xr| {
+            // The disparity indices whose left pixel lies inside the image.
+            let base = xr as i64 + i64::from(geo.d_min);
+            let lo = (-base).max(0);
+            let hi = (w as i64 - 1 - base).min(d as i64 - 1);
+            if lo > hi {
+                return None;
+            }
+            let (lo, hi) = (lo as usize, hi as usize);
+            let at = |k: usize| sums[(base + k as i64) as usize * d + k];
+            // The first smallest.
+            let (mut s1, mut k1) = (at(lo), lo);
+            for k in lo + 1..=hi {
+                let v = at(k);
+                if v < s1 {
+                    (s1, k1) = (v, k);
+                }
+            }
+            // Sub-pixel by the same fit as the left winners where both neighbours exist.
+            let offset = if k1 > lo && k1 < hi {
+                subpixel(i32::from(at(k1 - 1)), i32::from(s1), i32::from(at(k1 + 1)))
+            } else {
+                0.0
+            };
+            Some((geo.d_min as f32) + k1 as f32 + offset)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1010,8 +1144,7 @@ mod tests {
                 for start in [-0.45, -0.2, 0.0, 0.3, 0.45] {
                     let disparity = (shift + start) as f32;
                     let lanes = refined_rectified(&geo, (&left, &right), (x, y), disparity);
-                    let reference =
-                        refined_rectified_f64(&geo, (&left, &right), (x, y), disparity);
+                    let reference = refined_rectified_f64(&geo, (&left, &right), (x, y), disparity);
                     let inside = x >= 4 && x + 4 < w && y >= 3 && y + 3 < h && x as f64 > 11.0;
                     if !inside {
                         assert_eq!(lanes.is_some(), reference.is_some(), "({x}, {y})");
@@ -1027,6 +1160,44 @@ mod tests {
         assert!(both > 10_000, "{both}");
         assert!(worst_ref < 1e-4, "lanes against f64: {worst_ref} px");
         assert!(worst_true < 0.05, "against the true shift: {worst_true} px");
+    }
+
+    /// The right disparities read in the volume's order are the reference's (right pixel by
+    /// right pixel), ties and both ends of the range included.
+    #[test]
+    fn right_disparities_are_the_references() {
+        let mut seed = 5u64;
+        for (w, d, d_min) in [(30usize, 7usize, 0i32), (41, 16, 3), (25, 33, -4), (12, 20, 5)] {
+            for _ in 0..20 {
+                // Few distinct values: many ties.
+                let sums: Vec<i16> = (0..w * d)
+                    .map(|_| (hvs_shared::test_support::splitmix64(&mut seed) % 9) as i16)
+                    .collect();
+                let m = [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]];
+                let geo = Geo { m, sign: -1, d_min, d, w, h: 1 };
+                let got = right_from_left_row(&geo, &sums);
+                let want = right_from_left_row_reference(&geo, &sums);
+                assert_eq!(got, want, "w {w}, d {d}, d_min {d_min}");
+            }
+        }
+    }
+
+    /// `first_smallest` is the smallest value and its first index, ties included, at every
+    /// length below, at and above its chunk.
+    #[test]
+    fn the_first_smallest_is_the_scans() {
+        let mut seed = 9u64;
+        for n in [1usize, 2, 7, 8, 9, 15, 16, 17, 62, 64, 100] {
+            for _ in 0..50 {
+                let s: Vec<i16> = (0..n)
+                    .map(|_| (hvs_shared::test_support::splitmix64(&mut seed) % 5) as i16 * 300)
+                    .collect();
+                let m = *s.iter().min().unwrap();
+                let want = (i32::from(m), s.iter().position(|&v| v == m).unwrap());
+                assert_eq!(first_smallest(&s), want, "{s:?}");
+                assert_eq!(min_of(&s), m);
+            }
+        }
     }
 
     /// A slanted plane: `local_warps` recovers the gradient of `u_r` exactly inside, refuses
