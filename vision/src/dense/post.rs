@@ -515,8 +515,20 @@ fn window_sum(rows: &[Lanes; REFINE_SIDE]) -> f32 {
 #[inline(always)]
 fn load8(img: &[u8], start: usize) -> Lanes {
     match img.get(start..start + ROW) {
-        Some(p) => core::array::from_fn(|i| f32::from(p[i])),
-        None => core::array::from_fn(|i| img.get(start + i).map_or(0.0, |&p| f32::from(p))),
+        Some(p) => {
+            let mut out = [0.0f32; ROW];
+            for i in 0..ROW {
+                out[i] = f32::from(p[i]);
+            }
+            out
+        }
+        None => {
+            let mut out = [0.0f32; ROW];
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = img.get(start + i).map_or(0.0, |&p| f32::from(p));
+            }
+            out
+        }
     }
 }
 
@@ -572,12 +584,16 @@ fn refined_rectified(
         // checked above; the padding lane reads whatever follows).
         let r = (y + j - half) * w + x - half;
         let (before, at, after) = (load8(left, r - 1), load8(left, r), load8(left, r + 1));
-        lw[j] = core::array::from_fn(|i| at[i] * WINDOW_LANES[i]);
-        gl[j] = core::array::from_fn(|i| 0.5 * (after[i] - before[i]) * WINDOW_LANES[i]);
+        for i in 0..ROW {
+            lw[j][i] = at[i] * WINDOW_LANES[i];
+            gl[j][i] = 0.5 * (after[i] - before[i]) * WINDOW_LANES[i];
+        }
     }
     let lmean = window_sum(&lw) / N;
     for row in lw.iter_mut() {
-        *row = core::array::from_fn(|i| (row[i] - lmean) * WINDOW_LANES[i]);
+        for i in 0..ROW {
+            row[i] = (row[i] - lmean) * WINDOW_LANES[i];
+        }
     }
     let lvar = window_dot(&lw, &lw);
     if lvar < 1e-6 {
@@ -595,7 +611,12 @@ fn refined_rectified(
         let v = alpha + beta * u;
         let rw = right_window_lanes(right, (w, h), (u, v))?;
         let rmean = window_sum(&rw) / N;
-        let centred = rw.map(|row| core::array::from_fn(|i| (row[i] - rmean) * WINDOW_LANES[i]));
+        let mut centred = [[0.0f32; ROW]; REFINE_SIDE];
+        for (c, row) in centred.iter_mut().zip(&rw) {
+            for i in 0..ROW {
+                c[i] = (row[i] - rmean) * WINDOW_LANES[i];
+            }
+        }
         let rvar = window_dot(&centred, &centred);
         if rvar < 1e-6 {
             return None;
@@ -631,11 +652,17 @@ fn right_window_lanes(
         // with weight 0 (the last row stands in for the one past it).
         let a = (y0 + r).min(h - 1) * w + x0;
         let (p, q) = (load8(img, a), load8(img, a + 1));
-        *row = core::array::from_fn(|i| p[i] * (1.0 - fx) + q[i] * fx);
+        for i in 0..ROW {
+            row[i] = p[i] * (1.0 - fx) + q[i] * fx;
+        }
     }
-    Some(core::array::from_fn(|j| {
-        core::array::from_fn(|i| (rows[j][i] * (1.0 - fy) + rows[j + 1][i] * fy) * WINDOW_LANES[i])
-    }))
+    let mut out = [[0.0f32; ROW]; REFINE_SIDE];
+    for (j, o) in out.iter_mut().enumerate() {
+        for i in 0..ROW {
+            o[i] = (rows[j][i] * (1.0 - fy) + rows[j + 1][i] * fy) * WINDOW_LANES[i];
+        }
+    }
+    Some(out)
 }
 
 /// The refined right `u` of left pixel `(x, y)` from `u0` ([`refine`] with the right window
