@@ -27,7 +27,8 @@
 //! 7. Sub-pixel refinement on the grey levels: a 1-D Lucas-Kanade fit of a 7 x 7 window
 //!    along the epipolar line (zero-mean, gain-matched), at most half a pixel. For a
 //!    rectified pair of cameras alike, two steps of the window shifted along its row, with the
-//!    left window's derivative (inverse-compositional). Otherwise (verged or rolled cameras,
+//!    left window's derivative (inverse-compositional), in `f32` with a window row per 8-lane
+//!    vector. Otherwise (verged or rolled cameras,
 //!    another right scale) one step of the window warped as the matches around the pixel
 //!    say: the least-squares plane of `u_r` over its 9 x 9 neighbourhood gives where each
 //!    window pixel lies in the right image, on its own epipolar line, sampled bicubically; a window of fixed shape misses the local roll,
@@ -39,7 +40,9 @@
 //! sums while the two passes run side by side), 3 with one (the backward pass adds into the
 //! forward pass's sums); [`MAX_CELLS`] bounds it.
 //!
-//! Speed: the loops over disparities are written for the compiler to vectorise and run
+//! Speed: the loops over disparities are written for the compiler to vectorise (fixed-size
+//! chunks, every lane stored: the winner is the smallest key `sum << 16 | index`, the right
+//! image's disparities running minima over the volume in its own order) and run
 //! compiled for AVX2 where the CPU has it ([`pulp`]'s runtime check; the same integers and
 //! floats as without), census costs by hardware popcount; rows go to the winners as soon as
 //! the aggregation completes them. Every stage is the same arithmetic on one thread or many,
