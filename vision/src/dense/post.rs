@@ -969,110 +969,103 @@ pub(crate) fn to_map(geo: &Geo, best: &[Option<Best>], tol: f32) -> DenseMap {
     DenseMap { width: geo.w as u32, height: geo.h as u32, ur, vr, conf }
 }
 
-/// [`refined_rectified`] as first written, in `f64` sample by sample (the tests' reference), `None` where a step is not taken: the derivative is the left
-/// window's (central differences along its row, computed once), not the right one's at each
-/// step (the inverse-compositional form of Lucas-Kanade: one right window per step instead of
-/// three; at the match the two derivatives agree up to the gain).
-#[cfg(test)]
-fn refined_rectified_f64(
-    geo: &Geo,
-    (left, right): (&[u8], &[u8]),
-    (x, y): (usize, usize),
-    disparity: f32,
-) -> Option<f64> {
-    const N: usize = REFINE_SIDE * REFINE_SIDE;
-    let (alpha, beta) = geo.line(x, y)?;
-    let (w, h) = (geo.w, geo.h);
-    // One column more on each side for the central differences.
-    let (lw, lvar) = left_window(left, (w, h), (x, y), 1)?;
-    let half = REFINE_HALF as usize;
-    let mut gl = [0.0f64; N];
-    for j in 0..REFINE_SIDE {
-        let r = (y + j - half) * w + x - half;
-        for i in 0..REFINE_SIDE {
-            gl[j * REFINE_SIDE + i] =
-                0.5 * (f64::from(left[r + i + 1]) - f64::from(left[r + i - 1]));
-        }
-    }
-    let n = N as f64;
-    let (mut sg, mut sgg) = (0.0, 0.0);
-    for &g in &gl {
-        sg += g;
-        sgg += g * g;
-    }
-    let den = sgg - sg * (sg / n);
-    if den <= 1e-9 {
-        return None;
-    }
-    let mut sgl = 0.0;
-    for k in 0..N {
-        sgl += gl[k] * lw[k];
-    }
-    let u0 = x as f64 - f64::from(disparity);
-    let mut u = u0;
-    let mut rw = [0.0f64; N];
-    for _ in 0..2 {
-        let v = alpha + beta * u;
-        if !scaled_window_samples(right, (w, h), (u, v), [1.0, 1.0], &mut rw) {
-            return None;
-        }
-        let (mut sr, mut srr, mut sgr) = (0.0, 0.0, 0.0);
-        for k in 0..N {
-            sr += rw[k];
-            srr += rw[k] * rw[k];
-            sgr += gl[k] * rw[k];
-        }
-        let rmean = sr / n;
-        let rvar = srr - sr * rmean;
-        if rvar < 1e-6 {
-            return None;
-        }
-        let gain = (lvar / rvar).sqrt();
-        let num = sgl - gain * (sgr - sg * rmean);
-        u += (num / den).clamp(-0.5, 0.5);
-    }
-    ((u - u0).abs() <= 0.5).then_some(u)
-}
-
-/// [`right_from_left_row`] as first written, right pixel by right pixel (the tests'
-/// reference): the right image's whole disparities of row `y` read off the left volume's row `sums` (`w * d`; right pixel `(x, y)` at disparity index `k` is left pixel
-/// `(x + d_min + k, y)`).
-#[cfg(test)]
-fn right_from_left_row_reference(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
-    let (w, d) = (geo.w, geo.d);
-    (0..w)
-        .map(|xr| {
-            // The disparity indices whose left pixel lies inside the image.
-            let base = xr as i64 + i64::from(geo.d_min);
-            let lo = (-base).max(0);
-            let hi = (w as i64 - 1 - base).min(d as i64 - 1);
-            if lo > hi {
-                return None;
-            }
-            let (lo, hi) = (lo as usize, hi as usize);
-            let at = |k: usize| sums[(base + k as i64) as usize * d + k];
-            // The first smallest.
-            let (mut s1, mut k1) = (at(lo), lo);
-            for k in lo + 1..=hi {
-                let v = at(k);
-                if v < s1 {
-                    (s1, k1) = (v, k);
-                }
-            }
-            // Sub-pixel by the same fit as the left winners where both neighbours exist.
-            let offset = if k1 > lo && k1 < hi {
-                subpixel(i32::from(at(k1 - 1)), i32::from(s1), i32::from(at(k1 + 1)))
-            } else {
-                0.0
-            };
-            Some((geo.d_min as f32) + k1 as f32 + offset)
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`refined_rectified`] as first written, in `f64` sample by sample.
+    fn refined_rectified_f64(
+        geo: &Geo,
+        (left, right): (&[u8], &[u8]),
+        (x, y): (usize, usize),
+        disparity: f32,
+    ) -> Option<f64> {
+        const N: usize = REFINE_SIDE * REFINE_SIDE;
+        let (alpha, beta) = geo.line(x, y)?;
+        let (w, h) = (geo.w, geo.h);
+        // One column more on each side for the central differences.
+        let (lw, lvar) = left_window(left, (w, h), (x, y), 1)?;
+        let half = REFINE_HALF as usize;
+        let mut gl = [0.0f64; N];
+        for j in 0..REFINE_SIDE {
+            let r = (y + j - half) * w + x - half;
+            for i in 0..REFINE_SIDE {
+                gl[j * REFINE_SIDE + i] =
+                    0.5 * (f64::from(left[r + i + 1]) - f64::from(left[r + i - 1]));
+            }
+        }
+        let n = N as f64;
+        let (mut sg, mut sgg) = (0.0, 0.0);
+        for &g in &gl {
+            sg += g;
+            sgg += g * g;
+        }
+        let den = sgg - sg * (sg / n);
+        if den <= 1e-9 {
+            return None;
+        }
+        let mut sgl = 0.0;
+        for k in 0..N {
+            sgl += gl[k] * lw[k];
+        }
+        let u0 = x as f64 - f64::from(disparity);
+        let mut u = u0;
+        let mut rw = [0.0f64; N];
+        for _ in 0..2 {
+            let v = alpha + beta * u;
+            if !scaled_window_samples(right, (w, h), (u, v), [1.0, 1.0], &mut rw) {
+                return None;
+            }
+            let (mut sr, mut srr, mut sgr) = (0.0, 0.0, 0.0);
+            for k in 0..N {
+                sr += rw[k];
+                srr += rw[k] * rw[k];
+                sgr += gl[k] * rw[k];
+            }
+            let rmean = sr / n;
+            let rvar = srr - sr * rmean;
+            if rvar < 1e-6 {
+                return None;
+            }
+            let gain = (lvar / rvar).sqrt();
+            let num = sgl - gain * (sgr - sg * rmean);
+            u += (num / den).clamp(-0.5, 0.5);
+        }
+        ((u - u0).abs() <= 0.5).then_some(u)
+    }
+
+    /// [`right_from_left_row`] as first written, right pixel by right pixel.
+    fn right_from_left_row_reference(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
+        let (w, d) = (geo.w, geo.d);
+        (0..w)
+            .map(|xr| {
+                // The disparity indices whose left pixel lies inside the image.
+                let base = xr as i64 + i64::from(geo.d_min);
+                let lo = (-base).max(0);
+                let hi = (w as i64 - 1 - base).min(d as i64 - 1);
+                if lo > hi {
+                    return None;
+                }
+                let (lo, hi) = (lo as usize, hi as usize);
+                let at = |k: usize| sums[(base + k as i64) as usize * d + k];
+                // The first smallest.
+                let (mut s1, mut k1) = (at(lo), lo);
+                for k in lo + 1..=hi {
+                    let v = at(k);
+                    if v < s1 {
+                        (s1, k1) = (v, k);
+                    }
+                }
+                // Sub-pixel by the same fit as the left winners where both neighbours exist.
+                let offset = if k1 > lo && k1 < hi {
+                    subpixel(i32::from(at(k1 - 1)), i32::from(s1), i32::from(at(k1 + 1)))
+                } else {
+                    0.0
+                };
+                Some((geo.d_min as f32) + k1 as f32 + offset)
+            })
+            .collect()
+    }
 
     /// The window's samples are `bilinear`'s, to a few ulps inside (the shared fractional
     /// offset is rounded once, not per sample) and exactly at the border, where a sample
