@@ -136,7 +136,8 @@ fn right_from_left_row_body(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
     // right pixel to the first (slot `w - 1 - x_r`), so that a left pixel's disparities,
     // contiguous in the volume, meet their right pixels' slots contiguous too.
     let mut s1 = vec![i16::MAX; w];
-    let mut k1 = vec![0i16; w];
+    // Disparity indices as i32: a volume may have more than i16::MAX disparities.
+    let mut k1 = vec![0i32; w];
     for x in 0..w {
         // Right pixel x_r = top - k at disparity index k, in slot w - 1 - top + k.
         let top = x as i64 - d_min;
@@ -146,17 +147,18 @@ fn right_from_left_row_body(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
             continue;
         }
         let (k_lo, k_hi) = (k_lo as usize, k_hi as usize);
-        let slot = (w as i64 - 1 - top) as usize;
+        // The slot of k_lo (w - 1 - top alone may be negative: a negative d_min).
+        let first = (w as i64 - 1 - top + k_lo as i64) as usize;
         let n = k_hi - k_lo + 1;
         let cells = &sums[x * d + k_lo..x * d + k_lo + n];
-        let best = &mut s1[slot + k_lo..slot + k_lo + n];
-        let at = &mut k1[slot + k_lo..slot + k_lo + n];
+        let best = &mut s1[first..first + n];
+        let at = &mut k1[first..first + n];
         // Chunks of 16 (the last one overlapping its predecessor: offering a cell twice
         // changes nothing), or cell by cell when there are fewer.
-        let offer = |j: usize, best: &mut [i16], at: &mut [i16]| {
+        let offer = |j: usize, best: &mut [i16], at: &mut [i32]| {
             let better = cells[j] < best[j];
             best[j] = if better { cells[j] } else { best[j] };
-            at[j] = if better { (k_lo + j) as i16 } else { at[j] };
+            at[j] = if better { (k_lo + j) as i32 } else { at[j] };
         };
         if n < CHUNK {
             for j in 0..n {
@@ -167,15 +169,15 @@ fn right_from_left_row_body(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
         for j0 in (0..n.div_ceil(CHUNK)).map(|i| (i * CHUNK).min(n - CHUNK)) {
             let c: &[i16; CHUNK] = cells[j0..j0 + CHUNK].try_into().expect("chunk");
             let b: &mut [i16; CHUNK] = (&mut best[j0..j0 + CHUNK]).try_into().expect("chunk");
-            let a: &mut [i16; CHUNK] = (&mut at[j0..j0 + CHUNK]).try_into().expect("chunk");
+            let a: &mut [i32; CHUNK] = (&mut at[j0..j0 + CHUNK]).try_into().expect("chunk");
             // Every lane stored, selected by a mask (a store only where better would not
             // be vectorised: AVX2 has no masked store of 16-bit lanes).
-            let k0 = (k_lo + j0) as i16;
+            let k0 = (k_lo + j0) as i32;
             let (mut nb, mut na) = (*b, *a);
             for i in 0..CHUNK {
-                let better = -i16::from(c[i] < b[i]);
+                let better = -i32::from(c[i] < b[i]);
                 nb[i] = c[i].min(b[i]);
-                na[i] = ((k0 + i as i16) & better) | (a[i] & !better);
+                na[i] = ((k0 + i as i32) & better) | (a[i] & !better);
             }
             *b = nb;
             *a = na;
@@ -1183,11 +1185,15 @@ mod tests {
     }
 
     /// The right disparities read in the volume's order are the reference's (right pixel by
-    /// right pixel), ties and both ends of the range included.
+    /// right pixel), ties, both ends of the range, a negative `d_min` and more than 32,767
+    /// disparities included.
     #[test]
     fn right_disparities_are_the_references() {
         let mut seed = 5u64;
-        for (w, d, d_min) in [(30usize, 7usize, 0i32), (41, 16, 3), (25, 33, -4), (12, 20, 5)] {
+        // The last: more disparities than an i16 counts.
+        for (w, d, d_min) in
+            [(30usize, 7usize, 0i32), (41, 16, 3), (25, 33, -4), (12, 20, 5), (4, 33_000, -2)]
+        {
             for _ in 0..20 {
                 // Few distinct values: many ties.
                 let sums: Vec<i16> = (0..w * d)
