@@ -271,12 +271,15 @@ impl Geo {
 /// volume is then that of a rectified pair, whatever `geo`'s lines are before rounding).
 fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> (Vec<u8>, bool) {
     let (w, d) = (geo.w, geo.d);
-    let mut cost = vec![census::MAX_COST / 2; w * geo.h * d];
+    // Zeroed pages from the allocator, each row filled by its own thread just before its
+    // costs are written (one pass over the volume, not two).
+    let mut cost = vec![0u8; w * geo.h * d];
     // Every row is computed (no short cut on the first row off its line).
     let own_rows: Vec<bool> = cost
         .par_chunks_mut(w * d)
         .enumerate()
         .map(|(y, row)| {
+            row.fill(census::MAX_COST / 2);
             fast(
                 #[inline(always)]
                 || cost_row(geo, reference, other, y, row),
