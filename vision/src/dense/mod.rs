@@ -28,12 +28,12 @@
 //!    along the epipolar line (zero-mean, gain-matched), at most half a pixel. For a
 //!    rectified pair of cameras alike, two steps of the window shifted along its row, with the
 //!    left window's derivative (inverse-compositional), in `f32` with a window row per 8-lane
-//!    vector. Otherwise (verged or rolled cameras,
-//!    another right scale) one step of the window warped as the matches around the pixel
-//!    say: the least-squares plane of `u_r` over its 9 x 9 neighbourhood gives where each
-//!    window pixel lies in the right image, on its own epipolar line, sampled bicubically; a window of fixed shape misses the local roll,
-//!    scale and slant of verged cameras by a few hundredths of a pixel at its corners, which
-//!    was most of the depth error at 3 m.
+//!    vector. Otherwise (verged or rolled cameras, another right scale) one step of the
+//!    window warped as the matches around the pixel say: the least-squares plane of `u_r`
+//!    over its 9 x 9 neighbourhood gives where each window pixel lies in the right image, on
+//!    its own epipolar line, sampled bicubically; a window of fixed shape misses the local
+//!    roll, scale and slant of verged cameras by a few hundredths of a pixel at its corners,
+//!    which was most of the depth error at 3 m.
 //! 8. A confidence in `0..1` per kept pixel ([`confidence`]).
 //!
 //! Memory: 5 bytes per cell of the volume with two or more threads (`u8` costs, two `i16`

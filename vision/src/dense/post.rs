@@ -1,6 +1,7 @@
 //! What follows the aggregation: winner takes all with uniqueness and sub-pixel refinement,
 //! the left-right check, the speckle filter and the confidence of each kept pixel.
 
+use super::sgm::{chunk_starts, LANES};
 use super::{DenseMap, Geo};
 use rayon::prelude::*;
 
@@ -45,18 +46,18 @@ pub(crate) fn winners_row(geo: &Geo, y: usize, sums: &[i16], uniqueness: f32) ->
     )
 }
 
-/// The smallest of `s` (`i16::MAX` when empty): chunks of [`CHUNK`] lanes (the last one
+/// The smallest of `s` (`i16::MAX` when empty): chunks of [`LANES`] lanes (the last one
 /// overlapping its predecessor), element by element below one chunk.
 #[inline(always)]
 fn min_of(s: &[i16]) -> i16 {
     let n = s.len();
-    if n < CHUNK {
+    if n < LANES {
         return s.iter().fold(i16::MAX, |m, &v| m.min(v));
     }
-    let mut m = [i16::MAX; CHUNK];
-    for j0 in (0..n.div_ceil(CHUNK)).map(|i| (i * CHUNK).min(n - CHUNK)) {
-        let c: &[i16; CHUNK] = s[j0..j0 + CHUNK].try_into().expect("chunk");
-        for i in 0..CHUNK {
+    let mut m = [i16::MAX; LANES];
+    for j0 in chunk_starts(n, LANES) {
+        let c: &[i16; LANES] = s[j0..j0 + LANES].try_into().expect("chunk");
+        for i in 0..LANES {
             m[i] = m[i].min(c[i]);
         }
     }
@@ -75,7 +76,7 @@ fn first_smallest(s: &[i16]) -> (i32, usize) {
         return (i32::from(m), s.iter().position(|&v| v == m).expect("not empty"));
     }
     let mut best = [i32::MAX; KEYS];
-    for j0 in (0..n.div_ceil(KEYS)).map(|i| (i * KEYS).min(n - KEYS)) {
+    for j0 in chunk_starts(n, KEYS) {
         let c: &[i16; KEYS] = s[j0..j0 + KEYS].try_into().expect("chunk");
         for i in 0..KEYS {
             best[i] = best[i].min(i32::from(c[i]) << 16 | (j0 + i) as i32);
@@ -124,10 +125,6 @@ pub(crate) fn right_from_left_row(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
     )
 }
 
-/// Cells per chunk of [`right_from_left_row`]'s inner loop (16 `i16` lanes: one AVX2
-/// register).
-const CHUNK: usize = 16;
-
 #[inline(always)]
 fn right_from_left_row_body(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
     let (w, d) = (geo.w, geo.d);
@@ -160,21 +157,21 @@ fn right_from_left_row_body(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
             best[j] = if better { cells[j] } else { best[j] };
             at[j] = if better { (k_lo + j) as i32 } else { at[j] };
         };
-        if n < CHUNK {
+        if n < LANES {
             for j in 0..n {
                 offer(j, best, at);
             }
             continue;
         }
-        for j0 in (0..n.div_ceil(CHUNK)).map(|i| (i * CHUNK).min(n - CHUNK)) {
-            let c: &[i16; CHUNK] = cells[j0..j0 + CHUNK].try_into().expect("chunk");
-            let b: &mut [i16; CHUNK] = (&mut best[j0..j0 + CHUNK]).try_into().expect("chunk");
-            let a: &mut [i32; CHUNK] = (&mut at[j0..j0 + CHUNK]).try_into().expect("chunk");
+        for j0 in chunk_starts(n, LANES) {
+            let c: &[i16; LANES] = cells[j0..j0 + LANES].try_into().expect("chunk");
+            let b: &mut [i16; LANES] = (&mut best[j0..j0 + LANES]).try_into().expect("chunk");
+            let a: &mut [i32; LANES] = (&mut at[j0..j0 + LANES]).try_into().expect("chunk");
             // Every lane stored, selected by a mask (a store only where better would not
             // be vectorised: AVX2 has no masked store of 16-bit lanes).
             let k0 = (k_lo + j0) as i32;
             let (mut nb, mut na) = (*b, *a);
-            for i in 0..CHUNK {
+            for i in 0..LANES {
                 let better = -i32::from(c[i] < b[i]);
                 nb[i] = c[i].min(b[i]);
                 na[i] = ((k0 + i as i32) & better) | (a[i] & !better);
@@ -569,13 +566,8 @@ fn refined_rectified(
     const N: f32 = (REFINE_SIDE * REFINE_SIDE) as f32;
     let (alpha, beta) = geo.line(x, y)?;
     let (w, h) = (geo.w, geo.h);
-    let (xi, yi) = (x as i64, y as i64);
     // One column more on each side for the central differences.
-    if xi < REFINE_HALF + 1
-        || yi < REFINE_HALF
-        || xi + REFINE_HALF + 1 >= w as i64
-        || yi + REFINE_HALF >= h as i64
-    {
+    if !window_inside((w, h), (x, y), 1) {
         return None;
     }
     let half = REFINE_HALF as usize;
@@ -689,6 +681,17 @@ fn refined_warped(
     )
 }
 
+/// Whether the 7 x 7 window of pixel `(x, y)`, widened by `margin` columns on each side,
+/// lies inside an image of `w x h`.
+#[inline(always)]
+fn window_inside((w, h): (usize, usize), (x, y): (usize, usize), margin: i64) -> bool {
+    let (xi, yi) = (x as i64, y as i64);
+    xi >= REFINE_HALF + margin
+        && yi >= REFINE_HALF
+        && xi + REFINE_HALF + margin < w as i64
+        && yi + REFINE_HALF < h as i64
+}
+
 /// The 7 x 7 window of left pixel `(x, y)` (image `w x h`), less its mean, and its sum of
 /// squared deviations; `None` where the window, widened by `margin` columns on each side,
 /// leaves the image, or where it is flat.
@@ -700,12 +703,7 @@ fn left_window(
     margin: i64,
 ) -> Option<([f64; REFINE_SIDE * REFINE_SIDE], f64)> {
     const N: usize = REFINE_SIDE * REFINE_SIDE;
-    let (xi, yi) = (x as i64, y as i64);
-    if xi < REFINE_HALF + margin
-        || yi < REFINE_HALF
-        || xi + REFINE_HALF + margin >= w as i64
-        || yi + REFINE_HALF >= h as i64
-    {
+    if !window_inside((w, h), (x, y), margin) {
         return None;
     }
     let mut lw = [0.0f64; N];

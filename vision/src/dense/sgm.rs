@@ -28,13 +28,20 @@ const BIG: i16 = 0x3FFF;
 /// Disparities per chunk of the inner loops (16 `i16` lanes: one AVX2 register). A range of
 /// at least this many is covered by whole chunks, the last one overlapping its predecessor
 /// (its cells are computed twice from the same inputs, so the same values).
-const LANES: usize = 16;
+pub(crate) const LANES: usize = 16;
 
-/// The chunk starts covering `0..d` ([`LANES`] apart, the last at `d - LANES`), for `d >=
+/// The chunk starts covering `0..n` ([`LANES`] apart, the last at `n - LANES`), for `n >=
 /// LANES`.
 #[inline(always)]
-fn chunks(d: usize) -> impl Iterator<Item = usize> {
-    (0..d.div_ceil(LANES)).map(move |i| (i * LANES).min(d - LANES))
+fn chunks(n: usize) -> impl Iterator<Item = usize> {
+    chunk_starts(n, LANES)
+}
+
+/// The starts of chunks of `lanes` covering `0..n`, `lanes` apart, the last one at `n - lanes`
+/// (overlapping its predecessor unless `lanes` divides `n`), for `n >= lanes`.
+#[inline(always)]
+pub(crate) fn chunk_starts(n: usize, lanes: usize) -> impl Iterator<Item = usize> {
+    (0..n.div_ceil(lanes)).map(move |i| (i * lanes).min(n - lanes))
 }
 
 /// One path step over the `d` disparities: `out = c + min(prev, prev+-1 + p1, pmin + p2) -
