@@ -3,7 +3,7 @@
 //!
 //! # Method
 //!
-//! 1. [`census`]: a 9 x 7 census word per pixel of both images.
+//! 1. [`census`]: a 7 x 5 census word per pixel of both images.
 //! 2. Cost volume: for left pixel `(x, y)` and each whole disparity `d` of the range
 //!    (`d = u_l - u_r`, bounded by the caller, e.g. from the model's depth box), the candidate
 //!    is the right pixel on the epipolar line `F (x, y, 1)^T` at `u_r = x - d`, `v_r` rounded
@@ -67,7 +67,7 @@ pub const MAX_CELLS: u64 = 48_000_000;
 pub struct DenseParams {
     /// 8 aggregation paths (`true`) or 4.
     pub eight_paths: bool,
-    /// Penalty of a 1-px disparity step (census cost units, 0..62 per pixel).
+    /// Penalty of a 1-px disparity step (census cost units, 0..34 per pixel).
     pub p1: u16,
     /// Penalty of a larger jump where the grey level does not change.
     pub p2: u16,
@@ -96,12 +96,12 @@ impl Default for DenseParams {
     fn default() -> Self {
         DenseParams {
             eight_paths: true,
-            p1: 16,
+            p1: 18,
             p2: 96,
             p2_gamma: 8.0,
-            uniqueness: 0.05,
+            uniqueness: 0.02,
             lr_tolerance_px: 1.5,
-            speckle_size: 100,
+            speckle_size: 50,
             speckle_range_px: 1.0,
             right_scale: [1.0, 1.0],
         }

@@ -22,7 +22,7 @@ pub struct Penalties {
 
 /// Padding of the path-cost rows: each holds `BIG` before disparity 0 and after the last, so
 /// that one loop serves every disparity (`BIG + P1` is never the minimum: a path cost is at
-/// most `MAX_COST + P2 <= 2062`).
+/// most `MAX_COST + P2 <= 2034`).
 const BIG: i16 = 0x3FFF;
 
 /// Disparities per chunk of the inner loops (16 `i16` lanes: one AVX2 register). A range of
