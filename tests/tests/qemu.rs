@@ -616,7 +616,7 @@ fn posture_aware_model_look_moves_the_eyes_and_the_next_estimate_is_right() {
     assert_eq!(m.topology.inputs, InputKind::StereoJoints);
     let bytes = encode(&m);
 
-    let mut run = boot("posture", Some(&bytes), None);
+    let mut run = boot("posture-model", Some(&bytes), None);
     let i = info(&mut run);
     assert_network(&i, Slot::A, 4);
     let mi = i.model.expect("model metadata");
