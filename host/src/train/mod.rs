@@ -103,7 +103,7 @@ pub const SKIP_NET_DECAY_FACTOR: f64 = 30.0;
 pub const PRECISE_POSTURE_NET_DECAY: f64 = 0.01 * SKIP_NET_DECAY_FACTOR * WEIGHT_DECAY;
 
 /// LM's stopping rule on those sets: up to 600 steps, a relative tolerance of 1e-7 (with the
-/// 200 steps and 1e-4 of [`LM_OPTIONS`] the weaker hold alone reached 1.24x).
+/// 200 steps and 1e-4 of the other sets the weaker hold alone reached 1.24x).
 pub const PRECISE_POSTURE_LM: (usize, f64) = (600, 1e-7);
 
 /// Whether `data` is a posture-aware set with ground truth whose pixels are not all whole
