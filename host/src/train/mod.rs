@@ -1026,7 +1026,8 @@ mod tests {
         assert_eq!(precise.weight_decay, PRECISE_POSTURE_NET_DECAY);
         assert_eq!((precise.max_iter, precise.rel_tol), PRECISE_POSTURE_LM);
         assert_eq!(precise.tail, (12, WEIGHT_DECAY));
-        // A stereo set with sub-pixel pixels keeps its noise-read decay; no skip term, no change.
+        // A stereo set is no posture set (it keeps its noise-read decay); without a skip term
+        // nothing changes.
         assert!(!subpixel_posture(&board));
         assert_eq!(lm_options(f, &posture_set(0.01), 0).max_iter, LM_OPTIONS.max_iter);
     }
