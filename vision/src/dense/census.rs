@@ -2,10 +2,10 @@
 //! (neighbour darker than the centre), compared by Hamming distance. Robust to gain and offset
 //! differences between the two cameras.
 //!
-//! The window: 7 x 5 against 9 x 7 (and 5 x 5, 7 x 3, 7 x 7, 9 x 5, 11 x 5), each with its
-//! penalties swept, on the Motorcycle pair: the smaller window fattens foreground edges less
-//! (the most errors of 9 x 7 lay along depth edges), and 7 x 5 returned the most pixels at the
-//! same error shares (see the README's `hvs depth` section).
+//! The window: 7 x 5 against 9 x 7 (its penalties and checks swept) and 5 x 3, 7 x 3, 5 x 5,
+//! 7 x 7, 9 x 5, 11 x 5 (one setting each) on the Motorcycle pair, then 7 x 5 swept: a smaller
+//! window fattens foreground edges less (most errors of 9 x 7 lay along depth edges), and
+//! 7 x 5 returned the most pixels at the same error shares (the README's `hvs depth` section).
 
 use image::GrayImage;
 use rayon::prelude::*;
