@@ -6,36 +6,18 @@
 //! each detected left corner (the disparity of its nearest pixel) is compared with the
 //! detected right corner.
 
-use hvs_vision::board::Board;
+mod opencv_common;
+
 use hvs_vision::dense::{dense_match, DenseParams};
 use hvs_vision::detect::{self, StereoCorners};
-use image::GrayImage;
-use std::path::PathBuf;
-
-fn pairs() -> Vec<(String, GrayImage, GrayImage, StereoCorners)> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/opencv-stereo");
-    let board = Board::from_path(&dir.join("board.json")).unwrap();
-    let text = std::fs::read_to_string(dir.join("captures.csv")).unwrap();
-    text.lines()
-        .skip(1)
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let (a, b) = l.split_once(',').unwrap();
-            let li = image::open(dir.join(a)).unwrap().to_luma8();
-            let ri = image::open(dir.join(b)).unwrap().to_luma8();
-            let s = detect::detect_pair(&li, &ri, &board).unwrap();
-            (a.to_string(), li, ri, s)
-        })
-        .collect()
-}
 
 #[test]
 fn dense_matches_land_on_the_detected_corners_of_real_pairs() {
-    let all = pairs();
-    let sets: Vec<StereoCorners> = all.iter().map(|p| p.3.clone()).collect();
+    let all = opencv_common::load();
+    let sets: Vec<StereoCorners> = all.iter().map(|p| p.corners.clone()).collect();
     let f = detect::check_set(&sets).unwrap().fit.f;
     let (mut n, mut returned, mut within_half, mut within_1, mut off_2) = (0, 0, 0, 0, 0);
-    for (name, left, right, s) in all.iter().step_by(3) {
+    for opencv_common::Pair { name, left, right, corners: s } in all.iter().step_by(3) {
         let d: Vec<f64> =
             s.left.points.iter().zip(&s.right.points).map(|(l, r)| l[0] - r[0]).collect();
         let lo = d.iter().copied().fold(f64::INFINITY, f64::min).floor() as i32 - 15;

@@ -2,39 +2,15 @@
 //! every pair yields all 54 corners, labels agree left/right, and one fundamental matrix over
 //! all pairs leaves a small epipolar residual.
 
+mod opencv_common;
+
 use hvs_vision::board::Board;
 use hvs_vision::detect::{self, StereoCorners};
+use opencv_common::dir;
 use std::path::PathBuf;
 
-fn dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/opencv-stereo")
-}
-
-fn pairs() -> Vec<(String, String)> {
-    let text = std::fs::read_to_string(dir().join("captures.csv")).unwrap();
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("left,right"));
-    lines
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let (a, b) = l.split_once(',').unwrap();
-            (a.to_string(), b.to_string())
-        })
-        .collect()
-}
-
 fn detect_all() -> Vec<(String, StereoCorners)> {
-    let board = Board::from_path(&dir().join("board.json")).unwrap();
-    pairs()
-        .into_iter()
-        .map(|(l, r)| {
-            let li = image::open(dir().join(&l)).unwrap().to_luma8();
-            let ri = image::open(dir().join(&r)).unwrap().to_luma8();
-            let s =
-                detect::detect_pair(&li, &ri, &board).unwrap_or_else(|e| panic!("{l} / {r}: {e}"));
-            (l, s)
-        })
-        .collect()
+    opencv_common::load().into_iter().map(|p| (p.name, p.corners)).collect()
 }
 
 #[test]

@@ -8,40 +8,11 @@
 //! (widened by 10 % of its span): on a chessboard that range holds several repeats of the
 //! pattern, the worst case.
 
-use hvs_vision::board::Board;
-use hvs_vision::detect::{self, StereoCorners};
+mod opencv_common;
+
 use hvs_vision::geometry::fit_fundamental;
 use hvs_vision::matching::{MatchParams, MatchStatus, Matcher, Query};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
-
-fn dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/opencv-stereo")
-}
-
-struct Pair {
-    name: String,
-    left: image::GrayImage,
-    right: image::GrayImage,
-    corners: StereoCorners,
-}
-
-fn load() -> Vec<Pair> {
-    let board = Board::from_path(&dir().join("board.json")).unwrap();
-    let text = std::fs::read_to_string(dir().join("captures.csv")).unwrap();
-    text.lines()
-        .skip(1)
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let (a, b) = l.split_once(',').unwrap();
-            let left = image::open(dir().join(a)).unwrap().to_luma8();
-            let right = image::open(dir().join(b)).unwrap().to_luma8();
-            let corners = detect::detect_pair(&left, &right, &board)
-                .unwrap_or_else(|e| panic!("{a} / {b}: {e}"));
-            Pair { name: a.to_string(), left, right, corners }
-        })
-        .collect()
-}
 
 #[derive(Default)]
 struct Tally {
@@ -76,7 +47,7 @@ impl Tally {
 
 #[test]
 fn corners_of_the_real_pairs_leave_one_out() {
-    let pairs = load();
+    let pairs = opencv_common::load();
     assert_eq!(pairs.len(), 13);
     let (mut narrow, mut wide) = (Tally::default(), Tally::default());
     // Distance of the true right corner from the leave-one-out epipolar line: the matcher
