@@ -109,9 +109,7 @@ pub const PRECISE_POSTURE_LM: (usize, f64) = (600, 1e-7);
 /// Whether `data` is a posture-aware set with ground truth whose pixels are not all whole
 /// (detected corners rather than the simulator's rounded pixels).
 fn subpixel_posture(data: &Dataset) -> bool {
-    data.n_inputs == 9
-        && data.has_targets()
-        && data.inputs.chunks_exact(9).any(|row| row[..4].iter().any(|v| v.fract() != 0.0))
+    data.n_inputs == 9 && data.has_targets() && !synthetic::whole_pixels(data)
 }
 
 /// The smallest factor the lens excess can bring [`SKIP_NET_DECAY_FACTOR`] down to.

@@ -54,10 +54,16 @@ const STREAM: u64 = 0x7072_6f6a_6563_7476;
 
 /// Whether `data` is a stereo set with ground truth whose four pixel columns are all integers.
 pub(crate) fn quantised(data: &Dataset) -> bool {
-    data.n_inputs == 4
-        && data.len() >= 12
-        && data.has_targets()
-        && data.inputs.iter().all(|v| v.is_finite() && v.fract() == 0.0)
+    data.n_inputs == 4 && data.len() >= 12 && data.has_targets() && whole_pixels(data)
+}
+
+/// Whether every row's pixel columns (its first four inputs) are finite integers.
+pub(crate) fn whole_pixels(data: &Dataset) -> bool {
+    data.n_inputs >= 4
+        && data
+            .inputs
+            .chunks_exact(data.n_inputs)
+            .all(|row| row[..4].iter().all(|v| v.is_finite() && v.fract() == 0.0))
 }
 
 /// Projection of `p` through `m` (signed so that the training points lie in front), `None`
