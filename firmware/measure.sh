@@ -10,7 +10,7 @@
 #     virtual time; SysTick counts at 168 MHz), from the `bench` build's Bench request (2000
 #     inferences, minus an empty loop): the default family's 4-5-3 net (inverse-depth-skip),
 #     the thesis family's 4-5-3 net, and a 9-16-3 posture-aware net in the thesis family
-#     (`--arch thesis`) and in the default family with its points in the eye platform's frame
+#     (`--arch thesis`) and in the default family with its points in the cyclopean frame
 #     (what `hvs train` writes for a posture set).
 # Budgets: whole-image flash <= 24 KiB for every board build and static RAM + stack peak
 # <= 16 KiB (issue 17); <= 500 instructions per inference of the default family's 4-5-3 net

@@ -46,7 +46,7 @@ pub struct SampleSpec {
     pub fallback: Option<Calibration>,
     /// The model family (how the outputs map to cm).
     pub family: Family,
-    /// The frame of the net's points (eye platform: posture-aware nets only).
+    /// The frame of the net's points (eye platform, cyclopean: posture-aware nets only).
     pub frame: OutputFrame,
 }
 
@@ -207,7 +207,7 @@ pub fn sample_posture_model_hidden(generation: u32, seed: u64, hidden: u8) -> Mo
 }
 
 /// [`sample_posture_model_hidden`] in the default family of `hvs train` (inverse depth with a
-/// linear skip term over the nine inputs) with its points in the eye platform's frame: the
+/// linear skip term over the nine inputs) with its points in the cyclopean frame: the
 /// posture-aware net `hvs train` writes, for `firmware/measure.sh`'s stack workload and
 /// instruction count.
 pub fn sample_default_posture_model(generation: u32, seed: u64, hidden: u8) -> ModelBlob {
@@ -215,7 +215,7 @@ pub fn sample_default_posture_model(generation: u32, seed: u64, hidden: u8) -> M
         inputs: InputKind::StereoJoints,
         hidden,
         family: Family::INVERSE_DEPTH_SKIP,
-        frame: OutputFrame::EyePlatform,
+        frame: OutputFrame::Cyclopean,
         ..legacy(generation, seed)
     })
 }

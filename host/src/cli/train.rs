@@ -66,6 +66,9 @@ pub enum FrameArg {
     /// The eye platform's frame (the head frame turned by the neck pan, neck tilt and eye
     /// tilt inputs); the model turns its points back into the head frame.
     EyePlatform,
+    /// The cyclopean frame: the eye platform's turned by the version (the mean of the eye
+    /// pans); the model turns its points back into the head frame
+    Cyclopean,
 }
 
 impl FrameArg {
@@ -74,6 +77,7 @@ impl FrameArg {
         match self {
             FrameArg::Head => OutputFrame::Head,
             FrameArg::EyePlatform => OutputFrame::EyePlatform,
+            FrameArg::Cyclopean => OutputFrame::Cyclopean,
         }
     }
 }
@@ -138,7 +142,7 @@ pub struct Args {
     /// Model family [default: inverse-depth-skip].
     #[arg(long, value_enum)]
     arch: Option<ArchArg>,
-    /// Frame of a posture-aware net's points [default: eye-platform for a posture-aware set
+    /// Frame of a posture-aware net's points [default: cyclopean for a posture-aware set
     /// (9 inputs) outside the thesis family; head otherwise].
     #[arg(long, value_enum)]
     frame: Option<FrameArg>,
@@ -222,7 +226,7 @@ pub fn run(a: Args) -> Result<()> {
     check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
     let mut config = config;
-    // An eye-platform frame on a set without joint columns is refused by `train` itself.
+    // A posture frame on a set without joint columns is refused by `train` itself.
     config.frame = match (a.frame, table.data.input_kind()) {
         (Some(f), _) => f.frame(),
         (None, Some(kind)) => train::default_frame(config.family, kind),

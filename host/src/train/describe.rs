@@ -57,6 +57,9 @@ pub fn describe(path: &Path, f: &ModelFile) -> String {
             hvs_shared::runtime::blob::OutputFrame::EyePlatform =>
                 "the net gives points in the eye platform's frame (the head frame turned by the \
                  neck pan, neck tilt and eye tilt inputs); the model turns them into the head frame",
+            hvs_shared::runtime::blob::OutputFrame::Cyclopean =>
+                "the net gives points in the cyclopean frame (the eye platform's frame turned by \
+                 the version, the mean of the eye pan inputs); the model turns them into the head frame",
         }
     );
     let _ = match b.image_size() {

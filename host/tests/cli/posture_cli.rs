@@ -62,10 +62,10 @@ fn a_posture_aware_model_trains_and_evaluates_through_the_cli() {
     );
     assert!(info.contains("9-8-3"), "{info}");
     // Without --arch and --frame a posture-aware set gets the default family with its points
-    // in the eye platform's frame.
+    // in the cyclopean frame.
     let default = hvs_host::train::DEFAULT_FAMILY.name();
     assert!(info.contains(&format!("family:      {default} ")), "{info}");
-    assert!(info.contains("frame:       eye-platform"), "{info}");
+    assert!(info.contains("frame:       cyclopean"), "{info}");
     let json =
         ok_line(&format!("eval --model {} --data {} --json", dir.p("m.hvsw"), dir.p("test.csv")));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();

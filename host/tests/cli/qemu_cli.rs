@@ -156,11 +156,11 @@ fn head_agrees_with_predict(joints: bool) {
         }
         std::fs::write(&pts, out).unwrap();
     }
-    // The default family (and, posture-aware, its default eye-platform frame).
+    // The default family (and, posture-aware, its default cyclopean frame).
     run(&["train", "--data", s(&train), "-o", s(&model), "--seed", "3"]);
     let shown = run(&["info", s(&model)]);
     assert!(shown.contains("inverse-depth-skip"), "{shown}");
-    let frame = if joints { "eye-platform" } else { "head" };
+    let frame = if joints { "cyclopean" } else { "head" };
     assert!(shown.contains(&format!("frame:       {frame} ")), "{shown}");
     let predicted = run(&["predict", "--model", s(&model), "--points", s(&pts)]);
 

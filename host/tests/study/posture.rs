@@ -54,7 +54,7 @@ fn small() -> StudyConfig {
 #[test]
 fn posture_aware_nets_use_the_configured_family() {
     assert_eq!(StudyConfig::default().family, hvs_host::train::DEFAULT_FAMILY);
-    assert_eq!(StudyConfig::default().frame, OutputFrame::EyePlatform);
+    assert_eq!(StudyConfig::default().frame, OutputFrame::Cyclopean);
     let cfg = StudyConfig {
         train_levels: [1, 1, 1, 1, 2],
         test_postures: 10,
@@ -66,7 +66,7 @@ fn posture_aware_nets_use_the_configured_family() {
     };
     let aware = posture_aware_study(&cfg, 3, Sampling::Grid).unwrap();
     assert_eq!(aware.blob.family, Family::INVERSE_DEPTH_SKIP);
-    assert_eq!(aware.blob.frame, OutputFrame::EyePlatform);
+    assert_eq!(aware.blob.frame, OutputFrame::Cyclopean);
     // 9-3-3: 13 * 3 + 3 net weights and 3 x 9 skip weights.
     assert_eq!(aware.blob.params.len(), 13 * 3 + 3 + 27);
     assert_eq!(aware.sweep[0].params, aware.blob.params.len());

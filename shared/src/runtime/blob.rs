@@ -305,6 +305,15 @@ pub enum OutputFrame {
     /// inputs still let it learn. Only for [`InputKind::StereoJoints`] inputs and
     /// [`OutputKind::Xyz`] outputs.
     EyePlatform,
+    /// A posture-aware net gives points in the cyclopean frame: the eye platform's frame
+    /// turned by the version (the mean of the eye pans, inputs 8 and 9) about its vertical
+    /// axis through the baseline's centre ([`gaze::cyclopean_to_base`], f32, the same bits on
+    /// host and head). In this frame each eye is turned from straight ahead by half the
+    /// vergence only, so the pixels-to-point map bends far less with the eye pans than in
+    /// the eye platform's frame: what a net needs on sets where the board is seen anywhere in
+    /// the images (`hvs collect`: the board stays, the head moves). Only for
+    /// [`InputKind::StereoJoints`] inputs and [`OutputKind::Xyz`] outputs.
+    Cyclopean,
 }
 
 impl OutputFrame {
@@ -313,11 +322,12 @@ impl OutputFrame {
     pub fn apply(self, x: &[f32], y: &mut [f32]) -> Result<(), MlpError> {
         match self {
             OutputFrame::Head => Ok(()),
-            OutputFrame::EyePlatform => {
-                let (Some(j), [a, b, c]) = (x.get(4..7), &mut *y) else {
+            OutputFrame::EyePlatform | OutputFrame::Cyclopean => {
+                let (Some(j), [a, b, c]) = (x.get(4..9), &mut *y) else {
                     return Err(MlpError::Shape);
                 };
-                let p = gaze::platform_to_base([j[0], j[1], j[2]], [*a, *b, *c]);
+                let p =
+                    gaze::posture_to_base([j[0], j[1], j[2]], self.version_deg(j), [*a, *b, *c]);
                 if !p.iter().all(|v| v.is_finite()) {
                     return Err(MlpError::NonFiniteOutput);
                 }
@@ -330,17 +340,30 @@ impl OutputFrame {
     /// The inverse of [`OutputFrame::apply`]: head-frame `y` of inputs `x` in this frame
     /// (unchanged for [`OutputFrame::Head`], and for inputs without joint angles).
     pub fn from_head(self, x: &[f32], y: [f32; 3]) -> [f32; 3] {
-        match (self, x.get(4..7)) {
-            (OutputFrame::EyePlatform, Some(j)) => gaze::base_to_platform([j[0], j[1], j[2]], y),
+        match (self, x.get(4..9)) {
+            (OutputFrame::EyePlatform | OutputFrame::Cyclopean, Some(j)) => {
+                gaze::base_to_posture([j[0], j[1], j[2]], self.version_deg(j), y)
+            }
             _ => y,
         }
     }
 
-    /// Short name (`head`, `eye-platform`), as `hvs train --frame` takes it.
+    /// How far this frame is turned about the eye platform's vertical axis at joint inputs
+    /// `j` (neck pan .. right eye pan, degrees): the version for [`OutputFrame::Cyclopean`],
+    /// 0 otherwise.
+    fn version_deg(self, j: &[f32]) -> f32 {
+        match (self, j) {
+            (OutputFrame::Cyclopean, [_, _, _, l, r, ..]) => gaze::version_deg(*l, *r),
+            _ => 0.0,
+        }
+    }
+
+    /// Short name (`head`, `eye-platform`, `cyclopean`), as `hvs train --frame` takes it.
     pub fn name(self) -> &'static str {
         match self {
             OutputFrame::Head => "head",
             OutputFrame::EyePlatform => "eye-platform",
+            OutputFrame::Cyclopean => "cyclopean",
         }
     }
 }
@@ -479,7 +502,7 @@ impl ModelBlob {
             || self.out_offset.len() != o
             || self.out_scale.len() != o
             || self.params.len() != mlp::param_count(i, h, o) + self.family.skip_len(i, o)
-            || (self.frame == OutputFrame::EyePlatform
+            || (self.frame != OutputFrame::Head
                 && (self.topology.inputs != InputKind::StereoJoints
                     || self.topology.outputs != OutputKind::Xyz))
         {
@@ -1144,6 +1167,50 @@ mod tests {
         // Too few inputs for the frame is a shape error, not a panic.
         let mut y3 = [1.0f32, 2.0, 3.0];
         assert_eq!(OutputFrame::EyePlatform.apply(&x[..4], &mut y3), Err(MlpError::Shape));
+    }
+
+    #[test]
+    fn cyclopean_frame_turns_the_points_by_all_five_joints() {
+        use crate::test_support::SampleSpec;
+        let spec = SampleSpec::THESIS
+            .inputs(InputKind::StereoJoints)
+            .hidden(6)
+            .family(Family::INVERSE_DEPTH_SKIP);
+        let head = spec.build();
+        let cyc = spec.frame(OutputFrame::Cyclopean).build();
+        let v = bytes(&cyc);
+        assert_eq!(decode(&v).unwrap(), cyc);
+        // The frame is the last payload field: the third variant, one byte after the second's.
+        let platform = spec.frame(OutputFrame::EyePlatform).build();
+        let w = bytes(&platform);
+        assert_eq!(v.len(), w.len());
+        let diff: std::vec::Vec<usize> = (0..v.len() - CRC_LEN).filter(|&k| v[k] != w[k]).collect();
+        assert_eq!(diff.len(), 1, "{diff:?}");
+        assert_eq!((v[diff[0]], w[diff[0]]), (2, 1));
+        let x = [340.0, 240.0, 300.0, 241.0, 12.0, -7.5, 4.0, 3.0, 6.0];
+        let (mut y_head, mut y) = ([0.0f32; 3], [0.0f32; 3]);
+        head.infer(&x, &mut y_head).unwrap();
+        cyc.infer(&x, &mut y).unwrap();
+        assert_eq!(y, gaze::cyclopean_to_base([12.0, -7.5, 4.0, 3.0, 6.0], y_head));
+        // The eye pans turn it too (the platform frame's would not move).
+        let mut x2 = x;
+        x2[7] = -3.0;
+        let (mut a, mut b) = ([0.0f32; 3], [0.0f32; 3]);
+        head.infer(&x2, &mut a).unwrap();
+        cyc.infer(&x2, &mut b).unwrap();
+        assert_eq!(b, gaze::cyclopean_to_base([12.0, -7.5, 4.0, -3.0, 6.0], a));
+        let back = OutputFrame::Cyclopean.from_head(&x, y);
+        for k in 0..3 {
+            assert!((back[k] - y_head[k]).abs() <= 1e-4 * y_head[k].abs().max(1.0));
+        }
+        let mut stereo = sample(5, 2);
+        stereo.frame = OutputFrame::Cyclopean;
+        assert_eq!(stereo.validate(), Err(BlobError::TopologyMismatch));
+        let z_only = spec.outputs(OutputKind::Z).frame(OutputFrame::Cyclopean).build();
+        assert_eq!(z_only.validate(), Err(BlobError::TopologyMismatch));
+        let mut y3 = [1.0f32, 2.0, 3.0];
+        assert_eq!(OutputFrame::Cyclopean.apply(&x[..8], &mut y3), Err(MlpError::Shape));
+        assert_eq!(OutputFrame::Cyclopean.name(), "cyclopean");
     }
 
     #[test]

@@ -530,6 +530,60 @@ pub fn base_to_platform(angles_deg: [f32; 3], p: [f32; 3]) -> [f32; 3] {
     [x, ct * p[1] - st * z, ct * z + st * p[1]]
 }
 
+/// A point `p` of the cyclopean frame in the base frame, at the five joints `joints_deg`
+/// (neck pan, neck tilt, eye tilt, left and right eye pan; degrees): the eye platform's frame
+/// turned by the version, the mean of the two eye pans, about its vertical axis through the
+/// baseline's centre (`Pan(version) p`), then [`platform_to_base`]. Its `Z` axis is where the
+/// eyes look on average, so in it each eye is turned from straight ahead by half the vergence
+/// only; it is where a posture-aware model of
+/// [`crate::runtime::blob::OutputFrame::Cyclopean`] gives its points. In `f32`, the same bits
+/// on host and head.
+pub fn cyclopean_to_base(joints_deg: [f32; 5], p: [f32; 3]) -> [f32; 3] {
+    posture_to_base(
+        [joints_deg[0], joints_deg[1], joints_deg[2]],
+        version_deg(joints_deg[3], joints_deg[4]),
+        p,
+    )
+}
+
+/// A base-frame point `p` in the cyclopean frame: the inverse of [`cyclopean_to_base`].
+pub fn base_to_cyclopean(joints_deg: [f32; 5], p: [f32; 3]) -> [f32; 3] {
+    base_to_posture(
+        [joints_deg[0], joints_deg[1], joints_deg[2]],
+        version_deg(joints_deg[3], joints_deg[4]),
+        p,
+    )
+}
+
+/// A point `p` of the eye platform's frame turned by `version_deg` about its vertical axis,
+/// in the base frame: `Pan(version) p`, then [`platform_to_base`] at neck pan, neck tilt and
+/// eye tilt `angles_deg`. A version of 0 is the eye platform's frame itself, bit for bit (one
+/// code path for both posture frames keeps the head's image small).
+pub fn posture_to_base(angles_deg: [f32; 3], version_deg: f32, p: [f32; 3]) -> [f32; 3] {
+    let q = if version_deg == 0.0 {
+        p
+    } else {
+        let (sv, cv) = sin_cos(version_deg * DEG_TO_RAD);
+        [cv * p[0] - sv * p[2], p[1], sv * p[0] + cv * p[2]]
+    };
+    platform_to_base(angles_deg, q)
+}
+
+/// A base-frame point `p` in the frame of [`posture_to_base`]: its inverse.
+pub fn base_to_posture(angles_deg: [f32; 3], version_deg: f32, p: [f32; 3]) -> [f32; 3] {
+    let q = base_to_platform(angles_deg, p);
+    if version_deg == 0.0 {
+        return q;
+    }
+    let (sv, cv) = sin_cos(version_deg * DEG_TO_RAD);
+    [cv * q[0] + sv * q[2], q[1], cv * q[2] - sv * q[0]]
+}
+
+/// The version (degrees): the mean of the left and right eye pans.
+pub fn version_deg(left_pan_deg: f32, right_pan_deg: f32) -> f32 {
+    0.5 * (left_pan_deg + right_pan_deg)
+}
+
 /// Active rotation of the head in the base frame: pan (outer) then tilt (inner).
 fn neck_rotation(pan_deg: f32, tilt_deg: f32) -> [[f32; 3]; 3] {
     mat_mul(&rot_pan(pan_deg * DEG_TO_RAD), &rot_tilt(tilt_deg * DEG_TO_RAD))
@@ -737,6 +791,38 @@ mod tests {
                 assert_eq!(back, p);
             }
         }
+    }
+
+    #[test]
+    fn cyclopean_frame_is_the_platform_turned_by_the_version() {
+        for (k, j) in [
+            [0.0f32, 0.0, 0.0, 0.0, 0.0],
+            [30.0, -20.0, 15.0, 12.0, 4.0],
+            [-12.6, 7.2, -9.0, -20.0, -10.0],
+            [0.0, 0.0, 0.0, 5.0, -5.0],
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let p = [12.0 - k as f32, -7.0 + 2.0 * k as f32, 80.0 + 20.0 * k as f32];
+            // The chain as matrices: the platform's rotation, then Pan(version).
+            let platform = mat_mul(&neck_rotation(j[0], j[1]), &rot_tilt(j[2] * DEG_TO_RAD));
+            let r = mat_mul(&platform, &rot_pan(0.5 * (j[3] + j[4]) * DEG_TO_RAD));
+            let want = mat_vec(&r, p);
+            let got = cyclopean_to_base(j, p);
+            let back = base_to_cyclopean(j, got);
+            for i in 0..3 {
+                assert!((got[i] - want[i]).abs() < 1e-4, "{j:?}: {got:?} {want:?}");
+                assert!((back[i] - p[i]).abs() < 1e-4, "{j:?}: {back:?} {p:?}");
+            }
+            if version_deg(j[3], j[4]) == 0.0 {
+                // No version: the eye platform's frame, bit for bit.
+                assert_eq!(got, platform_to_base([j[0], j[1], j[2]], p));
+            }
+        }
+        // A positive version (both eyes panned towards -X) puts the frame's Z axis there.
+        let z = cyclopean_to_base([0.0, 0.0, 0.0, 10.0, 10.0], [0.0, 0.0, 1.0]);
+        assert!(z[0] < -0.17 && z[2] > 0.98, "{z:?}");
     }
 
     #[test]

@@ -850,16 +850,20 @@ pub(crate) mod tests {
     #[test]
     fn posture_aware_net_is_fed_the_current_setpoints() {
         // The thesis family, and the default family with its points in the eye platform's
-        // frame (turned into the head frame by the joints the head feeds).
-        let platform = SampleSpec::THESIS
-            .inputs(InputKind::StereoJoints)
-            .hidden(9)
-            .generation(3)
-            .seed(11)
-            .family(blob::Family::INVERSE_DEPTH_SKIP)
-            .frame(blob::OutputFrame::EyePlatform)
-            .build();
-        for blob in [sample_joints(9, 3, 11), platform] {
+        // and in the cyclopean frame (turned into the head frame by the joints the head feeds).
+        let framed = |frame| {
+            SampleSpec::THESIS
+                .inputs(InputKind::StereoJoints)
+                .hidden(9)
+                .generation(3)
+                .seed(11)
+                .family(blob::Family::INVERSE_DEPTH_SKIP)
+                .frame(frame)
+                .build()
+        };
+        let (platform, cyclopean) =
+            (framed(blob::OutputFrame::EyePlatform), framed(blob::OutputFrame::Cyclopean));
+        for blob in [sample_joints(9, 3, 11), platform, cyclopean] {
             fed_the_current_setpoints(&blob);
         }
     }
@@ -894,9 +898,8 @@ pub(crate) mod tests {
         assert_ne!([e.x, e.y, e.z], [at_home.x, at_home.y, at_home.z]);
         // Boot alone (no gaze controller) answers as at home.
         assert_eq!(h.boot.estimate(&P).unwrap(), at_home);
-        // The eye-platform frame: the net's point turned by the neck pan, neck tilt and eye
-        // tilt the head fed.
-        if blob.frame == blob::OutputFrame::EyePlatform {
+        // A posture frame: the net's point turned by the joints the head fed.
+        if blob.frame != blob::OutputFrame::Head {
             let mut head_frame = blob.clone();
             head_frame.frame = blob::OutputFrame::Head;
             let mut x = std::vec::Vec::from(P.to_array());
@@ -905,7 +908,10 @@ pub(crate) mod tests {
             head_frame.infer(&x, &mut y).unwrap();
             let j = look.target.0;
             assert_ne!([j[0], j[1], j[2]], [0.0; 3]);
-            let turned = gaze::platform_to_base([j[0], j[1], j[2]], y);
+            let turned = match blob.frame {
+                blob::OutputFrame::Cyclopean => gaze::cyclopean_to_base(j, y),
+                _ => gaze::platform_to_base([j[0], j[1], j[2]], y),
+            };
             assert_eq!([e.x, e.y, e.z].map(f32::to_bits), turned.map(f32::to_bits));
         }
     }

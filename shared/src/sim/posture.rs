@@ -74,6 +74,17 @@ pub fn base_to_platform(angles_deg: [f64; 3], p: &Vec3) -> Vec3 {
     core::array::from_fn(|k| r[0][k] * p[0] + r[1][k] * p[1] + r[2][k] * p[2])
 }
 
+/// A head-frame point in the cyclopean frame at the five joints `joints_deg` (degrees): the
+/// eye platform's frame ([`base_to_platform`]) turned by the version, the mean of the eye
+/// pans, about its vertical axis (`Pan(version)^T`); the `f64` twin of
+/// [`crate::runtime::gaze::base_to_cyclopean`] (what a posture-aware net of
+/// `OutputFrame::Cyclopean` learns).
+pub fn base_to_cyclopean(joints_deg: [f64; 5], p: &Vec3) -> Vec3 {
+    let q = base_to_platform([joints_deg[0], joints_deg[1], joints_deg[2]], p);
+    let r = rot_pan(0.5 * (joints_deg[3] + joints_deg[4]) * DEG);
+    core::array::from_fn(|k| r[0][k] * q[0] + r[1][k] * q[1] + r[2][k] * q[2])
+}
+
 /// The neck's active rotation `Pan(neck pan) Tilt(neck tilt)` of the head in the head frame.
 pub fn neck_rotation(j: &Joints) -> Mat3 {
     mat_mul(
@@ -361,6 +372,22 @@ mod tests {
 
     fn close(a: f64, b: f64, tol: f64) -> bool {
         (a - b).abs() <= tol
+    }
+
+    #[test]
+    fn the_frames_f64_turns_are_the_inverses_of_the_heads_f32_ones() {
+        let p = [17.0, -9.0, 120.0];
+        for j in [[0.0f32; 5], [30.0, -20.0, 15.0, 12.0, 4.0], [-12.6, 7.2, -9.0, -20.0, -10.0]] {
+            let jd = j.map(f64::from);
+            let c = base_to_cyclopean(jd, &p);
+            let back = gaze::cyclopean_to_base(j, c.map(|v| v as f32));
+            let q = base_to_platform([jd[0], jd[1], jd[2]], &p);
+            let back_q = gaze::platform_to_base([j[0], j[1], j[2]], q.map(|v| v as f32));
+            for k in 0..3 {
+                assert!(close(f64::from(back[k]), p[k], 1e-4), "{j:?}: {back:?}");
+                assert!(close(f64::from(back_q[k]), p[k], 1e-4), "{j:?}: {back_q:?}");
+            }
+        }
     }
 
     fn mat_close(a: &Mat3, b: &Mat3, tol: f64) -> bool {

@@ -299,6 +299,11 @@ fn family_words(f: Family, frame: OutputFrame) -> String {
             ", in the eye platform's frame (the head frame turned by the neck pan, neck tilt and \
              eye tilt inputs), turned back into the head frame by the model"
         }
+        OutputFrame::Cyclopean => {
+            ", in the cyclopean frame (the head frame turned by the neck pan, neck tilt and eye \
+             tilt inputs and by the version, the mean of the eye pans), turned back into the head \
+             frame by the model"
+        }
     };
     format!("`{}` (outputs {outputs}{skip}{frame})", f.name())
 }
