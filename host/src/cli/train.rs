@@ -133,7 +133,8 @@ pub struct Args {
     /// Model file to write (atomically).
     #[arg(short = 'o', long, value_name = "MODEL")]
     output: PathBuf,
-    /// Hidden units [default: 5].
+    /// Hidden units [default: 5; 32 for a posture-aware set of detected, sub-pixel corners
+    /// (`hvs collect` + `hvs board detect`) outside the thesis family].
     #[arg(long, value_name = "H", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     hidden: Option<usize>,
     /// Outputs of the net [default: xyz].
@@ -149,9 +150,10 @@ pub struct Args {
     /// Training algorithm [default: lm].
     #[arg(long, value_enum)]
     algo: Option<AlgoArg>,
-    /// Restarts from random starts.
-    #[arg(long, value_name = "R", default_value_t = 10, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
-    restarts: usize,
+    /// Restarts from random starts [default: 10; 1 for a posture-aware set of detected,
+    /// sub-pixel corners outside the thesis family].
+    #[arg(long, value_name = "R", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
+    restarts: Option<usize>,
     /// Enrol only restarts whose training e_ma is at most T percent.
     #[arg(long, value_name = "T")]
     threshold: Option<f64>,
@@ -183,11 +185,12 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(from) = &a.from {
         return run_update(&a, from);
     }
-    let hidden = a.hidden.unwrap_or(5);
-    if hidden == 0 || hidden > MAX_HIDDEN {
-        bail!("--hidden must be 1..={MAX_HIDDEN}, got {hidden}");
+    if let Some(hidden) = a.hidden {
+        if hidden == 0 || hidden > MAX_HIDDEN {
+            bail!("--hidden must be 1..={MAX_HIDDEN}, got {hidden}");
+        }
     }
-    if a.restarts == 0 {
+    if a.restarts == Some(0) {
         bail!("--restarts must be at least 1");
     }
     if let Some(t) = a.threshold {
@@ -208,14 +211,14 @@ pub fn run(a: Args) -> Result<()> {
         bail!("--u0 and --v0 must be finite");
     }
     let config = TrainConfig {
-        hidden,
+        hidden: 0,
         outputs: a.outputs.unwrap_or(OutputsArg::Xyz).kind(),
         algo: match a.algo.unwrap_or(AlgoArg::Lm) {
             AlgoArg::Lm => Algo::Lm,
             AlgoArg::Bp => Algo::Bp,
             AlgoArg::Adam => Algo::Adam,
         },
-        restarts: a.restarts,
+        restarts: 0,
         threshold_pct: a.threshold,
         seed: a.seed,
         bp: BpParams { learning_rate: a.learning_rate, e_max: a.e_max, max_cycles: a.max_cycles },
@@ -232,6 +235,8 @@ pub fn run(a: Args) -> Result<()> {
         (None, Some(kind)) => train::default_frame(config.family, kind),
         (None, None) => OutputFrame::Head,
     };
+    let (hidden, restarts) = train::default_size(config.family, &table.data);
+    (config.hidden, config.restarts) = (a.hidden.unwrap_or(hidden), a.restarts.unwrap_or(restarts));
     crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
     let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };
     let mut t = train_model(&table.data, &plan)

@@ -130,7 +130,7 @@ pub fn update(old: &ModelBlob, new: &Dataset, seed: u64) -> Result<UpdateOutcome
     let sc = scaling(old, &learned);
     let prob: Problem = problem(&learned, &cfg, &sc);
     let n_skip = cfg.family.skip_len(prob.shape.ni, prob.shape.no);
-    let base = super::lm_options(cfg.family, &learned, n_skip);
+    let base = super::lm_options(cfg.family, cfg.frame, &learned, n_skip);
     let opts = lm::LmOptions { max_iter: UPDATE_MAX_ITER, weight_decay: base.tail.1, ..base };
     let mut p: Vec<f64> = old.params.iter().map(|v| *v as f64).collect();
     let iterations = lm::fit(&prob, &mut p, &opts).iterations;
