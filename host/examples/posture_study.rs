@@ -11,7 +11,7 @@
 //! Options: `--case N` (1-4, default 3), `--seed S`, `--hidden H` (default 16), `--restarts R`,
 //! `--sweep` (also train 5, 8, 12, 24, 32 hidden neurons and the regular lattice of postures),
 //! `--arch A` (family of the posture-aware nets, as `hvs train --arch`; default
-//! `inverse-depth-skip`, `hvs train`'s), `--frame F` (`head` or `eye-platform`, as `hvs train
+//! `inverse-depth-skip`, `hvs train`'s), `--frame F` (`head`, `eye-platform` or `cyclopean`, as `hvs train
 //! --frame`; default `hvs train`'s for the family), `--lattice` (also train the chosen size on the regular lattice of postures),
 //! `--quick` (a 2-level training grid and fewer test points: a smoke run), `--out DIR`.
 
