@@ -132,3 +132,84 @@ fn collect_refuses_bad_input_naming_it() {
     );
     assert!(!std::path::Path::new(&format!("{out}/CAPTURES.csv")).exists());
 }
+
+/// Issue 27's goal through the CLI, as the README's worked example runs it: the case III
+/// virtual head collects the 9 x 6 board at the thesis' six depths at grid postures, `hvs
+/// board detect` and `hvs train` (its defaults) make a posture-aware model, and on test
+/// captures of other placements at random postures (`--seed 4`, held out from every choice of
+/// the training settings) it is within 1.10 x of the floor (optimal triangulation with the
+/// true cameras at each row's posture, `hvs eval --case 3`) and within 1.15 x in the worst
+/// posture band (the posture study's bands). About 6 minutes in release:
+/// `cargo test --release -p hvs-host --test cli collected_posture_model -- --ignored --nocapture`.
+#[test]
+#[ignore = "about 6 minutes in release: the README's hvs collect example end to end"]
+fn collected_posture_model_is_near_the_floor() {
+    let dir = Scratch::new();
+    let board = r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 6.0}"#;
+    let (b, s) = (dir.p("board.json"), dir.p("scene.json"));
+    fs::write(&b, board).unwrap();
+    fs::write(
+        &s,
+        r#"{"rig": {"case": 3}, "camera_fps": 30, "background": {"z_cm": 300, "texture_seed": 1}}"#,
+    )
+    .unwrap();
+    let (train_pos, test_pos) = (dir.p("positions.csv"), dir.p("test_positions.csv"));
+    fs::write(&train_pos, "x,y,z\n0,0,65\n0,0,85\n0,0,105\n0,0,125\n0,0,145\n0,0,165\n").unwrap();
+    fs::write(&test_pos, "x,y,z\n-6,5,80\n4,-4,100\n-3,2,120\n6,3,140\n-2,-5,160\n").unwrap();
+    let set = |positions: &str, postures: &[&str], seed: &str, name: &str| -> String {
+        let out = dir.p(name);
+        let mut args = vec!["collect", "--board", &b, "--positions", positions];
+        args.extend_from_slice(postures);
+        args.extend_from_slice(&["--scene", &s, "--seed", seed, "-o", &out]);
+        ok(&args);
+        let points = dir.p(&format!("{name}.csv"));
+        let (bj, caps) = (format!("{out}/board.json"), format!("{out}/CAPTURES.csv"));
+        ok(&["board", "detect", "--board", &bj, "--captures", &caps, "-o", &points]);
+        points
+    };
+    let train = set(&train_pos, &["--postures", "grid"], "1", "set");
+    let test = set(&test_pos, &["--postures", "random", "--posture-count", "60"], "4", "test");
+    let model = dir.p("posture.hvsw");
+    ok(&["train", "--data", &train, "-o", &model]);
+    let json = ok(&["eval", "--model", &model, "--data", &test, "--case", "3", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let methods = v["evaluation"]["methods"].as_array().unwrap();
+    let mean = |m: &serde_json::Value| m["mean"]["e_ma_pct"].as_f64().unwrap();
+    let floor = mean(methods.iter().find(|m| m["name"] == "optimal").expect("an optimal method"));
+    let net = mean(methods.iter().find(|m| m["name"] == "network").expect("the model"));
+    println!("mean depth e_ma: model {net:.4} %, floor {floor:.4} %, {:.3} x", net / floor);
+    assert!(net <= 1.10 * floor, "{net} against the floor's {floor}");
+    // Per posture band, through the study's library on the same rows.
+    let blob = hvs_host::data::model::load(std::path::Path::new(&model)).unwrap().blob;
+    let table = hvs_host::data::csv::read_set(
+        std::path::Path::new(&test),
+        hvs_host::data::csv::Inputs::StereoJoints,
+        true,
+    )
+    .unwrap();
+    let d = &table.data;
+    let rows: Vec<hvs_host::sim::posture::PostureSample> = (0..d.len())
+        .map(|i| {
+            let r = d.row(i);
+            hvs_host::sim::posture::PostureSample {
+                px: [r[0], r[1], r[2], r[3]],
+                joints: hvs_shared::runtime::gaze::Joints(core::array::from_fn(|k| {
+                    r[4 + k] as f32
+                })),
+                xyz: d.targets[i],
+            }
+        })
+        .collect();
+    let head = hvs_shared::sim::posture::HeadRig::new(hvs_shared::sim::presets::case(3).unwrap());
+    let bands = hvs_host::study::posture::bands(&blob, &head, &rows, &[]);
+    for band in &bands {
+        println!("{} {}: {:.3} x", band.term, band.band, band.ratio());
+        assert!(
+            band.ratio() <= 1.15,
+            "{} {}: {:.3} x the floor",
+            band.term,
+            band.band,
+            band.ratio()
+        );
+    }
+}
