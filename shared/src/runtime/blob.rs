@@ -1128,89 +1128,74 @@ mod tests {
         assert_eq!(Parent::of(&v3[..v3.len() - 1]), Err(BlobError::Truncated));
     }
 
-    #[test]
-    fn eye_platform_frame_turns_the_points_and_needs_joint_inputs() {
+    /// A posture frame's model gives `turn(inputs, the head-frame model's point)`, turns back
+    /// through `from_head`, and needs joint inputs and X, Y, Z outputs.
+    fn check_posture_frame(frame: OutputFrame, turn: impl Fn(&[f32; 9], [f32; 3]) -> [f32; 3]) {
         use crate::test_support::SampleSpec;
         let spec = SampleSpec::THESIS
             .inputs(InputKind::StereoJoints)
             .hidden(6)
             .family(Family::INVERSE_DEPTH_SKIP);
         let head = spec.build();
-        let platform = spec.frame(OutputFrame::EyePlatform).build();
-        let v = bytes(&platform);
+        let framed = spec.frame(frame).build();
+        let v = bytes(&framed);
         assert_eq!(u16::from_le_bytes([v[4], v[5]]), VERSION);
-        assert_eq!(decode(&v).unwrap(), platform);
+        assert_eq!(decode(&v).unwrap(), framed);
         let x = [340.0, 240.0, 300.0, 241.0, 12.0, -7.5, 4.0, 3.0, 6.0];
-        let (mut y_head, mut y) = ([0.0f32; 3], [0.0f32; 3]);
-        head.infer(&x, &mut y_head).unwrap();
-        platform.infer(&x, &mut y).unwrap();
-        assert_eq!(y, gaze::platform_to_base([12.0, -7.5, 4.0], y_head));
-        assert_ne!(y, y_head);
-        // Only the neck pan, neck tilt and eye tilt turn the frame.
         let mut x2 = x;
         x2[7] = -3.0;
-        let (mut a, mut b) = ([0.0f32; 3], [0.0f32; 3]);
-        head.infer(&x2, &mut a).unwrap();
-        platform.infer(&x2, &mut b).unwrap();
-        assert_eq!(b, gaze::platform_to_base([12.0, -7.5, 4.0], a));
-        // The turn back (the range check's) undoes it to rounding.
-        let back = OutputFrame::EyePlatform.from_head(&x, y);
-        for k in 0..3 {
-            assert!((back[k] - y_head[k]).abs() <= 1e-4 * y_head[k].abs().max(1.0));
+        for x in [x, x2] {
+            let (mut y_head, mut y) = ([0.0f32; 3], [0.0f32; 3]);
+            head.infer(&x, &mut y_head).unwrap();
+            framed.infer(&x, &mut y).unwrap();
+            assert_eq!(y, turn(&x, y_head), "{x:?}");
+            assert_ne!(y, y_head);
+            // The turn back (the range check's) undoes it to rounding.
+            let back = frame.from_head(&x, y);
+            for k in 0..3 {
+                assert!((back[k] - y_head[k]).abs() <= 1e-4 * y_head[k].abs().max(1.0));
+            }
         }
-        // A stereo model or a Z-only model cannot be in the platform frame.
+        // A stereo model or a Z-only model cannot be in a posture frame.
         let mut stereo = sample(5, 2);
-        stereo.frame = OutputFrame::EyePlatform;
+        stereo.frame = frame;
         assert_eq!(stereo.validate(), Err(BlobError::TopologyMismatch));
-        let z_only = spec.outputs(OutputKind::Z).frame(OutputFrame::EyePlatform).build();
+        let z_only = spec.outputs(OutputKind::Z).frame(frame).build();
         assert_eq!(z_only.validate(), Err(BlobError::TopologyMismatch));
         // Too few inputs for the frame is a shape error, not a panic.
         let mut y3 = [1.0f32, 2.0, 3.0];
-        assert_eq!(OutputFrame::EyePlatform.apply(&x[..4], &mut y3), Err(MlpError::Shape));
+        assert_eq!(frame.apply(&x[..8], &mut y3), Err(MlpError::Shape));
+    }
+
+    #[test]
+    fn eye_platform_frame_turns_the_points_by_the_neck_and_eye_tilt() {
+        // Only the neck pan, neck tilt and eye tilt turn the frame.
+        check_posture_frame(OutputFrame::EyePlatform, |x, y| {
+            gaze::platform_to_base([x[4], x[5], x[6]], y)
+        });
+        assert_eq!(OutputFrame::EyePlatform.name(), "eye-platform");
     }
 
     #[test]
     fn cyclopean_frame_turns_the_points_by_all_five_joints() {
+        check_posture_frame(OutputFrame::Cyclopean, |x, y| {
+            gaze::cyclopean_to_base([x[4], x[5], x[6], x[7], x[8]], y)
+        });
+        assert_eq!(OutputFrame::Cyclopean.name(), "cyclopean");
+        // The frame is the last payload field: the third variant, one byte after the second's.
         use crate::test_support::SampleSpec;
         let spec = SampleSpec::THESIS
             .inputs(InputKind::StereoJoints)
             .hidden(6)
             .family(Family::INVERSE_DEPTH_SKIP);
-        let head = spec.build();
-        let cyc = spec.frame(OutputFrame::Cyclopean).build();
-        let v = bytes(&cyc);
-        assert_eq!(decode(&v).unwrap(), cyc);
-        // The frame is the last payload field: the third variant, one byte after the second's.
-        let platform = spec.frame(OutputFrame::EyePlatform).build();
-        let w = bytes(&platform);
+        let (v, w) = (
+            bytes(&spec.frame(OutputFrame::Cyclopean).build()),
+            bytes(&spec.frame(OutputFrame::EyePlatform).build()),
+        );
         assert_eq!(v.len(), w.len());
         let diff: std::vec::Vec<usize> = (0..v.len() - CRC_LEN).filter(|&k| v[k] != w[k]).collect();
         assert_eq!(diff.len(), 1, "{diff:?}");
         assert_eq!((v[diff[0]], w[diff[0]]), (2, 1));
-        let x = [340.0, 240.0, 300.0, 241.0, 12.0, -7.5, 4.0, 3.0, 6.0];
-        let (mut y_head, mut y) = ([0.0f32; 3], [0.0f32; 3]);
-        head.infer(&x, &mut y_head).unwrap();
-        cyc.infer(&x, &mut y).unwrap();
-        assert_eq!(y, gaze::cyclopean_to_base([12.0, -7.5, 4.0, 3.0, 6.0], y_head));
-        // The eye pans turn it too (the platform frame's would not move).
-        let mut x2 = x;
-        x2[7] = -3.0;
-        let (mut a, mut b) = ([0.0f32; 3], [0.0f32; 3]);
-        head.infer(&x2, &mut a).unwrap();
-        cyc.infer(&x2, &mut b).unwrap();
-        assert_eq!(b, gaze::cyclopean_to_base([12.0, -7.5, 4.0, -3.0, 6.0], a));
-        let back = OutputFrame::Cyclopean.from_head(&x, y);
-        for k in 0..3 {
-            assert!((back[k] - y_head[k]).abs() <= 1e-4 * y_head[k].abs().max(1.0));
-        }
-        let mut stereo = sample(5, 2);
-        stereo.frame = OutputFrame::Cyclopean;
-        assert_eq!(stereo.validate(), Err(BlobError::TopologyMismatch));
-        let z_only = spec.outputs(OutputKind::Z).frame(OutputFrame::Cyclopean).build();
-        assert_eq!(z_only.validate(), Err(BlobError::TopologyMismatch));
-        let mut y3 = [1.0f32, 2.0, 3.0];
-        assert_eq!(OutputFrame::Cyclopean.apply(&x[..8], &mut y3), Err(MlpError::Shape));
-        assert_eq!(OutputFrame::Cyclopean.name(), "cyclopean");
     }
 
     #[test]

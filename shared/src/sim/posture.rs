@@ -78,7 +78,9 @@ pub fn base_to_platform(angles_deg: [f64; 3], p: &Vec3) -> Vec3 {
 /// eye platform's frame ([`base_to_platform`]) turned by the version, the mean of the eye
 /// pans, about its vertical axis (`Pan(version)^T`); the `f64` twin of
 /// [`crate::runtime::gaze::base_to_cyclopean`] (what a posture-aware net of
-/// `OutputFrame::Cyclopean` learns).
+/// `OutputFrame::Cyclopean` learns). Its axes are those of [`gaze_frame`] (the simulator's
+/// boards are placed in that frame); the model's frame keeps its origin at the baseline's
+/// centre whatever the neck centre, as the eye platform's frame does.
 pub fn base_to_cyclopean(joints_deg: [f64; 5], p: &Vec3) -> Vec3 {
     let q = base_to_platform([joints_deg[0], joints_deg[1], joints_deg[2]], p);
     let r = rot_pan(0.5 * (joints_deg[3] + joints_deg[4]) * DEG);
@@ -381,6 +383,11 @@ mod tests {
             let jd = j.map(f64::from);
             let c = base_to_cyclopean(jd, &p);
             let back = gaze::cyclopean_to_base(j, c.map(|v| v as f32));
+            // The axes of the simulator's gaze frame.
+            let (_, r) = gaze_frame(&Joints(j), [0.0; 3], 5.25);
+            let want: Vec3 =
+                core::array::from_fn(|k| r[0][k] * p[0] + r[1][k] * p[1] + r[2][k] * p[2]);
+            assert!((0..3).all(|k| close(c[k], want[k], 1e-9)), "{j:?}: {c:?} {want:?}");
             let q = base_to_platform([jd[0], jd[1], jd[2]], &p);
             let back_q = gaze::platform_to_base([j[0], j[1], j[2]], q.map(|v| v as f32));
             for k in 0..3 {
