@@ -68,9 +68,9 @@ pub struct Args {
     /// Address to listen on; port 0 picks a free one (the URL printed says which).
     #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8080")]
     pub listen: String,
-    /// Restarts of a retrain (`hvs train --restarts`).
-    #[arg(long, value_name = "R", default_value_t = 10, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
-    pub restarts: usize,
+    /// Restarts of a retrain (`hvs train --restarts`) [default: `hvs train`'s for the set].
+    #[arg(long, value_name = "R", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
+    pub restarts: Option<usize>,
     /// Seed of a retrain (`hvs train --seed`) and of the virtual cameras' sensor noise.
     #[arg(long, value_name = "S", default_value_t = 0, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
     pub seed: u64,
@@ -84,7 +84,7 @@ pub fn run(a: Args) -> Result<()> {
             a.listen
         ))
     })?;
-    if a.restarts == 0 {
+    if a.restarts == Some(0) {
         bail!("--restarts must be at least 1");
     }
     let source = match (a.left, a.right, a.board, a.captures, a.scene, a.cameras) {

@@ -65,8 +65,9 @@ pub enum Source {
 /// How a retrain trains (the `hvs train` options it takes; the rest are its defaults).
 #[derive(Debug, Clone, Copy)]
 pub struct RetrainOptions {
-    /// Restarts (`hvs train --restarts`).
-    pub restarts: usize,
+    /// Restarts (`hvs train --restarts`; `None`: its default for the set,
+    /// [`train::default_size`]).
+    pub restarts: Option<usize>,
     /// Seed (`hvs train --seed`).
     pub seed: u64,
 }
@@ -399,9 +400,11 @@ impl Session {
         let points = vision::points_csv(&c.board, &c.set, &det);
         let table = read_set_from(Path::new(&name), points.as_bytes(), Inputs::Auto, true)
             .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
+        let (hidden, restarts) = train::default_size(train::DEFAULT_FAMILY, &table.data);
         let mut config = TrainConfig {
             family: train::DEFAULT_FAMILY,
-            restarts: self.retrain.restarts,
+            hidden,
+            restarts: self.retrain.restarts.unwrap_or(restarts),
             seed: self.retrain.seed,
             ..TrainConfig::default()
         };
