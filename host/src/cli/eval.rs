@@ -1,5 +1,6 @@
 //! `hvs eval`: depth error of a model, and of the traditional method with the model's
-//! fallback calibration, per ground-truth depth.
+//! fallback calibration, per ground-truth depth; a posture-aware model's per posture band too
+//! (`study::posture::bands`).
 
 use crate::cli::RigArgs;
 use crate::data::csv::{read_set, Inputs};
@@ -7,6 +8,7 @@ use crate::data::model;
 use crate::evaluate::{
     evaluate, optimal_depths_lens, text_table, traditional_depths, Evaluation, Method,
 };
+use crate::study::posture;
 use anyhow::{bail, Result};
 use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::traditional::Calibration;
@@ -26,7 +28,10 @@ use std::path::PathBuf;
     and on any board (`hvs simulate --pixels`, `--noise-px`, `--board`). A set simulated \
     with `--distortion K1[,K2]` needs the same --distortion here, so that the floor \
     triangulates through the true lenses. Sets with more than 50 distinct depths are grouped \
-    into 10 depth bins."
+    into 10 depth bins. A posture-aware model (the five joint columns) with --case/--rig also \
+    gets its depth error per posture band against the floor's: all rows, then thirds of each \
+    gaze term's working range (neck pan, neck tilt, eye tilt, version by magnitude; vergence), \
+    as the posture study reports them."
 )]
 pub struct Args {
     /// The model (weights blob).
@@ -62,6 +67,26 @@ pub struct Report {
     pub floor_distortion: Option<[f64; 2]>,
     /// Per-depth errors (non-finite values are written as null).
     pub evaluation: Evaluation,
+    /// A posture-aware model with --case/--rig: its depth e_ma and the floor's per posture
+    /// band (the posture study's bands).
+    pub posture_bands: Option<Vec<BandReport>>,
+}
+
+/// One posture band of `--json`.
+#[derive(Debug, Serialize)]
+pub struct BandReport {
+    /// The gaze term (`all`, `neck pan`, ... `vergence`).
+    pub term: String,
+    /// Its band, e.g. `20.0 to 30.0 (either side)`.
+    pub band: String,
+    /// Rows in the band.
+    pub points: usize,
+    /// The model's depth e_ma (percent).
+    pub network_pct: f64,
+    /// The floor's depth e_ma (percent).
+    pub optimal_pct: f64,
+    /// The model's over the floor's.
+    pub ratio: f64,
 }
 
 /// Runs `hvs eval`.
@@ -98,6 +123,26 @@ pub fn run(a: Args) -> Result<()> {
             .push(Method { name: "optimal".into(), z: optimal_depths_lens(rig, lens, floor_data) });
     }
     let ev = evaluate(&table.data, &methods);
+    // A posture-aware model: its error per posture band against the floor's.
+    let bands: Option<Vec<BandReport>> = match &floor {
+        Some(rig) if blob.topology.inputs == InputKind::StereoJoints => {
+            let head = hvs_shared::sim::posture::HeadRig::new(*rig).with_distortion(lens);
+            let rows = posture::bands(blob, &head, &posture::samples(&table.data), &[]);
+            Some(
+                rows.iter()
+                    .map(|r| BandReport {
+                        term: r.term.to_string(),
+                        band: r.band.clone(),
+                        points: r.net.points,
+                        network_pct: r.net.z_pct,
+                        optimal_pct: r.floor.z_pct,
+                        ratio: r.ratio(),
+                    })
+                    .collect(),
+            )
+        }
+        _ => None,
+    };
     let mut o = std::io::stdout().lock();
     if a.json {
         let r = Report {
@@ -108,6 +153,7 @@ pub fn run(a: Args) -> Result<()> {
             floor_rig: floor.map(|_| a.floor.label()),
             floor_distortion: a.lens.given().then_some([lens.k1, lens.k2]),
             evaluation: ev,
+            posture_bands: bands,
         };
         writeln!(o, "{}", serde_json::to_string_pretty(&r)?)?;
         o.flush()?;
@@ -144,6 +190,25 @@ pub fn run(a: Args) -> Result<()> {
     }
     writeln!(o)?;
     write!(o, "{}", text_table(&ev))?;
+    if let Some(bands) = &bands {
+        writeln!(o)?;
+        writeln!(o, "per posture band (thirds of each gaze term's range; e_ma of the depth):")?;
+        writeln!(
+            o,
+            "{:>10} {:<37} {:>6} {:>10} {:>10} {:>8}",
+            "term", "band", "points", "network", "optimal", "x floor"
+        )?;
+        for b in bands {
+            writeln!(
+                o,
+                "{:>10} {:<37} {:>6} {:>9.4}% {:>9.4}% {:>8.3}",
+                b.term, b.band, b.points, b.network_pct, b.optimal_pct, b.ratio
+            )?;
+        }
+        if let Some(w) = bands.iter().max_by(|a, b| a.ratio.total_cmp(&b.ratio)) {
+            writeln!(o, "worst band: {} {}, {:.3} x the floor", w.term, w.band, w.ratio)?;
+        }
+    }
     for s in &ev.methods {
         if s.missing > 0 {
             writeln!(o, "{}: no estimate for {} points (zero disparity or failure), counted as infinite error", s.name, s.missing)?;

@@ -40,6 +40,22 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
         ok_line(&format!("eval --model {} --data {} --case 3", dir.p("m.hvsw"), dir.p("test.csv")));
     assert!(text.contains("optimal"), "{text}");
     assert!(!text.contains("optimal: no estimate"), "{text}");
+    // A posture-aware model also gets its error per posture band against the floor's: the
+    // first band is every row, with the floor of the table above.
+    assert!(text.contains("per posture band") && text.contains("worst band:"), "{text}");
+    let bands = v["posture_bands"].as_array().expect("posture bands");
+    assert_eq!(bands[0]["term"], "all");
+    assert_eq!(bands[0]["points"], 12 * 22);
+    let (net, opt) =
+        (bands[0]["network_pct"].as_f64().unwrap(), bands[0]["optimal_pct"].as_f64().unwrap());
+    assert!((opt - e).abs() < 1e-9, "{opt} against the table's {e}");
+    let ratio = bands[0]["ratio"].as_f64().unwrap();
+    assert!((ratio - net / opt).abs() < 1e-12 && net > 0.0, "{}", bands[0]);
+    let terms: std::collections::BTreeSet<&str> =
+        bands.iter().map(|b| b["term"].as_str().unwrap()).collect();
+    for t in ["neck pan", "neck tilt", "eye tilt", "version", "vergence"] {
+        assert!(terms.contains(t), "{terms:?}");
+    }
 
     // A 4-input (fixed-posture) model on the same posture set: the net sees only the pixels,
     // the floor still triangulates at each row's posture, with the same numbers as above.
@@ -55,4 +71,6 @@ fn the_floor_of_a_posture_set_is_triangulated_at_each_rows_posture() {
         .clone();
     assert_eq!(home_floor["missing"], 0, "{home_floor}");
     assert_eq!(home_floor["mean"], floor["mean"]);
+    // Its inputs have no joints: no posture bands.
+    assert!(v["posture_bands"].is_null(), "{v}");
 }

@@ -367,6 +367,24 @@ fn test_sets(
     ))
 }
 
+/// The rows of a posture-aware set with ground truth (pixels, the five joint columns, `x,y,z`)
+/// as samples for [`bands`]: e.g. test captures through `hvs board detect` (`hvs eval` prints
+/// their bands). Rows of a set without joint columns are at the home posture.
+pub fn samples(data: &Dataset) -> Vec<PostureSample> {
+    let posed = data.input_kind() == Some(InputKind::StereoJoints);
+    (0..data.len().min(data.targets.len()))
+        .map(|i| {
+            let r = data.row(i);
+            let joints = if posed {
+                Joints([r[4], r[5], r[6], r[7], r[8]].map(|v| v as f32))
+            } else {
+                Joints::HOME
+            };
+            PostureSample { px: [r[0], r[1], r[2], r[3]], joints, xyz: data.targets[i] }
+        })
+        .collect()
+}
+
 /// Per-band errors of `blob` on `test` (and the whole `extreme` set), with the floor: thirds
 /// of each gaze term's working range, by magnitude (vergence by value).
 pub fn bands(
