@@ -767,6 +767,15 @@ mod tests {
         }
     }
 
+    /// `got` is the rotation `r` of `p` and `back` turns it back, to f32 rounding.
+    fn assert_turn(r: &[[f32; 3]; 3], p: [f32; 3], got: [f32; 3], back: [f32; 3]) {
+        let want = mat_vec(r, p);
+        for i in 0..3 {
+            assert!((got[i] - want[i]).abs() < 1e-4, "{p:?}: {got:?} {want:?}");
+            assert!((back[i] - p[i]).abs() < 1e-4, "{p:?}: {back:?}");
+        }
+    }
+
     #[test]
     fn platform_frame_is_the_chain_of_neck_pan_neck_tilt_eye_tilt() {
         for (k, angles) in
@@ -778,13 +787,9 @@ mod tests {
             // The chain as matrices: Pan(neck pan) Tilt(neck tilt) Tilt(eye tilt).
             let r =
                 mat_mul(&neck_rotation(angles[0], angles[1]), &rot_tilt(angles[2] * DEG_TO_RAD));
-            let want = mat_vec(&r, p);
             let got = platform_to_base(angles, p);
             let back = base_to_platform(angles, got);
-            for i in 0..3 {
-                assert!((got[i] - want[i]).abs() < 1e-4, "{angles:?}: {got:?} {want:?}");
-                assert!((back[i] - p[i]).abs() < 1e-4, "{angles:?}: {back:?} {p:?}");
-            }
+            assert_turn(&r, p, got, back);
             if angles == [0.0; 3] {
                 // Home: the identity, bit for bit.
                 assert_eq!(got, p);
@@ -808,13 +813,8 @@ mod tests {
             // The chain as matrices: the platform's rotation, then Pan(version).
             let platform = mat_mul(&neck_rotation(j[0], j[1]), &rot_tilt(j[2] * DEG_TO_RAD));
             let r = mat_mul(&platform, &rot_pan(0.5 * (j[3] + j[4]) * DEG_TO_RAD));
-            let want = mat_vec(&r, p);
             let got = cyclopean_to_base(j, p);
-            let back = base_to_cyclopean(j, got);
-            for i in 0..3 {
-                assert!((got[i] - want[i]).abs() < 1e-4, "{j:?}: {got:?} {want:?}");
-                assert!((back[i] - p[i]).abs() < 1e-4, "{j:?}: {back:?} {p:?}");
-            }
+            assert_turn(&r, p, got, base_to_cyclopean(j, got));
             if version_deg(j[3], j[4]) == 0.0 {
                 // No version: the eye platform's frame, bit for bit.
                 assert_eq!(got, platform_to_base([j[0], j[1], j[2]], p));
