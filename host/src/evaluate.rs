@@ -13,7 +13,7 @@
 
 use crate::data::dataset::Dataset;
 use crate::infer::{PointError, Predictor};
-use hvs_shared::runtime::blob::{InputKind, ModelBlob};
+use hvs_shared::runtime::blob::ModelBlob;
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::traditional::{traditional_depth_signed, Calibration};
 use hvs_shared::sim::camera::{Distortion, Rig};
@@ -215,13 +215,11 @@ pub fn optimal_depths(rig: &Rig, data: &Dataset) -> Vec<f64> {
 /// distortion this is exactly [`optimal_depths`].
 pub fn optimal_depths_lens(rig: &Rig, lens: Distortion, data: &Dataset) -> Vec<f64> {
     let head = HeadRig::new(*rig).with_distortion(lens);
-    let posed = data.input_kind() == Some(InputKind::StereoJoints);
     (0..data.len())
         .map(|i| {
             let r = data.row(i);
             let px = [r[0], r[1], r[2], r[3]];
-            let p = if posed {
-                let joints = Joints([r[4], r[5], r[6], r[7], r[8]].map(|v| v as f32));
+            let p = if let Some(joints) = data.joints(i) {
                 head.optimal(&joints, &px)
             } else if lens.is_none() {
                 optimal(rig, &px)
@@ -280,6 +278,7 @@ pub fn text_table(ev: &Evaluation) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use hvs_shared::runtime::blob::InputKind;
 
     fn set(points: &[(f64, f64)]) -> Dataset {
         // (u_l - u_r, z): pixels chosen so that Phi 2d / u_sd is easy.

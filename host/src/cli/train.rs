@@ -210,33 +210,32 @@ pub fn run(a: Args) -> Result<()> {
     if !(a.u0.is_finite() && a.v0.is_finite()) {
         bail!("--u0 and --v0 must be finite");
     }
+    check_not_input("-o", &a.output, &[("--data", &a.data)])?;
+    let table = read_set(&a.data, Inputs::Auto, true)?;
+    let family = a.arch.unwrap_or(ArchArg::DEFAULT).family();
+    // A posture frame on a set without joint columns is refused by `train` itself.
+    let frame = match (a.frame, table.data.input_kind()) {
+        (Some(f), _) => f.frame(),
+        (None, Some(kind)) => train::default_frame(family, kind),
+        (None, None) => OutputFrame::Head,
+    };
+    let (hidden, restarts) = train::default_size(family, &table.data);
     let config = TrainConfig {
-        hidden: 0,
+        hidden: a.hidden.unwrap_or(hidden),
         outputs: a.outputs.unwrap_or(OutputsArg::Xyz).kind(),
         algo: match a.algo.unwrap_or(AlgoArg::Lm) {
             AlgoArg::Lm => Algo::Lm,
             AlgoArg::Bp => Algo::Bp,
             AlgoArg::Adam => Algo::Adam,
         },
-        restarts: 0,
+        restarts: a.restarts.unwrap_or(restarts),
         threshold_pct: a.threshold,
         seed: a.seed,
         bp: BpParams { learning_rate: a.learning_rate, e_max: a.e_max, max_cycles: a.max_cycles },
         progress: std::io::stderr().is_terminal(),
-        family: a.arch.unwrap_or(ArchArg::DEFAULT).family(),
-        frame: OutputFrame::Head,
+        family,
+        frame,
     };
-    check_not_input("-o", &a.output, &[("--data", &a.data)])?;
-    let table = read_set(&a.data, Inputs::Auto, true)?;
-    let mut config = config;
-    // A posture frame on a set without joint columns is refused by `train` itself.
-    config.frame = match (a.frame, table.data.input_kind()) {
-        (Some(f), _) => f.frame(),
-        (None, Some(kind)) => train::default_frame(config.family, kind),
-        (None, None) => OutputFrame::Head,
-    };
-    let (hidden, restarts) = train::default_size(config.family, &table.data);
-    (config.hidden, config.restarts) = (a.hidden.unwrap_or(hidden), a.restarts.unwrap_or(restarts));
     crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
     let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };
     let mut t = train_model(&table.data, &plan)

@@ -2,6 +2,7 @@
 //! posture-aware sets the five joint angles) with optional ground-truth positions.
 
 use hvs_shared::runtime::blob::InputKind;
+use hvs_shared::runtime::gaze::Joints;
 
 /// Names of the four pixel columns, in input order.
 pub const PIXEL_COLUMNS: [&str; 4] = ["u_l", "v_l", "u_r", "v_r"];
@@ -38,6 +39,14 @@ impl Dataset {
     /// Inputs of row `i`.
     pub fn row(&self, i: usize) -> &[f64] {
         &self.inputs[i * self.n_inputs..(i + 1) * self.n_inputs]
+    }
+    /// Row `i`'s five joint angles (degrees, as the `f32` the head reports them) when the set
+    /// is posture-aware, `None` otherwise.
+    pub fn joints(&self, i: usize) -> Option<Joints> {
+        (self.input_kind() == Some(InputKind::StereoJoints)).then(|| {
+            let r = self.row(i);
+            Joints([r[4], r[5], r[6], r[7], r[8]].map(|v| v as f32))
+        })
     }
     /// Whether every row has a ground truth.
     pub fn has_targets(&self) -> bool {

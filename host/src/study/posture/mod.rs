@@ -371,15 +371,10 @@ fn test_sets(
 /// as samples for [`bands`]: e.g. test captures through `hvs board detect` (`hvs eval` prints
 /// their bands). Rows of a set without joint columns are at the home posture.
 pub fn samples(data: &Dataset) -> Vec<PostureSample> {
-    let posed = data.input_kind() == Some(InputKind::StereoJoints);
     (0..data.len().min(data.targets.len()))
         .map(|i| {
             let r = data.row(i);
-            let joints = if posed {
-                Joints([r[4], r[5], r[6], r[7], r[8]].map(|v| v as f32))
-            } else {
-                Joints::HOME
-            };
+            let joints = data.joints(i).unwrap_or(Joints::HOME);
             PostureSample { px: [r[0], r[1], r[2], r[3]], joints, xyz: data.targets[i] }
         })
         .collect()
