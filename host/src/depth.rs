@@ -158,15 +158,8 @@ pub fn depth(
     // A Z-only model (`hvs train --outputs z`) gives Z alone: X and Y are NaN.
     let no = blob.n_outputs().min(3);
     let mut out = vec![0.0f32; idx.len() * no];
-    let predictor = Predictor::new(blob);
-    if predictor.run(&inputs, &mut out).is_err() {
-        // Some point has no estimate: point by point, keeping the others.
-        for (x, o) in inputs.chunks_exact(4).zip(out.chunks_exact_mut(no)) {
-            if blob.infer(x, o).is_err() {
-                o.fill(f32::INFINITY);
-            }
-        }
-    }
+    // A point without an estimate gets +inf (counted below); the others go on.
+    Predictor::new(blob).run_each(&inputs, &mut out).map_err(|e| anyhow!("{e:?}"))?;
     let mut xyz = vec![[f32::INFINITY; 3]; matches.ur.len()];
     let mut matches = matches;
     let mut no_estimate = 0usize;

@@ -54,12 +54,17 @@ fn neuron_lanes<const N: usize>(bias: f32, w: &[f32; N], x: &[V; N]) -> V {
     a
 }
 
-/// [`LANES`] points (`x`: `LANES * I` values, `out`: `LANES * O`) through `m`. Returns
-/// `false`, writing nothing, if an input or an output is not finite: the caller reruns the
-/// block through `Mlp::infer`.
+/// The linear skip weights `s[k][i]` of a family with a skip term: output `k`'s sum goes on
+/// from the net's with `s[k][i] * xn[i]` in input order (as `infer_flat` adds them).
+pub(crate) type Skip<const I: usize, const O: usize> = [[f32; I]; O];
+
+/// [`LANES`] points (`x`: `LANES * I` values, `out`: `LANES * O`) through `m` (and its
+/// `skip` term, if any). Returns `false`, writing nothing, if an input or an output is not
+/// finite: the caller reruns the block point by point.
 #[inline(always)]
 fn block<const I: usize, const H: usize, const O: usize>(
     m: &Mlp<I, H, O>,
+    skip: Option<&Skip<I, O>>,
     x: &[f32],
     out: &mut [f32],
 ) -> bool {
@@ -84,7 +89,14 @@ fn block<const I: usize, const H: usize, const O: usize>(
     }
     let mut y = [[0.0f32; LANES]; O];
     for k in 0..O {
-        let a = neuron_lanes(m.b2[k], &m.w2[k], &h);
+        let mut a = neuron_lanes(m.b2[k], &m.w2[k], &h);
+        if let Some(s) = skip {
+            for i in 0..I {
+                for l in 0..LANES {
+                    a[l] += s[k][i] * xn[i][l];
+                }
+            }
+        }
         let f = match m.output {
             Activation::Linear => a,
             Activation::Sigmoid => sigmoid_lanes(&a),
@@ -108,20 +120,35 @@ fn block<const I: usize, const H: usize, const O: usize>(
 
 /// Rows of `x` (`I` values each) through `m` into `out` (`O` each), bit-identical to
 /// calling `m.infer` row by row; stops at the first failing row, as that loop does.
+#[cfg(test)]
 pub(crate) fn run<const I: usize, const H: usize, const O: usize>(
     m: &Mlp<I, H, O>,
     x: &[f32],
     out: &mut [f32],
+) -> Result<(), (usize, MlpError)> {
+    run_with(m, None, x, out, |xa| m.infer(xa))
+}
+
+/// [`run`] for the net `m` with an optional `skip` term, bit-identical to `scalar` (the same
+/// net point by point: `Mlp::infer`, or `infer_flat` for a net with a skip term) row by row,
+/// which also runs the blocks with a non-finite input or output and the last partial block;
+/// stops at the first failing row, as that loop does.
+pub(crate) fn run_with<const I: usize, const H: usize, const O: usize>(
+    m: &Mlp<I, H, O>,
+    skip: Option<&Skip<I, O>>,
+    x: &[f32],
+    out: &mut [f32],
+    scalar: impl Fn(&[f32; I]) -> Result<[f32; O], MlpError>,
 ) -> Result<(), (usize, MlpError)> {
     let rows = (x.len() / I).min(out.len() / O);
     let mut r = 0;
     while r < rows {
         let n = (rows - r).min(LANES);
         let (xb, ob) = (&x[r * I..(r + n) * I], &mut out[r * O..(r + n) * O]);
-        if n < LANES || !block(m, xb, ob) {
+        if n < LANES || !block(m, skip, xb, ob) {
             for (q, (xi, oi)) in xb.chunks_exact(I).zip(ob.chunks_exact_mut(O)).enumerate() {
                 let xa: &[f32; I] = xi.try_into().map_err(|_| (r + q, MlpError::Shape))?;
-                let yv = m.infer(xa).map_err(|e| (r + q, e))?;
+                let yv = scalar(xa).map_err(|e| (r + q, e))?;
                 oi.copy_from_slice(&yv);
             }
         }
@@ -356,6 +383,88 @@ mod tests {
             9, 3: 1 2 3 4 5 6 7 8 9 10;
             9, 1: 1 2 3 4 5 6 7 8 9 10;
         );
+    }
+
+    /// The default family (inverse depth with a linear skip term) and the posture frames run
+    /// through the lanes too: against `ModelBlob::infer` row by row, the same bits, the same
+    /// first failing row and error, the same rows written before it.
+    fn check_skip<const I: usize, const H: usize, const O: usize>(
+        rng: &mut rand::rngs::ChaCha8Rng,
+    ) -> usize {
+        let mut compared = 0;
+        use hvs_shared::runtime::blob::{Family, OutputFrame};
+        let inputs = if I == 4 { InputKind::Stereo } else { InputKind::StereoJoints };
+        let outputs = if O == 3 { OutputKind::Xyz } else { OutputKind::Z };
+        let frames: &[OutputFrame] = if I == 9 && O == 3 {
+            &[OutputFrame::Head, OutputFrame::EyePlatform, OutputFrame::Cyclopean]
+        } else {
+            &[OutputFrame::Head]
+        };
+        for model in 0..6 {
+            let mut b = random_blob(rng, H as u8, outputs, inputs, model >= 4);
+            let skip: Vec<f32> = (0..I * O).map(|_| rng.random_range(-0.5f32..0.5)).collect();
+            b.params.extend_from_slice(&skip).unwrap();
+            b.family = if model % 2 == 0 { Family::INVERSE_DEPTH_SKIP } else { Family::THESIS };
+            if model % 2 == 1 {
+                b.family.skip = Family::INVERSE_DEPTH_SKIP.skip;
+            }
+            b.frame = frames[model % frames.len()];
+            let p = Predictor::new(&b);
+            assert!(p.is_fixed(), "{I}-{H}-{O} {:?}", b.family);
+            for set in 0..3 {
+                let rows = LANES * rng.random_range(0..20) + rng.random_range(0..LANES);
+                let x: Vec<f32> = (0..rows * I)
+                    .map(|_| {
+                        let v = rng.random_range(-50.0f32..700.0);
+                        if set > 0 && rng.random_range(0..(20 * set * set)) == 0 {
+                            wild(rng, v)
+                        } else {
+                            v
+                        }
+                    })
+                    .collect();
+                let mut want = vec![f32::from_bits(0x7fc0_dead); rows * O];
+                let mut want_err = None;
+                for r in 0..rows {
+                    if let Err(error) =
+                        b.infer(&x[r * I..(r + 1) * I], &mut want[r * O..(r + 1) * O])
+                    {
+                        want_err = Some(PointError { index: r, error });
+                        break;
+                    }
+                }
+                let done = want_err.map_or(rows, |e| e.index);
+                compared += done;
+                let bits = |v: &[f32]| v.iter().map(|y| y.to_bits()).collect::<Vec<_>>();
+                let mut got = vec![f32::from_bits(0x7fc0_dead); rows * O];
+                assert_eq!(p.run_serial(&x, &mut got).err(), want_err);
+                assert_eq!(bits(&got[..done * O]), bits(&want[..done * O]));
+                match p.predict(&x) {
+                    Ok(y) => {
+                        assert_eq!(want_err, None);
+                        assert_eq!(bits(&y), bits(&want));
+                    }
+                    Err(e) => assert_eq!(Some(e), want_err),
+                }
+            }
+        }
+        compared
+    }
+
+    #[test]
+    fn skip_families_and_posture_frames_give_the_bits_and_errors_of_blob_infer() {
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(0x5c1b);
+        let rng = &mut rng;
+        let compared = check_skip::<4, 1, 3>(rng)
+            + check_skip::<4, 5, 3>(rng)
+            + check_skip::<4, 10, 3>(rng)
+            + check_skip::<4, 5, 1>(rng)
+            + check_skip::<9, 3, 3>(rng)
+            + check_skip::<9, 7, 3>(rng)
+            + check_skip::<9, 10, 3>(rng)
+            + check_skip::<9, 5, 1>(rng);
+        // Not vacuous: most rows have an estimate, whole blocks of them through the lanes.
+        assert!(compared > 4000, "{compared}");
     }
 
     /// Blocks with one bad lane at every position: the error names that row, the rows

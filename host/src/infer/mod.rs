@@ -1,10 +1,12 @@
 //! Batch inference of a weights blob over many points, bit-identical to
 //! `hvs_shared::runtime::blob::ModelBlob::infer` (the head's computation).
 //!
-//! Common topologies (4 or 9 inputs, 1-10 hidden units, 1 or 3 outputs) run through the
-//! fixed-size `hvs_shared::runtime::mlp::Mlp<I, H, O>` evaluated `lanes::LANES` points at a time by
-//! the auto-vectorised, bit-identical kernel in `lanes` (the scalar sigmoid applied lane by
-//! lane), then the family's output map (`OutputMap`, per row); anything else through the runtime-sized `infer_flat`. Both give the same
+//! Common topologies (4 or 9 inputs, 1-10 hidden units, 1 or 3 outputs, with or without the
+//! default family's linear skip term) run through the fixed-size
+//! `hvs_shared::runtime::mlp::Mlp<I, H, O>` evaluated `lanes::LANES` points at a time by the
+//! auto-vectorised, bit-identical kernel in `lanes` (the scalar sigmoid applied lane by lane),
+//! then the family's output map and the output frame (`ModelBlob::finish`, per row); anything
+//! else through the runtime-sized `infer_flat`. Both give the same
 //! bits (a property test in `hvs-shared`, and the tests here and in `lanes`). Large batches
 //! are split into chunks run in parallel with `rayon`; the result does not depend on the
 //! thread count.
@@ -12,8 +14,8 @@
 use crate::data::csv::Table;
 use crate::data::model::input_names;
 use anyhow::{anyhow, Result};
-use hvs_shared::runtime::blob::ModelBlob;
-use hvs_shared::runtime::mlp::{Mlp, MlpError, OutputMap};
+use hvs_shared::runtime::blob::{ModelBlob, OutputFrame};
+use hvs_shared::runtime::mlp::{infer_flat, Mlp, MlpError, OutputMap};
 use rayon::prelude::*;
 
 mod lanes;
@@ -45,23 +47,53 @@ pub struct Predictor<'a> {
 }
 
 fn fixed<const I: usize, const H: usize, const O: usize>(blob: &ModelBlob) -> Option<Kernel> {
-    let m: Mlp<I, H, O> = blob.to_mlp().ok()?;
-    let map = blob.family.output_map;
-    if map == OutputMap::Direct {
+    let flat = blob.flat();
+    if flat.in_offset.len() != I || flat.hidden != H || flat.out_offset.len() != O {
+        return None;
+    }
+    let arr = |s: &[f32]| -> Option<[f32; I]> { s.try_into().ok() };
+    let arr_o = |s: &[f32]| -> Option<[f32; O]> { s.try_into().ok() };
+    let m: Mlp<I, H, O> = Mlp::from_params(
+        flat.params,
+        flat.output,
+        arr(flat.in_offset)?,
+        arr(flat.in_scale)?,
+        arr_o(flat.out_offset)?,
+        arr_o(flat.out_scale)?,
+    )
+    .ok()?;
+    // A family with a skip term: its weights, `s[k][0..I]` per output.
+    let skip: Option<lanes::Skip<I, O>> = match flat.skip.len() {
+        0 => None,
+        n if n == I * O => {
+            Some(core::array::from_fn(|k| core::array::from_fn(|i| flat.skip[k * I + i])))
+        }
+        _ => return None,
+    };
+    let owned = blob.clone();
+    // Point by point (blocks with a non-finite value, the last partial block): the shared
+    // inference's net, `infer_flat` (the bits of `Mlp::infer` for a net without skip term).
+    let scalar = move |x: &[f32; I]| -> Result<[f32; O], MlpError> {
+        let mut y = [0.0f32; O];
+        infer_flat(&owned.flat(), x, &mut y).map(|()| y)
+    };
+    let finish = blob.clone();
+    if blob.family.output_map == OutputMap::Direct && blob.frame == OutputFrame::Head {
         return Some(Kernel::Fixed(Box::new(move |x: &[f32], out: &mut [f32]| {
-            lanes::run(&m, x, out)
+            lanes::run_with(&m, skip.as_ref(), x, out, &scalar)
         })));
     }
-    // The lanes stop at the de-normalised outputs; the family's map follows row by row (the
-    // rows before a failing one are written, so the first failure is reported either way).
+    // The lanes stop at the net's de-normalised outputs; the family's map and the output frame
+    // (`ModelBlob::finish`) follow row by row (the rows before a failing one are written, so
+    // the first failure is reported either way).
     Some(Kernel::Fixed(Box::new(move |x: &[f32], out: &mut [f32]| {
-        let done = lanes::run(&m, x, out);
+        let done = lanes::run_with(&m, skip.as_ref(), x, out, &scalar);
         let rows = match done {
             Ok(()) => out.len() / O,
             Err((r, _)) => r,
         };
-        for (r, o) in out.chunks_exact_mut(O).take(rows).enumerate() {
-            map.apply(o).map_err(|e| (r, e))?;
+        for (r, (xi, o)) in x.chunks_exact(I).zip(out.chunks_exact_mut(O)).take(rows).enumerate() {
+            finish.finish(xi, o).map_err(|e| (r, e))?;
         }
         done
     })))
@@ -158,6 +190,32 @@ impl<'a> Predictor<'a> {
         }
     }
 
+    /// As [`Predictor::run`], going on past failing points: each gets `+inf` for all its
+    /// outputs, the others their estimates (the same bits); returns how many failed.
+    pub fn run_each(&self, inputs: &[f32], out: &mut [f32]) -> Result<usize, PointError> {
+        let (ni, no) = self.check_shape(inputs, out)?;
+        let failed = inputs
+            .par_chunks(CHUNK * ni)
+            .zip(out.par_chunks_mut(CHUNK * no))
+            .map(|(x, o)| {
+                let (mut r, mut failed) = (0, 0);
+                while r * ni < x.len() {
+                    match self.run_serial(&x[r * ni..], &mut o[r * no..]) {
+                        Ok(()) => break,
+                        Err(e) => {
+                            let bad = r + e.index;
+                            o[bad * no..(bad + 1) * no].fill(f32::INFINITY);
+                            failed += 1;
+                            r = bad + 1;
+                        }
+                    }
+                }
+                failed
+            })
+            .sum();
+        Ok(failed)
+    }
+
     /// Allocating form of [`Predictor::run`].
     pub fn predict(&self, inputs: &[f32]) -> Result<Vec<f32>, PointError> {
         let mut out = vec![0.0f32; inputs.len() / self.n_inputs().max(1) * self.n_outputs()];
@@ -200,7 +258,9 @@ pub fn infer_table(blob: &ModelBlob, table: &Table) -> Result<(Vec<f32>, Vec<f32
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use hvs_shared::runtime::blob::{Algorithm, InputKind, OutputKind, Topology, TrainingMeta};
+    use hvs_shared::runtime::blob::{
+        Algorithm, Family, InputKind, OutputKind, Topology, TrainingMeta,
+    };
     use hvs_shared::runtime::mlp::{param_count, Activation};
 
     /// A deterministic hand-made blob of any 4-input topology.
@@ -343,5 +403,38 @@ pub(crate) mod tests {
         assert_eq!(e.index, 20_000);
         assert_eq!(e.error, MlpError::NonFiniteInput);
         assert_eq!(to_f32(&[1.0, 2.0, 4.0, 1e300], 2), Err((1, 1)));
+    }
+
+    /// `run_each` goes past failing points (two in one chunk, one in another, the last
+    /// point): they get +inf, every other point the bits of `ModelBlob::infer`.
+    #[test]
+    fn run_each_marks_the_failing_points_and_keeps_the_others() {
+        for family in [Family::THESIS, Family::INVERSE_DEPTH_SKIP] {
+            let mut b = blob(5, OutputKind::Xyz, InputKind::Stereo);
+            if family.skip != Family::THESIS.skip {
+                b.params.extend_from_slice(&[0.01; 12]).unwrap();
+            }
+            b.family = family;
+            let n = 40_000;
+            let mut x: Vec<f32> =
+                (0..n * 4).map(|k| 200.0 + ((k * 7919) % 24_000) as f32 / 100.0).collect();
+            let bad = [17usize, 18, 1000, 20_000, n - 1];
+            for (i, &r) in bad.iter().enumerate() {
+                x[r * 4 + i % 4] = if i % 2 == 0 { f32::NAN } else { f32::NEG_INFINITY };
+            }
+            let mut out = vec![0.0f32; n * 3];
+            assert_eq!(Predictor::new(&b).run_each(&x, &mut out), Ok(bad.len()));
+            for r in 0..n {
+                let mut want = [0.0f32; 3];
+                let got: [f32; 3] = out[r * 3..r * 3 + 3].try_into().unwrap();
+                match b.infer(&x[r * 4..r * 4 + 4], &mut want) {
+                    Ok(()) => assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "row {r}"),
+                    Err(_) => {
+                        assert!(bad.contains(&r), "row {r}");
+                        assert_eq!(got, [f32::INFINITY; 3]);
+                    }
+                }
+            }
+        }
     }
 }
