@@ -392,14 +392,14 @@ pub(crate) fn refine(
     let (w, h) = (geo.w, geo.h);
     // A rectified pair of cameras alike: every window's map is (nearly) a shift along its row.
     if rectified && scale == [1.0, 1.0] {
+        let planes = Planes::new(left, right);
         best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             super::fast(
                 #[inline(always)]
                 || {
                     for (x, slot) in row.iter_mut().enumerate() {
                         let Some(b) = slot else { continue };
-                        if let Some(u) = refined_rectified(geo, (left, right), (x, y), b.disparity)
-                        {
+                        if let Some(u) = refined_rectified(geo, &planes, (x, y), b.disparity) {
                             b.disparity = (x as f64 - u) as f32;
                         }
                     }
@@ -509,28 +509,6 @@ fn window_sum(rows: &[Lanes; REFINE_SIDE]) -> f32 {
     total(&acc)
 }
 
-/// The 8 grey levels of `img` from `start`, as floats; past the end of `img` (only ever
-/// the padding lane) zero.
-#[inline(always)]
-fn load8(img: &[u8], start: usize) -> Lanes {
-    match img.get(start..start + ROW) {
-        Some(p) => {
-            let mut out = [0.0f32; ROW];
-            for i in 0..ROW {
-                out[i] = f32::from(p[i]);
-            }
-            out
-        }
-        None => {
-            let mut out = [0.0f32; ROW];
-            for (i, o) in out.iter_mut().enumerate() {
-                *o = img.get(start + i).map_or(0.0, |&p| f32::from(p));
-            }
-            out
-        }
-    }
-}
-
 /// The 8 lanes' sum in a fixed order.
 #[inline(always)]
 fn total(acc: &Lanes) -> f32 {
@@ -549,6 +527,38 @@ fn window_dot(a: &[Lanes; REFINE_SIDE], b: &[Lanes; REFINE_SIDE]) -> f32 {
     total(&acc)
 }
 
+/// The grey levels [`refined_rectified`] reads, as floats: both images and the left one's
+/// central difference along its rows (`0.5 (l[i + 1] - l[i - 1])` over the image as one
+/// row, so a window row is one plain load of [`ROW`] lanes instead of [`ROW`] conversions
+/// from bytes, three of them on the left), each followed by [`ROW`] zeros (what a window
+/// row's padding lane reads past the last pixel). The same floats as converting at each
+/// window.
+pub(crate) struct Planes {
+    left: Vec<f32>,
+    grad: Vec<f32>,
+    right: Vec<f32>,
+}
+
+impl Planes {
+    pub(crate) fn new(left: &[u8], right: &[u8]) -> Self {
+        let plane = |img: &[u8]| -> Vec<f32> {
+            img.iter().map(|&p| f32::from(p)).chain([0.0; 2 * ROW]).collect()
+        };
+        let left = plane(left);
+        let n = left.len();
+        let grad = (0..n)
+            .map(|i| if i == 0 || i + 1 == n { 0.0 } else { 0.5 * (left[i + 1] - left[i - 1]) })
+            .collect();
+        Planes { left, grad, right: plane(right) }
+    }
+}
+
+/// The [`ROW`] values of `plane` from `start`.
+#[inline(always)]
+fn lanes_at(plane: &[f32], start: usize) -> Lanes {
+    plane[start..start + ROW].try_into().expect("inside the padded plane")
+}
+
 /// The refined right `u` of left pixel `(x, y)` at `disparity` for a rectified pair of
 /// cameras alike ([`refine`]), `None` where a step is not taken: the derivative is the left
 /// window's (central differences along its row, computed once), not the right one's at each
@@ -559,7 +569,7 @@ fn window_dot(a: &[Lanes; REFINE_SIDE], b: &[Lanes; REFINE_SIDE]) -> f32 {
 #[inline(always)]
 fn refined_rectified(
     geo: &Geo,
-    (left, right): (&[u8], &[u8]),
+    planes: &Planes,
     (x, y): (usize, usize),
     disparity: f32,
 ) -> Option<f64> {
@@ -577,10 +587,10 @@ fn refined_rectified(
         // The window's pixels x - 3 ..= x + 3 and their neighbours either side (inside:
         // checked above; the padding lane reads whatever follows).
         let r = (y + j - half) * w + x - half;
-        let (before, at, after) = (load8(left, r - 1), load8(left, r), load8(left, r + 1));
+        let (at, grad) = (lanes_at(&planes.left, r), lanes_at(&planes.grad, r));
         for i in 0..ROW {
             lw[j][i] = at[i] * WINDOW_LANES[i];
-            gl[j][i] = 0.5 * (after[i] - before[i]) * WINDOW_LANES[i];
+            gl[j][i] = grad[i] * WINDOW_LANES[i];
         }
     }
     let lmean = window_sum(&lw) / N;
@@ -603,7 +613,7 @@ fn refined_rectified(
     let mut u = u0;
     for _ in 0..2 {
         let v = alpha + beta * u;
-        let rw = right_window_lanes(right, (w, h), (u, v))?;
+        let rw = right_window_lanes(&planes.right, (w, h), (u, v))?;
         let rmean = window_sum(&rw) / N;
         let mut centred = [[0.0f32; ROW]; REFINE_SIDE];
         for (c, row) in centred.iter_mut().zip(&rw) {
@@ -628,7 +638,7 @@ fn refined_rectified(
 /// their fractional offsets: the rows of whole pixels interpolated along x, then along y.
 #[inline(always)]
 fn right_window_lanes(
-    img: &[u8],
+    img: &[f32],
     (w, h): (usize, usize),
     (x, y): (f64, f64),
 ) -> Option<[Lanes; REFINE_SIDE]> {
@@ -645,7 +655,7 @@ fn right_window_lanes(
         // window whose right (bottom) edge lies on the image's takes the pixel (row) past it
         // with weight 0 (the last row stands in for the one past it).
         let a = (y0 + r).min(h - 1) * w + x0;
-        let (p, q) = (load8(img, a), load8(img, a + 1));
+        let (p, q) = (lanes_at(img, a), lanes_at(img, a + 1));
         for i in 0..ROW {
             row[i] = p[i] * (1.0 - fx) + q[i] * fx;
         }
@@ -1158,12 +1168,13 @@ mod tests {
             .collect();
         let m = [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]];
         let geo = Geo { m, sign: -1, d_min: 0, d: 20, w, h };
+        let planes = Planes::new(&left, &right);
         let (mut both, mut worst_ref, mut worst_true) = (0, 0.0f64, 0.0f64);
         for y in 0..h {
             for x in 0..w {
                 for start in [-0.45, -0.2, 0.0, 0.3, 0.45] {
                     let disparity = (shift + start) as f32;
-                    let lanes = refined_rectified(&geo, (&left, &right), (x, y), disparity);
+                    let lanes = refined_rectified(&geo, &planes, (x, y), disparity);
                     let reference = refined_rectified_f64(&geo, (&left, &right), (x, y), disparity);
                     let inside = x >= 4 && x + 4 < w && y >= 3 && y + 3 < h && x as f64 > 11.0;
                     if !inside {
