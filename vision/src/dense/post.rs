@@ -605,8 +605,8 @@ fn refined_rectified(
     }
     let lmean = window_sum(&lw) / N;
     for row in lw.iter_mut() {
-        for i in 0..ROW {
-            row[i] = window(row[i] - lmean, i);
+        for (i, v) in row.iter_mut().enumerate() {
+            *v = window(*v - lmean, i);
         }
     }
     let lvar = window_dot(&lw, &lw);
