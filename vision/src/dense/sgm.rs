@@ -7,7 +7,9 @@
 //! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
 //! bottom-left); with two cores the passes run side by side ([`rayon::join`]). Costs are `u8`,
 //! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`), stored disparities innermost
-//! and computed 16 disparities at a time (AVX2 where the CPU has it).
+//! and computed 16 (or 32) disparities at a time; where the CPU has AVX2, a pixel's paths are
+//! stepped together in AVX2 registers and summed in the same pass (`avx`). The same integers
+//! on every path.
 
 /// Penalties of the aggregation.
 #[derive(Debug, Clone, Copy)]
@@ -228,10 +230,242 @@ fn pass(
     sum: &mut [i16],
     on_row: &mut dyn FnMut(usize, &[i16]),
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if dims.2 >= LANES {
+        if let Some(simd) = pulp::x86::V3::try_new() {
+            return simd.vectorize(
+                #[inline(always)]
+                || avx::pass_body(simd, cost, img, dims, pen, backward, add, sum, on_row),
+            );
+        }
+    }
     super::fast(
         #[inline(always)]
         || pass_body(cost, img, dims, pen, backward, add, sum, on_row),
     );
+}
+
+/// [`pass_body`] in AVX2 registers for ranges of [`LANES`] disparities or more: a pixel's
+/// paths stepped together, 16 disparities a register, their sum added in the same pass
+/// (one pass over the pixel's costs and sums instead of one per path and another for the
+/// sum). Integer arithmetic: the same sums as [`pass_body`] (a unit test compares them).
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::{Penalties, BIG, LANES};
+    use core::arch::x86_64::{__m128i, __m256i};
+    use pulp::x86::V3;
+
+    #[inline(always)]
+    fn load(s: &[i16], at: usize) -> __m256i {
+        let a: [i16; LANES] = s[at..at + LANES].try_into().expect("chunk");
+        pulp::cast(a)
+    }
+
+    #[inline(always)]
+    fn store(s: &mut [i16], at: usize, v: __m256i) {
+        let a: [i16; LANES] = pulp::cast(v);
+        s[at..at + LANES].copy_from_slice(&a);
+    }
+
+    /// The costs `c[at..at + 16]` widened to `i16`.
+    #[inline(always)]
+    fn load_costs(simd: V3, c: &[u8], at: usize) -> __m256i {
+        let a: [u8; LANES] = c[at..at + LANES].try_into().expect("chunk");
+        simd.avx2._mm256_cvtepu8_epi16(pulp::cast::<[u8; LANES], __m128i>(a))
+    }
+
+    /// The smallest lane (every lane `0..=i16::MAX`, so the unsigned minimum is it).
+    #[inline(always)]
+    fn min_lane(simd: V3, v: __m256i) -> i16 {
+        let lo = simd.avx._mm256_castsi256_si128(v);
+        let hi = simd.avx2._mm256_extracti128_si256::<1>(v);
+        let m = simd.sse4_1._mm_minpos_epu16(simd.sse2._mm_min_epi16(lo, hi));
+        (simd.sse2._mm_cvtsi128_si32(m) & 0xFFFF) as i16
+    }
+
+    /// The steps of a pixel's `P` paths ([`super::step`] for each: `outs[p]` from
+    /// `prevs[p]`, `pmins[p]` and `p2s[p]`) and their sum into `s` (`s = sum`, or `s += sum`
+    /// when `add`), `d = c.len() >= 16`. A path with nothing before it starts from
+    /// [`super::zero_row`] with `pmin = 0`, which gives `out = c`. Returns each path's
+    /// `min(out)`.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn paths<const P: usize>(
+        simd: V3,
+        prevs: [&[i16]; P],
+        pmins: [i16; P],
+        p2s: [i16; P],
+        c: &[u8],
+        p1: i16,
+        outs: [&mut [i16]; P],
+        s: &mut [i16],
+        add: bool,
+    ) -> [i16; P] {
+        let d = c.len();
+        let (avx, avx2) = (simd.avx, simd.avx2);
+        let p1v = avx._mm256_set1_epi16(p1);
+        let mut pminv = [avx._mm256_setzero_si256(); P];
+        let mut capv = [avx._mm256_setzero_si256(); P];
+        let mut m = [avx._mm256_set1_epi16(i16::MAX); P];
+        for p in 0..P {
+            pminv[p] = avx._mm256_set1_epi16(pmins[p]);
+            capv[p] = avx._mm256_set1_epi16(pmins[p] + p2s[p]);
+        }
+        // The last chunk may overlap its predecessor, which has then already added into the
+        // overlap: it adds to the sums as they were before the pixel.
+        let last = d - LANES;
+        let tail = if add { load(s, last) } else { avx._mm256_setzero_si256() };
+        let mut k0 = 0;
+        loop {
+            let k = k0.min(last);
+            let cc = load_costs(simd, c, k);
+            let mut acc = if !add {
+                avx._mm256_setzero_si256()
+            } else if k == last {
+                tail
+            } else {
+                load(s, k)
+            };
+            for p in 0..P {
+                let prev = prevs[p];
+                let (below, centre, above) = (load(prev, k), load(prev, k + 1), load(prev, k + 2));
+                let jump = avx2._mm256_add_epi16(avx2._mm256_min_epi16(below, above), p1v);
+                let best = avx2._mm256_min_epi16(avx2._mm256_min_epi16(centre, jump), capv[p]);
+                let v = avx2._mm256_sub_epi16(avx2._mm256_add_epi16(cc, best), pminv[p]);
+                store(outs[p], k + 1, v);
+                m[p] = avx2._mm256_min_epi16(m[p], v);
+                acc = avx2._mm256_add_epi16(acc, v);
+            }
+            store(s, k, acc);
+            if k == last {
+                break;
+            }
+            k0 += LANES;
+        }
+        let mut out = [0i16; P];
+        for p in 0..P {
+            out[p] = min_lane(simd, m[p]);
+        }
+        out
+    }
+
+    /// [`super::pass_body`] with [`paths`] (`d >= 16`).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn pass_body(
+        simd: V3,
+        cost: &[u8],
+        img: &[u8],
+        (w, h, d): (usize, usize, usize),
+        pen: &Penalties,
+        backward: bool,
+        add: bool,
+        sum: &mut [i16],
+        on_row: &mut dyn FnMut(usize, &[i16]),
+    ) {
+        debug_assert!(d >= LANES);
+        let dp = d + 2;
+        let slots = if pen.eight { 3 } else { 1 };
+        let mut prev = vec![BIG; slots * w * dp];
+        let mut cur = vec![BIG; slots * w * dp];
+        let mut prev_min = vec![0i16; slots * w];
+        let mut cur_min = vec![0i16; slots * w];
+        let mut lprev = vec![BIG; dp];
+        let mut lcur = vec![BIG; dp];
+        let mut lmin = 0i16;
+        let zero = super::zero_row(dp);
+        let at = |xi: usize, yi: usize| -> usize {
+            if backward {
+                (h - 1 - yi) * w + (w - 1 - xi)
+            } else {
+                yi * w + xi
+            }
+        };
+        let p2 = |a: u8, b: u8| -> i16 { pen.p2[usize::from(a.abs_diff(b))] };
+        for yi in 0..h {
+            for xi in 0..w {
+                let p = at(xi, yi);
+                let c = &cost[p * d..(p + 1) * d];
+                let g = img[p];
+                let s = &mut sum[p * d..(p + 1) * d];
+                // Along the row, then from the previous row: the same column, the column
+                // before and the column after (the slots).
+                let row_in = if xi == 0 {
+                    (&zero[..], 0, pen.p2[0])
+                } else {
+                    (&lprev[..], lmin, p2(g, img[at(xi - 1, yi)]))
+                };
+                let from = |slot: usize| -> (&[i16], i16, i16) {
+                    let fx = match slot {
+                        0 => Some(xi),
+                        1 => xi.checked_sub(1),
+                        _ => (xi + 1 < w).then_some(xi + 1),
+                    };
+                    match fx {
+                        Some(fx) if yi > 0 => (
+                            &prev[(slot * w + fx) * dp..(slot * w + fx + 1) * dp],
+                            prev_min[slot * w + fx],
+                            p2(g, img[at(fx, yi - 1)]),
+                        ),
+                        _ => (&zero[..], 0, pen.p2[0]),
+                    }
+                };
+                let (r0, rest) = cur.split_at_mut(w * dp);
+                let cell0 = &mut r0[xi * dp..(xi + 1) * dp];
+                if slots == 3 {
+                    let (r1, r2) = rest.split_at_mut(w * dp);
+                    let cell1 = &mut r1[xi * dp..(xi + 1) * dp];
+                    let cell2 = &mut r2[xi * dp..(xi + 1) * dp];
+                    let (a, b, e, f) = (row_in, from(0), from(1), from(2));
+                    let m = paths::<4>(
+                        simd,
+                        [a.0, b.0, e.0, f.0],
+                        [a.1, b.1, e.1, f.1],
+                        [a.2, b.2, e.2, f.2],
+                        c,
+                        pen.p1,
+                        [&mut lcur[..], cell0, cell1, cell2],
+                        s,
+                        add,
+                    );
+                    lmin = m[0];
+                    for slot in 0..3 {
+                        cur_min[slot * w + xi] = m[slot + 1];
+                    }
+                } else {
+                    let (a, b) = (row_in, from(0));
+                    let m = paths::<2>(
+                        simd,
+                        [a.0, b.0],
+                        [a.1, b.1],
+                        [a.2, b.2],
+                        c,
+                        pen.p1,
+                        [&mut lcur[..], cell0],
+                        s,
+                        add,
+                    );
+                    lmin = m[0];
+                    cur_min[xi] = m[1];
+                }
+                std::mem::swap(&mut lprev, &mut lcur);
+            }
+            std::mem::swap(&mut prev, &mut cur);
+            std::mem::swap(&mut prev_min, &mut cur_min);
+            let y = if backward { h - 1 - yi } else { yi };
+            on_row(y, &sum[y * w * d..(y + 1) * w * d]);
+        }
+    }
+}
+
+/// The previous cells of a path's first pixel: `d + 2` long, `BIG` at both ends and 0
+/// between, so that a step from it with `pmin = 0` gives the costs themselves.
+#[cfg(target_arch = "x86_64")]
+fn zero_row(dp: usize) -> Vec<i16> {
+    let mut z = vec![0i16; dp];
+    z[0] = BIG;
+    z[dp - 1] = BIG;
+    z
 }
 
 /// The aggregated cost `S(p, d)` of `cost` (`w * h * d`, rows first, disparities innermost)
@@ -358,9 +592,14 @@ mod tests {
     #[test]
     fn every_instruction_set_and_thread_count_gives_the_same_sums() {
         let mut s = 11u64;
-        for (w, h, d, eight) in
-            [(23usize, 9usize, 7usize, true), (17, 12, 40, true), (19, 8, 33, false)]
-        {
+        for (w, h, d, eight) in [
+            (23usize, 9usize, 7usize, true),
+            (17, 12, 40, true),
+            (19, 8, 33, false),
+            (13, 7, 16, true),
+            (11, 6, 64, true),
+            (9, 5, 21, false),
+        ] {
             let cost: Vec<u8> = (0..w * h * d)
                 .map(|_| (hvs_shared::test_support::splitmix64(&mut s) % 63) as u8)
                 .collect();
