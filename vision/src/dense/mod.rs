@@ -312,6 +312,10 @@ fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8
             let v = v_of(k);
             // The last `k` of this row: v_of(end) == v, v_of(end + 1) != v (or end == hi).
             let (mut end, mut past) = (k, hi + 1);
+            // The whole rest on one row (always, for a rectified pair): no bisection.
+            if v_of(hi) == v {
+                end = hi;
+            }
             while past - end > 1 {
                 let mid = end + (past - end) / 2;
                 if v_of(mid) == v {
