@@ -212,10 +212,36 @@ fn eval<'a>(
     head: &HeadRig,
     set: impl IntoIterator<Item = &'a PostureSample>,
 ) -> (Errors, Errors) {
+    let set: Vec<&PostureSample> = set.into_iter().collect();
+    let est = estimates(blob, head, set.iter().copied());
+    errors_of(set.iter().copied().zip(&est))
+}
+
+/// The net's and the floor's estimate of each sample's point.
+type Estimates = (Option<Vec3>, Option<Vec3>);
+
+/// [`Estimates`] of every sample of `set`, in order.
+fn estimates<'a>(
+    blob: &ModelBlob,
+    head: &HeadRig,
+    set: impl IntoIterator<Item = &'a PostureSample>,
+) -> Vec<Estimates> {
+    set.into_iter()
+        .map(|s| {
+            let net = net_xyz(blob, &s.inputs()[..blob.n_inputs()]);
+            (net, head.optimal(&s.joints, &s.px).ok())
+        })
+        .collect()
+}
+
+/// The net's and the floor's errors over samples with their estimates, in order.
+fn errors_of<'a>(
+    set: impl IntoIterator<Item = (&'a PostureSample, &'a Estimates)>,
+) -> (Errors, Errors) {
     let (mut net, mut floor) = (Acc::default(), Acc::default());
-    for s in set {
-        net.add(&s.xyz, net_xyz(blob, &s.inputs()[..blob.n_inputs()]));
-        floor.add(&s.xyz, head.optimal(&s.joints, &s.px).ok());
+    for (s, (n, f)) in set {
+        net.add(&s.xyz, *n);
+        floor.add(&s.xyz, *f);
     }
     (net.errors(), floor.errors())
 }
@@ -388,20 +414,22 @@ pub fn bands(
     test: &[PostureSample],
     extreme: &[PostureSample],
 ) -> Vec<BandRow> {
-    let row = |term, band: &str, set: Vec<&PostureSample>| {
-        let (net, floor) = eval(blob, head, set);
+    // Each sample's estimates once; a band sums its samples' in the set's order.
+    let est = estimates(blob, head, test);
+    let row = |term, band: &str, set: Vec<usize>| {
+        let (net, floor) = errors_of(set.into_iter().map(|i| (&test[i], &est[i])));
         BandRow { term, band: band.to_string(), net, floor }
     };
-    let mut rows = vec![row("all", "random postures of the working range", test.iter().collect())];
+    let mut rows =
+        vec![row("all", "random postures of the working range", (0..test.len()).collect())];
     for (k, [lo, hi]) in PostureRange::WORKING.intervals().into_iter().enumerate() {
         let by_magnitude = k < 4;
         let (a, b) = if by_magnitude { (0.0, lo.abs().max(hi.abs())) } else { (lo, hi) };
         let e = [a, a + (b - a) / 3.0, a + 2.0 * (b - a) / 3.0, b];
         for i in 0..3 {
-            let inside: Vec<&PostureSample> = test
-                .iter()
-                .filter(|s| {
-                    let v = PostureRange::gaze_terms(&s.joints)[k];
+            let inside: Vec<usize> = (0..test.len())
+                .filter(|&j| {
+                    let v = PostureRange::gaze_terms(&test[j].joints)[k];
                     let v = if by_magnitude { v.abs() } else { v };
                     // The last band takes the quantisation overshoot at the top.
                     v >= e[i] - if i == 0 { 1.0 } else { 0.0 } && (v < e[i + 1] || i == 2)
@@ -415,7 +443,8 @@ pub fn bands(
     }
     if !extreme.is_empty() {
         let band = "all four angles in their outer third, vergence 6.7-10";
-        rows.push(row("extreme", band, extreme.iter().collect()));
+        let (net, floor) = eval(blob, head, extreme);
+        rows.push(BandRow { term: "extreme", band: band.to_string(), net, floor });
     }
     rows
 }
