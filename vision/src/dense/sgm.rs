@@ -96,56 +96,75 @@ fn step_in<const L: usize>(
     m.iter().fold(i16::MAX, |a, &b| a.min(b))
 }
 
-/// The first step of a path: `out = c` (padded as in [`step`]); returns `min(c)`.
-#[inline(always)]
-fn start(c: &[u8], out: &mut [i16]) -> i16 {
-    let mut m = i16::MAX;
-    for (o, &cc) in out[1..c.len() + 1].iter_mut().zip(c) {
-        *o = i16::from(cc);
-        m = m.min(*o);
-    }
-    m
+/// How a pass steps a pixel's `P` paths (`P` = 4: along the row and from the three cells
+/// of the previous row; 2 with four paths): `outs[p]` from `prevs[p]`, `pmins[p]` and `p2s[p]`
+/// by [`step`]'s recursion, and their sum into `s` (`s = sum`, or `s += sum` when `add`).
+/// Returns each path's `min(out)`. A path with nothing before it (its first pixel) comes with
+/// [`zero_row`] and `pmin = 0`, which gives `out = c`. Integer sums, so the order of the terms
+/// does not matter (none overflows: eight paths of at most `MAX_COST + P2` each).
+trait Paths {
+    #[allow(clippy::too_many_arguments)]
+    fn paths<const P: usize>(
+        &self,
+        prevs: [&[i16]; P],
+        pmins: [i16; P],
+        p2s: [i16; P],
+        c: &[u8],
+        p1: i16,
+        outs: [&mut [i16]; P],
+        s: &mut [i16],
+        add: bool,
+    ) -> [i16; P];
 }
 
-/// `s = a + b + c + e` (or `s += ...` when `add`) over the `d = s.len()` disparities; the
-/// path rows are padded (`d + 2`, see [`step`]), `c` and `e` may be absent (4 paths).
-#[inline(always)]
-fn accumulate(s: &mut [i16], a: &[i16], b: &[i16], c: Option<(&[i16], &[i16])>, add: bool) {
-    let d = s.len();
-    let ab = a[1..d + 1].iter().zip(&b[1..d + 1]);
-    match c {
-        Some((c, e)) => {
-            let terms = ab.zip(&c[1..d + 1]).zip(&e[1..d + 1]);
-            if add {
-                for (s, (((&a, &b), &c), &e)) in s.iter_mut().zip(terms) {
-                    *s += a + b + c + e;
-                }
-            } else {
-                for (s, (((&a, &b), &c), &e)) in s.iter_mut().zip(terms) {
-                    *s = a + b + c + e;
-                }
-            }
+/// [`Paths`] one path at a time ([`step`]), then the sum.
+struct Portable;
+
+impl Paths for Portable {
+    #[inline(always)]
+    fn paths<const P: usize>(
+        &self,
+        prevs: [&[i16]; P],
+        pmins: [i16; P],
+        p2s: [i16; P],
+        c: &[u8],
+        p1: i16,
+        mut outs: [&mut [i16]; P],
+        s: &mut [i16],
+        add: bool,
+    ) -> [i16; P] {
+        let mut m = [0i16; P];
+        for p in 0..P {
+            m[p] = step(prevs[p], pmins[p], c, p1, p2s[p], outs[p]);
         }
-        None => {
-            if add {
-                for (s, (&a, &b)) in s.iter_mut().zip(ab) {
-                    *s += a + b;
-                }
-            } else {
-                for (s, (&a, &b)) in s.iter_mut().zip(ab) {
-                    *s = a + b;
-                }
+        for (k, v) in s.iter_mut().enumerate() {
+            let mut t = if add { *v } else { 0 };
+            for o in outs.iter_mut() {
+                t += o[k + 1];
             }
+            *v = t;
         }
+        m
     }
+}
+
+/// The previous cells of a path's first pixel: `d + 2` long, `BIG` at both ends and 0
+/// between, so that a step from it with `pmin = 0` gives the costs themselves.
+fn zero_row(dp: usize) -> Vec<i16> {
+    let mut z = vec![0i16; dp];
+    z[0] = BIG;
+    z[dp - 1] = BIG;
+    z
 }
 
 /// One pass (forward: rows top to bottom, left to right; backward: the reverse) writing the
-/// sum of its paths into `sum` (`w * h * d`), or adding it there when `add`; `on_row(y,
-/// row)` is called with each row of `sum` once it is done.
+/// sum of its paths into `sum` (`w * h * d`), or adding it there when `add`, each pixel's
+/// paths stepped by `paths`; `on_row(y, row)` is called with each row of `sum` once it is
+/// done.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn pass_body(
+    paths: &impl Paths,
     cost: &[u8],
     img: &[u8],
     (w, h, d): (usize, usize, usize),
@@ -167,6 +186,7 @@ fn pass_body(
     let mut lprev = vec![BIG; dp];
     let mut lcur = vec![BIG; dp];
     let mut lmin = 0i16;
+    let zero = zero_row(dp);
     let at = |xi: usize, yi: usize| -> usize {
         if backward {
             (h - 1 - yi) * w + (w - 1 - xi)
@@ -180,35 +200,66 @@ fn pass_body(
             let p = at(xi, yi);
             let c = &cost[p * d..(p + 1) * d];
             let g = img[p];
-            // Along the row.
-            lmin = if xi == 0 {
-                start(c, &mut lcur)
+            let s = &mut sum[p * d..(p + 1) * d];
+            // Along the row, then from the previous row: the same column, the column before
+            // and the column after (the slots).
+            let row_in = if xi == 0 {
+                (&zero[..], 0, pen.p2[0])
             } else {
-                step(&lprev, lmin, c, pen.p1, p2(g, img[at(xi - 1, yi)]), &mut lcur)
+                (&lprev[..], lmin, p2(g, img[at(xi - 1, yi)]))
             };
-            std::mem::swap(&mut lprev, &mut lcur);
-            // From the previous row.
-            for slot in 0..slots {
-                let from = match slot {
+            let from = |slot: usize| -> (&[i16], i16, i16) {
+                let fx = match slot {
                     0 => Some(xi),
                     1 => xi.checked_sub(1),
                     _ => (xi + 1 < w).then_some(xi + 1),
                 };
-                let out = &mut cur[(slot * w + xi) * dp..(slot * w + xi + 1) * dp];
-                let m = match from {
-                    Some(fx) if yi > 0 => {
-                        let pv = &prev[(slot * w + fx) * dp..(slot * w + fx + 1) * dp];
-                        let q = at(fx, yi - 1);
-                        step(pv, prev_min[slot * w + fx], c, pen.p1, p2(g, img[q]), out)
-                    }
-                    _ => start(c, out),
-                };
-                cur_min[slot * w + xi] = m;
+                match fx {
+                    Some(fx) if yi > 0 => (
+                        &prev[(slot * w + fx) * dp..(slot * w + fx + 1) * dp],
+                        prev_min[slot * w + fx],
+                        p2(g, img[at(fx, yi - 1)]),
+                    ),
+                    _ => (&zero[..], 0, pen.p2[0]),
+                }
+            };
+            let (r0, rest) = cur.split_at_mut(w * dp);
+            let cell0 = &mut r0[xi * dp..(xi + 1) * dp];
+            if slots == 3 {
+                let (r1, r2) = rest.split_at_mut(w * dp);
+                let cell1 = &mut r1[xi * dp..(xi + 1) * dp];
+                let cell2 = &mut r2[xi * dp..(xi + 1) * dp];
+                let (a, b, e, f) = (row_in, from(0), from(1), from(2));
+                let m = paths.paths::<4>(
+                    [a.0, b.0, e.0, f.0],
+                    [a.1, b.1, e.1, f.1],
+                    [a.2, b.2, e.2, f.2],
+                    c,
+                    pen.p1,
+                    [&mut lcur[..], cell0, cell1, cell2],
+                    s,
+                    add,
+                );
+                lmin = m[0];
+                for slot in 0..3 {
+                    cur_min[slot * w + xi] = m[slot + 1];
+                }
+            } else {
+                let (a, b) = (row_in, from(0));
+                let m = paths.paths::<2>(
+                    [a.0, b.0],
+                    [a.1, b.1],
+                    [a.2, b.2],
+                    c,
+                    pen.p1,
+                    [&mut lcur[..], cell0],
+                    s,
+                    add,
+                );
+                lmin = m[0];
+                cur_min[xi] = m[1];
             }
-            let s = &mut sum[p * d..(p + 1) * d];
-            let cell = |slot: usize| &cur[(slot * w + xi) * dp..(slot * w + xi + 1) * dp];
-            let diagonals = (slots == 3).then(|| (cell(1), cell(2)));
-            accumulate(s, &lprev, cell(0), diagonals, add);
+            std::mem::swap(&mut lprev, &mut lcur);
         }
         std::mem::swap(&mut prev, &mut cur);
         std::mem::swap(&mut prev_min, &mut cur_min);
@@ -235,23 +286,23 @@ fn pass(
         if let Some(simd) = pulp::x86::V3::try_new() {
             return simd.vectorize(
                 #[inline(always)]
-                || avx::pass_body(simd, cost, img, dims, pen, backward, add, sum, on_row),
+                || pass_body(&avx::Avx2(simd), cost, img, dims, pen, backward, add, sum, on_row),
             );
         }
     }
     super::fast(
         #[inline(always)]
-        || pass_body(cost, img, dims, pen, backward, add, sum, on_row),
+        || pass_body(&Portable, cost, img, dims, pen, backward, add, sum, on_row),
     );
 }
 
-/// [`pass_body`] in AVX2 registers for ranges of [`LANES`] disparities or more: a pixel's
-/// paths stepped together, 16 disparities a register, their sum added in the same pass
-/// (one pass over the pixel's costs and sums instead of one per path and another for the
-/// sum). Integer arithmetic: the same sums as [`pass_body`] (a unit test compares them).
+/// [`Paths`] in AVX2 registers for ranges of [`LANES`] disparities or more: a pixel's paths
+/// stepped together, 16 disparities a register, their sum added in the same pass (one pass
+/// over the pixel's costs and sums instead of one per path and another for the sum). Integer
+/// arithmetic: the same sums as [`Portable`] (a unit test compares the passes).
 #[cfg(target_arch = "x86_64")]
 mod avx {
-    use super::{Penalties, BIG, LANES};
+    use super::{Paths, LANES};
     use core::arch::x86_64::{__m128i, __m256i};
     use pulp::x86::V3;
 
@@ -283,189 +334,71 @@ mod avx {
         (simd.sse2._mm_cvtsi128_si32(m) & 0xFFFF) as i16
     }
 
-    /// The steps of a pixel's `P` paths ([`super::step`] for each: `outs[p]` from
-    /// `prevs[p]`, `pmins[p]` and `p2s[p]`) and their sum into `s` (`s = sum`, or `s += sum`
-    /// when `add`), `d = c.len() >= 16`. A path with nothing before it starts from
-    /// [`super::zero_row`] with `pmin = 0`, which gives `out = c`. Returns each path's
-    /// `min(out)`.
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn paths<const P: usize>(
-        simd: V3,
-        prevs: [&[i16]; P],
-        pmins: [i16; P],
-        p2s: [i16; P],
-        c: &[u8],
-        p1: i16,
-        outs: [&mut [i16]; P],
-        s: &mut [i16],
-        add: bool,
-    ) -> [i16; P] {
-        let d = c.len();
-        let (avx, avx2) = (simd.avx, simd.avx2);
-        let p1v = avx._mm256_set1_epi16(p1);
-        let mut pminv = [avx._mm256_setzero_si256(); P];
-        let mut capv = [avx._mm256_setzero_si256(); P];
-        let mut m = [avx._mm256_set1_epi16(i16::MAX); P];
-        for p in 0..P {
-            pminv[p] = avx._mm256_set1_epi16(pmins[p]);
-            capv[p] = avx._mm256_set1_epi16(pmins[p] + p2s[p]);
-        }
-        // The last chunk may overlap its predecessor, which has then already added into the
-        // overlap: it adds to the sums as they were before the pixel.
-        let last = d - LANES;
-        let tail = if add { load(s, last) } else { avx._mm256_setzero_si256() };
-        let mut k0 = 0;
-        loop {
-            let k = k0.min(last);
-            let cc = load_costs(simd, c, k);
-            let mut acc = if !add {
-                avx._mm256_setzero_si256()
-            } else if k == last {
-                tail
-            } else {
-                load(s, k)
-            };
+    /// [`Paths`] in AVX2 registers, 16 disparities a register (`d = c.len() >= 16`).
+    pub(super) struct Avx2(pub V3);
+
+    impl Paths for Avx2 {
+        #[inline(always)]
+        fn paths<const P: usize>(
+            &self,
+            prevs: [&[i16]; P],
+            pmins: [i16; P],
+            p2s: [i16; P],
+            c: &[u8],
+            p1: i16,
+            outs: [&mut [i16]; P],
+            s: &mut [i16],
+            add: bool,
+        ) -> [i16; P] {
+            let (simd, d) = (self.0, c.len());
+            let (avx, avx2) = (simd.avx, simd.avx2);
+            let p1v = avx._mm256_set1_epi16(p1);
+            let mut pminv = [avx._mm256_setzero_si256(); P];
+            let mut capv = [avx._mm256_setzero_si256(); P];
+            let mut m = [avx._mm256_set1_epi16(i16::MAX); P];
             for p in 0..P {
-                let prev = prevs[p];
-                let (below, centre, above) = (load(prev, k), load(prev, k + 1), load(prev, k + 2));
-                let jump = avx2._mm256_add_epi16(avx2._mm256_min_epi16(below, above), p1v);
-                let best = avx2._mm256_min_epi16(avx2._mm256_min_epi16(centre, jump), capv[p]);
-                let v = avx2._mm256_sub_epi16(avx2._mm256_add_epi16(cc, best), pminv[p]);
-                store(outs[p], k + 1, v);
-                m[p] = avx2._mm256_min_epi16(m[p], v);
-                acc = avx2._mm256_add_epi16(acc, v);
+                pminv[p] = avx._mm256_set1_epi16(pmins[p]);
+                capv[p] = avx._mm256_set1_epi16(pmins[p] + p2s[p]);
             }
-            store(s, k, acc);
-            if k == last {
-                break;
-            }
-            k0 += LANES;
-        }
-        let mut out = [0i16; P];
-        for p in 0..P {
-            out[p] = min_lane(simd, m[p]);
-        }
-        out
-    }
-
-    /// [`super::pass_body`] with [`paths`] (`d >= 16`).
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn pass_body(
-        simd: V3,
-        cost: &[u8],
-        img: &[u8],
-        (w, h, d): (usize, usize, usize),
-        pen: &Penalties,
-        backward: bool,
-        add: bool,
-        sum: &mut [i16],
-        on_row: &mut dyn FnMut(usize, &[i16]),
-    ) {
-        debug_assert!(d >= LANES);
-        let dp = d + 2;
-        let slots = if pen.eight { 3 } else { 1 };
-        let mut prev = vec![BIG; slots * w * dp];
-        let mut cur = vec![BIG; slots * w * dp];
-        let mut prev_min = vec![0i16; slots * w];
-        let mut cur_min = vec![0i16; slots * w];
-        let mut lprev = vec![BIG; dp];
-        let mut lcur = vec![BIG; dp];
-        let mut lmin = 0i16;
-        let zero = super::zero_row(dp);
-        let at = |xi: usize, yi: usize| -> usize {
-            if backward {
-                (h - 1 - yi) * w + (w - 1 - xi)
-            } else {
-                yi * w + xi
-            }
-        };
-        let p2 = |a: u8, b: u8| -> i16 { pen.p2[usize::from(a.abs_diff(b))] };
-        for yi in 0..h {
-            for xi in 0..w {
-                let p = at(xi, yi);
-                let c = &cost[p * d..(p + 1) * d];
-                let g = img[p];
-                let s = &mut sum[p * d..(p + 1) * d];
-                // Along the row, then from the previous row: the same column, the column
-                // before and the column after (the slots).
-                let row_in = if xi == 0 {
-                    (&zero[..], 0, pen.p2[0])
+            // The last chunk may overlap its predecessor, which has then already added into the
+            // overlap: it adds to the sums as they were before the pixel.
+            let last = d - LANES;
+            let tail = if add { load(s, last) } else { avx._mm256_setzero_si256() };
+            let mut k0 = 0;
+            loop {
+                let k = k0.min(last);
+                let cc = load_costs(simd, c, k);
+                let mut acc = if !add {
+                    avx._mm256_setzero_si256()
+                } else if k == last {
+                    tail
                 } else {
-                    (&lprev[..], lmin, p2(g, img[at(xi - 1, yi)]))
+                    load(s, k)
                 };
-                let from = |slot: usize| -> (&[i16], i16, i16) {
-                    let fx = match slot {
-                        0 => Some(xi),
-                        1 => xi.checked_sub(1),
-                        _ => (xi + 1 < w).then_some(xi + 1),
-                    };
-                    match fx {
-                        Some(fx) if yi > 0 => (
-                            &prev[(slot * w + fx) * dp..(slot * w + fx + 1) * dp],
-                            prev_min[slot * w + fx],
-                            p2(g, img[at(fx, yi - 1)]),
-                        ),
-                        _ => (&zero[..], 0, pen.p2[0]),
-                    }
-                };
-                let (r0, rest) = cur.split_at_mut(w * dp);
-                let cell0 = &mut r0[xi * dp..(xi + 1) * dp];
-                if slots == 3 {
-                    let (r1, r2) = rest.split_at_mut(w * dp);
-                    let cell1 = &mut r1[xi * dp..(xi + 1) * dp];
-                    let cell2 = &mut r2[xi * dp..(xi + 1) * dp];
-                    let (a, b, e, f) = (row_in, from(0), from(1), from(2));
-                    let m = paths::<4>(
-                        simd,
-                        [a.0, b.0, e.0, f.0],
-                        [a.1, b.1, e.1, f.1],
-                        [a.2, b.2, e.2, f.2],
-                        c,
-                        pen.p1,
-                        [&mut lcur[..], cell0, cell1, cell2],
-                        s,
-                        add,
-                    );
-                    lmin = m[0];
-                    for slot in 0..3 {
-                        cur_min[slot * w + xi] = m[slot + 1];
-                    }
-                } else {
-                    let (a, b) = (row_in, from(0));
-                    let m = paths::<2>(
-                        simd,
-                        [a.0, b.0],
-                        [a.1, b.1],
-                        [a.2, b.2],
-                        c,
-                        pen.p1,
-                        [&mut lcur[..], cell0],
-                        s,
-                        add,
-                    );
-                    lmin = m[0];
-                    cur_min[xi] = m[1];
+                for p in 0..P {
+                    let prev = prevs[p];
+                    let (below, centre, above) =
+                        (load(prev, k), load(prev, k + 1), load(prev, k + 2));
+                    let jump = avx2._mm256_add_epi16(avx2._mm256_min_epi16(below, above), p1v);
+                    let best = avx2._mm256_min_epi16(avx2._mm256_min_epi16(centre, jump), capv[p]);
+                    let v = avx2._mm256_sub_epi16(avx2._mm256_add_epi16(cc, best), pminv[p]);
+                    store(outs[p], k + 1, v);
+                    m[p] = avx2._mm256_min_epi16(m[p], v);
+                    acc = avx2._mm256_add_epi16(acc, v);
                 }
-                std::mem::swap(&mut lprev, &mut lcur);
+                store(s, k, acc);
+                if k == last {
+                    break;
+                }
+                k0 += LANES;
             }
-            std::mem::swap(&mut prev, &mut cur);
-            std::mem::swap(&mut prev_min, &mut cur_min);
-            let y = if backward { h - 1 - yi } else { yi };
-            on_row(y, &sum[y * w * d..(y + 1) * w * d]);
+            let mut out = [0i16; P];
+            for p in 0..P {
+                out[p] = min_lane(simd, m[p]);
+            }
+            out
         }
     }
-}
-
-/// The previous cells of a path's first pixel: `d + 2` long, `BIG` at both ends and 0
-/// between, so that a step from it with `pmin = 0` gives the costs themselves.
-#[cfg(target_arch = "x86_64")]
-fn zero_row(dp: usize) -> Vec<i16> {
-    let mut z = vec![0i16; dp];
-    z[0] = BIG;
-    z[dp - 1] = BIG;
-    z
 }
 
 /// The aggregated cost `S(p, d)` of `cost` (`w * h * d`, rows first, disparities innermost)
@@ -612,8 +545,8 @@ mod tests {
             let pen = Penalties { p1: 16, p2, eight };
             let dims = (w, h, d);
             let mut plain = vec![0i16; w * h * d];
-            pass_body(&cost, &img, dims, &pen, false, false, &mut plain, &mut |_, _| {});
-            pass_body(&cost, &img, dims, &pen, true, true, &mut plain, &mut |_, _| {});
+            pass_body(&Portable, &cost, &img, dims, &pen, false, false, &mut plain, &mut |_, _| {});
+            pass_body(&Portable, &cost, &img, dims, &pen, true, true, &mut plain, &mut |_, _| {});
             let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
             let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
             for pool in [one, two] {
