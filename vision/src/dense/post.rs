@@ -1146,21 +1146,28 @@ pub fn confidence(s1: i32, s2: i32, lr: f32, tol: f32) -> f32 {
 
 /// The winners as right-image pixels.
 pub(crate) fn to_map(geo: &Geo, best: &[Option<Best>], tol: f32) -> DenseMap {
-    let n = geo.w * geo.h;
+    let (w, n) = (geo.w, geo.w * geo.h);
     let (mut ur, mut vr, mut conf) =
         (vec![f32::INFINITY; n], vec![f32::INFINITY; n], vec![0.0f32; n]);
-    for (p, b) in best.iter().enumerate() {
-        let Some(b) = b else { continue };
-        let (x, y) = (p % geo.w, p / geo.w);
-        let Some((alpha, beta)) = geo.line(x, y) else {
-            continue;
-        };
-        let u = x as f64 - f64::from(b.disparity);
-        ur[p] = u as f32;
-        vr[p] = (alpha + beta * u) as f32;
-        conf[p] = confidence(b.s1, b.s2, b.lr, tol);
-    }
-    DenseMap { width: geo.w as u32, height: geo.h as u32, ur, vr, conf }
+    // Row by row, in parallel (each pixel on its own: the same values either way).
+    ur.par_chunks_mut(w.max(1))
+        .zip(vr.par_chunks_mut(w.max(1)))
+        .zip(conf.par_chunks_mut(w.max(1)))
+        .zip(best.par_chunks(w.max(1)))
+        .enumerate()
+        .for_each(|(y, (((ur, vr), conf), best))| {
+            for (x, b) in best.iter().enumerate() {
+                let Some(b) = b else { continue };
+                let Some((alpha, beta)) = geo.line(x, y) else {
+                    continue;
+                };
+                let u = x as f64 - f64::from(b.disparity);
+                ur[x] = u as f32;
+                vr[x] = (alpha + beta * u) as f32;
+                conf[x] = confidence(b.s1, b.s2, b.lr, tol);
+            }
+        });
+    DenseMap { width: w as u32, height: geo.h as u32, ur, vr, conf }
 }
 
 #[cfg(test)]
