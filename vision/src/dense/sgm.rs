@@ -187,17 +187,50 @@ fn pass_body(
     let mut lcur = vec![BIG; dp];
     let mut lmin = 0i16;
     let zero = zero_row(dp);
-    let at = |xi: usize, yi: usize| -> usize {
+    // Plain functions, not closures: these run for every pixel, and closures were left as
+    // calls in the vectorised body.
+    #[inline(always)]
+    fn at((w, h): (usize, usize), backward: bool, xi: usize, yi: usize) -> usize {
         if backward {
             (h - 1 - yi) * w + (w - 1 - xi)
         } else {
             yi * w + xi
         }
-    };
-    let p2 = |a: u8, b: u8| -> i16 { pen.p2[usize::from(a.abs_diff(b))] };
+    }
+    #[inline(always)]
+    fn p2(pen: &Penalties, a: u8, b: u8) -> i16 {
+        pen.p2[usize::from(a.abs_diff(b))]
+    }
+    /// The cells, the smallest cell and `P2` of slot `slot`'s path at column `xi` of row
+    /// `yi` (from the previous row), or of a path's start ([`zero_row`]).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn from<'a>(
+        (w, h, dp): (usize, usize, usize),
+        backward: bool,
+        (prev, prev_min, zero): (&'a [i16], &[i16], &'a [i16]),
+        (img, g, pen): (&[u8], u8, &Penalties),
+        slot: usize,
+        xi: usize,
+        yi: usize,
+    ) -> (&'a [i16], i16, i16) {
+        let fx = match slot {
+            0 => Some(xi),
+            1 => xi.checked_sub(1),
+            _ => (xi + 1 < w).then_some(xi + 1),
+        };
+        match fx {
+            Some(fx) if yi > 0 => (
+                &prev[(slot * w + fx) * dp..(slot * w + fx + 1) * dp],
+                prev_min[slot * w + fx],
+                p2(pen, g, img[at((w, h), backward, fx, yi - 1)]),
+            ),
+            _ => (zero, 0, pen.p2[0]),
+        }
+    }
     for yi in 0..h {
         for xi in 0..w {
-            let p = at(xi, yi);
+            let p = at((w, h), backward, xi, yi);
             let c = &cost[p * d..(p + 1) * d];
             let g = img[p];
             let s = &mut sum[p * d..(p + 1) * d];
@@ -206,23 +239,10 @@ fn pass_body(
             let row_in = if xi == 0 {
                 (&zero[..], 0, pen.p2[0])
             } else {
-                (&lprev[..], lmin, p2(g, img[at(xi - 1, yi)]))
+                (&lprev[..], lmin, p2(pen, g, img[at((w, h), backward, xi - 1, yi)]))
             };
-            let from = |slot: usize| -> (&[i16], i16, i16) {
-                let fx = match slot {
-                    0 => Some(xi),
-                    1 => xi.checked_sub(1),
-                    _ => (xi + 1 < w).then_some(xi + 1),
-                };
-                match fx {
-                    Some(fx) if yi > 0 => (
-                        &prev[(slot * w + fx) * dp..(slot * w + fx + 1) * dp],
-                        prev_min[slot * w + fx],
-                        p2(g, img[at(fx, yi - 1)]),
-                    ),
-                    _ => (&zero[..], 0, pen.p2[0]),
-                }
-            };
+            let bufs = (&prev[..], &prev_min[..], &zero[..]);
+            let from = |slot| from((w, h, dp), backward, bufs, (img, g, pen), slot, xi, yi);
             let (r0, rest) = cur.split_at_mut(w * dp);
             let cell0 = &mut r0[xi * dp..(xi + 1) * dp];
             if slots == 3 {
