@@ -559,9 +559,9 @@ fn window_dot(a: &[Lanes; REFINE_SIDE], b: &[Lanes; REFINE_SIDE]) -> f32 {
 /// The grey levels [`refined_rectified`] reads, as floats: both images and the left one's
 /// central difference along its rows (`0.5 (l[i + 1] - l[i - 1])` over the image as one
 /// row, so a window row is one plain load of [`ROW`] lanes instead of [`ROW`] conversions
-/// from bytes, three of them on the left), each followed by [`ROW`] zeros (what a window
-/// row's padding lane reads past the last pixel). The same floats as converting at each
-/// window.
+/// from bytes, three of them on the left), each followed by `2 ROW` zeros (what a window
+/// row's padding lane, or the bilinear window's pixel past its last, reads past the last
+/// pixel). The same floats as converting at each window.
 pub(crate) struct Planes {
     left: Vec<f32>,
     grad: Vec<f32>,
