@@ -401,9 +401,13 @@ pub(crate) fn refine(
                     || {
                         for (x, slot) in row.iter_mut().enumerate() {
                             let Some(b) = slot else { continue };
-                            if let Some(u) =
-                                avx::refined_rectified(simd, geo, &planes, (x, y), b.disparity)
-                            {
+                            if let Some(u) = refined_rectified(
+                                avx::Rows(simd),
+                                geo,
+                                &planes,
+                                (x, y),
+                                b.disparity,
+                            ) {
                                 b.disparity = (x as f64 - u) as f32;
                             }
                         }
@@ -418,7 +422,8 @@ pub(crate) fn refine(
                 || {
                     for (x, slot) in row.iter_mut().enumerate() {
                         let Some(b) = slot else { continue };
-                        if let Some(u) = refined_rectified(geo, &planes, (x, y), b.disparity) {
+                        if let Some(u) = refined_rectified(Rows8, geo, &planes, (x, y), b.disparity)
+                        {
                             b.disparity = (x as f64 - u) as f32;
                         }
                     }
@@ -512,48 +517,90 @@ fn refined(
 const ROW: usize = 8;
 /// One window row ([`ROW`] lanes).
 type Lanes = [f32; ROW];
-/// `v` in the window's lanes, 0 in the padding lane `i = 7`: a select (a product with a 0/1
-/// mask, as before, costs more: the products by 1 fold away lane by lane and the rest is
-/// split into narrower pieces; a product by 0 also gives -0 for negative `v`, which no sum
-/// here tells apart: the same output bytes).
-#[inline(always)]
-fn window(v: f32, i: usize) -> f32 {
-    if i < REFINE_SIDE {
-        v
-    } else {
-        0.0
+/// The arithmetic of [`refined_rectified`] on window rows of [`ROW`] lanes (the window's 7
+/// pixels and a padding lane held at 0): [`Rows8`] on plain arrays, `avx::Rows` in AVX2
+/// registers. Both do the same float operations lane by lane in the same order, and total
+/// the lanes in the same order, so they give the same bits (a unit test compares them).
+trait RowOps: Copy {
+    /// One window row.
+    type R: Copy;
+    /// A row of zeros.
+    fn zero(self) -> Self::R;
+    /// The [`ROW`] values of `plane` from `at`.
+    fn load(self, plane: &[f32], at: usize) -> Self::R;
+    /// `v` in the window's lanes, +0 in the padding lane.
+    fn masked(self, v: Self::R) -> Self::R;
+    /// `v - s` in every lane.
+    fn minus(self, v: Self::R, s: f32) -> Self::R;
+    /// `a * wa + b * wb` in every lane.
+    fn lerp(self, a: Self::R, wa: f32, b: Self::R, wb: f32) -> Self::R;
+    /// `acc + v` (`mul`: `acc + v * u`) in every lane.
+    fn add(self, acc: Self::R, v: Self::R) -> Self::R;
+    fn add_product(self, acc: Self::R, v: Self::R, u: Self::R) -> Self::R;
+    /// The lanes' sum: `((a0 + a4) + (a1 + a5)) + ((a2 + a6) + (a3 + a7))`.
+    fn total(self, v: Self::R) -> f32;
+}
+
+/// [`RowOps`] on arrays, for the compiler to vectorise.
+#[derive(Clone, Copy)]
+struct Rows8;
+
+impl RowOps for Rows8 {
+    type R = Lanes;
+    #[inline(always)]
+    fn zero(self) -> Lanes {
+        [0.0; ROW]
+    }
+    #[inline(always)]
+    fn load(self, plane: &[f32], at: usize) -> Lanes {
+        lanes_at(plane, at)
+    }
+    /// A select, not a product with a 0/1 mask (the products by 1 fold away lane by lane and
+    /// the rest was split into narrower pieces; a product by 0 gives -0 for negative `v`).
+    #[inline(always)]
+    fn masked(self, v: Lanes) -> Lanes {
+        core::array::from_fn(|i| if i < REFINE_SIDE { v[i] } else { 0.0 })
+    }
+    #[inline(always)]
+    fn minus(self, v: Lanes, s: f32) -> Lanes {
+        v.map(|x| x - s)
+    }
+    #[inline(always)]
+    fn lerp(self, a: Lanes, wa: f32, b: Lanes, wb: f32) -> Lanes {
+        core::array::from_fn(|i| a[i] * wa + b[i] * wb)
+    }
+    #[inline(always)]
+    fn add(self, acc: Lanes, v: Lanes) -> Lanes {
+        core::array::from_fn(|i| acc[i] + v[i])
+    }
+    #[inline(always)]
+    fn add_product(self, acc: Lanes, v: Lanes, u: Lanes) -> Lanes {
+        core::array::from_fn(|i| acc[i] + v[i] * u[i])
+    }
+    #[inline(always)]
+    fn total(self, a: Lanes) -> f32 {
+        ((a[0] + a[4]) + (a[1] + a[5])) + ((a[2] + a[6]) + (a[3] + a[7]))
     }
 }
 
-/// The sum over a window's 7 rows: lane by lane over the rows, then the 8 lanes in a fixed
-/// order ([`total`]; the same floats with or without vector instructions).
+/// The sum over a window's rows: lane by lane over the rows, then [`RowOps::total`].
 #[inline(always)]
-fn window_sum(rows: &[Lanes; REFINE_SIDE]) -> f32 {
-    let mut acc = [0.0f32; ROW];
-    for row in rows {
-        for i in 0..ROW {
-            acc[i] += row[i];
-        }
+fn window_sum<O: RowOps>(o: O, rows: &[O::R; REFINE_SIDE]) -> f32 {
+    let mut acc = o.zero();
+    for r in rows {
+        acc = o.add(acc, *r);
     }
-    total(&acc)
+    o.total(acc)
 }
 
-/// The 8 lanes' sum in a fixed order.
+/// The sum of `a * b` over two windows (lane by lane over the rows, then the total).
 #[inline(always)]
-fn total(acc: &Lanes) -> f32 {
-    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]))
-}
-
-/// The sum of `a * b` over two windows (lane by lane over the rows, then [`total`]).
-#[inline(always)]
-fn window_dot(a: &[Lanes; REFINE_SIDE], b: &[Lanes; REFINE_SIDE]) -> f32 {
-    let mut acc = [0.0f32; ROW];
+fn window_dot<O: RowOps>(o: O, a: &[O::R; REFINE_SIDE], b: &[O::R; REFINE_SIDE]) -> f32 {
+    let mut acc = o.zero();
     for (a, b) in a.iter().zip(b) {
-        for i in 0..ROW {
-            acc[i] += a[i] * b[i];
-        }
+        acc = o.add_product(acc, *a, *b);
     }
-    total(&acc)
+    o.total(acc)
 }
 
 /// The grey levels [`refined_rectified`] reads, as floats: both images and the left one's
@@ -596,7 +643,8 @@ fn lanes_at(plane: &[f32], start: usize) -> Lanes {
 /// 8-lane vector ([`Lanes`]); the windows are centred on their means before any sum of
 /// squares, so that no large sums cancel.
 #[inline(always)]
-fn refined_rectified(
+fn refined_rectified<O: RowOps>(
+    o: O,
     geo: &Geo,
     planes: &Planes,
     (x, y): (usize, usize),
@@ -610,51 +658,44 @@ fn refined_rectified(
         return None;
     }
     let half = REFINE_HALF as usize;
-    let mut lw = [[0.0f32; ROW]; REFINE_SIDE];
-    let mut gl = [[0.0f32; ROW]; REFINE_SIDE];
+    let (mut lw, mut gl) = ([o.zero(); REFINE_SIDE], [o.zero(); REFINE_SIDE]);
+    // Plain loops (no closures) here and below: a closure would not be compiled for the
+    // instruction set of the vectorised caller.
     for j in 0..REFINE_SIDE {
-        // The window's pixels x - 3 ..= x + 3 and their neighbours either side (inside:
-        // checked above; the padding lane reads whatever follows).
+        // The window's pixels x - 3 ..= x + 3 (inside: checked above; the padding lane
+        // reads whatever follows).
         let r = (y + j - half) * w + x - half;
-        let (at, grad) = (lanes_at(&planes.left, r), lanes_at(&planes.grad, r));
-        for i in 0..ROW {
-            lw[j][i] = window(at[i], i);
-            gl[j][i] = window(grad[i], i);
-        }
+        lw[j] = o.masked(o.load(&planes.left, r));
+        gl[j] = o.masked(o.load(&planes.grad, r));
     }
-    let lmean = window_sum(&lw) / N;
+    let lmean = window_sum(o, &lw) / N;
     for row in lw.iter_mut() {
-        for (i, v) in row.iter_mut().enumerate() {
-            *v = window(*v - lmean, i);
-        }
+        *row = o.masked(o.minus(*row, lmean));
     }
-    let lvar = window_dot(&lw, &lw);
+    let lvar = window_dot(o, &lw, &lw);
     if lvar < 1e-6 {
         return None;
     }
-    let sg = window_sum(&gl);
-    let den = window_dot(&gl, &gl) - sg * (sg / N);
+    let sg = window_sum(o, &gl);
+    let den = window_dot(o, &gl, &gl) - sg * (sg / N);
     if den <= 1e-9 {
         return None;
     }
-    let sgl = window_dot(&gl, &lw);
+    let sgl = window_dot(o, &gl, &lw);
     let u0 = x as f64 - f64::from(disparity);
     let mut u = u0;
     for _ in 0..2 {
         let v = alpha + beta * u;
-        let rw = right_window_lanes(&planes.right, (w, h), (u, v))?;
-        let rmean = window_sum(&rw) / N;
-        let mut centred = [[0.0f32; ROW]; REFINE_SIDE];
-        for (c, row) in centred.iter_mut().zip(&rw) {
-            for i in 0..ROW {
-                c[i] = window(row[i] - rmean, i);
-            }
+        let mut rw = right_window_lanes(o, &planes.right, (w, h), (u, v))?;
+        let rmean = window_sum(o, &rw) / N;
+        for row in rw.iter_mut() {
+            *row = o.masked(o.minus(*row, rmean));
         }
-        let rvar = window_dot(&centred, &centred);
+        let rvar = window_dot(o, &rw, &rw);
         if rvar < 1e-6 {
             return None;
         }
-        let sgr = window_dot(&gl, &centred);
+        let sgr = window_dot(o, &gl, &rw);
         let gain = (lvar / rvar).sqrt();
         let num = sgl - gain * sgr;
         u += f64::from((num / den).clamp(-0.5, 0.5));
@@ -662,158 +703,63 @@ fn refined_rectified(
     ((u - u0).abs() <= 0.5).then_some(u)
 }
 
-/// [`refined_rectified`] in AVX registers, a window row per register: the compiler
-/// vectorised the portable form's 8-lane rows as 4-lane pieces and scalars. The same
-/// operations lane by lane in the same order (no fused multiply-add), the lane totals in
-/// [`total`]'s order: the same floats, bit for bit (a unit test compares them).
+/// [`RowOps`] in AVX registers, a window row per register (pulp's safe `V3` intrinsics): the
+/// compiler had vectorised [`Rows8`]'s rows as 4-lane pieces and scalars.
 #[cfg(target_arch = "x86_64")]
 mod avx {
-    use super::{window_inside, Geo, Planes, REFINE_HALF, REFINE_SIDE, ROW};
+    use super::{RowOps, ROW};
     use core::arch::x86_64::__m256;
     use pulp::x86::V3;
-
-    type Rows = [__m256; REFINE_SIDE];
 
     /// All bits of the window's lanes, none of the padding lane.
     const KEEP: [u32; ROW] =
         [u32::MAX, u32::MAX, u32::MAX, u32::MAX, u32::MAX, u32::MAX, u32::MAX, 0];
 
-    #[inline(always)]
-    fn load(plane: &[f32], at: usize) -> __m256 {
-        pulp::cast(super::lanes_at(plane, at))
-    }
+    #[derive(Clone, Copy)]
+    pub(super) struct Rows(pub V3);
 
-    /// `v` in the window's lanes, +0 in the padding lane (as [`super::window`]).
-    #[inline(always)]
-    fn masked(simd: V3, v: __m256, keep: __m256) -> __m256 {
-        simd.avx._mm256_and_ps(v, keep)
-    }
-
-    /// The lanes' sum in [`super::total`]'s order: `(a0 + a4) + (a1 + a5)` plus
-    /// `(a2 + a6) + (a3 + a7)`.
-    #[inline(always)]
-    fn total(simd: V3, v: __m256) -> f32 {
-        let lo = simd.avx._mm256_castps256_ps128(v);
-        let hi = simd.avx._mm256_extractf128_ps::<1>(v);
-        let s: [f32; 4] = pulp::cast(simd.sse._mm_add_ps(lo, hi));
-        (s[0] + s[1]) + (s[2] + s[3])
-    }
-
-    #[inline(always)]
-    fn window_sum(simd: V3, rows: &Rows) -> f32 {
-        let mut acc = simd.avx._mm256_set1_ps(0.0);
-        for r in rows {
-            acc = simd.avx._mm256_add_ps(acc, *r);
+    impl RowOps for Rows {
+        type R = __m256;
+        #[inline(always)]
+        fn zero(self) -> __m256 {
+            self.0.avx._mm256_set1_ps(0.0)
         }
-        total(simd, acc)
-    }
-
-    #[inline(always)]
-    fn window_dot(simd: V3, a: &Rows, b: &Rows) -> f32 {
-        let mut acc = simd.avx._mm256_set1_ps(0.0);
-        for (a, b) in a.iter().zip(b) {
-            acc = simd.avx._mm256_add_ps(acc, simd.avx._mm256_mul_ps(*a, *b));
+        #[inline(always)]
+        fn load(self, plane: &[f32], at: usize) -> __m256 {
+            pulp::cast(super::lanes_at(plane, at))
         }
-        total(simd, acc)
-    }
-
-    /// [`super::right_window_lanes`].
-    #[inline(always)]
-    fn right_window(
-        simd: V3,
-        img: &[f32],
-        (w, h): (usize, usize),
-        (x, y): (f64, f64),
-        keep: __m256,
-    ) -> Option<Rows> {
-        let half = REFINE_HALF as f64;
-        let (bx, by) = (x - half, y - half);
-        if !(bx >= 0.0 && by >= 0.0 && x + half <= (w - 1) as f64 && y + half <= (h - 1) as f64) {
-            return None;
+        #[inline(always)]
+        fn masked(self, v: __m256) -> __m256 {
+            self.0.avx._mm256_and_ps(v, pulp::cast(KEEP))
         }
-        let (x0, y0) = (bx as usize, by as usize);
-        let (fx, fy) = ((bx - x0 as f64) as f32, (by - y0 as f64) as f32);
-        let (ax, bxw) = (simd.avx._mm256_set1_ps(1.0 - fx), simd.avx._mm256_set1_ps(fx));
-        let (ay, byw) = (simd.avx._mm256_set1_ps(1.0 - fy), simd.avx._mm256_set1_ps(fy));
-        let mut rows = [simd.avx._mm256_set1_ps(0.0); REFINE_SIDE + 1];
-        for (r, row) in rows.iter_mut().enumerate() {
-            let a = (y0 + r).min(h - 1) * w + x0;
-            let (p, q) = (load(img, a), load(img, a + 1));
-            *row = simd
-                .avx
-                ._mm256_add_ps(simd.avx._mm256_mul_ps(p, ax), simd.avx._mm256_mul_ps(q, bxw));
+        #[inline(always)]
+        fn minus(self, v: __m256, s: f32) -> __m256 {
+            self.0.avx._mm256_sub_ps(v, self.0.avx._mm256_set1_ps(s))
         }
-        let mut out: Rows = [simd.avx._mm256_set1_ps(0.0); REFINE_SIDE];
-        // Loops, not closures: a closure does not inherit the target features, and the
-        // intrinsics would then be calls.
-        for (j, o) in out.iter_mut().enumerate() {
-            let v = simd.avx._mm256_add_ps(
-                simd.avx._mm256_mul_ps(rows[j], ay),
-                simd.avx._mm256_mul_ps(rows[j + 1], byw),
-            );
-            *o = masked(simd, v, keep);
+        #[inline(always)]
+        fn lerp(self, a: __m256, wa: f32, b: __m256, wb: f32) -> __m256 {
+            let avx = self.0.avx;
+            avx._mm256_add_ps(
+                avx._mm256_mul_ps(a, avx._mm256_set1_ps(wa)),
+                avx._mm256_mul_ps(b, avx._mm256_set1_ps(wb)),
+            )
         }
-        Some(out)
-    }
-
-    /// [`super::refined_rectified`], line for line.
-    #[inline(always)]
-    pub(super) fn refined_rectified(
-        simd: V3,
-        geo: &Geo,
-        planes: &Planes,
-        (x, y): (usize, usize),
-        disparity: f32,
-    ) -> Option<f64> {
-        const N: f32 = (REFINE_SIDE * REFINE_SIDE) as f32;
-        let (alpha, beta) = geo.line(x, y)?;
-        let (w, h) = (geo.w, geo.h);
-        if !window_inside((w, h), (x, y), 1) {
-            return None;
+        #[inline(always)]
+        fn add(self, acc: __m256, v: __m256) -> __m256 {
+            self.0.avx._mm256_add_ps(acc, v)
         }
-        let half = REFINE_HALF as usize;
-        let keep: __m256 = pulp::cast(KEEP);
-        let zero = simd.avx._mm256_set1_ps(0.0);
-        let (mut lw, mut gl): (Rows, Rows) = ([zero; REFINE_SIDE], [zero; REFINE_SIDE]);
-        for j in 0..REFINE_SIDE {
-            let r = (y + j - half) * w + x - half;
-            lw[j] = masked(simd, load(&planes.left, r), keep);
-            gl[j] = masked(simd, load(&planes.grad, r), keep);
+        #[inline(always)]
+        fn add_product(self, acc: __m256, v: __m256, u: __m256) -> __m256 {
+            self.0.avx._mm256_add_ps(acc, self.0.avx._mm256_mul_ps(v, u))
         }
-        let lmean = simd.avx._mm256_set1_ps(window_sum(simd, &lw) / N);
-        for row in lw.iter_mut() {
-            *row = masked(simd, simd.avx._mm256_sub_ps(*row, lmean), keep);
+        #[inline(always)]
+        fn total(self, v: __m256) -> f32 {
+            let simd = self.0;
+            let lo = simd.avx._mm256_castps256_ps128(v);
+            let hi = simd.avx._mm256_extractf128_ps::<1>(v);
+            let s: [f32; 4] = pulp::cast(simd.sse._mm_add_ps(lo, hi));
+            (s[0] + s[1]) + (s[2] + s[3])
         }
-        let lvar = window_dot(simd, &lw, &lw);
-        if lvar < 1e-6 {
-            return None;
-        }
-        let sg = window_sum(simd, &gl);
-        let den = window_dot(simd, &gl, &gl) - sg * (sg / N);
-        if den <= 1e-9 {
-            return None;
-        }
-        let sgl = window_dot(simd, &gl, &lw);
-        let u0 = x as f64 - f64::from(disparity);
-        let mut u = u0;
-        for _ in 0..2 {
-            let v = alpha + beta * u;
-            let rw = right_window(simd, &planes.right, (w, h), (u, v), keep)?;
-            let rmean = simd.avx._mm256_set1_ps(window_sum(simd, &rw) / N);
-            let mut centred: Rows = rw;
-            for c in centred.iter_mut() {
-                *c = masked(simd, simd.avx._mm256_sub_ps(*c, rmean), keep);
-            }
-            let rvar = window_dot(simd, &centred, &centred);
-            if rvar < 1e-6 {
-                return None;
-            }
-            let sgr = window_dot(simd, &gl, &centred);
-            let gain = (lvar / rvar).sqrt();
-            let num = sgl - gain * sgr;
-            u += f64::from((num / den).clamp(-0.5, 0.5));
-        }
-        ((u - u0).abs() <= 0.5).then_some(u)
     }
 }
 
@@ -821,11 +767,12 @@ mod avx {
 /// 0), or `None` unless the whole window lies inside the image. The samples share
 /// their fractional offsets: the rows of whole pixels interpolated along x, then along y.
 #[inline(always)]
-fn right_window_lanes(
+fn right_window_lanes<O: RowOps>(
+    o: O,
     img: &[f32],
     (w, h): (usize, usize),
     (x, y): (f64, f64),
-) -> Option<[Lanes; REFINE_SIDE]> {
+) -> Option<[O::R; REFINE_SIDE]> {
     let half = REFINE_HALF as f64;
     let (bx, by) = (x - half, y - half);
     if !(bx >= 0.0 && by >= 0.0 && x + half <= (w - 1) as f64 && y + half <= (h - 1) as f64) {
@@ -833,22 +780,17 @@ fn right_window_lanes(
     }
     let (x0, y0) = (bx as usize, by as usize);
     let (fx, fy) = ((bx - x0 as f64) as f32, (by - y0 as f64) as f32);
-    let mut rows = [[0.0f32; ROW]; REFINE_SIDE + 1];
+    let mut rows = [o.zero(); REFINE_SIDE + 1];
     for (r, row) in rows.iter_mut().enumerate() {
         // Pixels x0 ..= x0 + 8 of the row; only the padding lane reads the last one, and a
         // window whose right (bottom) edge lies on the image's takes the pixel (row) past it
         // with weight 0 (the last row stands in for the one past it).
         let a = (y0 + r).min(h - 1) * w + x0;
-        let (p, q) = (lanes_at(img, a), lanes_at(img, a + 1));
-        for i in 0..ROW {
-            row[i] = p[i] * (1.0 - fx) + q[i] * fx;
-        }
+        *row = o.lerp(o.load(img, a), 1.0 - fx, o.load(img, a + 1), fx);
     }
-    let mut out = [[0.0f32; ROW]; REFINE_SIDE];
-    for (j, o) in out.iter_mut().enumerate() {
-        for i in 0..ROW {
-            o[i] = window(rows[j][i] * (1.0 - fy) + rows[j + 1][i] * fy, i);
-        }
+    let mut out = [o.zero(); REFINE_SIDE];
+    for (j, v) in out.iter_mut().enumerate() {
+        *v = o.masked(o.lerp(rows[j], 1.0 - fy, rows[j + 1], fy));
     }
     Some(out)
 }
@@ -1370,9 +1312,9 @@ mod tests {
         for y in 0..h {
             for x in 0..w {
                 for d in [-0.5f32, 0.0, 0.37, 3.0, 7.25, 12.5, 20.0] {
-                    let portable = refined_rectified(&geo, &planes, (x, y), d);
-                    let vector =
-                        simd.vectorize(|| avx::refined_rectified(simd, &geo, &planes, (x, y), d));
+                    let portable = refined_rectified(Rows8, &geo, &planes, (x, y), d);
+                    let vector = simd
+                        .vectorize(|| refined_rectified(avx::Rows(simd), &geo, &planes, (x, y), d));
                     assert_eq!(
                         portable.map(f64::to_bits),
                         vector.map(f64::to_bits),
@@ -1411,7 +1353,7 @@ mod tests {
             for x in 0..w {
                 for start in [-0.45, -0.2, 0.0, 0.3, 0.45] {
                     let disparity = (shift + start) as f32;
-                    let lanes = refined_rectified(&geo, &planes, (x, y), disparity);
+                    let lanes = refined_rectified(Rows8, &geo, &planes, (x, y), disparity);
                     let reference = refined_rectified_f64(&geo, (&left, &right), (x, y), disparity);
                     let inside = x >= 4 && x + 4 < w && y >= 3 && y + 3 < h && x as f64 > 11.0;
                     if !inside {
