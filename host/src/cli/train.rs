@@ -212,29 +212,23 @@ pub fn run(a: Args) -> Result<()> {
     }
     check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
-    let family = a.arch.unwrap_or(ArchArg::DEFAULT).family();
-    // A posture frame on a set without joint columns is refused by `train` itself.
-    let frame = match (a.frame, table.data.input_kind()) {
-        (Some(f), _) => f.frame(),
-        (None, Some(kind)) => train::default_frame(family, kind),
-        (None, None) => OutputFrame::Head,
-    };
-    let (hidden, restarts) = train::default_size(family, &table.data);
+    let defaults = TrainConfig::for_set(a.arch.unwrap_or(ArchArg::DEFAULT).family(), &table.data);
     let config = TrainConfig {
-        hidden: a.hidden.unwrap_or(hidden),
+        hidden: a.hidden.unwrap_or(defaults.hidden),
         outputs: a.outputs.unwrap_or(OutputsArg::Xyz).kind(),
         algo: match a.algo.unwrap_or(AlgoArg::Lm) {
             AlgoArg::Lm => Algo::Lm,
             AlgoArg::Bp => Algo::Bp,
             AlgoArg::Adam => Algo::Adam,
         },
-        restarts: a.restarts.unwrap_or(restarts),
+        restarts: a.restarts.unwrap_or(defaults.restarts),
         threshold_pct: a.threshold,
         seed: a.seed,
         bp: BpParams { learning_rate: a.learning_rate, e_max: a.e_max, max_cycles: a.max_cycles },
         progress: std::io::stderr().is_terminal(),
-        family,
-        frame,
+        // A posture frame on a set without joint columns is refused by `train` itself.
+        frame: a.frame.map_or(defaults.frame, |f| f.frame()),
+        ..defaults
     };
     crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
     let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };

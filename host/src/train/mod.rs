@@ -585,6 +585,18 @@ pub fn default_size(family: Family, data: &Dataset) -> (usize, usize) {
     }
 }
 
+impl TrainConfig {
+    /// `hvs train`'s configuration for `data` in `family` when nothing else is asked: the
+    /// family's output frame for the set's inputs ([`default_frame`]; the head frame for a
+    /// set without inputs' kind), its size ([`default_size`]), the rest
+    /// [`TrainConfig::default`]. `hvs train` and `hvs view`'s retrain start from it.
+    pub fn for_set(family: Family, data: &Dataset) -> Self {
+        let (hidden, restarts) = default_size(family, data);
+        let frame = data.input_kind().map_or(OutputFrame::Head, |k| default_frame(family, k));
+        TrainConfig { family, frame, hidden, restarts, ..TrainConfig::default() }
+    }
+}
+
 /// Hidden units of a posture-aware net on detected corners when `hvs train` is not told
 /// ([`default_size`]); the largest a blob holds.
 pub const PRECISE_POSTURE_HIDDEN: usize = hvs_shared::runtime::blob::MAX_HIDDEN;

@@ -400,17 +400,12 @@ impl Session {
         let points = vision::points_csv(&c.board, &c.set, &det);
         let table = read_set_from(Path::new(&name), points.as_bytes(), Inputs::Auto, true)
             .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
-        let (hidden, restarts) = train::default_size(train::DEFAULT_FAMILY, &table.data);
-        let mut config = TrainConfig {
-            family: train::DEFAULT_FAMILY,
-            hidden,
-            restarts: self.retrain.restarts.unwrap_or(restarts),
+        let defaults = TrainConfig::for_set(train::DEFAULT_FAMILY, &table.data);
+        let config = TrainConfig {
+            restarts: self.retrain.restarts.unwrap_or(defaults.restarts),
             seed: self.retrain.seed,
-            ..TrainConfig::default()
+            ..defaults
         };
-        if let Some(kind) = table.data.input_kind() {
-            config.frame = train::default_frame(config.family, kind);
-        }
         crate::data::validate::training_set(&table, config.hidden, config.outputs.len())
             .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
         let plan = Plan { config, ..Plan::default() };
