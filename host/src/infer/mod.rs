@@ -73,27 +73,26 @@ fn fixed<const I: usize, const H: usize, const O: usize>(blob: &ModelBlob) -> Op
     let owned = blob.clone();
     // Point by point (blocks with a non-finite value, the last partial block): the shared
     // inference's net, `infer_flat` (the bits of `Mlp::infer` for a net without skip term).
-    let scalar = move |x: &[f32; I]| -> Result<[f32; O], MlpError> {
+    let scalar = |b: &ModelBlob, x: &[f32; I]| -> Result<[f32; O], MlpError> {
         let mut y = [0.0f32; O];
-        infer_flat(&owned.flat(), x, &mut y).map(|()| y)
+        infer_flat(&b.flat(), x, &mut y).map(|()| y)
     };
-    let finish = blob.clone();
     if blob.family.output_map == OutputMap::Direct && blob.frame == OutputFrame::Head {
         return Some(Kernel::Fixed(Box::new(move |x: &[f32], out: &mut [f32]| {
-            lanes::run_with(&m, skip.as_ref(), x, out, &scalar)
+            lanes::run_with(&m, skip.as_ref(), x, out, |x| scalar(&owned, x))
         })));
     }
     // The lanes stop at the net's de-normalised outputs; the family's map and the output frame
     // (`ModelBlob::finish`) follow row by row (the rows before a failing one are written, so
     // the first failure is reported either way).
     Some(Kernel::Fixed(Box::new(move |x: &[f32], out: &mut [f32]| {
-        let done = lanes::run_with(&m, skip.as_ref(), x, out, &scalar);
+        let done = lanes::run_with(&m, skip.as_ref(), x, out, |x| scalar(&owned, x));
         let rows = match done {
             Ok(()) => out.len() / O,
             Err((r, _)) => r,
         };
         for (r, (xi, o)) in x.chunks_exact(I).zip(out.chunks_exact_mut(O)).take(rows).enumerate() {
-            finish.finish(xi, o).map_err(|e| (r, e))?;
+            owned.finish(xi, o).map_err(|e| (r, e))?;
         }
         done
     })))
