@@ -109,25 +109,44 @@ pub fn run(a: Args) -> Result<()> {
     if floor.is_none() && a.lens.given() {
         bail!("--distortion is the true lens of the floor: it needs --case N or --rig FILE.json");
     }
+    // A posture-aware model: its samples, the true head and the floor's point of each row,
+    // triangulated once for the table and the posture bands.
+    let posed_floor = match &floor {
+        Some(rig) if blob.topology.inputs == InputKind::StereoJoints => {
+            let head = hvs_shared::sim::posture::HeadRig::new(*rig).with_distortion(lens);
+            let samples = posture::samples(&table.data);
+            let points = posture::floor_points(&head, &samples);
+            Some((head, samples, points))
+        }
+        _ => None,
+    };
     if let Some(rig) = &floor {
-        // The floor triangulates at each row's posture when the file has the joint columns,
-        // also for a 4-input model (which sees only the pixels).
-        let posed;
-        let floor_data = if table.data.input_kind() == Some(InputKind::Stereo) {
-            posed = read_set(&a.data, Inputs::Auto, true)?;
-            &posed.data
-        } else {
-            &table.data
+        let z = match &posed_floor {
+            // Every row has its joints and its truth (`read_set` with targets): the same
+            // triangulation as `optimal_depths_lens` row by row.
+            Some((_, samples, points)) if samples.len() == table.data.len() => {
+                points.iter().map(|p| p.map_or(f64::NAN, |p| p[2])).collect()
+            }
+            _ => {
+                // The floor triangulates at each row's posture when the file has the joint
+                // columns, also for a 4-input model (which sees only the pixels).
+                let posed;
+                let floor_data = if table.data.input_kind() == Some(InputKind::Stereo) {
+                    posed = read_set(&a.data, Inputs::Auto, true)?;
+                    &posed.data
+                } else {
+                    &table.data
+                };
+                optimal_depths_lens(rig, lens, floor_data)
+            }
         };
-        methods
-            .push(Method { name: "optimal".into(), z: optimal_depths_lens(rig, lens, floor_data) });
+        methods.push(Method { name: "optimal".into(), z });
     }
     let ev = evaluate(&table.data, &methods);
     // A posture-aware model: its error per posture band against the floor's.
-    let bands: Option<Vec<BandReport>> = match &floor {
-        Some(rig) if blob.topology.inputs == InputKind::StereoJoints => {
-            let head = hvs_shared::sim::posture::HeadRig::new(*rig).with_distortion(lens);
-            let rows = posture::bands(blob, &head, &posture::samples(&table.data), &[]);
+    let bands: Option<Vec<BandReport>> = match &posed_floor {
+        Some((head, samples, points)) => {
+            let rows = posture::bands_with_floor(blob, head, samples, points, &[]);
             Some(
                 rows.iter()
                     .map(|r| BandReport {

@@ -229,9 +229,21 @@ fn estimates<'a>(
     set.into_iter()
         .map(|s| {
             let net = net_xyz(blob, &s.inputs()[..blob.n_inputs()]);
-            (net, head.optimal(&s.joints, &s.px).ok())
+            (net, floor_point(head, s))
         })
         .collect()
+}
+
+/// The floor's estimate of a sample's point: optimal triangulation with the true head at the
+/// sample's posture (`None` where it fails).
+fn floor_point(head: &HeadRig, s: &PostureSample) -> Option<Vec3> {
+    head.optimal(&s.joints, &s.px).ok()
+}
+
+/// The floor's estimate of every sample of `test`, in order: what [`bands_with_floor`] takes,
+/// for a caller that needs the floor's points for something else as well (`hvs eval`'s table).
+pub fn floor_points(head: &HeadRig, test: &[PostureSample]) -> Vec<Option<Vec3>> {
+    test.iter().map(|s| floor_point(head, s)).collect()
 }
 
 /// The net's and the floor's errors over samples with their estimates, in order.
@@ -414,8 +426,27 @@ pub fn bands(
     test: &[PostureSample],
     extreme: &[PostureSample],
 ) -> Vec<BandRow> {
+    bands_with_floor(blob, head, test, &floor_points(head, test), extreme)
+}
+
+/// [`bands`] with the floor's point of each sample of `test` given ([`floor_points`]).
+///
+/// # Panics
+/// If `floor` is not as long as `test`.
+pub fn bands_with_floor(
+    blob: &ModelBlob,
+    head: &HeadRig,
+    test: &[PostureSample],
+    floor: &[Option<Vec3>],
+    extreme: &[PostureSample],
+) -> Vec<BandRow> {
+    assert_eq!(floor.len(), test.len(), "a floor point per sample");
     // Each sample's estimates once; a band sums its samples' in the set's order.
-    let est = estimates(blob, head, test);
+    let est: Vec<Estimates> = test
+        .iter()
+        .zip(floor)
+        .map(|(s, f)| (net_xyz(blob, &s.inputs()[..blob.n_inputs()]), *f))
+        .collect();
     let row = |term, band: &str, set: Vec<usize>| {
         let (net, floor) = errors_of(set.into_iter().map(|i| (&test[i], &est[i])));
         BandRow { term, band: band.to_string(), net, floor }
@@ -731,6 +762,26 @@ mod tests {
                 assert!(g[k].abs() >= 2.0 * m / 3.0 - 0.2, "{g:?}");
             }
             assert!(g[4] >= 20.0 / 3.0 - 0.2, "{g:?}");
+        }
+    }
+
+    /// `hvs eval` takes its optimal column from [`floor_points`] on a posture-aware set: the
+    /// same depths, to the bit, as `evaluate::optimal_depths_lens` row by row, lens or not.
+    #[test]
+    fn floor_points_are_the_optimal_depths_of_each_row() {
+        let cfg = StudyConfig::experiment(1, true);
+        let rig = cfg.rig().unwrap();
+        for lens in [Distortion::NONE, Distortion { k1: -0.05, k2: 0.0 }] {
+            let head = HeadRig::new(rig).with_distortion(lens);
+            let (test, _) = test_sets(&cfg, &head).unwrap();
+            let data = posture::dataset(&test);
+            let points = floor_points(&head, &samples(&data));
+            let z = crate::evaluate::optimal_depths_lens(&rig, lens, &data);
+            assert_eq!(points.len(), z.len());
+            assert!(points.iter().all(Option::is_some));
+            for (p, z) in points.iter().zip(&z) {
+                assert_eq!(p.map(|p| p[2].to_bits()), Some(z.to_bits()));
+            }
         }
     }
 }
