@@ -226,12 +226,12 @@ fn estimates<'a>(
     head: &HeadRig,
     set: impl IntoIterator<Item = &'a PostureSample>,
 ) -> Vec<Estimates> {
-    set.into_iter()
-        .map(|s| {
-            let net = net_xyz(blob, &s.inputs()[..blob.n_inputs()]);
-            (net, floor_point(head, s))
-        })
-        .collect()
+    set.into_iter().map(|s| (net_point(blob, s), floor_point(head, s))).collect()
+}
+
+/// The net's estimate of a sample's point (from the inputs it takes).
+fn net_point(blob: &ModelBlob, s: &PostureSample) -> Option<Vec3> {
+    net_xyz(blob, &s.inputs()[..blob.n_inputs()])
 }
 
 /// The floor's estimate of a sample's point: optimal triangulation with the true head at the
@@ -442,11 +442,8 @@ pub fn bands_with_floor(
 ) -> Vec<BandRow> {
     assert_eq!(floor.len(), test.len(), "a floor point per sample");
     // Each sample's estimates once; a band sums its samples' in the set's order.
-    let est: Vec<Estimates> = test
-        .iter()
-        .zip(floor)
-        .map(|(s, f)| (net_xyz(blob, &s.inputs()[..blob.n_inputs()]), *f))
-        .collect();
+    let est: Vec<Estimates> =
+        test.iter().zip(floor).map(|(s, f)| (net_point(blob, s), *f)).collect();
     let row = |term, band: &str, set: Vec<usize>| {
         let (net, floor) = errors_of(set.into_iter().map(|i| (&test[i], &est[i])));
         BandRow { term, band: band.to_string(), net, floor }
