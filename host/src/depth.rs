@@ -148,37 +148,65 @@ pub fn depth(
             warnings.push(format!("the {side} image {why}"));
         }
     }
-    // Every match through the model, in parallel batches (bit-identical to `hvs predict`).
-    let idx: Vec<usize> = (0..matches.ur.len()).filter(|&p| matches.ur[p].is_finite()).collect();
-    let mut inputs = Vec::with_capacity(idx.len() * 4);
-    for &p in &idx {
-        let (x, y) = (p as u32 % w, p as u32 / w);
-        inputs.extend_from_slice(&[x as f32, y as f32, matches.ur[p], matches.vr[p]]);
-    }
-    // A Z-only model (`hvs train --outputs z`) gives Z alone: X and Y are NaN.
-    let no = blob.n_outputs().min(3);
-    let mut out = vec![0.0f32; idx.len() * no];
-    // A point without an estimate gets +inf (counted below); the others go on.
-    Predictor::new(blob).run_each(&inputs, &mut out).map_err(|e| anyhow!("{e:?}"))?;
-    let mut xyz = vec![[f32::INFINITY; 3]; matches.ur.len()];
     let mut matches = matches;
-    let mut no_estimate = 0usize;
-    for (&p, o) in idx.iter().zip(out.chunks_exact(no)) {
-        if o.iter().all(|v| v.is_finite()) {
-            xyz[p] = if no == 3 { [o[0], o[1], o[2]] } else { [f32::NAN, f32::NAN, o[0]] };
-        } else {
-            no_estimate += 1;
-            matches.ur[p] = f32::INFINITY;
-            matches.vr[p] = f32::INFINITY;
-            matches.conf[p] = 0.0;
-        }
-    }
+    let mut xyz = vec![[f32::INFINITY; 3]; matches.ur.len()];
+    let no_estimate = model_over_matches(blob, w as usize, &mut matches, &mut xyz)?;
     if no_estimate > 0 {
         warnings.push(format!(
             "{no_estimate} matched pixels have no estimate from the model (left +inf)"
         ));
     }
     Ok(Depth { matches, xyz, d_range, z_box: [g.out_min[2], g.out_max[2]], warnings })
+}
+
+/// Rows of matches that [`model_over_matches`] takes at a time.
+const MODEL_ROWS: usize = 8;
+
+/// Every match of `m` (`w` pixels a row) through the model into `xyz` (bit-identical to `hvs
+/// predict`; a Z-only model gives Z alone, X and Y NaN), a few rows at a time in parallel, each
+/// with its own small batch (no image-sized temporaries). A match without an estimate is
+/// dropped from `m` (its `xyz` stays `+inf`); returns how many were.
+fn model_over_matches(
+    blob: &ModelBlob,
+    w: usize,
+    m: &mut DenseMap,
+    xyz: &mut [[f32; 3]],
+) -> Result<usize> {
+    use rayon::prelude::*;
+    let predictor = Predictor::new(blob);
+    let no = blob.n_outputs().min(3);
+    let chunk = w.max(1) * MODEL_ROWS;
+    let counts: Vec<Result<usize>> = xyz
+        .par_chunks_mut(chunk)
+        .zip(m.ur.par_chunks_mut(chunk))
+        .zip(m.vr.par_chunks_mut(chunk))
+        .zip(m.conf.par_chunks_mut(chunk))
+        .enumerate()
+        .map(|(c, (((xyz, ur), vr), conf))| {
+            let first = c * chunk;
+            let idx: Vec<usize> = (0..ur.len()).filter(|&k| ur[k].is_finite()).collect();
+            let mut inputs = Vec::with_capacity(idx.len() * 4);
+            for &k in &idx {
+                let p = first + k;
+                let (x, y) = ((p % w) as f32, (p / w) as f32);
+                inputs.extend_from_slice(&[x, y, ur[k], vr[k]]);
+            }
+            let mut out = vec![0.0f32; idx.len() * no];
+            // A point without an estimate gets +inf (counted below); the others go on.
+            predictor.run_each(&inputs, &mut out).map_err(|e| anyhow!("{e:?}"))?;
+            let mut failed = 0;
+            for (&k, o) in idx.iter().zip(out.chunks_exact(no)) {
+                if o.iter().all(|v| v.is_finite()) {
+                    xyz[k] = if no == 3 { [o[0], o[1], o[2]] } else { [f32::NAN, f32::NAN, o[0]] };
+                } else {
+                    failed += 1;
+                    (ur[k], vr[k], conf[k]) = (f32::INFINITY, f32::INFINITY, 0.0);
+                }
+            }
+            Ok(failed)
+        })
+        .collect();
+    counts.into_iter().sum()
 }
 
 /// Loads the model and both images (PNG or JPEG, checked by [`hvs_vision::image_file`]),
@@ -297,4 +325,74 @@ pub fn locate_files(
     let (l, r) = crate::vision::read_pair(left, right)?;
     let found = locate_with(model_path, &m.blob, &l, &r, points)?;
     Ok((found, l, r))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`model_over_matches`] in row chunks gives every match the model's point by point answer
+    /// ([`model_xyz`], `ModelBlob::infer`) to the bit, and drops the matches it has none for.
+    #[test]
+    fn the_model_over_the_matches_is_the_point_by_point_answer() {
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/tests/golden/v4_4_5_3.hvsw");
+        let blob = crate::data::model::load(&path).unwrap().blob;
+        let point = model_xyz(&blob);
+        // 37 x 21 pixels: three chunks of MODEL_ROWS rows, the last one short.
+        let (w, h) = (37usize, 21usize);
+        let mut rng = 12345u64;
+        let mut next = || {
+            rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (rng >> 33) as f32 / (1u64 << 31) as f32
+        };
+        let n = w * h;
+        let mut m = DenseMap {
+            width: w as u32,
+            height: h as u32,
+            ur: vec![f32::INFINITY; n],
+            vr: vec![f32::INFINITY; n],
+            conf: vec![0.0; n],
+        };
+        let mut refused = 0;
+        for p in 0..n {
+            match p % 5 {
+                0 => continue,
+                // Not a number where the matcher would have given one: refused by the model.
+                1 if p % 3 == 0 => {
+                    refused += 1;
+                    (m.ur[p], m.vr[p]) = (100.0, f32::NAN);
+                }
+                _ => {
+                    let x = (p % w) as f32;
+                    (m.ur[p], m.vr[p]) = (x - 10.0 - 20.0 * next(), (p / w) as f32 + next());
+                }
+            }
+            m.conf[p] = 0.5 + 0.5 * next();
+        }
+        let before = m.clone();
+        let mut xyz = vec![[f32::INFINITY; 3]; n];
+        let dropped = model_over_matches(&blob, w, &mut m, &mut xyz).unwrap();
+        assert_eq!(dropped, refused);
+        for p in 0..n {
+            let want = before.ur[p]
+                .is_finite()
+                .then(|| point([(p % w) as f32, (p / w) as f32, before.ur[p], before.vr[p]]));
+            match want.flatten() {
+                Some(q) => {
+                    assert_eq!(xyz[p].map(f32::to_bits), q.map(f32::to_bits), "pixel {p}");
+                    assert_eq!(
+                        (m.ur[p], m.vr[p], m.conf[p]),
+                        (before.ur[p], before.vr[p], before.conf[p])
+                    );
+                }
+                None => {
+                    assert_eq!(xyz[p], [f32::INFINITY; 3], "pixel {p}");
+                    assert!(
+                        m.ur[p] == f32::INFINITY && m.vr[p] == f32::INFINITY && m.conf[p] == 0.0
+                    );
+                }
+            }
+        }
+    }
 }
