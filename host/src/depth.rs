@@ -374,20 +374,20 @@ mod tests {
         let mut xyz = vec![[f32::INFINITY; 3]; n];
         let dropped = model_over_matches(&blob, w, &mut m, &mut xyz).unwrap();
         assert_eq!(dropped, refused);
-        for p in 0..n {
+        for (p, got) in xyz.iter().enumerate() {
             let want = before.ur[p]
                 .is_finite()
                 .then(|| point([(p % w) as f32, (p / w) as f32, before.ur[p], before.vr[p]]));
             match want.flatten() {
                 Some(q) => {
-                    assert_eq!(xyz[p].map(f32::to_bits), q.map(f32::to_bits), "pixel {p}");
+                    assert_eq!(got.map(f32::to_bits), q.map(f32::to_bits), "pixel {p}");
                     assert_eq!(
                         (m.ur[p], m.vr[p], m.conf[p]),
                         (before.ur[p], before.vr[p], before.conf[p])
                     );
                 }
                 None => {
-                    assert_eq!(xyz[p], [f32::INFINITY; 3], "pixel {p}");
+                    assert_eq!(*got, [f32::INFINITY; 3], "pixel {p}");
                     assert!(
                         m.ur[p] == f32::INFINITY && m.vr[p] == f32::INFINITY && m.conf[p] == 0.0
                     );
