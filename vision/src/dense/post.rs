@@ -232,8 +232,17 @@ pub(crate) fn left_right_check(
     });
 }
 
+/// Rows per strip of [`speckle_filter`]: the strips are labelled in parallel.
+const SPECKLE_STRIP_ROWS: usize = 32;
+
 /// Drops the 4-connected regions (neighbours within `range` px of disparity) of fewer than
 /// `size` pixels.
+///
+/// Strips of [`SPECKLE_STRIP_ROWS`] rows are labelled side by side (a flood fill inside each),
+/// then the regions that meet across a strip's border are joined (union-find) and their sizes
+/// added: the regions, and so the pixels dropped, are those of one flood fill over the whole
+/// image, whatever the number of threads (a region is a connected component of the
+/// neighbour relation, which does not depend on the order it is explored in).
 pub(crate) fn speckle_filter(
     w: usize,
     h: usize,
@@ -241,27 +250,76 @@ pub(crate) fn speckle_filter(
     size: usize,
     range: f32,
 ) {
-    if size == 0 {
+    if size == 0 || w == 0 || h == 0 {
         return;
     }
     // The disparities alone (NaN: no match; a NaN is never within `range`), 4 bytes a pixel
     // instead of the winners' 20: the flood fill reads each pixel up to four times.
-    let disp: Vec<f32> = best.iter().map(|b| b.map_or(f32::NAN, |b| b.disparity)).collect();
+    let disp: Vec<f32> = best.par_iter().map(|b| b.map_or(f32::NAN, |b| b.disparity)).collect();
     let mut label = vec![u32::MAX; w * h];
+    let strip = SPECKLE_STRIP_ROWS * w;
+    // Each strip's regions, labelled 0.. within it, and their sizes.
+    let sizes: Vec<Vec<u32>> = label
+        .par_chunks_mut(strip)
+        .zip(disp.par_chunks(strip))
+        .map(|(label, disp)| label_regions(w, disp, label, range))
+        .collect();
+    let mut first = Vec::with_capacity(sizes.len());
+    let mut total = 0u32;
+    for s in &sizes {
+        first.push(total);
+        total += s.len() as u32;
+    }
+    // Join the regions that touch across each border between two strips.
+    let mut parent: Vec<u32> = (0..total).collect();
+    for s in 1..sizes.len() {
+        let (above, below) = ((s * SPECKLE_STRIP_ROWS - 1) * w, s * SPECKLE_STRIP_ROWS * w);
+        for x in 0..w {
+            let (p, q) = (above + x, below + x);
+            if label[p] != u32::MAX && label[q] != u32::MAX && (disp[q] - disp[p]).abs() <= range {
+                union(&mut parent, first[s - 1] + label[p], first[s] + label[q]);
+            }
+        }
+    }
+    // Each region's root and the whole region's size.
+    for i in 0..parent.len() {
+        parent[i] = root(&mut parent, i as u32);
+    }
+    let mut whole = vec![0u32; parent.len()];
+    for (i, &n) in sizes.iter().flatten().enumerate() {
+        whole[parent[i] as usize] += n;
+    }
+    let small = |l: u32| (whole[parent[l as usize] as usize] as usize) < size;
+    best.par_chunks_mut(strip).zip(label.par_chunks(strip)).enumerate().for_each(
+        |(s, (best, label))| {
+            for (b, &l) in best.iter_mut().zip(label) {
+                if l != u32::MAX && small(first[s] + l) {
+                    *b = None;
+                }
+            }
+        },
+    );
+}
+
+/// Labels the 4-connected regions of one strip (`w` pixels a row; `disp` NaN where no match)
+/// 0, 1, .. in `label` (`u32::MAX` where no match), by a flood fill from each unlabelled pixel
+/// in row order; returns each region's size.
+fn label_regions(w: usize, disp: &[f32], label: &mut [u32], range: f32) -> Vec<u32> {
+    let n = disp.len();
+    let mut sizes = Vec::new();
     let mut stack = Vec::new();
-    let mut members = Vec::new();
-    let mut next = 0u32;
-    for start in 0..w * h {
-        if best[start].is_none() || label[start] != u32::MAX {
+    for start in 0..n {
+        if disp[start].is_nan() || label[start] != u32::MAX {
             continue;
         }
+        let next = sizes.len() as u32;
         label[start] = next;
         stack.push(start);
-        members.clear();
+        let mut count = 0u32;
         while let Some(p) = stack.pop() {
-            members.push(p);
+            count += 1;
             let dp = disp[p];
-            let (x, y) = (p % w, p / w);
+            let x = p % w;
             let mut visit = |q: usize| {
                 // A pixel without a match (NaN) fails the comparison.
                 if label[q] == u32::MAX && (disp[q] - dp).abs() <= range {
@@ -275,19 +333,34 @@ pub(crate) fn speckle_filter(
             if x + 1 < w {
                 visit(p + 1);
             }
-            if y > 0 {
+            if p >= w {
                 visit(p - w);
             }
-            if y + 1 < h {
+            if p + w < n {
                 visit(p + w);
             }
         }
-        if members.len() < size {
-            for &p in &members {
-                best[p] = None;
-            }
-        }
-        next += 1;
+        sizes.push(count);
+    }
+    sizes
+}
+
+/// The root of `i` in the union-find forest `parent`, halving the path on the way.
+fn root(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let up = parent[parent[i as usize] as usize];
+        parent[i as usize] = up;
+        i = up;
+    }
+    i
+}
+
+/// Joins the trees of `a` and `b` (the larger root under the smaller).
+fn union(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (root(parent, a), root(parent, b));
+    if ra != rb {
+        let (lo, hi) = (ra.min(rb), ra.max(rb));
+        parent[hi as usize] = lo;
     }
 }
 
@@ -1593,6 +1666,94 @@ mod tests {
         assert!((subpixel(7, 3, 13) + 0.3).abs() < 1e-6);
         assert_eq!(subpixel(5, 5, 5), 0.0);
         assert_eq!(subpixel(4, 0, 4), 0.0);
+    }
+
+    /// The speckle filter as first written: one flood fill over the whole image.
+    fn speckle_reference(w: usize, h: usize, best: &mut [Option<Best>], size: usize, range: f32) {
+        let mut label = vec![false; w * h];
+        for start in 0..w * h {
+            let Some(b0) = best[start] else { continue };
+            if label[start] {
+                continue;
+            }
+            let _ = b0;
+            label[start] = true;
+            let (mut stack, mut members) = (vec![start], Vec::new());
+            while let Some(p) = stack.pop() {
+                members.push(p);
+                let dp = best[p].map(|b| b.disparity).unwrap_or(f32::NAN);
+                let (x, y) = (p % w, p / w);
+                let mut near = Vec::new();
+                if x > 0 {
+                    near.push(p - 1);
+                }
+                if x + 1 < w {
+                    near.push(p + 1);
+                }
+                if y > 0 {
+                    near.push(p - w);
+                }
+                if y + 1 < h {
+                    near.push(p + w);
+                }
+                for q in near {
+                    if let Some(bq) = best[q] {
+                        if !label[q] && (bq.disparity - dp).abs() <= range {
+                            label[q] = true;
+                            stack.push(q);
+                        }
+                    }
+                }
+            }
+            if members.len() < size {
+                for p in members {
+                    best[p] = None;
+                }
+            }
+        }
+    }
+
+    /// Regions across strips (tall snakes, combs, plateaus with noise, NaN-free gaps) are
+    /// dropped as one flood fill over the whole image drops them, at any image size.
+    #[test]
+    fn strip_labelling_drops_what_one_flood_fill_drops() {
+        let mut rng = 99u64;
+        let mut next = move || {
+            rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (rng >> 33) as u32
+        };
+        for (w, h) in [(1, 1), (1, 100), (100, 1), (7, 33), (40, 64), (33, 97), (121, 130)] {
+            for trial in 0..6 {
+                let levels = 1 + trial as u32 * 2;
+                let mut b: Vec<Option<Best>> = (0..w * h)
+                    .map(|p| {
+                        let r = next();
+                        if r % 7 == 0 {
+                            return None;
+                        }
+                        // Vertical bands of one level (regions that cross many strips) with
+                        // noise, or speckled pixels.
+                        let band = ((p % w) / 3) as u32 % levels;
+                        let d = if r % 5 == 0 { (r / 7 % 17) as f32 } else { band as f32 * 1.7 };
+                        best(d + (r % 100) as f32 / 400.0)
+                    })
+                    .collect();
+                for (size, range) in [(4, 1.0f32), (50, 1.0), (200, 0.5), (1, 1.0)] {
+                    let mut want = b.clone();
+                    speckle_reference(w, h, &mut want, size, range);
+                    let mut got = b.clone();
+                    speckle_filter(w, h, &mut got, size, range);
+                    let kept =
+                        |v: &[Option<Best>]| v.iter().map(Option::is_some).collect::<Vec<_>>();
+                    assert_eq!(
+                        kept(&got),
+                        kept(&want),
+                        "{w}x{h} trial {trial} size {size} range {range}"
+                    );
+                }
+                b.reverse();
+            }
+        }
     }
 
     #[test]
