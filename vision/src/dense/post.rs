@@ -1672,11 +1672,9 @@ mod tests {
     fn speckle_reference(w: usize, h: usize, best: &mut [Option<Best>], size: usize, range: f32) {
         let mut label = vec![false; w * h];
         for start in 0..w * h {
-            let Some(b0) = best[start] else { continue };
-            if label[start] {
+            if best[start].is_none() || label[start] {
                 continue;
             }
-            let _ = b0;
             label[start] = true;
             let (mut stack, mut members) = (vec![start], Vec::new());
             while let Some(p) = stack.pop() {
