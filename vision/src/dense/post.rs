@@ -210,26 +210,46 @@ pub(crate) fn left_right_check(
     tol: f32,
 ) {
     let w = geo.w;
+    // Compiled for AVX2 where the CPU has it: `round` is then inlined instead of a libm call
+    // (the same values: its rounding is defined, half away from zero).
     best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, slot) in row.iter_mut().enumerate() {
-            let Some(b) = slot else { continue };
-            let keep = geo.line(x, y).and_then(|(alpha, beta)| {
-                let ur = x as f64 - f64::from(b.disparity);
-                let vr = alpha + beta * ur;
-                let (u, v) = (ur.round(), vr.round());
-                if u < 0.0 || v < 0.0 || u >= w as f64 || v >= geo.h as f64 {
-                    return None;
+        super::fast(
+            #[inline(always)]
+            || {
+                for (x, slot) in row.iter_mut().enumerate() {
+                    let Some(b) = slot else { continue };
+                    match right_agreement(geo, right, x, y, b.disparity, tol) {
+                        Some(diff) => b.lr = diff,
+                        None => *slot = None,
+                    }
                 }
-                let dr = right[v as usize * w + u as usize]?;
-                let diff = (b.disparity - dr).abs();
-                (diff <= tol).then_some(diff)
-            });
-            match keep {
-                Some(diff) => b.lr = diff,
-                None => *slot = None,
-            }
-        }
+            },
+        )
     });
+}
+
+/// How far the right image's disparity at the match of left pixel `(x, y)` (disparity `d`)
+/// lies from `d`, if it has one within `tol`.
+#[inline(always)]
+fn right_agreement(
+    geo: &Geo,
+    right: &[Option<f32>],
+    x: usize,
+    y: usize,
+    d: f32,
+    tol: f32,
+) -> Option<f32> {
+    let (alpha, beta) = geo.line(x, y)?;
+    let w = geo.w;
+    let ur = x as f64 - f64::from(d);
+    let vr = alpha + beta * ur;
+    let (u, v) = (ur.round(), vr.round());
+    if u < 0.0 || v < 0.0 || u >= w as f64 || v >= geo.h as f64 {
+        return None;
+    }
+    let dr = right[v as usize * w + u as usize]?;
+    let diff = (d - dr).abs();
+    (diff <= tol).then_some(diff)
 }
 
 /// Rows per strip of [`speckle_filter`]: the strips are labelled in parallel.
