@@ -141,16 +141,14 @@ pub fn depth(
     let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
     // The refinement compares windows at the model's right/left image scale.
     let params = DenseParams { right_scale: g.right_scale, ..*params };
-    let matches = dense_match(left, right, &f, d_range, &params).map_err(|e| anyhow!("{e}"))?;
+    let mut matches = dense_match(left, right, &f, d_range, &params).map_err(|e| anyhow!("{e}"))?;
     let mut warnings = Vec::new();
     for (side, img) in [("left", left), ("right", right)] {
         if let Some(why) = image_warning(img) {
             warnings.push(format!("the {side} image {why}"));
         }
     }
-    let mut matches = matches;
-    let mut xyz = vec![[f32::INFINITY; 3]; matches.ur.len()];
-    let no_estimate = model_over_matches(blob, w as usize, &mut matches, &mut xyz)?;
+    let (xyz, no_estimate) = model_over_matches(blob, w as usize, &mut matches)?;
     if no_estimate > 0 {
         warnings.push(format!(
             "{no_estimate} matched pixels have no estimate from the model (left +inf)"
@@ -162,18 +160,18 @@ pub fn depth(
 /// Rows of matches that [`model_over_matches`] takes at a time.
 const MODEL_ROWS: usize = 8;
 
-/// Every match of `m` (`w` pixels a row) through the model into `xyz` (bit-identical to `hvs
-/// predict`; a Z-only model gives Z alone, X and Y NaN), a few rows at a time in parallel, each
-/// with its own small batch (no image-sized temporaries). A match without an estimate is
-/// dropped from `m` (its `xyz` stays `+inf`); returns how many were.
+/// Every match of `m` (`w` pixels a row) through the model: X, Y, Z per pixel (bit-identical
+/// to `hvs predict`; a Z-only model gives Z alone, X and Y NaN; `+inf` where none), a few rows
+/// at a time in parallel, each with its own small batch (no image-sized temporaries). A match
+/// without an estimate is dropped from `m`; returns how many were, too.
 fn model_over_matches(
     blob: &ModelBlob,
     w: usize,
     m: &mut DenseMap,
-    xyz: &mut [[f32; 3]],
-) -> Result<usize> {
+) -> Result<(Vec<[f32; 3]>, usize)> {
     use rayon::prelude::*;
     let predictor = Predictor::new(blob);
+    let mut xyz = vec![[f32::INFINITY; 3]; m.ur.len()];
     let no = blob.n_outputs().min(3);
     let chunk = w.max(1) * MODEL_ROWS;
     let counts: Vec<Result<usize>> = xyz
@@ -206,7 +204,7 @@ fn model_over_matches(
             Ok(failed)
         })
         .collect();
-    counts.into_iter().sum()
+    Ok((xyz, counts.into_iter().sum::<Result<usize>>()?))
 }
 
 /// Loads the model and both images (PNG or JPEG, checked by [`hvs_vision::image_file`]),
@@ -371,8 +369,7 @@ mod tests {
             m.conf[p] = 0.5 + 0.5 * next();
         }
         let before = m.clone();
-        let mut xyz = vec![[f32::INFINITY; 3]; n];
-        let dropped = model_over_matches(&blob, w, &mut m, &mut xyz).unwrap();
+        let (xyz, dropped) = model_over_matches(&blob, w, &mut m).unwrap();
         assert_eq!(dropped, refused);
         for (p, got) in xyz.iter().enumerate() {
             let want = before.ur[p]
