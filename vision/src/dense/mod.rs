@@ -269,17 +269,32 @@ impl Geo {
 /// the most, so that the aggregation carries the neighbours' answer across them (they are
 /// never chosen). With it, whether every candidate lay on its reference pixel's own row (the
 /// volume is then that of a rectified pair, whatever `geo`'s lines are before rounding).
+/// Compiled for AVX-512's vector population count where the CPU has it, else as [`fast`].
 fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> (Vec<u8>, bool) {
     let (w, d) = (geo.w, geo.d);
-    // Zeroed pages from the allocator, each row filled by its own thread just before its
-    // costs are written (one pass over the volume, not two).
+    // With the left image as reference (`sign < 0`) a pixel's candidates run right to left
+    // along the other image's row: its rows reversed, so that each run is read forwards.
+    let reversed: Vec<u64>;
+    let other = if geo.sign < 0 {
+        reversed = other.chunks_exact(w).flat_map(|r| r.iter().rev().copied()).collect();
+        Rows { words: &reversed, reversed: true }
+    } else {
+        Rows { words: other, reversed: false }
+    };
+    // Zeroed pages from the allocator, each row's cells written once by its own thread.
     let mut cost = vec![0u8; w * geo.h * d];
     // Every row is computed (no short cut on the first row off its line).
     let own_rows: Vec<bool> = cost
         .par_chunks_mut(w * d)
         .enumerate()
         .map(|(y, row)| {
-            row.fill(census::MAX_COST / 2);
+            #[cfg(target_arch = "x86_64")]
+            if let Some(simd) = Popcnt512::try_new() {
+                return simd.vectorize(
+                    #[inline(always)]
+                    || cost_row(geo, reference, other, y, row),
+                );
+            }
             fast(
                 #[inline(always)]
                 || cost_row(geo, reference, other, y, row),
@@ -290,19 +305,54 @@ fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> (Vec<u8>, bool) {
     (cost, own_rows)
 }
 
+#[cfg(target_arch = "x86_64")]
+pulp::simd_type! {
+    /// AVX-512 with its 64-bit population count (`VPOPCNTQ`), for [`cost_row`]'s census
+    /// costs: eight Hamming distances an instruction (the same integers as `popcnt`).
+    struct Popcnt512 {
+        pub sse: "sse",
+        pub sse2: "sse2",
+        pub sse3: "sse3",
+        pub ssse3: "ssse3",
+        pub sse4_1: "sse4.1",
+        pub sse4_2: "sse4.2",
+        pub popcnt: "popcnt",
+        pub avx: "avx",
+        pub avx2: "avx2",
+        pub bmi1: "bmi1",
+        pub bmi2: "bmi2",
+        pub avx512f: "avx512f",
+        pub avx512bw: "avx512bw",
+        pub avx512vl: "avx512vl",
+        pub avx512vpopcntdq: "avx512vpopcntdq",
+    }
+}
+
+/// The other image's census words by row, each row stored reversed (`reversed`) or not.
+#[derive(Clone, Copy)]
+struct Rows<'a> {
+    words: &'a [u64],
+    reversed: bool,
+}
+
 /// Row `y` of [`cost_volume`] (`row`: `w * d` cells); whether every candidate lay on row `y`
 /// of the other image.
 #[inline(always)]
-fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8]) -> bool {
+fn cost_row(geo: &Geo, reference: &[u64], other: Rows, y: usize, row: &mut [u8]) -> bool {
     let (w, d) = (geo.w, geo.d);
     let mut own_row = true;
     for x in 0..w {
-        let Some(line) = geo.line(x, y) else { continue };
-        let Some((lo, hi)) = geo.valid_range(x, line) else {
+        let cells = &mut row[x * d..(x + 1) * d];
+        let Some((line, (lo, hi))) =
+            geo.line(x, y).and_then(|line| Some((line, geo.valid_range(x, line)?)))
+        else {
+            cells.fill(census::MAX_COST / 2);
             continue;
         };
+        // Candidates outside the other image.
+        cells[..lo].fill(census::MAX_COST / 2);
+        cells[hi + 1..].fill(census::MAX_COST / 2);
         let c = reference[y * w + x];
-        let cells = &mut row[x * d..(x + 1) * d];
         // The other image's row `v` is a monotonic step function of `k` (`u` and the line's
         // `v` are linear in `k`, and rounding is monotonic): runs of one row, each found by
         // bisection, then a contiguous stretch of that row. A rectified pair has one run.
@@ -325,17 +375,15 @@ fn cost_row(geo: &Geo, reference: &[u64], other: &[u64], y: usize, row: &mut [u8
                 }
             }
             own_row &= v == y;
-            let other_row = &other[v * w..(v + 1) * w];
-            let (u_a, u_b) = (geo.u_at(x, k) as usize, geo.u_at(x, end) as usize);
+            let other_row = &other.words[v * w..(v + 1) * w];
+            // The first candidate's place in the stored row: `u` runs backwards with `k` when
+            // the row is stored reversed, forwards otherwise.
+            let u = geo.u_at(x, k) as usize;
+            let first = if other.reversed { w - 1 - u } else { u };
             let run = &mut cells[k..end + 1];
-            if geo.sign < 0 {
-                for (cell, &o) in run.iter_mut().zip(other_row[u_b..u_a + 1].iter().rev()) {
-                    *cell = (c ^ o).count_ones() as u8;
-                }
-            } else {
-                for (cell, &o) in run.iter_mut().zip(&other_row[u_a..u_b + 1]) {
-                    *cell = (c ^ o).count_ones() as u8;
-                }
+            let n = run.len();
+            for (cell, &o) in run.iter_mut().zip(&other_row[first..first + n]) {
+                *cell = (c ^ o).count_ones() as u8;
             }
             k = end + 1;
         }
@@ -413,8 +461,8 @@ pub fn dense_match(
     Ok(post::to_map(&lgeo, &best, params.lr_tolerance_px))
 }
 
-/// Runs `f` compiled for the best instruction set of this CPU (AVX2 and its companions where
-/// present, by [`pulp`]'s runtime check; plain x86-64 otherwise). Only the speed differs:
+/// Runs `f` compiled for the best instruction set of this CPU (AVX-512 or AVX2 and their
+/// companions where present, by [`pulp`]'s runtime check; plain x86-64 otherwise). Only the speed differs:
 /// integer code gives the same integers, and float code the same floats (Rust does not fuse
 /// or reorder float operations).
 #[inline(always)]
@@ -468,6 +516,49 @@ mod tests {
         let m = dense_match(&img, &img, &f, [0, 4], &p).unwrap();
         assert_eq!((m.matched(), m.ur.len()), (0, 200));
         assert!(m.ur.iter().all(|u| *u == f32::INFINITY) && m.conf.iter().all(|c| *c == 0.0));
+    }
+
+    /// Every cell of the cost volume is its definition: the Hamming distance to the candidate
+    /// on the epipolar line ([`Geo::target`]), half the most outside the other image; for
+    /// either image as reference (the other's rows read reversed or not) and lines on their
+    /// rows, shifted and tilted across rows.
+    #[test]
+    fn every_cost_is_the_hamming_distance_to_its_candidate() {
+        let (w, h) = (57, 23);
+        let mut seed = 3u64;
+        let mut words = || -> Vec<u64> {
+            (0..w * h)
+                .map(|_| hvs_shared::test_support::splitmix64(&mut seed) & ((1 << 34) - 1))
+                .collect()
+        };
+        let (a, b) = (words(), words());
+        for m in [
+            [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+            [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 2.4]],
+            [[0.0, 0.0, 0.05], [0.0, 0.0, -1.0], [0.0, 1.0, -0.7]],
+        ] {
+            for (sign, d_min, d) in [(-1, 3, 19), (1, -2, 20), (-1, -4, 7)] {
+                let geo = Geo { m, sign, d_min, d, w, h };
+                let (cost, _) = cost_volume(&geo, &a, &b);
+                for y in 0..h {
+                    for x in 0..w {
+                        for k in 0..d {
+                            let want = geo
+                                .line(x, y)
+                                .and_then(|line| geo.target(x, line, k))
+                                .map_or(census::MAX_COST / 2, |(u, v)| {
+                                    (a[y * w + x] ^ b[v * w + u]).count_ones() as u8
+                                });
+                            assert_eq!(
+                                cost[(y * w + x) * d + k],
+                                want,
+                                "{m:?} {sign} ({x}, {y}) {k}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]
