@@ -36,9 +36,10 @@
 //!    which was most of the depth error at 3 m.
 //! 8. A confidence in `0..1` per kept pixel ([`confidence`]).
 //!
-//! Memory: 5 bytes per cell of the volume with two or more threads (`u8` costs, two `i16`
-//! sums while the two passes run side by side), 3 with one (the backward pass adds into the
-//! forward pass's sums); [`MAX_CELLS`] bounds it.
+//! Memory: 3 bytes per cell of the volume at most (`u8` costs and one volume of `i16` sums:
+//! the forward pass's with one thread; with two, where the passes run side by side, the
+//! rows one pass has finished and the other not yet reached, which is half the image when
+//! they meet in the middle); [`MAX_CELLS`] bounds it.
 //!
 //! Speed: the loops over disparities are written for the compiler to vectorise (fixed-size
 //! chunks, every lane stored: the winner is the smallest key `sum << 16 | index`, the right

@@ -5,7 +5,8 @@
 //!
 //! The paths are run as two passes, each over the whole image once: top-left to bottom-right
 //! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
-//! bottom-left); with two cores the passes run side by side ([`rayon::join`]). Costs are `u8`,
+//! bottom-left); with two cores the passes run side by side ([`rayon::join`]) and meet at
+//! each row ([`aggregate_rows`]). Costs are `u8`,
 //! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`), stored disparities innermost
 //! and computed 16 (or 32) disparities at a time; where the CPU has AVX2, a pixel's paths are
 //! stepped together in AVX2 registers and summed in the same pass (`avx`). The same integers
@@ -98,7 +99,7 @@ fn step_in<const L: usize>(
 
 /// How a pass steps a pixel's `P` paths (`P` = 4: along the row and from the three cells
 /// of the previous row; 2 with four paths): `outs[p]` from `prevs[p]`, `pmins[p]` and `p2s[p]`
-/// by [`step`]'s recursion, and their sum into `s` (`s = sum`, or `s += sum` when `add`).
+/// by [`step`]'s recursion, and their sum into `s`.
 /// Returns each path's `min(out)`. A path with nothing before it (its first pixel) comes with
 /// [`zero_row`] and `pmin = 0`, which gives `out = c`. Integer sums, so the order of the terms
 /// does not matter (none overflows: eight paths of at most `MAX_COST + P2` each).
@@ -113,7 +114,6 @@ trait Paths {
         p1: i16,
         outs: [&mut [i16]; P],
         s: &mut [i16],
-        add: bool,
     ) -> [i16; P];
 }
 
@@ -131,14 +131,13 @@ impl Paths for Portable {
         p1: i16,
         mut outs: [&mut [i16]; P],
         s: &mut [i16],
-        add: bool,
     ) -> [i16; P] {
         let mut m = [0i16; P];
         for p in 0..P {
             m[p] = step(prevs[p], pmins[p], c, p1, p2s[p], outs[p]);
         }
         for (k, v) in s.iter_mut().enumerate() {
-            let mut t = if add { *v } else { 0 };
+            let mut t = 0;
             for o in outs.iter_mut() {
                 t += o[k + 1];
             }
@@ -157,10 +156,10 @@ fn zero_row(dp: usize) -> Vec<i16> {
     z
 }
 
-/// One pass (forward: rows top to bottom, left to right; backward: the reverse) writing the
-/// sum of its paths into `sum` (`w * h * d`), or adding it there when `add`, each pixel's
-/// paths stepped by `paths`; `on_row(y, row)` is called with each row of `sum` once it is
-/// done.
+/// One pass (forward: rows top to bottom, left to right; backward: the reverse), each
+/// pixel's paths stepped by `paths` and their sums written into `sum`: the whole volume
+/// (`w * h * d`) when `whole`, else one row (`w * d`) used for every row. `on_row(y, row)`
+/// is called with each row of sums once it is done.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn pass_body(
@@ -170,9 +169,8 @@ fn pass_body(
     (w, h, d): (usize, usize, usize),
     pen: &Penalties,
     backward: bool,
-    add: bool,
-    sum: &mut [i16],
-    on_row: &mut dyn FnMut(usize, &[i16]),
+    (sum, whole): (&mut [i16], bool),
+    on_row: &mut dyn FnMut(usize, &mut [i16]),
 ) {
     // Row buffers of the three paths that come from the previous row, by iteration column:
     // slot 0 from the same column, 1 from the column before, 2 from the column after. Each
@@ -233,7 +231,8 @@ fn pass_body(
             let p = at((w, h), backward, xi, yi);
             let c = &cost[p * d..(p + 1) * d];
             let g = img[p];
-            let s = &mut sum[p * d..(p + 1) * d];
+            let at_s = if whole { p } else { p % w } * d;
+            let s = &mut sum[at_s..at_s + d];
             // Along the row, then from the previous row: the same column, the column before
             // and the column after (the slots).
             let row_in = if xi == 0 {
@@ -258,7 +257,6 @@ fn pass_body(
                     pen.p1,
                     [&mut lcur[..], cell0, cell1, cell2],
                     s,
-                    add,
                 );
                 lmin = m[0];
                 for slot in 0..3 {
@@ -274,7 +272,6 @@ fn pass_body(
                     pen.p1,
                     [&mut lcur[..], cell0],
                     s,
-                    add,
                 );
                 lmin = m[0];
                 cur_min[xi] = m[1];
@@ -284,7 +281,8 @@ fn pass_body(
         std::mem::swap(&mut prev, &mut cur);
         std::mem::swap(&mut prev_min, &mut cur_min);
         let y = if backward { h - 1 - yi } else { yi };
-        on_row(y, &sum[y * w * d..(y + 1) * w * d]);
+        let at_row = if whole { y * w * d } else { 0 };
+        on_row(y, &mut sum[at_row..at_row + w * d]);
     }
 }
 
@@ -297,22 +295,21 @@ fn pass(
     dims: (usize, usize, usize),
     pen: &Penalties,
     backward: bool,
-    add: bool,
-    sum: &mut [i16],
-    on_row: &mut dyn FnMut(usize, &[i16]),
+    sum: (&mut [i16], bool),
+    on_row: &mut dyn FnMut(usize, &mut [i16]),
 ) {
     #[cfg(target_arch = "x86_64")]
     if dims.2 >= LANES {
         if let Some(simd) = pulp::x86::V3::try_new() {
             return simd.vectorize(
                 #[inline(always)]
-                || pass_body(&avx::Avx2(simd), cost, img, dims, pen, backward, add, sum, on_row),
+                || pass_body(&avx::Avx2(simd), cost, img, dims, pen, backward, sum, on_row),
             );
         }
     }
     super::fast(
         #[inline(always)]
-        || pass_body(&Portable, cost, img, dims, pen, backward, add, sum, on_row),
+        || pass_body(&Portable, cost, img, dims, pen, backward, sum, on_row),
     );
 }
 
@@ -368,7 +365,6 @@ pub(crate) mod avx {
             p1: i16,
             outs: [&mut [i16]; P],
             s: &mut [i16],
-            add: bool,
         ) -> [i16; P] {
             let (simd, d) = (self.0, c.len());
             let (avx, avx2) = (simd.avx, simd.avx2);
@@ -380,21 +376,13 @@ pub(crate) mod avx {
                 pminv[p] = avx._mm256_set1_epi16(pmins[p]);
                 capv[p] = avx._mm256_set1_epi16(pmins[p] + p2s[p]);
             }
-            // The last chunk may overlap its predecessor, which has then already added into the
-            // overlap: it adds to the sums as they were before the pixel.
+            // The last chunk may overlap its predecessor: the same sums computed twice.
             let last = d - LANES;
-            let tail = if add { load(s, last) } else { avx._mm256_setzero_si256() };
             let mut k0 = 0;
             loop {
                 let k = k0.min(last);
                 let cc = load_costs(simd, c, k);
-                let mut acc = if !add {
-                    avx._mm256_setzero_si256()
-                } else if k == last {
-                    tail
-                } else {
-                    load(s, k)
-                };
+                let mut acc = avx._mm256_setzero_si256();
                 for p in 0..P {
                     let prev = prevs[p];
                     let (below, centre, above) =
@@ -425,10 +413,14 @@ pub(crate) mod avx {
 /// with `img` the reference image's grey levels (for the adaptive `P2`), handed row by row
 /// to `per_row(y, S of row y)` (`w * d`) as soon as the row is complete; its answers by row.
 ///
-/// With one thread the backward pass adds into the forward pass's volume and each row is
-/// handed over as the backward pass leaves it (still in cache); with more, the two passes
-/// run side by side into two volumes, then the rows are added and handed over in parallel.
-/// The same integers either way.
+/// Each pass sums its paths into a row of its own. With one thread the forward pass's rows
+/// are copied into one volume, and the backward pass adds each of them to its own row and
+/// hands it over (in cache). With two or more the passes run side by side and meet at each
+/// row: the first to finish it leaves its sums there, the second adds them to its own and
+/// hands the row over (on its thread: the rows are handed over in parallel, each while in
+/// cache). They meet in the middle of the image, so that half a volume of sums is held, and
+/// the second half's rows reuse the buffers the first half's meetings freed. The same
+/// integers either way.
 pub fn aggregate_rows<R: Send>(
     cost: &[u8],
     img: &[u8],
@@ -436,31 +428,60 @@ pub fn aggregate_rows<R: Send>(
     pen: &Penalties,
     per_row: impl Fn(usize, &[i16]) -> R + Sync,
 ) -> Vec<R> {
-    use rayon::prelude::*;
-    let n = w * h * d;
-    let mut fwd = vec![0i16; n];
+    use std::sync::Mutex;
+    let n = w * d;
     if rayon::current_num_threads() < 2 {
-        pass(cost, img, (w, h, d), pen, false, false, &mut fwd, &mut |_, _| {});
+        // One pass after the other: the first's sums in one volume.
+        let mut first = vec![0i16; w * h * d];
+        pass(cost, img, (w, h, d), pen, false, (&mut first, true), &mut |_, _| {});
         let mut out: Vec<Option<R>> = (0..h).map(|_| None).collect();
-        pass(cost, img, (w, h, d), pen, true, true, &mut fwd, &mut |y, row| {
-            out[y] = Some(per_row(y, row));
+        pass(cost, img, (w, h, d), pen, true, (&mut vec![0; n], false), &mut |y, r| {
+            for (s, &t) in r.iter_mut().zip(&first[y * n..(y + 1) * n]) {
+                *s += t;
+            }
+            out[y] = Some(per_row(y, r));
         });
         return out.into_iter().map(|r| r.expect("every row is handed over")).collect();
     }
-    let mut bwd = vec![0i16; n];
-    rayon::join(
-        || pass(cost, img, (w, h, d), pen, false, false, &mut fwd, &mut |_, _| {}),
-        || pass(cost, img, (w, h, d), pen, true, false, &mut bwd, &mut |_, _| {}),
-    );
-    let row = (w * d).max(1);
-    fwd.par_chunks_mut(row)
-        .zip(bwd.par_chunks(row))
-        .enumerate()
-        .map(|(y, (a, b))| {
-            for (s, &t) in a.iter_mut().zip(b) {
-                *s += t;
+    // Each row: the first pass's sums until the second comes, then the row's answer.
+    enum Meeting<R> {
+        Empty,
+        Half(Vec<i16>),
+        Done(R),
+    }
+    let meetings: Vec<Mutex<Meeting<R>>> = (0..h).map(|_| Mutex::new(Meeting::Empty)).collect();
+    // Buffers freed by the second pass at a row, for the first pass's next rows.
+    let spare: Mutex<Vec<Vec<i16>>> = Mutex::new(Vec::new());
+    let meet = |y: usize, row: &mut [i16]| {
+        let mut m = meetings[y].lock().expect("a pass panicked");
+        match std::mem::replace(&mut *m, Meeting::Empty) {
+            Meeting::Empty => {
+                let mut keep = spare.lock().expect("a pass panicked").pop().unwrap_or_default();
+                keep.clear();
+                keep.extend_from_slice(row);
+                *m = Meeting::Half(keep);
             }
-            per_row(y, a)
+            Meeting::Half(first) => {
+                drop(m);
+                for (s, &t) in row.iter_mut().zip(&first) {
+                    *s += t;
+                }
+                let answer = per_row(y, row);
+                *meetings[y].lock().expect("a pass panicked") = Meeting::Done(answer);
+                spare.lock().expect("a pass panicked").push(first);
+            }
+            Meeting::Done(_) => unreachable!("each pass meets a row once"),
+        }
+    };
+    rayon::join(
+        || pass(cost, img, (w, h, d), pen, false, (&mut vec![0; n], false), &mut |y, r| meet(y, r)),
+        || pass(cost, img, (w, h, d), pen, true, (&mut vec![0; n], false), &mut |y, r| meet(y, r)),
+    );
+    meetings
+        .into_iter()
+        .map(|m| match m.into_inner().expect("a pass panicked") {
+            Meeting::Done(r) => r,
+            _ => unreachable!("both passes met every row"),
         })
         .collect()
 }
@@ -564,9 +585,16 @@ mod tests {
             }
             let pen = Penalties { p1: 16, p2, eight };
             let dims = (w, h, d);
+            // Each pass's rows, then their sum.
             let mut plain = vec![0i16; w * h * d];
-            pass_body(&Portable, &cost, &img, dims, &pen, false, false, &mut plain, &mut |_, _| {});
-            pass_body(&Portable, &cost, &img, dims, &pen, true, true, &mut plain, &mut |_, _| {});
+            for backward in [false, true] {
+                let row = (&mut vec![0; w * d][..], false);
+                pass_body(&Portable, &cost, &img, dims, &pen, backward, row, &mut |y, r| {
+                    for (s, t) in plain[y * w * d..(y + 1) * w * d].iter_mut().zip(r.iter()) {
+                        *s += t;
+                    }
+                });
+            }
             let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
             let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
             for pool in [one, two] {
