@@ -32,61 +32,18 @@ pub(crate) fn subpixel(a: i32, b: i32, c: i32) -> f32 {
 /// The winners of row `y` of `geo`'s reference image (`None`: refused) from its aggregated
 /// sums `sums` (`w * d`).
 pub(crate) fn winners_row(geo: &Geo, y: usize, sums: &[i16], uniqueness: f32) -> Vec<Option<Best>> {
-    /// A plain loop: an iterator's closure would not be inlined into the vectorised body.
-    #[inline(always)]
-    fn row(
-        geo: &Geo,
-        y: usize,
-        sums: &[i16],
-        uniqueness: f32,
-        m: impl Minima,
-    ) -> Vec<Option<Best>> {
-        let d = geo.d;
-        let mut row = Vec::with_capacity(geo.w);
-        for x in 0..geo.w {
-            row.push(winner(geo, x, y, &sums[x * d..(x + 1) * d], uniqueness, m));
-        }
-        row
-    }
-    #[cfg(target_arch = "x86_64")]
-    if (LANES..=i16::MAX as usize).contains(&geo.d) {
-        if let Some(simd) = pulp::x86::V3::try_new() {
-            return simd.vectorize(
-                #[inline(always)]
-                || row(geo, y, sums, uniqueness, avx::Minima2(simd)),
-            );
-        }
-    }
+    let d = geo.d;
+    // A plain loop: an iterator's closure would not be inlined into the AVX2 body.
     super::fast(
         #[inline(always)]
-        || row(geo, y, sums, uniqueness, Scans),
+        || {
+            let mut row = Vec::with_capacity(geo.w);
+            for x in 0..geo.w {
+                row.push(winner(geo, x, y, &sums[x * d..(x + 1) * d], uniqueness));
+            }
+            row
+        },
     )
-}
-
-/// How [`winner`] finds its minima over the sums `s[lo..=hi]` (`lo < hi`): the smallest
-/// `s1`, the first index `k1` where it lies, and the smallest `s2` more than one index away
-/// from `k1` (`i32::MAX` when no index is; only asked for when `lo < k1 < hi`).
-trait Minima: Copy {
-    fn minima(self, s: &[i16], lo: usize, hi: usize) -> (i32, usize, i32);
-}
-
-/// [`Minima`] by scans of the slices.
-#[derive(Clone, Copy)]
-struct Scans;
-
-impl Minima for Scans {
-    #[inline(always)]
-    fn minima(self, s: &[i16], lo: usize, hi: usize) -> (i32, usize, i32) {
-        let (s1, k1) = first_smallest(&s[lo..hi + 1]);
-        let k1 = lo + k1;
-        if k1 == lo || k1 == hi {
-            return (s1, k1, i32::MAX);
-        }
-        let below = min_of(&s[lo..k1 - 1]);
-        let above = min_of(&s[k1 + 2..hi + 1]);
-        let s2 = if k1 - 1 > lo || k1 + 2 <= hi { i32::from(below.min(above)) } else { i32::MAX };
-        (s1, k1, s2)
-    }
 }
 
 /// The smallest of `s` (`i16::MAX` when empty): chunks of [`LANES`] lanes (the last one
@@ -131,25 +88,20 @@ fn first_smallest(s: &[i16]) -> (i32, usize) {
 
 /// The winner of pixel `(x, y)` of `geo`'s reference image from its sums `s` (`d` long).
 #[inline(always)]
-fn winner(
-    geo: &Geo,
-    x: usize,
-    y: usize,
-    s: &[i16],
-    uniqueness: f32,
-    m: impl Minima,
-) -> Option<Best> {
+fn winner(geo: &Geo, x: usize, y: usize, s: &[i16], uniqueness: f32) -> Option<Best> {
     let line = geo.line(x, y)?;
     let (lo, hi) = geo.valid_range(x, line)?;
+    let run = &s[lo..hi + 1];
+    let (s1, k1) = first_smallest(run);
+    let k1 = lo + k1;
     // The minimum at an end of the range (or of the image): the match is not inside the
     // range.
-    if lo == hi {
-        return None;
-    }
-    let (s1, k1, s2) = m.minima(s, lo, hi);
     if k1 == lo || k1 == hi {
         return None;
     }
+    let below = min_of(&s[lo..k1 - 1]);
+    let above = min_of(&s[k1 + 2..hi + 1]);
+    let s2 = if k1 - 1 > lo || k1 + 2 <= hi { i32::from(below.min(above)) } else { i32::MAX };
     if s1 >= s2 || s1 as f32 > (1.0 - uniqueness) * s2 as f32 {
         return None;
     }
@@ -859,68 +811,6 @@ mod avx {
     #[derive(Clone, Copy)]
     pub(super) struct Rows(pub V3);
 
-    /// [`super::Minima`] in AVX2 registers, 16 sums a register, for `16..=i16::MAX` sums:
-    /// three passes over the pixel's whole sums (the last chunk overlapping its
-    /// predecessor), each lane outside `lo..=hi` (and, for `s2`, within one of `k1`)
-    /// masked out, so that every pixel takes the same branch-free work; `k1` from the first
-    /// chunk whose lanes equal `s1` (the chunks run in order of their first index).
-    #[derive(Clone, Copy)]
-    pub(super) struct Minima2(pub V3);
-
-    impl super::Minima for Minima2 {
-        #[inline(always)]
-        fn minima(self, s: &[i16], lo: usize, hi: usize) -> (i32, usize, i32) {
-            use super::super::sgm::{chunk_starts, LANES};
-            use core::arch::x86_64::__m256i;
-            let (simd, n) = (self.0, s.len());
-            let (avx, avx2) = (simd.avx, simd.avx2);
-            let load = |j0: usize| -> __m256i {
-                let a: [i16; LANES] = s[j0..j0 + LANES].try_into().expect("chunk");
-                pulp::cast(a)
-            };
-            let iota: __m256i = pulp::cast(core::array::from_fn::<i16, LANES, _>(|i| i as i16));
-            let lanes = |j0: usize| avx2._mm256_add_epi16(avx._mm256_set1_epi16(j0 as i16), iota);
-            // Lanes k with a < k < b.
-            let between = |k: __m256i, a: i16, b: i16| {
-                avx2._mm256_and_si256(
-                    avx2._mm256_cmpgt_epi16(k, avx._mm256_set1_epi16(a)),
-                    avx2._mm256_cmpgt_epi16(avx._mm256_set1_epi16(b), k),
-                )
-            };
-            let big = avx._mm256_set1_epi16(i16::MAX);
-            let (below, above) = (lo as i16 - 1, hi as i16 + 1);
-            let mut m = big;
-            for j0 in chunk_starts(n, LANES) {
-                let inside = between(lanes(j0), below, above);
-                m = avx2._mm256_min_epi16(m, avx2._mm256_blendv_epi8(big, load(j0), inside));
-            }
-            let s1 = super::super::sgm::avx::min_lane(simd, m);
-            let s1v = avx._mm256_set1_epi16(s1);
-            let mut k1 = usize::MAX;
-            for j0 in chunk_starts(n, LANES) {
-                let inside = between(lanes(j0), below, above);
-                let hit = avx2._mm256_and_si256(avx2._mm256_cmpeq_epi16(load(j0), s1v), inside);
-                let bits = avx2._mm256_movemask_epi8(hit) as u32;
-                if bits != 0 {
-                    k1 = j0 + (bits.trailing_zeros() / 2) as usize;
-                    break;
-                }
-            }
-            if k1 == lo || k1 == hi || !(k1 - 1 > lo || k1 + 2 <= hi) {
-                return (i32::from(s1), k1, i32::MAX);
-            }
-            let (near_a, near_b) = (k1 as i16 - 2, k1 as i16 + 2);
-            let mut m2 = big;
-            for j0 in chunk_starts(n, LANES) {
-                let k = lanes(j0);
-                let away =
-                    avx2._mm256_andnot_si256(between(k, near_a, near_b), between(k, below, above));
-                m2 = avx2._mm256_min_epi16(m2, avx2._mm256_blendv_epi8(big, load(j0), away));
-            }
-            (i32::from(s1), k1, i32::from(super::super::sgm::avx::min_lane(simd, m2)))
-        }
-    }
-
     impl RowOps for Rows {
         type R = __m256;
         #[inline(always)]
@@ -1595,29 +1485,6 @@ mod tests {
                 let got = right_from_left_row(&geo, &sums);
                 let want = right_from_left_row_reference(&geo, &sums);
                 assert_eq!(got, want, "w {w}, d {d}, d_min {d_min}");
-            }
-        }
-    }
-
-    /// The AVX2 minima are the scans', ties included, for every range inside sums of every
-    /// length from one chunk on.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn the_avx_minima_are_the_scans() {
-        let simd = pulp::x86::V3::try_new().expect("the AVX2 build is tested on a CPU with AVX2");
-        let mut seed = 9u64;
-        let mut next = |m: u64| hvs_shared::test_support::splitmix64(&mut seed) % m;
-        for n in [16usize, 17, 31, 32, 33, 62, 64, 100] {
-            for _ in 0..300 {
-                let s: Vec<i16> = (0..n).map(|_| next(5) as i16 * 300).collect();
-                let lo = next(n as u64 - 1) as usize;
-                let hi = lo + 1 + next((n - lo - 1) as u64) as usize;
-                let want = Scans.minima(&s, lo, hi);
-                let got = avx::Minima2(simd).minima(&s, lo, hi);
-                assert_eq!((got.0, got.1), (want.0, want.1), "{s:?} {lo}..={hi}");
-                if want.1 > lo && want.1 < hi {
-                    assert_eq!(got.2, want.2, "{s:?} {lo}..={hi}");
-                }
             }
         }
     }

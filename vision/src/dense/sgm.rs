@@ -318,7 +318,7 @@ fn pass(
 /// over the pixel's costs and sums instead of one per path and another for the sum). Integer
 /// arithmetic: the same sums as [`Portable`] (a unit test compares the passes).
 #[cfg(target_arch = "x86_64")]
-pub(crate) mod avx {
+mod avx {
     use super::{Paths, LANES};
     use core::arch::x86_64::{__m128i, __m256i};
     use pulp::x86::V3;
@@ -344,7 +344,7 @@ pub(crate) mod avx {
 
     /// The smallest lane (every lane `0..=i16::MAX`, so the unsigned minimum is it).
     #[inline(always)]
-    pub(crate) fn min_lane(simd: V3, v: __m256i) -> i16 {
+    fn min_lane(simd: V3, v: __m256i) -> i16 {
         let lo = simd.avx._mm256_castsi256_si128(v);
         let hi = simd.avx2._mm256_extracti128_si256::<1>(v);
         let m = simd.sse4_1._mm_minpos_epu16(simd.sse2._mm_min_epi16(lo, hi));
