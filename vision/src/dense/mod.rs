@@ -38,8 +38,8 @@
 //!
 //! Memory: 3 bytes per cell of the volume at most (`u8` costs and one volume of `i16` sums:
 //! the forward pass's with one thread; with two, where the passes run side by side, the
-//! rows one pass has finished and the other not yet reached, which is half the image when
-//! they meet in the middle); [`MAX_CELLS`] bounds it.
+//! rows one pass has finished and the other not yet reached, all of them when they meet in
+//! the middle of the image); [`MAX_CELLS`] bounds it.
 //!
 //! Speed: the loops over disparities are written for the compiler to vectorise (fixed-size
 //! chunks, every lane stored: the winner is the smallest key `sum << 16 | index`, the right

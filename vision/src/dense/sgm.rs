@@ -413,13 +413,13 @@ mod avx {
 /// with `img` the reference image's grey levels (for the adaptive `P2`), handed row by row
 /// to `per_row(y, S of row y)` (`w * d`) as soon as the row is complete; its answers by row.
 ///
-/// Each pass sums its paths into a row of its own. With one thread the forward pass's rows
-/// are copied into one volume, and the backward pass adds each of them to its own row and
-/// hands it over (in cache). With two or more the passes run side by side and meet at each
-/// row: the first to finish it leaves its sums there, the second adds them to its own and
-/// hands the row over (on its thread: the rows are handed over in parallel, each while in
-/// cache). They meet in the middle of the image, so that half a volume of sums is held, and
-/// the second half's rows reuse the buffers the first half's meetings freed. The same
+/// With one thread the forward pass writes its sums into one volume, then the backward pass
+/// sums its paths into a row of its own, adds the forward row to it and hands it over (in
+/// cache). With two or more the passes run side by side, each into a row of its own, and meet
+/// at each row: the first to finish it leaves a copy of its sums there, the second adds them
+/// to its own and hands the row over (on its thread: the rows are handed over in parallel,
+/// each while in cache, with no adding pass after the passes). One volume of sums is held at
+/// most (when the passes meet in the middle of the image), not one per pass. The same
 /// integers either way.
 pub fn aggregate_rows<R: Send>(
     cost: &[u8],
@@ -450,17 +450,10 @@ pub fn aggregate_rows<R: Send>(
         Done(R),
     }
     let meetings: Vec<Mutex<Meeting<R>>> = (0..h).map(|_| Mutex::new(Meeting::Empty)).collect();
-    // Buffers freed by the second pass at a row, for the first pass's next rows.
-    let spare: Mutex<Vec<Vec<i16>>> = Mutex::new(Vec::new());
     let meet = |y: usize, row: &mut [i16]| {
         let mut m = meetings[y].lock().expect("a pass panicked");
         match std::mem::replace(&mut *m, Meeting::Empty) {
-            Meeting::Empty => {
-                let mut keep = spare.lock().expect("a pass panicked").pop().unwrap_or_default();
-                keep.clear();
-                keep.extend_from_slice(row);
-                *m = Meeting::Half(keep);
-            }
+            Meeting::Empty => *m = Meeting::Half(row.to_vec()),
             Meeting::Half(first) => {
                 drop(m);
                 for (s, &t) in row.iter_mut().zip(&first) {
@@ -468,7 +461,6 @@ pub fn aggregate_rows<R: Send>(
                 }
                 let answer = per_row(y, row);
                 *meetings[y].lock().expect("a pass panicked") = Meeting::Done(answer);
-                spare.lock().expect("a pass panicked").push(first);
             }
             Meeting::Done(_) => unreachable!("each pass meets a row once"),
         }
