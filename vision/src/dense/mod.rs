@@ -44,9 +44,10 @@
 //! Speed: the loops over disparities are written for the compiler to vectorise (fixed-size
 //! chunks, every lane stored: the winner is the smallest key `sum << 16 | index`, the right
 //! image's disparities running minima over the volume in its own order) and run
-//! compiled for AVX2 where the CPU has it ([`pulp`]'s runtime check; the same integers and
-//! floats as without), census costs by hardware popcount; rows go to the winners as soon as
-//! the aggregation completes them. Every stage is the same arithmetic on one thread or many,
+//! compiled for AVX-512 or AVX2 where the CPU has them ([`pulp`]'s runtime check; the same
+//! integers and floats as without), census costs by hardware popcount (AVX-512's `VPOPCNTQ`,
+//! eight at a time, where present); rows go to the winners as soon as the aggregation
+//! completes them. Every stage is the same arithmetic on one thread or many,
 //! so the output does not depend on the thread count.
 
 pub mod census;
@@ -463,9 +464,9 @@ pub fn dense_match(
 }
 
 /// Runs `f` compiled for the best instruction set of this CPU (AVX-512 or AVX2 and their
-/// companions where present, by [`pulp`]'s runtime check; plain x86-64 otherwise). Only the speed differs:
-/// integer code gives the same integers, and float code the same floats (Rust does not fuse
-/// or reorder float operations).
+/// companions where present, by [`pulp`]'s runtime check; plain x86-64 otherwise). Only the
+/// speed differs: integer code gives the same integers, and float code the same floats (Rust
+/// does not fuse or reorder float operations).
 #[inline(always)]
 pub(crate) fn fast<R>(f: impl FnOnce() -> R) -> R {
     struct Op<F>(F);
