@@ -489,37 +489,30 @@ pub(crate) fn refine(
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = pulp::x86::V3::try_new() {
             best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                let planes = &planes;
                 simd.vectorize(
                     #[inline(always)]
-                    || {
-                        for (x, slot) in row.iter_mut().enumerate() {
-                            let Some(b) = slot else { continue };
-                            if let Some(u) = refined_rectified(
-                                avx::Rows(simd),
-                                geo,
-                                &planes,
-                                (x, y),
-                                b.disparity,
-                            ) {
-                                b.disparity = (x as f64 - u) as f32;
-                            }
-                        }
+                    move || {
+                        // `row` moved out: the closure is `FnOnce` only, so the vectorised
+                        // body calls it directly. A closure that could be `Fn` is called
+                        // through a `call_once` shim, which is not inlined once the body is
+                        // large: the body then lost the target features (every intrinsic a
+                        // call, 17x slower).
+                        let row = row;
+                        refine_row_rectified(avx::Rows(simd), geo, planes, y, row)
                     },
                 )
             });
             return;
         }
         best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let planes = &planes;
             super::fast(
                 #[inline(always)]
-                || {
-                    for (x, slot) in row.iter_mut().enumerate() {
-                        let Some(b) = slot else { continue };
-                        if let Some(u) = refined_rectified(Rows8, geo, &planes, (x, y), b.disparity)
-                        {
-                            b.disparity = (x as f64 - u) as f32;
-                        }
-                    }
+                move || {
+                    // Moved out: `FnOnce` only (see above).
+                    let row = row;
+                    refine_row_rectified(Rows8, geo, planes, y, row)
                 },
             )
         });
@@ -794,6 +787,127 @@ fn refined_rectified<O: RowOps>(
         u += f64::from((num / den).clamp(-0.5, 0.5));
     }
     ((u - u0).abs() <= 0.5).then_some(u)
+}
+
+/// [`refined_rectified`] of two pixels of row `y` at once (each `(x, disparity)`), step by
+/// step side by side: each pixel's chain of window sums is latency-bound and the two chains
+/// are independent, so the processor overlaps them. The same operations per pixel in the
+/// same order, so the same bits as two calls (a unit test compares them); a pixel whose line
+/// or window fails the first checks sends both to [`refined_rectified`].
+#[inline(always)]
+fn refined_rectified_pair<O: RowOps>(
+    o: O,
+    geo: &Geo,
+    planes: &Planes,
+    y: usize,
+    px: [(usize, f32); 2],
+) -> [Option<f64>; 2] {
+    const N: f32 = (REFINE_SIDE * REFINE_SIDE) as f32;
+    let (w, h) = (geo.w, geo.h);
+    let (la, lb) = (geo.line(px[0].0, y), geo.line(px[1].0, y));
+    let inside = window_inside((w, h), (px[0].0, y), 1) && window_inside((w, h), (px[1].0, y), 1);
+    let (Some(la), Some(lb), true) = (la, lb, inside) else {
+        // Plain calls, no closure (see [`refine_row_rectified`]).
+        return [
+            refined_rectified(o, geo, planes, (px[0].0, y), px[0].1),
+            refined_rectified(o, geo, planes, (px[1].0, y), px[1].1),
+        ];
+    };
+    let lines = [la, lb];
+    let half = REFINE_HALF as usize;
+    let mut lw = [[o.zero(); REFINE_SIDE]; 2];
+    let mut gl = [[o.zero(); REFINE_SIDE]; 2];
+    for j in 0..REFINE_SIDE {
+        for i in 0..2 {
+            let r = (y + j - half) * w + px[i].0 - half;
+            lw[i][j] = o.masked(o.load(&planes.left, r));
+            gl[i][j] = o.masked(o.load(&planes.grad, r));
+        }
+    }
+    let lmean = [window_sum(o, &lw[0]) / N, window_sum(o, &lw[1]) / N];
+    for i in 0..2 {
+        for row in lw[i].iter_mut() {
+            *row = o.masked(o.minus(*row, lmean[i]));
+        }
+    }
+    let lvar = [window_dot(o, &lw[0], &lw[0]), window_dot(o, &lw[1], &lw[1])];
+    let sg = [window_sum(o, &gl[0]), window_sum(o, &gl[1])];
+    let gg = [window_dot(o, &gl[0], &gl[0]), window_dot(o, &gl[1], &gl[1])];
+    let sgl = [window_dot(o, &gl[0], &lw[0]), window_dot(o, &gl[1], &lw[1])];
+    let mut alive = [true; 2];
+    let mut den = [0.0f32; 2];
+    for i in 0..2 {
+        den[i] = gg[i] - sg[i] * (sg[i] / N);
+        // The single pixel's refusals as written there (their converse would differ for NaN).
+        let refused = lvar[i] < 1e-6 || den[i] <= 1e-9;
+        alive[i] = !refused;
+    }
+    let u0 = [px[0].0 as f64 - f64::from(px[0].1), px[1].0 as f64 - f64::from(px[1].1)];
+    let mut u = u0;
+    for _ in 0..2 {
+        let mut rw = [[o.zero(); REFINE_SIDE]; 2];
+        for i in 0..2 {
+            if alive[i] {
+                let v = lines[i].0 + lines[i].1 * u[i];
+                match right_window_lanes(o, &planes.right, (w, h), (u[i], v)) {
+                    Some(r) => rw[i] = r,
+                    None => alive[i] = false,
+                }
+            }
+        }
+        let rmean = [window_sum(o, &rw[0]) / N, window_sum(o, &rw[1]) / N];
+        for i in 0..2 {
+            for row in rw[i].iter_mut() {
+                *row = o.masked(o.minus(*row, rmean[i]));
+            }
+        }
+        let rvar = [window_dot(o, &rw[0], &rw[0]), window_dot(o, &rw[1], &rw[1])];
+        let sgr = [window_dot(o, &gl[0], &rw[0]), window_dot(o, &gl[1], &rw[1])];
+        for i in 0..2 {
+            let flat = rvar[i] < 1e-6;
+            alive[i] &= !flat;
+            if alive[i] {
+                let gain = (lvar[i] / rvar[i]).sqrt();
+                let num = sgl[i] - gain * sgr[i];
+                u[i] += f64::from((num / den[i]).clamp(-0.5, 0.5));
+            }
+        }
+    }
+    let kept = [alive[0] && (u[0] - u0[0]).abs() <= 0.5, alive[1] && (u[1] - u0[1]).abs() <= 0.5];
+    [kept[0].then_some(u[0]), kept[1].then_some(u[1])]
+}
+
+/// The rectified refinement of row `y`'s winners, its matched pixels two at a time
+/// ([`refined_rectified_pair`]), the last one alone when their number is odd. Plain loops,
+/// no closures: this runs inside the vectorised body.
+#[inline(always)]
+fn refine_row_rectified<O: RowOps>(
+    o: O,
+    geo: &Geo,
+    planes: &Planes,
+    y: usize,
+    row: &mut [Option<Best>],
+) {
+    let mut waiting: Option<(usize, f32)> = None;
+    for x in 0..row.len() {
+        let Some(b) = row[x] else { continue };
+        let Some(first) = waiting.take() else {
+            waiting = Some((x, b.disparity));
+            continue;
+        };
+        let u = refined_rectified_pair(o, geo, planes, y, [first, (x, b.disparity)]);
+        if let (Some(u), Some(b)) = (u[0], &mut row[first.0]) {
+            b.disparity = (first.0 as f64 - u) as f32;
+        }
+        if let (Some(u), Some(b)) = (u[1], &mut row[x]) {
+            b.disparity = (x as f64 - u) as f32;
+        }
+    }
+    if let Some((x, d)) = waiting {
+        if let (Some(u), Some(b)) = (refined_rectified(o, geo, planes, (x, y), d), &mut row[x]) {
+            b.disparity = (x as f64 - u) as f32;
+        }
+    }
 }
 
 /// [`RowOps`] in AVX registers, a window row per register (pulp's safe `V3` intrinsics): the
@@ -1376,6 +1490,64 @@ mod tests {
         let (scaled, unscaled) = (err([sc, sc]), err([1.0, 1.0]));
         assert!(scaled < 0.05, "scaled windows: worst {scaled} px");
         assert!(unscaled > scaled, "unscaled {unscaled} px, scaled {scaled} px");
+    }
+
+    /// Two pixels refined side by side (portable and AVX forms) give the bits of each
+    /// refined alone: neighbours and far pixels, every pixel of random grey levels (flat
+    /// patches, edges and starts beyond the image refused), each pair with other starts.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_paired_refinement_has_the_single_bits() {
+        let simd = pulp::x86::V3::try_new().expect("the AVX2 build is tested on a CPU with AVX2");
+        let (w, h) = (61usize, 33usize);
+        let mut seed = 0x9a1du64;
+        let mut grey = |k: usize| -> u8 {
+            let r = hvs_shared::test_support::splitmix64(&mut seed);
+            // A flat patch in the corner; elsewhere a ramp with noise.
+            if k % w < 12 && k / w < 10 {
+                90
+            } else {
+                ((k % w) as u64 * 3 + (k / w) as u64 * 5 + r % 40) as u8
+            }
+        };
+        let left: Vec<u8> = (0..w * h).map(&mut grey).collect();
+        let right: Vec<u8> = (0..w * h).map(&mut grey).collect();
+        let m = [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]];
+        let geo = Geo { m, sign: -1, d_min: 0, d: 20, w, h };
+        let planes = Planes::new(&left, &right);
+        let ds = [-0.5f32, 0.0, 0.37, 3.0, 7.25, 12.5, 20.0, 57.0];
+        let (mut some, mut none) = (0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                // Pairs of neighbours and of far pixels, every disparity against every other.
+                for x2 in [(x + 1) % w, (x + 29) % w] {
+                    for (i, &d) in ds.iter().enumerate() {
+                        let d2 = ds[(i * 3 + x) % ds.len()];
+                        let px = [(x, d), (x2, d2)];
+                        let single = [
+                            refined_rectified(Rows8, &geo, &planes, (x, y), d),
+                            refined_rectified(Rows8, &geo, &planes, (x2, y), d2),
+                        ];
+                        let pair = refined_rectified_pair(Rows8, &geo, &planes, y, px);
+                        let vector = simd.vectorize(|| {
+                            refined_rectified_pair(avx::Rows(simd), &geo, &planes, y, px)
+                        });
+                        let bits = |r: [Option<f64>; 2]| r.map(|u| u.map(f64::to_bits));
+                        assert_eq!(bits(pair), bits(single), "({x}, {x2}), {y}: {d}, {d2}");
+                        assert_eq!(bits(vector), bits(single), "({x}, {x2}), {y}: {d}, {d2}");
+                        for r in single {
+                            if r.is_some() {
+                                some += 1;
+                            } else {
+                                none += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Both outcomes were met, refused pixels among them (borders, the flat patch).
+        assert!(some > 1000 && none > 1000, "{some} refined, {none} refused");
     }
 
     /// The AVX form of the rectified refinement gives the portable form's answers bit for
