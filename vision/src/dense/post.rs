@@ -1492,18 +1492,12 @@ mod tests {
         assert!(unscaled > scaled, "unscaled {unscaled} px, scaled {scaled} px");
     }
 
-    /// Two pixels refined side by side (portable and AVX forms) give the bits of each
-    /// refined alone: neighbours and far pixels, every pixel of random grey levels (flat
-    /// patches, edges and starts beyond the image refused), each pair with other starts.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn the_paired_refinement_has_the_single_bits() {
-        let simd = pulp::x86::V3::try_new().expect("the AVX2 build is tested on a CPU with AVX2");
+    /// A rectified 61 x 33 pair of random grey levels for the refinement's tests: a flat
+    /// patch in the corner (refused), elsewhere a ramp with noise.
+    fn refinement_pair(mut seed: u64) -> (Geo, Planes) {
         let (w, h) = (61usize, 33usize);
-        let mut seed = 0x9a1du64;
         let mut grey = |k: usize| -> u8 {
             let r = hvs_shared::test_support::splitmix64(&mut seed);
-            // A flat patch in the corner; elsewhere a ramp with noise.
             if k % w < 12 && k / w < 10 {
                 90
             } else {
@@ -1513,8 +1507,18 @@ mod tests {
         let left: Vec<u8> = (0..w * h).map(&mut grey).collect();
         let right: Vec<u8> = (0..w * h).map(&mut grey).collect();
         let m = [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]];
-        let geo = Geo { m, sign: -1, d_min: 0, d: 20, w, h };
-        let planes = Planes::new(&left, &right);
+        (Geo { m, sign: -1, d_min: 0, d: 20, w, h }, Planes::new(&left, &right))
+    }
+
+    /// Two pixels refined side by side (portable and AVX forms) give the bits of each
+    /// refined alone: neighbours and far pixels, every pixel of random grey levels (flat
+    /// patches, edges and starts beyond the image refused), each pair with other starts.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_paired_refinement_has_the_single_bits() {
+        let simd = pulp::x86::V3::try_new().expect("the AVX2 build is tested on a CPU with AVX2");
+        let (geo, planes) = refinement_pair(0x9a1du64);
+        let (w, h) = (geo.w, geo.h);
         let ds = [-0.5f32, 0.0, 0.37, 3.0, 7.25, 12.5, 20.0, 57.0];
         let (mut some, mut none) = (0, 0);
         for y in 0..h {
@@ -1557,22 +1561,8 @@ mod tests {
     #[test]
     fn the_avx_refinement_has_the_portable_bits() {
         let simd = pulp::x86::V3::try_new().expect("the AVX2 build is tested on a CPU with AVX2");
-        let (w, h) = (61usize, 33usize);
-        let mut seed = 0x5eedu64;
-        let mut grey = |k: usize| -> u8 {
-            let r = hvs_shared::test_support::splitmix64(&mut seed);
-            // A flat patch in the corner; elsewhere a ramp with noise.
-            if k % w < 12 && k / w < 10 {
-                90
-            } else {
-                ((k % w) as u64 * 3 + (k / w) as u64 * 5 + r % 40) as u8
-            }
-        };
-        let left: Vec<u8> = (0..w * h).map(&mut grey).collect();
-        let right: Vec<u8> = (0..w * h).map(&mut grey).collect();
-        let m = [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]];
-        let geo = Geo { m, sign: -1, d_min: 0, d: 20, w, h };
-        let planes = Planes::new(&left, &right);
+        let (geo, planes) = refinement_pair(0x5eedu64);
+        let (w, h) = (geo.w, geo.h);
         let (mut some, mut none) = (0, 0);
         for y in 0..h {
             for x in 0..w {
