@@ -736,117 +736,75 @@ fn refined_rectified<O: RowOps>(
     (x, y): (usize, usize),
     disparity: f32,
 ) -> Option<f64> {
-    const N: f32 = (REFINE_SIDE * REFINE_SIDE) as f32;
-    let (alpha, beta) = geo.line(x, y)?;
-    let (w, h) = (geo.w, geo.h);
-    // One column more on each side for the central differences.
-    if !window_inside((w, h), (x, y), 1) {
-        return None;
-    }
-    let half = REFINE_HALF as usize;
-    let (mut lw, mut gl) = ([o.zero(); REFINE_SIDE], [o.zero(); REFINE_SIDE]);
-    // Plain loops (no closures) here and below: a closure would not be compiled for the
-    // instruction set of the vectorised caller.
-    for j in 0..REFINE_SIDE {
-        // The window's pixels x - 3 ..= x + 3 (inside: checked above; the padding lane
-        // reads whatever follows).
-        let r = (y + j - half) * w + x - half;
-        lw[j] = o.masked(o.load(&planes.left, r));
-        gl[j] = o.masked(o.load(&planes.grad, r));
-    }
-    let lmean = window_sum(o, &lw) / N;
-    for row in lw.iter_mut() {
-        *row = o.masked(o.minus(*row, lmean));
-    }
-    let lvar = window_dot(o, &lw, &lw);
-    if lvar < 1e-6 {
-        return None;
-    }
-    let sg = window_sum(o, &gl);
-    let den = window_dot(o, &gl, &gl) - sg * (sg / N);
-    if den <= 1e-9 {
-        return None;
-    }
-    let sgl = window_dot(o, &gl, &lw);
-    let u0 = x as f64 - f64::from(disparity);
-    let mut u = u0;
-    for _ in 0..2 {
-        let v = alpha + beta * u;
-        let mut rw = right_window_lanes(o, &planes.right, (w, h), (u, v))?;
-        let rmean = window_sum(o, &rw) / N;
-        for row in rw.iter_mut() {
-            *row = o.masked(o.minus(*row, rmean));
-        }
-        let rvar = window_dot(o, &rw, &rw);
-        if rvar < 1e-6 {
-            return None;
-        }
-        let sgr = window_dot(o, &gl, &rw);
-        let gain = (lvar / rvar).sqrt();
-        let num = sgl - gain * sgr;
-        u += f64::from((num / den).clamp(-0.5, 0.5));
-    }
-    ((u - u0).abs() <= 0.5).then_some(u)
+    let [u] = refined_rectified_lanes(o, geo, planes, y, [(x, disparity)]);
+    u
 }
 
-/// [`refined_rectified`] of two pixels of row `y` at once (each `(x, disparity)`), step by
-/// step side by side: each pixel's chain of window sums is latency-bound and the two chains
-/// are independent, so the processor overlaps them. The same operations per pixel in the
-/// same order, so the same bits as two calls (a unit test compares them); a pixel whose line
-/// or window fails the first checks sends both to [`refined_rectified`].
+/// [`refined_rectified`] of `K` pixels of row `y` at once (each `(x, disparity)`), step by
+/// step side by side: each pixel's chain of window sums is latency-bound and the chains are
+/// independent, so the processor overlaps them. Each pixel gets the same operations in the
+/// same order whatever `K` (a unit test compares two pixels with one at a time). A pixel
+/// refused on the way is carried along without its windows and answers `None`.
 #[inline(always)]
-fn refined_rectified_pair<O: RowOps>(
+fn refined_rectified_lanes<O: RowOps, const K: usize>(
     o: O,
     geo: &Geo,
     planes: &Planes,
     y: usize,
-    px: [(usize, f32); 2],
-) -> [Option<f64>; 2] {
+    px: [(usize, f32); K],
+) -> [Option<f64>; K] {
     const N: f32 = (REFINE_SIDE * REFINE_SIDE) as f32;
     let (w, h) = (geo.w, geo.h);
-    let (la, lb) = (geo.line(px[0].0, y), geo.line(px[1].0, y));
-    let inside = window_inside((w, h), (px[0].0, y), 1) && window_inside((w, h), (px[1].0, y), 1);
-    let (Some(la), Some(lb), true) = (la, lb, inside) else {
-        // Plain calls, no closure (see [`refine_row_rectified`]).
-        return [
-            refined_rectified(o, geo, planes, (px[0].0, y), px[0].1),
-            refined_rectified(o, geo, planes, (px[1].0, y), px[1].1),
-        ];
-    };
-    let lines = [la, lb];
     let half = REFINE_HALF as usize;
-    let mut lw = [[o.zero(); REFINE_SIDE]; 2];
-    let mut gl = [[o.zero(); REFINE_SIDE]; 2];
-    for j in 0..REFINE_SIDE {
-        for i in 0..2 {
-            let r = (y + j - half) * w + px[i].0 - half;
+    // Plain loops (no closures) here and below: a closure would not be compiled for the
+    // instruction set of the vectorised caller.
+    let mut alive = [true; K];
+    let mut lines = [(0.0f64, 0.0f64); K];
+    let mut lw = [[o.zero(); REFINE_SIDE]; K];
+    let mut gl = [[o.zero(); REFINE_SIDE]; K];
+    for i in 0..K {
+        let x = px[i].0;
+        // One column more on each side for the central differences.
+        match geo.line(x, y) {
+            Some(line) if window_inside((w, h), (x, y), 1) => lines[i] = line,
+            _ => {
+                alive[i] = false;
+                continue;
+            }
+        }
+        for j in 0..REFINE_SIDE {
+            // The window's pixels x - 3 ..= x + 3 (inside: checked above; the padding lane
+            // reads whatever follows).
+            let r = (y + j - half) * w + x - half;
             lw[i][j] = o.masked(o.load(&planes.left, r));
             gl[i][j] = o.masked(o.load(&planes.grad, r));
         }
     }
-    let lmean = [window_sum(o, &lw[0]) / N, window_sum(o, &lw[1]) / N];
-    for i in 0..2 {
+    let mut lmean = [0.0f32; K];
+    for i in 0..K {
+        lmean[i] = window_sum(o, &lw[i]) / N;
         for row in lw[i].iter_mut() {
             *row = o.masked(o.minus(*row, lmean[i]));
         }
     }
-    let lvar = [window_dot(o, &lw[0], &lw[0]), window_dot(o, &lw[1], &lw[1])];
-    let sg = [window_sum(o, &gl[0]), window_sum(o, &gl[1])];
-    let gg = [window_dot(o, &gl[0], &gl[0]), window_dot(o, &gl[1], &gl[1])];
-    let sgl = [window_dot(o, &gl[0], &lw[0]), window_dot(o, &gl[1], &lw[1])];
-    let mut alive = [true; 2];
-    let mut den = [0.0f32; 2];
-    for i in 0..2 {
-        den[i] = gg[i] - sg[i] * (sg[i] / N);
-        // The single pixel's refusals as written there (their converse would differ for NaN).
+    let (mut lvar, mut den, mut sgl) = ([0.0f32; K], [0.0f32; K], [0.0f32; K]);
+    for i in 0..K {
+        lvar[i] = window_dot(o, &lw[i], &lw[i]);
+        let sg = window_sum(o, &gl[i]);
+        den[i] = window_dot(o, &gl[i], &gl[i]) - sg * (sg / N);
+        sgl[i] = window_dot(o, &gl[i], &lw[i]);
+        // Refusals as written (their converse would differ for NaN).
         let refused = lvar[i] < 1e-6 || den[i] <= 1e-9;
-        alive[i] = !refused;
+        alive[i] &= !refused;
     }
-    let u0 = [px[0].0 as f64 - f64::from(px[0].1), px[1].0 as f64 - f64::from(px[1].1)];
+    let mut u0 = [0.0f64; K];
+    for i in 0..K {
+        u0[i] = px[i].0 as f64 - f64::from(px[i].1);
+    }
     let mut u = u0;
     for _ in 0..2 {
-        let mut rw = [[o.zero(); REFINE_SIDE]; 2];
-        for i in 0..2 {
+        let mut rw = [[o.zero(); REFINE_SIDE]; K];
+        for i in 0..K {
             if alive[i] {
                 let v = lines[i].0 + lines[i].1 * u[i];
                 match right_window_lanes(o, &planes.right, (w, h), (u[i], v)) {
@@ -855,15 +813,16 @@ fn refined_rectified_pair<O: RowOps>(
                 }
             }
         }
-        let rmean = [window_sum(o, &rw[0]) / N, window_sum(o, &rw[1]) / N];
-        for i in 0..2 {
+        let (mut rvar, mut sgr) = ([0.0f32; K], [0.0f32; K]);
+        for i in 0..K {
+            let rmean = window_sum(o, &rw[i]) / N;
             for row in rw[i].iter_mut() {
-                *row = o.masked(o.minus(*row, rmean[i]));
+                *row = o.masked(o.minus(*row, rmean));
             }
+            rvar[i] = window_dot(o, &rw[i], &rw[i]);
+            sgr[i] = window_dot(o, &gl[i], &rw[i]);
         }
-        let rvar = [window_dot(o, &rw[0], &rw[0]), window_dot(o, &rw[1], &rw[1])];
-        let sgr = [window_dot(o, &gl[0], &rw[0]), window_dot(o, &gl[1], &rw[1])];
-        for i in 0..2 {
+        for i in 0..K {
             let flat = rvar[i] < 1e-6;
             alive[i] &= !flat;
             if alive[i] {
@@ -873,12 +832,17 @@ fn refined_rectified_pair<O: RowOps>(
             }
         }
     }
-    let kept = [alive[0] && (u[0] - u0[0]).abs() <= 0.5, alive[1] && (u[1] - u0[1]).abs() <= 0.5];
-    [kept[0].then_some(u[0]), kept[1].then_some(u[1])]
+    let mut out = [None; K];
+    for i in 0..K {
+        if alive[i] && (u[i] - u0[i]).abs() <= 0.5 {
+            out[i] = Some(u[i]);
+        }
+    }
+    out
 }
 
 /// The rectified refinement of row `y`'s winners, its matched pixels two at a time
-/// ([`refined_rectified_pair`]), the last one alone when their number is odd. Plain loops,
+/// ([`refined_rectified_lanes`]), the last one alone when their number is odd. Plain loops,
 /// no closures: this runs inside the vectorised body.
 #[inline(always)]
 fn refine_row_rectified<O: RowOps>(
@@ -895,7 +859,7 @@ fn refine_row_rectified<O: RowOps>(
             waiting = Some((x, b.disparity));
             continue;
         };
-        let u = refined_rectified_pair(o, geo, planes, y, [first, (x, b.disparity)]);
+        let u = refined_rectified_lanes(o, geo, planes, y, [first, (x, b.disparity)]);
         if let (Some(u), Some(b)) = (u[0], &mut row[first.0]) {
             b.disparity = (first.0 as f64 - u) as f32;
         }
@@ -1532,9 +1496,9 @@ mod tests {
                             refined_rectified(Rows8, &geo, &planes, (x, y), d),
                             refined_rectified(Rows8, &geo, &planes, (x2, y), d2),
                         ];
-                        let pair = refined_rectified_pair(Rows8, &geo, &planes, y, px);
+                        let pair = refined_rectified_lanes(Rows8, &geo, &planes, y, px);
                         let vector = simd.vectorize(|| {
-                            refined_rectified_pair(avx::Rows(simd), &geo, &planes, y, px)
+                            refined_rectified_lanes(avx::Rows(simd), &geo, &planes, y, px)
                         });
                         let bits = |r: [Option<f64>; 2]| r.map(|u| u.map(f64::to_bits));
                         assert_eq!(bits(pair), bits(single), "({x}, {x2}), {y}: {d}, {d2}");
