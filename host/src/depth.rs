@@ -340,10 +340,8 @@ mod tests {
         // 37 x 21 pixels: three chunks of MODEL_ROWS rows, the last one short.
         let (w, h) = (37usize, 21usize);
         let mut rng = 12345u64;
-        let mut next = || {
-            rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (rng >> 33) as f32 / (1u64 << 31) as f32
-        };
+        let mut next =
+            || (hvs_shared::test_support::splitmix64(&mut rng) >> 40) as f32 / (1u64 << 24) as f32;
         let n = w * h;
         let mut m = DenseMap {
             width: w as u32,
