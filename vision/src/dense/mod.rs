@@ -36,10 +36,13 @@
 //!    which was most of the depth error at 3 m.
 //! 8. A confidence in `0..1` per kept pixel ([`confidence`]).
 //!
-//! Memory: 3 bytes per cell of the volume at most (`u8` costs and one volume of `i16` sums:
-//! the forward pass's with one thread; with two, where the passes run side by side, the
-//! rows one pass has finished and the other not yet reached, all of them when they meet in
-//! the middle of the image); [`MAX_CELLS`] bounds it.
+//! Memory: 3 bytes per cell of the volume at most. With one thread 2 (the forward pass keeps
+//! each cell's cost and its sum packed in one `u16`; the costs are computed as the pass
+//! reaches each row, no volume of costs), or 3 with a `P2` too large to pack (`u8` costs and
+//! the forward pass's `i16` sums). With two threads, `u8` costs and one volume of `i16` sums
+//! at most (the passes run side by side; the rows one pass has finished and the other not
+//! yet reached, all of them when they meet in the middle of the image). [`MAX_CELLS`] bounds
+//! it.
 //!
 //! Speed: the loops over disparities are written for the compiler to vectorise (fixed-size
 //! chunks, every lane stored: the winner is the smallest key `sum << 16 | index`, the right
@@ -57,7 +60,6 @@ pub mod sgm;
 use crate::geometry::Fundamental;
 use crate::invalid::InvalidField;
 use image::GrayImage;
-use rayon::prelude::*;
 
 pub use post::confidence;
 
@@ -267,44 +269,90 @@ impl Geo {
     }
 }
 
-/// The census cost volume of `geo` (`w * h * d`, `u8`): out-of-image candidates cost half
-/// the most, so that the aggregation carries the neighbours' answer across them (they are
-/// never chosen). With it, whether every candidate lay on its reference pixel's own row (the
-/// volume is then that of a rectified pair, whatever `geo`'s lines are before rounding).
-/// Compiled for AVX-512's vector population count where the CPU has it, else as [`fast`].
-fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> (Vec<u8>, bool) {
-    let (w, d) = (geo.w, geo.d);
-    // With the left image as reference (`sign < 0`) a pixel's candidates run right to left
-    // along the other image's row: its rows reversed, so that each run is read forwards.
-    let reversed: Vec<u64>;
-    let other = if geo.sign < 0 {
-        reversed = other.chunks_exact(w).flat_map(|r| r.iter().rev().copied()).collect();
-        Rows { words: &reversed, reversed: true }
-    } else {
-        Rows { words: other, reversed: false }
-    };
-    // Zeroed pages from the allocator, each row's cells written once by its own thread.
-    let mut cost = vec![0u8; w * geo.h * d];
-    // Every row is computed (no short cut on the first row off its line).
-    let own_rows: Vec<bool> = cost
-        .par_chunks_mut(w * d)
-        .enumerate()
-        .map(|(y, row)| {
+/// The census costs of `geo` a row at a time ([`cost_row`]; [`sgm::aggregate_rows`] asks for
+/// them): out-of-image candidates cost half the most, so that the aggregation carries the
+/// neighbours' answer across them (they are never chosen). It records whether every
+/// candidate of the rows asked for lay on its reference pixel's own row (the volume is then
+/// that of a rectified pair, whatever `geo`'s lines are before rounding). Compiled for
+/// AVX-512's vector population count where the CPU has it, else as [`fast`].
+struct CensusCosts<'a> {
+    geo: &'a Geo,
+    reference: &'a [u64],
+    /// The other image's census words, each row reversed when `reversed`.
+    words: std::borrow::Cow<'a, [u64]>,
+    reversed: bool,
+    own_rows: std::sync::atomic::AtomicBool,
+}
+
+impl<'a> CensusCosts<'a> {
+    fn new(geo: &'a Geo, reference: &'a [u64], other: &'a [u64]) -> Self {
+        let w = geo.w;
+        // With the left image as reference (`sign < 0`) a pixel's candidates run right to
+        // left along the other image's row: its rows reversed, so that each run is read
+        // forwards.
+        let reversed = geo.sign < 0;
+        let words = if reversed {
+            other.chunks_exact(w).flat_map(|r| r.iter().rev().copied()).collect::<Vec<_>>().into()
+        } else {
+            other.into()
+        };
+        CensusCosts {
+            geo,
+            reference,
+            words,
+            reversed,
+            own_rows: std::sync::atomic::AtomicBool::new(true),
+        }
+    }
+
+    /// Whether every candidate of the rows computed so far lay on its own row.
+    fn own_rows(&self) -> bool {
+        self.own_rows.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl sgm::CostRows for CensusCosts<'_> {
+    fn row(&self, y: usize, out: &mut [u8]) {
+        let other = Rows { words: &self.words, reversed: self.reversed };
+        let (geo, reference) = (self.geo, self.reference);
+        // Every row is computed (no short cut on the first row off its line).
+        let own = 'own: {
             #[cfg(target_arch = "x86_64")]
             if let Some(simd) = Popcnt512::try_new() {
-                return simd.vectorize(
+                break 'own simd.vectorize(
                     #[inline(always)]
-                    || cost_row(geo, reference, other, y, row),
+                    move || {
+                        let out = out;
+                        cost_row(geo, reference, other, y, out)
+                    },
                 );
             }
             fast(
                 #[inline(always)]
-                || cost_row(geo, reference, other, y, row),
+                move || {
+                    let out = out;
+                    cost_row(geo, reference, other, y, out)
+                },
             )
-        })
-        .collect();
-    let own_rows = own_rows.into_iter().all(|own| own);
-    (cost, own_rows)
+        };
+        if !own {
+            self.own_rows.store(false, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
+
+/// The whole census cost volume of `geo` (`w * h * d`, [`CensusCosts`]) and whether every
+/// candidate lay on its own row.
+#[cfg(test)]
+fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> (Vec<u8>, bool) {
+    use sgm::CostRows;
+    let costs = CensusCosts::new(geo, reference, other);
+    let mut cost = vec![0u8; geo.w * geo.h * geo.d];
+    for (y, row) in cost.chunks_mut(geo.w * geo.d).enumerate() {
+        costs.row(y, row);
+    }
+    let own = costs.own_rows();
+    (cost, own)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -427,15 +475,17 @@ pub fn dense_match(
     let pen = penalties(params);
     let lgeo = Geo { m: f.m, sign: -1, d_min: d_range[0], d, w, h };
     // Rectified when every candidate lay on its own row: the right image's disparities are
-    // then read off the same volume (no second aggregation).
-    let (cost, rectified) = cost_volume(&lgeo, &cl, &cr);
+    // then read off the same volume (no second aggregation). Every row's costs are computed
+    // before the first row of sums is handed over, so the answer is known by then.
+    let costs = CensusCosts::new(&lgeo, &cl, &cr);
     // Each row of the aggregated volume as soon as it is complete: its winners and, for a
     // rectified pair, the right image's disparities of the same row.
-    let rows = sgm::aggregate_rows(&cost, left.as_raw(), (w, h, d), &pen, |y, sums| {
+    let rows = sgm::aggregate_rows(&costs, left.as_raw(), (w, h, d), &pen, |y, sums| {
         let best = post::winners_row(&lgeo, y, sums, params.uniqueness);
-        (best, rectified.then(|| post::right_from_left_row(&lgeo, sums)))
+        (best, costs.own_rows().then(|| post::right_from_left_row(&lgeo, sums)))
     });
-    drop(cost);
+    let rectified = costs.own_rows();
+    drop(costs);
     let mut best = Vec::with_capacity(w * h);
     let mut right_disp = Vec::with_capacity(if rectified { w * h } else { 0 });
     for (b, r) in rows {
@@ -447,11 +497,11 @@ pub fn dense_match(
     if !rectified {
         let mt = core::array::from_fn(|i| core::array::from_fn(|j| f.m[j][i]));
         let rgeo = Geo { m: mt, sign: 1, ..lgeo };
-        let (cost, _) = cost_volume(&rgeo, &cr, &cl);
-        let rows = sgm::aggregate_rows(&cost, right.as_raw(), (w, h, d), &pen, |y, sums| {
+        let costs = CensusCosts::new(&rgeo, &cr, &cl);
+        let rows = sgm::aggregate_rows(&costs, right.as_raw(), (w, h, d), &pen, |y, sums| {
             post::winners_row(&rgeo, y, sums, 0.0)
         });
-        drop(cost);
+        drop(costs);
         right_disp = rows.into_iter().flatten().map(|b| b.map(|b| b.disparity)).collect();
     }
     post::left_right_check(&lgeo, &mut best, &right_disp, params.lr_tolerance_px);

@@ -6,11 +6,13 @@
 //! The paths are run as two passes, each over the whole image once: top-left to bottom-right
 //! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
 //! bottom-left); with two cores the passes run side by side ([`rayon::join`]) and meet at
-//! each row ([`aggregate_rows`]). Costs are `u8`,
-//! path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`), stored disparities innermost
+//! each row ([`aggregate_rows`]). Costs are `u8` (on one thread, packed with the forward
+//! pass's sums in a `u16`), path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`), stored disparities innermost
 //! and computed 16 (or 32) disparities at a time; where the CPU has AVX2, a pixel's paths are
 //! stepped together in AVX2 registers and summed in the same pass (`avx`). The same integers
 //! on every path.
+
+use rayon::prelude::*;
 
 /// Penalties of the aggregation.
 #[derive(Debug, Clone, Copy)]
@@ -158,19 +160,19 @@ fn zero_row(dp: usize) -> Vec<i16> {
 
 /// One pass (forward: rows top to bottom, left to right; backward: the reverse), each
 /// pixel's paths stepped by `paths` and their sums written into `sum`: the whole volume
-/// (`w * h * d`) when `whole`, else one row (`w * d`) used for every row. `on_row(y, row)`
-/// is called with each row of sums once it is done.
+/// (`w * h * d`) when `whole`, else one row (`w * d`) used for every row; the costs from
+/// `costs`, row by row. `on_row(y, sums, costs)` is called with each row once it is done.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn pass_body(
     paths: &impl Paths,
-    cost: &[u8],
+    costs: PassCosts,
     img: &[u8],
     (w, h, d): (usize, usize, usize),
     pen: &Penalties,
     backward: bool,
     (sum, whole): (&mut [i16], bool),
-    on_row: &mut dyn FnMut(usize, &mut [i16]),
+    on_row: OnRow,
 ) {
     // Row buffers of the three paths that come from the previous row, by iteration column:
     // slot 0 from the same column, 1 from the column before, 2 from the column after. Each
@@ -185,6 +187,11 @@ fn pass_body(
     let mut lcur = vec![BIG; dp];
     let mut lmin = 0i16;
     let zero = zero_row(dp);
+    // The row's costs when they come a row at a time.
+    let mut row_costs = match costs {
+        PassCosts::Volume(_) => Vec::new(),
+        PassCosts::Rows(_) => vec![0u8; w * d],
+    };
     // Plain functions, not closures: these run for every pixel, and closures were left as
     // calls in the vectorised body.
     #[inline(always)]
@@ -227,9 +234,18 @@ fn pass_body(
         }
     }
     for yi in 0..h {
+        let y = if backward { h - 1 - yi } else { yi };
+        let crow: &[u8] = match costs {
+            PassCosts::Volume(v) => &v[y * w * d..(y + 1) * w * d],
+            PassCosts::Rows(fill) => {
+                fill(y, &mut row_costs);
+                &row_costs
+            }
+        };
         for xi in 0..w {
             let p = at((w, h), backward, xi, yi);
-            let c = &cost[p * d..(p + 1) * d];
+            let x = p - y * w;
+            let c = &crow[x * d..(x + 1) * d];
             let g = img[p];
             let at_s = if whole { p } else { p % w } * d;
             let s = &mut sum[at_s..at_s + d];
@@ -280,36 +296,46 @@ fn pass_body(
         }
         std::mem::swap(&mut prev, &mut cur);
         std::mem::swap(&mut prev_min, &mut cur_min);
-        let y = if backward { h - 1 - yi } else { yi };
         let at_row = if whole { y * w * d } else { 0 };
-        on_row(y, &mut sum[at_row..at_row + w * d]);
+        on_row(y, &mut sum[at_row..at_row + w * d], crow);
     }
+}
+
+/// What a pass does with each row once done: `(y, the row's sums, the row's costs)`.
+type OnRow<'a> = &'a mut dyn FnMut(usize, &mut [i16], &[u8]);
+
+/// Where a pass reads its costs: a whole volume (`w * h * d`), or a row at a time, written
+/// by the function into a row of the pass's own (`w * d`).
+#[derive(Clone, Copy)]
+enum PassCosts<'a> {
+    Volume(&'a [u8]),
+    Rows(&'a (dyn Fn(usize, &mut [u8]) + Sync)),
 }
 
 /// [`pass_body`], compiled for AVX2 where the CPU has it ([`super::fast`]: the same
 /// integers either way).
 #[allow(clippy::too_many_arguments)]
 fn pass(
-    cost: &[u8],
+    costs: PassCosts,
     img: &[u8],
     dims: (usize, usize, usize),
     pen: &Penalties,
     backward: bool,
     sum: (&mut [i16], bool),
-    on_row: &mut dyn FnMut(usize, &mut [i16]),
+    on_row: OnRow,
 ) {
     #[cfg(target_arch = "x86_64")]
     if dims.2 >= LANES {
         if let Some(simd) = pulp::x86::V3::try_new() {
             return simd.vectorize(
                 #[inline(always)]
-                || pass_body(&avx::Avx2(simd), cost, img, dims, pen, backward, sum, on_row),
+                || pass_body(&avx::Avx2(simd), costs, img, dims, pen, backward, sum, on_row),
             );
         }
     }
     super::fast(
         #[inline(always)]
-        || pass_body(&Portable, cost, img, dims, pen, backward, sum, on_row),
+        || pass_body(&Portable, costs, img, dims, pen, backward, sum, on_row),
     );
 }
 
@@ -409,20 +435,58 @@ mod avx {
     }
 }
 
-/// The aggregated cost `S(p, d)` of `cost` (`w * h * d`, rows first, disparities innermost)
-/// with `img` the reference image's grey levels (for the adaptive `P2`), handed row by row
-/// to `per_row(y, S of row y)` (`w * d`) as soon as the row is complete; its answers by row.
+/// A cost volume (`w * h * d`, `u8`, rows first, disparities innermost, each cost at most
+/// [`super::census::MAX_COST`]), given a row at a time: [`aggregate_rows`] asks for each row
+/// once or twice, on any thread, in any order.
+pub trait CostRows: Sync {
+    /// Writes row `y`'s `w * d` costs into `out`.
+    fn row(&self, y: usize, out: &mut [u8]);
+    /// The whole volume, where it is already in memory (then read in place).
+    fn volume(&self) -> Option<&[u8]> {
+        None
+    }
+}
+
+/// A cost volume already in memory.
+pub struct Volume<'a> {
+    /// The costs, `w * h * d`.
+    pub cost: &'a [u8],
+    /// Cells per row, `w * d`.
+    pub row_len: usize,
+}
+
+impl CostRows for Volume<'_> {
+    fn row(&self, y: usize, out: &mut [u8]) {
+        out.copy_from_slice(&self.cost[y * self.row_len..(y + 1) * self.row_len]);
+    }
+    fn volume(&self) -> Option<&[u8]> {
+        Some(self.cost)
+    }
+}
+
+/// Bits of a packed cell ([`aggregate_rows`] on one thread) that hold the cost.
+const COST_BITS: u32 = 6;
+const _: () = assert!((super::census::MAX_COST as u32) < 1 << COST_BITS);
+
+/// The aggregated cost `S(p, d)` of `costs` with `img` the reference image's grey levels
+/// (for the adaptive `P2`), handed row by row to `per_row(y, S of row y)` (`w * d`) as soon
+/// as the row is complete; its answers by row. Every row's costs have been asked for before
+/// the first row is handed over.
 ///
-/// With one thread the forward pass writes its sums into one volume, then the backward pass
-/// sums its paths into a row of its own, adds the forward row to it and hands it over (in
-/// cache). With two or more the passes run side by side, each into a row of its own, and meet
-/// at each row: the first to finish it leaves a copy of its sums there, the second adds them
-/// to its own and hands the row over (on its thread: the rows are handed over in parallel,
-/// each while in cache, with no adding pass after the passes). One volume of sums is held at
-/// most (when the passes meet in the middle of the image), not one per pass. The same
-/// integers either way.
+/// With one thread the forward pass asks for each row's costs as it reaches the row and keeps
+/// them with its sums, both packed in one `u16` cell (`sum << 6 | cost`: the forward pass's
+/// paths sum to under 1,024 with the usual `P2`, else a cost volume and a volume of sums as
+/// below); the backward pass takes the costs back from it, sums its paths into a row of its
+/// own, adds the forward row and hands it over (in cache). One volume of `u16` in all, and the
+/// costs computed once. With two or more threads the cost volume is filled first (rows in
+/// parallel), then the passes run side by side, each into a row of its own, and meet at each
+/// row: the first to finish it leaves a copy of its sums there, the second adds them to its
+/// own and hands the row over (on its thread: the rows are handed over in parallel, each
+/// while in cache, with no adding pass after the passes). One volume of sums is held at most
+/// (when the passes meet in the middle of the image), not one per pass. The same integers
+/// every way.
 pub fn aggregate_rows<R: Send>(
-    cost: &[u8],
+    costs: &impl CostRows,
     img: &[u8],
     (w, h, d): (usize, usize, usize),
     pen: &Penalties,
@@ -430,12 +494,59 @@ pub fn aggregate_rows<R: Send>(
 ) -> Vec<R> {
     use std::sync::Mutex;
     let n = w * d;
-    if rayon::current_num_threads() < 2 {
+    let dims = (w, h, d);
+    let one_thread = rayon::current_num_threads() < 2;
+    // The forward pass's paths: each at most MAX_COST + P2.
+    let forward_paths = if pen.eight { 4 } else { 2 };
+    let most_p2 = i32::from(pen.p2.iter().copied().max().unwrap_or(0));
+    let packs =
+        forward_paths * (i32::from(super::census::MAX_COST) + most_p2) < 1 << (16 - COST_BITS);
+    if one_thread && costs.volume().is_none() && packs {
+        let mut packed = vec![0u16; w * h * d];
+        let fill = |y: usize, out: &mut [u8]| costs.row(y, out);
+        pass(
+            PassCosts::Rows(&fill),
+            img,
+            dims,
+            pen,
+            false,
+            (&mut vec![0; n], false),
+            &mut |y, f, c| pack_row(&mut packed[y * n..(y + 1) * n], f, c),
+        );
+        let packed = &packed;
+        let unpack = |y: usize, out: &mut [u8]| unpack_costs(&packed[y * n..(y + 1) * n], out);
+        let mut out: Vec<Option<R>> = (0..h).map(|_| None).collect();
+        pass(
+            PassCosts::Rows(&unpack),
+            img,
+            dims,
+            pen,
+            true,
+            (&mut vec![0; n], false),
+            &mut |y, r, _| {
+                add_packed_sums(r, &packed[y * n..(y + 1) * n]);
+                out[y] = Some(per_row(y, r));
+            },
+        );
+        return out.into_iter().map(|r| r.expect("every row is handed over")).collect();
+    }
+    let filled: Vec<u8>;
+    let cost = match costs.volume() {
+        Some(v) => v,
+        None => {
+            let mut v = vec![0u8; w * h * d];
+            v.par_chunks_mut(n).enumerate().for_each(|(y, row)| costs.row(y, row));
+            filled = v;
+            &filled
+        }
+    };
+    let cost = PassCosts::Volume(cost);
+    if one_thread {
         // One pass after the other: the first's sums in one volume.
         let mut first = vec![0i16; w * h * d];
-        pass(cost, img, (w, h, d), pen, false, (&mut first, true), &mut |_, _| {});
+        pass(cost, img, dims, pen, false, (&mut first, true), &mut |_, _, _| {});
         let mut out: Vec<Option<R>> = (0..h).map(|_| None).collect();
-        pass(cost, img, (w, h, d), pen, true, (&mut vec![0; n], false), &mut |y, r| {
+        pass(cost, img, dims, pen, true, (&mut vec![0; n], false), &mut |y, r, _| {
             for (s, &t) in r.iter_mut().zip(&first[y * n..(y + 1) * n]) {
                 *s += t;
             }
@@ -466,8 +577,8 @@ pub fn aggregate_rows<R: Send>(
         }
     };
     rayon::join(
-        || pass(cost, img, (w, h, d), pen, false, (&mut vec![0; n], false), &mut |y, r| meet(y, r)),
-        || pass(cost, img, (w, h, d), pen, true, (&mut vec![0; n], false), &mut |y, r| meet(y, r)),
+        || pass(cost, img, dims, pen, false, (&mut vec![0; n], false), &mut |y, r, _| meet(y, r)),
+        || pass(cost, img, dims, pen, true, (&mut vec![0; n], false), &mut |y, r, _| meet(y, r)),
     );
     meetings
         .into_iter()
@@ -476,6 +587,45 @@ pub fn aggregate_rows<R: Send>(
             _ => unreachable!("both passes met every row"),
         })
         .collect()
+}
+
+/// One row of packed cells: each forward sum (non-negative, under `1 << 10`) above its cost.
+fn pack_row(packed: &mut [u16], sums: &[i16], costs: &[u8]) {
+    super::fast(
+        #[inline(always)]
+        move || {
+            let packed = packed;
+            for ((p, &s), &c) in packed.iter_mut().zip(sums).zip(costs) {
+                *p = (s as u16) << COST_BITS | u16::from(c);
+            }
+        },
+    )
+}
+
+/// The costs of one row of packed cells.
+fn unpack_costs(packed: &[u16], out: &mut [u8]) {
+    super::fast(
+        #[inline(always)]
+        move || {
+            let out = out;
+            for (o, &p) in out.iter_mut().zip(packed) {
+                *o = (p & ((1 << COST_BITS) - 1)) as u8;
+            }
+        },
+    )
+}
+
+/// Adds the forward sums of one row of packed cells to `row`.
+fn add_packed_sums(row: &mut [i16], packed: &[u16]) {
+    super::fast(
+        #[inline(always)]
+        move || {
+            let row = row;
+            for (s, &p) in row.iter_mut().zip(packed) {
+                *s += (p >> COST_BITS) as i16;
+            }
+        },
+    )
 }
 
 /// The whole aggregated volume `S` (`w * h * d`) of [`aggregate_rows`].
@@ -487,7 +637,8 @@ pub fn aggregate(
     d: usize,
     pen: &Penalties,
 ) -> Vec<i16> {
-    aggregate_rows(cost, img, (w, h, d), pen, |_, row| row.to_vec()).concat()
+    let costs = Volume { cost, row_len: w * d };
+    aggregate_rows(&costs, img, (w, h, d), pen, |_, row| row.to_vec()).concat()
 }
 
 #[cfg(test)]
@@ -566,33 +717,59 @@ mod tests {
             (11, 6, 64, true),
             (9, 5, 21, false),
         ] {
+            // Costs up to the census' most (what a packed cell holds), a few at it.
+            let most = u64::from(crate::dense::census::MAX_COST);
             let cost: Vec<u8> = (0..w * h * d)
-                .map(|_| (hvs_shared::test_support::splitmix64(&mut s) % 63) as u8)
+                .map(|_| {
+                    (hvs_shared::test_support::splitmix64(&mut s) % (most + 3)).min(most) as u8
+                })
                 .collect();
             let img: Vec<u8> =
                 (0..w * h).map(|_| hvs_shared::test_support::splitmix64(&mut s) as u8).collect();
-            let mut p2 = [0i16; 256];
-            for (g, v) in p2.iter_mut().enumerate() {
-                *v = (96 * 8 / (8 + g as i32)).max(17) as i16;
+            // The usual P2 (the one-thread forward pass packs its sums with the costs) and a
+            // large one (its sums do not fit: a cost volume and a volume of sums instead).
+            for top in [96, 400] {
+                let mut p2 = [0i16; 256];
+                for (g, v) in p2.iter_mut().enumerate() {
+                    *v = (top * 8 / (8 + g as i32)).max(17) as i16;
+                }
+                let pen = Penalties { p1: 16, p2, eight };
+                let dims = (w, h, d);
+                // Each pass's rows, then their sum.
+                let mut plain = vec![0i16; w * h * d];
+                for backward in [false, true] {
+                    let row = (&mut vec![0; w * d][..], false);
+                    let costs = PassCosts::Volume(&cost);
+                    pass_body(&Portable, costs, &img, dims, &pen, backward, row, &mut |y, r, _| {
+                        for (s, t) in plain[y * w * d..(y + 1) * w * d].iter_mut().zip(r.iter()) {
+                            *s += t;
+                        }
+                    });
+                }
+                let by_rows = RowsOnly(Volume { cost: &cost, row_len: w * d });
+                let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+                let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+                for pool in [one, two] {
+                    let threads = pool.current_num_threads();
+                    let fast = pool.install(|| aggregate(&cost, &img, w, h, d, &pen));
+                    assert_eq!(fast, plain, "{w}x{h}x{d}, eight paths: {eight}, {threads} threads");
+                    let rows = pool.install(|| {
+                        aggregate_rows(&by_rows, &img, dims, &pen, |_, r| r.to_vec()).concat()
+                    });
+                    let what = format!("{w}x{h}x{d}, eight: {eight}, P2 {top}, {threads} threads");
+                    assert_eq!(rows, plain, "costs by row, {what}");
+                }
             }
-            let pen = Penalties { p1: 16, p2, eight };
-            let dims = (w, h, d);
-            // Each pass's rows, then their sum.
-            let mut plain = vec![0i16; w * h * d];
-            for backward in [false, true] {
-                let row = (&mut vec![0; w * d][..], false);
-                pass_body(&Portable, &cost, &img, dims, &pen, backward, row, &mut |y, r| {
-                    for (s, t) in plain[y * w * d..(y + 1) * w * d].iter_mut().zip(r.iter()) {
-                        *s += t;
-                    }
-                });
-            }
-            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-            let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-            for pool in [one, two] {
-                let fast = pool.install(|| aggregate(&cost, &img, w, h, d, &pen));
-                assert_eq!(fast, plain, "{w}x{h}x{d}, eight paths: {eight}");
-            }
+        }
+    }
+
+    /// Costs given by row only (no volume in memory): what the dense matcher's census costs
+    /// are.
+    struct RowsOnly<'a>(Volume<'a>);
+
+    impl CostRows for RowsOnly<'_> {
+        fn row(&self, y: usize, out: &mut [u8]) {
+            self.0.row(y, out)
         }
     }
 
