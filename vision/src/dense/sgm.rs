@@ -6,11 +6,11 @@
 //! The paths are run as two passes, each over the whole image once: top-left to bottom-right
 //! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
 //! bottom-left); with two cores the passes run side by side ([`rayon::join`]) and meet at
-//! each row ([`aggregate_rows`]). Costs are `u8` (on one thread, packed with the forward
-//! pass's sums in a `u16`), path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`), stored disparities innermost
-//! and computed 16 (or 32) disparities at a time; where the CPU has AVX2, a pixel's paths are
-//! stepped together in AVX2 registers and summed in the same pass (`avx`). The same integers
-//! on every path.
+//! each row ([`aggregate_rows`]). Costs are `u8` (on one thread packed with the forward
+//! pass's sums in a `u16`), path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`),
+//! stored disparities innermost and computed 16 (or 32) disparities at a time; where the CPU
+//! has AVX2, a pixel's paths are stepped together in AVX2 registers and summed in the same
+//! pass (`avx`). The same integers on every path.
 
 use rayon::prelude::*;
 
@@ -596,6 +596,7 @@ fn pack_row(packed: &mut [u16], sums: &[i16], costs: &[u8]) {
         move || {
             let packed = packed;
             for ((p, &s), &c) in packed.iter_mut().zip(sums).zip(costs) {
+                debug_assert!((0..1 << (16 - COST_BITS)).contains(&s) && c < 1 << COST_BITS);
                 *p = (s as u16) << COST_BITS | u16::from(c);
             }
         },
