@@ -877,8 +877,8 @@ fn refine_row_rectified<O: RowOps>(
 }
 
 /// Pixels refined side by side by [`refine_row_rectified`] (their latency-bound chains of
-/// window sums overlap): 36.6 ms one core for two on Motorcycle, 35.7 ms for four (seventh
-/// and eighth sessions).
+/// window sums overlap): on Motorcycle's matches the refinement took 37.2 ms on one core two
+/// at a time and 35.7 ms four at a time (stage timers, 2026-12-06).
 const BATCH: usize = 4;
 
 /// [`RowOps`] in AVX registers, a window row per register (pulp's safe `V3` intrinsics): the

@@ -437,7 +437,7 @@ mod avx {
 
 /// A cost volume (`w * h * d`, `u8`, rows first, disparities innermost, each cost at most
 /// [`super::census::MAX_COST`]), given a row at a time: [`aggregate_rows`] asks for each row
-/// once or twice, on any thread, in any order.
+/// once, on any thread, in any order.
 pub trait CostRows: Sync {
     /// Writes row `y`'s `w * d` costs into `out`.
     fn row(&self, y: usize, out: &mut [u8]);
