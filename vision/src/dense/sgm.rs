@@ -501,33 +501,23 @@ pub fn aggregate_rows<R: Send>(
     let most_p2 = i32::from(pen.p2.iter().copied().max().unwrap_or(0));
     let packs =
         forward_paths * (i32::from(super::census::MAX_COST) + most_p2) < 1 << (16 - COST_BITS);
+    // A pass whose sums go into a row of its own, handed to `on_row` row by row.
+    let by_rows = |costs: PassCosts, backward: bool, on_row: OnRow| {
+        pass(costs, img, dims, pen, backward, (&mut vec![0; n], false), on_row)
+    };
     if one_thread && costs.volume().is_none() && packs {
         let mut packed = vec![0u16; w * h * d];
         let fill = |y: usize, out: &mut [u8]| costs.row(y, out);
-        pass(
-            PassCosts::Rows(&fill),
-            img,
-            dims,
-            pen,
-            false,
-            (&mut vec![0; n], false),
-            &mut |y, f, c| pack_row(&mut packed[y * n..(y + 1) * n], f, c),
-        );
+        by_rows(PassCosts::Rows(&fill), false, &mut |y, f, c| {
+            pack_row(&mut packed[y * n..(y + 1) * n], f, c)
+        });
         let packed = &packed;
         let unpack = |y: usize, out: &mut [u8]| unpack_costs(&packed[y * n..(y + 1) * n], out);
         let mut out: Vec<Option<R>> = (0..h).map(|_| None).collect();
-        pass(
-            PassCosts::Rows(&unpack),
-            img,
-            dims,
-            pen,
-            true,
-            (&mut vec![0; n], false),
-            &mut |y, r, _| {
-                add_packed_sums(r, &packed[y * n..(y + 1) * n]);
-                out[y] = Some(per_row(y, r));
-            },
-        );
+        by_rows(PassCosts::Rows(&unpack), true, &mut |y, r, _| {
+            add_packed_sums(r, &packed[y * n..(y + 1) * n]);
+            out[y] = Some(per_row(y, r));
+        });
         return out.into_iter().map(|r| r.expect("every row is handed over")).collect();
     }
     let filled: Vec<u8>;
@@ -546,10 +536,8 @@ pub fn aggregate_rows<R: Send>(
         let mut first = vec![0i16; w * h * d];
         pass(cost, img, dims, pen, false, (&mut first, true), &mut |_, _, _| {});
         let mut out: Vec<Option<R>> = (0..h).map(|_| None).collect();
-        pass(cost, img, dims, pen, true, (&mut vec![0; n], false), &mut |y, r, _| {
-            for (s, &t) in r.iter_mut().zip(&first[y * n..(y + 1) * n]) {
-                *s += t;
-            }
+        by_rows(cost, true, &mut |y, r, _| {
+            add_row(r, &first[y * n..(y + 1) * n]);
             out[y] = Some(per_row(y, r));
         });
         return out.into_iter().map(|r| r.expect("every row is handed over")).collect();
@@ -567,9 +555,7 @@ pub fn aggregate_rows<R: Send>(
             Meeting::Empty => *m = Meeting::Half(row.to_vec()),
             Meeting::Half(first) => {
                 drop(m);
-                for (s, &t) in row.iter_mut().zip(&first) {
-                    *s += t;
-                }
+                add_row(row, &first);
                 let answer = per_row(y, row);
                 *meetings[y].lock().expect("a pass panicked") = Meeting::Done(answer);
             }
@@ -577,8 +563,8 @@ pub fn aggregate_rows<R: Send>(
         }
     };
     rayon::join(
-        || pass(cost, img, dims, pen, false, (&mut vec![0; n], false), &mut |y, r, _| meet(y, r)),
-        || pass(cost, img, dims, pen, true, (&mut vec![0; n], false), &mut |y, r, _| meet(y, r)),
+        || by_rows(cost, false, &mut |y, r, _| meet(y, r)),
+        || by_rows(cost, true, &mut |y, r, _| meet(y, r)),
     );
     meetings
         .into_iter()
@@ -587,6 +573,13 @@ pub fn aggregate_rows<R: Send>(
             _ => unreachable!("both passes met every row"),
         })
         .collect()
+}
+
+/// `row += other`, cell by cell (two passes' sums of one row).
+fn add_row(row: &mut [i16], other: &[i16]) {
+    for (s, &t) in row.iter_mut().zip(other) {
+        *s += t;
+    }
 }
 
 /// One row of packed cells: each forward sum (non-negative, under `1 << 10`) above its cost.
@@ -742,9 +735,7 @@ mod tests {
                     let row = (&mut vec![0; w * d][..], false);
                     let costs = PassCosts::Volume(&cost);
                     pass_body(&Portable, costs, &img, dims, &pen, backward, row, &mut |y, r, _| {
-                        for (s, t) in plain[y * w * d..(y + 1) * w * d].iter_mut().zip(r.iter()) {
-                            *s += t;
-                        }
+                        add_row(&mut plain[y * w * d..(y + 1) * w * d], r)
                     });
                 }
                 let by_rows = RowsOnly(Volume { cost: &cost, row_len: w * d });
