@@ -10,7 +10,7 @@ use crate::infer::Predictor;
 use crate::vision::{matcher_geometry, model_xyz, training_disparities, Located};
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
-use hvs_vision::dense::{dense_match, DenseMap, DenseParams};
+use hvs_vision::dense::{check_inputs, dense_match, DenseMap, DenseParams};
 use hvs_vision::geometry::Fundamental;
 use hvs_vision::matching::model_disparity_interval;
 use image::GrayImage;
@@ -102,8 +102,9 @@ pub fn disparity_range(
     [(lo.floor() as i32) - 1, (hi.ceil() as i32) + 1]
 }
 
-/// Why an image cannot give depth: blank (one grey level, or nearly) or saturated (most
-/// pixels black or white); `None` for an image with something to match.
+/// Why an image cannot give depth: blank (one grey level, or nearly) or saturated (over 90 %
+/// of its pixels black or white); `None` for an image with something to match. [`depth`]
+/// matches neither.
 pub fn image_warning(img: &GrayImage) -> Option<&'static str> {
     let px = img.as_raw();
     let n = px.len().max(1) as f64;
@@ -113,7 +114,7 @@ pub fn image_warning(img: &GrayImage) -> Option<&'static str> {
     if var.sqrt() < 1.0 {
         Some("is blank (one grey level): nothing to match")
     } else if clipped > 0.9 {
-        Some("is saturated (over 90 % of its pixels black or white): little to match")
+        Some("is saturated (over 90 % of its pixels black or white): not matched")
     } else {
         None
     }
@@ -141,13 +142,20 @@ pub fn depth(
     let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
     // The refinement compares windows at the model's right/left image scale.
     let params = DenseParams { right_scale: g.right_scale, ..*params };
-    let mut matches = dense_match(left, right, &f, d_range, &params).map_err(|e| anyhow!("{e}"))?;
     let mut warnings = Vec::new();
     for (side, img) in [("left", left), ("right", right)] {
         if let Some(why) = image_warning(img) {
             warnings.push(format!("the {side} image {why}"));
         }
     }
+    // A blank or saturated image is not matched: what the aggregation makes of a blank image's
+    // noise, or carries across a clipped one, is not depth.
+    let mut matches = if !warnings.is_empty() {
+        check_inputs(left, right, &f, d_range, &params).map_err(|e| anyhow!("{e}"))?;
+        DenseMap::none(w, h)
+    } else {
+        dense_match(left, right, &f, d_range, &params).map_err(|e| anyhow!("{e}"))?
+    };
     let (xyz, no_estimate) = model_over_matches(blob, w as usize, &mut matches)?;
     if no_estimate > 0 {
         warnings.push(format!(

@@ -240,3 +240,45 @@ fn a_z_only_model_gives_depth_and_refuses_a_point_cloud() {
     let out = ok(&locate_args(&["locate"], &model, &l, &r, &["--at", &at]));
     assert!(out.contains(" z=") && !out.contains("x="), "{out}");
 }
+
+/// Nothing to match gives no depth, whatever the geometry: through a verged model (the thesis'
+/// case IV cameras, 640 x 480 images), where the aggregation alone once returned depth for 71 %
+/// of a blank pair (candidates outside the right image cost more, which made some disparities
+/// "unique"); with one image blank, nearly blank (grey noise of one level) or saturated.
+#[test]
+fn blank_and_saturated_images_give_no_depth_through_a_verged_model() {
+    let (w, h) = (640, 480);
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (data, model) = (d.join("c4.csv"), d.join("c4.hvsw"));
+    std::fs::write(&data, ok(&["simulate", "--case", "4", "--set", "train"])).unwrap();
+    ok(&["train", "--data", s(&data), "-o", s(&model), "--restarts", "1"]);
+    let mut st = 11u64;
+    let mut image = |name: &str, level: &mut dyn FnMut(u64) -> u8| {
+        let img = GrayImage::from_fn(w, h, |_, _| image::Luma([level(splitmix64(&mut st))]));
+        let path = d.join(name);
+        img.save(&path).unwrap();
+        path
+    };
+    let textured = image("t.png", &mut |r| (r >> 56) as u8);
+    let blank = image("b.png", &mut |_| 120);
+    let nearly = image("n.png", &mut |r| 120 + (r & 1) as u8);
+    // 95 % white, the rest random.
+    let saturated = image("s.png", &mut |r| if r % 20 == 0 { (r >> 56) as u8 } else { 255 });
+    let out = d.join("o.pfm");
+    for (left, right, warnings) in [
+        (&blank, &blank, 2),
+        (&textured, &blank, 1),
+        (&nearly, &textured, 1),
+        (&saturated, &saturated, 2),
+        (&textured, &saturated, 1),
+    ] {
+        let err =
+            stderr_with_code(locate_args(&["depth"], &model, left, right, &["-o", s(&out)]), 0);
+        assert!(err.contains(&format!("{warnings} warning(s)")), "{err}");
+        assert!(err.contains(&format!("0 of {} pixels", w * h)), "{err}");
+        let z = read_pfm(&std::fs::read(&out).unwrap(), "o.pfm").unwrap();
+        assert_eq!(z.data.len(), (w * h) as usize);
+        assert!(z.data.iter().all(|v| *v == f32::INFINITY));
+    }
+}

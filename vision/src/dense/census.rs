@@ -21,8 +21,22 @@ pub const MAX_COST: u8 = ((2 * HALF_W + 1) * (2 * HALF_H + 1) - 1) as u8;
 /// (replicated), so every pixel has a word.
 pub fn census(img: &GrayImage) -> Vec<u64> {
     let (w, h) = (img.width() as usize, img.height() as usize);
+    let (pad, pw) = padded(img);
+    let mut out = vec![0u64; w * h];
+    out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+        super::fast(
+            #[inline(always)]
+            || census_row(&pad, pw, y, row),
+        )
+    });
+    out
+}
+
+/// `img` padded by its border pixels (the window's half width and height on each side), so
+/// that the inner loops need no clamping, and the padded width.
+fn padded(img: &GrayImage) -> (Vec<u8>, usize) {
+    let (w, h) = (img.width() as usize, img.height() as usize);
     let px = img.as_raw();
-    // The image padded by its border pixels, so the inner loop needs no clamping.
     let (hw, hh) = (HALF_W as usize, HALF_H as usize);
     let pw = w + 2 * hw;
     let mut pad = vec![0u8; pw * (h + 2 * hh)];
@@ -33,11 +47,36 @@ pub fn census(img: &GrayImage) -> Vec<u64> {
             *px_out = src[x];
         }
     }
-    let mut out = vec![0u64; w * h];
+    (pad, pw)
+}
+
+/// Whether each pixel's census window (7 x 5, the border replicated as [`census`] does) is one
+/// grey level, rows first: such a window carries nothing to match (a blank patch, or one
+/// clipped to black or white), whatever the aggregation carries into it from its neighbours.
+pub fn flat_windows(img: &GrayImage) -> Vec<bool> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let (pad, pw) = padded(img);
+    let (hw, hh) = (HALF_W as usize, HALF_H as usize);
+    let mut out = vec![false; w * h];
     out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
         super::fast(
             #[inline(always)]
-            || census_row(&pad, pw, y, row),
+            || {
+                // Whether any neighbour differs from the centre, a byte per pixel.
+                let mut differs = vec![0u8; w];
+                let centre = &pad[(y + hh) * pw + hw..(y + hh) * pw + hw + w];
+                for j in 0..2 * hh + 1 {
+                    let r = &pad[(y + j) * pw..(y + j + 1) * pw];
+                    for i in 0..2 * hw + 1 {
+                        for ((d, &n), &c) in differs.iter_mut().zip(&r[i..i + w]).zip(centre) {
+                            *d |= u8::from(n != c);
+                        }
+                    }
+                }
+                for (flat, &d) in row.iter_mut().zip(&differs) {
+                    *flat = d == 0;
+                }
+            },
         )
     });
     out
@@ -67,6 +106,26 @@ fn census_row(pad: &[u8], pw: usize, y: usize, row: &mut [u64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_window_of_one_grey_level_is_flat() {
+        // Grey 100 everywhere but one pixel at (10, 6): the windows that hold it are not flat
+        // (7 columns x 5 rows around it, cut by nothing here), all others are.
+        let mut img = GrayImage::from_pixel(21, 13, image::Luma([100]));
+        img.put_pixel(10, 6, image::Luma([101]));
+        let flat = flat_windows(&img);
+        for y in 0..13usize {
+            for x in 0..21usize {
+                let holds = x.abs_diff(10) <= 3 && y.abs_diff(6) <= 2;
+                assert_eq!(flat[y * 21 + x], !holds, "({x}, {y})");
+            }
+        }
+        // At the border the window is cut (the border replicated adds no new level).
+        let mut edge = GrayImage::from_pixel(9, 7, image::Luma([0]));
+        edge.put_pixel(0, 0, image::Luma([255]));
+        let flat = flat_windows(&edge);
+        assert!(!flat[0] && !flat[3] && flat[4] && !flat[2 * 9] && flat[3 * 9]);
+    }
 
     #[test]
     fn census_bits_say_which_neighbours_are_darker() {

@@ -21,7 +21,12 @@
 //!    candidate of step 2 lay on its left pixel's own row (a rectified pair, or lines that
 //!    round to their own rows) read off the same aggregated volume, otherwise a second
 //!    aggregation. A left match whose right pixel disagrees by more than
-//!    [`DenseParams::lr_tolerance_px`] is dropped.
+//!    [`DenseParams::lr_tolerance_px`] is dropped, and so is one whose census window, or
+//!    its right pixel's, is one grey level ([`census::flat_windows`]: blank, or clipped to
+//!    black or white): the aggregation carries an answer into such a window from its
+//!    neighbours or the image border, with no evidence of its own (a quarter of such matches
+//!    lay 2 px or more off in over-exposed copies of the Motorcycle pair). An image of one
+//!    grey level is not matched at all.
 //! 6. Speckle filter: connected regions of similar disparity smaller than
 //!    [`DenseParams::speckle_size`] pixels are dropped.
 //! 7. Sub-pixel refinement on the grey levels: a 1-D Lucas-Kanade fit of a 7 x 7 window
@@ -191,6 +196,13 @@ pub struct DenseMap {
 }
 
 impl DenseMap {
+    /// A `width x height` map without a match: `+inf` everywhere, confidence 0.
+    pub fn none(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        let ur = vec![f32::INFINITY; n];
+        DenseMap { width, height, vr: ur.clone(), ur, conf: vec![0.0; n] }
+    }
+
     /// How many pixels have a match.
     pub fn matched(&self) -> usize {
         self.ur.iter().filter(|u| u.is_finite()).count()
@@ -441,16 +453,16 @@ fn cost_row(geo: &Geo, reference: &[u64], other: Rows, y: usize, row: &mut [u8])
     own_row
 }
 
-/// Matches every pixel of `left` in `right` (same size) with `f` (`r^T F l = 0`) over the
-/// whole disparities `d_range[0]..=d_range[1]` (`d = u_l - u_r`, px). See the module
-/// documentation for the method.
-pub fn dense_match(
+/// The checks [`dense_match`] makes before matching: the parameters, the images (the same
+/// size, not empty), `f` and `d_range`, and the volume's size against [`MAX_CELLS`]. Returns
+/// the number of disparities.
+pub fn check_inputs(
     left: &GrayImage,
     right: &GrayImage,
     f: &Fundamental,
     d_range: [i32; 2],
     params: &DenseParams,
-) -> Result<DenseMap, DenseError> {
+) -> Result<usize, DenseError> {
     params.validate()?;
     crate::invalid::same_size(left, right)?;
     let (w, h) = (left.width() as usize, left.height() as usize);
@@ -471,7 +483,30 @@ pub fn dense_match(
     if (w * h) as u64 * d as u64 > MAX_CELLS {
         return Err(DenseError::TooLarge(left.width(), left.height(), d));
     }
-    let (cl, cr) = rayon::join(|| census::census(left), || census::census(right));
+    Ok(d)
+}
+
+/// Matches every pixel of `left` in `right` (same size) with `f` (`r^T F l = 0`) over the
+/// whole disparities `d_range[0]..=d_range[1]` (`d = u_l - u_r`, px). See the module
+/// documentation for the method.
+pub fn dense_match(
+    left: &GrayImage,
+    right: &GrayImage,
+    f: &Fundamental,
+    d_range: [i32; 2],
+    params: &DenseParams,
+) -> Result<DenseMap, DenseError> {
+    let d = check_inputs(left, right, f, d_range, params)?;
+    let (w, h) = (left.width() as usize, left.height() as usize);
+    // An image of one grey level has nothing to match: every pixel refused, at once.
+    let one_level = |img: &GrayImage| img.as_raw().iter().all(|&v| v == img.as_raw()[0]);
+    if one_level(left) || one_level(right) {
+        return Ok(DenseMap::none(left.width(), left.height()));
+    }
+    let ((cl, flat_l), (cr, flat_r)) = rayon::join(
+        || (census::census(left), census::flat_windows(left)),
+        || (census::census(right), census::flat_windows(right)),
+    );
     let pen = penalties(params);
     let lgeo = Geo { m: f.m, sign: -1, d_min: d_range[0], d, w, h };
     // Rectified when every candidate lay on its own row: the right image's disparities are
@@ -504,7 +539,13 @@ pub fn dense_match(
         drop(costs);
         right_disp = rows.into_iter().flatten().map(|b| b.map(|b| b.disparity)).collect();
     }
-    post::left_right_check(&lgeo, &mut best, &right_disp, params.lr_tolerance_px);
+    post::left_right_check(
+        &lgeo,
+        &mut best,
+        &right_disp,
+        (&flat_l, &flat_r),
+        params.lr_tolerance_px,
+    );
     post::speckle_filter(w, h, &mut best, params.speckle_size, params.speckle_range_px);
     // A scale within 0.5 % of 1 is 1 (across the 7-px window, under 0.02 px): the faster path.
     let scale =
@@ -568,6 +609,51 @@ mod tests {
         let m = dense_match(&img, &img, &f, [0, 4], &p).unwrap();
         assert_eq!((m.matched(), m.ur.len()), (0, 200));
         assert!(m.ur.iter().all(|u| *u == f32::INFINITY) && m.conf.iter().all(|c| *c == 0.0));
+    }
+
+    /// A patch of one grey level gets no match (the aggregation would carry its neighbours'
+    /// disparity into it), and a right image of one level none at all; the texture around the
+    /// patch is matched.
+    #[test]
+    fn flat_windows_and_one_level_images_are_not_matched() {
+        let (w, h, shift) = (90u32, 60u32, 5u32);
+        let mut seed = 21u64;
+        let noise: Vec<u8> = (0..(w + shift) * h)
+            .map(|_| (hvs_shared::test_support::splitmix64(&mut seed) >> 56) as u8)
+            .collect();
+        // The scene seen from the left at column x is seen from the right at x - 5; a flat
+        // patch on it (scene columns 40..60, rows 20..40).
+        let scene = |x: u32, y: u32| {
+            let flat = (40..60).contains(&x) && (20..40).contains(&y);
+            image::Luma([if flat { 90 } else { noise[(y * (w + shift) + x) as usize] }])
+        };
+        let left = GrayImage::from_fn(w, h, scene);
+        let right = GrayImage::from_fn(w, h, |x, y| scene(x + shift, y));
+        let f = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
+        let p = DenseParams::default();
+        let m = dense_match(&left, &right, &f, [0, 10], &p).unwrap();
+        let at = |x: u32, y: u32| m.ur[(y * w + x) as usize];
+        // Windows wholly on the patch (7 x 5: 3 columns and 2 rows in from its edges).
+        for y in 22..38 {
+            for x in 43..57 {
+                assert_eq!(at(x, y), f32::INFINITY, "({x}, {y})");
+            }
+        }
+        // Around it, on the texture: the true match.
+        let mut right_ones = 0;
+        for y in 5..55 {
+            for x in 15..85 {
+                if !((36..64).contains(&x) && (17..43).contains(&y)) {
+                    right_ones += usize::from((at(x, y) - (x - shift) as f32).abs() < 0.5);
+                }
+            }
+        }
+        assert!(right_ones > 2_600, "{right_ones} of 2,772");
+        let blank = GrayImage::from_pixel(w, h, image::Luma([90]));
+        for (l, r) in [(&left, &blank), (&blank, &right)] {
+            let m = dense_match(l, r, &f, [0, 10], &p).unwrap();
+            assert_eq!(m, DenseMap::none(w, h));
+        }
     }
 
     /// Every cell of the cost volume is its definition: the Hamming distance to the candidate

@@ -202,38 +202,47 @@ fn right_from_left_row_body(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
 }
 
 /// Drops every left winner whose right pixel's disparity (`right`, indexed by right pixel)
-/// differs by more than `tol` px or is missing; records the disagreement of the others.
+/// differs by more than `tol` px or is missing, and every one whose census window or whose
+/// right pixel's is flat ([`super::census::flat_windows`] of each image); records the
+/// disagreement of the others.
 pub(crate) fn left_right_check(
     geo: &Geo,
     best: &mut [Option<Best>],
     right: &[Option<f32>],
+    (flat_left, flat_right): (&[bool], &[bool]),
     tol: f32,
 ) {
     let w = geo.w;
     // Compiled for AVX2 where the CPU has it: `round` is then inlined instead of a libm call
     // (the same values: its rounding is defined, half away from zero).
-    best.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        super::fast(
-            #[inline(always)]
-            || {
-                for (x, slot) in row.iter_mut().enumerate() {
-                    let Some(b) = slot else { continue };
-                    match right_agreement(geo, right, x, y, b.disparity, tol) {
-                        Some(diff) => b.lr = diff,
-                        None => *slot = None,
+    best.par_chunks_mut(w).zip(flat_left.par_chunks(w)).enumerate().for_each(
+        |(y, (row, flat_row))| {
+            super::fast(
+                #[inline(always)]
+                || {
+                    for ((x, slot), &flat) in row.iter_mut().enumerate().zip(flat_row) {
+                        let Some(b) = slot else { continue };
+                        if flat {
+                            *slot = None;
+                            continue;
+                        }
+                        match right_agreement(geo, (right, flat_right), x, y, b.disparity, tol) {
+                            Some(diff) => b.lr = diff,
+                            None => *slot = None,
+                        }
                     }
-                }
-            },
-        )
-    });
+                },
+            )
+        },
+    );
 }
 
 /// How far the right image's disparity at the match of left pixel `(x, y)` (disparity `d`)
-/// lies from `d`, if it has one within `tol`.
+/// lies from `d`, if it has one within `tol` and the right pixel's window is not flat.
 #[inline(always)]
 fn right_agreement(
     geo: &Geo,
-    right: &[Option<f32>],
+    (right, flat_right): (&[Option<f32>], &[bool]),
     x: usize,
     y: usize,
     d: f32,
@@ -247,7 +256,11 @@ fn right_agreement(
     if u < 0.0 || v < 0.0 || u >= w as f64 || v >= geo.h as f64 {
         return None;
     }
-    let dr = right[v as usize * w + u as usize]?;
+    let at = v as usize * w + u as usize;
+    if flat_right[at] {
+        return None;
+    }
+    let dr = right[at]?;
     let diff = (d - dr).abs();
     (diff <= tol).then_some(diff)
 }
