@@ -38,6 +38,8 @@ import urllib.request
 import cv2
 import numpy as np
 
+from stereo_score import rates, read_pfm
+
 SGM = "beaupreda/semi-global-matching/6643cf4b6a5ab197aace8b766c6ab139e281ae8e"
 OPENCP = "norishigefukushima/OpenCP/768f9829b35a413209d6a02f4100697dcdcfe746"
 ETHAN = "ethan-li-coding/SemiGlobalMatching/d6bbee8162f3ef5dbb675069bf7f7c970d8ab0f9"
@@ -56,26 +58,6 @@ ap.add_argument("--hvs", default="target/release/hvs")
 ap.add_argument("--dir", default="/tmp/middlebury")
 ap.add_argument("--fetch", action="store_true")
 a = ap.parse_args()
-
-
-def read_pfm(path):
-    with open(path, "rb") as f:
-        kind = f.readline().strip()
-        w, h = map(int, f.readline().split())
-        scale = float(f.readline())
-        data = np.frombuffer(f.read(), dtype="<f4" if scale < 0 else ">f4")
-    return data.reshape(h, w, 3 if kind == b"PF" else 1)[::-1]
-
-
-def rates(disp, returned, gt):
-    """Returned %, > 2 px % and > 1 px % of the returned, as issue 25 counts them."""
-    xs = np.arange(gt.shape[1])[None, :]
-    valid = np.isfinite(gt) & (xs - gt >= 0)
-    ret = valid & returned
-    err = np.abs(disp - gt)
-    n = max(int(ret.sum()), 1)
-    return (100 * ret.sum() / valid.sum(), 100 * (ret & (err > 2)).sum() / n,
-            100 * (ret & (err > 1)).sum() / n)
 
 
 def training_csv(gt, path, seed=7, n=1000, f=1000.0, b=100.0):

@@ -32,6 +32,8 @@ import time
 import cv2
 import numpy as np
 
+from stereo_score import rates, read_pfm
+
 ap = argparse.ArgumentParser()
 ap.add_argument("--hvs", default="target/release/hvs")
 ap.add_argument("--dir", default=os.environ.get("HVS_MOTORCYCLE_DIR", "/tmp/motorcycle"))
@@ -44,15 +46,6 @@ right = os.path.join(a.dir, "motorcycle_right.png")
 here = os.path.dirname(os.path.abspath(__file__))
 
 
-def read_pfm(path):
-    with open(path, "rb") as f:
-        kind = f.readline().strip()
-        w, h = map(int, f.readline().split())
-        scale = float(f.readline())
-        data = np.frombuffer(f.read(), dtype="<f4" if scale < 0 else ">f4")
-    return data.reshape(h, w, 3 if kind == b"PF" else 1)[::-1]
-
-
 def truth(h, w):
     raw = os.path.join(a.dir, "disp_741x500.f32")
     if os.path.exists(raw):
@@ -61,17 +54,6 @@ def truth(h, w):
     if os.path.exists(npz):
         return np.load(npz)["arr_0"].astype(np.float32).reshape(h, w)
     return None
-
-
-def rates(disp, returned, gt):
-    """Returned %, > 2 px % and > 1 px % of the returned, as the issue counts them."""
-    xs = np.arange(gt.shape[1])[None, :]
-    valid = np.isfinite(gt) & (xs - gt >= 0)
-    ret = valid & returned
-    err = np.abs(disp - gt)
-    n = max(int(ret.sum()), 1)
-    return (100 * ret.sum() / valid.sum(), 100 * (ret & (err > 2)).sum() / n,
-            100 * (ret & (err > 1)).sum() / n)
 
 
 with tempfile.TemporaryDirectory() as tmp:
