@@ -298,15 +298,16 @@ pub fn locate_in(d: &Depth, blob: &ModelBlob, points: &[[f64; 2]]) -> Result<Vec
 }
 
 /// Dense matches of `left` and `right` ([`depth`] with the default parameters), then
-/// [`locate_in`]: every point of `points` found in the right image.
+/// [`locate_in`]: every point of `points` found in the right image, and the dense matcher's
+/// warnings (a blank or saturated image).
 pub fn locate(
     blob: &ModelBlob,
     left: &GrayImage,
     right: &GrayImage,
     points: &[[f64; 2]],
-) -> Result<Vec<Located>> {
+) -> Result<(Vec<Located>, Vec<String>)> {
     let d = depth(blob, left, right, &DenseParams::default())?;
-    locate_in(&d, blob, points)
+    Ok((locate_in(&d, blob, points)?, d.warnings))
 }
 
 /// [`locate`] with a model read from `model_path`: its errors name the file.
@@ -316,21 +317,33 @@ pub fn locate_with(
     left: &GrayImage,
     right: &GrayImage,
     points: &[[f64; 2]],
-) -> Result<Vec<Located>> {
+) -> Result<(Vec<Located>, Vec<String>)> {
     locate(blob, left, right, points).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))
 }
 
-/// Loads the model and both images, then locates `points` (`hvs locate`).
+/// What [`locate_files`] found: the points, the dense matcher's warnings, and both images.
+pub struct LocatedFiles {
+    /// Every point, in order.
+    pub found: Vec<Located>,
+    /// Why some or all points have no match, when the images say why (blank, saturated).
+    pub warnings: Vec<String>,
+    /// The left image.
+    pub left: GrayImage,
+    /// The right image.
+    pub right: GrayImage,
+}
+
+/// Loads the model and both images, then locates `points` (`hvs locate`, `hvs head look`).
 pub fn locate_files(
     model_path: &Path,
     left: &Path,
     right: &Path,
     points: &[[f64; 2]],
-) -> Result<(Vec<Located>, GrayImage, GrayImage)> {
+) -> Result<LocatedFiles> {
     let m = crate::vision::load_stereo_model(model_path)?;
     let (l, r) = crate::vision::read_pair(left, right)?;
-    let found = locate_with(model_path, &m.blob, &l, &r, points)?;
-    Ok((found, l, r))
+    let (found, warnings) = locate_with(model_path, &m.blob, &l, &r, points)?;
+    Ok(LocatedFiles { found, warnings, left: l, right: r })
 }
 
 #[cfg(test)]

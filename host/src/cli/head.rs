@@ -141,10 +141,11 @@ pub fn run(args: &Args) -> Result<()> {
             model: Some(m), left: Some(l), right: Some(r), at: Some(at), ..
         } => {
             let p = crate::cli::parse_at(at)?;
-            let (found, _, _) = crate::depth::locate_files(m, l, r, &[p])?;
-            let f = found[0];
+            let located = crate::depth::locate_files(m, l, r, &[p])?;
+            let f = located.found[0];
             let Some(rp) = f.right else {
-                bail!("--at {at}: no trustworthy match in {}: {}", r.display(), f.status);
+                let why = located.warnings.iter().map(|w| format!(" ({w})")).collect::<String>();
+                bail!("--at {at}: no trustworthy match in {}: {}{why}", r.display(), f.status);
             };
             eprintln!(
                 "located ({}, {}) in {} at ({}, {}) (score {:.3})",

@@ -6,7 +6,7 @@ use crate::data::csv::{
     check_row_len, check_unique_names, csv_error, csv_reader, missing_column, LineCounter,
 };
 use crate::data::output::{check_outputs, write_bytes, write_output};
-use crate::depth::locate_files;
+use crate::depth::{locate_files, LocatedFiles};
 use crate::vision::{locate_overlay, png_bytes, Located};
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::{Path, PathBuf};
@@ -143,7 +143,11 @@ pub fn run(a: Args) -> Result<()> {
         },
         (None, None) => bail!("give --points PIXELS.csv or --at U,V"),
     };
-    let (found, l, r) = locate_files(&a.pair.model, &a.pair.left, &a.pair.right, &pixels.points)?;
+    let LocatedFiles { found, warnings, left: l, right: r } =
+        locate_files(&a.pair.model, &a.pair.left, &a.pair.right, &pixels.points)?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     if let Some(p) = &a.overlay {
         write_bytes(p, &png_bytes(&locate_overlay(&l, &r, &found))?)?;
     }

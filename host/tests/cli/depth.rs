@@ -4,7 +4,7 @@
 //! bad input (another size, no matcher geometry, a posture model, blank images, an output
 //! onto an input).
 
-use crate::common::{fails, locate_args, ok, s, stderr_with_code};
+use crate::common::{fails, hvs, locate_args, ok, s, stderr_with_code};
 use hvs_shared::runtime::blob::{self, MAX_BLOB_LEN};
 use hvs_shared::test_support::splitmix64;
 use hvs_vision::pfm::read_pfm;
@@ -281,4 +281,14 @@ fn blank_and_saturated_images_give_no_depth_through_a_verged_model() {
         assert_eq!(z.data.len(), (w * h) as usize);
         assert!(z.data.iter().all(|v| *v == f32::INFINITY));
     }
+    // `hvs locate` says why it found nothing.
+    let out = hvs()
+        .args(locate_args(&["locate"], &model, &textured, &blank, &["--at", "320,240"]))
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    let (said, err) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(said.contains("no_match"), "{said}");
+    assert!(err.contains("warning: the right image is blank"), "{err}");
 }
