@@ -28,7 +28,11 @@
 //!    lay 2 px or more off in over-exposed copies of the Motorcycle pair). An image of one
 //!    grey level is not matched at all.
 //! 6. Speckle filter: connected regions of similar disparity smaller than
-//!    [`DenseParams::speckle_size`] pixels are dropped.
+//!    [`DenseParams::speckle_size`] pixels are dropped. Then, for a rectified pair of
+//!    cameras alike, depth edges are put back where the grey levels say: a pixel beside a
+//!    farther neighbour takes that neighbour's winner when shifted 5 x 5 windows fit its
+//!    disparity better than its own (the foreground spreads onto the background across an
+//!    edge; `post::edge_switch`).
 //! 7. Sub-pixel refinement on the grey levels: a 1-D Lucas-Kanade fit of a 7 x 7 window
 //!    along the epipolar line (zero-mean, gain-matched), at most half a pixel. For a
 //!    rectified pair of cameras alike, two steps of the window shifted along its row, with the
@@ -550,6 +554,9 @@ pub fn dense_match(
     // A scale within 0.5 % of 1 is 1 (across the 7-px window, under 0.02 px): the faster path.
     let scale =
         params.right_scale.map(|s| if (s - 1.0).abs() < 0.005 { 1.0 } else { f64::from(s) });
+    if rectified && scale == [1.0, 1.0] {
+        post::edge_switch(&lgeo, (left.as_raw(), right.as_raw()), &mut best);
+    }
     post::refine(&lgeo, (left.as_raw(), right.as_raw()), scale, rectified, &mut best);
     Ok(post::to_map(&lgeo, &best, params.lr_tolerance_px))
 }
