@@ -365,8 +365,8 @@ fn edge_row(
 /// differences (times 25, in integers) between the 5 x 5 left window around `(x, y)` shifted
 /// by `(sx, sy)` and the right one `d` px to its left; `u32::MAX` when no shifted window lies
 /// inside both images. Stops at the first row of shifts that has one below `below` (a smaller
-/// best is then of no interest). The five horizontal shifts of a row of shifts side by side, eight
-/// lanes (the compiler's vectors; the same integers either way).
+/// best is then of no interest). The five horizontal shifts of a row of shifts side by side
+/// in eight lanes (the compiler's vectors; the same integers either way).
 #[inline(always)]
 fn shifted_zsad(
     (left, right): (&[u8], &[u8]),
@@ -394,9 +394,9 @@ fn shifted_zsad(
     // `c..c + 8` (lane `k`: the shift by `k` columns).
     let mut diff = [[0i32; 16]; REGION];
     for (j, dr) in diff.iter_mut().enumerate().take(j1).skip(j0) {
-        let r = ((y + j as i64 - reach) * w + x - reach) as usize;
-        let l = &left[r + i0..r + i1];
-        let rr = &right[r + i0 - d as usize..r + i1 - d as usize];
+        let r = (y + j as i64 - reach) * w + x - reach;
+        let (a0, b0) = ((r + i0 as i64) as usize, (r + i0 as i64 - d) as usize);
+        let (l, rr) = (&left[a0..a0 + i1 - i0], &right[b0..b0 + i1 - i0]);
         for ((v, &a), &b) in dr[i0..i1].iter_mut().zip(l).zip(rr) {
             *v = i32::from(a) - i32::from(b);
         }
