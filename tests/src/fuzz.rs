@@ -623,11 +623,12 @@ pub fn locate(data: &[u8]) {
     if m.blob.n_inputs() != 4 || l.dimensions() != r.dimensions() {
         return;
     }
-    let found = match hvs_host::depth::locate(&m.blob, &l, &r, &pixels.points) {
+    let (found, warnings) = match hvs_host::depth::locate(&m.blob, &l, &r, &pixels.points) {
         Ok(f) => f,
         Err(e) => return one_line(&format!("{e:#}")),
     };
     assert_eq!(found.len(), pixels.points.len());
+    assert!(warnings.iter().all(|w| !w.is_empty() && !w.contains('\n')), "{warnings:?}");
     let known = hvs_host::vision::STATUSES;
     let (w, h) = (f64::from(r.width()), f64::from(r.height()));
     for f in &found {
