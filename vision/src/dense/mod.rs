@@ -25,8 +25,8 @@
 //!    its right pixel's, is one grey level ([`census::flat_windows`]: blank, or clipped to
 //!    black or white): the aggregation carries an answer into such a window from its
 //!    neighbours or the image border, with no evidence of its own (a quarter of such matches
-//!    lay 2 px or more off in over-exposed copies of the Motorcycle pair). An image of one
-//!    grey level is not matched at all.
+//!    lay 2 px or more off in over-exposed copies of the Motorcycle pair). So an image of one
+//!    grey level, every window of it flat, gets no match at all.
 //! 6. Speckle filter: connected regions of similar disparity smaller than
 //!    [`DenseParams::speckle_size`] pixels are dropped. Then, for a rectified pair of
 //!    cameras alike, depth edges are put back where the grey levels say: a pixel beside a
@@ -502,11 +502,6 @@ pub fn dense_match(
 ) -> Result<DenseMap, DenseError> {
     let d = check_inputs(left, right, f, d_range, params)?;
     let (w, h) = (left.width() as usize, left.height() as usize);
-    // An image of one grey level has nothing to match: every pixel refused, at once.
-    let one_level = |img: &GrayImage| img.as_raw().iter().all(|&v| v == img.as_raw()[0]);
-    if one_level(left) || one_level(right) {
-        return Ok(DenseMap::none(left.width(), left.height()));
-    }
     let ((cl, flat_l), (cr, flat_r)) = rayon::join(
         || (census::census(left), census::flat_windows(left)),
         || (census::census(right), census::flat_windows(right)),
