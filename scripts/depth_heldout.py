@@ -16,7 +16,7 @@ the issue scores Motorcycle: every pixel with a truth whose match lies inside th
 image; returned %, and of the returned the % more than 2 px and more than 1 px off.
 
 Usage: python3 scripts/depth_heldout.py [--hvs target/release/hvs] [--dir /tmp/middlebury]
-       [--fetch]
+       [--fetch] [--thorough]
 `--dir` holds a folder per scene with Middlebury's own files (`im2.png`, `im6.png`,
 `disp2.png` for 2003; `view1.png`, `view5.png`, `disp1.png` for 2005 and 2006); `--fetch`
 downloads the missing ones from the copies in public GitHub repositories named below (pinned
@@ -57,6 +57,7 @@ ap = argparse.ArgumentParser()
 ap.add_argument("--hvs", default="target/release/hvs")
 ap.add_argument("--dir", default="/tmp/middlebury")
 ap.add_argument("--fetch", action="store_true")
+ap.add_argument("--thorough", action="store_true", help="run `hvs depth --thorough`")
 a = ap.parse_args()
 
 
@@ -108,7 +109,8 @@ with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([a.hvs, "train", "--data", data, "-o", model, "--seed", "7"],
                        check=True, capture_output=True)
         said = subprocess.run([a.hvs, "depth", "--model", model, "--left", left, "--right", right,
-                               "-o", os.path.join(tmp, "d.pfm"), "--matches", matches],
+                               "-o", os.path.join(tmp, "d.pfm"), "--matches", matches]
+                              + (["--thorough"] if a.thorough else []),
                               check=True, capture_output=True, text=True).stderr
         lo, hi = map(int, re.search(r"disparities (-?\d+)\.\.(-?\d+) px searched", said).groups())
         n_disp = -(-(hi - lo + 1) // 16) * 16

@@ -7,6 +7,7 @@ use crate::data::output::write_bytes;
 use crate::depth::{depth_files, Depth};
 use crate::vision::png_bytes;
 use anyhow::{anyhow, Result};
+use hvs_vision::dense::DenseParams;
 use hvs_vision::pfm::{pfm_bytes, FloatImage};
 use std::path::{Path, PathBuf};
 
@@ -38,6 +39,12 @@ pub struct Args {
     /// A point cloud: binary PLY, X Y Z in cm with the left image's grey levels.
     #[arg(long, value_name = "CLOUD.ply")]
     pub ply: Option<PathBuf>,
+    /// Fewer wrong matches beside depth edges, for about 40 % more time: the left-right check
+    /// aggregates the right image on its own (instead of reading it off the left image's
+    /// sums) and the costs add the pixels' grey-level difference to the census (what `hvs
+    /// locate` and `hvs view` use).
+    #[arg(long)]
+    pub thorough: bool,
 }
 
 fn image(d: &Depth, channels: u8, data: Vec<f32>) -> FloatImage {
@@ -56,7 +63,8 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     check_outputs(&outputs, &inputs)?;
-    let (d, left) = depth_files(&a.pair.model, &a.pair.left, &a.pair.right)?;
+    let params = if a.thorough { DenseParams::thorough() } else { DenseParams::default() };
+    let (d, left) = depth_files(&a.pair.model, &a.pair.left, &a.pair.right, &params)?;
     // The cloud first: a Z-only model has none, and nothing is written then.
     let cloud = match &a.ply {
         Some(_) => {

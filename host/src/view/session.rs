@@ -3,7 +3,8 @@
 //! asks for, each a call of the function the CLI uses: [`Session::locate`] is
 //! `hvs locate --at` ([`crate::depth::locate_in`] on the pair's kept depth), [`Session::retrain`] is
 //! `hvs board detect` + `hvs train` on the ticked pairs ([`crate::train::model::train_model`]);
-//! [`Session::depth`], the dense depth of a pair, is `hvs depth --colour` ([`crate::depth`]).
+//! [`Session::depth`], the dense depth of a pair, is `hvs depth --thorough --colour`
+//! ([`crate::depth`]), the matches `hvs locate` answers from.
 
 use super::frames::{PairStore, StillFrames, StillPair};
 use super::live::{Goal, HeadState, LiveHead};
@@ -118,7 +119,7 @@ pub struct Session {
 /// A pair's dense depth as the page shows it.
 #[derive(Debug, Clone)]
 pub struct DepthView {
-    /// The colour-mapped depth image with its legend (PNG; `hvs depth --colour`).
+    /// The colour-mapped depth image with its legend (PNG; `hvs depth --thorough --colour`).
     pub png: Arc<Vec<u8>>,
     /// The depth itself (the count with a depth, the depth box, the disparities searched,
     /// the warnings), whose matches clicks are located in.
@@ -127,12 +128,13 @@ pub struct DepthView {
     pub ms: f64,
     /// The left image the depth is of (the cloud's grey levels).
     left: Arc<image::GrayImage>,
-    /// The point cloud (PLY, `hvs depth --ply`), made when first asked for.
+    /// The point cloud (PLY, `hvs depth --thorough --ply`), made when first asked for.
     cloud: OnceLock<Result<Arc<Vec<u8>>, String>>,
 }
 
 impl DepthView {
-    /// The pair's point cloud as `hvs depth --ply` writes it (binary PLY, grey levels).
+    /// The pair's point cloud as `hvs depth --thorough --ply` writes it (binary PLY, grey
+    /// levels).
     pub fn cloud(&self) -> Result<Arc<Vec<u8>>, Refused> {
         self.cloud
             .get_or_init(|| self.depth.cloud(&self.left).map(Arc::new).map_err(|e| e.to_string()))
@@ -313,8 +315,9 @@ impl Session {
         found.into_iter().next().ok_or_else(|| Refused::Unprocessable("no result".into()))
     }
 
-    /// `hvs depth --colour` on pair `pair` ([`crate::depth::depth`] with its default
-    /// parameters): computed once per still pair, then kept; a live pair's every time.
+    /// `hvs depth --thorough --colour` on pair `pair` ([`crate::depth::depth`] with
+    /// [`crate::depth::locate_params`], so that a click answers what `hvs locate` would):
+    /// computed once per still pair, then kept; a live pair's every time.
     pub fn depth(&self, pair: usize) -> Result<Arc<DepthView>, Refused> {
         if let Some(why) = &self.locate_refused {
             return Err(Refused::Unprocessable(why.clone()));
@@ -329,13 +332,10 @@ impl Session {
                 .grey(pair)
                 .ok_or_else(|| Refused::Bad(format!("pair {pair}: its images are unreadable")))?;
             let t0 = Instant::now();
-            let d = crate::depth::depth(
-                &self.model.blob,
-                &l,
-                &r,
-                &hvs_vision::dense::DenseParams::default(),
-            )
-            .map_err(|e| Refused::Unprocessable(format!("{}: {e:#}", self.model_path.display())))?;
+            let d = crate::depth::depth(&self.model.blob, &l, &r, &crate::depth::locate_params())
+                .map_err(|e| {
+                Refused::Unprocessable(format!("{}: {e:#}", self.model_path.display()))
+            })?;
             let png = crate::vision::png_bytes_fast(&d.colour())
                 .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
             Ok(Arc::new(DepthView {

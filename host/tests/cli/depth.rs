@@ -168,6 +168,30 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
     let end = cloud.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
     assert_eq!(cloud.len() - end, 15 * returned);
 
+    // `--thorough` (the right image aggregated on its own for the left-right check): the
+    // matches `hvs locate` answers from, to the printed digit, at whole pixels on the wall,
+    // on the box and beside its edges.
+    let (td, thorough) = (out("dt.pfm"), out("mt.pfm"));
+    let args = ["-o", s(&td), "--matches", s(&thorough), "--thorough"];
+    let err = stderr_with_code(locate_args(&["depth"], &model, &l, &r, &args), 0);
+    assert!(err.contains("0 warning(s)"), "{err}");
+    let t = read_pfm(&std::fs::read(&thorough).unwrap(), "mt.pfm").unwrap();
+    let t_returned = t.data.chunks_exact(3).filter(|p| p[0].is_finite()).count();
+    assert!(t_returned as f64 > 0.85 * f64::from(W * H), "{t_returned} returned");
+    let mut asked = 0;
+    for (x, y) in [(30u32, 20u32), (80, 60), (58, 50), (62, 50), (101, 70), (140, 100)] {
+        let k = (y * W + x) as usize;
+        let said = ok(&locate_args(&["locate"], &model, &l, &r, &["--at", &format!("{x},{y}")]));
+        if t.data[3 * k].is_finite() {
+            asked += 1;
+            let want = format!("u_r={} ", t.data[3 * k]);
+            assert!(said.contains(&want), "({x}, {y}): {said} against {want}");
+        } else {
+            assert!(said.contains("no trustworthy match"), "({x}, {y}): {said}");
+        }
+    }
+    assert!(asked >= 4, "{asked}");
+
     // Blank images: every pixel +inf, exit 0, a warning.
     let blank = d.join("blank.png");
     GrayImage::from_pixel(W, H, image::Luma([200])).save(&blank).unwrap();

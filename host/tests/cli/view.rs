@@ -294,7 +294,8 @@ fn view_answers_a_click_with_the_numbers_of_locate_at() {
     assert!(oks >= 4, "{oks} board corners located");
 }
 
-/// The depth overlay is `hvs depth --colour` of the pair, pixel for pixel, with its counts;
+/// The depth overlay is `hvs depth --thorough --colour` of the pair (the matches a click is
+/// answered from, as `hvs locate` answers), pixel for pixel, with its counts;
 /// a pair that does not exist is refused.
 #[test]
 fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
@@ -318,7 +319,7 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
             &f.model,
             &f.left,
             &f.right,
-            &["-o", s(&pfm), "--colour", s(&colour), "--ply", s(&ply)],
+            &["-o", s(&pfm), "--colour", s(&colour), "--ply", s(&ply), "--thorough"],
         ))
         .output()
         .unwrap();
@@ -326,10 +327,13 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
     assert!(out.status.success(), "{said}");
     assert!(said.contains(&format!("{returned} of {} pixels", w * h)), "{said}");
     assert_eq!(shown, image::open(&colour).unwrap().to_rgb8());
-    // The 3-D view's cloud: the bytes of `hvs depth --ply`.
+    // The 3-D view's cloud: the bytes of `hvs depth --thorough --ply`.
     let (st, cloud) = http(&sv.addr, "GET", "/api/depth/0/cloud.ply", None);
     assert_eq!(st, 200);
-    assert!(cloud == std::fs::read(&ply).unwrap(), "the cloud differs from hvs depth --ply");
+    assert!(
+        cloud == std::fs::read(&ply).unwrap(),
+        "the cloud differs from hvs depth --thorough --ply"
+    );
     // Asked again: the same map, kept.
     assert_eq!(json(&sv.addr, "GET", "/api/depth/0", None, 200)["returned"], returned);
     for path in ["/api/depth/1", "/api/depth/1/image", "/api/depth/1/cloud.ply"] {
