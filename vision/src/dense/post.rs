@@ -266,8 +266,38 @@ fn right_agreement(
 }
 
 /// A neighbour's disparity counts as the far side of a depth edge when it is this much (px)
-/// smaller than the pixel's ([`edge_switch`]).
+/// smaller than the pixel's ([`edge_switch`], [`past_gaps`]).
 const EDGE_STEP: f32 = 1.5;
+
+/// Drops the first match past each run of unmatched pixels along a row when its disparity is
+/// more than [`EDGE_STEP`] larger than the match just before the run. With the left image as
+/// reference, the strip the right camera does not see lies on the left of a nearer object;
+/// the left-right check refuses most of it, and the first match past the refused run is
+/// most often the nearer object spread over the strip's last pixel. Decided on the matches
+/// as they are (a dropped pixel starts no run of its own).
+pub(crate) fn past_gaps(w: usize, best: &mut [Option<Best>]) {
+    best.par_chunks_mut(w.max(1)).for_each(|row| {
+        let mut drop = Vec::new();
+        let mut x = 1;
+        while x < row.len() {
+            let Some(before) = row[x - 1].filter(|_| row[x].is_none()) else {
+                x += 1;
+                continue;
+            };
+            while x < row.len() && row[x].is_none() {
+                x += 1;
+            }
+            if let Some(past) = row.get(x).copied().flatten() {
+                if past.disparity > before.disparity + EDGE_STEP {
+                    drop.push(x);
+                }
+            }
+        }
+        for x in drop {
+            row[x] = None;
+        }
+    });
+}
 /// How far [`edge_switch`] looks for such a neighbour: columns and rows either side.
 const EDGE_REACH: [usize; 2] = [2, 1];
 /// Half side of [`edge_switch`]'s windows (5 x 5), and how far they are shifted (+-2 px).
@@ -2101,6 +2131,33 @@ mod tests {
 
     fn best(d: f32) -> Option<Best> {
         Some(Best { disparity: d, s1: 1, s2: 10, lr: 0.0 })
+    }
+
+    /// [`past_gaps`] drops the first match past a run of unmatched pixels when it is more than
+    /// 1.5 px nearer than the match before the run, and nothing else: not a smaller step, not
+    /// a run at the row's start, not one measured against an earlier match than the one just
+    /// before the run.
+    #[test]
+    fn the_first_nearer_match_past_a_gap_is_dropped() {
+        let n = None;
+        let rows: [(Vec<Option<Best>>, Vec<bool>); 5] = [
+            (vec![best(5.0), n, n, best(10.0), best(10.0)], vec![true, false, false, false, true]),
+            (vec![best(5.0), n, best(6.5), best(9.0)], vec![true, false, true, true]),
+            (vec![n, n, best(10.0), best(10.0)], vec![false, false, true, true]),
+            (vec![best(9.0), n, best(3.0), n, best(4.6)], vec![true, false, true, false, false]),
+            (vec![best(2.0), best(8.0), n, best(9.0), n], vec![true, true, false, true, false]),
+        ];
+        let w = 5;
+        let mut all: Vec<Option<Best>> = Vec::new();
+        let mut want = Vec::new();
+        for (mut row, keep) in rows {
+            row.resize(w, None);
+            all.extend(row);
+            want.extend(keep.into_iter().chain(std::iter::repeat(false)).take(w));
+        }
+        past_gaps(w, &mut all);
+        let kept: Vec<bool> = all.iter().map(Option::is_some).collect();
+        assert_eq!(kept, want);
     }
 
     #[test]
