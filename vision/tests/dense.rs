@@ -42,7 +42,7 @@ fn unrectified_pair_with_tilted_lines_within_the_goals() {
 }
 
 /// `hvs locate`'s settings (the right image aggregated on its own for the left-right check,
-/// the grey-level difference in the costs) meet the same goals, and on the rectified pair
+/// the first nearer match past a gap dropped) meet the same goals, and on the rectified pair
 /// return fewer pixels the right camera does not see than the default (which reads the right
 /// image's disparities off the left image's sums).
 #[test]

@@ -41,9 +41,8 @@ pub struct Args {
     pub ply: Option<PathBuf>,
     /// Fewer wrong matches beside depth edges, for about 40 % more time: the left-right check
     /// aggregates the right image on its own (instead of reading it off the left image's
-    /// sums), the costs add the pixels' grey-level difference to the census, and the first
-    /// nearer match past a run of unmatched pixels is dropped (what `hvs locate` and `hvs
-    /// view` use).
+    /// sums), and the first nearer match past a run of unmatched pixels is dropped (what `hvs
+    /// locate` and `hvs view` use).
     #[arg(long)]
     pub thorough: bool,
 }

@@ -8,8 +8,7 @@
 //!    (`d = u_l - u_r`, bounded by the caller, e.g. from the model's depth box), the candidate
 //!    is the right pixel on the epipolar line `F (x, y, 1)^T` at `u_r = x - d`, `v_r` rounded
 //!    to the nearest row; the cost is the Hamming distance of the two census words
-//!    ([`census::MAX_COST`] at most), plus, when asked for ([`DenseParams::ad_weight`]), the
-//!    capped difference of the two pixels' grey levels. Sampling along the epipolar line instead of rectifying
+//!    ([`census::MAX_COST`] at most). Sampling along the epipolar line instead of rectifying
 //!    first leaves the images unresampled and gives matches in the original pixel
 //!    coordinates directly; lines steeper than 45 degrees are refused, like
 //!    [`crate::matching`] does.
@@ -106,12 +105,6 @@ pub struct DenseParams {
     /// refinement compares a left window with the right window of that scale. `[1, 1]` for
     /// cameras alike.
     pub right_scale: [f32; 2],
-    /// Weight of the grey levels' absolute difference added to each census cost:
-    /// `min(|I_l - I_r|, AD_CAP) * ad_weight / AD_CAP` cost units ([`AD_CAP`]), at most
-    /// [`MAX_AD_WEIGHT`]; `0` for census alone. A window's census word says the same about
-    /// the background pixel beside a depth edge at the foreground's disparity as at its own;
-    /// the pixel's own grey level does not.
-    pub ad_weight: u8,
     /// The left-right check's right-image disparities from an aggregation of their own, the
     /// right image as reference (Hirschmueller's check; `true`), instead of read off the
     /// left image's aggregated volume (OpenCV's way, for a rectified pair: one aggregation
@@ -125,14 +118,6 @@ pub struct DenseParams {
     /// match past it most often that object spread over the strip.
     pub refuse_past_gaps: bool,
 }
-
-/// The grey-level difference at which [`DenseParams::ad_weight`]'s term is full.
-pub const AD_CAP: u8 = 32;
-/// The largest [`DenseParams::ad_weight`]: census and difference together stay under 64
-/// ([`MAX_CELL_COST`]).
-pub const MAX_AD_WEIGHT: u8 = 29;
-/// The largest cost of one cell: the census' most plus the largest difference term.
-pub const MAX_CELL_COST: u8 = census::MAX_COST + MAX_AD_WEIGHT;
 
 impl Default for DenseParams {
     /// Chosen on the synthetic pairs of the tests and on the Motorcycle pair (see the README's
@@ -148,7 +133,6 @@ impl Default for DenseParams {
             speckle_size: 50,
             speckle_range_px: 1.0,
             right_scale: [1.0, 1.0],
-            ad_weight: 0,
             aggregate_right: false,
             refuse_past_gaps: false,
         }
@@ -156,20 +140,14 @@ impl Default for DenseParams {
 }
 
 impl DenseParams {
-    /// The default with the left-right check by an aggregation of the right image of its own,
-    /// census costs with the grey-level difference (weight 8) and the first nearer match past
-    /// a gap dropped: fewer wrong matches beside depth edges, for about 40 % more time on a
-    /// rectified pair (`hvs locate`, `hvs depth --thorough`). Chosen on six held-out
-    /// Middlebury scenes (`scripts/depth_heldout.py`, not the Motorcycle pair of the goals):
-    /// mean 2.39 -> 1.79 % of the returned more than 2 px off, 4.59 -> 3.97 % more than 1 px,
-    /// 93.35 -> 93.53 % returned.
+    /// The default with the left-right check by an aggregation of the right image of its own
+    /// and the first nearer match past a gap dropped: fewer wrong matches beside depth edges,
+    /// for about 40 % more time on a rectified pair (`hvs locate`, `hvs view`, `hvs depth
+    /// --thorough`). Chosen on six held-out Middlebury scenes (`scripts/depth_heldout.py`,
+    /// not the Motorcycle pair of the goals): mean 2.39 -> 1.80 % of the returned more than
+    /// 2 px off, 4.59 -> 4.03 % more than 1 px, 93.35 -> 93.25 % returned.
     pub fn thorough() -> Self {
-        DenseParams {
-            ad_weight: 8,
-            aggregate_right: true,
-            refuse_past_gaps: true,
-            ..DenseParams::default()
-        }
+        DenseParams { aggregate_right: true, refuse_past_gaps: true, ..DenseParams::default() }
     }
 
     /// Checks every field's range.
@@ -191,7 +169,6 @@ impl DenseParams {
         in_range("params.uniqueness", self.uniqueness, 0.0, 0.99)?;
         in_range("params.lr_tolerance_px", self.lr_tolerance_px, 0.0, 100.0)?;
         in_range("params.speckle_range_px", self.speckle_range_px, 0.0, 100.0)?;
-        in_range("params.ad_weight", self.ad_weight, 0, MAX_AD_WEIGHT)?;
         for (field, v) in [
             ("params.right_scale[0]", self.right_scale[0]),
             ("params.right_scale[1]", self.right_scale[1]),
@@ -349,41 +326,26 @@ struct CensusCosts<'a> {
     words: std::borrow::Cow<'a, [u64]>,
     reversed: bool,
     own_rows: std::sync::atomic::AtomicBool,
-    /// The grey levels of the reference image, and of the other one (stored as `words`),
-    /// with the difference term's weight; `None` for census alone.
-    grey: Option<(&'a [u8], Vec<u8>, u8)>,
 }
 
 impl<'a> CensusCosts<'a> {
-    /// Costs of the `reference` image's census words against the `other` image's, and with
-    /// `grey` (the two images' grey levels, the same order, and the weight) their grey-level
-    /// difference too ([`DenseParams::ad_weight`]; none at weight 0).
-    fn new(
-        geo: &'a Geo,
-        (reference, other): (&'a [u64], &'a [u64]),
-        grey: (&'a [u8], &'a [u8], u8),
-    ) -> Self {
+    fn new(geo: &'a Geo, reference: &'a [u64], other: &'a [u64]) -> Self {
         let w = geo.w;
         // With the left image as reference (`sign < 0`) a pixel's candidates run right to
         // left along the other image's row: its rows reversed, so that each run is read
         // forwards.
         let reversed = geo.sign < 0;
-        fn stored<T: Copy>(rows: &[T], w: usize, reversed: bool) -> Vec<T> {
-            if reversed {
-                rows.chunks_exact(w).flat_map(|r| r.iter().rev().copied()).collect()
-            } else {
-                rows.to_vec()
-            }
-        }
-        let words = if reversed { stored(other, w, true).into() } else { other.into() };
-        let (ref_grey, other_grey, weight) = grey;
+        let words = if reversed {
+            other.chunks_exact(w).flat_map(|r| r.iter().rev().copied()).collect::<Vec<_>>().into()
+        } else {
+            other.into()
+        };
         CensusCosts {
             geo,
             reference,
             words,
             reversed,
             own_rows: std::sync::atomic::AtomicBool::new(true),
-            grey: (weight > 0).then(|| (ref_grey, stored(other_grey, w, reversed), weight)),
         }
     }
 
@@ -395,11 +357,7 @@ impl<'a> CensusCosts<'a> {
 
 impl sgm::CostRows for CensusCosts<'_> {
     fn row(&self, y: usize, out: &mut [u8]) {
-        let other = Rows {
-            words: &self.words,
-            reversed: self.reversed,
-            grey: self.grey.as_ref().map(|(r, o, wt)| (*r, o.as_slice(), *wt)),
-        };
+        let other = Rows { words: &self.words, reversed: self.reversed };
         let (geo, reference) = (self.geo, self.reference);
         // Every row is computed (no short cut on the first row off its line).
         let own = 'own: {
@@ -427,12 +385,12 @@ impl sgm::CostRows for CensusCosts<'_> {
     }
 }
 
-/// The whole cost volume of `geo` (`w * h * d`, [`CensusCosts`]) and whether every
+/// The whole census cost volume of `geo` (`w * h * d`, [`CensusCosts`]) and whether every
 /// candidate lay on its own row.
 #[cfg(test)]
-fn cost_volume(geo: &Geo, words: (&[u64], &[u64]), grey: (&[u8], &[u8], u8)) -> (Vec<u8>, bool) {
+fn cost_volume(geo: &Geo, reference: &[u64], other: &[u64]) -> (Vec<u8>, bool) {
     use sgm::CostRows;
-    let costs = CensusCosts::new(geo, words, grey);
+    let costs = CensusCosts::new(geo, reference, other);
     let mut cost = vec![0u8; geo.w * geo.h * geo.d];
     for (y, row) in cost.chunks_mut(geo.w * geo.d).enumerate() {
         costs.row(y, row);
@@ -464,20 +422,11 @@ pulp::simd_type! {
     }
 }
 
-/// The other image's census words by row, each row stored reversed (`reversed`) or not, and
-/// for the difference term the reference image's grey levels, the other's (stored as the
-/// words) and the weight.
+/// The other image's census words by row, each row stored reversed (`reversed`) or not.
 #[derive(Clone, Copy)]
 struct Rows<'a> {
     words: &'a [u64],
     reversed: bool,
-    grey: Option<(&'a [u8], &'a [u8], u8)>,
-}
-
-/// The difference term of [`DenseParams::ad_weight`] for grey levels `a` and `b`.
-#[inline(always)]
-fn ad_term(a: u8, b: u8, weight: u8) -> u8 {
-    ((u16::from(a.abs_diff(b).min(AD_CAP)) * u16::from(weight)) / u16::from(AD_CAP)) as u8
 }
 
 /// Row `y` of [`cost_volume`] (`row`: `w * d` cells); whether every candidate lay on row `y`
@@ -486,18 +435,17 @@ fn ad_term(a: u8, b: u8, weight: u8) -> u8 {
 fn cost_row(geo: &Geo, reference: &[u64], other: Rows, y: usize, row: &mut [u8]) -> bool {
     let (w, d) = (geo.w, geo.d);
     let mut own_row = true;
-    // Candidates outside the other image cost half the most.
-    let outside = (census::MAX_COST + other.grey.map_or(0, |g| g.2)) / 2;
     for x in 0..w {
         let cells = &mut row[x * d..(x + 1) * d];
         let Some((line, (lo, hi))) =
             geo.line(x, y).and_then(|line| Some((line, geo.valid_range(x, line)?)))
         else {
-            cells.fill(outside);
+            cells.fill(census::MAX_COST / 2);
             continue;
         };
-        cells[..lo].fill(outside);
-        cells[hi + 1..].fill(outside);
+        // Candidates outside the other image.
+        cells[..lo].fill(census::MAX_COST / 2);
+        cells[hi + 1..].fill(census::MAX_COST / 2);
         let c = reference[y * w + x];
         // The other image's row `v` is a monotonic step function of `k` (`u` and the line's
         // `v` are linear in `k`, and rounding is monotonic): runs of one row, each found by
@@ -530,12 +478,6 @@ fn cost_row(geo: &Geo, reference: &[u64], other: Rows, y: usize, row: &mut [u8])
             let n = run.len();
             for (cell, &o) in run.iter_mut().zip(&other_row[first..first + n]) {
                 *cell = (c ^ o).count_ones() as u8;
-            }
-            if let Some((ref_grey, grey, weight)) = other.grey {
-                let g = ref_grey[y * w + x];
-                for (cell, &o) in run.iter_mut().zip(&grey[v * w + first..v * w + first + n]) {
-                    *cell += ad_term(g, o, weight);
-                }
             }
             k = end + 1;
         }
@@ -597,8 +539,7 @@ pub fn dense_match(
     // Rectified when every candidate lay on its own row: the right image's disparities are
     // then read off the same volume (no second aggregation). Every row's costs are computed
     // before the first row of sums is handed over, so the answer is known by then.
-    let grey = (left.as_raw().as_slice(), right.as_raw().as_slice());
-    let costs = CensusCosts::new(&lgeo, (&cl, &cr), (grey.0, grey.1, params.ad_weight));
+    let costs = CensusCosts::new(&lgeo, &cl, &cr);
     // Each row of the aggregated volume as soon as it is complete: its winners and, for a
     // rectified pair, the right image's disparities of the same row.
     let rows = sgm::aggregate_rows(&costs, left.as_raw(), (w, h, d), &pen, |y, sums| {
@@ -619,7 +560,7 @@ pub fn dense_match(
     if !rectified || params.aggregate_right {
         let mt = core::array::from_fn(|i| core::array::from_fn(|j| f.m[j][i]));
         let rgeo = Geo { m: mt, sign: 1, ..lgeo };
-        let costs = CensusCosts::new(&rgeo, (&cr, &cl), (grey.1, grey.0, params.ad_weight));
+        let costs = CensusCosts::new(&rgeo, &cr, &cl);
         let rows = sgm::aggregate_rows(&costs, right.as_raw(), (w, h, d), &pen, |y, sums| {
             post::winners_row(&rgeo, y, sums, 0.0)
         });
@@ -750,10 +691,9 @@ mod tests {
     }
 
     /// Every cell of the cost volume is its definition: the Hamming distance to the candidate
-    /// on the epipolar line ([`Geo::target`]) plus the weighted grey-level difference, half
-    /// the most outside the other image; for either image as reference (the other's rows read
-    /// reversed or not), lines on their rows, shifted and tilted across rows, and difference
-    /// weights 0, 8 and the largest.
+    /// on the epipolar line ([`Geo::target`]), half the most outside the other image; for
+    /// either image as reference (the other's rows read reversed or not) and lines on their
+    /// rows, shifted and tilted across rows.
     #[test]
     fn every_cost_is_the_hamming_distance_to_its_candidate() {
         let (w, h) = (57, 23);
@@ -764,36 +704,27 @@ mod tests {
                 .collect()
         };
         let (a, b) = (words(), words());
-        let grey: Vec<u8> =
-            (0..2 * w * h).map(|_| hvs_shared::test_support::splitmix64(&mut seed) as u8).collect();
-        let (ga, gb) = grey.split_at(w * h);
-        for (m, weight) in [
+        for m in [
             [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
             [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 2.4]],
             [[0.0, 0.0, 0.05], [0.0, 0.0, -1.0], [0.0, 1.0, -0.7]],
-        ]
-        .into_iter()
-        .flat_map(|m| [0, 8, MAX_AD_WEIGHT].map(|weight| (m, weight)))
-        {
+        ] {
             for (sign, d_min, d) in [(-1, 3, 19), (1, -2, 20), (-1, -4, 7)] {
                 let geo = Geo { m, sign, d_min, d, w, h };
-                let (cost, _) = cost_volume(&geo, (&a, &b), (ga, gb, weight));
+                let (cost, _) = cost_volume(&geo, &a, &b);
                 for y in 0..h {
                     for x in 0..w {
                         for k in 0..d {
                             let want = geo
                                 .line(x, y)
                                 .and_then(|line| geo.target(x, line, k))
-                                .map_or((census::MAX_COST + weight) / 2, |(u, v)| {
-                                    let dg = ga[y * w + x].abs_diff(gb[v * w + u]).min(AD_CAP);
-                                    let term = u32::from(dg) * u32::from(weight) / 32;
-                                    (a[y * w + x] ^ b[v * w + u]).count_ones() as u8 + term as u8
+                                .map_or(census::MAX_COST / 2, |(u, v)| {
+                                    (a[y * w + x] ^ b[v * w + u]).count_ones() as u8
                                 });
-                            assert!(want <= MAX_CELL_COST);
                             assert_eq!(
                                 cost[(y * w + x) * d + k],
                                 want,
-                                "{m:?} {weight} {sign} ({x}, {y}) {k}"
+                                "{m:?} {sign} ({x}, {y}) {k}"
                             );
                         }
                     }
@@ -806,17 +737,16 @@ mod tests {
     fn a_volume_on_its_own_rows_is_recognised_as_rectified() {
         let (w, h) = (100, 80);
         let census = vec![0u64; w * h];
-        let grey = vec![7u8; w * h];
         let geo = |f: Fundamental| Geo { m: f.m, sign: -1, d_min: 0, d: 8, w, h };
         let rectified = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
-        assert!(cost_volume(&geo(rectified), (&census, &census), (&grey, &grey, 8)).1);
+        assert!(cost_volume(&geo(rectified), &census, &census).1);
         // Lines 0.3 px below their rows round to them: still rectified.
         let near = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.3]] };
-        assert!(cost_volume(&geo(near), (&census, &census), (&grey, &grey, 8)).1);
+        assert!(cost_volume(&geo(near), &census, &census).1);
         let shifted = Fundamental { m: [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 2.0]] };
-        assert!(!cost_volume(&geo(shifted), (&census, &census), (&grey, &grey, 8)).1);
+        assert!(!cost_volume(&geo(shifted), &census, &census).1);
         // A line tilted by 1 px over the image's width leaves its row somewhere.
         let tilted = Fundamental { m: [[0.0, 0.0, 0.01], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]] };
-        assert!(!cost_volume(&geo(tilted), (&census, &census), (&grey, &grey, 8)).1);
+        assert!(!cost_volume(&geo(tilted), &census, &census).1);
     }
 }

@@ -7,7 +7,7 @@
 //! (from the left, top-left, top, top-right) and back (from the right, bottom-right, bottom,
 //! bottom-left); with two cores the passes run side by side ([`rayon::join`]) and meet at
 //! each row ([`aggregate_rows`]). Costs are `u8` (on one thread packed with the forward
-//! pass's sums in a `u16`), path costs and sums `i16` (bounded by `8 (MAX_CELL_COST + P2)`),
+//! pass's sums in a `u16`), path costs and sums `i16` (bounded by `8 (MAX_COST + P2)`),
 //! stored disparities innermost and computed 16 (or 32) disparities at a time; where the CPU
 //! has AVX2, a pixel's paths are stepped together in AVX2 registers and summed in the same
 //! pass (`avx`). The same integers on every path.
@@ -27,7 +27,7 @@ pub struct Penalties {
 
 /// Padding of the path-cost rows: each holds `BIG` before disparity 0 and after the last, so
 /// that one loop serves every disparity (`BIG + P1` is never the minimum: a path cost is at
-/// most `MAX_CELL_COST + P2 <= 2063`).
+/// most `MAX_COST + P2 <= 2034`).
 const BIG: i16 = 0x3FFF;
 
 /// Disparities per chunk of the inner loops (16 `i16` lanes: one AVX2 register). A range of
@@ -104,7 +104,7 @@ fn step_in<const L: usize>(
 /// by [`step`]'s recursion, and their sum into `s`.
 /// Returns each path's `min(out)`. A path with nothing before it (its first pixel) comes with
 /// [`zero_row`] and `pmin = 0`, which gives `out = c`. Integer sums, so the order of the terms
-/// does not matter (none overflows: eight paths of at most `MAX_CELL_COST + P2` each).
+/// does not matter (none overflows: eight paths of at most `MAX_COST + P2` each).
 trait Paths {
     #[allow(clippy::too_many_arguments)]
     fn paths<const P: usize>(
@@ -436,7 +436,7 @@ mod avx {
 }
 
 /// A cost volume (`w * h * d`, `u8`, rows first, disparities innermost, each cost at most
-/// [`super::MAX_CELL_COST`]), given a row at a time: [`aggregate_rows`] asks for each row
+/// [`super::census::MAX_COST`]), given a row at a time: [`aggregate_rows`] asks for each row
 /// once, on any thread, in any order.
 pub trait CostRows: Sync {
     /// Writes row `y`'s `w * d` costs into `out`.
@@ -466,7 +466,7 @@ impl CostRows for Volume<'_> {
 
 /// Bits of a packed cell ([`aggregate_rows`] on one thread) that hold the cost.
 const COST_BITS: u32 = 6;
-const _: () = assert!((super::MAX_CELL_COST as u32) < 1 << COST_BITS);
+const _: () = assert!((super::census::MAX_COST as u32) < 1 << COST_BITS);
 
 /// The aggregated cost `S(p, d)` of `costs` with `img` the reference image's grey levels
 /// (for the adaptive `P2`), handed row by row to `per_row(y, S of row y)` (`w * d`) as soon
@@ -496,10 +496,11 @@ pub fn aggregate_rows<R: Send>(
     let n = w * d;
     let dims = (w, h, d);
     let one_thread = rayon::current_num_threads() < 2;
-    // The forward pass's paths: each at most MAX_CELL_COST + P2.
+    // The forward pass's paths: each at most MAX_COST + P2.
     let forward_paths = if pen.eight { 4 } else { 2 };
     let most_p2 = i32::from(pen.p2.iter().copied().max().unwrap_or(0));
-    let packs = forward_paths * (i32::from(super::MAX_CELL_COST) + most_p2) < 1 << (16 - COST_BITS);
+    let packs =
+        forward_paths * (i32::from(super::census::MAX_COST) + most_p2) < 1 << (16 - COST_BITS);
     // A pass whose sums go into a row of its own, handed to `on_row` row by row.
     let by_rows = |costs: PassCosts, backward: bool, on_row: OnRow| {
         pass(costs, img, dims, pen, backward, (&mut vec![0; n], false), on_row)
@@ -710,8 +711,8 @@ mod tests {
             (11, 6, 64, true),
             (9, 5, 21, false),
         ] {
-            // Costs up to a cell's most (what a packed cell holds), a few at it.
-            let most = u64::from(crate::dense::MAX_CELL_COST);
+            // Costs up to the census' most (what a packed cell holds), a few at it.
+            let most = u64::from(crate::dense::census::MAX_COST);
             let cost: Vec<u8> = (0..w * h * d)
                 .map(|_| {
                     (hvs_shared::test_support::splitmix64(&mut s) % (most + 3)).min(most) as u8
