@@ -1,5 +1,6 @@
 //! Dense matching speed: [`dense_match`] on a 741 x 500 pair with 66 disparities (the
-//! Motorcycle pair's size and its model's disparity range 2..=67), 8 paths. Run with
+//! Motorcycle pair's size and its model's disparity range 2..=67), 8 paths; on the real pair
+//! also with `hvs locate`'s settings (`DenseParams::thorough`). Run with
 //! `RAYON_NUM_THREADS=1` for one core. With `HVS_MOTORCYCLE_DIR` set (see
 //! `vision/tests/dense_real.rs`) the real pair is used, PNG decoding included; else a
 //! synthetic textured pair of the same size.
@@ -24,13 +25,18 @@ fn bench(c: &mut Criterion) {
     if let Ok(dir) = std::env::var("HVS_MOTORCYCLE_DIR") {
         let dir = std::path::PathBuf::from(dir);
         let (l, r) = (dir.join("motorcycle_left.png"), dir.join("motorcycle_right.png"));
-        g.bench_function("motorcycle_741x500_decode_and_match", |b| {
-            b.iter(|| {
-                let left = hvs_vision::image_file::read_grey(&l).unwrap();
-                let right = hvs_vision::image_file::read_grey(&r).unwrap();
-                black_box(dense_match(&left, &right, &f, d_range, &DenseParams::default()).unwrap())
-            })
-        });
+        for (name, p) in [
+            ("motorcycle_741x500_decode_and_match", DenseParams::default()),
+            ("motorcycle_741x500_decode_and_match_thorough", DenseParams::thorough()),
+        ] {
+            g.bench_function(name, |b| {
+                b.iter(|| {
+                    let left = hvs_vision::image_file::read_grey(&l).unwrap();
+                    let right = hvs_vision::image_file::read_grey(&r).unwrap();
+                    black_box(dense_match(&left, &right, &f, d_range, &p).unwrap())
+                })
+            });
+        }
     }
     let pair = dense_common::scene(741, 500, 20.0, 20.0, 55.0, 1, 0.0, 0.0);
     for (name, eight) in [("synthetic_741x500_8_paths", true), ("synthetic_741x500_4_paths", false)]

@@ -278,7 +278,8 @@ async fn depth_image(
     Ok(png_response(&depth_of(&app, pair).await?.png))
 }
 
-/// `GET /api/depth/{pair}/cloud.ply`: the pair's point cloud, the bytes of `hvs depth --thorough --ply`.
+/// `GET /api/depth/{pair}/cloud.ply`: the pair's point cloud, the bytes of `hvs depth
+/// --thorough --ply`.
 async fn depth_cloud(
     State(app): State<Shared>,
     Path(pair): Path<usize>,

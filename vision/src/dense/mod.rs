@@ -20,7 +20,8 @@
 //! 5. Left-right check: the same with the right image as reference (`F^T`); when every
 //!    candidate of step 2 lay on its left pixel's own row (a rectified pair, or lines that
 //!    round to their own rows) read off the same aggregated volume unless
-//!    [`DenseParams::aggregate_right`] asks for its own, otherwise a second aggregation. A left match whose right pixel disagrees by more than
+//!    [`DenseParams::aggregate_right`] asks for its own, otherwise a second aggregation. A
+//!    left match whose right pixel disagrees by more than
 //!    [`DenseParams::lr_tolerance_px`] is dropped, and so is one whose census window, or
 //!    its right pixel's, is one grey level ([`census::flat_windows`]: blank, or clipped to
 //!    black or white): the aggregation carries an answer into such a window from its

@@ -99,7 +99,8 @@ function place(mark, img, u, v) {
   mark.hidden = false;
 }
 
-// The dense depth of the pair (`hvs depth --thorough --colour`), computed by the server when first asked.
+// The dense depth of the pair (`hvs depth --thorough --colour`), computed by the server when
+// first asked.
 async function loadDepth() {
   const fig = $('depth-figure');
   fig.hidden = !$('show-depth').checked;
@@ -121,8 +122,8 @@ async function loadDepth() {
   }
 }
 
-// The 3-D view: the pair's point cloud, the bytes of `hvs depth --thorough --ply` (binary little-endian:
-// float x, y, z; uchar red, green, blue), drawn by hand on a canvas (no library): each point
+// The 3-D view: the pair's point cloud, the bytes of `hvs depth --thorough --ply` (binary
+// little-endian: float x, y, z; uchar red, green, blue), drawn by hand on a canvas (no library): each point
 // turned with the view, projected with a pinhole, nearest point wins a pixel.
 const cloud = {points: null, grey: null, n: 0, yaw: 0, pitch: 0, zoom: 1, centre: [0, 0, 0], size: 1};
 
