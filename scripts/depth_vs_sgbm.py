@@ -16,7 +16,7 @@ images, over the disparities `hvs depth` searches (its `lo..hi`, widened to a mu
   right image: returned %, and of the returned the % more than 2 px and more than 1 px off.
 
 Usage: python3 scripts/depth_vs_sgbm.py [--hvs target/release/hvs] [--dir /tmp/motorcycle]
-       [--model M.hvsw] [--runs 11]
+       [--model M.hvsw] [--runs 11] [--thorough]
 Without --model, one is trained on `host/tests/fixtures/motorcycle/train.csv` (seed 7, the
 README's worked example). Needs numpy and OpenCV (`pip install opencv-python-headless`) and a
 release build of hvs.
@@ -39,6 +39,7 @@ ap.add_argument("--hvs", default="target/release/hvs")
 ap.add_argument("--dir", default=os.environ.get("HVS_MOTORCYCLE_DIR", "/tmp/motorcycle"))
 ap.add_argument("--model")
 ap.add_argument("--runs", type=int, default=11)
+ap.add_argument("--thorough", action="store_true", help="time `hvs depth --thorough`")
 a = ap.parse_args()
 
 left = os.path.join(a.dir, "motorcycle_left.png")
@@ -65,6 +66,7 @@ with tempfile.TemporaryDirectory() as tmp:
                        check=True, capture_output=True)
     depth, matches = os.path.join(tmp, "d.pfm"), os.path.join(tmp, "m.pfm")
     cmd = [a.hvs, "depth", "--model", model, "--left", left, "--right", right, "-o", depth]
+    cmd += ["--thorough"] if a.thorough else []
     said = subprocess.run(cmd + ["--matches", matches], check=True, capture_output=True,
                           text=True).stderr
     found = re.search(r"disparities (-?\d+)\.\.(-?\d+) px searched", said)
