@@ -140,21 +140,24 @@ pub struct Args {
     /// Outputs of the net [default: xyz].
     #[arg(long, value_enum)]
     outputs: Option<OutputsArg>,
-    /// Model family [default: inverse-depth-skip].
+    /// Model family [default: inverse-depth-skip; thesis with --algo bp].
     #[arg(long, value_enum)]
     arch: Option<ArchArg>,
     /// Frame of a posture-aware net's points [default: cyclopean for a posture-aware set
     /// (9 inputs) outside the thesis family; head otherwise].
     #[arg(long, value_enum)]
     frame: Option<FrameArg>,
-    /// Training algorithm [default: lm].
+    /// Training algorithm [default: lm]; bp trains the families without a skip term only
+    /// (thesis, inverse-depth).
     #[arg(long, value_enum)]
     algo: Option<AlgoArg>,
     /// Restarts from random starts [default: 10; 1 for a posture-aware set of detected,
     /// sub-pixel corners outside the thesis family].
     #[arg(long, value_name = "R", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     restarts: Option<usize>,
-    /// Enrol only restarts whose training e_ma is at most T percent.
+    /// Enrol only restarts whose training e_ma is at most T percent (the default family on
+    /// integer pixels: write no model whose reported training e_ma, after the best restart's
+    /// fit to the synthetic points, is above T).
     #[arg(long, value_name = "T")]
     threshold: Option<f64>,
     /// Seed of the random starts.
@@ -212,7 +215,14 @@ pub fn run(a: Args) -> Result<()> {
     }
     check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
-    let defaults = TrainConfig::for_set(a.arch.unwrap_or(ArchArg::DEFAULT).family(), &table.data);
+    // Back-propagation trains nets without a skip term: with `--algo bp` and no `--arch`,
+    // the thesis' net (an `--arch` with a skip term is refused by `train`).
+    let arch = a.arch.unwrap_or(if a.algo == Some(AlgoArg::Bp) {
+        ArchArg::Thesis
+    } else {
+        ArchArg::DEFAULT
+    });
+    let defaults = TrainConfig::for_set(arch.family(), &table.data);
     let config = TrainConfig {
         hidden: a.hidden.unwrap_or(defaults.hidden),
         outputs: a.outputs.unwrap_or(OutputsArg::Xyz).kind(),

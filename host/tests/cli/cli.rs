@@ -455,3 +455,41 @@ fn bad_settings_are_refused_before_anything_is_written() {
     );
     fails(&["simulate", "--case", "7", "--set", "test"], "--case must be 1-4");
 }
+
+/// The README's `--algo bp` and `--threshold` lines: back-propagation without `--arch` trains
+/// the thesis' net (the one family it can), and a threshold is judged against the training
+/// e_ma `hvs train` reports (the default family's restarts are fitted to synthetic points
+/// after they are judged, so their own errors lie above it).
+#[test]
+fn bp_without_an_arch_and_a_threshold_at_the_reported_error_train() {
+    let dir = TempDir::new().unwrap();
+    let tr = simulated(dir.path(), 4, "train", "t.csv");
+    let bp = dir.path().join("bp.hvsw");
+    let out = ok(&["train", "--data", s(&tr), "-o", s(&bp), "--algo", "bp", "--max-cycles", "200"]);
+    assert!(out.contains("wrote"), "{out}");
+    let b = blob::decode(&std::fs::read(&bp).unwrap()).unwrap();
+    assert_eq!(b.family, hvs_shared::runtime::blob::Family::THESIS);
+    fails(
+        &["train", "--data", s(&tr), "-o", s(&bp), "--algo", "bp", "--arch", "inverse-depth-skip"],
+        "back-propagation trains the thesis' sigmoid-output net",
+    );
+    let m = dir.path().join("m.hvsw");
+    let out = ok(&["train", "--data", s(&tr), "-o", s(&m), "--restarts", "3"]);
+    let reported: f64 = out
+        .split("training e_ma ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{out}"));
+    let want = std::fs::read(&m).unwrap();
+    let t = format!("{}", reported + 0.0001);
+    ok(&["train", "--data", s(&tr), "-o", s(&m), "--restarts", "3", "--threshold", &t]);
+    assert_eq!(std::fs::read(&m).unwrap(), want);
+    let t = format!("{}", reported - 0.0001);
+    std::fs::remove_file(&m).unwrap();
+    fails(
+        &["train", "--data", s(&tr), "-o", s(&m), "--restarts", "3", "--threshold", &t],
+        &format!("{reported:.4} %, above the threshold"),
+    );
+    assert!(!m.exists());
+}
