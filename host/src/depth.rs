@@ -272,7 +272,7 @@ pub fn locate_in(d: &Depth, blob: &ModelBlob, points: &[[f64; 2]]) -> Result<Vec
         if !(ul.is_finite() && vl.is_finite()) {
             return none("nan_input");
         }
-        if !(ul > -0.5 && vl > -0.5 && ul < w as f64 - 0.5 && vl < h as f64 - 0.5) {
+        if !inside_image(ul, vl, (m.width, m.height)) {
             return none("outside");
         }
         let (x, y) = (ul.round() as usize, vl.round() as usize);
@@ -310,6 +310,14 @@ pub fn locate_in(d: &Depth, blob: &ModelBlob, points: &[[f64; 2]]) -> Result<Vec
         }
     };
     Ok(points.iter().map(|&p| one(p)).collect())
+}
+
+/// Whether left pixel `(u, v)` lies inside a `w x h` image (pixel centres: from -0.5 to the
+/// size - 0.5, both finite): where [`locate_in`] can answer, and what `hvs locate --at` and a
+/// click in `hvs view` check.
+pub fn inside_image(u: f64, v: f64, (w, h): (u32, u32)) -> bool {
+    let (wf, hf) = (f64::from(w), f64::from(h));
+    u > -0.5 && v > -0.5 && u < wf - 0.5 && v < hf - 0.5
 }
 
 /// Dense matches of `left` and `right` ([`depth`] with [`locate_params`]), then

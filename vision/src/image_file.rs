@@ -102,7 +102,23 @@ fn reader(
 pub fn probe(path: &Path) -> Result<(ImageFormat, u32, u32), ImageFileError> {
     let shown = path.display().to_string();
     let r = reader(path, &shown)?;
-    let format = match r.format() {
+    // The format by the first bytes alone: `with_guessed_format` falls back on the name's
+    // extension, so a text file called `x.png` would be "damaged PNG data".
+    let mut head = [0u8; 32];
+    let n = {
+        use std::io::Read;
+        let io = |e: std::io::Error| ImageFileError::Io(shown.clone(), e.to_string());
+        let mut f = std::fs::File::open(path).map_err(io)?;
+        let mut n = 0;
+        while n < head.len() {
+            match f.read(&mut head[n..]).map_err(io)? {
+                0 => break,
+                k => n += k,
+            }
+        }
+        n
+    };
+    let format = match image::guess_format(&head[..n]).ok() {
         Some(f @ (ImageFormat::Png | ImageFormat::Jpeg)) => f,
         Some(other) => return Err(ImageFileError::Format(shown, Some(format_name(other)))),
         None => return Err(ImageFileError::Format(shown, None)),
@@ -192,6 +208,14 @@ mod tests {
         let text = dir.path().join("t.txt");
         std::fs::write(&text, "not an image").unwrap();
         assert!(matches!(read_grey(&text), Err(ImageFileError::Format(_, None))));
+        // Named as a PNG, not one: not "damaged PNG data".
+        let named = dir.path().join("text.png");
+        std::fs::write(&named, "not an image either").unwrap();
+        let e = read_grey(&named).unwrap_err();
+        assert!(matches!(e, ImageFileError::Format(_, None)), "{e}");
+        assert!(e.to_string().contains("not a PNG or JPEG image"), "{e}");
+        std::fs::write(&named, "").unwrap();
+        assert!(matches!(read_grey(&named), Err(ImageFileError::Format(_, None))));
         let e = read_grey(&dir.path().join("missing.png")).unwrap_err();
         assert!(matches!(e, ImageFileError::Io(..)), "{e}");
         assert!(matches!(read_grey(dir.path()), Err(ImageFileError::Io(..))));

@@ -9,8 +9,9 @@
 use crate::detect::Corners;
 use image::{GrayImage, Rgb, RgbImage};
 
-/// 3 x 5 bitmaps of `0`-`9` and `,` (rows top to bottom, bit 2 = left column).
-const GLYPHS: [[u8; 5]; 11] = [
+/// 3 x 5 bitmaps of `0`-`9`, `,`, `c`, `m` and a space (rows top to bottom, bit 2 = left
+/// column): numbers, and the unit of a depth legend.
+const GLYPHS: [[u8; 5]; 14] = [
     [0b111, 0b101, 0b101, 0b101, 0b111], // 0
     [0b010, 0b110, 0b010, 0b010, 0b111], // 1
     [0b111, 0b001, 0b111, 0b100, 0b111], // 2
@@ -22,6 +23,9 @@ const GLYPHS: [[u8; 5]; 11] = [
     [0b111, 0b101, 0b111, 0b101, 0b111], // 8
     [0b111, 0b101, 0b111, 0b001, 0b111], // 9
     [0b000, 0b000, 0b000, 0b010, 0b100], // ,
+    [0b000, 0b011, 0b100, 0b100, 0b011], // c
+    [0b000, 0b111, 0b111, 0b101, 0b101], // m
+    [0b000, 0b000, 0b000, 0b000, 0b000], // space
 ];
 
 fn put(img: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>) {
@@ -30,7 +34,7 @@ fn put(img: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>) {
     }
 }
 
-/// Draw `text` (digits and commas; other characters are skipped) with its top-left pixel at
+/// Draw `text` (digits, commas, `c`, `m` and spaces; other characters are skipped) with its top-left pixel at
 /// `(x, y)`, each font pixel `scale x scale`, on a black backing box so it reads on any
 /// background.
 pub fn draw_text(img: &mut RgbImage, x: i64, y: i64, text: &str, scale: u32, c: Rgb<u8>) {
@@ -40,6 +44,9 @@ pub fn draw_text(img: &mut RgbImage, x: i64, y: i64, text: &str, scale: u32, c: 
         .filter_map(|ch| match ch {
             '0'..='9' => Some(&GLYPHS[ch as usize - '0' as usize]),
             ',' => Some(&GLYPHS[10]),
+            'c' => Some(&GLYPHS[11]),
+            'm' => Some(&GLYPHS[12]),
+            ' ' => Some(&GLYPHS[13]),
             _ => None,
         })
         .collect();

@@ -163,7 +163,7 @@ pub fn colour_depth(width: u32, height: u32, z: &[f32], z_range: [f32; 2]) -> Rg
         }
     }
     let white = Rgb([255, 255, 255]);
-    let label = |v: f32| format!("{}", v.round() as i64);
+    let label = |v: f32| format!("{} cm", v.round() as i64);
     let ty = i64::from(height) + 13;
     draw_text(&mut img, 1, ty, &label(lo), 2, white);
     let mid = label((lo + hi) / 2.0);
@@ -252,5 +252,12 @@ mod tests {
         // The legend bar runs from near to far.
         assert_eq!(*img.get_pixel(0, 5), ramp(0.0));
         assert_eq!(*img.get_pixel(3, 5), ramp(1.0));
+        // Labelled in cm: "100 cm" at the left end, six glyphs on a black box.
+        let wide = colour_depth(200, 1, &[100.0; 200], [100.0, 300.0]);
+        let lit = |x0: u32, x1: u32| {
+            (x0..x1).any(|x| (14..24).any(|y| *wide.get_pixel(x, y) == Rgb([255, 255, 255])))
+        };
+        // "100" then a space, "c" and "m" (8 px a glyph at scale 2, from x = 1).
+        assert!(lit(1, 25) && !lit(25, 33) && lit(33, 41) && lit(41, 49), "no unit drawn");
     }
 }

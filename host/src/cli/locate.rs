@@ -143,6 +143,14 @@ pub fn run(a: Args) -> Result<()> {
         },
         (None, None) => bail!("give --points PIXELS.csv or --at U,V"),
     };
+    // The one point asked for with --at must lie in the image (its header says; a file that
+    // cannot be read is left to the full read below, which names the problem).
+    if let (Some(_), Ok((w, h))) = (&a.at, image::image_dimensions(&a.pair.left)) {
+        let [u, v] = pixels.points[0];
+        if !crate::depth::inside_image(u, v, (w, h)) {
+            bail!("--at {u},{v}: outside the {w}x{h} left image {}", a.pair.left.display());
+        }
+    }
     let LocatedFiles { found, warnings, left: l, right: r } =
         locate_files(&a.pair.model, &a.pair.left, &a.pair.right, &pixels.points)?;
     for w in &warnings {

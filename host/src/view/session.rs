@@ -423,8 +423,7 @@ impl Session {
 /// Refuses a left pixel that is not finite or lies outside a `w x h` image (pixel-centre
 /// convention: from -0.5 to the size - 0.5), for a click and for a look.
 fn check_pixel(u: f64, v: f64, (w, h): (u32, u32)) -> Result<(), Refused> {
-    let (wf, hf) = (f64::from(w), f64::from(h));
-    if u.is_finite() && v.is_finite() && u > -0.5 && v > -0.5 && u < wf - 0.5 && v < hf - 0.5 {
+    if crate::depth::inside_image(u, v, (w, h)) {
         Ok(())
     } else {
         Err(Refused::Bad(format!("pixel ({u}, {v}) is outside the {w}x{h} left image")))
