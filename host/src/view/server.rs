@@ -42,6 +42,22 @@ impl IntoResponse for ApiError {
     }
 }
 
+/// A JSON request body whose refusal (malformed JSON, a missing, unknown or mistyped field,
+/// another content type) is an [`ApiError`] like every other: `{"error": ...}` on one line,
+/// with the status axum gives it (400, 415 or 422).
+struct JsonBody<T>(T);
+
+impl<S: Send + Sync, T: serde::de::DeserializeOwned> axum::extract::FromRequest<S> for JsonBody<T> {
+    type Rejection = ApiError;
+
+    async fn from_request(req: axum::extract::Request, state: &S) -> Result<Self, ApiError> {
+        match Json::<T>::from_request(req, state).await {
+            Ok(Json(v)) => Ok(JsonBody(v)),
+            Err(r) => Err(ApiError(r.status(), r.body_text().replace('\n', " "))),
+        }
+    }
+}
+
 impl From<Refused> for ApiError {
     fn from(r: Refused) -> ApiError {
         match r {
@@ -234,7 +250,7 @@ fn png_response(png: &[u8]) -> Response {
 
 async fn locate(
     State(app): State<Shared>,
-    Json(q): Json<LocateRequest>,
+    JsonBody(q): JsonBody<LocateRequest>,
 ) -> Result<Response, ApiError> {
     let t0 = Instant::now();
     let a = app.clone();
@@ -253,7 +269,10 @@ async fn head(State(app): State<Shared>) -> Result<Response, ApiError> {
     Ok(Json(api::head(&s)).into_response())
 }
 
-async fn look(State(app): State<Shared>, Json(q): Json<LookRequest>) -> Result<Response, ApiError> {
+async fn look(
+    State(app): State<Shared>,
+    JsonBody(q): JsonBody<LookRequest>,
+) -> Result<Response, ApiError> {
     let s = app.session.look(q.goal())?;
     Ok(Json(api::head(&s)).into_response())
 }
@@ -304,7 +323,7 @@ async fn captures(State(app): State<Shared>) -> Result<Response, ApiError> {
 
 async fn retrain(
     State(app): State<Shared>,
-    Json(q): Json<RetrainRequest>,
+    JsonBody(q): JsonBody<RetrainRequest>,
 ) -> Result<Response, ApiError> {
     if app.training.swap(true, Ordering::SeqCst) {
         return Err(ApiError(StatusCode::CONFLICT, "a retrain is already running".into()));

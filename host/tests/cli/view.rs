@@ -414,8 +414,10 @@ fn view_runs_the_virtual_head_live_and_looks_where_asked() {
         (r#"{"target":"fly"}"#, 422),
         (r#"{"target":"home","x":1}"#, 422),
     ] {
-        let (st, _) = http(&sv.addr, "POST", "/api/look", Some(body.as_bytes()));
+        let (st, b) = http(&sv.addr, "POST", "/api/look", Some(body.as_bytes()));
         assert_eq!(st, want, "{body}");
+        let v: serde_json::Value = serde_json::from_slice(&b).expect("a JSON error");
+        assert!(v["error"].is_string(), "{v}");
     }
     drop(sv);
     // A still pair has no head.
@@ -461,6 +463,13 @@ fn view_refuses_bad_requests_and_stays_up() {
         let text = String::from_utf8_lossy(&b);
         assert_eq!(st, want, "{method} {path}: {}", &text[..text.len().min(300)]);
         assert!(!text.contains("[package]") && !text.contains("root:"), "{path}");
+        // A refused body, however it is wrong, is a one-line JSON error like the rest.
+        if method == "POST" {
+            let v: serde_json::Value = serde_json::from_slice(&b)
+                .unwrap_or_else(|e| panic!("{path} {body:?}: not JSON ({e}): {text}"));
+            let e = v["error"].as_str().unwrap_or_else(|| panic!("{text}"));
+            assert!(!e.is_empty() && !e.contains('\n'), "{e}");
+        }
         json(&sv.addr, "GET", "/api/session", None, 200);
     }
     // Not HTTP at all.
