@@ -23,7 +23,8 @@ pub struct Args {
 pub enum BoardCommand {
     /// Find the board's inner corners in every stereo pair of a capture set and write one row
     /// per corner found in both images: capture,i,j,u_l,v_l,u_r,v_r (sub-pixel), then x,y,z
-    /// when the captures give z, then the passed-through columns. `hvs train` takes it as is.
+    /// when the captures give z, then the passed-through columns, then image_width,
+    /// image_height (px; a model trained on it keeps the size). `hvs train` takes it as is.
     Detect(DetectArgs),
 }
 

@@ -96,7 +96,7 @@ struct AccuracyArgs {
     )]
     output: PathBuf,
     /// Base of every set's seed (1000000: the held-out draws nothing was tuned on).
-    #[arg(long, value_name = "S", default_value_t = accuracy::HELD_OUT_SEED_BASE, value_parser = crate::cli::whole_u64)]
+    #[arg(long, visible_alias = "seed", value_name = "S", default_value_t = accuracy::HELD_OUT_SEED_BASE, value_parser = crate::cli::whole_u64)]
     seed_base: u64,
     /// Reduced run (case IV only, 2 restarts, 60 test points, 2 sweep levels, one image
     /// regime on 2 depths): seconds, for tests.

@@ -59,9 +59,12 @@ pub fn run(args: &Args) -> Result<()> {
     write_bytes(&args.output, &out)?;
     let generation = args.generation.unwrap_or(blob.generation);
     crate::cli::say(format_args!(
-        "wrote {} ({:?}, {} blob bytes) for slot {:?} at {:#010x}, generation {}",
+        "wrote {} ({}, {} blob bytes) for slot {:?} at {:#010x}, generation {}",
         args.output.display(),
-        format,
+        match format {
+            ImageFormat::Bin => "raw binary",
+            ImageFormat::Hex => "Intel HEX",
+        },
         blob_len,
         slot,
         slot.addr(),

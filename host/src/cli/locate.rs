@@ -45,6 +45,7 @@ pub struct Args {
 
 /// The pixels of a `PIXELS.csv` (`u_l,v_l`, `NaN` allowed: it gets the status `nan_input`),
 /// with the header and each row's other fields for the output.
+#[derive(Debug)]
 pub struct Pixels {
     /// Names of the passed-through columns.
     pub extra_names: Vec<String>,
@@ -182,4 +183,37 @@ pub fn run(a: Args) -> Result<()> {
     let ok = found.iter().filter(|f| f.status == "ok").count();
     eprintln!("{ok} of {} points located", found.len());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every way a `PIXELS.csv` can be wrong is one line naming the file (and the line and
+    /// column where there is one).
+    #[test]
+    fn bad_pixel_files_name_file_line_and_column() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("px.csv");
+        let err = |text: &str| {
+            std::fs::write(&path, text).unwrap();
+            let e = format!("{:#}", read_pixels(&path).unwrap_err());
+            assert!(!e.contains('\n'), "{e}");
+            e.strip_prefix(&format!("{}", path.display())).map(str::to_string).unwrap_or(e)
+        };
+        assert_eq!(err(""), ": empty file (expected a header row naming the column \"u_l\")");
+        assert_eq!(err("u_l,v_l\n"), ": no points after the header");
+        assert_eq!(err("u_l,v_l\n1,2\n3\n"), ":3: row has 1 field, the header has 2");
+        assert_eq!(err("u_l,v_l\nx,2\n"), ":2: column \"u_l\": \"x\" is not a finite number");
+        assert_eq!(err("u,v\n1,2\n"), ":1: missing column \"u_l\" (the header has: u,v)");
+        let ok = read_pixels(&{
+            std::fs::write(&path, "u_l,v_l,tag\n1,2.5,a\n").unwrap();
+            path.clone()
+        })
+        .unwrap();
+        assert_eq!(
+            (ok.points, ok.extra, ok.extra_names),
+            (vec![[1.0, 2.5]], vec![vec!["a".to_string()]], vec!["tag".to_string()])
+        );
+    }
 }

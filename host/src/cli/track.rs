@@ -33,8 +33,10 @@ pub struct Args {
     /// posture commands (protocol 3).
     #[arg(long, value_name = "PATH")]
     pub port: Option<String>,
-    /// How long to run (s): simulated time with `--head emulate`, the head's own clock with
-    /// a head in QEMU or on a port.
+    /// How long to run (s), as a number of frames: seconds times the cameras' frame rate (a
+    /// scene's `camera_fps`). With `--head emulate` that is the simulated time; a head in
+    /// QEMU or on a port keeps its own clock, so its log's `t_s` runs longer when a frame
+    /// takes longer than one frame period to make and match.
     #[arg(long, value_name = "S")]
     pub seconds: f64,
     /// The log: one row per frame.

@@ -15,7 +15,7 @@ use std::path::PathBuf;
     long_about = "Serve a local page (HTML, JavaScript and CSS inside the binary) that shows a \
     stereo pair (--left/--right: click a left pixel to see its match, X, Y, Z, status and \
     score, the numbers of `hvs locate --at`; tick \"depth\" for the pair's dense depth, `hvs \
-    depth --colour`) or a capture set (--board/--captures: every pair \
+    depth --thorough --colour`) or a capture set (--board/--captures: every pair \
     with its detected corners, homography and epipolar residuals; untick pairs and retrain as \
     `hvs train` does) or the virtual head in a scene, live (--scene: both frames as they are \
     grabbed; click a pixel and \"look\" to make the head look at the object there and follow \

@@ -284,6 +284,9 @@ pub(crate) fn check_unique_names(
 
 /// The error of a header (line `hl`) without column `c`.
 pub(crate) fn missing_column(file: &str, hl: u64, c: &str, names: &[String]) -> anyhow::Error {
+    if names.iter().all(|n| n.trim().is_empty()) {
+        return anyhow!("{file}: empty file (expected a header row naming the column \"{c}\")");
+    }
     anyhow!(
         "{file}:{hl}: missing column \"{c}\" (the header has: {})",
         // A quoted name may hold a line break: the message stays one line.
@@ -313,9 +316,18 @@ pub(crate) fn joint_columns_present(
 /// A row (line `line`) of `got` fields under a header of `want` is an error.
 pub(crate) fn check_row_len(file: &str, line: u64, got: usize, want: usize) -> Result<()> {
     if got != want {
-        bail!("{file}:{line}: row has {got} fields, the header has {want}");
+        bail!("{file}:{line}: row has {}, the header has {want}", fields(got));
     }
     Ok(())
+}
+
+/// `1 field`, `3 fields`.
+fn fields(n: usize) -> String {
+    if n == 1 {
+        "1 field".into()
+    } else {
+        format!("{n} fields")
+    }
 }
 
 pub(crate) fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {
@@ -324,7 +336,7 @@ pub(crate) fn csv_error(file: &str, e: csv::Error) -> anyhow::Error {
         csv::ErrorKind::Io(io) => format!("cannot read: {io}"),
         csv::ErrorKind::Utf8 { .. } => "not valid UTF-8".to_string(),
         csv::ErrorKind::UnequalLengths { expected_len, len, .. } => {
-            format!("row has {len} fields, the header has {expected_len}")
+            format!("row has {}, the header has {expected_len}", fields(*len as usize))
         }
         _ => e.to_string(),
     };
@@ -389,7 +401,7 @@ mod tests {
         let h = "u_l,v_l,u_r,v_r,x,y,z\n";
         let ok = "1,2,3,4,5,6,7\n";
         // (file text, ground truth wanted, the whole message).
-        let cases: [(String, bool, &str); 12] = [
+        let cases: [(String, bool, &str); 13] = [
             (
                 format!("{h}{ok}{ok}1,2,3,abc,5,6,7\n"),
                 true,
@@ -421,6 +433,7 @@ mod tests {
                 "d.csv:2: column \"z\": \"1e999\" is not a finite number",
             ),
             (format!("{h}{ok}1,2,3,4,5,6\n"), true, "d.csv:3: row has 6 fields, the header has 7"),
+            (format!("{h}{ok}1\n"), true, "d.csv:3: row has 1 field, the header has 7"),
             (format!("{h}1,2,,4,5,6,7\n"), true, "d.csv:2: column \"u_r\" is empty"),
             (
                 "u_l,v_l,u_r,x,y,z\n1,2,3,5,6,7\n".into(),
