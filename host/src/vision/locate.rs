@@ -127,7 +127,9 @@ pub fn load_stereo_model(model_path: &Path) -> Result<crate::data::model::ModelF
 }
 
 /// The two images side by side, each located point drawn in both (a cross, a line between
-/// them, its row number) in green, refused ones as a red cross in the left image only.
+/// them, its row number) in green, refused ones as a red cross in the left image only. The
+/// lines go first, then the numbers (up and right of each point; the small font when points
+/// lie closer than 40 px), then the crosses, so that no number hides a point.
 pub fn locate_overlay(left: &GrayImage, right: &GrayImage, found: &[Located]) -> RgbImage {
     use hvs_vision::overlay::{draw_cross, draw_line, draw_text};
     let (w, h) = left.dimensions();
@@ -139,23 +141,84 @@ pub fn locate_overlay(left: &GrayImage, right: &GrayImage, found: &[Located]) ->
         img.put_pixel(x + w, y, Rgb([p[0]; 3]));
     }
     let (ok, bad) = (Rgb([40, 220, 60]), Rgb([230, 40, 40]));
-    for (k, l) in found.iter().enumerate() {
-        if !(l.left[0].is_finite() && l.left[1].is_finite()) {
-            continue;
+    let drawn: Vec<(usize, &Located)> = found
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| l.left[0].is_finite() && l.left[1].is_finite())
+        .collect();
+    let pair = |l: &Located| l.right.map(|r| (l.left, [r[0] + f64::from(w), r[1]]));
+    for (_, l) in &drawn {
+        if let Some((a, b)) = pair(l) {
+            draw_line(&mut img, a, b, Rgb([40, 140, 220]));
         }
-        match l.right {
-            Some(r) => {
-                let r = [r[0] + f64::from(w), r[1]];
-                draw_cross(&mut img, l.left, 4.0, ok);
-                draw_cross(&mut img, r, 4.0, ok);
-                draw_line(&mut img, l.left, r, Rgb([40, 140, 220]));
-                let label = (k + 1).to_string();
-                for p in [l.left, r] {
-                    draw_text(&mut img, p[0] as i64 + 5, p[1] as i64 - 12, &label, 2, ok);
-                }
+    }
+    // The large font only for a few points well apart.
+    let near = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]) < 40.0;
+    let crowded = drawn.len() > 64
+        || drawn
+            .iter()
+            .enumerate()
+            .any(|(i, (_, a))| drawn[i + 1..].iter().any(|(_, b)| near(a.left, b.left)));
+    let (scale, up) = if crowded { (1, 8) } else { (2, 13) };
+    for (k, l) in &drawn {
+        if let Some((a, b)) = pair(l) {
+            let label = (k + 1).to_string();
+            for p in [a, b] {
+                draw_text(&mut img, p[0] as i64 + 4, p[1] as i64 - up, &label, scale, ok);
+            }
+        }
+    }
+    for (_, l) in &drawn {
+        match pair(l) {
+            Some((a, b)) => {
+                draw_cross(&mut img, a, 4.0, ok);
+                draw_cross(&mut img, b, 4.0, ok);
             }
             None => draw_cross(&mut img, l.left, 4.0, bad),
         }
     }
     img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(left: [f64; 2], right: Option<[f64; 2]>) -> Located {
+        Located {
+            left,
+            right,
+            xyz: None,
+            score: 1.0,
+            status: if right.is_some() { "ok" } else { "no_match" },
+        }
+    }
+
+    /// Every cross is drawn over the numbers, however close the points (a grid 12 px apart, as
+    /// the corners of a far board), in green where matched and red where refused.
+    #[test]
+    fn numbers_never_hide_a_point() {
+        let (l, r) = (GrayImage::new(120, 80), GrayImage::new(120, 80));
+        let mut found = Vec::new();
+        for j in 0..4 {
+            for i in 0..6 {
+                let p = [20.0 + 12.0 * f64::from(i), 20.0 + 12.0 * f64::from(j)];
+                found.push(at(p, (i != 3).then_some([p[0] - 8.0, p[1]])));
+            }
+        }
+        let img = locate_overlay(&l, &r, &found);
+        let (ok, bad) = (Rgb([40, 220, 60]), Rgb([230, 40, 40]));
+        for f in &found {
+            let [x, y] = f.left.map(|v| v as u32);
+            let want = if f.right.is_some() { ok } else { bad };
+            // The cross's centre and the ends of its arms.
+            for (dx, dy) in [(0i32, 0i32), (-3, 0), (3, 0), (0, -3), (0, 3)] {
+                let p = *img.get_pixel((x as i32 + dx) as u32, (y as i32 + dy) as u32);
+                assert_eq!(p, want, "({x}, {y}) + ({dx}, {dy})");
+            }
+            if let Some([u, v]) = f.right {
+                assert_eq!(*img.get_pixel(u as u32 + 120, v as u32), ok);
+            }
+        }
+    }
 }
