@@ -63,7 +63,7 @@ pub enum BoardError {
 impl core::fmt::Display for BoardError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            BoardError::Io(path, e) => write!(f, "cannot read board file {path}: {e}"),
+            BoardError::Io(path, e) => write!(f, "{path}: cannot read the board file: {e}"),
             BoardError::Json(e) => write!(f, "board description: {e}"),
             BoardError::Value(field, why) => write!(f, "board description: {field}: {why}"),
         }
