@@ -1,9 +1,8 @@
 //! `hvs emulate`: boots the head firmware in QEMU with models in its weight slots
 //! ([`crate::device::qemu`]).
 
-use crate::data::output::check_not_input;
-use crate::device::qemu::{find_firmware, Emulator, EmulatorConfig};
-use anyhow::{anyhow, bail, Context, Result};
+use crate::device::qemu::{find_firmware, preflight, Emulator, EmulatorConfig, DEFAULT_QEMU};
+use anyhow::Result;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -27,7 +26,7 @@ pub struct Args {
     #[arg(long)]
     pub firmware: Option<PathBuf>,
     /// QEMU executable.
-    #[arg(long, default_value = "qemu-system-arm")]
+    #[arg(long, default_value = DEFAULT_QEMU)]
     pub qemu: String,
     /// Stop QEMU after this many seconds (default: run until interrupted).
     #[arg(long, allow_negative_numbers = true, value_parser = crate::cli::whole_u64)]
@@ -56,80 +55,6 @@ pub fn run(args: &Args) -> Result<()> {
     let exited = emu.wait(args.timeout.map(Duration::from_secs))?;
     if exited {
         emu.check_alive()?;
-    }
-    Ok(())
-}
-
-/// `EM_ARM`, the ELF machine of the Cortex-M4F firmware.
-const EM_ARM: u16 = 40;
-
-/// Checks everything QEMU would otherwise stumble on after `hvs emulate` reported it running
-/// (the first client then sees only "connection closed by the head"): the models decode,
-/// the firmware is a 32-bit ARM ELF, the servo log's directory exists, the listen address
-/// can be bound.
-pub fn preflight(cfg: &EmulatorConfig) -> Result<()> {
-    for (flag, p) in [("--model", &cfg.slot_a), ("--slot-b", &cfg.slot_b)] {
-        if let Some(p) = p {
-            crate::data::model::load(p).with_context(|| flag.to_string())?;
-        }
-    }
-    check_firmware(&cfg.firmware)?;
-    let log = &cfg.servo_log;
-    let dir = match log.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => std::path::Path::new("."),
-    };
-    if !dir.is_dir() {
-        bail!("--servo-log {}: the directory {} does not exist", log.display(), dir.display());
-    }
-    if log.is_dir() {
-        bail!("--servo-log {}: is a directory", log.display());
-    }
-    let mut inputs = vec![("--firmware", cfg.firmware.as_path())];
-    inputs.extend(cfg.slot_a.as_deref().map(|p| ("--model", p)));
-    inputs.extend(cfg.slot_b.as_deref().map(|p| ("--slot-b", p)));
-    check_not_input("--servo-log", log, &inputs)?;
-    let addrs: Vec<std::net::SocketAddr> = std::net::ToSocketAddrs::to_socket_addrs(&cfg.listen)
-        .map_err(|e| anyhow!("--listen {}: not a HOST:PORT address ({e})", cfg.listen))?
-        .collect();
-    let first =
-        addrs.first().ok_or_else(|| anyhow!("--listen {}: the host has no address", cfg.listen))?;
-    // Bound and released at once: QEMU binds it next.
-    std::net::TcpListener::bind(first)
-        .map_err(|e| anyhow!("--listen {}: cannot listen there: {e}", cfg.listen))?;
-    Ok(())
-}
-
-/// The firmware file is a 32-bit little-endian ARM ELF executable.
-fn check_firmware(p: &std::path::Path) -> Result<()> {
-    use std::io::Read;
-    if !p.exists() {
-        bail!(
-            "{}: firmware ELF not found; build it with `{}`",
-            p.display(),
-            crate::device::qemu::FIRMWARE_BUILD
-        );
-    }
-    let mut head = Vec::with_capacity(20);
-    std::fs::File::open(p)
-        .and_then(|f| f.take(20).read_to_end(&mut head))
-        .with_context(|| format!("--firmware {}: cannot read", p.display()))?;
-    if head.len() < 20 || head[..4] != *b"\x7fELF" {
-        bail!(
-            "--firmware {}: not an ELF file (first bytes {:02x?}); give the hvs-firmware ELF",
-            p.display(),
-            &head[..head.len().min(4)]
-        );
-    }
-    let machine = u16::from_le_bytes([head[18], head[19]]);
-    if head[4] != 1 || head[5] != 1 || machine != EM_ARM {
-        bail!(
-            "--firmware {}: an ELF for another machine (class {}, data {}, e_machine {machine}); \
-             the head runs a 32-bit little-endian ARM ELF (e_machine {EM_ARM})",
-            p.display(),
-            head[4],
-            head[5]
-        );
     }
     Ok(())
 }

@@ -109,7 +109,9 @@ impl RemoteHead {
         firmware: Option<&std::path::Path>,
         control_hz: u32,
     ) -> Result<RemoteHead> {
-        use crate::device::qemu::{find_firmware, free_port, Emulator, EmulatorConfig};
+        use crate::device::qemu::{
+            find_firmware, free_port, preflight, Emulator, EmulatorConfig, DEFAULT_QEMU,
+        };
         let dir = tempfile::tempdir()
             .map_err(|e| anyhow::anyhow!("a temporary folder for QEMU's servo log: {e}"))?;
         let cfg = EmulatorConfig {
@@ -118,10 +120,10 @@ impl RemoteHead {
             slot_b: None,
             listen: format!("127.0.0.1:{}", free_port()?),
             servo_log: dir.path().join("servo.log"),
-            qemu: "qemu-system-arm".into(),
+            qemu: DEFAULT_QEMU.into(),
             extra: Vec::new(),
         };
-        crate::cli::emulate::preflight(&cfg)?;
+        preflight(&cfg)?;
         let emu = Emulator::start(&cfg)?;
         let endpoint = emu.endpoint.parse()?;
         let link = client::connect(&endpoint, Duration::from_secs(20))?;
