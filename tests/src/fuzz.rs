@@ -605,7 +605,7 @@ pub fn locate(data: &[u8]) {
     for (name, bytes) in [("m.hvsw", model), ("l.png", left), ("r.png", right), ("p.csv", points)] {
         std::fs::write(path(name), bytes).expect("written");
     }
-    let pixels = match hvs_host::cli::locate::read_pixels(&path("p.csv")) {
+    let pixels = match hvs_host::data::pixels::read_pixels(&path("p.csv")) {
         Ok(p) => p,
         Err(e) => return one_line(&format!("{e:#}")),
     };

@@ -6,6 +6,7 @@ pub mod csv;
 pub mod dataset;
 pub mod model;
 pub mod output;
+pub mod pixels;
 pub mod positions;
 pub mod rig;
 pub mod validate;

@@ -1,0 +1,97 @@
+//! `PIXELS.csv`: left-image pixels to locate (`u_l,v_l`, other columns passed through), as
+//! `hvs locate --points` reads them.
+
+use crate::data::csv::{
+    check_row_len, check_unique_names, csv_error, csv_reader, missing_column, LineCounter,
+};
+use anyhow::{anyhow, bail, Context, Result};
+use std::path::Path;
+
+/// The pixels of a `PIXELS.csv` (`u_l,v_l`, `NaN` allowed: it gets the status `nan_input`),
+/// with the header and each row's other fields for the output.
+#[derive(Debug)]
+pub struct Pixels {
+    /// Names of the passed-through columns.
+    pub extra_names: Vec<String>,
+    /// `(u_l, v_l)` per row.
+    pub points: Vec<[f64; 2]>,
+    /// The passed-through fields per row.
+    pub extra: Vec<Vec<String>>,
+}
+
+/// Reads `path`; errors name the file, the line and the column.
+pub fn read_pixels(path: &Path) -> Result<Pixels> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).with_context(|| format!("{file}: cannot read"))?;
+    let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(&bytes);
+    let mut lines_of = LineCounter::new(bytes);
+    let mut rdr = csv_reader(bytes);
+    let header = rdr.headers().map_err(|e| csv_error(&file, e))?.clone();
+    let hl = lines_of.line_at(header.position().map_or(0, |p| p.byte()));
+    let names: Vec<String> = header.iter().map(str::to_string).collect();
+    check_unique_names(&file, hl, &names, false)?;
+    let find = |c: &str| {
+        let at = names.iter().position(|n| n == c);
+        at.ok_or_else(|| missing_column(&file, hl, c, &names))
+    };
+    let (ui, vi) = (find("u_l")?, find("v_l")?);
+    let own = ["u_l", "v_l", "u_r", "v_r", "x", "y", "z", "score", "status"];
+    let extra_idx: Vec<usize> =
+        (0..names.len()).filter(|&k| !own.contains(&names[k].as_str())).collect();
+    let mut out = Pixels {
+        extra_names: extra_idx.iter().map(|&k| names[k].clone()).collect(),
+        points: Vec::new(),
+        extra: Vec::new(),
+    };
+    let mut rec = csv::StringRecord::new();
+    while rdr.read_record(&mut rec).map_err(|e| csv_error(&file, e))? {
+        let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
+        check_row_len(&file, line, rec.len(), header.len())?;
+        let num = |k: usize, c: &str| -> Result<f64> {
+            let t = &rec[k];
+            // One rule with every CSV input: NaN and infinities are refused alike.
+            t.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                anyhow!("{file}:{line}: column \"{c}\": {t:?} is not a finite number")
+            })
+        };
+        out.points.push([num(ui, "u_l")?, num(vi, "v_l")?]);
+        out.extra.push(extra_idx.iter().map(|&k| rec[k].to_string()).collect());
+    }
+    if out.points.is_empty() {
+        bail!("{file}: no points after the header");
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every way a `PIXELS.csv` can be wrong is one line naming the file (and the line and
+    /// column where there is one).
+    #[test]
+    fn bad_pixel_files_name_file_line_and_column() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("px.csv");
+        let err = |text: &str| {
+            std::fs::write(&path, text).unwrap();
+            let e = format!("{:#}", read_pixels(&path).unwrap_err());
+            assert!(!e.contains('\n'), "{e}");
+            e.strip_prefix(&format!("{}", path.display())).map(str::to_string).unwrap_or(e)
+        };
+        assert_eq!(err(""), ": empty file (expected a header row naming the column \"u_l\")");
+        assert_eq!(err("u_l,v_l\n"), ": no points after the header");
+        assert_eq!(err("u_l,v_l\n1,2\n3\n"), ":3: row has 1 field, the header has 2");
+        assert_eq!(err("u_l,v_l\nx,2\n"), ":2: column \"u_l\": \"x\" is not a finite number");
+        assert_eq!(err("u,v\n1,2\n"), ":1: missing column \"u_l\" (the header has: u,v)");
+        let ok = read_pixels(&{
+            std::fs::write(&path, "u_l,v_l,tag\n1,2.5,a\n").unwrap();
+            path.clone()
+        })
+        .unwrap();
+        assert_eq!(
+            (ok.points, ok.extra, ok.extra_names),
+            (vec![[1.0, 2.5]], vec![vec!["a".to_string()]], vec!["tag".to_string()])
+        );
+    }
+}
