@@ -193,10 +193,10 @@ impl PostureArgs {
 #[derive(Debug, clap::Args)]
 pub struct RenderArgs {
     /// Gaussian blur, standard deviation (px).
-    #[arg(long, value_name = "PX", default_value_t = 0.8)]
+    #[arg(long, value_name = "PX", default_value_t = hvs_vision::render::RenderOptions::default().blur_sigma_px)]
     pub blur: f64,
     /// Sensor noise, standard deviation (grey levels).
-    #[arg(long, value_name = "GREY", default_value_t = 2.0)]
+    #[arg(long, value_name = "GREY", default_value_t = hvs_vision::render::RenderOptions::default().noise_sigma)]
     pub noise: f64,
     /// Supersampling of edge pixels (N x N samples, 1-16) [default: 8; `hvs collect`: 4, which
     /// renders its thousands of pairs in two thirds of the time].

@@ -66,7 +66,7 @@ pub fn run(a: Args) -> Result<()> {
     let (cols, rows) = parse_size(&a.inner_corners)?;
     let board =
         hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| anyhow!("{e}"))?;
-    let opt = a.camera.options(a.square_cm, 8)?;
+    let opt = a.camera.options(a.square_cm, render::RenderOptions::default().supersample)?;
     let distortion = match a.distortion.as_deref() {
         None => Distortion::NONE,
         Some([k1]) => Distortion { k1: *k1, k2: 0.0 },

@@ -110,9 +110,10 @@ pub fn run(a: Args) -> Result<()> {
             a.correction_gain
         )));
     }
-    if !(a.lead_frames.is_finite() && (0.0..=30.0).contains(&a.lead_frames)) {
+    let most = hvs_shared::runtime::fixation::MAX_LEAD_FRAMES;
+    if !(a.lead_frames.is_finite() && (0.0..=most).contains(&a.lead_frames)) {
         return Err(crate::cli::usage(format!(
-            "--lead-frames: must be from 0 to 30, got {}",
+            "--lead-frames: must be from 0 to {most}, got {}",
             a.lead_frames
         )));
     }
@@ -169,7 +170,7 @@ pub fn run(a: Args) -> Result<()> {
             (None, None) => return Err(crate::cli::usage("give --scene or --cameras")),
         };
     if let TargetMode::Pixel([u, v]) = target {
-        if !(u >= 0.0 && v >= 0.0 && u <= f64::from(w) - 1.0 && v <= f64::from(h) - 1.0) {
+        if !crate::depth::inside_image(u, v, (w, h)) {
             return Err(crate::cli::usage(format!(
                 "--target: {u},{v} is outside the {w}x{h} left image"
             )));

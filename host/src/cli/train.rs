@@ -215,22 +215,17 @@ pub fn run(a: Args) -> Result<()> {
     }
     check_not_input("-o", &a.output, &[("--data", &a.data)])?;
     let table = read_set(&a.data, Inputs::Auto, true)?;
-    // Back-propagation trains nets without a skip term: with `--algo bp` and no `--arch`,
-    // the thesis' net (an `--arch` with a skip term is refused by `train`).
-    let arch = a.arch.unwrap_or(if a.algo == Some(AlgoArg::Bp) {
-        ArchArg::Thesis
-    } else {
-        ArchArg::DEFAULT
-    });
-    let defaults = TrainConfig::for_set(arch.family(), &table.data);
+    let algo = match a.algo.unwrap_or(AlgoArg::Lm) {
+        AlgoArg::Lm => Algo::Lm,
+        AlgoArg::Bp => Algo::Bp,
+        AlgoArg::Adam => Algo::Adam,
+    };
+    let family = a.arch.map_or(train::default_family_for(algo), ArchArg::family);
+    let defaults = TrainConfig::for_set(family, &table.data);
     let config = TrainConfig {
         hidden: a.hidden.unwrap_or(defaults.hidden),
         outputs: a.outputs.unwrap_or(OutputsArg::Xyz).kind(),
-        algo: match a.algo.unwrap_or(AlgoArg::Lm) {
-            AlgoArg::Lm => Algo::Lm,
-            AlgoArg::Bp => Algo::Bp,
-            AlgoArg::Adam => Algo::Adam,
-        },
+        algo,
         restarts: a.restarts.unwrap_or(defaults.restarts),
         threshold_pct: a.threshold,
         seed: a.seed,

@@ -547,6 +547,15 @@ fn check(data: &Dataset, cfg: &TrainConfig) -> Result<()> {
 /// points in the eye platform's frame ([`default_frame`]).
 pub const DEFAULT_FAMILY: Family = Family::INVERSE_DEPTH_SKIP;
 
+/// The family trained by `algo` when none is chosen: [`DEFAULT_FAMILY`], or the thesis' net
+/// for back-propagation, which trains nets without a skip term only.
+pub const fn default_family_for(algo: Algo) -> Family {
+    match algo {
+        Algo::Bp => Family::THESIS,
+        Algo::Lm | Algo::Adam => DEFAULT_FAMILY,
+    }
+}
+
 /// The algorithm a blob records, as `hvs train --algo` spells it.
 pub fn algo_name(a: hvs_shared::runtime::blob::Algorithm) -> &'static str {
     use hvs_shared::runtime::blob::Algorithm;

@@ -135,7 +135,7 @@ const MAX_JUMP_CM: f32 = 10.0;
 /// estimate's frame-to-frame noise, not motion (20 cm/s at 30 frames/s is 0.67).
 const MIN_LEAD_VELOCITY_CM: f32 = 0.25;
 /// Largest lead (frames).
-const MAX_LEAD_FRAMES: f32 = 30.0;
+pub const MAX_LEAD_FRAMES: f32 = 30.0;
 
 /// The angles (degrees) by which the eyes miss the target at pixels `p`:
 /// `[tilt, left pan, right pan]` to add to the joints. `None` if not finite.

@@ -72,8 +72,12 @@ impl Serialize for Calibration {
 impl Calibration {
     /// Phi of case I estimated by eq. 4.1-3 at Z = 65 cm (`cases.json`), the thesis' HVS with
     /// its 640x480 images: the firmware's built-in calibration when no valid model is on flash.
-    pub const BUILT_IN: Calibration =
-        Calibration { phi: 284.761_9, half_baseline: 5.25, u0: 320.0, v0: 240.0 };
+    pub const BUILT_IN: Calibration = Calibration {
+        phi: 284.761_9,
+        half_baseline: super::gaze::HALF_BASELINE_CM as f32,
+        u0: 320.0,
+        v0: 240.0,
+    };
 
     /// Whether every value is finite and `phi`, `half_baseline` are positive.
     pub fn is_valid(&self) -> bool {
