@@ -114,7 +114,7 @@ fn detect(a: &DetectArgs) -> Result<()> {
     let n = board.corner_count();
     let mut usable = 0usize;
     for ((c, out), epi) in set.captures.iter().zip(&det.outcomes).zip(&det.epipolar) {
-        let name = format!("{} ({}, {})", set.at(c), c.left_name, c.right_name);
+        let name = set.name(c);
         match out {
             PairOutcome::Found(p) => {
                 let epi = epi.map_or(String::new(), |[median, max]| {

@@ -235,7 +235,6 @@ pub fn run(args: &Args) -> Result<()> {
                 ResponseBody::Look(l) => Some(l),
                 _ => None,
             })?;
-            let t = l.target.0;
             writeln!(
                 out,
                 "target x={} y={} z={} cm ({:?}, in_range={})",
@@ -243,12 +242,8 @@ pub fn run(args: &Args) -> Result<()> {
             )?;
             writeln!(
                 out,
-                "joints deg: neck_pan={} neck_tilt={} eye_tilt={} left_eye_pan={} right_eye_pan={}{}",
-                t[0],
-                t[1],
-                t[2],
-                t[3],
-                t[4],
+                "joints deg: {}{}",
+                joints_text(&l.target),
                 if l.limited { " (limited)" } else { "" }
             )?;
         }
@@ -313,12 +308,19 @@ fn parse_joints(s: &str) -> Result<Joints> {
     Ok(Joints(j))
 }
 
+/// `neck_pan=.. neck_tilt=.. ..` (degrees), the joints named as the CSV columns are.
+fn joints_text(j: &Joints) -> String {
+    crate::data::dataset::JOINT_COLUMNS
+        .iter()
+        .zip(j.0)
+        .map(|(n, a)| format!("{n}={a}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 /// The head's state: its joints and the move's goal in degrees, its clock, whether it moves.
 fn write_state(out: &mut impl Write, s: &StateData) -> Result<()> {
-    let names = ["neck_pan", "neck_tilt", "eye_tilt", "left_eye_pan", "right_eye_pan"];
-    let deg = |j: &Joints| {
-        names.iter().zip(j.0).map(|(n, a)| format!("{n}={a}")).collect::<Vec<_>>().join(" ")
-    };
+    let deg = joints_text;
     writeln!(out, "joints deg: {}", deg(&s.joints))?;
     writeln!(out, "goal deg: {}", deg(&s.goal))?;
     writeln!(out, "ticks={} moving={}", s.ticks, s.moving)?;

@@ -5,7 +5,7 @@ use super::StereoArgs;
 use crate::data::output::{check_outputs, write_bytes, write_output};
 use crate::data::pixels::{read_pixels, Pixels};
 use crate::depth::{locate_files, LocatedFiles};
-use crate::vision::{locate_overlay, png_bytes, Located};
+use crate::vision::{locate_overlay, png_bytes};
 use anyhow::{bail, Result};
 use std::path::{Path, PathBuf};
 
@@ -39,28 +39,6 @@ pub struct Args {
     /// The two images side by side with each match drawn and labelled by its row number.
     #[arg(long, value_name = "OUT.png")]
     pub overlay: Option<PathBuf>,
-}
-
-fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
-    v.map_or_else(String::new, |v| v.to_string())
-}
-
-/// One output row (without the passed-through fields).
-pub fn row(l: &Located) -> String {
-    let r = l.right;
-    let x = l.xyz;
-    format!(
-        "{},{},{},{},{},{},{},{},{}",
-        l.left[0],
-        l.left[1],
-        opt(r.map(|r| r[0] as f32)),
-        opt(r.map(|r| r[1] as f32)),
-        opt(x.map(|x| x[0]).filter(|v| v.is_finite())),
-        opt(x.map(|x| x[1]).filter(|v| v.is_finite())),
-        opt(x.map(|x| x[2])),
-        if l.score.is_finite() { format!("{:.4}", l.score) } else { String::new() },
-        l.status
-    )
 }
 
 /// `hvs locate`.
@@ -114,7 +92,7 @@ pub fn run(a: Args) -> Result<()> {
     write_output(a.output.as_deref(), |w| {
         writeln!(w, "{header}")?;
         for (l, extra) in found.iter().zip(&pixels.extra) {
-            write!(w, "{}", row(l))?;
+            write!(w, "{}", l.csv_row())?;
             for e in extra {
                 write!(w, ",{e}")?;
             }

@@ -239,8 +239,14 @@ impl RenderArgs {
 
 /// `U,V` -> `[u, v]`, two finite numbers; anything else is bad usage (exit 2).
 pub fn parse_at(s: &str) -> Result<[f64; 2]> {
-    let bad =
-        || usage(format!("--at: {s:?} is not U,V (two finite pixel coordinates, e.g. 320.5,240)"));
+    parse_pixel("--at", s)
+}
+
+/// A pixel `U,V` given to `flag` (`--at`, `--target`); bad usage naming the flag otherwise.
+pub fn parse_pixel(flag: &str, s: &str) -> Result<[f64; 2]> {
+    let bad = || {
+        usage(format!("{flag}: {s:?} is not U,V (two finite pixel coordinates, e.g. 320.5,240)"))
+    };
     let (u, v) = s.split_once(',').ok_or_else(bad)?;
     let (u, v): (f64, f64) =
         (u.trim().parse().map_err(|_| bad())?, v.trim().parse().map_err(|_| bad())?);

@@ -77,19 +77,9 @@ fn parse_target(s: &str) -> Result<TargetMode> {
     if s == "nearest" {
         return Ok(TargetMode::Nearest);
     }
-    let p: Vec<&str> = s.split(',').collect();
-    match p.as_slice() {
-        [u, v] => {
-            let (u, v) = (u.trim().parse::<f64>(), v.trim().parse::<f64>());
-            match (u, v) {
-                (Ok(u), Ok(v)) if u.is_finite() && v.is_finite() => Ok(TargetMode::Pixel([u, v])),
-                _ => Err(crate::cli::usage(format!(
-                    "--target: expected nearest or U,V (two numbers), got {s:?}"
-                ))),
-            }
-        }
-        _ => Err(crate::cli::usage(format!("--target: expected nearest or U,V, got {s:?}"))),
-    }
+    crate::cli::parse_pixel("--target", s).map(TargetMode::Pixel).map_err(|_| {
+        crate::cli::usage(format!("--target: expected nearest or U,V (two numbers), got {s:?}"))
+    })
 }
 
 /// Frames per second the loop asks real cameras for (they give what they give; the loop runs

@@ -55,6 +55,12 @@ impl CaptureSet {
     pub fn at(&self, c: &Capture) -> String {
         format!("{}:{}", self.path.display(), c.line)
     }
+
+    /// A capture's name for people: `file:line (left image, right image)` (`hvs board detect`'s
+    /// report, `hvs view`'s list of pairs).
+    pub fn name(&self, c: &Capture) -> String {
+        format!("{} ({}, {})", self.at(c), c.left_name, c.right_name)
+    }
 }
 
 /// One pair to write into a `CAPTURES.csv` ([`captures_csv`]).

@@ -186,7 +186,7 @@ pub fn captures(s: &Session) -> Option<Value> {
                     .map(|[median, max]| json!({"median_px": median, "max_px": max}));
                 json!({
                     "index": k,
-                    "name": format!("{} ({}, {})", c.set.at(cap), cap.left_name, cap.right_name),
+                    "name": c.set.name(cap),
                     "z": cap.z,
                     "found": true,
                     "corners": n,
@@ -197,7 +197,7 @@ pub fn captures(s: &Session) -> Option<Value> {
             }
             PairOutcome::Skipped(why) => json!({
                 "index": k,
-                "name": format!("{} ({}, {})", c.set.at(cap), cap.left_name, cap.right_name),
+                "name": c.set.name(cap),
                 "z": cap.z,
                 "found": false,
                 "skipped": why,

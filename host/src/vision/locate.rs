@@ -61,16 +61,36 @@ impl Located {
     /// `[u_r, v_r, x, y, z, score]` (the right pixel as an `f32`, X, Y, Z in shortest
     /// round-trip form, the score with 3 decimals); `None` without one.
     pub fn texts(&self) -> Option<[String; 6]> {
-        let (rp, x) = (self.right?, self.xyz?);
-        Some([
-            (rp[0] as f32).to_string(),
-            (rp[1] as f32).to_string(),
-            // A Z-only model gives no X, Y: empty, as in `hvs locate`'s CSV.
-            if x[0].is_finite() { x[0].to_string() } else { String::new() },
-            if x[1].is_finite() { x[1].to_string() } else { String::new() },
-            x[2].to_string(),
-            format!("{:.3}", self.score),
-        ])
+        self.right?;
+        self.xyz?;
+        let [ur, vr, x, y, z] = self.fields();
+        Some([ur, vr, x, y, z, format!("{:.3}", self.score)])
+    }
+
+    /// `u_r, v_r, x, y, z` as `hvs locate` writes and prints them: the right pixel as an
+    /// `f32`, X, Y, Z in shortest round-trip form; empty where there is none (X and Y of a
+    /// Z-only model, all five without a match).
+    fn fields(&self) -> [String; 5] {
+        let text = |v: Option<f32>| {
+            v.filter(|v| v.is_finite()).map_or_else(String::new, |v| v.to_string())
+        };
+        let (r, x) = (self.right, self.xyz);
+        [
+            text(r.map(|r| r[0] as f32)),
+            text(r.map(|r| r[1] as f32)),
+            text(x.map(|x| x[0])),
+            text(x.map(|x| x[1])),
+            text(x.map(|x| x[2])),
+        ]
+    }
+
+    /// The point's row of `hvs locate`'s CSV (`u_l,v_l,u_r,v_r,x,y,z,score,status`, without
+    /// the passed-through columns): [`Located::texts`]' fields, the score with 4 decimals.
+    pub fn csv_row(&self) -> String {
+        let [ur, vr, x, y, z] = self.fields();
+        let score =
+            if self.score.is_finite() { format!("{:.4}", self.score) } else { String::new() };
+        format!("{},{},{ur},{vr},{x},{y},{z},{score},{}", self.left[0], self.left[1], self.status)
     }
 
     /// The line `hvs locate --at` prints for this point (and `hvs view` shows): the match,
