@@ -5,7 +5,7 @@ use crate::data::csv::{read_set, Inputs};
 use crate::data::model;
 use crate::data::output::check_not_input;
 use crate::train::fallback;
-use crate::train::model::{train_model, Plan, Trained};
+use crate::train::model::{train_table, Plan, Trained};
 use crate::train::update::{update, CameraCheck};
 use crate::train::{self, Algo, BpParams, TrainConfig};
 use anyhow::{bail, Context, Result};
@@ -235,11 +235,8 @@ pub fn run(a: Args) -> Result<()> {
         frame: a.frame.map_or(defaults.frame, |f| f.frame()),
         ..defaults
     };
-    crate::data::validate::training_set(&table, config.hidden, config.outputs.len())?;
     let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };
-    let mut t = train_model(&table.data, &plan)
-        .with_context(|| format!("{}: training failed", a.data.display()))?;
-    t.blob.set_image_size(table.image_size);
+    let t = train_table(&table, &plan)?;
     let n = model::save(&a.output, &t.blob)?;
     print_summary(&a.data, &a.output, n, &t).with_context(|| {
         format!("wrote {} ({n} bytes), but cannot print the summary to stdout", a.output.display())

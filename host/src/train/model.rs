@@ -55,6 +55,20 @@ pub fn train_model(data: &Dataset, plan: &Plan) -> Result<Trained> {
     Ok(Trained { blob, outcome, fallback: fit })
 }
 
+/// A training set read from a file (`hvs train`, `hvs view`'s retrain): checked
+/// ([`crate::data::validate::training_set`]: a set that cannot determine the net, or holds
+/// absurd values, is refused as it is), trained ([`train_model`]; its errors after
+/// `FILE: training failed`) and stamped with the size of the images its pixels come from.
+pub fn train_table(table: &crate::data::csv::Table, plan: &Plan) -> Result<Trained> {
+    use anyhow::Context as _;
+    let c = &plan.config;
+    crate::data::validate::training_set(table, c.hidden, c.outputs.len())?;
+    let mut t = train_model(&table.data, plan)
+        .with_context(|| format!("{}: training failed", table.path.display()))?;
+    t.blob.set_image_size(table.image_size);
+    Ok(t)
+}
+
 /// What `hvs train` prints about a trained model (`data` names the training set), without the
 /// line about the file written; `hvs view` shows the same after a retrain.
 pub fn summary(data: &str, t: &Trained) -> String {

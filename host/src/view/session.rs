@@ -2,7 +2,7 @@
 //! ([`super::frames`]) and, for a capture set, its detection; and the two actions the page
 //! asks for, each a call of the function the CLI uses: [`Session::locate`] is
 //! `hvs locate --at` ([`crate::depth::locate_in`] on the pair's kept depth), [`Session::retrain`] is
-//! `hvs board detect` + `hvs train` on the ticked pairs ([`crate::train::model::train_model`]);
+//! `hvs board detect` + `hvs train` on the ticked pairs ([`crate::train::model::train_table`]);
 //! [`Session::depth`], the dense depth of a pair, is `hvs depth --thorough --colour`
 //! ([`crate::depth`]), the matches `hvs locate` answers from.
 
@@ -13,7 +13,7 @@ use crate::data::csv::{read_set_from, Inputs};
 use crate::data::model::ModelFile;
 use crate::track::servo_head::HeadChoice;
 use crate::track::{self, frames::VirtualCameras};
-use crate::train::model::{train_model, Plan};
+use crate::train::model::{train_table, Plan};
 use crate::train::{self, TrainConfig};
 use crate::vision::{self, Detection, Located, PairOutcome};
 use anyhow::{anyhow, Result};
@@ -406,11 +406,8 @@ impl Session {
             seed: self.retrain.seed,
             ..defaults
         };
-        crate::data::validate::training_set(&table, config.hidden, config.outputs.len())
-            .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
         let plan = Plan { config, ..Plan::default() };
-        let t = train_model(&table.data, &plan)
-            .map_err(|e| Refused::Unprocessable(format!("{name}: training failed: {e:#}")))?;
+        let t = train_table(&table, &plan).map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
         Ok(Retrained {
             pairs,
             points: table.data.len(),
