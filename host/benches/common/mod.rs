@@ -31,7 +31,8 @@ pub fn posture_grid_set() -> Dataset {
     use hvs_host::sim::posture::{postures, simulate, write_csv, PostureOptions, Sampling};
     use hvs_shared::sim::posture::HeadRig;
     let opt = PostureOptions { sampling: Sampling::Grid, ..PostureOptions::default() };
-    let joints = postures(&opt, 1 ^ hvs_host::cli::POSTURE_SEED_MIX).expect("grid postures");
+    let joints =
+        postures(&opt, 1 ^ hvs_host::sim::posture::POSTURE_SEED_MIX).expect("grid postures");
     let head = HeadRig::new(presets::CASE_3);
     let samples =
         simulate(&head, SetKind::Train, &joints, &SimOptions::default()).expect("case III");

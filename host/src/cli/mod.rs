@@ -150,12 +150,8 @@ pub struct PostureArgs {
     pub posture_count: Option<usize>,
 }
 
-/// Seed of the posture draws: `--seed` mixed with a constant, so that postures and pixel
-/// noise do not share one random stream.
-pub const POSTURE_SEED_MIX: u64 = 0x706f_7374_7572_6573;
-
 impl PostureArgs {
-    /// The postures asked for (drawn with `seed ^ POSTURE_SEED_MIX`), `None` without
+    /// The postures asked for (drawn with `seed ^` [`crate::sim::posture::POSTURE_SEED_MIX`]), `None` without
     /// `--postures`; `--posture-levels`/`--posture-count` without it, or with the wrong
     /// sampling, are errors.
     pub fn postures(&self, seed: u64) -> Result<Option<Vec<hvs_shared::runtime::gaze::Joints>>> {
@@ -185,7 +181,7 @@ impl PostureArgs {
             }
             p.count = n;
         }
-        Ok(Some(postures(&p, seed ^ POSTURE_SEED_MIX)?))
+        Ok(Some(postures(&p, seed ^ crate::sim::posture::POSTURE_SEED_MIX)?))
     }
 }
 

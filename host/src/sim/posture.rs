@@ -97,6 +97,11 @@ impl PostureSample {
 /// Most postures one set may have (grid cells or random postures).
 pub const MAX_POSTURES: usize = 100_000;
 
+/// What the commands that draw postures and pixel noise from one `--seed` (`hvs simulate`
+/// and `hvs collect`) mix into it for the postures (`seed ^ POSTURE_SEED_MIX`), so
+/// that the two do not share one random stream.
+pub const POSTURE_SEED_MIX: u64 = 0x706f_7374_7572_6573;
+
 /// The postures of `opt`, drawn from a ChaCha8 stream seeded with `seed` (the lattice uses
 /// none).
 pub fn postures(opt: &PostureOptions, seed: u64) -> Result<Vec<Joints>> {
