@@ -201,8 +201,8 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
     let endpoint = servo_head::parse_port(port).map_err(|e| usage(format!("{e:#}")))?;
     let spec =
         crate::track::cameras::CameraSpec::parse(cameras).map_err(|e| usage(e.to_string()))?;
-    let size =
-        a.camera_size.as_deref().map(super::parse_camera_size).transpose()?.unwrap_or((640, 480));
+    let asked = a.camera_size.as_deref().map(super::parse_camera_size).transpose()?;
+    let size = crate::track::cameras::size_for(asked, None);
     let plan = plan_of(a, None)?;
     let mut cams = crate::track::cameras::open(&spec, size)?;
     let mut head = servo_head::open(&HeadChoice::Port(endpoint), Path::new(""))?;

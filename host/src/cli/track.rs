@@ -151,9 +151,7 @@ pub fn run(a: Args) -> Result<()> {
                 (Box::new(cams), size, fps, loop_cfg)
             }
             (None, Some(spec)) => {
-                let size = camera_size
-                    .or_else(|| blob.image_size().map(|(w, h)| (w.into(), h.into())))
-                    .unwrap_or((640, 480));
+                let size = track::cameras::size_for(camera_size, Some(&blob));
                 let loop_cfg = track::loop_config_for_cameras(&blob, size, a.correction_gain);
                 (track::cameras::open(spec, size)?, size, REAL_CAMERA_FPS, loop_cfg)
             }

@@ -167,6 +167,21 @@ pub fn grey_frame(
         .ok_or_else(|| anyhow!("a {width}x{height} frame does not fit"))
 }
 
+/// The size real cameras are opened at when none is given and the model records none.
+pub const DEFAULT_SIZE: (u32, u32) = (640, 480);
+
+/// The size to open real cameras at: the one asked for (`--camera-size`), else the size of the
+/// images `blob` was trained on (its pixels mean something only there), else [`DEFAULT_SIZE`]
+/// (`hvs track`, `hvs view`, and `hvs collect` without a model).
+pub fn size_for(
+    asked: Option<(u32, u32)>,
+    blob: Option<&hvs_shared::runtime::blob::ModelBlob>,
+) -> (u32, u32) {
+    asked
+        .or_else(|| blob.and_then(|b| b.image_size()).map(|(w, h)| (w.into(), h.into())))
+        .unwrap_or(DEFAULT_SIZE)
+}
+
 /// The two cameras of `spec` as a frame source, each opened at `size` (the model's image
 /// size). Without the `v4l` feature: an error saying how to build one with it.
 pub fn open(spec: &CameraSpec, size: (u32, u32)) -> Result<Box<dyn FrameSource + Send>> {

@@ -23,9 +23,6 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
-/// The cameras' image size when neither `--camera-size` nor the model gives one.
-pub const DEFAULT_CAMERA_SIZE: (u32, u32) = (640, 480);
-
 /// What to show.
 #[derive(Debug, Clone)]
 pub enum Source {
@@ -251,9 +248,7 @@ impl Session {
             Source::Cameras { spec, size, port } => {
                 let estimator = track::estimator_of(model.blob.clone())
                     .map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
-                let size = size
-                    .or_else(|| model.blob.image_size().map(|(w, h)| (w.into(), h.into())))
-                    .unwrap_or(DEFAULT_CAMERA_SIZE);
+                let size = track::cameras::size_for(*size, Some(&model.blob));
                 let cameras = track::cameras::open(spec, size)?;
                 // With no head the cameras stay where they are (the home posture); frames as
                 // fast as the cameras give them.
