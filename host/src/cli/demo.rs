@@ -2,23 +2,11 @@
 //! camera cases, train the default net on each, evaluate it next to the traditional method,
 //! print the comparison with the thesis' own numbers and write models, data and a report.
 
-pub mod images;
-
-use crate::data::dataset::Dataset;
-use crate::data::model;
-use crate::data::output::{write_atomically, write_output};
-use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
-use crate::sim::sets::{simulate, write_csv, Sample, SetKind, SimOptions};
-use crate::study::demo::{
-    self, volume_test_seed, volume_train_seed, CaseResult, Demo, VOLUME_POINTS, VOLUME_TRAIN_POINTS,
-};
+use crate::data::output::write_output;
+use crate::study::demo::{self, Demo};
 use crate::study::engine::Files;
-use crate::train::model::{train_model, Plan};
 use crate::train::TrainConfig;
-use anyhow::{anyhow, Context, Result};
-use hvs_shared::runtime::blob::InputKind;
-use hvs_shared::runtime::traditional::Calibration;
-use hvs_shared::sim::presets;
+use anyhow::{Context, Result};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -54,86 +42,6 @@ pub struct Args {
     images: bool,
 }
 
-fn dataset(samples: &[Sample]) -> Dataset {
-    let mut d = Dataset::new(InputKind::Stereo);
-    for s in samples {
-        d.push(&s.px, Some(s.xyz));
-    }
-    d
-}
-
-fn write_set(dir: &Path, name: &str, samples: &[Sample]) -> Result<()> {
-    let p = dir.join(name);
-    write_atomically(&p, |w| {
-        write_csv(w, samples).with_context(|| format!("{}: cannot write", p.display()))
-    })
-}
-
-/// The training plan of every net of the demo: `hvs train`'s default family.
-fn plan(seed: u64, restarts: usize) -> Plan {
-    let mut plan = Plan::default();
-    plan.config.family = crate::train::DEFAULT_FAMILY;
-    plan.config.seed = seed;
-    plan.config.progress = false;
-    plan.config.restarts = restarts;
-    plan
-}
-
-/// Runs one case, writing its files into `dir`.
-pub fn run_case(n: u8, dir: &Path, seed: u64, restarts: usize) -> Result<CaseResult> {
-    let rig = presets::case(n).ok_or_else(|| anyhow!("no case {n}"))?;
-    let sim = |kind, points, seed| {
-        simulate(&rig, kind, &SimOptions { points, noise_px: 0.0, seed, ..SimOptions::default() })
-    };
-    let train = sim(SetKind::Train, 0, 0)?;
-    let test = sim(SetKind::Test, 0, 0)?;
-    let vtrain = sim(SetKind::Volume, VOLUME_TRAIN_POINTS, volume_train_seed(seed, n))?;
-    let vtest = sim(SetKind::Volume, VOLUME_POINTS, volume_test_seed(seed, n))?;
-    write_set(dir, &format!("case{n}_train.csv"), &train)?;
-    write_set(dir, &format!("case{n}_test.csv"), &test)?;
-    write_set(dir, &format!("case{n}_volume_train.csv"), &vtrain)?;
-    write_set(dir, &format!("case{n}_volume_test.csv"), &vtest)?;
-    let (train, test) = (dataset(&train), dataset(&test));
-    let (vtrain, vtest) = (dataset(&vtrain), dataset(&vtest));
-
-    let plan = plan(seed, restarts);
-    let t = train_model(&train, &plan).with_context(|| format!("case {n}: training failed"))?;
-    model::save(&dir.join(format!("case{n}.hvsw")), &t.blob)?;
-    let tv = train_model(&vtrain, &plan)
-        .with_context(|| format!("case {n}: training on the volume set failed"))?;
-    model::save(&dir.join(format!("case{n}_volume.hvsw")), &tv.blob)?;
-
-    let net = |b: &hvs_shared::runtime::blob::ModelBlob, d: &Dataset| {
-        model_depths(b, d).map_err(|e| anyhow!("case {n}: the model failed: {e:?}"))
-    };
-    let mut test_methods = vec![
-        Method { name: "network".into(), z: net(&t.blob, &test)? },
-        Method {
-            name: "trad. (thesis Phi)".into(),
-            z: traditional_depths(&Calibration::BUILT_IN, &test),
-        },
-        Method { name: "optimal (true rig)".into(), z: optimal_depths(&rig, &test) },
-    ];
-    if let Some(c) = &t.blob.fallback {
-        test_methods
-            .push(Method { name: "trad. (refit Phi)".into(), z: traditional_depths(c, &test) });
-    }
-    let vol_methods = [
-        Method { name: "net (volume-trained)".into(), z: net(&tv.blob, &vtest)? },
-        Method { name: "net (board-trained)".into(), z: net(&t.blob, &vtest)? },
-        Method { name: "optimal (true rig)".into(), z: optimal_depths(&rig, &vtest) },
-    ];
-    Ok(CaseResult {
-        case: n,
-        test: evaluate(&test, &test_methods),
-        volume: evaluate(&vtest, &vol_methods),
-        train_pct: t.outcome.train_error_pct,
-        volume_train_pct: tv.outcome.train_error_pct,
-        refit_phi: t.fallback.map(|f| f.phi),
-        train_s: [t.outcome.elapsed.as_secs_f64(), tv.outcome.elapsed.as_secs_f64()],
-    })
-}
-
 /// Runs `hvs demo`.
 pub fn run(a: Args) -> Result<()> {
     let start = Instant::now();
@@ -150,21 +58,32 @@ pub fn run(a: Args) -> Result<()> {
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create the directory", a.output.display()))?;
     if a.images {
-        return images::run(&a.output, a.seed, a.restarts);
+        return run_images(&a.output, a.seed, a.restarts);
     }
     // Cases run in parallel; each is deterministic on its own, so the output does not
     // depend on the scheduling.
     let results = (1..=4u8)
         .into_par_iter()
-        .map(|n| run_case(n, &a.output, a.seed, a.restarts))
+        .map(|n| demo::run::case(n, &a.output, a.seed, a.restarts))
         .collect::<Result<Vec<_>>>()?;
     let demo = Demo {
         cases: results,
-        config: plan(a.seed, a.restarts).config,
+        config: demo::run::plan(a.seed, a.restarts).config,
         total_s: start.elapsed().as_secs_f64(),
     };
     let mut files = Files::new(&a.output)?;
     demo::write(&mut files, &demo)?;
     let out = demo::summary(&demo, &a.output)?;
     write_output(None, |w| Ok(w.write_all(out.as_bytes())?))
+}
+
+/// `hvs demo --images`: every case, then `IMAGES.md` and the printed table.
+fn run_images(out: &Path, seed: u64, restarts: usize) -> Result<()> {
+    let mut cases = Vec::new();
+    for case in 1..=4u8 {
+        let dir = out.join(format!("case{case}_images"));
+        cases.push(demo::run::image_case(case, &dir, seed, restarts)?);
+    }
+    let text = demo::write_images(&mut Files::new(out)?, &cases, out)?;
+    write_output(None, |w| Ok(w.write_all(text.as_bytes())?))
 }

@@ -229,6 +229,15 @@ pub(crate) fn to_written_precision(v: f64) -> f64 {
     k / 1e4 + 0.0
 }
 
+/// Samples as a stereo data set (pixels in, true positions out).
+pub fn dataset(samples: &[Sample]) -> crate::data::dataset::Dataset {
+    let mut d = crate::data::dataset::Dataset::new(hvs_shared::runtime::blob::InputKind::Stereo);
+    for s in samples {
+        d.push(&s.px, Some(s.xyz));
+    }
+    d
+}
+
 /// Writes samples as CSV: header `u_l,v_l,u_r,v_r,x,y,z`, pixels in the shortest form that
 /// reads back to the same double (integers when they are rounded), positions with four
 /// decimals, as in the thesis' data files.

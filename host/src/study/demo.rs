@@ -4,6 +4,8 @@
 //! from `demo.txt`; for `hvs demo --images` ([`ImageCase`]) `IMAGES.md` from
 //! `demo_images.md` and the printed table from `demo_images.txt`.
 
+pub mod run;
+
 use crate::evaluate::{text_table, Evaluation};
 use crate::fmt::{join, pct, roman};
 use crate::sim::sets::training_volume;
@@ -40,6 +42,16 @@ pub fn volume_train_seed(seed: u64, n: u8) -> u64 {
 /// Seed of case `n`'s random volume test set.
 pub fn volume_test_seed(seed: u64, n: u8) -> u64 {
     seed.wrapping_mul(10_000).wrapping_add(2000 + n as u64)
+}
+
+/// Seed of case `n`'s rendered training boards (`hvs demo --images`).
+pub fn image_train_seed(seed: u64, n: u8) -> u64 {
+    seed.wrapping_mul(10_000).wrapping_add(3000 + n as u64)
+}
+
+/// Seed of case `n`'s rendered test boards (`hvs demo --images`).
+pub fn image_test_seed(seed: u64, n: u8) -> u64 {
+    seed.wrapping_mul(10_000).wrapping_add(4000 + n as u64)
 }
 
 /// Results of one case.

@@ -10,11 +10,11 @@ pub mod report;
 use crate::data::dataset::Dataset;
 use crate::evaluate::{evaluate, model_depths, optimal_depths, traditional_depths, Method};
 use crate::fmt::mean;
-use crate::sim::sets::{simulate, Sample, SetKind, SimOptions};
+use crate::sim::sets::{dataset, simulate, Sample, SetKind, SimOptions};
 use crate::study::engine::{par_stage, timed, Progress, Reduced};
 use crate::train::{fallback, train, Algo, BpParams, TrainConfig};
 use anyhow::{anyhow, Context, Result};
-use hvs_shared::runtime::blob::{InputKind, OutputKind};
+use hvs_shared::runtime::blob::OutputKind;
 use hvs_shared::runtime::gaze::HALF_BASELINE_CM;
 use hvs_shared::runtime::traditional::{phi_estimate, Calibration};
 use hvs_shared::sim::camera::Rig;
@@ -141,12 +141,6 @@ fn net(set: &Dataset, test: &Dataset, tc: &TrainConfig, what: String) -> Result<
     let z = model_depths(&out.blob, test)
         .map_err(|e| anyhow!("the model cannot run on the set: {e:?}"))?;
     Ok((out.train_error_pct, curve(test, z), wall_s))
-}
-
-fn dataset(samples: &[Sample]) -> Dataset {
-    let mut d = Dataset::new(InputKind::Stereo);
-    samples.iter().for_each(|s| d.push(&s.px, Some(s.xyz)));
-    d
 }
 
 fn rig(case: u8) -> Result<Rig> {
