@@ -132,26 +132,18 @@ fn detect(a: &DetectArgs) -> Result<()> {
     if usable == 0 {
         bail!("{}: no usable stereo pair ({} skipped)", a.captures.display(), set.captures.len());
     }
-    let checked: usize = det.groups.iter().map(|g| g.pairs).sum();
     match det.groups.as_slice() {
         [] => eprintln!(
-            "{usable} of {} pairs, {} corners (no two pairs at one posture: no fundamental-matrix check)",
-            set.captures.len(),
-            usable * n
-        ),
-        [g] if g.pairs == usable => eprintln!(
-            "{usable} of {} pairs, {} corners; one fundamental matrix over all: Sampson rms {:.3} px",
+            "{usable} of {} pairs, {} corners ({})",
             set.captures.len(),
             usable * n,
-            g.rms_sampson
+            det.fundamental_check()
         ),
-        gs => eprintln!(
-            "{usable} of {} pairs, {} corners; one fundamental matrix per posture over {} postures ({checked} pairs): Sampson rms {:.3}-{:.3} px",
+        _ => eprintln!(
+            "{usable} of {} pairs, {} corners; {}",
             set.captures.len(),
             usable * n,
-            gs.len(),
-            gs.iter().map(|g| g.rms_sampson).fold(f64::INFINITY, f64::min),
-            gs.iter().map(|g| g.rms_sampson).fold(0.0, f64::max),
+            det.fundamental_check()
         ),
     }
     // Overlays first, the points last: a failure leaves the old points file as it was.

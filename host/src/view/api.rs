@@ -207,6 +207,7 @@ pub fn captures(s: &Session) -> Option<Value> {
     Some(json!({
         "board": format!("{}x{} inner corners", c.board.cols, c.board.rows),
         "sampson_rms_px": det.groups.iter().map(|g| g.rms_sampson).reduce(f64::max),
+        "fundamental": det.fundamental_check(),
         "pairs": pairs,
     }))
 }

@@ -38,6 +38,33 @@ pub struct Detection {
     pub image_size: Option<(u32, u32)>,
 }
 
+impl Detection {
+    /// The pairs whose board was found in both images.
+    pub fn usable(&self) -> usize {
+        self.outcomes.iter().filter(|o| matches!(o, PairOutcome::Found(_))).count()
+    }
+
+    /// What the fundamental-matrix check found, for people (`hvs board detect`'s report,
+    /// `hvs view`'s capture set): none without two usable pairs at one posture, else the
+    /// Sampson rms of the one matrix over all pairs, or its range over one matrix per posture.
+    pub fn fundamental_check(&self) -> String {
+        let usable = self.usable();
+        let checked: usize = self.groups.iter().map(|g| g.pairs).sum();
+        match self.groups.as_slice() {
+            [] => "no two pairs at one posture: no fundamental-matrix check".into(),
+            [g] if g.pairs == usable => {
+                format!("one fundamental matrix over all: Sampson rms {:.3} px", g.rms_sampson)
+            }
+            gs => format!(
+                "one fundamental matrix per posture over {} postures ({checked} pairs): Sampson rms {:.3}-{:.3} px",
+                gs.len(),
+                gs.iter().map(|g| g.rms_sampson).fold(f64::INFINITY, f64::min),
+                gs.iter().map(|g| g.rms_sampson).fold(0.0, f64::max),
+            ),
+        }
+    }
+}
+
 /// The fundamental matrix of one group of pairs seen at one posture.
 #[derive(Debug, Clone)]
 pub struct GroupFit {

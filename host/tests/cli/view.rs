@@ -528,6 +528,9 @@ fn view_retrains_a_capture_set_on_the_ticked_pairs() {
         assert!(p["epipolar"]["median_px"].as_f64().unwrap() < 0.5, "{p}");
     }
     assert!(c["sampson_rms_px"].as_f64().unwrap() < 0.5);
+    // The check in words, as `hvs board detect` says it.
+    let f = c["fundamental"].as_str().unwrap();
+    assert!(f.starts_with("one fundamental matrix over all: Sampson rms 0."), "{f}");
     // The corners drawn on a pair.
     let (st, png) = http(&sv.addr, "GET", "/api/frame/1/left-corners", None);
     assert_eq!(st, 200);

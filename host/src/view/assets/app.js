@@ -267,7 +267,7 @@ async function loadCaptures() {
   const c = await getJson('/api/captures');
   $('captures').hidden = false;
   $('corners-toggle').hidden = false;
-  $('board').textContent = `(${c.board}; one fundamental matrix: Sampson rms ${fmt(c.sampson_rms_px, 3)} px)`;
+  $('board').textContent = `(${c.board}; ${c.fundamental})`;
   const body = $('pairs').querySelector('tbody');
   body.textContent = '';
   for (const p of c.pairs) {
