@@ -114,13 +114,8 @@ pub fn run(a: Args) -> Result<()> {
     if a.points.is_some() && SetKind::from(a.set) != SetKind::Volume {
         bail!("--points applies to --set volume only (the board sets have a fixed size)");
     }
-    let image = rig.width.max(rig.height) as f64;
-    if !(a.noise_px.is_finite() && (0.0..=image).contains(&a.noise_px)) {
-        bail!(
-            "--noise-px must be a finite number >= 0 and at most the image size ({image} px), got {}",
-            a.noise_px
-        );
-    }
+    // Before the simulation, whose errors name the rig: the noise is the problem.
+    crate::sim::sets::check_noise_px(a.noise_px, &rig)?;
     let opt = SimOptions {
         points: a.points.unwrap_or(SimOptions::default().points),
         noise_px: a.noise_px,

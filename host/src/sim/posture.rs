@@ -164,7 +164,7 @@ pub fn simulate(
     joints: &[Joints],
     opt: &SimOptions,
 ) -> Result<Vec<PostureSample>> {
-    check_noise_px(opt.noise_px)?;
+    check_noise_px(opt.noise_px, &head.rig)?;
     if !head.distortion.iter().all(|d| d.is_finite()) {
         bail!("the lens distortion coefficients must be finite");
     }

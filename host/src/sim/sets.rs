@@ -123,7 +123,7 @@ pub fn volume_of(board: &TrainingBoard) -> (Vec3, Vec3) {
 /// Simulates a set through `rig`. Every random draw comes from one ChaCha8 stream seeded
 /// with `opt.seed`, so the same arguments give the same bytes.
 pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample>> {
-    check_noise_px(opt.noise_px)?;
+    check_noise_px(opt.noise_px, rig)?;
     let mut rng = ChaCha8Rng::seed_from_u64(opt.seed);
     let noise = |rng: &mut ChaCha8Rng| pixel_noise(rng, opt.noise_px);
     let project = |p: &Vec3, n: &[f64; 4]| match opt.pixels {
@@ -164,10 +164,14 @@ pub fn simulate(rig: &Rig, kind: SetKind, opt: &SimOptions) -> Result<Vec<Sample
     }
 }
 
-/// Checks a `--noise-px` value: finite and >= 0.
-pub(crate) fn check_noise_px(noise_px: f64) -> Result<()> {
-    if !(noise_px.is_finite() && noise_px >= 0.0) {
-        bail!("--noise-px must be a finite number >= 0, got {noise_px}");
+/// Checks a `--noise-px` value: a finite number from 0 to the image size of `rig` (the
+/// simulators check it, `hvs simulate` before anything else).
+pub fn check_noise_px(noise_px: f64, rig: &Rig) -> Result<()> {
+    let image = rig.width.max(rig.height) as f64;
+    if !(noise_px.is_finite() && (0.0..=image).contains(&noise_px)) {
+        bail!(
+            "--noise-px must be a finite number >= 0 and at most the image size ({image} px), got {noise_px}"
+        );
     }
     Ok(())
 }
