@@ -130,9 +130,10 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
     let (c, r) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let (c, r): (u32, u32) =
         (c.trim().parse().map_err(|_| bad())?, r.trim().parse().map_err(|_| bad())?);
-    if c < 2 || r < 2 || c > 100 || r > 100 {
+    let most = crate::sim::board::MAX_SIDE as u32;
+    if c < 2 || r < 2 || c > most || r > most {
         return Err(crate::cli::usage(format!(
-            "--inner-corners: {c}x{r}: each side must be from 2 to 100 corners"
+            "--inner-corners: {c}x{r}: each side must be from 2 to {most} corners"
         )));
     }
     Ok((c, r))

@@ -8,7 +8,9 @@ use anyhow::{bail, Result};
 use hvs_shared::sim::camera::Vec3;
 use hvs_shared::sim::presets;
 
-/// Most inner corners along one side of a grid board (a larger board is a typo, not a board).
+/// Most inner corners along one side of a simulated or rendered grid board (`hvs simulate
+/// --board`, `hvs render --inner-corners`: a larger board is a typo, not a board). A board
+/// file for detection (`hvs_vision::board`) may describe larger ones.
 pub const MAX_SIDE: usize = 100;
 
 /// The calibration board of a training set, centred on the optical axis of the stereo frame
