@@ -8,7 +8,9 @@
 use crate::data::csv::read_stereo_points;
 use crate::data::output::check_not_input;
 use crate::data::output::write_bytes;
-use crate::device::client::{self, connect, error_text, estimate_row, expect, write_info};
+use crate::device::client::{
+    self, connect, error_text, estimate_row, expect, no_estimate_row, write_info, ESTIMATE_HEADER,
+};
 use crate::device::link::Endpoint;
 use anyhow::{bail, Result};
 use hvs_shared::runtime::protocol::{Joints, RequestBody, ResponseBody, StateData, StereoPoint};
@@ -202,7 +204,7 @@ pub fn run(args: &Args) -> Result<()> {
         }
         HeadCommand::Estimate { points, output } => {
             let pts = points_read.as_deref().unwrap_or_default();
-            let mut csv = String::from("u_l,v_l,u_r,v_r,x,y,z,source,in_range\n");
+            let mut csv = String::from(ESTIMATE_HEADER);
             for (line, p) in pts {
                 match link.request(RequestBody::Estimate(*p))? {
                     ResponseBody::Estimate(e) => csv.push_str(&estimate_row(p, &e)),
@@ -213,10 +215,7 @@ pub fn run(args: &Args) -> Result<()> {
                             points.display(),
                             error_text(code)
                         );
-                        csv.push_str(&format!(
-                            "{},{},{},{},,,,none,false\n",
-                            p.u_l, p.v_l, p.u_r, p.v_r
-                        ));
+                        csv.push_str(&no_estimate_row(p));
                     }
                     other => bail!(
                         "{}:{line}: head answered Estimate with an unexpected {other:?}",

@@ -73,6 +73,15 @@ pub fn error_text(code: ErrorCode) -> &'static str {
     }
 }
 
+/// The header of `hvs head estimate`'s CSV ([`estimate_row`], [`no_estimate_row`]).
+pub const ESTIMATE_HEADER: &str = "u_l,v_l,u_r,v_r,x,y,z,source,in_range\n";
+
+/// The CSV row of a point the head gave no estimate for: its pixels, empty coordinates,
+/// `none,false`.
+pub fn no_estimate_row(p: &StereoPoint) -> String {
+    format!("{},{},{},{},,,,none,false\n", p.u_l, p.v_l, p.u_r, p.v_r)
+}
+
 /// The CSV row of one estimate (shortest round-trip floats).
 pub fn estimate_row(p: &StereoPoint, e: &EstimateData) -> String {
     let source = match e.source {
