@@ -201,14 +201,14 @@ pub fn run(a: Args) -> Result<()> {
             bail!("--threshold must be a positive percentage, got {t}");
         }
     }
-    for (name, v) in [
-        ("--half-baseline", a.half_baseline),
-        ("--learning-rate", a.learning_rate),
-        ("--e-max", a.e_max),
-    ] {
+    for (name, v) in [("--half-baseline", a.half_baseline), ("--learning-rate", a.learning_rate)] {
         if !(v.is_finite() && v > 0.0) {
             bail!("{name} must be a positive number, got {v}");
         }
+    }
+    // As `BpParams::check` has it: 0 runs every cycle up to --max-cycles.
+    if !(a.e_max.is_finite() && a.e_max >= 0.0) {
+        bail!("--e-max must be a finite number >= 0, got {}", a.e_max);
     }
     if !(a.u0.is_finite() && a.v0.is_finite()) {
         bail!("--u0 and --v0 must be finite");
