@@ -116,7 +116,8 @@ impl ArchArg {
     long_about = "Train a depth net on a CSV of matched pixels and true positions \
     (u_l,v_l,u_r,v_r,x,y,z; with the five joint columns, a posture-aware 9-input net). \
     Restarts run from seeded random starts; the best by training e_ma is kept, restarts above \
-    --threshold are not enrolled (as in the thesis). The same seed gives the same bytes. \
+    --threshold are not enrolled (as in the thesis; where the best is then fitted to synthetic \
+    points, the model written is what the threshold judges). The same seed gives the same bytes. \
     The blob also holds the traditional method's calibration (Phi by eq. 4.1-3) fitted on \
     the nearest board of the data that is symmetric about X = 0, if there is one."
 )]
