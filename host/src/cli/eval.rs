@@ -3,14 +3,11 @@
 //! (`study::posture::bands`).
 
 use crate::cli::RigArgs;
-use crate::data::csv::{read_set, Inputs};
+use crate::data::csv::read_set;
 use crate::data::model;
-use crate::evaluate::{
-    evaluate, optimal_depths_lens, text_table, traditional_depths, Evaluation, Method,
-};
-use crate::study::posture;
+use crate::evaluate::{text_table, Evaluation};
+use crate::study::{self, eval::BandReport, eval::ModelEval};
 use anyhow::{bail, Result};
-use hvs_shared::runtime::blob::InputKind;
 use hvs_shared::runtime::traditional::Calibration;
 use serde::Serialize;
 use std::io::Write;
@@ -72,96 +69,18 @@ pub struct Report {
     pub posture_bands: Option<Vec<BandReport>>,
 }
 
-/// One posture band of `--json`.
-#[derive(Debug, Serialize)]
-pub struct BandReport {
-    /// The gaze term (`all`, `neck pan`, ... `vergence`).
-    pub term: String,
-    /// Its band, e.g. `20.0 to 30.0 (either side)`.
-    pub band: String,
-    /// Rows in the band.
-    pub points: usize,
-    /// The model's depth e_ma (percent).
-    pub network_pct: f64,
-    /// The floor's depth e_ma (percent).
-    pub optimal_pct: f64,
-    /// The model's over the floor's.
-    pub ratio: f64,
-}
-
 /// Runs `hvs eval`.
 pub fn run(a: Args) -> Result<()> {
     let m = model::load(&a.model)?;
     let blob = &m.blob;
     let table = read_set(&a.data, blob.topology.inputs.into(), true)?;
-    let (_, y) = crate::infer::infer_table(blob, &table)?;
-    let no = blob.n_outputs();
-    let mut methods = vec![Method {
-        name: "network".into(),
-        z: y.chunks_exact(no).map(|o| o[no - 1] as f64).collect(),
-    }];
-    if let Some(cal) = &blob.fallback {
-        methods
-            .push(Method { name: "traditional".into(), z: traditional_depths(cal, &table.data) });
-    }
     let floor = a.floor.rig()?;
     let lens = a.lens.lens()?;
     if floor.is_none() && a.lens.given() {
         bail!("--distortion is the true lens of the floor: it needs --case N or --rig FILE.json");
     }
-    // A posture-aware model: its samples, the true head and the floor's point of each row,
-    // triangulated once for the table and the posture bands.
-    let posed_floor = match &floor {
-        Some(rig) if blob.topology.inputs == InputKind::StereoJoints => {
-            let head = hvs_shared::sim::posture::HeadRig::new(*rig).with_distortion(lens);
-            let samples = posture::samples(&table.data);
-            let points = posture::floor_points(&head, &samples);
-            Some((head, samples, points))
-        }
-        _ => None,
-    };
-    if let Some(rig) = &floor {
-        let z = match &posed_floor {
-            // Every row has its joints and its truth (`read_set` with targets): the same
-            // triangulation as `optimal_depths_lens` row by row.
-            Some((_, samples, points)) if samples.len() == table.data.len() => {
-                points.iter().map(|p| p.map_or(f64::NAN, |p| p[2])).collect()
-            }
-            _ => {
-                // The floor triangulates at each row's posture when the file has the joint
-                // columns, also for a 4-input model (which sees only the pixels).
-                let posed;
-                let floor_data = if table.data.input_kind() == Some(InputKind::Stereo) {
-                    posed = read_set(&a.data, Inputs::Auto, true)?;
-                    &posed.data
-                } else {
-                    &table.data
-                };
-                optimal_depths_lens(rig, lens, floor_data)
-            }
-        };
-        methods.push(Method { name: "optimal".into(), z });
-    }
-    let ev = evaluate(&table.data, &methods);
-    // A posture-aware model: its error per posture band against the floor's.
-    let bands: Option<Vec<BandReport>> = match &posed_floor {
-        Some((head, samples, points)) => {
-            let rows = posture::bands_with_floor(blob, head, samples, points, &[]);
-            Some(
-                rows.iter()
-                    .map(|r| BandReport {
-                        term: r.term.to_string(),
-                        band: r.band.clone(),
-                        points: r.net.points,
-                        network_pct: r.net.z_pct,
-                        optimal_pct: r.floor.z_pct,
-                        ratio: r.ratio(),
-                    })
-                    .collect(),
-            )
-        }
-        _ => None,
-    };
+    let ModelEval { evaluation: ev, bands } =
+        study::eval::eval_model(blob, &table, floor.as_ref().map(|r| (r, lens)))?;
     let mut o = std::io::stdout().lock();
     if a.json {
         let r = Report {
@@ -211,22 +130,7 @@ pub fn run(a: Args) -> Result<()> {
     write!(o, "{}", text_table(&ev))?;
     if let Some(bands) = &bands {
         writeln!(o)?;
-        writeln!(o, "per posture band (thirds of each gaze term's range; e_ma of the depth):")?;
-        writeln!(
-            o,
-            "{:>10} {:<37} {:>6} {:>10} {:>10} {:>8}",
-            "term", "band", "points", "network", "optimal", "x floor"
-        )?;
-        for b in bands {
-            writeln!(
-                o,
-                "{:>10} {:<37} {:>6} {:>9.4}% {:>9.4}% {:>8.3}",
-                b.term, b.band, b.points, b.network_pct, b.optimal_pct, b.ratio
-            )?;
-        }
-        if let Some(w) = bands.iter().max_by(|a, b| a.ratio.total_cmp(&b.ratio)) {
-            writeln!(o, "worst band: {} {}, {:.3} x the floor", w.term, w.band, w.ratio)?;
-        }
+        write!(o, "{}", study::eval::bands_text(bands))?;
     }
     for s in &ev.methods {
         if s.missing > 0 {

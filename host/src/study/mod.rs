@@ -13,6 +13,7 @@
 pub mod accuracy;
 pub mod demo;
 pub mod engine;
+pub mod eval;
 pub mod plot;
 pub mod posture;
 pub mod reported;
