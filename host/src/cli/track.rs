@@ -6,10 +6,9 @@ use crate::data::captures::{captures_csv, CaptureRow};
 use crate::data::output::{write_atomically, write_bytes};
 use crate::track::frames::FrameSource;
 use crate::track::servo_head::{self, parse_port, HeadChoice};
-use crate::track::{self, frames::VirtualCameras, target::TargetMode};
+use crate::track::{self, target::TargetMode};
 use anyhow::{anyhow, Result};
 use hvs_shared::runtime::fixation::LoopConfig;
-use hvs_shared::sim::posture::HeadRig;
 use std::path::PathBuf;
 
 /// Arguments of `hvs track`.
@@ -143,12 +142,9 @@ pub fn run(a: Args) -> Result<()> {
         match (&a.scene, &spec) {
             (Some(scene), _) => {
                 let loaded = track::scene_file::load(scene)?;
-                let size = (loaded.rig.width, loaded.rig.height);
                 let loop_cfg = track::loop_config(&loaded.rig, a.correction_gain);
-                let fps = loaded.scene.camera_fps;
-                let opt = track::frames::loop_render_options();
-                let cams = VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, opt, a.seed);
-                (Box::new(cams), size, fps, loop_cfg)
+                let cams = loaded.cameras(a.seed);
+                (Box::new(cams), loaded.image_size(), loaded.scene.camera_fps, loop_cfg)
             }
             (None, Some(spec)) => {
                 let size = track::cameras::size_for(camera_size, Some(&blob));

@@ -15,6 +15,25 @@ pub struct LoadedScene {
     pub scene: Scene,
 }
 
+impl LoadedScene {
+    /// The scene's virtual cameras on its rig, rendered as the loop renders
+    /// ([`super::frames::loop_render_options`]; the noise seeded with `seed`, per frame):
+    /// `hvs track --scene` and `hvs view --scene`.
+    pub fn cameras(&self, seed: u64) -> super::frames::VirtualCameras {
+        super::frames::VirtualCameras::new(
+            hvs_shared::sim::posture::HeadRig::new(self.rig),
+            self.scene.clone(),
+            super::frames::loop_render_options(),
+            seed,
+        )
+    }
+
+    /// The cameras' image size (width, height).
+    pub fn image_size(&self) -> (u32, u32) {
+        (self.rig.width, self.rig.height)
+    }
+}
+
 /// The rig of a scene file's `rig` value.
 pub fn rig_of(v: &serde_json::Value) -> Result<Rig> {
     let obj =

@@ -11,13 +11,12 @@ use super::live::{Goal, HeadState, LiveHead};
 use crate::data::captures::{self, CaptureSet};
 use crate::data::csv::{read_set_from, Inputs};
 use crate::data::model::ModelFile;
+use crate::track;
 use crate::track::servo_head::HeadChoice;
-use crate::track::{self, frames::VirtualCameras};
 use crate::train::model::{train_table, Plan};
 use crate::train::{self, TrainConfig};
 use crate::vision::{self, Detection, Located, PairOutcome};
 use anyhow::{anyhow, Result};
-use hvs_shared::sim::posture::HeadRig;
 use hvs_vision::board::Board;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
@@ -217,13 +216,8 @@ impl Session {
                 let loaded = track::scene_file::load(scene)?;
                 let estimator = track::estimator_of(model.blob.clone())
                     .map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
-                let cameras = VirtualCameras::new(
-                    HeadRig::new(loaded.rig),
-                    loaded.scene.clone(),
-                    track::frames::loop_render_options(),
-                    *seed,
-                );
-                let size = (loaded.rig.width, loaded.rig.height);
+                let cameras = loaded.cameras(*seed);
+                let size = loaded.image_size();
                 let who = match head {
                     HeadChoice::Qemu(_) => "head firmware in QEMU",
                     _ => "virtual head",
