@@ -43,6 +43,18 @@ impl Depth {
         self.xyz.iter().filter(|p| p[2].is_finite()).count()
     }
 
+    /// What was found, in a line (`hvs depth` prints it, `hvs view` shows it):
+    /// `N of M pixels (P %) with a depth, disparities A..B px searched`.
+    pub fn summary(&self) -> String {
+        let (k, n) = (self.returned(), self.xyz.len());
+        format!(
+            "{k} of {n} pixels ({:.1} %) with a depth, disparities {}..{} px searched",
+            100.0 * k as f64 / n.max(1) as f64,
+            self.d_range[0],
+            self.d_range[1]
+        )
+    }
+
     /// The point cloud as a binary PLY ([`hvs_vision::pfm::ply_bytes`]): every pixel with a
     /// depth, coloured with `left`'s grey level (`hvs depth --ply` and `hvs view`'s 3-D view).
     /// A Z-only model gives no X and Y, so no cloud: an error.

@@ -97,14 +97,6 @@ pub fn run(a: Args) -> Result<()> {
     for w in &d.warnings {
         eprintln!("warning: {w}");
     }
-    let n = d.xyz.len();
-    eprintln!(
-        "{} of {n} pixels ({:.1} %) with a depth, disparities {}..{} px searched; {} warning(s)",
-        d.returned(),
-        100.0 * d.returned() as f64 / n.max(1) as f64,
-        d.d_range[0],
-        d.d_range[1],
-        d.warnings.len()
-    );
+    eprintln!("{}; {} warning(s)", d.summary(), d.warnings.len());
     Ok(())
 }

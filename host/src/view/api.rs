@@ -159,6 +159,7 @@ fn f32_json(v: f32) -> Value {
 pub fn depth(pair: usize, d: &DepthView) -> Value {
     json!({
         "pair": pair,
+        "summary": d.depth.summary(),
         "returned": d.depth.returned(),
         "pixels": d.depth.xyz.len(),
         "z_box_cm": d.depth.z_box,

@@ -326,6 +326,9 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
     let said = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{said}");
     assert!(said.contains(&format!("{returned} of {} pixels", w * h)), "{said}");
+    // The page's line is the command's.
+    let summary = d["summary"].as_str().unwrap();
+    assert!(said.starts_with(&format!("{summary}; ")), "{summary} / {said}");
     assert_eq!(shown, image::open(&colour).unwrap().to_rgb8());
     // The 3-D view's cloud: the bytes of `hvs depth --thorough --ply`.
     let (st, cloud) = http(&sv.addr, "GET", "/api/depth/0/cloud.ply", None);

@@ -111,9 +111,7 @@ async function loadDepth() {
   try {
     const d = await getJson(`/api/depth/${asked}`);
     if (asked !== pair) return;
-    const pct = 100 * d.returned / d.pixels;
-    $('depth-status').textContent = `${d.returned} of ${d.pixels} pixels with a depth (${pct.toFixed(1)} %), ` +
-      `${d.z_box_cm[0].toFixed(0)}-${d.z_box_cm[1].toFixed(0)} cm, disparities ${d.disparity_px[0]}..${d.disparity_px[1]} px, ` +
+    $('depth-status').textContent = `${d.summary}, depth box ${d.z_box_cm[0].toFixed(0)}-${d.z_box_cm[1].toFixed(0)} cm, ` +
       `${(d.ms / 1000).toFixed(2)} s` + (d.warnings.length ? '; ' + d.warnings.join('; ') : '');
     $('depth').onload = () => { $('depth').dataset.loaded = 'yes'; };
     $('depth').src = q(`/api/depth/${asked}/image`);
