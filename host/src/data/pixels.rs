@@ -2,12 +2,12 @@
 //! `hvs locate --points` reads them.
 
 use crate::data::csv::{
-    check_row_len, check_unique_names, csv_error, csv_reader, missing_column, LineCounter,
+    check_row_len, check_unique_names, csv_error, csv_reader, missing_column, number, LineCounter,
 };
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use std::path::Path;
 
-/// The pixels of a `PIXELS.csv` (`u_l,v_l`, `NaN` allowed: it gets the status `nan_input`),
+/// The pixels of a `PIXELS.csv` (`u_l,v_l`, finite numbers),
 /// with the header and each row's other fields for the output.
 #[derive(Debug)]
 pub struct Pixels {
@@ -47,13 +47,9 @@ pub fn read_pixels(path: &Path) -> Result<Pixels> {
     while rdr.read_record(&mut rec).map_err(|e| csv_error(&file, e))? {
         let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
         check_row_len(&file, line, rec.len(), header.len())?;
-        let num = |k: usize, c: &str| -> Result<f64> {
-            let t = &rec[k];
-            // One rule with every CSV input: NaN and infinities are refused alike.
-            t.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                anyhow!("{file}:{line}: column \"{c}\": {t:?} is not a finite number")
-            })
-        };
+        // One rule with every CSV input (`data::csv`'s numbers): an empty field, text, NaN
+        // and infinities are refused, each saying which.
+        let num = |k: usize, c: &str| number(&file, line, c, rec[k].as_bytes());
         out.points.push([num(ui, "u_l")?, num(vi, "v_l")?]);
         out.extra.push(extra_idx.iter().map(|&k| rec[k].to_string()).collect());
     }
@@ -82,7 +78,9 @@ mod tests {
         assert_eq!(err(""), ": empty file (expected a header row naming the column \"u_l\")");
         assert_eq!(err("u_l,v_l\n"), ": no points after the header");
         assert_eq!(err("u_l,v_l\n1,2\n3\n"), ":3: row has 1 field, the header has 2");
-        assert_eq!(err("u_l,v_l\nx,2\n"), ":2: column \"u_l\": \"x\" is not a finite number");
+        assert_eq!(err("u_l,v_l\nx,2\n"), ":2: column \"u_l\": \"x\" is not a number");
+        assert_eq!(err("u_l,v_l\nNaN,2\n"), ":2: column \"u_l\": \"NaN\" is not a finite number");
+        assert_eq!(err("u_l,v_l\n1,\n"), ":2: column \"v_l\" is empty");
         assert_eq!(err("u,v\n1,2\n"), ":1: missing column \"u_l\" (the header has: u,v)");
         let ok = read_pixels(&{
             std::fs::write(&path, "u_l,v_l,tag\n1,2.5,a\n").unwrap();
