@@ -901,7 +901,8 @@ fn browser_click_and_retrain_in_chromium() {
         click_id(&c, "show-depth").await;
         wait_js(&c, "document.getElementById('depth').dataset.loaded").await;
         let status = text(&c, "depth-status").await;
-        assert!(status.contains("pixels with a depth"), "{status}");
+        // `Depth::summary`, the line `hvs depth` prints, then the depth box and the time.
+        assert!(status.contains(" pixels (") && status.contains("%) with a depth"), "{status}");
         eprintln!("depth: {status}");
         shot(&c, "pair-depth.png").await;
         // The 3-D view: the cloud of every pixel with a depth, drawn; a drag turns it.
