@@ -182,16 +182,38 @@ fn temp_files(dir: &Path) -> Vec<String> {
 
 /// Starts a long `hvs simulate` into `out`, waits until its temporary file exists, sends
 /// `signal`; returns the exit status and the temporary files seen while it ran.
-fn interrupt_a_write(out: &Path, signal: libc::c_int) -> (std::process::ExitStatus, Vec<String>) {
+///
+/// The child starts with SIGINT, SIGTERM and SIGHUP at their defaults, as from a terminal,
+/// except those in `ignored` (as `nohup` ignores SIGHUP).
+/// It would otherwise inherit the test runner's dispositions: a runner started as a
+/// background job of a script (`cmd &`) ignores SIGINT, `hvs` rightly keeps an ignored
+/// signal ignored, and the child would finish its write and exit 0.
+fn interrupt_a_write(
+    out: &Path,
+    signal: libc::c_int,
+    ignored: &'static [libc::c_int],
+) -> (std::process::ExitStatus, Vec<String>) {
+    use std::os::unix::process::CommandExt;
     let dir = out.parent().unwrap();
-    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"))
-        .args(["simulate", "--case", "1", "--set", "volume", "--points", "1000000"])
+    let mut cmd = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"));
+    cmd.args(["simulate", "--case", "1", "--set", "volume", "--points", "1000000"])
         .arg("-o")
         .arg(out)
         .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
+        .stderr(std::process::Stdio::null());
+    // SAFETY: signal(2) is async-signal-safe, so it may run between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                let to = if ignored.contains(&sig) { libc::SIG_IGN } else { libc::SIG_DFL };
+                if libc::signal(sig, to) == libc::SIG_ERR {
+                    return Err(std::io::Error::last_os_error());
+                }
+            }
+            Ok(())
+        });
+    }
+    let mut child = cmd.spawn().unwrap();
     // Not a timing assertion: the loop only waits for the write to begin.
     let seen = loop {
         let t = temp_files(dir);
@@ -215,7 +237,7 @@ fn interrupted_writes_leave_nothing() {
     for sig in [libc::SIGINT, libc::SIGTERM] {
         let dir = TempDir::new().unwrap();
         let out = dir.path().join("int.csv");
-        let (st, seen) = interrupt_a_write(&out, sig);
+        let (st, seen) = interrupt_a_write(&out, sig, &[]);
         assert_eq!(st.signal(), Some(sig), "{st}");
         assert_eq!(seen.len(), 1, "{seen:?}");
         assert!(seen[0].starts_with(".int.csv.hvs-"), "{seen:?}");
@@ -224,13 +246,27 @@ fn interrupted_writes_leave_nothing() {
     }
 }
 
+// A signal ignored when `hvs` starts (`nohup` and SIGHUP) stays ignored: the write goes on
+// and lands whole.
+#[test]
+fn an_ignored_signal_stays_ignored() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("int.csv");
+    let (st, seen) = interrupt_a_write(&out, libc::SIGHUP, &[libc::SIGHUP]);
+    assert!(st.success(), "{st}");
+    assert_eq!(seen.len(), 1, "{seen:?}");
+    assert_eq!(temp_files(dir.path()), Vec::<String>::new());
+    let rows = std::fs::read_to_string(&out).unwrap().lines().count();
+    assert_eq!(rows, 1_000_001, "a header and every point");
+}
+
 // Item 3: after SIGKILL the temporary file stays (nothing can run), named with the dead pid;
 // the next write into the same directory removes it, and leaves other files alone.
 #[test]
 fn the_next_write_removes_what_a_killed_run_left() {
     let dir = TempDir::new().unwrap();
     let out = dir.path().join("int.csv");
-    let (_, seen) = interrupt_a_write(&out, libc::SIGKILL);
+    let (_, seen) = interrupt_a_write(&out, libc::SIGKILL, &[]);
     assert_eq!(temp_files(dir.path()), seen, "SIGKILL cannot clean up");
     // Not ours (no pid), and ours but alive (this test's pid): kept.
     let foreign = ".notes.csv.tmp".to_string();
