@@ -94,7 +94,16 @@ fn reader(
     if meta.is_dir() {
         return Err(ImageFileError::Io(shown.to_string(), "is a directory".into()));
     }
-    ImageReader::open(path).map_err(io)?.with_guessed_format().map_err(io)
+    // The format by the first bytes alone (`with_guessed_format` falls back on the name's
+    // extension, so a text file called `x.png` would be "damaged PNG data"); peeked at in
+    // the reader's buffer, nothing consumed.
+    let mut file = std::io::BufReader::new(std::fs::File::open(path).map_err(io)?);
+    let format = image::guess_format(std::io::BufRead::fill_buf(&mut file).map_err(io)?).ok();
+    let mut r = ImageReader::new(file);
+    if let Some(f) = format {
+        r.set_format(f);
+    }
+    Ok(r)
 }
 
 /// The format and size of an image file, read from its header only, checked against the
@@ -102,23 +111,7 @@ fn reader(
 pub fn probe(path: &Path) -> Result<(ImageFormat, u32, u32), ImageFileError> {
     let shown = path.display().to_string();
     let r = reader(path, &shown)?;
-    // The format by the first bytes alone: `with_guessed_format` falls back on the name's
-    // extension, so a text file called `x.png` would be "damaged PNG data".
-    let mut head = [0u8; 32];
-    let n = {
-        use std::io::Read;
-        let io = |e: std::io::Error| ImageFileError::Io(shown.clone(), e.to_string());
-        let mut f = std::fs::File::open(path).map_err(io)?;
-        let mut n = 0;
-        while n < head.len() {
-            match f.read(&mut head[n..]).map_err(io)? {
-                0 => break,
-                k => n += k,
-            }
-        }
-        n
-    };
-    let format = match image::guess_format(&head[..n]).ok() {
+    let format = match r.format() {
         Some(f @ (ImageFormat::Png | ImageFormat::Jpeg)) => f,
         Some(other) => return Err(ImageFileError::Format(shown, Some(format_name(other)))),
         None => return Err(ImageFileError::Format(shown, None)),
