@@ -132,20 +132,9 @@ fn detect(a: &DetectArgs) -> Result<()> {
     if usable == 0 {
         bail!("{}: no usable stereo pair ({} skipped)", a.captures.display(), set.captures.len());
     }
-    match det.groups.as_slice() {
-        [] => eprintln!(
-            "{usable} of {} pairs, {} corners ({})",
-            set.captures.len(),
-            usable * n,
-            det.fundamental_check()
-        ),
-        _ => eprintln!(
-            "{usable} of {} pairs, {} corners; {}",
-            set.captures.len(),
-            usable * n,
-            det.fundamental_check()
-        ),
-    }
+    let check = det.fundamental_check();
+    let check = if det.groups.is_empty() { format!(" ({check})") } else { format!("; {check}") };
+    eprintln!("{usable} of {} pairs, {} corners{check}", set.captures.len(), usable * n);
     // Overlays first, the points last: a failure leaves the old points file as it was.
     if let Some(dir) = &a.overlays {
         let mut pngs = Vec::new();

@@ -319,9 +319,8 @@ fn joints_text(j: &Joints) -> String {
 
 /// The head's state: its joints and the move's goal in degrees, its clock, whether it moves.
 fn write_state(out: &mut impl Write, s: &StateData) -> Result<()> {
-    let deg = joints_text;
-    writeln!(out, "joints deg: {}", deg(&s.joints))?;
-    writeln!(out, "goal deg: {}", deg(&s.goal))?;
+    writeln!(out, "joints deg: {}", joints_text(&s.joints))?;
+    writeln!(out, "goal deg: {}", joints_text(&s.goal))?;
     writeln!(out, "ticks={} moving={}", s.ticks, s.moving)?;
     Ok(())
 }

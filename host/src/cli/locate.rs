@@ -66,7 +66,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     // The one point asked for with --at must lie in the image (its header says; a file that
     // cannot be read is left to the full read below, which names the problem).
-    if let (Some(_), Ok((w, h))) = (&a.at, image::image_dimensions(&a.pair.left)) {
+    if let (Some(_), Ok((_, w, h))) = (&a.at, hvs_vision::image_file::probe(&a.pair.left)) {
         let [u, v] = pixels.points[0];
         if !crate::depth::inside_image(u, v, (w, h)) {
             bail!("--at {u},{v}: outside the {w}x{h} left image {}", a.pair.left.display());

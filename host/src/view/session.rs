@@ -381,7 +381,7 @@ impl Session {
                 *o = PairOutcome::Skipped("unticked".into());
             }
         }
-        let pairs = det.outcomes.iter().filter(|o| matches!(o, PairOutcome::Found(_))).count();
+        let pairs = det.usable();
         if pairs == 0 {
             return Err(Refused::Unprocessable("no ticked pair has detected corners".into()));
         }

@@ -15,7 +15,7 @@ use crate::sim::sets::{dataset, simulate, write_csv, Sample, SetKind, SimOptions
 use crate::study::accuracy::images::{Detected, TEST_CENTRE};
 use crate::train::model::{train_model, Plan};
 use crate::vision::{
-    detect_set, detected_set, found_corners, points_csv, write_capture_set, Detection, PairOutcome,
+    detect_set, detected_set, found_corners, points_csv, write_capture_set, Detection,
 };
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::gaze::Joints;
@@ -164,11 +164,8 @@ pub fn image_case(case: u8, dir: &Path, seed: u64, restarts: usize) -> Result<Im
             Method { name: "optimal (true rig)".into(), z: optimal_depths(&rig, &test) },
         ],
     );
-    let found = |d: &Detection| {
-        d.outcomes.iter().filter(|o| matches!(o, PairOutcome::Found(_))).count() * n
-    };
-    let train_corners = [found(&det), det.outcomes.len() * n];
-    let test_corners = [found(&tdet), tdet.outcomes.len() * n];
+    let train_corners = [det.usable() * n, det.outcomes.len() * n];
+    let test_corners = [tdet.usable() * n, tdet.outcomes.len() * n];
     let detected = Detected { train_corners, test_corners, corner_error_px };
     Ok(ImageCase { case, detected, test: ev })
 }
