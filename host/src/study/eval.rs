@@ -47,10 +47,6 @@ pub fn eval_model(
     table: &Table,
     floor: Option<(&Rig, Distortion)>,
 ) -> Result<ModelEval> {
-    let (floor, lens) = match floor {
-        Some((r, l)) => (Some(*r), l),
-        None => (None, Distortion::NONE),
-    };
     let (_, y) = crate::infer::infer_table(blob, table)?;
     let no = blob.n_outputs();
     let mut methods = vec![Method {
@@ -63,8 +59,8 @@ pub fn eval_model(
     }
     // A posture-aware model: its samples, the true head and the floor's point of each row,
     // triangulated once for the table and the posture bands.
-    let posed_floor = match &floor {
-        Some(rig) if blob.topology.inputs == InputKind::StereoJoints => {
+    let posed_floor = match floor {
+        Some((rig, lens)) if blob.topology.inputs == InputKind::StereoJoints => {
             let head = hvs_shared::sim::posture::HeadRig::new(*rig).with_distortion(lens);
             let samples = posture::samples(&table.data);
             let points = posture::floor_points(&head, &samples);
@@ -72,7 +68,7 @@ pub fn eval_model(
         }
         _ => None,
     };
-    if let Some(rig) = &floor {
+    if let Some((rig, lens)) = floor {
         let z = match &posed_floor {
             // Every row has its joints and its truth (`read_set` with targets): the same
             // triangulation as `optimal_depths_lens` row by row.
