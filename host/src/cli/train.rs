@@ -4,12 +4,11 @@
 use crate::data::csv::{read_set, Inputs};
 use crate::data::model;
 use crate::data::output::check_not_input;
-use crate::train::fallback;
 use crate::train::model::{train_table, Plan, Trained};
-use crate::train::update::{update, CameraCheck};
+use crate::train::update::{next_generation, update, CameraCheck};
 use crate::train::{self, Algo, BpParams, TrainConfig};
 use anyhow::{bail, Context, Result};
-use hvs_shared::runtime::blob::{Family, OutputFrame, OutputKind, Parent, MAX_HIDDEN};
+use hvs_shared::runtime::blob::{Family, OutputFrame, OutputKind, MAX_HIDDEN};
 use hvs_shared::runtime::mlp::Activation;
 use hvs_shared::runtime::traditional::Calibration;
 use std::io::{IsTerminal, Write};
@@ -311,18 +310,14 @@ fn run_update(a: &Args, from_path: &Path) -> Result<()> {
     }
     let up = update(b, &table.data, a.seed)
         .with_context(|| format!("{}: cannot update {from} with these points", a.data.display()))?;
-    let mut blob = up.blob.clone();
-    blob.generation = b.generation.saturating_add(1);
-    // The chain back to the model this one came from, and the images' size it was trained at.
-    blob.set_parent(Some(Parent { crc: old.crc, generation: b.generation }));
-    blob.set_image_size(b.image_size().or(table.image_size));
-    blob.matcher = crate::train::matcher::matcher_geometry(&up.learned).or(b.matcher);
-    let (half_baseline, u0, v0) = (a.half_baseline, a.u0, a.v0);
-    // The traditional method's calibration follows a camera that moved; otherwise it stays.
-    if up.cameras.iter().any(|c| c.moved) {
-        blob.fallback =
-            fallback::fit(&table.data, half_baseline, u0, v0).map(|f| f.calibration).or(b.fallback);
-    }
+    let blob = next_generation(
+        b,
+        old.crc,
+        &up,
+        &table.data,
+        table.image_size,
+        (a.half_baseline, a.u0, a.v0),
+    );
     let n = model::save(&a.output, &blob)?;
     let print = || -> Result<()> {
         let mut o = std::io::stdout().lock();

@@ -346,3 +346,33 @@ fn camera_move(
         },
     ))
 }
+
+/// The blob an update writes (`hvs train --from`): `up`'s net as the next generation of
+/// `old`, whose parent is `old` (`old_crc`: the CRC stored in its file); the old images' size
+/// (else `new_image_size`, that of the new points' images); the matcher geometry refitted to
+/// the samples the update learned (else the old one); and the traditional method's
+/// calibration refitted to the new points (`new`, with `half_baseline`, `u0`, `v0`) when a
+/// camera moved, else the old one.
+pub fn next_generation(
+    old: &ModelBlob,
+    old_crc: u32,
+    up: &UpdateOutcome,
+    new: &Dataset,
+    new_image_size: Option<(u16, u16)>,
+    (half_baseline, u0, v0): (f64, f64, f64),
+) -> ModelBlob {
+    let mut blob = up.blob.clone();
+    blob.generation = old.generation.saturating_add(1);
+    blob.set_parent(Some(hvs_shared::runtime::blob::Parent {
+        crc: old_crc,
+        generation: old.generation,
+    }));
+    blob.set_image_size(old.image_size().or(new_image_size));
+    blob.matcher = super::matcher::matcher_geometry(&up.learned).or(old.matcher);
+    if up.cameras.iter().any(|c| c.moved) {
+        blob.fallback = super::fallback::fit(new, half_baseline, u0, v0)
+            .map(|f| f.calibration)
+            .or(old.fallback);
+    }
+    blob
+}
