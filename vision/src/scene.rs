@@ -17,17 +17,20 @@
 //!   (`{"case": N}` or a rig object as `hvs simulate --rig` reads).
 //! - `background`: a wall perpendicular to `Z` at `z_cm`, everywhere behind the objects.
 //! - `objects[k]`: `shape` `sphere` (`radius_cm`), `box` (`size_cm`: `[sx, sy, sz]`, axis
-//!   aligned) or `board` (`board`: a `BOARD.json` object, upright, facing the head, with a white
-//!   border one square wide); its position is either `centre_cm` (+ optional constant
+//!   aligned), `plane` (a textured rectangle, `side_cm`: `[width, height]`, facing the head and
+//!   slanted by `pitch_deg` about its horizontal axis, the top away from the head for a
+//!   positive angle, then by `yaw_deg` about the vertical one, the right side away; each within
+//!   +-85, default 0) or `board` (`board`: a `BOARD.json` object, upright, facing the head,
+//!   with a white border one square wide); its position is either `centre_cm` (+ optional constant
 //!   `velocity_cm_s`) or a `path` of timed waypoints `[{"t_s": 0, "centre_cm": [..]}, ..]`
 //!   (linear between waypoints, held before the first and after the last); `texture_seed`
 //!   (default 0) seeds its texture.
 //!
 //! # Textures
 //!
-//! Spheres, boxes and the wall carry a seeded value-noise texture (two octaves, cells of
-//! 2 cm and 0.8 cm on objects, 6 cm and 2.5 cm on the wall), a function of the surface point
-//! relative to the object's centre: fixed to the surface, high-frequency and non-repetitive
+//! Spheres, boxes, planes and the wall carry a seeded value-noise texture (two octaves, cells
+//! of 2 cm and 0.8 cm on objects, 6 cm and 2.5 cm on the wall), a function of the surface point
+//! relative to the object's centre (a plane's: of its two in-plane coordinates): fixed to the surface, high-frequency and non-repetitive
 //! (good for stereo matching). Boards are chessboards (the colours of [`RenderOptions`]).
 //!
 //! # Rendering and truth
@@ -92,6 +95,8 @@ pub enum ShapeKind {
     Sphere,
     /// An axis-aligned box (`size_cm`).
     Box,
+    /// A slanted textured rectangle (`side_cm`, `pitch_deg`, `yaw_deg`).
+    Plane,
     /// A chessboard (`board`).
     Board,
 }
@@ -116,6 +121,13 @@ pub struct ObjectSpec {
     pub radius_cm: Option<f64>,
     /// Box sides (cm).
     pub size_cm: Option<Vec3>,
+    /// Plane width and height (cm).
+    pub side_cm: Option<[f64; 2]>,
+    /// Plane slant about its horizontal axis (degrees, the top away from the head when
+    /// positive).
+    pub pitch_deg: Option<f64>,
+    /// Plane slant about the vertical axis (degrees, the right side away when positive).
+    pub yaw_deg: Option<f64>,
     /// Board description (a `BOARD.json` object).
     pub board: Option<serde_json::Value>,
     /// Centre at `t = 0` (cm).
@@ -141,6 +153,16 @@ pub enum Shape {
     Box {
         /// Sides (cm).
         size_cm: Vec3,
+    },
+    /// Textured rectangle of half sides `half_cm` along the unit in-plane axes `axes` (width,
+    /// then height), whose cross product is `normal`.
+    Plane {
+        /// Half width and half height (cm).
+        half_cm: [f64; 2],
+        /// Unit axes of the width and the height (head frame).
+        axes: [Vec3; 2],
+        /// Unit normal.
+        normal: Vec3,
     },
     /// Chessboard, upright, facing the head, with a white border one square wide.
     Board {
@@ -238,6 +260,26 @@ fn check_vec(field: &str, v: &Vec3, bound: f64) -> Result<(), SceneError> {
 /// Largest coordinate anywhere (cm).
 const MAX_CM: f64 = 1.0e5;
 
+/// Largest slant of a plane (degrees): at 90 it would be seen edge on.
+pub const MAX_SLANT_DEG: f64 = 85.0;
+
+/// A plane's in-plane axes and normal: facing the head, pitched about `X` (the top away for a
+/// positive angle), then yawed about `Y` (the right side away).
+fn plane_frame(pitch_deg: f64, yaw_deg: f64) -> ([Vec3; 2], Vec3) {
+    let (sp, cp) = (libm::sin(pitch_deg.to_radians()), libm::cos(pitch_deg.to_radians()));
+    let (sy, cy) = (libm::sin(yaw_deg.to_radians()), libm::cos(yaw_deg.to_radians()));
+    // Pitch: the height axis (Y down) turns to (0, cp, -sp), so the top (-Y) goes to +Z.
+    // Yaw (x, y, z) -> (x cy - z sy, y, x sy + z cy): the width axis to (cy, 0, sy).
+    let width = [cy, 0.0, sy];
+    let height = [sp * sy, cp, -sp * cy];
+    let normal = [
+        width[1] * height[2] - width[2] * height[1],
+        width[2] * height[0] - width[0] * height[2],
+        width[0] * height[1] - width[1] * height[0],
+    ];
+    ([width, height], normal)
+}
+
 impl SceneFile {
     /// Reads a scene file's text strictly (unknown or duplicate fields, wrong types).
     pub fn parse(text: &str) -> Result<SceneFile, SceneError> {
@@ -276,6 +318,16 @@ impl SceneFile {
 }
 
 impl ObjectSpec {
+    /// Refuses a plane's fields on another shape.
+    fn no_plane_fields(
+        &self,
+        not_for: &dyn Fn(&str, bool) -> Result<(), SceneError>,
+    ) -> Result<(), SceneError> {
+        not_for("side_cm", self.side_cm.is_some())?;
+        not_for("pitch_deg", self.pitch_deg.is_some())?;
+        not_for("yaw_deg", self.yaw_deg.is_some())
+    }
+
     fn check(&self, at: &str) -> Result<Object, SceneError> {
         let field = |f: &str| format!("{at}.{f}");
         let not_for = |f: &str, present: bool| {
@@ -299,6 +351,7 @@ impl ObjectSpec {
             ShapeKind::Sphere => {
                 not_for("size_cm", self.size_cm.is_some())?;
                 not_for("board", self.board.is_some())?;
+                self.no_plane_fields(&not_for)?;
                 let r =
                     self.radius_cm.ok_or_else(|| err(field("radius_cm"), "a sphere needs it"))?;
                 positive("radius_cm", r)?;
@@ -307,15 +360,42 @@ impl ObjectSpec {
             ShapeKind::Box => {
                 not_for("radius_cm", self.radius_cm.is_some())?;
                 not_for("board", self.board.is_some())?;
+                self.no_plane_fields(&not_for)?;
                 let s = self.size_cm.ok_or_else(|| err(field("size_cm"), "a box needs it"))?;
                 for (i, x) in s.iter().enumerate() {
                     positive(&format!("size_cm[{i}]"), *x)?;
                 }
                 Shape::Box { size_cm: s }
             }
+            ShapeKind::Plane => {
+                not_for("radius_cm", self.radius_cm.is_some())?;
+                not_for("size_cm", self.size_cm.is_some())?;
+                not_for("board", self.board.is_some())?;
+                let s = self.side_cm.ok_or_else(|| err(field("side_cm"), "a plane needs it"))?;
+                for (i, x) in s.iter().enumerate() {
+                    positive(&format!("side_cm[{i}]"), *x)?;
+                }
+                let slant = |f: &str, a: Option<f64>| {
+                    let a = a.unwrap_or(0.0);
+                    if a.is_finite() && a.abs() <= MAX_SLANT_DEG {
+                        Ok(a)
+                    } else {
+                        Err(err(
+                            field(f),
+                            format!("must be within +-{MAX_SLANT_DEG} degrees, got {a}"),
+                        ))
+                    }
+                };
+                let (axes, normal) = plane_frame(
+                    slant("pitch_deg", self.pitch_deg)?,
+                    slant("yaw_deg", self.yaw_deg)?,
+                );
+                Shape::Plane { half_cm: [0.5 * s[0], 0.5 * s[1]], axes, normal }
+            }
             ShapeKind::Board => {
                 not_for("radius_cm", self.radius_cm.is_some())?;
                 not_for("size_cm", self.size_cm.is_some())?;
+                self.no_plane_fields(&not_for)?;
                 let b = self
                     .board
                     .as_ref()
@@ -487,6 +567,20 @@ fn intersect(p: &Placed, o: &Vec3, d: &Vec3) -> Option<f64> {
                 Some(hi)
             }
         }
+        Shape::Plane { half_cm, axes, normal } => {
+            let den = dot(d, &normal);
+            if den == 0.0 || den.is_nan() {
+                return None;
+            }
+            let oc = [c[0] - o[0], c[1] - o[1], c[2] - o[2]];
+            let t = dot(&oc, &normal) / den;
+            if t.is_nan() || t <= 0.0 {
+                return None;
+            }
+            let rel = [o[0] + t * d[0] - c[0], o[1] + t * d[1] - c[1], o[2] + t * d[2] - c[2]];
+            (dot(&rel, &axes[0]).abs() < half_cm[0] && dot(&rel, &axes[1]).abs() < half_cm[1])
+                .then_some(t)
+        }
         Shape::Board { board } => {
             if d[2] == 0.0 {
                 return None;
@@ -548,6 +642,12 @@ impl SceneAt {
                     Class::White | Class::Background => opt.white,
                 };
                 (f32::from(level), if k == Class::Black { 1 } else { 2 })
+            }
+            Shape::Plane { axes, .. } => {
+                // The in-plane coordinates, at a whole third coordinate: a 2-D texture as the
+                // wall's, fixed to the surface whatever the slant.
+                let p = [dot(&rel, &axes[0]), dot(&rel, &axes[1]), 0.0];
+                (texture_cached(p, o.texture_seed, [1.0 / 2.0, 1.0 / 0.8], cells), 0)
             }
             _ => (texture_cached(rel, o.texture_seed, [1.0 / 2.0, 1.0 / 0.8], cells), 0),
         }
@@ -928,5 +1028,89 @@ mod tests {
         let t = intersect(&b, &[0.0; 3], &[0.0, 0.0, 1.0]).unwrap();
         assert!((t - 95.0).abs() < 1e-12);
         assert!(intersect(&b, &[20.0, 0.0, 0.0], &[0.0, 0.0, 1.0]).is_none());
+    }
+
+    #[test]
+    fn plane_slants_and_intersections() {
+        for (pitch, yaw) in [(0.0, 0.0), (30.0, 0.0), (0.0, -40.0), (60.0, 25.0), (-85.0, 85.0)] {
+            let ([a, b], n) = plane_frame(pitch, yaw);
+            for (u, v, want) in [(&a, &a, 1.0), (&b, &b, 1.0), (&n, &n, 1.0), (&a, &b, 0.0)] {
+                assert!((dot(u, v) - want).abs() < 1e-12, "{pitch} {yaw}");
+            }
+            assert!((dot(&a, &n)).abs() < 1e-12 && (dot(&b, &n)).abs() < 1e-12);
+        }
+        // The top (-height axis) goes away for a positive pitch, the right side for a
+        // positive yaw.
+        assert!(plane_frame(30.0, 0.0).0[1][2] < 0.0);
+        assert!(plane_frame(0.0, 30.0).0[0][2] > 0.0);
+        let (axes, normal) = plane_frame(50.0, -20.0);
+        let p = Placed {
+            shape: Shape::Plane { half_cm: [20.0, 10.0], axes, normal },
+            centre: [5.0, -3.0, 120.0],
+            texture_seed: 0,
+        };
+        // A ray through the centre meets it there; a hit lies on the plane, inside it.
+        let d = {
+            let l = libm::sqrt(dot(&p.centre, &p.centre));
+            p.centre.map(|x| x / l)
+        };
+        let t = intersect(&p, &[0.0; 3], &d).unwrap();
+        assert!((t - libm::sqrt(dot(&p.centre, &p.centre))).abs() < 1e-9);
+        let d2 = {
+            let q = [10.0, 1.0, 100.0];
+            let l = libm::sqrt(dot(&q, &q));
+            q.map(|x| x / l)
+        };
+        let t = intersect(&p, &[0.0; 3], &d2).unwrap();
+        let rel: Vec3 = core::array::from_fn(|k| t * d2[k] - p.centre[k]);
+        assert!(dot(&rel, &normal).abs() < 1e-9);
+        assert!(dot(&rel, &axes[0]).abs() < 20.0 && dot(&rel, &axes[1]).abs() < 10.0);
+        // Beside it, and behind the eye: nothing.
+        assert!(intersect(&p, &[0.0; 3], &[1.0, 0.0, 0.0]).is_none());
+        assert!(intersect(&p, &[0.0, 0.0, 200.0], &[0.0, 0.0, 1.0]).is_none());
+    }
+
+    #[test]
+    fn plane_fields_are_checked() {
+        let scene = |o: &str| {
+            SceneFile::parse(&format!(
+                r#"{{"rig": {{"case": 3}}, "camera_fps": 30, "background": {{"z_cm": 300}}, "objects": [{o}]}}"#
+            ))
+            .unwrap()
+            .scene()
+        };
+        let ok = scene(
+            r#"{"shape": "plane", "side_cm": [40, 30], "pitch_deg": 60, "centre_cm": [0, 0, 100]}"#,
+        );
+        assert!(matches!(ok.unwrap().objects[0].shape, Shape::Plane { half_cm: [20.0, 15.0], .. }));
+        for (o, want) in [
+            (
+                r#"{"shape": "plane", "centre_cm": [0, 0, 100]}"#,
+                "objects[0].side_cm: a plane needs it",
+            ),
+            (
+                r#"{"shape": "plane", "side_cm": [40, 0], "centre_cm": [0, 0, 100]}"#,
+                "objects[0].side_cm[1]: must be > 0",
+            ),
+            (
+                r#"{"shape": "plane", "side_cm": [4, 4], "yaw_deg": 90, "centre_cm": [0, 0, 100]}"#,
+                "objects[0].yaw_deg: must be within +-85",
+            ),
+            (
+                r#"{"shape": "plane", "side_cm": [4, 4], "radius_cm": 3, "centre_cm": [0, 0, 100]}"#,
+                "objects[0].radius_cm: not a field of a plane",
+            ),
+            (
+                r#"{"shape": "sphere", "radius_cm": 3, "pitch_deg": 10, "centre_cm": [0, 0, 100]}"#,
+                "objects[0].pitch_deg: not a field of a sphere",
+            ),
+            (
+                r#"{"shape": "box", "size_cm": [3, 3, 3], "side_cm": [3, 3], "centre_cm": [0, 0, 100]}"#,
+                "objects[0].side_cm: not a field of a box",
+            ),
+        ] {
+            let e = scene(o).unwrap_err().to_string();
+            assert!(e.starts_with(want), "{o}: {e}");
+        }
     }
 }

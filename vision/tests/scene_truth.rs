@@ -15,7 +15,8 @@ const SCENE: &str = r#"{ "rig": {"case": 3}, "camera_fps": 30,
     {"shape": "sphere", "radius_cm": 5, "centre_cm": [4, -2, 90], "velocity_cm_s": [10, 0, 0], "texture_seed": 2},
     {"shape": "box", "size_cm": [8, 6, 4], "centre_cm": [-12, 4, 130], "texture_seed": 3},
     {"shape": "board", "board": {"pattern": "chessboard", "inner_corners": [5, 4], "square_cm": 3},
-     "path": [{"t_s": 0, "centre_cm": [15, 10, 160]}, {"t_s": 1, "centre_cm": [10, 10, 160]}]}
+     "path": [{"t_s": 0, "centre_cm": [15, 10, 160]}, {"t_s": 1, "centre_cm": [10, 10, 160]}]},
+    {"shape": "plane", "side_cm": [30, 16], "pitch_deg": 55, "yaw_deg": -20, "centre_cm": [-8, 16, 200], "texture_seed": 6}
   ] }"#;
 
 /// Case III at a quarter of the size (160 x 120), to keep the test fast.
@@ -43,7 +44,7 @@ const POSTURE: Joints = Joints([4.0, -3.0, 2.0, 1.5, -1.0]);
 #[test]
 fn hit_points_project_back_to_their_pixels() {
     let r = render(&POSTURE, 0.3, 7);
-    let mut seen = [0usize; 4];
+    let mut seen = [0usize; 5];
     for (cam, truth) in [(0, &r.truth_left), (1, &r.truth_right)] {
         for row in 0..truth.height {
             for c in 0..truth.width {
@@ -58,6 +59,13 @@ fn hit_points_project_back_to_their_pixels() {
     }
     // Every object is seen.
     assert!(seen.iter().all(|&n| n > 20), "pixels per object {seen:?}");
+    // The slanted plane's depth changes across it (its pitch and yaw), as its hit points say.
+    let z: Vec<f32> = (0..160 * 120)
+        .filter(|&k| r.truth_left.object[k] == 4)
+        .map(|k| r.truth_left.point[k][2])
+        .collect();
+    let (lo, hi) = z.iter().fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    assert!(hi - lo > 10.0, "plane depths {lo}..{hi}");
     assert!(seen[BACKGROUND as usize] > seen[1]);
 }
 
@@ -121,14 +129,17 @@ fn textured_surfaces_have_contrast() {
     let scene = SceneFile::parse(SCENE).unwrap().scene().unwrap();
     let r =
         render_scene(&HeadRig::new(small_rig()), &Joints::HOME, &scene.at(0.0), &opt, 0).unwrap();
-    // Grey levels on the sphere vary (a textured surface, not a flat disc).
-    let vals: Vec<f64> = (0..160 * 120)
-        .filter(|&k| r.truth_left.object[k] == 1)
-        .map(|k| f64::from(r.left.as_raw()[k]))
-        .collect();
-    let mean = vals.iter().sum::<f64>() / vals.len() as f64;
-    let sd = (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / vals.len() as f64).sqrt();
-    assert!(sd > 15.0, "sphere texture sd {sd}");
+    // Grey levels on the sphere and on the slanted plane vary (textured surfaces, not flat
+    // discs).
+    for (id, what) in [(1, "sphere"), (4, "plane")] {
+        let vals: Vec<f64> = (0..160 * 120)
+            .filter(|&k| r.truth_left.object[k] == id)
+            .map(|k| f64::from(r.left.as_raw()[k]))
+            .collect();
+        let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+        let sd = (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / vals.len() as f64).sqrt();
+        assert!(sd > 15.0, "{what} texture sd {sd}");
+    }
 }
 
 fn refused(text: &str, needle: &str) {
