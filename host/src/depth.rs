@@ -12,7 +12,7 @@ use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
 use hvs_vision::dense::{check_inputs, dense_match, DenseMap, DenseParams};
 use hvs_vision::geometry::Fundamental;
-use hvs_vision::matching::model_disparity_interval;
+use hvs_vision::matching::model_disparity_interval_in_image;
 use image::GrayImage;
 use std::path::Path;
 
@@ -81,12 +81,13 @@ impl Depth {
 }
 
 /// The whole disparities the model allows anywhere in a `w x h` left image: the union of
-/// [`model_disparity_interval`] on a [`RANGE_GRID`]-square grid of pixels, widened by one
+/// [`model_disparity_interval_in_image`] on a [`RANGE_GRID`]-square grid of pixels, widened by one
 /// pixel; the training disparities ([`training_disparities`]) when no grid pixel has
 /// an interval.
 pub fn disparity_range(
     g: &MatcherGeometry,
     predict: &dyn Fn([f32; 4]) -> Option<[f32; 3]>,
+    trusted: &dyn Fn([f32; 4]) -> bool,
     w: u32,
     h: u32,
 ) -> [i32; 2] {
@@ -101,8 +102,9 @@ pub fn disparity_range(
             let ul = (f64::from(w) - 1.0) * i as f64 / (n - 1) as f64;
             let vl = (f64::from(h) - 1.0) * j as f64 / (n - 1) as f64;
             let line = f.line_in_right([ul, vl]);
-            if let Some((a, b)) = model_disparity_interval(predict, ul, vl, line, z_range, d_range)
-            {
+            if let Some((a, b)) = model_disparity_interval_in_image(
+                predict, trusted, ul, vl, line, z_range, d_range, w,
+            ) {
                 lo = lo.min(a);
                 hi = hi.max(b);
             }
@@ -150,7 +152,8 @@ pub fn depth(
     crate::vision::check_image_size(blob, left.dimensions())?;
     let predict = crate::vision::model_xyz(blob);
     let (w, h) = left.dimensions();
-    let d_range = disparity_range(&g, &predict, w, h);
+    let trusted = crate::vision::model_trusted(blob);
+    let d_range = disparity_range(&g, &predict, &trusted, w, h);
     let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
     // The refinement compares windows at the model's right/left image scale.
     let params = DenseParams { right_scale: g.right_scale, ..*params };
@@ -271,6 +274,7 @@ pub fn locate_in(d: &Depth, blob: &ModelBlob, points: &[[f64; 2]]) -> Result<Vec
     let (d_range, z_range) =
         (training_disparities(&g), [f64::from(g.out_min[2]), f64::from(g.out_max[2])]);
     let predict = model_xyz(blob);
+    let trusted = crate::vision::model_trusted(blob);
     let m = &d.matches;
     let (w, h) = (m.width as usize, m.height as usize);
     // The disparity `u_l - u_r` of whole pixel (x, y), if it has a match.
@@ -302,8 +306,10 @@ pub fn locate_in(d: &Depth, blob: &ModelBlob, points: &[[f64; 2]]) -> Result<Vec
             _ => nearest,
         };
         let line = f.line_in_right([ul, vl]);
-        let within = model_disparity_interval(&predict, ul, vl, line, z_range, d_range)
-            .is_some_and(|(lo, hi)| disp >= lo - 1.0 && disp <= hi + 1.0);
+        let within = model_disparity_interval_in_image(
+            &predict, &trusted, ul, vl, line, z_range, d_range, m.width,
+        )
+        .is_some_and(|(lo, hi)| disp >= lo - 1.0 && disp <= hi + 1.0);
         let score = f64::from(m.conf[y * w + x]);
         if !within {
             return Located { score, ..none("out_of_depth_range") };

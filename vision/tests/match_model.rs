@@ -12,7 +12,8 @@ use hvs_shared::sim::presets;
 use hvs_shared::sim::triangulate;
 use hvs_vision::geometry::pinhole_fundamental;
 use hvs_vision::matching::{
-    model_disparity_interval, pinhole_right_scale, MatchParams, Matcher, Query,
+    model_disparity_interval, model_disparity_interval_in_image, pinhole_right_scale, MatchParams,
+    Matcher, Query,
 };
 use hvs_vision::render::{corner_truth, opencv_board, render_rig, Board, RenderOptions};
 use match_common::Rates;
@@ -97,4 +98,73 @@ fn corners_with_the_model_interval_at_every_depth() {
     assert!(all.returned() >= 0.40, "{}", all.summary());
     assert!(all.within(0.5) >= 0.99, "{}", all.summary());
     assert_eq!(all.at_least(2.0), 0.0, "{}", all.summary());
+}
+
+/// Toward the edges of a verged pair, and of two cameras of unequal focal lengths, the
+/// training depths lie at disparities far outside those of boards in the middle of the image:
+/// `model_disparity_interval_in_image` finds them there (the whole image's interval, as `hvs
+/// depth` and `hvs locate` search), where the scan of the training disparities alone misses
+/// them. Points at the training depths seen near the image's corners and edges, cases III
+/// and IV, the exact model.
+#[test]
+fn the_interval_reaches_the_image_edges_of_a_verged_pair() {
+    let board = opencv_board();
+    let z_range = [65.0, 165.0];
+    for case in [3u8, 4] {
+        let rig = presets::case(case).unwrap();
+        let (left, right) = (rig.left(), rig.right());
+        let f = pinhole_fundamental(&left, &right);
+        let d_range = training_disparity_range(&rig, &board);
+        let model = |x: [f32; 4]| {
+            let px = x.map(f64::from);
+            triangulate::optimal_rig(&rig, &px).ok().map(|p| p.map(|c| c as f32))
+        };
+        let (mut seen, mut outside_training) = (0, 0);
+        for z in [66.0, 100.0, 164.0] {
+            for sx in [-1.0, -0.5, 0.0, 0.5, 1.0] {
+                for sy in [-1.0, 0.0, 1.0] {
+                    // Tangents a little inside the left camera's view (phi about 286 px).
+                    let p = [sx * 1.0 * z, sy * 0.75 * z, z];
+                    let (Some(l), Some(r)) = (left.project(&p), right.project(&p)) else {
+                        continue;
+                    };
+                    let inside = |q: [f64; 2]| {
+                        (0.0..f64::from(rig.width) - 1.0).contains(&q[0])
+                            && (0.0..f64::from(rig.height) - 1.0).contains(&q[1])
+                    };
+                    if !(inside(l) && inside(r)) {
+                        continue;
+                    }
+                    seen += 1;
+                    let d = l[0] - r[0];
+                    let line = f.line_in_right(l);
+                    // The exact model may be asked anywhere.
+                    let (lo, hi) = model_disparity_interval_in_image(
+                        model,
+                        |_| true,
+                        l[0],
+                        l[1],
+                        line,
+                        z_range,
+                        d_range,
+                        rig.width,
+                    )
+                    .unwrap_or_else(|| panic!("case {case}: no interval at {l:?} ({p:?})"));
+                    assert!(d >= lo && d <= hi, "case {case} {p:?}: {d} not in {lo}..{hi}");
+                    if d < d_range[0] || d > d_range[1] {
+                        outside_training += 1;
+                        let clipped =
+                            model_disparity_interval(model, l[0], l[1], line, z_range, d_range);
+                        assert!(
+                            clipped.is_none_or(|(a, b)| d < a || d > b),
+                            "case {case}: the training scan holds {d}"
+                        );
+                    }
+                }
+            }
+        }
+        eprintln!("case {case}: {seen} points, {outside_training} outside the training disparities {d_range:?}");
+        assert!(seen >= 20, "case {case}: {seen} points");
+        assert!(outside_training >= 4, "case {case}: the test would not show the need");
+    }
 }

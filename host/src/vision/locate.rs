@@ -22,6 +22,24 @@ pub fn model_xyz(blob: &ModelBlob) -> impl Fn([f32; 4]) -> Option<[f32; 3]> + Sy
     }
 }
 
+/// Share of each input's training span by which [`model_trusted`] widens the model's training
+/// box on either side.
+pub const TRUSTED_INPUT_MARGIN: f32 = 0.1;
+
+/// Whether `blob` may be asked about a pixel quadruple when the matcher looks beyond the
+/// training disparities: every input inside the model's training box (its `in_min` ..
+/// `in_max`) widened by [`TRUSTED_INPUT_MARGIN`] of its span. Far outside the box a net's
+/// answers are extrapolation (a 4-5-3 net trained on the thesis' 72 middle points puts the
+/// training depths at hundreds of disparities near the image edges).
+pub fn model_trusted(blob: &ModelBlob) -> impl Fn([f32; 4]) -> bool + Sync + '_ {
+    move |x: [f32; 4]| {
+        x.iter().zip(blob.in_min.iter().zip(blob.in_max.iter())).all(|(&v, (&lo, &hi))| {
+            let m = TRUSTED_INPUT_MARGIN * (hi - lo);
+            v >= lo - m && v <= hi + m
+        })
+    }
+}
+
 /// Refuses images of another size than the model's training images (when the model records
 /// it: `hvs train` on `hvs board detect`'s points): its geometry and depths are for that size.
 pub fn check_image_size(blob: &ModelBlob, (w, h): (u32, u32)) -> Result<()> {

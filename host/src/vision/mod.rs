@@ -16,6 +16,6 @@ pub use files::{
     check_same_size, png_bytes, png_bytes_fast, read_grey, read_pair, write_capture_set,
 };
 pub use locate::{
-    check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_xyz,
-    training_disparities, Located, DISPARITY_SLACK, STATUSES,
+    check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_trusted,
+    model_xyz, training_disparities, Located, DISPARITY_SLACK, STATUSES, TRUSTED_INPUT_MARGIN,
 };

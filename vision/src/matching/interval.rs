@@ -65,6 +65,57 @@ pub fn model_disparity_interval(
     })
 }
 
+/// [`model_disparity_interval`] for a left pixel of an image pair `right_width` px wide: the
+/// scan over `d_range` (the training set's disparities) first; when it keeps nothing, or
+/// what it keeps reaches an end of `d_range` where the model still gives a depth inside the
+/// training depths proper (not only their margin), a scan of every disparity whose right
+/// point lies inside the right image (`u_r` from -0.5 to `right_width - 0.5`) as well, asking
+/// the model only where `trusted` says it may answer (the inputs inside its training box: far
+/// outside it a net's answers are extrapolation, and may put the training depths anywhere).
+/// The training pixels of a board often cover the middle of the image only; toward the edges
+/// of a verged pair, or of two cameras of unequal focal lengths, the same depths lie at
+/// disparities tens of pixels outside those of the middle, which a search clipped to them
+/// would never reach, and which a model trained on boards spread over the whole image knows.
+/// Where the training disparities bracket the training depths (a rectified pair), the answer
+/// is [`model_disparity_interval`]'s.
+#[allow(clippy::too_many_arguments)]
+pub fn model_disparity_interval_in_image(
+    predict: impl Fn([f32; 4]) -> Option<[f32; 3]>,
+    trusted: impl Fn([f32; 4]) -> bool,
+    ul: f64,
+    vl: f64,
+    line: [f64; 3],
+    z_range: [f64; 2],
+    d_range: [f64; 2],
+    right_width: u32,
+) -> Option<(f64, f64)> {
+    let first = model_disparity_interval(&predict, ul, vl, line, z_range, d_range);
+    // Whether the model puts disparity `d` inside the training depths.
+    let deep_inside = |d: f64| {
+        let [a, b, c] = line;
+        let ur = ul - d;
+        let vr = -(a * ur + c) / b;
+        predict([ul as f32, vl as f32, ur as f32, vr as f32])
+            .is_some_and(|p| (z_range[0]..=z_range[1]).contains(&f64::from(p[2])))
+    };
+    let clipped = match first {
+        None => true,
+        Some((lo, hi)) => {
+            (lo <= d_range[0] && deep_inside(d_range[0]))
+                || (hi >= d_range[1] && deep_inside(d_range[1]))
+        }
+    };
+    if !clipped {
+        return first;
+    }
+    let whole = [ul - f64::from(right_width) + 0.5, ul + 0.5];
+    let asked = |x: [f32; 4]| if trusted(x) { predict(x) } else { None };
+    match (first, model_disparity_interval(asked, ul, vl, line, z_range, whole)) {
+        (Some((a, b)), Some((c, d))) => Some((a.min(c), b.max(d))),
+        (first, wider) => wider.or(first),
+    }
+}
+
 /// The right window's scale for two pinhole cameras: `[phi_u_right / phi_u_left,
 /// phi_v_right / phi_v_left]` (for [`MatchParams::right_scale`](super::MatchParams::right_scale); exact for a fronto-parallel
 /// patch with parallel axes, close enough with the thesis' small deflections).
