@@ -320,3 +320,120 @@ fn blank_and_saturated_images_give_no_depth_through_a_verged_model() {
     assert!(said.contains("no_match"), "{said}");
     assert!(err.contains("warning: the right image is blank"), "{err}");
 }
+
+/// Case IV's verged cameras (the right focal length 0.8 times the left) at half size, 320 x
+/// 240, through `hvs train` and `hvs depth`: a model trained on exact points spread over the
+/// whole image at 70-320 cm, and a rendered scene of slanted planes and a sphere before a wall
+/// at 300 cm (`hvs_vision::scene`, per-pixel truth). Nearly every pixel both cameras see gets
+/// a match within a pixel of the truth, out to the image's edges, where the disparities lie
+/// tens of pixels outside those of the middle (a search clipped to the training disparities
+/// of a middle band, as before 2026-12-07, returned about two thirds at full size).
+#[test]
+fn a_verged_pair_is_matched_out_to_its_edges() {
+    use hvs_shared::runtime::gaze::Joints;
+    use hvs_shared::sim::posture::HeadRig;
+    use hvs_vision::render::RenderOptions;
+    use hvs_vision::scene::{render_scene, SceneFile};
+    const SCENE: &str = r#"{ "rig": {"case": 4}, "camera_fps": 30,
+      "background": {"z_cm": 300, "texture_seed": 21},
+      "objects": [
+        {"shape": "plane", "side_cm": [90, 70], "pitch_deg": 60, "centre_cm": [-10, 30, 170], "texture_seed": 22},
+        {"shape": "plane", "side_cm": [50, 40], "yaw_deg": -45, "centre_cm": [45, -10, 130], "texture_seed": 23},
+        {"shape": "sphere", "radius_cm": 10, "centre_cm": [-25, -15, 95], "texture_seed": 24}
+      ] }"#;
+    let mut rig = hvs_shared::sim::presets::case(4).unwrap();
+    let k = 0.5;
+    (rig.width, rig.height) = (rig.width / 2, rig.height / 2);
+    (rig.u0, rig.v0) = (rig.u0 * k, rig.v0 * k);
+    rig.phi_u_left *= k;
+    rig.phi_u_right *= k;
+    rig.phi_v_left *= k;
+    rig.phi_v_right *= k;
+    let (w, h) = (rig.width, rig.height);
+    let scene = SceneFile::parse(SCENE).unwrap().scene().unwrap();
+    let head = HeadRig::new(rig);
+    let r =
+        render_scene(&head, &Joints::HOME, &scene.at(0.0), &RenderOptions::default(), 3).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (left, right) = (d.join("l.png"), d.join("r.png"));
+    r.left.save(&left).unwrap();
+    r.right.save(&right).unwrap();
+    // Exact training points on a grid of directions at six depths, where both cameras see
+    // them: from the left image's edges to its edges.
+    let mut csv = String::from("u_l,v_l,u_r,v_r,x,y,z\n");
+    let inside = |q: [f64; 2]| {
+        (0.0..f64::from(w) - 1.0).contains(&q[0]) && (0.0..f64::from(h) - 1.0).contains(&q[1])
+    };
+    let mut u_l_span = [f64::INFINITY, f64::NEG_INFINITY];
+    for z in [70.0, 100.0, 140.0, 190.0, 250.0, 320.0] {
+        for i in 0..=12 {
+            for j in 0..=9 {
+                let p = [(-1.2 + 0.2 * f64::from(i)) * z, (-0.9 + 0.2 * f64::from(j)) * z, z];
+                let (Some(l), Some(q)) = (r.cameras[0].project(&p), r.cameras[1].project(&p))
+                else {
+                    continue;
+                };
+                if inside(l) && inside(q) {
+                    u_l_span = [u_l_span[0].min(l[0]), u_l_span[1].max(l[0])];
+                    csv.push_str(&format!(
+                        "{},{},{},{},{},{},{}\n",
+                        l[0], l[1], q[0], q[1], p[0], p[1], p[2]
+                    ));
+                }
+            }
+        }
+    }
+    assert!(u_l_span[0] < 30.0 && u_l_span[1] > f64::from(w) - 30.0, "{u_l_span:?}");
+    let (data, model) = (d.join("t.csv"), d.join("m.hvsw"));
+    std::fs::write(&data, csv).unwrap();
+    ok(&["train", "--data", s(&data), "-o", s(&model), "--restarts", "3"]);
+    let (depth, matches) = (d.join("d.pfm"), d.join("m.pfm"));
+    let args = locate_args(
+        &["depth"],
+        &model,
+        &left,
+        &right,
+        &["-o", s(&depth), "--matches", s(&matches)],
+    );
+    let err = stderr_with_code(args, 0);
+    let m = read_pfm(&std::fs::read(&matches).unwrap(), "m.pfm").unwrap();
+    let z = read_pfm(&std::fs::read(&depth).unwrap(), "d.pfm").unwrap();
+    let (mut seen, mut returned, mut within, mut edge_seen, mut edge_returned) = (0, 0, 0, 0, 0);
+    let mut errs = Vec::new();
+    let border = 4;
+    for y in border..h - border {
+        for x in border..w - border {
+            let Some(t) = r.true_match(x, y) else { continue };
+            let p = (y * w + x) as usize;
+            // The outer sixth of the image on either side.
+            let edge = x < w / 6 || x >= w - w / 6;
+            seen += 1;
+            edge_seen += usize::from(edge);
+            let (ur, vr) = (f64::from(m.data[3 * p]), f64::from(m.data[3 * p + 1]));
+            if !ur.is_finite() {
+                continue;
+            }
+            returned += 1;
+            edge_returned += usize::from(edge);
+            within += usize::from((ur - t[0]).hypot(vr - t[1]) <= 1.0);
+            let z_true = r.truth_left.z(x, y).unwrap();
+            errs.push((z.data[p] - z_true).abs() / z_true * 100.0);
+        }
+    }
+    let pct = |a: usize, b: usize| 100.0 * a as f64 / b as f64;
+    let median_err = median(errs);
+    eprintln!(
+        "{}case IV at 320x240: {seen} pixels seen by both cameras, {:.2} % returned ({:.2} % of \
+         the outer sixths'), {:.2} % of them within 1 px, median depth error {median_err:.3} %",
+        err.lines().last().map(|l| format!("{l}\n")).unwrap_or_default(),
+        pct(returned, seen),
+        pct(edge_returned, edge_seen),
+        pct(within, returned)
+    );
+    assert!(pct(returned, seen) >= 95.0, "returned {}", pct(returned, seen));
+    assert!(pct(edge_returned, edge_seen) >= 90.0, "edges {}", pct(edge_returned, edge_seen));
+    assert!(pct(within, returned) >= 98.0, "within 1 px {}", pct(within, returned));
+    // The model's part: a 4-5-3 net over the whole image, at half the resolution.
+    assert!(median_err < 1.5, "median depth error {median_err} %");
+}
