@@ -46,6 +46,7 @@
 
 use crate::board::Board;
 use crate::invalid::InvalidField;
+use crate::pfm::FloatImage;
 use crate::render::{blur, class, quantise, Class, RayGrid, RenderError, RenderOptions};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::sim::camera::{LensCamera, Vec3};
@@ -834,6 +835,38 @@ impl SceneRender {
         let (o, d) = self.cameras[0].ray(f64::from(c), f64::from(r))?;
         let hit = self.scene.cast(&o, &d)?;
         self.visible_in(1, &hit.point)
+    }
+
+    /// The truth in the formats `hvs depth` writes its answers in, rows first: the left
+    /// image's depth (one channel, `Z` in cm of the point each pixel centre sees, `+inf` where
+    /// its ray meets nothing) and its true matches (three channels, `u_r, v_r, 1` where the
+    /// right camera sees that point, [`SceneRender::true_match`]; `+inf, +inf, 0` where not).
+    pub fn truth_images(&self) -> (FloatImage, FloatImage) {
+        use rayon::prelude::*;
+        let (w, h) = (self.truth_left.width, self.truth_left.height);
+        let rows: Vec<(Vec<f32>, Vec<f32>)> = (0..h)
+            .into_par_iter()
+            .map(|r| {
+                let mut z = Vec::with_capacity(w as usize);
+                let mut m = Vec::with_capacity(3 * w as usize);
+                for c in 0..w {
+                    z.push(self.truth_left.z(c, r).unwrap_or(f32::INFINITY));
+                    m.extend(match self.true_match(c, r) {
+                        Some([u, v]) => [u as f32, v as f32, 1.0],
+                        None => [f32::INFINITY, f32::INFINITY, 0.0],
+                    });
+                }
+                (z, m)
+            })
+            .collect();
+        let (z, m): (Vec<Vec<f32>>, Vec<Vec<f32>>) = rows.into_iter().unzip();
+        let image = |channels, data: Vec<Vec<f32>>| FloatImage {
+            width: w,
+            height: h,
+            channels,
+            data: data.concat(),
+        };
+        (image(1, z), image(3, m))
     }
 
     /// The pixel where camera `cam` (0 left, 1 right) sees head-frame point `p`, `None` when

@@ -1,5 +1,7 @@
 //! `hvs render`: stereo photos of a chessboard through a rig, with exact corner truth
-//! (`hvs_vision::render`), as a capture set `hvs board detect` reads.
+//! (`hvs_vision::render`), as a capture set `hvs board detect` reads; or, with `--scene`, one
+//! pair of a scene file with its per-pixel truth (`hvs_vision::scene`) in `hvs depth`'s
+//! formats.
 
 use super::{RenderArgs, RigArgs};
 use crate::vision::write_capture_set;
@@ -20,7 +22,7 @@ pub struct Args {
     pub rig: RigArgs,
     /// Output folder (created if missing): leftNN.png, rightNN.png, captures.csv
     /// (left,right,z,x,y and the joints with --joints), truth.csv (the exact, unrounded corner
-    /// pixels) and board.json.
+    /// pixels) and board.json; with --scene: left.png, right.png, depth.pfm and matches.pfm.
     #[arg(short = 'o', long, value_name = "DIR")]
     pub output: PathBuf,
     /// Inner corners per row and column.
@@ -54,10 +56,73 @@ pub struct Args {
     /// Seed of the sensor noise (same seed, same bytes).
     #[arg(long, value_name = "S", default_value_t = 0)]
     pub seed: u64,
+    /// Render one pair of a scene file instead of boards (the format of `hvs track --scene`,
+    /// its rig inside; at --joints or home), with its truth in the formats `hvs depth` writes,
+    /// to score it against: depth.pfm (Z in cm of the point each left pixel sees, +inf where
+    /// none) and matches.pfm (where the right camera sees that point: u_r, v_r and 1; +inf,
+    /// +inf, 0 where it does not).
+    #[arg(
+        long,
+        value_name = "SCENE.json",
+        conflicts_with_all = ["case", "rig", "inner_corners", "square_cm", "depths", "centre", "distortion"]
+    )]
+    pub scene: Option<PathBuf>,
+    /// With --scene: the time (s) the scene is rendered at [default: 0].
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
+    pub time: Option<f64>,
+}
+
+/// The five angles of `--joints`, checked.
+fn joints_arg(j: Option<&[f32]>) -> Result<Option<Joints>> {
+    match j {
+        None => Ok(None),
+        Some(j) if j.len() == 5 && j.iter().all(|v| v.is_finite()) => {
+            Ok(Some(Joints([j[0], j[1], j[2], j[3], j[4]])))
+        }
+        Some(_) => Err(crate::cli::usage("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")),
+    }
+}
+
+/// `hvs render --scene`: one pair of the scene and its truth images.
+fn run_scene(a: &Args, path: &std::path::Path) -> Result<()> {
+    crate::data::output::check_dir_output("-o", &a.output)?;
+    let loaded = crate::track::scene_file::load(path)?;
+    let t = a.time.unwrap_or(0.0);
+    if !t.is_finite() {
+        return Err(crate::cli::usage("--time must be finite"));
+    }
+    let opt = a.camera.options(
+        render::RenderOptions::default().margin_cm,
+        render::RenderOptions::default().supersample,
+    )?;
+    let joints = joints_arg(a.joints.as_deref())?.unwrap_or(Joints::HOME);
+    let r = hvs_vision::scene::render_scene(
+        &HeadRig::new(loaded.rig),
+        &joints,
+        &loaded.scene.at(t),
+        &opt,
+        a.seed,
+    )
+    .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let seen = crate::vision::write_scene_pair(&a.output, &r)?;
+    eprintln!(
+        "rendered {} at t = {t} s into {}: {}x{}, {seen} left pixels seen by the right camera",
+        path.display(),
+        a.output.display(),
+        r.left.width(),
+        r.left.height()
+    );
+    Ok(())
 }
 
 /// `hvs render`.
 pub fn run(a: Args) -> Result<()> {
+    if let Some(path) = &a.scene {
+        return run_scene(&a, path);
+    }
+    if a.time.is_some() {
+        return Err(crate::cli::usage("--time goes with --scene (boards stand still)"));
+    }
     let rig = a
         .rig
         .rig()?
@@ -76,13 +141,7 @@ pub fn run(a: Args) -> Result<()> {
     if !distortion.is_finite() {
         return Err(crate::cli::usage("--distortion must be finite"));
     }
-    let joints = match a.joints.as_deref() {
-        None => None,
-        Some(j) if j.len() == 5 && j.iter().all(|v| v.is_finite()) => {
-            Some(Joints([j[0], j[1], j[2], j[3], j[4]]))
-        }
-        Some(_) => return Err(crate::cli::usage("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")),
-    };
+    let joints = joints_arg(a.joints.as_deref())?;
     let [x, y] = match a.centre.as_slice() {
         [x, y] if x.is_finite() && y.is_finite() => [*x, *y],
         _ => return Err(crate::cli::usage("--centre takes X,Y (cm)")),

@@ -84,6 +84,20 @@ where
     Ok(out)
 }
 
+/// One rendered scene pair into `dir` (created if missing): left.png, right.png and its truth
+/// in the formats `hvs depth` writes (`SceneRender::truth_images`: depth.pfm, matches.pfm),
+/// each file atomically. Returns how many left pixels the right camera sees.
+pub fn write_scene_pair(dir: &Path, r: &hvs_vision::scene::SceneRender) -> Result<usize> {
+    let (depth, matches) = r.truth_images();
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+    write_bytes(&dir.join("left.png"), &png_bytes(&r.left)?)?;
+    write_bytes(&dir.join("right.png"), &png_bytes(&r.right)?)?;
+    write_bytes(&dir.join("depth.pfm"), &hvs_vision::pfm::pfm_bytes(&depth))?;
+    write_bytes(&dir.join("matches.pfm"), &hvs_vision::pfm::pfm_bytes(&matches))?;
+    Ok(matches.data.chunks_exact(3).filter(|m| m[2] > 0.0).count())
+}
+
 /// Writes a rendered capture set into `dir` (created if missing), each file atomically: the
 /// PNG pairs, `captures.csv` ([`captures_csv`], with the joint columns when `joints` is
 /// given), `truth.csv` and `board.json`, which is

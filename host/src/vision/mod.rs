@@ -14,6 +14,7 @@ pub use detection::{
 };
 pub use files::{
     check_same_size, png_bytes, png_bytes_fast, read_grey, read_pair, write_capture_set,
+    write_scene_pair,
 };
 pub use locate::{
     check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_trusted,

@@ -437,3 +437,68 @@ fn a_verged_pair_is_matched_out_to_its_edges() {
     // The model's part: a 4-5-3 net over the whole image, at half the resolution.
     assert!(median_err < 1.5, "median depth error {median_err} %");
 }
+
+/// `hvs render --scene`: one pair of a scene file and its truth in `hvs depth`'s formats (the
+/// left image's depth, and the true match of each left pixel the right camera sees), the same
+/// bytes for the same seed; bad usage refused, nothing written.
+#[test]
+fn render_writes_a_scene_pair_and_its_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = d.join("s.json");
+    std::fs::write(
+        &scene,
+        r#"{ "rig": {"case": 1}, "camera_fps": 30, "background": {"z_cm": 250, "texture_seed": 1},
+          "objects": [{"shape": "sphere", "radius_cm": 15, "centre_cm": [0, 0, 120], "texture_seed": 2},
+                      {"shape": "plane", "side_cm": [60, 40], "pitch_deg": 50, "centre_cm": [-70, 50, 180]}] }"#,
+    )
+    .unwrap();
+    let (a, b) = (d.join("a"), d.join("b"));
+    for out in [&a, &b] {
+        ok(&["render", "--scene", s(&scene), "-o", s(out), "--seed", "4"]);
+    }
+    let file = |dir: &Path, n: &str| std::fs::read(dir.join(n)).unwrap();
+    for n in ["left.png", "right.png", "depth.pfm", "matches.pfm"] {
+        assert_eq!(file(&a, n), file(&b, n), "{n}: same seed, same bytes");
+    }
+    let z = read_pfm(&file(&a, "depth.pfm"), "depth.pfm").unwrap();
+    let m = read_pfm(&file(&a, "matches.pfm"), "matches.pfm").unwrap();
+    assert_eq!((z.width, z.height, z.channels, m.channels), (640, 480, 1, 3));
+    // The left camera (at X = -5.25 cm, looking along Z) sees the sphere's front at its
+    // principal point, a corner the wall.
+    let at = |x: u32, y: u32| z.data[(y * 640 + x) as usize];
+    let front = 120.0 - (15.0f32 * 15.0 - 5.25 * 5.25).sqrt();
+    assert!((at(320, 240) - front).abs() < 0.01, "{} against {front}", at(320, 240));
+    assert!((at(5, 5) - 250.0).abs() < 1e-3, "{}", at(5, 5));
+    // The plane, pitched: its depth changes down the image.
+    let mut seen = 0;
+    for (k, t) in m.data.chunks_exact(3).enumerate() {
+        if t[2] == 1.0 {
+            seen += 1;
+            // Case I's cameras are parallel (the right focal length 0.17 % shorter): the match
+            // lies on the same row within 0.41 px, to the left.
+            let (x, y) = ((k % 640) as f32, (k / 640) as f32);
+            assert!((t[1] - y).abs() < 0.42 && t[0] < x, "pixel {k}: {t:?}");
+        } else {
+            assert!(t[0] == f32::INFINITY && t[1] == f32::INFINITY && t[2] == 0.0, "{t:?}");
+        }
+    }
+    assert!(seen > 250_000 && seen < 640 * 480, "seen {seen}");
+    // Bad usage: nothing written.
+    let c = d.join("c");
+    for (args, want) in [
+        (vec!["--scene", s(&scene), "--case", "1"], "cannot be used with"),
+        (vec!["--case", "1", "--time", "1"], "--time goes with --scene"),
+        (vec!["--scene", s(&scene), "--time", "inf"], "--time must be finite"),
+    ] {
+        let out = hvs().arg("render").args(&args).args(["-o", s(&c)]).assert().failure();
+        let err = String::from_utf8_lossy(&out.get_output().stderr).into_owned();
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!c.exists(), "{args:?} wrote {}", c.display());
+    }
+    std::fs::write(&scene, r#"{ "rig": {"case": 1}, "camera_fps": 30, "background": {"z_cm": 250}, "objects": [{"shape": "plane", "centre_cm": [0, 0, 100]}] }"#).unwrap();
+    let out = hvs().args(["render", "--scene", s(&scene), "-o", s(&c)]).assert().failure();
+    let err = String::from_utf8_lossy(&out.get_output().stderr).into_owned();
+    assert!(err.contains("objects[0].side_cm: a plane needs it"), "{err}");
+    assert!(!c.exists());
+}
