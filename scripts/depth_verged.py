@@ -5,9 +5,10 @@ For case III and case IV (640 x 480; IV's right focal length is 0.8 times the le
 
 1. Training boards spread over the whole image: a 9 x 6 board with squares of Z/24 cm at
    Z = 70, 100, 140, 190, 250, 320 cm, its centre at X = -0.85, -0.42, 0, 0.42, 0.85 times Z
-   and Y = -0.55, 0, 0.55 times Z (`hvs render`, `hvs board detect`), then `hvs train --seed 5`.
-   A model learns depth only where its training pixels were: boards in the middle alone give
-   depth in the middle alone.
+   and Y = -0.55, 0, 0.55 times Z (`hvs render`, `hvs board detect`), then `hvs train --seed 5
+   --hidden N` (12 unless `--hidden` says otherwise; the thesis' 5 hidden units fit the
+   middle of the image, not all of it). A model learns depth only where its training pixels
+   were: boards in the middle alone give depth in the middle alone.
 2. Two scenes before a wall at 300 cm (`hvs render --scene`, their truth with them): spheres
    and boxes, and slanted planes with a sphere (the scenes of `vision/tests/dense_scene.rs`).
 3. `hvs depth` on each pair, scored against the truth: of the left pixels the right camera
@@ -17,7 +18,7 @@ For case III and case IV (640 x 480; IV's right focal length is 0.8 times the le
 
 Nothing here is an oracle: the matcher gets the model and the images, as a user's head would.
 
-Usage: python3 scripts/depth_verged.py [--hvs target/release/hvs] [--keep DIR]
+Usage: python3 scripts/depth_verged.py [--hvs target/release/hvs] [--hidden 12] [--keep DIR]
 Needs numpy.
 """
 import argparse
@@ -54,7 +55,7 @@ def run(args, **kw):
     return subprocess.run(args, check=True, capture_output=True, text=True, **kw)
 
 
-def train(hvs, case, work):
+def train(hvs, case, work, hidden):
     rows, header, missed = [], None, 0
     for z in DEPTHS:
         square = max(2, round(z / 24))
@@ -82,7 +83,7 @@ def train(hvs, case, work):
     with open(data, "w") as f:
         f.write("\n".join([header] + rows) + "\n")
     model = os.path.join(work, f"m{case}.hvsw")
-    run([hvs, "train", "--data", data, "-o", model, "--seed", "5"])
+    run([hvs, "train", "--data", data, "-o", model, "--seed", "5", "--hidden", str(hidden)])
     return model, len(rows), missed
 
 
@@ -120,6 +121,7 @@ def score(hvs, model, pair):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--hvs", default="target/release/hvs")
+    ap.add_argument("--hidden", type=int, default=12, help="hidden units of the model")
     ap.add_argument("--keep", help="work in this folder and keep it")
     a = ap.parse_args()
     hvs = os.path.abspath(a.hvs)
@@ -127,8 +129,8 @@ def main():
         work = a.keep or tmp
         os.makedirs(work, exist_ok=True)
         for case in (3, 4):
-            model, n, missed = train(hvs, case, work)
-            print(f"case {case}: model trained on {n} board corners over the whole image "
+            model, n, missed = train(hvs, case, work, a.hidden)
+            print(f"case {case}: a 4-{a.hidden}-3 model trained on {n} board corners over the whole image "
                   f"({missed} of {len(DEPTHS) * len(XS) * len(YS)} board pairs not detected)")
             for name, text in (("spheres and boxes", SPHERES_AND_BOXES), ("slanted planes", SLANTED)):
                 tag = name.split()[0]
