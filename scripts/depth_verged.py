@@ -22,6 +22,7 @@ Usage: python3 scripts/depth_verged.py [--hvs target/release/hvs] [--hidden 12] 
 Needs numpy.
 """
 import argparse
+import json
 import os
 import subprocess
 import tempfile
@@ -30,22 +31,9 @@ import numpy as np
 
 from stereo_score import read_pfm
 
-SPHERES_AND_BOXES = """{ "rig": {"case": CASE}, "camera_fps": 30,
-  "background": {"z_cm": 300, "texture_seed": 1},
-  "objects": [
-    {"shape": "sphere", "radius_cm": 12, "centre_cm": [-30, -10, 110], "texture_seed": 2},
-    {"shape": "sphere", "radius_cm": 8, "centre_cm": [6, -3, 70], "texture_seed": 3},
-    {"shape": "box", "size_cm": [40, 30, 20], "centre_cm": [45, 30, 200], "texture_seed": 4},
-    {"shape": "box", "size_cm": [25, 25, 10], "centre_cm": [-40, 40, 150], "texture_seed": 5}
-  ] }"""
-SLANTED = """{ "rig": {"case": CASE}, "camera_fps": 30,
-  "background": {"z_cm": 300, "texture_seed": 11},
-  "objects": [
-    {"shape": "plane", "side_cm": [90, 70], "pitch_deg": 65, "centre_cm": [0, 28, 160], "texture_seed": 12},
-    {"shape": "plane", "side_cm": [40, 50], "yaw_deg": 50, "centre_cm": [-38, -8, 120], "texture_seed": 13},
-    {"shape": "plane", "side_cm": [60, 45], "pitch_deg": -30, "yaw_deg": -35, "centre_cm": [45, -25, 230], "texture_seed": 14},
-    {"shape": "sphere", "radius_cm": 9, "centre_cm": [12, -6, 85], "texture_seed": 15}
-  ] }"""
+# The scenes of `vision/tests/dense_scene.rs`; their rig is set to each case.
+SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "vision", "tests",
+                      "fixtures", "scenes")
 DEPTHS = [70, 100, 140, 190, 250, 320]
 XS = [-0.85, -0.42, 0.0, 0.42, 0.85]
 YS = [-0.55, 0.0, 0.55]
@@ -132,15 +120,18 @@ def main():
             model, n, missed = train(hvs, case, work, a.hidden)
             print(f"case {case}: a 4-{a.hidden}-3 model trained on {n} board corners over the whole image "
                   f"({missed} of {len(DEPTHS) * len(XS) * len(YS)} board pairs not detected)")
-            for name, text in (("spheres and boxes", SPHERES_AND_BOXES), ("slanted planes", SLANTED)):
-                tag = name.split()[0]
+            for name in ("spheres_and_boxes", "slanted_planes"):
+                with open(os.path.join(SCENES, name + ".json")) as f:
+                    text = json.load(f)
+                text["rig"] = {"case": case}
+                tag = name.split("_")[0]
                 scene = os.path.join(work, f"{tag}{case}.json")
                 with open(scene, "w") as f:
-                    f.write(text.replace("CASE", str(case)))
+                    json.dump(text, f)
                 pair = os.path.join(work, f"{tag}{case}")
                 run([hvs, "render", "--scene", scene, "-o", pair, "--seed", "9"])
                 said, seen, returned, within, median, model_median = score(hvs, model, pair)
-                print(f"  {name}: {said}")
+                print(f"  {name.replace('_', ' ')}: {said}")
                 print(f"    {seen} pixels seen by both cameras: {returned:.2f} % returned, "
                       f"{within:.2f} % of them within 1 px, median depth error {median:.3f} % "
                       f"(the model on the true matches: {model_median:.3f} %)")

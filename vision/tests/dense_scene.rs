@@ -16,25 +16,11 @@ use hvs_vision::geometry::pinhole_fundamental;
 use hvs_vision::render::RenderOptions;
 use hvs_vision::scene::{render_scene, SceneFile};
 
-const SCENE: &str = r#"{ "rig": {"case": 3}, "camera_fps": 30,
-  "background": {"z_cm": 300, "texture_seed": 1},
-  "objects": [
-    {"shape": "sphere", "radius_cm": 12, "centre_cm": [-30, -10, 110], "texture_seed": 2},
-    {"shape": "sphere", "radius_cm": 8, "centre_cm": [6, -3, 70], "texture_seed": 3},
-    {"shape": "box", "size_cm": [40, 30, 20], "centre_cm": [45, 30, 200], "texture_seed": 4},
-    {"shape": "box", "size_cm": [25, 25, 10], "centre_cm": [-40, 40, 150], "texture_seed": 5}
-  ] }"#;
+const SCENE: &str = include_str!("fixtures/scenes/spheres_and_boxes.json");
 
 /// Slanted planes (a floor-like ramp, a wall turned away, a panel tilted both ways) and a
 /// sphere before the wall: disparities that change across a surface.
-const SLANTED: &str = r#"{ "rig": {"case": 3}, "camera_fps": 30,
-  "background": {"z_cm": 300, "texture_seed": 11},
-  "objects": [
-    {"shape": "plane", "side_cm": [90, 70], "pitch_deg": 65, "centre_cm": [0, 28, 160], "texture_seed": 12},
-    {"shape": "plane", "side_cm": [40, 50], "yaw_deg": 50, "centre_cm": [-38, -8, 120], "texture_seed": 13},
-    {"shape": "plane", "side_cm": [60, 45], "pitch_deg": -30, "yaw_deg": -35, "centre_cm": [45, -25, 230], "texture_seed": 14},
-    {"shape": "sphere", "radius_cm": 9, "centre_cm": [12, -6, 85], "texture_seed": 15}
-  ] }"#;
+const SLANTED: &str = include_str!("fixtures/scenes/slanted_planes.json");
 
 struct Rates {
     returned_pct: f64,
