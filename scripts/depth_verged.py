@@ -5,10 +5,11 @@ For case III and case IV (640 x 480; IV's right focal length is 0.8 times the le
 
 1. Training boards spread over the whole image: a 9 x 6 board with squares of Z/24 cm at
    Z = 70, 100, 140, 190, 250, 320 cm, its centre at X = -0.85, -0.42, 0, 0.42, 0.85 times Z
-   and Y = -0.55, 0, 0.55 times Z (`hvs render`, `hvs board detect`), then `hvs train --seed 5
-   --hidden N` (12 unless `--hidden` says otherwise; the thesis' 5 hidden units fit the
-   middle of the image, not all of it). A model learns depth only where its training pixels
-   were: boards in the middle alone give depth in the middle alone.
+   and Y = -0.55, 0, 0.55 times Z (`hvs render`, `hvs board detect`), then `hvs train --seed 5`
+   (whose default for a set over most of the image is 4-12-3: the thesis' 5 hidden units fit
+   the middle of the image, not all of it; `--hidden N` here passes N). A model learns depth
+   only where its training pixels were: boards in the middle alone give depth in the middle
+   alone.
 2. Two scenes before a wall at 300 cm (`hvs render --scene`, their truth with them): spheres
    and boxes, and slanted planes with a sphere (the scenes of `vision/tests/dense_scene.rs`).
 3. `hvs depth` on each pair, scored against the truth: of the left pixels the right camera
@@ -18,7 +19,7 @@ For case III and case IV (640 x 480; IV's right focal length is 0.8 times the le
 
 Nothing here is an oracle: the matcher gets the model and the images, as a user's head would.
 
-Usage: python3 scripts/depth_verged.py [--hvs target/release/hvs] [--hidden 12] [--keep DIR]
+Usage: python3 scripts/depth_verged.py [--hvs target/release/hvs] [--hidden N] [--keep DIR]
 Needs numpy.
 """
 import argparse
@@ -71,8 +72,11 @@ def train(hvs, case, work, hidden):
     with open(data, "w") as f:
         f.write("\n".join([header] + rows) + "\n")
     model = os.path.join(work, f"m{case}.hvsw")
-    run([hvs, "train", "--data", data, "-o", model, "--seed", "5", "--hidden", str(hidden)])
-    return model, len(rows), missed
+    run([hvs, "train", "--data", data, "-o", model, "--seed", "5"]
+        + (["--hidden", str(hidden)] if hidden else []))
+    topology = [line.split()[1] for line in run([hvs, "info", model]).stdout.splitlines()
+                if line.startswith("topology:")][0]
+    return model, len(rows), missed, topology
 
 
 def score(hvs, model, pair):
@@ -109,7 +113,7 @@ def score(hvs, model, pair):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--hvs", default="target/release/hvs")
-    ap.add_argument("--hidden", type=int, default=12, help="hidden units of the model")
+    ap.add_argument("--hidden", type=int, help="hidden units of the model (hvs train's default)")
     ap.add_argument("--keep", help="work in this folder and keep it")
     a = ap.parse_args()
     hvs = os.path.abspath(a.hvs)
@@ -117,8 +121,8 @@ def main():
         work = a.keep or tmp
         os.makedirs(work, exist_ok=True)
         for case in (3, 4):
-            model, n, missed = train(hvs, case, work, a.hidden)
-            print(f"case {case}: a 4-{a.hidden}-3 model trained on {n} board corners over the whole image "
+            model, n, missed, topology = train(hvs, case, work, a.hidden)
+            print(f"case {case}: a {topology} model trained on {n} board corners over the whole image "
                   f"({missed} of {len(DEPTHS) * len(XS) * len(YS)} board pairs not detected)")
             for name in ("spheres_and_boxes", "slanted_planes"):
                 with open(os.path.join(SCENES, name + ".json")) as f:

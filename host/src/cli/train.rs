@@ -134,7 +134,9 @@ pub struct Args {
     #[arg(short = 'o', long, value_name = "MODEL")]
     output: PathBuf,
     /// Hidden units [default: 5; 32 for a posture-aware set of detected, sub-pixel corners
-    /// (`hvs collect` + `hvs board detect`) outside the thesis family].
+    /// (`hvs collect` + `hvs board detect`) outside the thesis family; 12 for a stereo set whose
+    /// left pixels span 60 % of its images' width and height (boards over the whole view, from
+    /// `hvs board detect`, which writes the image size), outside the thesis family].
     #[arg(long, value_name = "H", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     hidden: Option<usize>,
     /// Outputs of the net [default: xyz].
@@ -221,7 +223,7 @@ pub fn run(a: Args) -> Result<()> {
         AlgoArg::Adam => Algo::Adam,
     };
     let family = a.arch.map_or(train::default_family_for(algo), ArchArg::family);
-    let defaults = TrainConfig::for_set(family, &table.data);
+    let defaults = TrainConfig::for_set(family, &table.data, table.image_size);
     let config = TrainConfig {
         hidden: a.hidden.unwrap_or(defaults.hidden),
         outputs: a.outputs.unwrap_or(OutputsArg::Xyz).kind(),

@@ -585,26 +585,69 @@ pub fn default_frame(family: Family, kind: InputKind) -> OutputFrame {
 }
 
 /// Hidden units and restarts of `hvs train` when not given: 9-32-3 with one restart for a
-/// posture-aware set of detected (sub-pixel) corners in a family with a skip term, the thesis'
-/// 5 hidden units and 10 restarts otherwise. On the collected case III set of the README
-/// (79,434 rows; the cyclopean frame): 9-32-3, one restart, 1.03x the floor in 133 s; 9-16-3
-/// 1.21x in 46 s; 9-5-3 with 10 restarts 3.9x in 130 s. Ten restarts of 9-32-3 would take ten
-/// times as long; one reached the floor on the simulated stand-in too (1.001x).
-pub fn default_size(family: Family, data: &Dataset) -> (usize, usize) {
-    if family.skip_len(data.n_inputs, 3) > 0 && subpixel_posture(data) {
+/// posture-aware set of detected (sub-pixel) corners in a family with a skip term;
+/// [`WIDE_FIELD_HIDDEN`] hidden units and 10 restarts for a stereo set in such a family whose
+/// left pixels cover most of its images (`image_size`, the set's `image_width,image_height`;
+/// [`wide_field`]); the thesis' 5 hidden units and 10 restarts otherwise. On the collected
+/// case III set of the README (79,434 rows; the cyclopean frame): 9-32-3, one restart, 1.03x
+/// the floor in 133 s; 9-16-3 1.21x in 46 s; 9-5-3 with 10 restarts 3.9x in 130 s. Ten
+/// restarts of 9-32-3 would take ten times as long; one reached the floor on the simulated
+/// stand-in too (1.001x).
+pub fn default_size(
+    family: Family,
+    data: &Dataset,
+    image_size: Option<(u16, u16)>,
+) -> (usize, usize) {
+    let skip = family.skip_len(data.n_inputs, 3) > 0;
+    let restarts = TrainConfig::default().restarts;
+    if skip && subpixel_posture(data) {
         (PRECISE_POSTURE_HIDDEN, 1)
+    } else if skip && wide_field(data, image_size) {
+        (WIDE_FIELD_HIDDEN, restarts)
     } else {
-        (TrainConfig::default().hidden, TrainConfig::default().restarts)
+        (TrainConfig::default().hidden, restarts)
     }
 }
 
+/// Hidden units of a stereo net on a set whose pixels cover most of the image
+/// ([`default_size`]): boards spread over the whole view, for depth over the whole image.
+/// The thesis' 5 fit the middle of the image, not all of it: through case IV's verged
+/// cameras, 4,536 corners of boards over the whole image at 70-320 cm
+/// (`scripts/depth_verged.py`), the net alone on the true matches of two rendered scenes
+/// gives a median depth error of 0.40 % with 5 hidden units, 0.08 % with 12, and `hvs depth`
+/// 0.57 % against 0.46 % (8 units: 0.47-0.48 %; chosen on those two scenes).
+pub const WIDE_FIELD_HIDDEN: usize = 12;
+
+/// Share of the image's width and of its height the left pixels of a set must span to be
+/// [`wide_field`].
+pub const WIDE_FIELD_SPAN: f64 = 0.6;
+
+/// Whether `data` is a stereo set with targets whose left pixels span at least
+/// [`WIDE_FIELD_SPAN`] of the width and of the height of its images (`image_size`; `false`
+/// without it). Boards in the middle of the view (the thesis' 72 points, a 9x6 board at
+/// 65-165 cm: about a third of the width) are not.
+pub fn wide_field(data: &Dataset, image_size: Option<(u16, u16)>) -> bool {
+    let Some((w, h)) = image_size else { return false };
+    if data.n_inputs != 4 || !data.has_targets() || data.is_empty() {
+        return false;
+    }
+    let span = |k: usize| {
+        let (lo, hi) = (0..data.len())
+            .map(|i| data.row(i)[k])
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        hi - lo
+    };
+    span(0) >= WIDE_FIELD_SPAN * f64::from(w) && span(1) >= WIDE_FIELD_SPAN * f64::from(h)
+}
+
 impl TrainConfig {
-    /// `hvs train`'s configuration for `data` in `family` when nothing else is asked: the
-    /// family's output frame for the set's inputs ([`default_frame`]; the head frame for a
-    /// set without inputs' kind), its size ([`default_size`]), the rest
-    /// [`TrainConfig::default`]. `hvs train` and `hvs view`'s retrain start from it.
-    pub fn for_set(family: Family, data: &Dataset) -> Self {
-        let (hidden, restarts) = default_size(family, data);
+    /// `hvs train`'s configuration for `data` (from images of `image_size`, when the set
+    /// says) in `family` when nothing else is asked: the family's output frame for the set's
+    /// inputs ([`default_frame`]; the head frame for a set without inputs' kind), its size
+    /// ([`default_size`]), the rest [`TrainConfig::default`]. `hvs train` and `hvs view`'s
+    /// retrain start from it.
+    pub fn for_set(family: Family, data: &Dataset, image_size: Option<(u16, u16)>) -> Self {
+        let (hidden, restarts) = default_size(family, data, image_size);
         let frame = data.input_kind().map_or(OutputFrame::Head, |k| default_frame(family, k));
         TrainConfig { family, frame, hidden, restarts, ..TrainConfig::default() }
     }
@@ -1142,10 +1185,23 @@ mod tests {
         let rounded_cyc = lm_options(f, OutputFrame::Cyclopean, &posture_set(0.0), 12);
         assert_eq!(rounded_cyc.weight_decay, rounded.weight_decay);
         // And only they get the larger net with one restart when `hvs train` is not told.
-        assert_eq!(default_size(f, &posture_set(0.01)), (PRECISE_POSTURE_HIDDEN, 1));
-        assert_eq!(default_size(f, &posture_set(0.0)), (5, 10));
-        assert_eq!(default_size(Family::THESIS, &posture_set(0.01)), (5, 10));
-        assert_eq!(default_size(f, &board), (5, 10));
+        let size = Some((640, 480));
+        assert_eq!(default_size(f, &posture_set(0.01), size), (PRECISE_POSTURE_HIDDEN, 1));
+        assert_eq!(default_size(f, &posture_set(0.0), size), (5, 10));
+        assert_eq!(default_size(Family::THESIS, &posture_set(0.01), size), (5, 10));
+        assert_eq!(default_size(f, &board, size), (5, 10));
+        // A stereo set whose pixels cover most of the image gets the wider net, in a family
+        // with a skip term and when the set says its image size.
+        let mut wide = Dataset::new(InputKind::Stereo);
+        for i in 0..21 {
+            let (u, v) = (10.0 + 30.0 * f64::from(i), 20.0 + 21.0 * f64::from(i));
+            wide.push(&[u, v, u - 20.0, v], Some([0.0, 0.0, 100.0]));
+        }
+        assert_eq!(default_size(f, &wide, size), (WIDE_FIELD_HIDDEN, 10));
+        assert_eq!(default_size(f, &wide, None), (5, 10));
+        assert_eq!(default_size(Family::THESIS, &wide, size), (5, 10));
+        // 610 x 420 px of a 1280 x 960 image: not most of it.
+        assert_eq!(default_size(f, &wide, Some((1280, 960))), (5, 10));
         assert_eq!((precise.max_iter, precise.rel_tol), PRECISE_POSTURE_LM);
         assert_eq!(precise.tail, (12, WEIGHT_DECAY));
         // A stereo set is no posture set (it keeps its noise-read decay); without a skip term

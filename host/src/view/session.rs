@@ -389,7 +389,7 @@ impl Session {
         let points = vision::points_csv(&c.board, &c.set, &det);
         let table = read_set_from(Path::new(&name), points.as_bytes(), Inputs::Auto, true)
             .map_err(|e| Refused::Unprocessable(format!("{e:#}")))?;
-        let defaults = TrainConfig::for_set(train::DEFAULT_FAMILY, &table.data);
+        let defaults = TrainConfig::for_set(train::DEFAULT_FAMILY, &table.data, table.image_size);
         let config = TrainConfig {
             restarts: self.retrain.restarts.unwrap_or(defaults.restarts),
             seed: self.retrain.seed,
