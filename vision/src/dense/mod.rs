@@ -636,8 +636,8 @@ mod tests {
         let e = dense_match(&img, &img, &Fundamental { m: [[0.0; 3]; 3] }, [0, 4], &p).unwrap_err();
         assert!(e.to_string().starts_with("fundamental"), "{e}");
         let big = GrayImage::new(4000, 4000);
-        let e = dense_match(&big, &big, &f, [0, 3], &p).unwrap_err();
-        assert_eq!(e, DenseError::TooLarge(4000, 4000, 4));
+        let e = dense_match(&big, &big, &f, [0, 4], &p).unwrap_err();
+        assert_eq!(e, DenseError::TooLarge(4000, 4000, 5));
         assert!(e.to_string().contains("more than the 64000000"), "{e}");
         let bad = DenseParams { p2: 1, ..p };
         let e = dense_match(&img, &img, &f, [0, 4], &bad).unwrap_err();
