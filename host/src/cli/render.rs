@@ -86,6 +86,13 @@ fn joints_arg(j: Option<&[f32]>) -> Result<Option<Joints>> {
 /// `hvs render --scene`: one pair of the scene and its truth images.
 fn run_scene(a: &Args, path: &std::path::Path) -> Result<()> {
     crate::data::output::check_dir_output("-o", &a.output)?;
+    // The scene file cannot be one of the files written (a new folder holds no input).
+    if a.output.is_dir() {
+        let written = crate::vision::SCENE_PAIR_FILES.map(|n| a.output.join(n));
+        let outputs: Vec<(&str, &std::path::Path)> =
+            written.iter().map(|p| ("-o", p.as_path())).collect();
+        crate::data::output::check_outputs(&outputs, &[("--scene", path)])?;
+    }
     let loaded = crate::track::scene_file::load(path)?;
     let t = a.time.unwrap_or(0.0);
     if !t.is_finite() {
@@ -105,6 +112,9 @@ fn run_scene(a: &Args, path: &std::path::Path) -> Result<()> {
     )
     .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let seen = crate::vision::write_scene_pair(&a.output, &r)?;
+    if seen == 0 {
+        eprintln!("warning: the right camera sees none of the points the left one sees");
+    }
     eprintln!(
         "rendered {} at t = {t} s into {}: {}x{}, {seen} left pixels seen by the right camera",
         path.display(),

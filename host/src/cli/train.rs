@@ -133,10 +133,10 @@ pub struct Args {
     /// Model file to write (atomically).
     #[arg(short = 'o', long, value_name = "MODEL")]
     output: PathBuf,
-    /// Hidden units [default: 5; 32 for a posture-aware set of detected, sub-pixel corners
-    /// (`hvs collect` + `hvs board detect`) outside the thesis family; 12 for a stereo set whose
-    /// left pixels span 60 % of its images' width and height (boards over the whole view, from
-    /// `hvs board detect`, which writes the image size), outside the thesis family].
+    /// Hidden units [default: 5; unless --arch thesis: 32 for a posture-aware set of detected,
+    /// sub-pixel corners (`hvs collect` + `hvs board detect`), 12 for a stereo set whose left
+    /// pixels span 60 % of its images' width and height (boards over the whole view, from `hvs
+    /// board detect`, which writes the image size)].
     #[arg(long, value_name = "H", allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     hidden: Option<usize>,
     /// Outputs of the net [default: xyz].
@@ -237,6 +237,14 @@ pub fn run(a: Args) -> Result<()> {
         frame: a.frame.map_or(defaults.frame, |f| f.frame()),
         ..defaults
     };
+    if a.hidden.is_none() && config.hidden == train::WIDE_FIELD_HIDDEN {
+        eprintln!(
+            "note: the left pixels cover most of the images ({}x{}): {} hidden units, for depth over the whole image (--hidden sets another number)",
+            table.image_size.map_or(0, |s| s.0),
+            table.image_size.map_or(0, |s| s.1),
+            config.hidden
+        );
+    }
     let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };
     let t = train_table(&table, &plan)?;
     let n = model::save(&a.output, &t.blob)?;

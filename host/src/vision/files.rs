@@ -91,12 +91,20 @@ pub fn write_scene_pair(dir: &Path, r: &hvs_vision::scene::SceneRender) -> Resul
     let (depth, matches) = r.truth_images();
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
-    write_bytes(&dir.join("left.png"), &png_bytes(&r.left)?)?;
-    write_bytes(&dir.join("right.png"), &png_bytes(&r.right)?)?;
-    write_bytes(&dir.join("depth.pfm"), &hvs_vision::pfm::pfm_bytes(&depth))?;
-    write_bytes(&dir.join("matches.pfm"), &hvs_vision::pfm::pfm_bytes(&matches))?;
+    let bytes = [
+        png_bytes(&r.left)?,
+        png_bytes(&r.right)?,
+        hvs_vision::pfm::pfm_bytes(&depth),
+        hvs_vision::pfm::pfm_bytes(&matches),
+    ];
+    for (name, b) in SCENE_PAIR_FILES.iter().zip(&bytes) {
+        write_bytes(&dir.join(name), b)?;
+    }
     Ok(matches.data.chunks_exact(3).filter(|m| m[2] > 0.0).count())
 }
+
+/// The files [`write_scene_pair`] writes, in its order.
+pub const SCENE_PAIR_FILES: [&str; 4] = ["left.png", "right.png", "depth.pfm", "matches.pfm"];
 
 /// Writes a rendered capture set into `dir` (created if missing), each file atomically: the
 /// PNG pairs, `captures.csv` ([`captures_csv`], with the joint columns when `joints` is

@@ -14,7 +14,7 @@ pub use detection::{
 };
 pub use files::{
     check_same_size, png_bytes, png_bytes_fast, read_grey, read_pair, write_capture_set,
-    write_scene_pair,
+    write_scene_pair, SCENE_PAIR_FILES,
 };
 pub use locate::{
     check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_trusted,

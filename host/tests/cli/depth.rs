@@ -496,6 +496,13 @@ fn render_writes_a_scene_pair_and_its_truth() {
         assert!(err.contains(want), "{args:?}: {err}");
         assert!(!c.exists(), "{args:?} wrote {}", c.display());
     }
+    // The scene file where a written file would go: refused, kept.
+    let inside = a.join("depth.pfm");
+    std::fs::copy(&scene, &inside).unwrap();
+    let out = hvs().args(["render", "--scene", s(&inside), "-o", s(&a)]).assert().failure();
+    let err = String::from_utf8_lossy(&out.get_output().stderr).into_owned();
+    assert!(err.contains("is also the --scene input"), "{err}");
+    assert_eq!(std::fs::read(&inside).unwrap(), std::fs::read(&scene).unwrap());
     std::fs::write(&scene, r#"{ "rig": {"case": 1}, "camera_fps": 30, "background": {"z_cm": 250}, "objects": [{"shape": "plane", "centre_cm": [0, 0, 100]}] }"#).unwrap();
     let out = hvs().args(["render", "--scene", s(&scene), "-o", s(&c)]).assert().failure();
     let err = String::from_utf8_lossy(&out.get_output().stderr).into_owned();
