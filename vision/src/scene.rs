@@ -102,6 +102,22 @@ pub enum ShapeKind {
     Board,
 }
 
+/// `N` numbers, or an error that says how many were given (serde's own for an array of
+/// fixed length reads past the last one as "trailing characters").
+fn numbers<'de, D: serde::Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
+    let v = Vec::<f64>::deserialize(d)?;
+    <[f64; N]>::try_from(v.as_slice()).map_err(|_| {
+        serde::de::Error::custom(format!("expected {N} numbers in brackets, got {}", v.len()))
+    })
+}
+
+/// [`numbers`] for an optional field.
+fn some_numbers<'de, D: serde::Deserializer<'de>, const N: usize>(
+    d: D,
+) -> Result<Option<[f64; N]>, D::Error> {
+    numbers(d).map(Some)
+}
+
 /// One timed waypoint of a path.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -109,6 +125,7 @@ pub struct Waypoint {
     /// Time (s).
     pub t_s: f64,
     /// Centre at that time (cm).
+    #[serde(deserialize_with = "numbers")]
     pub centre_cm: Vec3,
 }
 
@@ -121,8 +138,10 @@ pub struct ObjectSpec {
     /// Sphere radius (cm).
     pub radius_cm: Option<f64>,
     /// Box sides (cm).
+    #[serde(default, deserialize_with = "some_numbers")]
     pub size_cm: Option<Vec3>,
     /// Plane width and height (cm).
+    #[serde(default, deserialize_with = "some_numbers")]
     pub side_cm: Option<[f64; 2]>,
     /// Plane slant about its horizontal axis (degrees, the top away from the head when
     /// positive).
@@ -132,8 +151,10 @@ pub struct ObjectSpec {
     /// Board description (a `BOARD.json` object).
     pub board: Option<serde_json::Value>,
     /// Centre at `t = 0` (cm).
+    #[serde(default, deserialize_with = "some_numbers")]
     pub centre_cm: Option<Vec3>,
     /// Constant velocity (cm/s).
+    #[serde(default, deserialize_with = "some_numbers")]
     pub velocity_cm_s: Option<Vec3>,
     /// Timed waypoints, instead of `centre_cm` and `velocity_cm_s`.
     pub path: Option<Vec<Waypoint>>,
@@ -1112,6 +1133,31 @@ mod tests {
             .unwrap()
             .scene()
         };
+        // A list of the wrong length says how many numbers it wanted.
+        for (o, want) in [
+            (
+                r#"{"shape": "plane", "side_cm": [4, 4, 4], "centre_cm": [0, 0, 100]}"#,
+                "expected 2 numbers in brackets, got 3",
+            ),
+            (
+                r#"{"shape": "box", "size_cm": [4, 4], "centre_cm": [0, 0, 100]}"#,
+                "expected 3 numbers in brackets, got 2",
+            ),
+            (
+                r#"{"shape": "sphere", "radius_cm": 3, "centre_cm": [0, 100]}"#,
+                "expected 3 numbers in brackets, got 2",
+            ),
+            (
+                r#"{"shape": "sphere", "radius_cm": 3, "path": [{"t_s": 0, "centre_cm": [0, 0, 1, 100]}]}"#,
+                "expected 3 numbers in brackets, got 4",
+            ),
+        ] {
+            let text = format!(
+                r#"{{"rig": {{"case": 3}}, "camera_fps": 30, "background": {{"z_cm": 300}}, "objects": [{o}]}}"#
+            );
+            let e = SceneFile::parse(&text).unwrap_err().to_string();
+            assert!(e.contains(want), "{o}: {e}");
+        }
         let ok = scene(
             r#"{"shape": "plane", "side_cm": [40, 30], "pitch_deg": 60, "centre_cm": [0, 0, 100]}"#,
         );
