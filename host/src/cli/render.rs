@@ -98,10 +98,8 @@ fn run_scene(a: &Args, path: &std::path::Path) -> Result<()> {
     if !t.is_finite() {
         return Err(crate::cli::usage("--time must be finite"));
     }
-    let opt = a.camera.options(
-        render::RenderOptions::default().margin_cm,
-        render::RenderOptions::default().supersample,
-    )?;
+    let defaults = render::RenderOptions::default();
+    let opt = a.camera.options(defaults.margin_cm, defaults.supersample)?;
     let joints = joints_arg(a.joints.as_deref())?.unwrap_or(Joints::HOME);
     let r = hvs_vision::scene::render_scene(
         &HeadRig::new(loaded.rig),

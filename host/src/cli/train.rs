@@ -237,13 +237,14 @@ pub fn run(a: Args) -> Result<()> {
         frame: a.frame.map_or(defaults.frame, |f| f.frame()),
         ..defaults
     };
-    if a.hidden.is_none() && config.hidden == train::WIDE_FIELD_HIDDEN {
-        eprintln!(
-            "note: the left pixels cover most of the images ({}x{}): {} hidden units, for depth over the whole image (--hidden sets another number)",
-            table.image_size.map_or(0, |s| s.0),
-            table.image_size.map_or(0, |s| s.1),
-            config.hidden
-        );
+    // Only `train::wide_field` gives this default, and only with an image size.
+    if let (None, Some((w, h))) = (a.hidden, table.image_size) {
+        if config.hidden == train::WIDE_FIELD_HIDDEN {
+            eprintln!(
+                "note: the left pixels cover most of the images ({w}x{h}): {} hidden units, for depth over the whole image (--hidden sets another number)",
+                config.hidden
+            );
+        }
     }
     let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };
     let t = train_table(&table, &plan)?;

@@ -47,12 +47,7 @@ pub fn model_disparity_interval(
     let mut kept: Option<(f64, f64)> = None;
     for k in 0..=n {
         let d = (d_range[0] + k as f64 * MODEL_SCAN_STEP_PX).min(d_range[1]);
-        let ur = ul - d;
-        let vr = -(a * ur + c) / b;
-        let Some(xyz) = predict([ul as f32, vl as f32, ur as f32, vr as f32]) else {
-            continue;
-        };
-        let z = f64::from(xyz[2]);
+        let Some(z) = model_z_at(&predict, ul, vl, line, d) else { continue };
         if z >= z_lo && z <= z_hi {
             kept = Some(match kept {
                 None => (d, d),
@@ -63,6 +58,21 @@ pub fn model_disparity_interval(
     kept.map(|(lo, hi)| {
         ((lo - MODEL_SCAN_STEP_PX).max(d_range[0]), (hi + MODEL_SCAN_STEP_PX).min(d_range[1]))
     })
+}
+
+/// The model's `Z` of left pixel `(ul, vl)` matched at disparity `d` on the right line
+/// `line` (`a u + b v + c = 0`, `b` not zero), `None` where the model has no answer.
+#[inline]
+fn model_z_at(
+    predict: impl Fn([f32; 4]) -> Option<[f32; 3]>,
+    ul: f64,
+    vl: f64,
+    [a, b, c]: [f64; 3],
+    d: f64,
+) -> Option<f64> {
+    let ur = ul - d;
+    let vr = -(a * ur + c) / b;
+    predict([ul as f32, vl as f32, ur as f32, vr as f32]).map(|p| f64::from(p[2]))
 }
 
 /// [`model_disparity_interval`] for a left pixel of an image pair `right_width` px wide: the
@@ -92,11 +102,8 @@ pub fn model_disparity_interval_in_image(
     let first = model_disparity_interval(&predict, ul, vl, line, z_range, d_range);
     // Whether the model puts disparity `d` inside the training depths.
     let deep_inside = |d: f64| {
-        let [a, b, c] = line;
-        let ur = ul - d;
-        let vr = -(a * ur + c) / b;
-        predict([ul as f32, vl as f32, ur as f32, vr as f32])
-            .is_some_and(|p| (z_range[0]..=z_range[1]).contains(&f64::from(p[2])))
+        model_z_at(&predict, ul, vl, line, d)
+            .is_some_and(|z| (z_range[0]..=z_range[1]).contains(&z))
     };
     let clipped = match first {
         None => true,
