@@ -858,6 +858,18 @@ impl SceneRender {
         self.visible_in(1, &hit.point)
     }
 
+    /// The objects (indices into the scene's `objects`) that no pixel of either image sees:
+    /// behind the head, out of both views, or hidden behind other objects.
+    pub fn unseen_objects(&self) -> Vec<usize> {
+        let mut seen = vec![false; self.scene.objects.len()];
+        for id in self.truth_left.object.iter().chain(&self.truth_right.object) {
+            if let Some(s) = (*id as usize).checked_sub(1).and_then(|k| seen.get_mut(k)) {
+                *s = true;
+            }
+        }
+        seen.iter().enumerate().filter(|(_, s)| !**s).map(|(k, _)| k).collect()
+    }
+
     /// The truth in the formats `hvs depth` writes its answers in, rows first: the left
     /// image's depth (one channel, `Z` in cm of the point each pixel centre sees, `+inf` where
     /// its ray meets nothing) and its true matches (three channels, `u_r, v_r, 1` where the

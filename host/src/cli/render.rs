@@ -110,6 +110,12 @@ fn run_scene(a: &Args, path: &std::path::Path) -> Result<()> {
     )
     .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let seen = crate::vision::write_scene_pair(&a.output, &r)?;
+    for k in r.unseen_objects() {
+        eprintln!(
+            "warning: {}: objects[{k}] is in neither image (behind the head, out of view or hidden)",
+            path.display()
+        );
+    }
     if seen == 0 {
         eprintln!("warning: the right camera sees none of the points the left one sees");
     }

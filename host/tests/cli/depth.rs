@@ -450,12 +450,20 @@ fn render_writes_a_scene_pair_and_its_truth() {
         &scene,
         r#"{ "rig": {"case": 1}, "camera_fps": 30, "background": {"z_cm": 250, "texture_seed": 1},
           "objects": [{"shape": "sphere", "radius_cm": 15, "centre_cm": [0, 0, 120], "texture_seed": 2},
-                      {"shape": "plane", "side_cm": [60, 40], "pitch_deg": 50, "centre_cm": [-70, 50, 180]}] }"#,
+                      {"shape": "plane", "side_cm": [60, 40], "pitch_deg": 50, "centre_cm": [-70, 50, 180]},
+                      {"shape": "box", "size_cm": [10, 10, 10], "centre_cm": [0, 0, -40]}] }"#,
     )
     .unwrap();
     let (a, b) = (d.join("a"), d.join("b"));
     for out in [&a, &b] {
-        ok(&["render", "--scene", s(&scene), "-o", s(out), "--seed", "4"]);
+        let run = hvs()
+            .args(["render", "--scene", s(&scene), "-o", s(out), "--seed", "4"])
+            .assert()
+            .success();
+        // The box behind the head is named; the two objects in view are not.
+        let err = String::from_utf8_lossy(&run.get_output().stderr).into_owned();
+        assert!(err.contains("objects[2] is in neither image"), "{err}");
+        assert!(!err.contains("objects[0]") && !err.contains("objects[1]"), "{err}");
     }
     let file = |dir: &Path, n: &str| std::fs::read(dir.join(n)).unwrap();
     for n in ["left.png", "right.png", "depth.pfm", "matches.pfm"] {
