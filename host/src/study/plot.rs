@@ -4,13 +4,16 @@
 //! embedded in the binary (`host/assets/DejaVuSans.ttf`, registered with `ab_glyph`), so the
 //! plots look the same on every machine and the build needs no fontconfig/freetype headers.
 //! A figure is a grid of panels; each panel has labelled axes (with units), an optional
-//! logarithmic y axis, and a legend. Non-finite values (and non-positive ones on a log axis)
-//! are left out of the drawing; the CSV next to each plot keeps them.
+//! logarithmic y axis, and a legend. Non-finite values (and negative ones on a log axis) are
+//! left out of the drawing; the CSV next to each plot keeps them. On a log axis, values under
+//! its bottom (exact estimates, 0 %, among them) are drawn on the bottom edge, and the panel
+//! says so.
 
 use anyhow::{anyhow, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::series::DashedLineSeries;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{register_font, FontStyle};
 use std::sync::Once;
 
@@ -298,6 +301,14 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> D
             for s in &p.series {
                 series(&mut chart, s, drawable(s, p.log_y, y0))?;
             }
+            if let Some(note) = edge_note(p, y0) {
+                let style = TextStyle::from((FAMILY, 13))
+                    .color(&RGBColor(90, 90, 90))
+                    .pos(Pos::new(HPos::Right, VPos::Bottom));
+                // Just above the bottom edge, at the right end.
+                let at = (x1 - 0.01 * (x1 - x0), y0 * libm::pow(y1 / y0, 0.02));
+                chart.draw_series(std::iter::once(Text::new(note, at, style)))?;
+            }
             legend(&mut chart, &p.legend)
         }};
     }
@@ -308,15 +319,23 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> D
     }
 }
 
-/// The points of `s` a chart can draw: finite ones; on a log axis only positive values,
-/// and none below the axis' bottom `y0` (they are drawn on it).
+/// The points of `s` a chart can draw: finite ones; on a log axis no negative values, and
+/// none below the axis' bottom `y0` (they, zeros too, are drawn on it).
 fn drawable(s: &Series, log_y: bool, y0: f64) -> Vec<(f64, f64)> {
     s.points
         .iter()
         .copied()
-        .filter(|(a, b)| a.is_finite() && b.is_finite() && (!log_y || *b > 0.0))
+        .filter(|(a, b)| a.is_finite() && b.is_finite() && (!log_y || *b >= 0.0))
         .map(|(a, b)| if log_y { (a, b.max(y0)) } else { (a, b) })
         .collect()
+}
+
+/// On a log axis whose bottom is `y0`, the note that some values lie under it (drawn on the
+/// edge), or `None` when none do.
+fn edge_note(p: &Panel, y0: f64) -> Option<String> {
+    let under = |s: &Series| s.points.iter().any(|(a, b)| a.is_finite() && (0.0..y0).contains(b));
+    (p.log_y && p.series.iter().any(under))
+        .then(|| format!("values under {} drawn on the bottom edge", tick_label(y0)))
 }
 
 fn series<'a, DB, X, Y>(
@@ -428,5 +447,20 @@ mod tests {
         assert_eq!(tick_label(4.0), "4");
         assert_eq!(tick_label(0.25), "0.25");
         assert_eq!(tick_label(-5.551115123125783e-17), "0");
+    }
+
+    #[test]
+    fn values_under_a_log_axis_are_drawn_on_its_edge_and_said_to_be() {
+        // The floor's 0.0 lies under the log axis' bottom (0.1): drawn there, and noted.
+        let f = fig(true);
+        let floor = &f.panels[0].series[1];
+        assert_eq!(drawable(floor, true, 0.1), vec![(65.0, 0.5), (85.0, 0.1)]);
+        assert!(svg(&f).unwrap().contains("values under 0.1 drawn on the bottom edge"));
+        // A linear axis draws 0 where it is; no note.
+        assert_eq!(drawable(floor, false, 0.0), vec![(65.0, 0.5), (85.0, 0.0)]);
+        assert!(!svg(&fig(false)).unwrap().contains("bottom edge"));
+        // Negative values have no place on a log axis.
+        let neg = Series::new("n", &[1.0, 2.0], &[-1.0, 2.0], Style::Points, 0);
+        assert_eq!(drawable(&neg, true, 0.1), vec![(2.0, 2.0)]);
     }
 }
