@@ -113,7 +113,7 @@ fn board_words(b: &TrainingBoard) -> String {
 /// A sweep figure: per board (columns), the four estimators' e_ma against the swept value
 /// (top row) and the three methods' ratios to the floor (bottom row, where the floor is not
 /// zero).
-fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -> Figure {
+fn sweep_figure(a: &Accuracy, all: &[SweepRow], title: String, x_label: &str) -> Figure {
     let names = method_titles(&a.config);
     let mut panels = Vec::new();
     let optimal = "optimal triangulation, true rig and lenses (floor)";
@@ -124,9 +124,14 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
         for board in &BOARDS {
             let shown = |r: &&SweepRow| !ratio || r.scores.floor() > RATIO_MIN_FLOOR;
             let rows: Vec<&SweepRow> =
-                rows.iter().filter(|r| r.board == *board && shown(r)).collect();
+                all.iter().filter(|r| r.board == *board && shown(r)).collect();
             let x: Vec<f64> = rows.iter().map(|r| r.x).collect();
             let series = [1, 2, 3, 0].map(|m| {
+                if ratio && m == 0 {
+                    // The floor is 1 wherever a ratio exists: a level line over the sweep,
+                    // drawn even where a single level has a ratio (the quick sweeps).
+                    return Series::level(floor, sweep_ends(all, *board), 1.0, FLOOR_COLOR);
+                }
                 let unit = |r: &SweepRow| if ratio { r.scores.floor() } else { 1.0 };
                 let y: Vec<f64> = rows.iter().map(|r| r.scores.0[m] / unit(r)).collect();
                 let (name, style, color) = if m == 0 {
@@ -141,6 +146,12 @@ fn sweep_figure(a: &Accuracy, rows: &[SweepRow], title: String, x_label: &str) -
         }
     }
     Figure { title, panels, cols: 2 }
+}
+
+/// The first and last level of `board`'s sweep.
+fn sweep_ends(rows: &[SweepRow], board: TrainingBoard) -> [f64; 2] {
+    let x = rows.iter().filter(|r| r.board == board).map(|r| r.x);
+    [x.clone().fold(f64::INFINITY, f64::min), x.fold(f64::NEG_INFINITY, f64::max)]
 }
 
 impl Report for Accuracy {
