@@ -164,8 +164,13 @@ pub fn model_depths(blob: &ModelBlob, data: &Dataset) -> Result<Vec<f64>, ModelD
     let x = crate::infer::to_f32(&data.inputs, data.n_inputs).map_err(ModelDepthError::Range)?;
     let p = Predictor::new(blob);
     let y = p.predict(&x).map_err(ModelDepthError::Point)?;
-    let no = blob.n_outputs();
-    Ok(y.chunks_exact(no).map(|o| o[no - 1] as f64).collect())
+    Ok(depth_column(&y, blob.n_outputs()))
+}
+
+/// The depths in a model's outputs `y` (`n_outputs` a row, row-major): `Z` is a model's last
+/// output (of `X, Y, Z`, or the only one), widened to f64.
+pub fn depth_column(y: &[f32], n_outputs: usize) -> Vec<f64> {
+    y.chunks_exact(n_outputs).map(|o| f64::from(o[n_outputs - 1])).collect()
 }
 
 /// Why the model could not be run on a set.

@@ -48,10 +48,9 @@ pub fn eval_model(
     floor: Option<(&Rig, Distortion)>,
 ) -> Result<ModelEval> {
     let (_, y) = crate::infer::infer_table(blob, table)?;
-    let no = blob.n_outputs();
     let mut methods = vec![Method {
         name: "network".into(),
-        z: y.chunks_exact(no).map(|o| o[no - 1] as f64).collect(),
+        z: crate::evaluate::depth_column(&y, blob.n_outputs()),
     }];
     if let Some(cal) = &blob.fallback {
         methods
