@@ -340,14 +340,7 @@ fn check_runs(
             model_path.display()
         );
     };
-    let same = usize::from(h.inputs) == blob.n_inputs()
-        && h.hidden == u16::from(blob.topology.hidden)
-        && usize::from(h.outputs) == blob.n_outputs()
-        && h.seed == m.seed
-        && h.train_hash == m.train_hash
-        && h.train_points == m.train_points
-        && h.train_error_pct.to_bits() == m.train_error_pct.to_bits();
-    if !same {
+    if !hvs_shared::runtime::protocol::ModelInfo::of(&blob).same_as(&h) {
         bail!(
             "--model {} is not the model the head runs (head: generation {}, seed {}, training set {:016x} of {} points; file: seed {}, training set {:016x} of {} points): give the model the head runs, or flash this one",
             model_path.display(),

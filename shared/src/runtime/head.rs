@@ -87,15 +87,7 @@ impl Network {
         if !suppliable || blob.topology.outputs != OutputKind::Xyz {
             return None;
         }
-        let model = ModelInfo {
-            inputs: blob.n_inputs() as u16,
-            hidden: u16::from(blob.topology.hidden),
-            outputs: blob.n_outputs() as u16,
-            seed: blob.meta.seed,
-            train_hash: blob.meta.train_hash,
-            train_points: blob.meta.train_points,
-            train_error_pct: blob.meta.train_error_pct,
-        };
+        let model = ModelInfo::of(blob);
         let fast = blob.topology.inputs == InputKind::Stereo
             && usize::from(blob.topology.hidden) == NET_HIDDEN
             && blob.n_outputs() == NET_OUTPUTS;

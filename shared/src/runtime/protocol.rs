@@ -234,6 +234,29 @@ pub struct ModelInfo {
     pub train_error_pct: f32,
 }
 
+impl ModelInfo {
+    /// The description of `blob` (its topology and training metadata).
+    pub fn of(blob: &crate::runtime::blob::ModelBlob) -> ModelInfo {
+        ModelInfo {
+            inputs: blob.n_inputs() as u16,
+            hidden: u16::from(blob.topology.hidden),
+            outputs: blob.n_outputs() as u16,
+            seed: blob.meta.seed,
+            train_hash: blob.meta.train_hash,
+            train_points: blob.meta.train_points,
+            train_error_pct: blob.meta.train_error_pct,
+        }
+    }
+
+    /// Whether two descriptions are of the same model: every field equal, the training error
+    /// bit for bit.
+    pub fn same_as(&self, other: &ModelInfo) -> bool {
+        let bits = |m: &ModelInfo| ModelInfo { train_error_pct: 0.0, ..*m };
+        bits(self) == bits(other)
+            && self.train_error_pct.to_bits() == other.train_error_pct.to_bits()
+    }
+}
+
 /// Answer to [`RequestBody::Info`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct InfoData {
@@ -485,6 +508,25 @@ mod tests {
     extern crate std;
 
     use super::*;
+
+    #[test]
+    fn model_info_compares_every_field_and_the_error_bit_for_bit() {
+        let a = ModelInfo {
+            inputs: 4,
+            hidden: 5,
+            outputs: 3,
+            seed: 7,
+            train_hash: 0xfeed,
+            train_points: 72,
+            train_error_pct: f32::NAN,
+        };
+        assert!(a.same_as(&a), "NaN errors of the same bits are the same model");
+        assert!(!a.same_as(&ModelInfo { train_error_pct: -f32::NAN, ..a }));
+        assert!(!a.same_as(&ModelInfo { train_points: 73, ..a }));
+        assert!(!a.same_as(&ModelInfo { hidden: 12, ..a }));
+        let b = ModelInfo { train_error_pct: 0.0, ..a };
+        assert!(!b.same_as(&ModelInfo { train_error_pct: -0.0, ..b }), "0 and -0 differ in bits");
+    }
 
     fn point(k: f32) -> StereoPoint {
         StereoPoint { u_l: 321.5 + k, v_l: -12.25 * k, u_r: f32::MAX, v_r: f32::MIN_POSITIVE }
