@@ -121,9 +121,10 @@ impl ArchArg {
     the nearest board of the data that is symmetric about X = 0, if there is one."
 )]
 pub struct Args {
-    /// Training CSV (with --from: the new points).
-    #[arg(long, value_name = "FILE.csv")]
-    data: PathBuf,
+    /// Training CSV (with --from: the new points). Give --data again to train on several
+    /// sets as one (the same columns in each, e.g. a board placement per file).
+    #[arg(long, value_name = "FILE.csv", required = true)]
+    data: Vec<PathBuf>,
     /// Update this model with the points of --data instead of training from nothing: its
     /// weights, family, topology, inputs and scaling are kept (any of --hidden, --outputs,
     /// --arch, --frame, --algo given must match it); one board at one depth is enough.
@@ -215,8 +216,8 @@ pub fn run(a: Args) -> Result<()> {
     if !(a.u0.is_finite() && a.v0.is_finite()) {
         bail!("--u0 and --v0 must be finite");
     }
-    check_not_input("-o", &a.output, &[("--data", &a.data)])?;
-    let table = read_set(&a.data, Inputs::Auto, true)?;
+    check_not_input("-o", &a.output, &data_inputs(&a.data))?;
+    let table = read_data(&a.data)?;
     let algo = match a.algo.unwrap_or(AlgoArg::Lm) {
         AlgoArg::Lm => Algo::Lm,
         AlgoArg::Bp => Algo::Bp,
@@ -249,14 +250,35 @@ pub fn run(a: Args) -> Result<()> {
     let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };
     let t = train_table(&table, &plan)?;
     let n = model::save(&a.output, &t.blob)?;
-    print_summary(&a.data, &a.output, n, &t).with_context(|| {
+    print_summary(&table.name(), &a.output, n, &t).with_context(|| {
         format!("wrote {} ({n} bytes), but cannot print the summary to stdout", a.output.display())
     })
 }
 
-fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<()> {
+/// The `--data` files as the inputs an output must not overwrite.
+fn data_inputs(paths: &[PathBuf]) -> Vec<(&'static str, &Path)> {
+    paths.iter().map(|p| ("--data", p.as_path())).collect()
+}
+
+/// The `--data` files read and joined into one set ([`crate::data::csv::Table::join`]); a file
+/// given twice is refused (its points would count double).
+fn read_data(paths: &[PathBuf]) -> Result<crate::data::csv::Table> {
+    let mut seen = Vec::new();
+    let mut tables = Vec::new();
+    for p in paths {
+        let id = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        if seen.contains(&id) {
+            bail!("--data {}: given twice (its points would count double)", p.display());
+        }
+        seen.push(id);
+        tables.push(read_set(p, Inputs::Auto, true)?);
+    }
+    crate::data::csv::Table::join(tables)
+}
+
+fn print_summary(data: &str, out: &Path, bytes: usize, t: &Trained) -> Result<()> {
     let mut o = std::io::stdout().lock();
-    o.write_all(crate::train::model::summary(&data.display().to_string(), t).as_bytes())?;
+    o.write_all(crate::train::model::summary(data, t).as_bytes())?;
     writeln!(o, "wrote {} ({bytes} bytes, generation {})", out.display(), t.blob.generation)?;
     o.flush()?;
     Ok(())
@@ -265,7 +287,9 @@ fn print_summary(data: &Path, out: &Path, bytes: usize, t: &Trained) -> Result<(
 /// Runs `hvs train --from OLD.hvsw`: updates a trained model with new points
 /// ([`crate::train::update`]) and writes the next generation.
 fn run_update(a: &Args, from_path: &Path) -> Result<()> {
-    check_not_input("-o", &a.output, &[("--data", &a.data), ("--from", from_path)])?;
+    let mut inputs = data_inputs(&a.data);
+    inputs.push(("--from", from_path));
+    check_not_input("-o", &a.output, &inputs)?;
     let old = model::load(from_path)?;
     let b = &old.blob;
     let from = from_path.display();
@@ -305,13 +329,14 @@ fn run_update(a: &Args, from_path: &Path) -> Result<()> {
             );
         }
     }
-    let table = read_set(&a.data, Inputs::Auto, true)?;
+    let table = read_data(&a.data)?;
     crate::data::validate::plausible_values(&table)?;
+    let data_name = table.name();
     if let (Some(new), Some(old)) = (table.image_size, b.image_size()) {
         if new != old {
             bail!(
                 "{}: its points come from {}x{} px images, {from} was trained on {}x{}: an update keeps the image size",
-                a.data.display(),
+                data_name,
                 new.0,
                 new.1,
                 old.0,
@@ -320,7 +345,7 @@ fn run_update(a: &Args, from_path: &Path) -> Result<()> {
         }
     }
     let up = update(b, &table.data, a.seed)
-        .with_context(|| format!("{}: cannot update {from} with these points", a.data.display()))?;
+        .with_context(|| format!("{data_name}: cannot update {from} with these points"))?;
     let blob = next_generation(
         b,
         old.crc,
@@ -340,7 +365,7 @@ fn run_update(a: &Args, from_path: &Path) -> Result<()> {
             b.generation,
             old.crc,
             table.data.len(),
-            a.data.display(),
+            data_name,
             up.elapsed.as_secs_f64(),
             up.iterations
         )?;

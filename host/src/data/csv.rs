@@ -48,6 +48,8 @@ pub struct Table {
     /// The size (width, height) of the images the pixels were found in, when the file says
     /// ([`IMAGE_SIZE_COLUMNS`]).
     pub image_size: Option<(u16, u16)>,
+    /// The files joined after `path` ([`Table::join`]), each with the index of its first row.
+    pub more: Vec<(PathBuf, usize)>,
 }
 
 /// The columns that give the size of the images a point set's pixels come from.
@@ -56,10 +58,64 @@ pub const IMAGE_SIZE_COLUMNS: [&str; 2] = ["image_width", "image_height"];
 impl Table {
     /// `file:line` of row `i`, for messages.
     pub fn at(&self, i: usize) -> String {
+        let path =
+            self.more.iter().rev().find(|(_, first)| i >= *first).map_or(&self.path, |m| &m.0);
         match self.lines.get(i) {
-            Some(l) => format!("{}:{l}", self.path.display()),
-            None => self.path.display().to_string(),
+            Some(l) => format!("{}:{l}", path.display()),
+            None => path.display().to_string(),
         }
+    }
+
+    /// The file's name, or the first file's and how many more were joined to it.
+    pub fn name(&self) -> String {
+        match self.more.len() {
+            0 => self.path.display().to_string(),
+            n => format!(
+                "{} and {n} more file{}",
+                self.path.display(),
+                if n == 1 { "" } else { "s" }
+            ),
+        }
+    }
+
+    /// The rows of `tables` in their order, as one set: the same inputs (pixels, or pixels
+    /// and joints) and targets in each, and the same image size where any says one.
+    pub fn join(tables: Vec<Table>) -> Result<Table> {
+        let mut parts = tables.into_iter();
+        let Some(mut out) = parts.next() else {
+            bail!("no point set to join");
+        };
+        let kind = |t: &Table| match t.data.n_inputs {
+            4 => "the four pixel columns",
+            _ => "the pixel and joint columns",
+        };
+        for t in parts {
+            let (first, this) = (out.path.display(), t.path.display());
+            if t.data.n_inputs != out.data.n_inputs {
+                bail!("{this}: has {}, {first} {}: join sets of one kind", kind(&t), kind(&out));
+            }
+            if t.data.targets.is_empty() != out.data.targets.is_empty() {
+                bail!("{this}: the x,y,z columns are in one of {this} and {first} only");
+            }
+            if t.image_size != out.image_size {
+                let size = |s: Option<(u16, u16)>| {
+                    s.map_or("no image size".to_string(), |(w, h)| format!("{w}x{h} px images"))
+                };
+                bail!(
+                    "{this}: {}, {first}: {}: join sets from images of one size",
+                    size(t.image_size),
+                    size(out.image_size)
+                );
+            }
+            let start = out.data.len();
+            out.more.push((t.path.clone(), start));
+            for r in 0..t.data.len() {
+                out.data.push(t.data.row(r), t.data.targets.get(r).copied());
+            }
+            out.lines.extend(&t.lines);
+            out.more.extend(t.more.into_iter().map(|(p, k)| (p, k + start)));
+        }
+        Ok(out)
     }
 }
 
@@ -200,7 +256,7 @@ pub fn read_set_from<R: Read>(
     if data.is_empty() {
         bail!("{file}: no data rows after the header");
     }
-    Ok(Table { path: name.to_path_buf(), data, lines, image_size })
+    Ok(Table { path: name.to_path_buf(), data, lines, image_size, more: Vec::new() })
 }
 
 /// 1-based line numbers of records from their byte offsets. The csv crate's own line count

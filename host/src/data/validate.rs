@@ -18,7 +18,7 @@ pub const MAX_ABS_DEG: f64 = 360.0;
 pub fn training_set(table: &Table, hidden: usize, outputs: usize) -> Result<()> {
     plausible_values(table)?;
     let d = &table.data;
-    let file = table.path.display();
+    let file = table.name();
     let ni = d.n_inputs;
     let params = param_count(ni, hidden, outputs);
     let equations = d.len() * outputs;

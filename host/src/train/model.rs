@@ -64,7 +64,7 @@ pub fn train_table(table: &crate::data::csv::Table, plan: &Plan) -> Result<Train
     let c = &plan.config;
     crate::data::validate::training_set(table, c.hidden, c.outputs.len())?;
     let mut t = train_model(&table.data, plan)
-        .with_context(|| format!("{}: training failed", table.path.display()))?;
+        .with_context(|| format!("{}: training failed", table.name()))?;
     t.blob.set_image_size(table.image_size);
     Ok(t)
 }

@@ -351,6 +351,57 @@ fn degenerate_and_absurd_training_sets_are_refused() {
     fails(&["predict", "--model", s(&m), "--points", s(&p)], want);
 }
 
+// Several --data files train as their rows in one file would; their errors name the file and
+// line they come from; sets of different kinds or image sizes, or a file given twice, are
+// refused.
+#[test]
+fn several_training_sets_join_as_one() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let h = "u_l,v_l,u_r,v_r,x,y,z";
+    let rows = train_rows();
+    let all = csv(d, "all.csv", h, &rows);
+    let a = csv(d, "a.csv", h, &rows[..36]);
+    let b = csv(d, "b.csv", h, &rows[36..]);
+    let (one, two) = (d.join("one.hvsw"), d.join("two.hvsw"));
+    ok(&["train", "--data", s(&all), "-o", s(&one), "--restarts", "2"]);
+    let out = ok(&["train", "--data", s(&a), "--data", s(&b), "-o", s(&two), "--restarts", "2"]);
+    assert!(out.contains("on 72 points of ") && out.contains("a.csv and 1 more file"), "{out}");
+    assert_eq!(read(&one), read(&two), "the same rows, the same model");
+
+    let m = d.join("m.hvsw");
+    let train = |files: &[&Path], want: &str| {
+        let mut args = vec!["train", "-o", s(&m), "--restarts", "1"];
+        for f in files {
+            args.extend(["--data", s(f)]);
+        }
+        let e = fails(&args, want);
+        assert!(!m.exists(), "{e}");
+    };
+    // A bad value in the second file: its own name and line.
+    let mut bad = rows[36..].to_vec();
+    let mut fields: Vec<&str> = bad[4].split(',').collect();
+    fields[1] = "1e30";
+    bad[4] = fields.join(",");
+    let c = csv(d, "c.csv", h, &bad);
+    train(&[&a, &c], "c.csv:6: column \"v_l\"");
+    train(&[&a, &d.join("./a.csv")], "given twice");
+    // Another kind of set, or images of another size.
+    let joints = "u_l,v_l,u_r,v_r,x,y,z,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan";
+    let with_joints: Vec<String> = rows[36..].iter().map(|r| format!("{r},0,0,0,0,0")).collect();
+    let j = csv(d, "j.csv", joints, &with_joints);
+    train(&[&a, &j], "join sets of one kind");
+    let sized: Vec<String> = rows[36..].iter().map(|r| format!("{r},640,480")).collect();
+    let z = csv(d, "z.csv", &format!("{h},image_width,image_height"), &sized);
+    train(&[&a, &z], "z.csv: 640x480 px images, ");
+    // An output onto any of the inputs.
+    let e = fails(
+        &["train", "--data", s(&a), "--data", s(&b), "-o", s(&b)],
+        "is also the --data input",
+    );
+    assert_eq!(read(&b), read(&csv(d, "b2.csv", h, &rows[36..])), "{e}");
+}
+
 // Item 7: a rig file with a key given twice is refused, naming the key.
 #[test]
 fn rig_json_with_a_duplicate_key_is_refused() {
