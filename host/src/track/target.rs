@@ -504,15 +504,7 @@ impl Finder {
         let seed = match (self.mode, &self.last) {
             (TargetMode::Pixel(_), Some(last)) => Some(last.clone()),
             (TargetMode::Pixel([u, v]), None) => {
-                let c = [u.round() as i32, v.round() as i32];
-                let p = coarse_match(&l, &r, c, joints, est)?;
-                Some(Last {
-                    centre: [f64::from(c[0]), f64::from(c[1])],
-                    offset: [f64::from(c[0]) - p.r[0], f64::from(c[1]) - p.r[1]],
-                    z: p.z,
-                    extent: 40.0,
-                    points: 0,
-                })
+                Some(pixel_seed(&l, &r, [u.round() as i32, v.round() as i32], joints, est)?)
             }
             (TargetMode::Nearest, Some(last)) if self.followed < RESCAN_FRAMES => {
                 self.followed += 1;
@@ -549,10 +541,43 @@ impl Finder {
     }
 }
 
-/// The half-resolution match of full-resolution left pixel `c`, refined at full resolution.
-fn coarse_match(l: &Plane, r: &Plane, c: [i32; 2], joints: &Joints, est: &Estimator) -> Option<Pt> {
+/// Spacing (px) of the left pixels around a `U,V` target's pixel that are matched for its
+/// seed ([`pixel_seed`]): a 5 x 5 grid of them, 6 px either way.
+const SEED_STEP: i32 = 3;
+
+/// The seed of a `U,V` target: the half-resolution matches of the pixels on a grid around `c`
+/// ([`SEED_STEP`]), nearest first; the first whose disparity at least [`MIN_CLUSTER`] of them
+/// share (within [`DISPARITY_BAND_PX`]) gives the object's mean offset and median depth, at
+/// `c`. The pixel's own window alone often finds no unique match (a small window on a smooth
+/// texture, or across the object's edge), and it would fail the same way every frame of a
+/// still scene: the target was then never taken.
+fn pixel_seed(l: &Plane, r: &Plane, c: [i32; 2], joints: &Joints, est: &Estimator) -> Option<Last> {
     let (lh, rh) = (l.half(), r.half());
-    coarse_match_in(&lh, &rh, l, r, c, joints, est)
+    let mut around: Vec<[i32; 2]> =
+        (-2..=2).flat_map(|j| (-2..=2).map(move |i| [SEED_STEP * i, SEED_STEP * j])).collect();
+    // Nearest first; a stable sort keeps equal distances in row-major order.
+    around.sort_by_key(|o| o[0] * o[0] + o[1] * o[1]);
+    let pts: Vec<Pt> = around
+        .iter()
+        .filter_map(|o| coarse_match_in(&lh, &rh, l, r, [c[0] + o[0], c[1] + o[1]], joints, est))
+        .collect();
+    let offset = |q: &Pt| [f64::from(q.l[0]) - q.r[0], f64::from(q.l[1]) - q.r[1]];
+    pts.iter().find_map(|p| {
+        let d = offset(p)[0];
+        let same: Vec<&Pt> =
+            pts.iter().filter(|q| (offset(q)[0] - d).abs() <= DISPARITY_BAND_PX).collect();
+        (same.len() >= MIN_CLUSTER).then(|| {
+            let n = same.len() as f64;
+            let mean = |k: usize| same.iter().map(|q| offset(q)[k]).sum::<f64>() / n;
+            Last {
+                centre: [f64::from(c[0]), f64::from(c[1])],
+                offset: [mean(0), mean(1)],
+                z: median(same.iter().map(|q| q.z).collect()),
+                extent: 40.0,
+                points: 0,
+            }
+        })
+    })
 }
 
 fn coarse_match_in(
@@ -1093,6 +1118,17 @@ mod tests {
         assert!(e < 6.0, "centroid {:?} vs the sphere's centre {:?}", found.px, truth);
     }
 
+    /// The half-resolution match of full-resolution left pixel `c`, refined at full resolution.
+    fn coarse_match(
+        l: &Plane,
+        r: &Plane,
+        c: [i32; 2],
+        joints: &Joints,
+        est: &Estimator,
+    ) -> Option<Pt> {
+        coarse_match_in(&l.half(), &r.half(), l, r, c, joints, est)
+    }
+
     #[test]
     fn matches_are_true_and_the_nearest_is_the_sphere() {
         // Case I at home: the traditional method's depth is right, so this checks the
@@ -1183,5 +1219,58 @@ mod tests {
             assert!((q[2] - z).abs() < 0.01 * z, "surface at {:.2} cm, the sphere's {z:.2}", q[2]);
         }
         eprintln!("worst miss of the sphere's centre: {worst:.2} px");
+    }
+
+    #[test]
+    fn a_pixel_target_is_taken_wherever_on_the_object_the_pixel_is() {
+        let blob = crate::data::model::check(include_bytes!(
+            "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
+        ))
+        .unwrap()
+        .blob;
+        let est = crate::track::estimator_of(blob).unwrap();
+        let head = HeadRig::new(presets::case(3).unwrap());
+        let (mut taken, mut tried) = (0, 0);
+        for (k, centre) in
+            [[20.0, -8.0, 100.0], [-20.0, 4.0, 80.0], [0.0, 0.0, 60.0], [40.0, 5.0, 150.0]]
+                .into_iter()
+                .enumerate()
+        {
+            // The head at home: the sphere off the middle of the images (where the model
+            // gives depths: its training box).
+            let joints = Joints::HOME;
+            let text = format!(
+                r#"{{ "rig": {{"case": 3}}, "camera_fps": 30,
+                  "background": {{"z_cm": 300, "texture_seed": {}}},
+                  "objects": [ {{"shape": "sphere", "radius_cm": 5, "centre_cm": {centre:?},
+                                 "texture_seed": {}}} ] }}"#,
+                21 + k,
+                7 + k
+            );
+            let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
+            let r = render_scene(&head, &joints, &scene, &RenderOptions::default(), 5).unwrap();
+            let t = head.project(&joints, &centre).unwrap();
+            // Pixels over the inner half of the sphere's disc in the left image.
+            let radius_px = 286.0 * 5.0 / centre[2];
+            for (i, j) in (-1..=1).flat_map(|j| (-1..=1).map(move |i| (i, j))) {
+                let px =
+                    [t[0] + 0.5 * radius_px * f64::from(i), t[1] + 0.5 * radius_px * f64::from(j)];
+                let (u, v) = (px[0].round() as u32, px[1].round() as u32);
+                assert_eq!(r.truth_left.hit(u, v).map(|h| h.1), Some(1), "on the sphere");
+                let mut finder = Finder::new(TargetMode::Pixel(px));
+                let found = (0..3).find_map(|_| finder.find(&r.left, &r.right, &joints, &est));
+                tried += 1;
+                let Some(found) = found else { continue };
+                // The sphere, not the wall: its centre within a few pixels.
+                let e = (found.px[0] - t[0]).hypot(found.px[1] - t[1]);
+                assert!(
+                    e < 0.5 * radius_px + 3.0,
+                    "{centre:?} from {px:?}: {:?}, {e:.1} px off",
+                    found.px
+                );
+                taken += 1;
+            }
+        }
+        assert_eq!(taken, tried, "taken from {taken} of {tried} pixels on a sphere");
     }
 }
