@@ -254,11 +254,22 @@ pub fn depth_files(
         matcher_geometry(&m.blob).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))?;
     }
     let (l, r) = crate::vision::read_pair(left, right)?;
-    crate::vision::check_image_size(&m.blob, l.dimensions())
-        .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))?;
+    check_pair_size(model_path, &m.blob, left, l.dimensions())?;
     let d = depth(&m.blob, &l, &r, params)
         .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))?;
     Ok((d, l))
+}
+
+/// Refuses a pair of another size than the model's training images
+/// ([`crate::vision::check_image_size`]), naming the left image and the model.
+pub fn check_pair_size(
+    model_path: &Path,
+    blob: &ModelBlob,
+    left: &Path,
+    size: (u32, u32),
+) -> Result<()> {
+    crate::vision::check_image_size(blob, size)
+        .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))
 }
 
 /// Where the left pixels `points` are seen in the right image, answered from the dense
@@ -383,6 +394,7 @@ pub fn locate_files(
 ) -> Result<LocatedFiles> {
     let m = crate::vision::load_stereo_model(model_path)?;
     let (l, r) = crate::vision::read_pair(left, right)?;
+    check_pair_size(model_path, &m.blob, left, l.dimensions())?;
     let (found, warnings) = locate_with(model_path, &m.blob, &l, &r, points)?;
     Ok(LocatedFiles { found, warnings, left: l, right: r })
 }

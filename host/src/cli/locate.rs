@@ -65,8 +65,11 @@ pub fn run(a: Args) -> Result<()> {
         (None, None) => bail!("give --points PIXELS.csv or --at U,V"),
     };
     // The one point asked for with --at must lie in the image (its header says; a file that
-    // cannot be read is left to the full read below, which names the problem).
+    // cannot be read is left to the full read below, which names the problem), once the
+    // image is known to be of the model's size.
     if let (Some(_), Ok((_, w, h))) = (&a.at, hvs_vision::image_file::probe(&a.pair.left)) {
+        let m = crate::data::model::load(&a.pair.model)?;
+        crate::depth::check_pair_size(&a.pair.model, &m.blob, &a.pair.left, (w, h))?;
         let [u, v] = pixels.points[0];
         if !crate::depth::inside_image(u, v, (w, h)) {
             bail!("--at {u},{v}: outside the {w}x{h} left image {}", a.pair.left.display());

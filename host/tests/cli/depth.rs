@@ -219,10 +219,17 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
     let n = b.encode(&mut buf).unwrap();
     let sized = d.join("sized.hvsw");
     std::fs::write(&sized, &buf[..n]).unwrap();
-    fails(
+    let e = fails(
         &locate_args(&["depth"], &sized, &l, &r, &["-o", s(&no)]),
         "trained on 320x240 px images",
     );
+    assert!(e.contains("l.png with ") && e.contains("sized.hvsw"), "{e}");
+    // hvs locate says the same, also for a pixel of the model's images outside these.
+    for at in ["200,150", "20,15"] {
+        let e =
+            fails(&locate_args(&["locate"], &sized, &l, &r, &["--at", at]), "trained on 320x240");
+        assert!(e.contains("l.png with ") && e.contains("sized.hvsw"), "{e}");
+    }
     // No matcher geometry; a posture model.
     for (k, (m, want)) in [
         (hvs_shared::test_support::sample_model(1, 3), "no matcher geometry"),
