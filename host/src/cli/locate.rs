@@ -56,11 +56,22 @@ pub fn run(a: Args) -> Result<()> {
     }
     check_outputs(&outputs, &inputs)?;
     let pixels = match (&a.points, &a.at) {
-        (Some(p), _) => read_pixels(p)?,
+        (Some(p), _) => {
+            let px = read_pixels(p)?;
+            if !px.replaced.is_empty() {
+                eprintln!(
+                    "warning: {}: its columns {} are replaced by the located values (rename them to keep them)",
+                    p.display(),
+                    px.replaced.join(",")
+                );
+            }
+            px
+        }
         (None, Some(at)) => Pixels {
             extra_names: Vec::new(),
             points: vec![crate::cli::parse_at(at)?],
             extra: vec![Vec::new()],
+            replaced: Vec::new(),
         },
         (None, None) => bail!("give --points PIXELS.csv or --at U,V"),
     };

@@ -17,7 +17,14 @@ pub struct Pixels {
     pub points: Vec<[f64; 2]>,
     /// The passed-through fields per row.
     pub extra: Vec<Vec<String>>,
+    /// Input columns of names the output writes itself ([`WRITTEN`]): replaced, not passed
+    /// through.
+    pub replaced: Vec<String>,
 }
+
+/// The columns `hvs locate` writes after `u_l,v_l`: an input column of one of these names is
+/// replaced by the located values (and `hvs locate` says so).
+pub const WRITTEN: [&str; 7] = ["u_r", "v_r", "x", "y", "z", "score", "status"];
 
 /// Reads `path`; errors name the file, the line and the column.
 pub fn read_pixels(path: &Path) -> Result<Pixels> {
@@ -35,13 +42,18 @@ pub fn read_pixels(path: &Path) -> Result<Pixels> {
         at.ok_or_else(|| missing_column(&file, hl, c, &names))
     };
     let (ui, vi) = (find("u_l")?, find("v_l")?);
-    let own = ["u_l", "v_l", "u_r", "v_r", "x", "y", "z", "score", "status"];
-    let extra_idx: Vec<usize> =
-        (0..names.len()).filter(|&k| !own.contains(&names[k].as_str())).collect();
+    // A column of a name the output gives its own values is replaced by them: said, not
+    // passed through (it would be doubled).
+    let replaced: Vec<&str> =
+        names.iter().map(String::as_str).filter(|n| WRITTEN.contains(n)).collect();
+    let extra_idx: Vec<usize> = (0..names.len())
+        .filter(|&k| k != ui && k != vi && !WRITTEN.contains(&names[k].as_str()))
+        .collect();
     let mut out = Pixels {
         extra_names: extra_idx.iter().map(|&k| names[k].clone()).collect(),
         points: Vec::new(),
         extra: Vec::new(),
+        replaced: replaced.iter().map(|n| n.to_string()).collect(),
     };
     let mut rec = csv::StringRecord::new();
     while rdr.read_record(&mut rec).map_err(|e| csv_error(&file, e))? {
@@ -82,6 +94,13 @@ mod tests {
         assert_eq!(err("u_l,v_l\nNaN,2\n"), ":2: column \"u_l\": \"NaN\" is not a finite number");
         assert_eq!(err("u_l,v_l\n1,\n"), ":2: column \"v_l\" is empty");
         assert_eq!(err("u,v\n1,2\n"), ":1: missing column \"u_l\" (the header has: u,v)");
+        std::fs::write(&path, "tag,z,u_l,v_l,u_r\nq,2,3,4,5\n").unwrap();
+        let p = read_pixels(&path).unwrap();
+        assert_eq!(
+            (p.points, p.extra_names, p.extra),
+            (vec![[3.0, 4.0]], vec!["tag".to_string()], vec![vec!["q".to_string()]])
+        );
+        assert_eq!(p.replaced, ["z", "u_r"]);
         let ok = read_pixels(&{
             std::fs::write(&path, "u_l,v_l,tag\n1,2.5,a\n").unwrap();
             path.clone()

@@ -244,6 +244,17 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
         let e = String::from_utf8_lossy(&o.stderr).into_owned();
         assert!(e.contains(":3: column \"u_l\"") && e.contains("is not a finite number"), "{e}");
     }
+    // Columns the output writes itself are replaced, and the user is told.
+    std::fs::write(&pix, "u_l,v_l,z,tag\n300,200,95,a\n").unwrap();
+    let o = crate::common::hvs()
+        .args(locate_args(&["locate"], &model, &l, &r, &["--points", s(&pix)]))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0));
+    let e = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(e.contains("px.csv: its columns z are replaced by the located values"), "{e}");
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(text.starts_with("u_l,v_l,u_r,v_r,x,y,z,score,status,tag\n"), "{text}");
     // One point, printed.
     let one = ok(&locate_args(&["locate"], &model, &l, &r, &["--at", "300,200"]));
     assert!(one.contains("z=") || one.contains("no trustworthy match"), "{one}");
