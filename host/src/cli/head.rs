@@ -24,7 +24,8 @@ pub struct Args {
     /// The head over TCP: `tcp:HOST:PORT` (for `hvs emulate`), or `serial:PATH[@BAUD]`.
     #[arg(long, conflicts_with = "port")]
     pub connect: Option<String>,
-    /// The head on a serial port (`/dev/ttyUSB0`, `COM3`).
+    /// The head on a serial port (`/dev/ttyUSB0`, `COM3`; at --baud), or, as `hvs track` and
+    /// `hvs view` take it, `serial:PATH[@BAUD]` or `tcp:HOST:PORT`.
     #[arg(long)]
     pub port: Option<String>,
     /// Serial baud rate.
@@ -111,10 +112,8 @@ impl Args {
     pub fn endpoint(&self) -> Result<Endpoint> {
         match (&self.connect, &self.port) {
             (Some(c), _) => c.parse(),
-            (None, Some(p)) => Ok(Endpoint::Serial {
-                path: p.clone(),
-                baud: self.baud,
-            }),
+            (None, Some(p)) if p.starts_with("tcp:") || p.starts_with("serial:") => p.parse(),
+            (None, Some(p)) => Ok(Endpoint::Serial { path: p.clone(), baud: self.baud }),
             (None, None) => bail!(
                 "no head given: --connect tcp:HOST:PORT (hvs emulate), --connect serial:PATH[@BAUD] or --port DEVICE (a serial port)"
             ),
@@ -382,6 +381,13 @@ mod tests {
         assert_eq!(
             a.endpoint().unwrap(),
             Endpoint::Serial { path: "/dev/ttyACM0".into(), baud: 9600 }
+        );
+        // --port takes the endpoints hvs track and hvs view take.
+        let with = |p: &str| Args { port: Some(p.into()), ..a.clone() }.endpoint().unwrap();
+        assert_eq!(with("tcp:127.0.0.1:4444"), "tcp:127.0.0.1:4444".parse().unwrap());
+        assert_eq!(
+            with("serial:/dev/ttyUSB1@57600"),
+            Endpoint::Serial { path: "/dev/ttyUSB1".into(), baud: 57600 }
         );
     }
 }
