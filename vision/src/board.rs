@@ -40,12 +40,23 @@ pub struct Board {
     pub square_cm: f64,
 }
 
-#[derive(Deserialize)]
+/// A board description as written (`BOARD.json`, or a scene's `board` object), checked by
+/// [`Board::from_spec`].
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct BoardFile {
+pub struct BoardSpec {
     pattern: Pattern,
+    #[serde(deserialize_with = "two_counts")]
     inner_corners: [u32; 2],
     square_cm: f64,
+}
+
+/// `[cols, rows]`: a list of two whole numbers, a list of another length said as such.
+fn two_counts<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[u32; 2], D::Error> {
+    let v = Vec::<u32>::deserialize(d)?;
+    <[u32; 2]>::try_from(v.as_slice()).map_err(|_| {
+        serde::de::Error::custom(format!("expected 2 numbers in brackets, got {}", v.len()))
+    })
 }
 
 /// Why a board description was refused.
@@ -97,9 +108,14 @@ impl Board {
 
     /// Parse a board description from JSON text.
     pub fn from_json(text: &str) -> Result<Board, BoardError> {
-        let f: BoardFile =
+        let f: BoardSpec =
             // A field name may hold a line break: the message stays one line.
             serde_json::from_str(text).map_err(|e| BoardError::Json(e.to_string().replace('\n', "\\n")))?;
+        Board::from_spec(&f)
+    }
+
+    /// The board of a description read as written: its values checked as [`Board::new`] does.
+    pub fn from_spec(f: &BoardSpec) -> Result<Board, BoardError> {
         let mut b = Board::new(f.inner_corners[0], f.inner_corners[1], f.square_cm)?;
         b.pattern = f.pattern;
         Ok(b)
@@ -194,8 +210,8 @@ mod tests {
                 r#"{"pattern": "circles", "inner_corners": [9, 6], "square_cm": 6.0}"#.into(),
                 "unknown variant",
             ),
-            (chess("[9]", "6.0"), "invalid length"),
-            (chess("[9, 6, 2]", "6.0"), "trailing"),
+            (chess("[9]", "6.0"), "expected 2 numbers in brackets, got 1"),
+            (chess("[9, 6, 2]", "6.0"), "expected 2 numbers in brackets, got 3 at line 1"),
             (chess("[9, -6]", "6.0"), "invalid value"),
             (
                 r#"{"pattern": "chessboard", "inner_corners": [9, 6]}"#.into(),

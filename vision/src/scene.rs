@@ -149,7 +149,7 @@ pub struct ObjectSpec {
     /// Plane slant about the vertical axis (degrees, the right side away when positive).
     pub yaw_deg: Option<f64>,
     /// Board description (a `BOARD.json` object).
-    pub board: Option<serde_json::Value>,
+    pub board: Option<crate::board::BoardSpec>,
     /// Centre at `t = 0` (cm).
     #[serde(default, deserialize_with = "some_numbers")]
     pub centre_cm: Option<Vec3>,
@@ -422,7 +422,7 @@ impl ObjectSpec {
                     .board
                     .as_ref()
                     .ok_or_else(|| err(field("board"), "a board needs a BOARD.json object"))?;
-                let board = Board::from_json(&b.to_string()).map_err(|e| err(field("board"), e))?;
+                let board = Board::from_spec(b).map_err(|e| err(field("board"), e))?;
                 Shape::Board { board }
             }
         };
@@ -1134,6 +1134,31 @@ mod tests {
         // Beside it, and behind the eye: nothing.
         assert!(intersect(&p, &[0.0; 3], &[1.0, 0.0, 0.0]).is_none());
         assert!(intersect(&p, &[0.0, 0.0, 200.0], &[0.0, 0.0, 1.0]).is_none());
+    }
+
+    #[test]
+    fn a_boards_errors_give_their_place_in_the_scene_file() {
+        let scene = |board: &str| {
+            let text = format!(
+                "{{\"rig\": {{\"case\": 3}}, \"camera_fps\": 30,\n \"background\": {{\"z_cm\": 300}},\n \"objects\": [{{\"shape\": \"board\", \"centre_cm\": [0, 0, 100], \"board\": {board}}}]}}"
+            );
+            SceneFile::parse(&text).and_then(|f| f.scene()).map(|_| ()).unwrap_err().to_string()
+        };
+        let ok = r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 6}"#;
+        assert!(SceneFile::parse(&format!(
+            r#"{{"rig": {{"case": 3}}, "camera_fps": 30, "background": {{"z_cm": 300}}, "objects": [{{"shape": "board", "centre_cm": [0, 0, 100], "board": {ok}}}]}}"#
+        ))
+        .unwrap()
+        .scene()
+        .is_ok());
+        let e = scene(
+            r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 6, "colour": 1}"#,
+        );
+        assert!(e.contains("unknown field `colour`") && e.contains("at line 3"), "{e}");
+        let e = scene(r#"{"pattern": "chessboard", "inner_corners": [9, 6, 1], "square_cm": 6}"#);
+        assert!(e.contains("expected 2 numbers in brackets, got 3 at line 3"), "{e}");
+        let e = scene(r#"{"pattern": "chessboard", "inner_corners": [1, 6], "square_cm": 6}"#);
+        assert!(e.contains("objects[0].board") && e.contains("cols"), "{e}");
     }
 
     #[test]
