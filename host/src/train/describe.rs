@@ -34,7 +34,7 @@ pub fn describe(path: &Path, f: &ModelFile) -> String {
     );
     let _ = writeln!(
         o,
-        "family:      {} ({}{}, sigmoid exp {:?})",
+        "family:      {} ({}{}, sigmoid exp: {})",
         b.family.name(),
         match b.family.output_map {
             hvs_shared::runtime::mlp::OutputMap::Direct => "outputs are X, Y, Z in cm",
@@ -46,7 +46,7 @@ pub fn describe(path: &Path, f: &ModelFile) -> String {
             hvs_shared::runtime::blob::Skip::Linear =>
                 "; a linear skip term adds an affine map of the inputs",
         },
-        b.family.exp
+        b.family.exp.name()
     );
     let _ = writeln!(
         o,

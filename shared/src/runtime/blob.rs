@@ -236,6 +236,15 @@ pub enum ExpKind {
     LibmExp,
 }
 
+impl ExpKind {
+    /// What the sigmoid's `exp` is, for people (`hvs info`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ExpKind::LibmExp => "mlp::exp, a range-reduced polynomial within 8.2e-8 of e^x",
+        }
+    }
+}
+
 /// Whether the net has a linear skip term (inputs straight to outputs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Skip {
