@@ -28,7 +28,7 @@ fn posture_long_about() -> String {
          band of the working range against the optimal-triangulation floor at the same \
          posture (goal: within {:.0} %); the hidden-neuron count it needs ({}); lens \
          distortion k1 {} to {} for the networks, a DLT fit and the floor. Each part writes a \
-         CSV and a plot (SVG, PNG) into DIR, plus timing.csv and POSTURE.md. A few minutes in \
+         CSV and a plot (SVG, PNG) into DIR, plus timing.csv and POSTURE.md. Under a minute in \
          release on 2 cores. Same seed, same CSV bytes.",
         roman(s.case),
         s.hidden,

@@ -23,11 +23,13 @@ use std::path::{Path, PathBuf};
     outside, nan_input, no_match, out_of_depth_range, no_estimate; `score` is the match's \
     confidence (0..1). A Z-only model gives z and leaves x, y empty."
 )]
+#[command(group(clap::ArgGroup::new("pixels").required(true).args(["points", "at"])))]
 pub struct Args {
     #[command(flatten)]
     pub pair: StereoArgs,
-    /// Points to locate: a CSV with columns u_l,v_l (other columns passed through).
-    #[arg(long, value_name = "PIXELS.csv", conflicts_with = "at", required_unless_present = "at")]
+    /// Points to locate: a CSV with columns u_l,v_l (other columns passed through, but for
+    /// those named as the output's own, which are replaced).
+    #[arg(long, value_name = "PIXELS.csv", conflicts_with = "at")]
     pub points: Option<PathBuf>,
     /// One point U,V of the left image, printed.
     #[arg(long, value_name = "U,V", allow_hyphen_values = true)]

@@ -194,8 +194,8 @@ pub struct RenderArgs {
     /// Sensor noise, standard deviation (grey levels).
     #[arg(long, value_name = "GREY", default_value_t = hvs_vision::render::RenderOptions::default().noise_sigma)]
     pub noise: f64,
-    /// Supersampling of edge pixels (N x N samples, 1-16) [default: 8; `hvs collect`: 4, which
-    /// renders its thousands of pairs in two thirds of the time].
+    /// Supersampling of edge pixels (N x N samples, 1-16) [default: 4 in `hvs collect`, whose
+    /// thousands of pairs it renders in two thirds of the time; 8 elsewhere].
     #[arg(long, value_name = "N")]
     pub supersample: Option<u32>,
 }
