@@ -160,9 +160,10 @@ fn rig_from(obj: &Map<String, Value>) -> Result<Rig> {
             || IGNORED.contains(&k.as_str()))
         {
             bail!(
-                "unknown field \"{k}\" (known: {}, {})",
+                "unknown field \"{k}\" (known: {}, {}; allowed and not read: {})",
                 REQUIRED.join(", "),
-                OPTIONAL.join(", ")
+                OPTIONAL.join(", "),
+                IGNORED.join(", ")
             );
         }
     }
