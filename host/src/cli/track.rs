@@ -232,6 +232,13 @@ pub fn run(a: Args) -> Result<()> {
         a.log.display(),
         if stop.load(std::sync::atomic::Ordering::Relaxed) { " (interrupted)" } else { "" }
     );
+    if let (TargetMode::Pixel([u, v]), 0, false) = (target, tracked, rows.is_empty()) {
+        eprintln!(
+            "warning: --target {u},{v}: no object was found at that pixel in any frame (no \
+             unique match near it, or none the model gives a depth for: outside the depths and \
+             the image region it was trained on at that posture)"
+        );
+    }
     Ok(())
 }
 

@@ -59,6 +59,14 @@ fn track_logs_every_frame_and_repeats_its_bytes() {
         .starts_with("left,right,z,x,y,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan\n"));
     assert_eq!(caps.lines().count(), 7);
     assert!(fs::metadata(format!("{rec}/left0005.png")).is_ok());
+    // A pixel target in the image's corner, where no window fits: never found, and said so.
+    let mut corner = args(&dir.p("c.csv"));
+    corner.extend(["--target".to_string(), "1,1".to_string()]);
+    let err = stderr_with_code(corner, 0);
+    assert!(
+        err.contains("0 tracking") && err.contains("warning: --target 1,1: no object"),
+        "{err}"
+    );
 }
 
 #[test]
