@@ -198,7 +198,7 @@ fn plan_of(a: &Args, scene: Option<&Path>) -> Result<Plan> {
 /// whole board is written at once.
 fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
     use crate::track::servo_head::{self, HeadChoice};
-    let endpoint = servo_head::parse_port(port).map_err(|e| usage(format!("{e:#}")))?;
+    let endpoint = crate::cli::port_arg(port)?;
     let spec =
         crate::track::cameras::CameraSpec::parse(cameras).map_err(|e| usage(e.to_string()))?;
     let asked = a.camera_size.as_deref().map(super::parse_camera_size).transpose()?;

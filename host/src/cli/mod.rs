@@ -347,6 +347,23 @@ pub enum HeadKind {
     Qemu,
 }
 
+impl HeadKind {
+    /// The head to open for this kind (`firmware`: `--firmware`, for QEMU).
+    pub fn choice(self, firmware: Option<PathBuf>) -> crate::track::servo_head::HeadChoice {
+        use crate::track::servo_head::HeadChoice;
+        match self {
+            HeadKind::Emulate => HeadChoice::Emulate,
+            HeadKind::Qemu => HeadChoice::Qemu(firmware),
+        }
+    }
+}
+
+/// `--port`: a head controller on a link (a serial device, `serial:PATH[@BAUD]`,
+/// `tcp:HOST:PORT`); a bad one is bad usage.
+pub fn port_arg(p: &str) -> Result<crate::device::link::Endpoint> {
+    crate::track::servo_head::parse_port(p).map_err(|e| usage(format!("{e:#}")))
+}
+
 /// `WxH` of `--camera-size`: two whole numbers from 16 to 8192.
 pub fn parse_camera_size(s: &str) -> Result<(u32, u32)> {
     let parsed = s

@@ -5,7 +5,7 @@
 use crate::data::captures::{captures_csv, CaptureRow};
 use crate::data::output::{write_atomically, write_bytes};
 use crate::track::frames::FrameSource;
-use crate::track::servo_head::{self, parse_port, HeadChoice};
+use crate::track::servo_head::{self, HeadChoice};
 use crate::track::{self, target::TargetMode};
 use anyhow::{anyhow, Result};
 use hvs_shared::runtime::fixation::LoopConfig;
@@ -111,11 +111,8 @@ pub fn run(a: Args) -> Result<()> {
         (Some(_), super::HeadKind::Qemu) => {
             return Err(crate::cli::usage("--port and --head qemu: give one head"));
         }
-        (Some(p), _) => {
-            HeadChoice::Port(parse_port(p).map_err(|e| crate::cli::usage(format!("{e:#}")))?)
-        }
-        (None, super::HeadKind::Qemu) => HeadChoice::Qemu(a.firmware.clone()),
-        (None, super::HeadKind::Emulate) => HeadChoice::Emulate,
+        (Some(p), _) => HeadChoice::Port(crate::cli::port_arg(p)?),
+        (None, kind) => kind.choice(a.firmware.clone()),
     };
     let spec = a
         .cameras

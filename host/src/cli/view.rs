@@ -92,24 +92,14 @@ pub fn run(a: Args) -> Result<()> {
         (None, None, Some(board), Some(captures), None, None) => {
             Source::Captures { board, captures }
         }
-        (None, None, None, None, Some(scene), None) => Source::Scene {
-            scene,
-            seed: a.seed,
-            head: match a.head {
-                super::HeadKind::Emulate => crate::track::servo_head::HeadChoice::Emulate,
-                super::HeadKind::Qemu => crate::track::servo_head::HeadChoice::Qemu(a.firmware),
-            },
-        },
+        (None, None, None, None, Some(scene), None) => {
+            Source::Scene { scene, seed: a.seed, head: a.head.choice(a.firmware) }
+        }
         (None, None, None, None, None, Some(cameras)) => Source::Cameras {
             spec: crate::track::cameras::CameraSpec::parse(&cameras)
                 .map_err(|e| crate::cli::usage(e.to_string()))?,
             size: a.camera_size.as_deref().map(crate::cli::parse_camera_size).transpose()?,
-            port: a
-                .port
-                .as_deref()
-                .map(crate::track::servo_head::parse_port)
-                .transpose()
-                .map_err(|e| crate::cli::usage(format!("{e:#}")))?,
+            port: a.port.as_deref().map(crate::cli::port_arg).transpose()?,
         },
         _ => bail!(
             "give --left L --right R, --board BOARD.json --captures CAPTURES.csv, --scene \
