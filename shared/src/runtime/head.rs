@@ -185,9 +185,17 @@ pub fn outputs_in_range(blob: &ModelBlob, x: &[f32], y: &[f32]) -> bool {
         }
         _ => y,
     };
-    o.iter()
-        .zip(blob.out_offset.iter().zip(blob.out_scale.iter()))
-        .all(|(v, (off, scale))| libm::fabsf(*v - *off) <= OUTPUT_MARGIN * libm::fabsf(*scale))
+    let within = |(v, (off, scale)): (&f32, (&f32, &f32))| {
+        libm::fabsf(*v - *off) <= OUTPUT_MARGIN * libm::fabsf(*scale)
+    };
+    // The depth (Z, or 1/Z: the last output) of a net trained on points in front of the
+    // cameras only is in front: the margin does not reach through zero (past infinity, for
+    // 1/Z) to a point behind them.
+    let in_front = match (o.last(), blob.out_offset.last(), blob.out_scale.last()) {
+        (Some(v), Some(off), Some(scale)) => *off - libm::fabsf(*scale) < 0.0 || *v > 0.0,
+        _ => true,
+    };
+    in_front && o.iter().zip(blob.out_offset.iter().zip(blob.out_scale.iter())).all(within)
 }
 
 /// How the head computes depth after boot.
@@ -980,6 +988,14 @@ pub(crate) mod tests {
         assert!(!outputs_in_range(&good, &x, &y(12.01)));
         assert!(!outputs_in_range(&good, &x, &y(f32::NAN)));
         assert!(!outputs_in_range(&good, &x, &[0.0, 0.0]));
+        // A depth behind the cameras is out of range, even within the margin of a training
+        // box in front of them.
+        let z = |z: f32| [0.0, 0.0, z];
+        let (off, scale) = (good.out_offset[2], libm::fabsf(good.out_scale[2]));
+        assert!(off - scale > 0.0 && off - OUTPUT_MARGIN * scale < -1.0, "{off} {scale}");
+        assert!(outputs_in_range(&good, &x, &z(1.0)));
+        assert!(!outputs_in_range(&good, &x, &z(0.0)));
+        assert!(!outputs_in_range(&good, &x, &z(-1.0)));
     }
 
     #[test]
