@@ -212,6 +212,16 @@ pub fn preflight(cfg: &EmulatorConfig) -> Result<()> {
     for (flag, p) in [("--model", &cfg.slot_a), ("--slot-b", &cfg.slot_b)] {
         if let Some(p) = p {
             crate::data::model::load(p).with_context(|| flag.to_string())?;
+            // The file is loaded into the slot as it is: one longer than the slot would
+            // spill into the next slot (or past the flash).
+            let len = std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
+            let slot = u64::from(hvs_shared::runtime::layout::SLOT_LEN);
+            if len > slot {
+                bail!(
+                    "{flag} {}: {len} bytes, more than a weight slot holds ({slot} bytes): write the model alone (hvs train -o, hvs image)",
+                    p.display()
+                );
+            }
         }
     }
     check_firmware(&cfg.firmware)?;

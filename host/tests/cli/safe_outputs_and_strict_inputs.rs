@@ -483,6 +483,12 @@ fn emulate_checks_its_inputs_before_it_starts() {
     let e = emulate(&m, &arm, &log, &busy, "cannot listen there");
     assert!(e.contains(&busy), "{e}");
     emulate(&m, &arm, &log, "nonsense", "not a HOST:PORT address");
+    // A valid model with more bytes after it than a slot holds: it would spill into slot B.
+    let spill = d.join("spill.hvsw");
+    let mut bytes = std::fs::read(&m).unwrap();
+    bytes.resize(128 * 1024 + 1, 0xff);
+    std::fs::write(&spill, &bytes).unwrap();
+    emulate(&spill, &arm, &log, &free, "more than a weight slot holds (131072 bytes)");
     // With every input right, the next failure is QEMU itself.
     emulate(&m, &arm, &log, &free, "cannot run");
     assert!(!log.exists());
