@@ -263,14 +263,16 @@ fn data_inputs(paths: &[PathBuf]) -> Vec<(&'static str, &Path)> {
 /// The `--data` files read and joined into one set ([`crate::data::csv::Table::join`]); a file
 /// given twice is refused (its points would count double).
 fn read_data(paths: &[PathBuf]) -> Result<crate::data::csv::Table> {
-    let mut seen = Vec::new();
+    let mut seen: Vec<std::fs::Metadata> = Vec::new();
     let mut tables = Vec::new();
     for p in paths {
-        let id = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
-        if seen.contains(&id) {
-            bail!("--data {}: given twice (its points would count double)", p.display());
+        // The same file under another name (`./`, a symbolic or a hard link).
+        if let Ok(m) = std::fs::metadata(p) {
+            if seen.iter().any(|s| crate::data::output::same_file(s, &m)) {
+                bail!("--data {}: given twice (its points would count double)", p.display());
+            }
+            seen.push(m);
         }
-        seen.push(id);
         tables.push(read_set(p, Inputs::Auto, true)?);
     }
     crate::data::csv::Table::join(tables)

@@ -386,6 +386,9 @@ fn several_training_sets_join_as_one() {
     let c = csv(d, "c.csv", h, &bad);
     train(&[&a, &c], "c.csv:6: column \"v_l\"");
     train(&[&a, &d.join("./a.csv")], "given twice");
+    let hard = d.join("hard.csv");
+    std::fs::hard_link(&a, &hard).unwrap();
+    train(&[&a, &hard], "given twice");
     // Another kind of set, or images of another size.
     let joints = "u_l,v_l,u_r,v_r,x,y,z,neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan";
     let with_joints: Vec<String> = rows[36..].iter().map(|r| format!("{r},0,0,0,0,0")).collect();
