@@ -109,14 +109,19 @@ pub enum HeadCommand {
 
 impl Args {
     /// The endpoint named by `--connect` or `--port`/`--baud`.
+    /// A bad or missing endpoint is bad usage (exit 2), as in the other commands.
     pub fn endpoint(&self) -> Result<Endpoint> {
+        let bad = |e: anyhow::Error| crate::cli::usage(format!("{e:#}"));
         match (&self.connect, &self.port) {
-            (Some(c), _) => c.parse(),
-            (None, Some(p)) if p.starts_with("tcp:") || p.starts_with("serial:") => p.parse(),
+            (Some(c), _) => c.parse().map_err(bad),
+            (None, Some(p)) if p.starts_with("tcp:") || p.starts_with("serial:") => {
+                p.parse().map_err(bad)
+            }
+            (None, Some(p)) if p.is_empty() => Err(crate::cli::usage("--port: empty")),
             (None, Some(p)) => Ok(Endpoint::Serial { path: p.clone(), baud: self.baud }),
-            (None, None) => bail!(
-                "no head given: --connect tcp:HOST:PORT (hvs emulate), --connect serial:PATH[@BAUD] or --port DEVICE (a serial port)"
-            ),
+            (None, None) => Err(crate::cli::usage(
+                "no head given: --connect tcp:HOST:PORT (hvs emulate), --connect serial:PATH[@BAUD] or --port DEVICE (a serial port)",
+            )),
         }
     }
 }

@@ -36,9 +36,13 @@ impl FromStr for Endpoint {
     /// Parses `tcp:HOST:PORT` or `serial:PATH[@BAUD]`.
     fn from_str(s: &str) -> Result<Self> {
         if let Some(addr) = s.strip_prefix("tcp:") {
-            if addr.rsplit_once(':').is_none_or(|(h, p)| h.is_empty() || p.parse::<u16>().is_err())
-            {
+            let Some((host, port)) = addr.rsplit_once(':').filter(|(h, _)| !h.is_empty()) else {
                 bail!("endpoint {s:?}: expected tcp:HOST:PORT");
+            };
+            if port.parse::<u16>().is_err() {
+                bail!(
+                    "endpoint {s:?}: the port {port:?} of {host} is not a number from 0 to 65535"
+                );
             }
             return Ok(Endpoint::Tcp(addr.to_string()));
         }

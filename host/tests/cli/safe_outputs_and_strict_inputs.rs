@@ -600,9 +600,22 @@ fn messages_name_the_real_problem() {
     assert!(!e.contains("case 1"), "{e}");
     // A model that is a directory.
     fails(&["emulate", "--model", s(d)], "Is a directory");
-    // No head given, or none there: both ways are named.
-    let e = fails(&["head", "ping"], "--connect tcp:HOST:PORT");
-    assert!(e.contains("--port DEVICE"), "{e}");
+    // No head given (bad usage, exit 2), or none there: both ways are named.
+    let e = stderr_with_code(["head", "ping"], 2);
+    assert!(e.contains("--connect tcp:HOST:PORT") && e.contains("--port DEVICE"), "{e}");
+    for (bad, want) in [
+        ("tcp:127.0.0.1", "expected tcp:HOST:PORT"),
+        ("tcp:h:99999", "is not a number from 0 to 65535"),
+        ("", "--port: empty"),
+    ] {
+        for flag in ["--connect", "--port"] {
+            let e = stderr_with_code(["head", flag, bad, "ping"], 2);
+            assert!(
+                e.contains(want) || (flag == "--connect" && bad.is_empty()),
+                "{flag} {bad:?}: {e}"
+            );
+        }
+    }
     fails(&["head", "--connect", "tcp:127.0.0.1:9", "ping"], "--port DEVICE");
     // A head that accepts the connection and never answers (as QEMU does for a second client).
     let busy = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
