@@ -164,7 +164,7 @@ impl Link {
             }
             if start.elapsed() >= deadline {
                 bail!(
-                    "{}: no answer to Ping within {deadline:?}: the head is not running, or is busy with another client (QEMU serves one connection at a time; close the other `hvs head`)",
+                    "{}: no answer to Ping within {deadline:?}: the head is not running (under `hvs emulate`: is the firmware the `--features qemu` build?), or is busy with another client (QEMU serves one connection at a time; close the other `hvs head`)",
                     self.endpoint
                 );
             }

@@ -126,7 +126,14 @@ impl RemoteHead {
         preflight(&cfg)?;
         let emu = Emulator::start(&cfg)?;
         let endpoint = emu.endpoint.parse()?;
-        let link = client::connect(&endpoint, Duration::from_secs(20))?;
+        // This QEMU serves this run alone: a head that never answers is firmware that does not
+        // run in QEMU (the board build, which writes the same path as the QEMU one).
+        let link = client::connect(&endpoint, Duration::from_secs(20)).with_context(|| {
+            format!(
+                "the firmware {} does not answer in QEMU: is it the `--features qemu` build? (the board build writes the same path)",
+                cfg.firmware.display()
+            )
+        })?;
         Ok(RemoteHead { _qemu: Some((emu, dir)), ..RemoteHead::new(link, control_hz)? })
     }
 
