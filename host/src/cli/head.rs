@@ -128,6 +128,9 @@ impl Args {
 
 /// `hvs head`.
 pub fn run(args: &Args) -> Result<()> {
+    if args.timeout_ms == 0 {
+        return Err(crate::cli::usage("--timeout-ms must be at least 1"));
+    }
     let timeout = Duration::from_millis(args.timeout_ms);
     let endpoint = args.endpoint()?;
     // Inputs are read before the head is contacted: a bad file is named as such, even when

@@ -600,6 +600,9 @@ fn messages_name_the_real_problem() {
     assert!(!e.contains("case 1"), "{e}");
     // A model that is a directory.
     fails(&["emulate", "--model", s(d)], "Is a directory");
+    let e =
+        stderr_with_code(["head", "--connect", "tcp:127.0.0.1:9", "--timeout-ms", "0", "ping"], 2);
+    assert!(e.contains("--timeout-ms must be at least 1"), "{e}");
     // No head given (bad usage, exit 2), or none there: both ways are named.
     let e = stderr_with_code(["head", "ping"], 2);
     assert!(e.contains("--connect tcp:HOST:PORT") && e.contains("--port DEVICE"), "{e}");
