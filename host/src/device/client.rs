@@ -129,8 +129,16 @@ pub fn write_info(out: &mut impl Write, i: &InfoData) -> Result<()> {
     }
     writeln!(
         out,
-        "fallback calibration: phi {} px, d {} cm, principal point ({}, {})",
-        i.fallback.phi, i.fallback.half_baseline, i.fallback.u0, i.fallback.v0
+        "fallback calibration: phi {} px, d {} cm, principal point ({}, {}){}",
+        i.fallback.phi,
+        i.fallback.half_baseline,
+        i.fallback.u0,
+        i.fallback.v0,
+        if i.fallback == hvs_shared::runtime::traditional::Calibration::BUILT_IN {
+            " (the firmware's built-in one)"
+        } else {
+            ""
+        }
     )?;
     if let Some(peak) = i.stack_peak {
         writeln!(out, "stack peak: {peak} B")?;
