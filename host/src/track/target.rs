@@ -1166,14 +1166,9 @@ mod tests {
     /// it, near the head, off it and far).
     #[test]
     fn the_target_is_the_objects_centre_in_both_images() {
-        // The README's small posture-aware model of case III (see the fixture's README): its
-        // depth box rejects the wall's chance matches at a near object's disparity.
-        let blob = crate::data::model::check(include_bytes!(
-            "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
-        ))
-        .unwrap()
-        .blob;
-        let est = crate::track::estimator_of(blob).unwrap();
+        // The README's small posture-aware model: its depth box rejects the wall's chance
+        // matches at a near object's disparity.
+        let est = small_posture_estimator();
         let head = HeadRig::new(presets::case(3).unwrap());
         let mut worst = 0.0f64;
         // The head as the loop has it: turned towards the sphere by the nominal kinematics
@@ -1188,16 +1183,7 @@ mod tests {
                 .enumerate()
         {
             let joints = towards(centre);
-            let text = format!(
-                r#"{{ "rig": {{"case": 3}}, "camera_fps": 30,
-                  "background": {{"z_cm": 300, "texture_seed": {}}},
-                  "objects": [ {{"shape": "sphere", "radius_cm": 5, "centre_cm": {centre:?},
-                                 "texture_seed": {}}} ] }}"#,
-                11 + k,
-                2 + k
-            );
-            let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
-            let r = render_scene(&head, &joints, &scene, &RenderOptions::default(), 5).unwrap();
+            let r = sphere_pair(&head, &joints, centre, (11 + k as u64, 2 + k as u64));
             // A few frames of a still head: the first one's region is the scan's guess.
             let mut finder = Finder::new(TargetMode::Nearest);
             let mut found = None;
@@ -1221,14 +1207,37 @@ mod tests {
         eprintln!("worst miss of the sphere's centre: {worst:.2} px");
     }
 
-    #[test]
-    fn a_pixel_target_is_taken_wherever_on_the_object_the_pixel_is() {
+    /// The README's small posture-aware model of case III (see the fixture's README).
+    fn small_posture_estimator() -> Estimator {
         let blob = crate::data::model::check(include_bytes!(
             "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
         ))
         .unwrap()
         .blob;
-        let est = crate::track::estimator_of(blob).unwrap();
+        crate::track::estimator_of(blob).unwrap()
+    }
+
+    /// Case III's pair at `joints` of a 5 cm sphere at `centre` before a wall at 300 cm, with
+    /// the wall's and the sphere's texture seeds.
+    fn sphere_pair(
+        head: &HeadRig,
+        joints: &Joints,
+        centre: [f64; 3],
+        (wall, sphere): (u64, u64),
+    ) -> SceneRender {
+        let text = format!(
+            r#"{{ "rig": {{"case": 3}}, "camera_fps": 30,
+              "background": {{"z_cm": 300, "texture_seed": {wall}}},
+              "objects": [ {{"shape": "sphere", "radius_cm": 5, "centre_cm": {centre:?},
+                             "texture_seed": {sphere}}} ] }}"#
+        );
+        let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
+        render_scene(head, joints, &scene, &RenderOptions::default(), 5).unwrap()
+    }
+
+    #[test]
+    fn a_pixel_target_is_taken_wherever_on_the_object_the_pixel_is() {
+        let est = small_posture_estimator();
         let head = HeadRig::new(presets::case(3).unwrap());
         let (mut taken, mut tried) = (0, 0);
         for (k, centre) in
@@ -1239,16 +1248,7 @@ mod tests {
             // The head at home: the sphere off the middle of the images (where the model
             // gives depths: its training box).
             let joints = Joints::HOME;
-            let text = format!(
-                r#"{{ "rig": {{"case": 3}}, "camera_fps": 30,
-                  "background": {{"z_cm": 300, "texture_seed": {}}},
-                  "objects": [ {{"shape": "sphere", "radius_cm": 5, "centre_cm": {centre:?},
-                                 "texture_seed": {}}} ] }}"#,
-                21 + k,
-                7 + k
-            );
-            let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
-            let r = render_scene(&head, &joints, &scene, &RenderOptions::default(), 5).unwrap();
+            let r = sphere_pair(&head, &joints, centre, (21 + k as u64, 7 + k as u64));
             let t = head.project(&joints, &centre).unwrap();
             // Pixels over the inner half of the sphere's disc in the left image.
             let radius_px = 286.0 * 5.0 / centre[2];
