@@ -12,7 +12,7 @@ use crate::device::client::{
     self, connect, error_text, estimate_row, expect, no_estimate_row, write_info, ESTIMATE_HEADER,
 };
 use crate::device::link::Endpoint;
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use hvs_shared::runtime::protocol::{Joints, RequestBody, ResponseBody, StateData, StereoPoint};
 use std::io::Write;
 use std::path::PathBuf;
@@ -275,6 +275,9 @@ pub fn run(args: &Args) -> Result<()> {
                     ResponseBody::Bench(d) => Some(d),
                     _ => None,
                 },
+            )
+            .context(
+                "Bench runs on firmware built with `--features bench` (bash firmware/measure.sh builds and runs it in QEMU with -icount shift=0)",
             )?;
             let per = b.ticks as f64 / b.count as f64;
             writeln!(
