@@ -46,17 +46,9 @@ pub struct Board {
 #[serde(deny_unknown_fields)]
 pub struct BoardSpec {
     pattern: Pattern,
-    #[serde(deserialize_with = "two_counts")]
+    #[serde(deserialize_with = "crate::invalid::numbers")]
     inner_corners: [u32; 2],
     square_cm: f64,
-}
-
-/// `[cols, rows]`: a list of two whole numbers, a list of another length said as such.
-fn two_counts<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[u32; 2], D::Error> {
-    let v = Vec::<u32>::deserialize(d)?;
-    <[u32; 2]>::try_from(v.as_slice()).map_err(|_| {
-        serde::de::Error::custom(format!("expected 2 numbers in brackets, got {}", v.len()))
-    })
 }
 
 /// Why a board description was refused.

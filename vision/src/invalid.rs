@@ -1,5 +1,6 @@
 //! The "parameter out of range" error that [`crate::matching`] and [`crate::render`] share,
-//! and the range checks that produce it.
+//! and the range checks that produce it; and the reading of fixed-length lists in the JSON
+//! descriptions (boards, scenes).
 
 use std::fmt;
 
@@ -26,6 +27,20 @@ impl fmt::Display for InvalidField {
 }
 
 impl std::error::Error for InvalidField {}
+
+/// `N` numbers in brackets, or an error that says how many were given (serde's own for an
+/// array of fixed length reads past the last one as "trailing characters"): serde's
+/// `deserialize_with` for the lists of `BOARD.json` and of the scene files.
+pub(crate) fn numbers<'de, D, T, const N: usize>(d: D) -> Result<[T; N], D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: serde::Deserialize<'de> + Copy,
+{
+    let v = <Vec<T> as serde::Deserialize>::deserialize(d)?;
+    <[T; N]>::try_from(v.as_slice()).map_err(|_| {
+        serde::de::Error::custom(format!("expected {N} numbers in brackets, got {}", v.len()))
+    })
+}
 
 /// `value` must lie in `lo..=hi` ("must be from lo to hi, got value").
 pub(crate) fn in_range<T: PartialOrd + fmt::Display>(

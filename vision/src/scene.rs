@@ -45,7 +45,7 @@
 //! point, or `None` when it is occluded or out of the image.
 
 use crate::board::Board;
-use crate::invalid::InvalidField;
+use crate::invalid::{numbers, InvalidField};
 use crate::pfm::FloatImage;
 use crate::render::{blur, class, quantise, Class, RayGrid, RenderError, RenderOptions};
 use hvs_shared::runtime::gaze::Joints;
@@ -100,15 +100,6 @@ pub enum ShapeKind {
     Plane,
     /// A chessboard (`board`).
     Board,
-}
-
-/// `N` numbers, or an error that says how many were given (serde's own for an array of
-/// fixed length reads past the last one as "trailing characters").
-fn numbers<'de, D: serde::Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
-    let v = Vec::<f64>::deserialize(d)?;
-    <[f64; N]>::try_from(v.as_slice()).map_err(|_| {
-        serde::de::Error::custom(format!("expected {N} numbers in brackets, got {}", v.len()))
-    })
 }
 
 /// [`numbers`] for an optional field.
