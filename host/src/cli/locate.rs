@@ -100,7 +100,7 @@ pub fn run(a: Args) -> Result<()> {
         let text = found[0].line();
         return crate::cli::say(format_args!("{text}"));
     }
-    let mut header = String::from("u_l,v_l,u_r,v_r,x,y,z,score,status");
+    let mut header = format!("u_l,v_l,{}", crate::data::pixels::WRITTEN.join(","));
     for n in &pixels.extra_names {
         header.push(',');
         header.push_str(n);

@@ -22,8 +22,9 @@ pub struct Pixels {
     pub replaced: Vec<String>,
 }
 
-/// The columns `hvs locate` writes after `u_l,v_l`: an input column of one of these names is
-/// replaced by the located values (and `hvs locate` says so).
+/// The columns `hvs locate` writes after `u_l,v_l` (its header; `Located::csv_row` in this
+/// order): an input column of one of these names is replaced by the located values (and
+/// `hvs locate` says so).
 pub const WRITTEN: [&str; 7] = ["u_r", "v_r", "x", "y", "z", "score", "status"];
 
 /// Reads `path`; errors name the file, the line and the column.
