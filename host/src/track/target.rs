@@ -1118,17 +1118,6 @@ mod tests {
         assert!(e < 6.0, "centroid {:?} vs the sphere's centre {:?}", found.px, truth);
     }
 
-    /// The half-resolution match of full-resolution left pixel `c`, refined at full resolution.
-    fn coarse_match(
-        l: &Plane,
-        r: &Plane,
-        c: [i32; 2],
-        joints: &Joints,
-        est: &Estimator,
-    ) -> Option<Pt> {
-        coarse_match_in(&l.half(), &r.half(), l, r, c, joints, est)
-    }
-
     #[test]
     fn matches_are_true_and_the_nearest_is_the_sphere() {
         // Case I at home: the traditional method's depth is right, so this checks the
@@ -1137,11 +1126,12 @@ mod tests {
         let head = HeadRig::new(presets::CASE_1);
         let r = render_scene(&head, &Joints::HOME, &scene, &RenderOptions::default(), 3).unwrap();
         let (l, rr) = (Plane::new(&r.left), Plane::new(&r.right));
+        let (lh, rh) = (l.half(), rr.half());
         let est = Estimator::Fallback(Calibration::BUILT_IN);
         let (mut n, mut bad) = (0, 0);
         for y in (100..380).step_by(40) {
             for x in (100..540).step_by(40) {
-                if let Some(p) = coarse_match(&l, &rr, [x, y], &Joints::HOME, &est) {
+                if let Some(p) = coarse_match_in(&lh, &rh, &l, &rr, [x, y], &Joints::HOME, &est) {
                     n += 1;
                     if let Some(t) = r.true_match(x as u32, y as u32) {
                         if (t[0] - p.r[0]).abs() > 1.0 || (t[1] - p.r[1]).abs() > 1.0 {
