@@ -692,8 +692,8 @@ fn scaled_window_samples(
 }
 
 /// Sub-pixel refinement of every kept winner on the grey levels: Gauss-Newton steps of a
-/// 7 x 7 window's zero-mean, gain-matched difference along the epipolar line (a 1-D
-/// Lucas-Kanade), which removes most of the pull of the cost fit towards whole pixels. A
+/// 7 x 7 window's (9 x 9 warped: [`WARP_REFINE_HALF`]) zero-mean, gain-matched difference
+/// along the epipolar line (a 1-D Lucas-Kanade), which removes most of the pull of the cost fit towards whole pixels. A
 /// `rectified` pair at unit `scale`: two steps of the window shifted along its row (bilinear
 /// samples sharing one fractional offset) with the left window's derivative
 /// ([`refined_rectified`]). Otherwise one step of the window under its
