@@ -101,8 +101,7 @@ pub fn run(a: Args) -> Result<()> {
         b
     });
     let captured_count = AtomicU64::new(0);
-    std::fs::create_dir_all(&a.output)
-        .map_err(|e| anyhow!("-o {}: cannot create the folder: {e}", a.output.display()))?;
+    let created = create_output(&a.output)?;
     // Render and write in parallel; the outcomes come back in visit order.
     let outcomes: Vec<Result<Outcome>> = stops
         .par_iter()
@@ -140,10 +139,16 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     if captured.is_empty() {
+        remove_if_created(&a.output, created);
         bail!(
-            "no posture saw the whole board with both cameras ({} postures x {} placements; {out_of_view} out of view, {hidden} hidden): place the board nearer the middle of the working range",
+            "no posture saw the whole board with both cameras ({} postures x {} placements; {out_of_view} out of view, {hidden} hidden): {}",
             plan.postures.len(),
-            plan.placements.len()
+            plan.placements.len(),
+            match (out_of_view, hidden) {
+                (_, 0) => "place the board nearer the middle of the working range",
+                (0, _) => "the scene's objects hide the board: move them or the board",
+                _ => "place the board nearer the middle of the working range, where the scene's objects do not hide it",
+            }
         );
     }
     write_set(&a.output, &plan, &captured)?;
@@ -156,6 +161,23 @@ pub fn run(a: Args) -> Result<()> {
         head.time_s()
     );
     Ok(())
+}
+
+/// Creates the output folder `dir` if missing; whether it did.
+fn create_output(dir: &Path) -> Result<bool> {
+    let created = !dir.exists();
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow!("-o {}: cannot create the folder: {e}", dir.display()))?;
+    Ok(created)
+}
+
+/// Removes the output folder `dir` when this run `created` it and wrote nothing into it (no
+/// posture saw the board): nothing is left behind. A folder that holds anything stays.
+fn remove_if_created(dir: &Path, created: bool) {
+    if created {
+        // Fails (and is left alone) unless empty.
+        let _ = std::fs::remove_dir(dir);
+    }
 }
 
 /// `board.json` and `CAPTURES.csv` of the captured stops, into `dir` (after the images).
@@ -206,8 +228,7 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
     let plan = plan_of(a, None)?;
     let mut cams = crate::track::cameras::open(&spec, size)?;
     let mut head = servo_head::open(&HeadChoice::Port(endpoint), Path::new(""))?;
-    std::fs::create_dir_all(&a.output)
-        .map_err(|e| anyhow!("-o {}: cannot create the folder: {e}", a.output.display()))?;
+    let created = create_output(&a.output)?;
     let (mut captured, mut skipped) = (Vec::<Stop>::new(), 0usize);
     for (k, p) in plan.placements.iter().enumerate() {
         wait_for_board(&mut *cams, &*head, &plan.board, p.xyz, k + 1, plan.placements.len())?;
@@ -222,6 +243,7 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
         eprintln!();
     }
     if captured.is_empty() {
+        remove_if_created(&a.output, created);
         bail!("no posture saw the whole board with both cameras ({skipped} postures skipped)");
     }
     write_set(&a.output, &plan, &captured)?;

@@ -323,10 +323,15 @@ fn run_update(a: &Args, from_path: &Path) -> Result<()> {
         }
     }
     if let Some(algo) = a.algo {
+        // The update trains as the old model was trained: its net's output layer says how
+        // (linear: lm, sigmoid: the thesis' bp).
         let sigmoid = b.topology.output_activation == Activation::Sigmoid;
-        if (algo == AlgoArg::Bp) != sigmoid {
+        let (update_algo, name) = if sigmoid { (AlgoArg::Bp, "bp") } else { (AlgoArg::Lm, "lm") };
+        if algo != update_algo {
             bail!(
-                "--algo does not match {from} ({} output layer): an update keeps the old model's net",
+                "--algo {} does not match {from} (trained with {}, {} output layer, which an update trains with {name}): an update keeps the old model's training; leave --algo out",
+                algo_arg_name(algo),
+                crate::train::algo_name(b.meta.algorithm),
                 if sigmoid { "a sigmoid" } else { "a linear" }
             );
         }
@@ -346,7 +351,7 @@ fn run_update(a: &Args, from_path: &Path) -> Result<()> {
             );
         }
     }
-    let up = update(b, &table.data, a.seed)
+    let up = update(b, &table.data, a.seed, &|r| table.at(r))
         .with_context(|| format!("{data_name}: cannot update {from} with these points"))?;
     let blob = next_generation(
         b,
@@ -387,6 +392,12 @@ fn run_update(a: &Args, from_path: &Path) -> Result<()> {
     print().with_context(|| {
         format!("wrote {} ({n} bytes), but cannot print the summary to stdout", a.output.display())
     })
+}
+
+/// `algo`'s name on the command line.
+fn algo_arg_name(algo: AlgoArg) -> String {
+    use clap::ValueEnum;
+    algo.to_possible_value().map_or_else(|| format!("{algo:?}"), |v| v.get_name().to_string())
 }
 
 fn camera_line(c: &CameraCheck) -> String {

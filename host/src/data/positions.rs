@@ -40,6 +40,12 @@ pub fn parse(file: &str, bytes: &[u8]) -> Result<Vec<Placement>> {
     if names.iter().all(String::is_empty) {
         bail!("{file}: empty file (expected a header row naming the columns x,y,z)");
     }
+    if names.iter().all(|n| n.trim().parse::<f64>().is_ok()) {
+        bail!(
+            "{file}:{hl}: the first line must be the header naming the columns x,y,z, but it holds numbers ({})",
+            names.join(",")
+        );
+    }
     check_unique_names(file, hl, &names, false)?;
     if let Some((k, n)) =
         names.iter().enumerate().find(|(_, n)| !["x", "y", "z"].contains(&n.as_str()))
@@ -102,6 +108,9 @@ mod tests {
         assert!(e.contains("P.csv:2") && e.contains("\"z\""), "{e}");
         assert!(err("x,y,z\n").contains("no placements"));
         assert!(err("").contains("empty file"));
+        // A file without its header: its first row is not taken for column names.
+        let e = err("0,0,85\n1,2,95\n");
+        assert!(e.contains("P.csv:1") && e.contains("header") && e.contains("0,0,85"), "{e}");
         let e = err("x,y,z\n0,0\n");
         assert!(e.contains("P.csv:2"), "{e}");
     }

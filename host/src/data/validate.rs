@@ -11,6 +11,9 @@ use hvs_shared::runtime::mlp::param_count;
 pub const MAX_ABS_PIXEL: f64 = 1e5;
 /// Largest |x|, |y| and z of a point (cm): a kilometre.
 pub const MAX_ABS_CM: f64 = 1e5;
+/// How far (px) a pixel may lie beyond its image's border pixels' centres: the pixel's own
+/// half width and a little more for a corner found on the border.
+pub const EDGE_SLACK_PX: f64 = 1.0;
 /// Largest |joint angle| (degrees).
 pub const MAX_ABS_DEG: f64 = 360.0;
 
@@ -45,7 +48,9 @@ pub fn training_set(table: &Table, hidden: usize, outputs: usize) -> Result<()> 
 
 /// Checks that every pixel, joint angle and position of `table` is a value a camera head
 /// produces (the value checks of [`training_set`], without its row counts: `hvs train --from`
-/// takes one board at one depth).
+/// takes one board at one depth), and, where the file gives the images' size
+/// (`image_width`, `image_height`), that every pixel lies in its image (a pixel's centre at
+/// `0..=w-1`; within [`EDGE_SLACK_PX`] of the border).
 pub fn plausible_values(table: &Table) -> Result<()> {
     let d = &table.data;
     for r in 0..d.len() {
@@ -60,6 +65,17 @@ pub fn plausible_values(table: &Table) -> Result<()> {
                     "{}: column \"{name}\": {v} {unit} is not a value a camera head produces (|{name}| must be at most {limit})",
                     table.at(r)
                 );
+            }
+            if let (Some((w, h)), true) = (table.image_size, c < PIXEL_COLUMNS.len()) {
+                let size = f64::from(if c % 2 == 0 { w } else { h });
+                if !(-EDGE_SLACK_PX..=size - 1.0 + EDGE_SLACK_PX).contains(&v) {
+                    bail!(
+                        "{}: column \"{name}\": {v} px lies outside the {w}x{h} px images the file's {} and {} columns give",
+                        table.at(r),
+                        crate::data::csv::IMAGE_SIZE_COLUMNS[0],
+                        crate::data::csv::IMAGE_SIZE_COLUMNS[1]
+                    );
+                }
             }
         }
         if let Some(t) = d.targets.get(r) {

@@ -57,6 +57,16 @@ pub const F_CRITICAL: f64 = 20.0;
 /// CLI test and the README: 12 and 30 steps give the same volume error to 3 digits, in half
 /// the time.
 pub const UPDATE_MAX_ITER: usize = 12;
+/// Largest RMS (px) of the new points about an old camera that the update holds: above it the
+/// points fit neither the old camera nor a moved one (the F test found no homography that
+/// explains them), so a row is wrong or the rig changed in a way one set of points cannot
+/// measure, and the update is refused. Rounded pixels of an unchanged rig: 0.3-0.5 px.
+pub const HELD_MAX_RMS_PX: f64 = 2.0;
+/// An update whose e_ma on the new points is above this many times the old model's (plus
+/// [`WORSE_SLACK_PCT`]) is refused: it learned points that its cameras do not explain.
+pub const WORSE_FACTOR: f64 = 1.5;
+/// See [`WORSE_FACTOR`] (percentage points).
+pub const WORSE_SLACK_PCT: f64 = 0.1;
 /// Mixed into the seed for the samples' stream.
 const STREAM: u64 = 0x7570_6461_7465_7374;
 
@@ -97,10 +107,19 @@ pub struct UpdateOutcome {
 }
 
 /// Updates `old` with the points of `new` (ground truth required); `seed` draws the samples.
-/// Errors name what does not match or cannot be done.
-pub fn update(old: &ModelBlob, new: &Dataset, seed: u64) -> Result<UpdateOutcome> {
+/// Errors name what does not match or cannot be done, and the rows by `at(row)` (the
+/// caller's `file:line`). Refused too: points that cannot show whether a camera moved (on one
+/// line, or one point repeated), points that fit neither an old camera nor a moved one
+/// ([`HELD_MAX_RMS_PX`]), and an update that fits its own points worse than the old model
+/// ([`WORSE_FACTOR`]); each names the row farthest from the cameras.
+pub fn update(
+    old: &ModelBlob,
+    new: &Dataset,
+    seed: u64,
+    at: &dyn Fn(usize) -> String,
+) -> Result<UpdateOutcome> {
     let start = Instant::now();
-    check(old, new)?;
+    check(old, new, at)?;
     let Some(matcher) = old.matcher else {
         bail!(
             "the old model has no stereo geometry (matcher) to sample its volume from; \
@@ -112,8 +131,20 @@ pub fn update(old: &ModelBlob, new: &Dataset, seed: u64) -> Result<UpdateOutcome
     let [Some(cam_l), Some(cam_r)] = cams else {
         bail!("the old model's view of its volume is not explained by two pinhole cameras");
     };
-    let (hl, check_l) = camera_move(&cam_l, new, &samples, 0)?;
-    let (hr, check_r) = camera_move(&cam_r, new, &samples, 1)?;
+    let (hl, check_l) = camera_move(&cam_l, new, &samples, 0, at)?;
+    let (hr, check_r) = camera_move(&cam_r, new, &samples, 1, at)?;
+    let farthest = || farthest_row([(&cam_l, hl.as_ref()), (&cam_r, hr.as_ref())], new, at);
+    for (side, c) in ["left", "right"].iter().zip([&check_l, &check_r]) {
+        if !c.moved && c.old_rms_px > HELD_MAX_RMS_PX {
+            bail!(
+                "the new points fit neither the old {side} camera ({:.2} px rms) nor a moved one (the best homography {:.2} px rms, F = {:.1}, under {F_CRITICAL}); {}: check its pixels and x,y,z",
+                c.old_rms_px,
+                c.fit_rms_px,
+                c.f,
+                farthest()
+            );
+        }
+    }
 
     // The samples through the moved cameras, then the new points.
     let mut learned = Dataset::new(InputKind::Stereo);
@@ -138,13 +169,20 @@ pub fn update(old: &ModelBlob, new: &Dataset, seed: u64) -> Result<UpdateOutcome
         bail!("the update gave weights that do not make a valid model");
     };
     let new_error_pct = super::blob_error_pct(&blob, new);
+    let old_error_pct = super::blob_error_pct(old, new);
+    if !(new_error_pct <= WORSE_FACTOR * old_error_pct + WORSE_SLACK_PCT) {
+        bail!(
+            "the update would fit the new points worse than the old model (e_ma {old_error_pct:.4} % before, {new_error_pct:.4} % after): the cameras it measured do not explain them; {}: check its pixels and x,y,z",
+            farthest()
+        );
+    }
     blob.meta.train_error_pct = new_error_pct as f32;
     blob.generation = old.generation;
     blob.fallback = old.fallback;
     blob.matcher = old.matcher;
     Ok(UpdateOutcome {
         blob,
-        old_error_pct: super::blob_error_pct(old, new),
+        old_error_pct,
         new_error_pct,
         cameras: [check_l, check_r],
         learned,
@@ -153,7 +191,7 @@ pub fn update(old: &ModelBlob, new: &Dataset, seed: u64) -> Result<UpdateOutcome
     })
 }
 
-fn check(old: &ModelBlob, new: &Dataset) -> Result<()> {
+fn check(old: &ModelBlob, new: &Dataset, at: &dyn Fn(usize) -> String) -> Result<()> {
     let kind = |k: InputKind| match k {
         InputKind::Stereo => "4 inputs (pixels)",
         InputKind::StereoJoints => "9 inputs (pixels and joint angles)",
@@ -181,11 +219,11 @@ fn check(old: &ModelBlob, new: &Dataset) -> Result<()> {
     }
     for (n, t) in new.targets.iter().enumerate() {
         if !(t.iter().all(|v| v.is_finite()) && t[2] > 0.0) {
-            bail!("row {}: the ground truth must be finite with z > 0", n + 1);
+            bail!("{}: the ground truth must be finite with z > 0", at(n));
         }
     }
     if let Some(n) = (0..new.len()).find(|n| !new.row(*n).iter().all(|v| v.is_finite())) {
-        bail!("row {}: the pixels must be finite numbers", n + 1);
+        bail!("{}: the pixels must be finite numbers", at(n));
     }
     Ok(())
 }
@@ -301,15 +339,13 @@ fn camera_move(
     new: &Dataset,
     samples: &Dataset,
     c: usize,
+    at: &dyn Fn(usize) -> String,
 ) -> Result<(Option<Homography>, CameraCheck)> {
+    let side = ["left", "right"][c];
     let mut pairs = Vec::with_capacity(new.len());
     for (n, t) in new.targets.iter().enumerate() {
         let Some(p) = project(cam, t) else {
-            bail!(
-                "row {}: the point is behind the old model's {} camera",
-                n + 1,
-                ["left", "right"][c]
-            );
+            bail!("{}: the point is behind the old model's {side} camera", at(n));
         };
         pairs.push((p, [new.row(n)[2 * c], new.row(n)[2 * c + 1]]));
     }
@@ -318,8 +354,11 @@ fn camera_move(
         pairs.iter().map(|(p, d)| (p[0] - d[0]).powi(2) + (p[1] - d[1]).powi(2)).sum();
     let (h, ss_fit) = match fit_homography(&pairs) {
         Ok(fit) => (Some(fit.h), fit.rms * fit.rms * n),
-        // Collinear points cannot measure a homography: the camera is held.
-        Err(_) => (None, ss_old),
+        // Points on one line (or one point again and again) cannot measure a homography, so
+        // they cannot say whether the camera moved: an update from them would only claim to.
+        Err(e) => bail!(
+            "the new points cannot show whether the {side} camera moved ({e}): give points spread over a plane, such as a board's corners (at least {MIN_POINTS}, not all on one line)"
+        ),
     };
     let dof = 2.0 * n - 8.0;
     let f = ((ss_old - ss_fit) / 8.0) / (ss_fit / dof).max(1e-300);
@@ -345,6 +384,36 @@ fn camera_move(
             max_move_px,
         },
     ))
+}
+
+/// Where the new point farthest from its pixels lies: `file:line` by `at`, the camera, and how
+/// far (px) its measured pixel is from the camera's (`cams`: each old camera and, when it
+/// moved, its homography).
+fn farthest_row(
+    cams: [(&Matrix3x4<f64>, Option<&Homography>); 2],
+    new: &Dataset,
+    at: &dyn Fn(usize) -> String,
+) -> String {
+    let mut worst: Option<(f64, usize, usize)> = None;
+    for (n, t) in new.targets.iter().enumerate() {
+        for (c, (cam, h)) in cams.iter().enumerate() {
+            let x = new.row(n);
+            let off = project(cam, t)
+                .and_then(|p| apply(*h, p))
+                .map_or(f64::INFINITY, |p| (p[0] - x[2 * c]).hypot(p[1] - x[2 * c + 1]));
+            if worst.is_none_or(|(w, _, _)| off > w) {
+                worst = Some((off, n, c));
+            }
+        }
+    }
+    match worst {
+        Some((off, n, c)) => format!(
+            "the farthest, {}, has its {} pixel {off:.1} px from where the cameras put its x,y,z",
+            at(n),
+            ["left", "right"][c]
+        ),
+        None => "no rows".to_string(),
+    }
 }
 
 /// The blob an update writes (`hvs train --from`): `up`'s net as the next generation of

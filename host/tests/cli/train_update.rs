@@ -146,7 +146,8 @@ fn an_update_keeps_the_old_model_or_says_why_not() {
     fails_line(&base("--hidden 7"), "--hidden 7 does not match");
     fails_line(&base("--arch thesis"), "--arch thesis does not match");
     fails_line(&base("--outputs z"), "--outputs does not match");
-    fails_line(&base("--algo bp"), "--algo does not match");
+    fails_line(&base("--algo bp"), "--algo bp does not match");
+    fails_line(&base("--algo adam"), "--algo adam does not match");
     // Same values as the old model are fine.
     ok_line(&base("--hidden 5 --arch inverse-depth-skip --algo lm"));
     // A posture-aware set for a stereo model.
@@ -175,6 +176,32 @@ fn an_update_keeps_the_old_model_or_says_why_not() {
         ),
         "--from",
     );
+    // Points that cannot say whether a camera moved (one row of the board: on one line), and
+    // a set with one wrong pixel (40 px off: it fits neither the old camera nor a moved one;
+    // 5000 px: a moved camera fitted to it fits the set worse than the old model): refused,
+    // the wrong row named by its line, nothing written.
+    let text = std::fs::read_to_string(d.p("old.csv")).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    std::fs::write(d.p("line.csv"), lines[..10].join("\n") + "\n").unwrap();
+    let with_u_l = |shift: &dyn Fn(f64) -> f64, name: &str| {
+        let mut rows: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+        let mut f: Vec<String> = rows[10].split(',').map(str::to_string).collect();
+        f[0] = format!("{}", shift(f[0].parse::<f64>().unwrap()));
+        rows[10] = f.join(",");
+        std::fs::write(d.p(name), rows.join("\n") + "\n").unwrap();
+    };
+    with_u_l(&|u| u + 40.0, "off40.csv");
+    with_u_l(&|_| 5000.0, "off5000.csv");
+    for (set, want) in [
+        ("line.csv", "cannot show whether the left camera moved"),
+        ("off40.csv", "off40.csv:11"),
+        ("off5000.csv", "off5000.csv:11"),
+    ] {
+        let line =
+            format!("train --data {} --from {} -o {}", d.p(set), d.p("old.hvsw"), d.p("bad.hvsw"));
+        fails_line(&line, want);
+        assert!(!std::path::Path::new(&d.p("bad.hvsw")).exists(), "{set}");
+    }
     std::fs::write(d.p("broken.hvsw"), b"not a model").unwrap();
     fails_line(
         &format!(
