@@ -26,9 +26,11 @@
 //! at the left centre ([`Found::surface`]). A followed target is looked for where the head's
 //! own turn since the last frame has moved it.
 
+use hvs_shared::runtime::blob::ModelBlob;
 use hvs_shared::runtime::fixation::LoopConfig;
 use hvs_shared::runtime::gaze::Joints;
 use hvs_shared::runtime::head::Estimator;
+use hvs_shared::runtime::mlp::OutputMap;
 use hvs_shared::runtime::protocol::StereoPoint;
 use image::GrayImage;
 use rayon::prelude::*;
@@ -437,11 +439,42 @@ fn depth_of(est: &Estimator, joints: &Joints, l: [f64; 2], r: [f64; 2]) -> Optio
             x[..4].copy_from_slice(&p.to_array());
             x[4..].copy_from_slice(&joints.0);
             let k = n.blob.n_inputs().min(9);
-            hvs_shared::runtime::head::outputs_in_range(&n.blob, &x[..k], &[e.x, e.y, e.z])
+            let y = [e.x, e.y, e.z];
+            hvs_shared::runtime::head::outputs_in_range(&n.blob, &x[..k], &y)
+                && within_training_depths(&n.blob, &x[..k], &y)
         }
         Estimator::Fallback(_) => true,
     };
     (plausible && e.z.is_finite() && e.z > 0.0).then_some(e.z)
+}
+
+/// How far past its training depths a model's depth is taken as a target's (relative):
+/// `z_min / (1 + m) ..= z_max * (1 + m)`. The README's small model (65-165 cm) thus takes
+/// 57-190 cm, and not the wall at 300 cm behind the objects, to which a net extrapolates
+/// anything ([`hvs_shared::runtime::head::outputs_in_range`] only refuses what is far beyond
+/// the training box: four times its half width).
+pub const DEPTH_MARGIN: f32 = 0.15;
+
+/// Whether the depth of the estimate `y` (X, Y, Z in cm, head frame) of inputs `x` lies
+/// within [`DEPTH_MARGIN`] of the depths `blob` was trained on, in its output frame: its last
+/// output spans `offset +- scale` in training (`Z`, or `1/Z` for the inverse-depth family).
+fn within_training_depths(blob: &ModelBlob, x: &[f32], y: &[f32; 3]) -> bool {
+    let (Some(&off), Some(&scale)) = (blob.out_offset.last(), blob.out_scale.last()) else {
+        return false;
+    };
+    let z = blob.frame.from_head(x, *y)[2];
+    let scale = scale.abs();
+    let (lo, hi) = match blob.family.output_map {
+        OutputMap::Direct => (off - scale, off + scale),
+        OutputMap::InverseDepth => {
+            let (near, far) = (off + scale, off - scale);
+            if near <= 0.0 {
+                return false;
+            }
+            (1.0 / near, if far > 0.0 { 1.0 / far } else { f32::INFINITY })
+        }
+    };
+    z >= lo / (1.0 + DEPTH_MARGIN) && z <= hi * (1.0 + DEPTH_MARGIN)
 }
 
 fn in_band(z: f32, zc: f32) -> bool {
@@ -1198,6 +1231,35 @@ mod tests {
     }
 
     /// The README's small posture-aware model of case III (see the fixture's README).
+    /// A wall alone at 300 cm, beyond the training depths of the posture model (65-165 cm) by
+    /// more than [`DEPTH_MARGIN`]: no target, frame after frame (the wall's texture matches,
+    /// and before the margin the scan took it: the README's scene tracked the wall at seed
+    /// 0), while a sphere before it at 95 cm is taken.
+    #[test]
+    fn the_wall_beyond_the_training_depths_is_not_a_target() {
+        let head = HeadRig::new(presets::case(3).unwrap());
+        let est = small_posture_estimator();
+        for wall in [1u64, 7] {
+            let text = format!(
+                r#"{{ "rig": {{"case": 3}}, "camera_fps": 30,
+                  "background": {{"z_cm": 300, "texture_seed": {wall}}}, "objects": [] }}"#
+            );
+            let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
+            let r =
+                render_scene(&head, &Joints::HOME, &scene, &RenderOptions::default(), 5).unwrap();
+            let mut f = Finder::new(TargetMode::Nearest);
+            for frame in 0..3 {
+                let found = f.find(&r.left, &r.right, &Joints::HOME, &est);
+                let z = found.map(|f| f.z);
+                assert!(z.is_none(), "wall seed {wall}, frame {frame}: a target at {z:?} cm");
+            }
+        }
+        let r = sphere_pair(&head, &Joints::HOME, [20.0, -8.0, 100.0], (1, 2));
+        let mut f = Finder::new(TargetMode::Nearest);
+        let found = f.find(&r.left, &r.right, &Joints::HOME, &est).expect("the sphere");
+        assert!((found.z - 95.0).abs() < 5.0, "the sphere at {} cm", found.z);
+    }
+
     fn small_posture_estimator() -> Estimator {
         let blob = crate::data::model::check(include_bytes!(
             "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
