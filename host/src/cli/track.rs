@@ -173,6 +173,10 @@ pub fn run(a: Args) -> Result<()> {
         },
     };
     let mut head = servo_head::open(&choice, &a.model)?;
+    // Every input checked: the run starts.
+    if let Some(w) = track::fixed_posture_warning(&blob) {
+        eprintln!("warning: {}: {w}", a.model.display());
+    }
     let stop = track::stop_on_interrupt();
     let mut recorded = Vec::new();
     let mut times = Vec::new();

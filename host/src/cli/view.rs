@@ -108,6 +108,13 @@ pub fn run(a: Args) -> Result<()> {
     };
     let options = RetrainOptions { restarts: a.restarts, seed: a.seed };
     let session = Session::open(&a.model, &source, options)?;
+    if matches!(source, Source::Scene { .. } | Source::Cameras { .. }) {
+        // The live head turns its eyes: say so of a model for one posture.
+        let blob = crate::data::model::load(&a.model)?.blob;
+        if let Some(w) = crate::track::fixed_posture_warning(&blob) {
+            eprintln!("warning: {}: {w}", a.model.display());
+        }
+    }
     serve(session, listen, |url| crate::cli::say(format_args!("hvs view: serving {url}")))
 }
 

@@ -247,6 +247,19 @@ pub fn estimator_of(blob: hvs_shared::runtime::blob::ModelBlob) -> Result<Estima
         })
 }
 
+/// What a head in the loop (`hvs track`, `hvs view`'s live head) should be told of a model
+/// that takes the pixels only (4 inputs): its depths hold at the eye posture its training
+/// points were taken in, and the loop turns the eyes to fixate (vergence changes what a
+/// disparity means: a 95 cm sphere came out at 200 cm once the eyes had converged on it).
+pub fn fixed_posture_warning(blob: &hvs_shared::runtime::blob::ModelBlob) -> Option<String> {
+    (blob.topology.inputs == hvs_shared::runtime::blob::InputKind::Stereo).then(|| {
+        "the model takes the four pixels only: its depths hold at the eye posture of its \
+         training points, not once the loop turns the eyes to fixate; for a head in the loop \
+         train a posture-aware model (`hvs collect`, then `hvs train`: README)"
+            .to_string()
+    })
+}
+
 /// Frames a moving target's fixation leads it by (`hvs track --lead-frames`, `hvs view
 /// --scene`): see [`hvs_shared::runtime::fixation`]. The loop sees a target a frame late and
 /// the servos take a frame or two to get there. Chosen on three scenes of a sphere moving at

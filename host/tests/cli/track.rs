@@ -67,6 +67,9 @@ fn track_logs_every_frame_and_repeats_its_bytes() {
         err.contains("0 tracking") && err.contains("warning: --target 1,1: no object"),
         "{err}"
     );
+    // The small model takes the pixels only: its depths do not follow the eyes, and the run
+    // says so.
+    assert!(err.contains("the model takes the four pixels only"), "{err}");
 }
 
 #[test]
