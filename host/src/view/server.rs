@@ -149,8 +149,26 @@ fn asset(kind: &'static str, text: &'static str) -> Response {
         .into_response()
 }
 
-async fn index() -> Response {
-    asset("text/html; charset=utf-8", assets::INDEX_HTML)
+/// The page; off loopback its stylesheet and script are asked for with the token (the page
+/// itself was, or it would not be served), since a browser asks for them without the page's
+/// query.
+async fn index(State(app): State<Shared>) -> Response {
+    match &app.token {
+        None => asset("text/html; charset=utf-8", assets::INDEX_HTML),
+        Some(t) => {
+            let page = assets::INDEX_HTML
+                .replace("href=\"style.css\"", &format!("href=\"style.css?token={t}\""))
+                .replace("src=\"app.js\"", &format!("src=\"app.js?token={t}\""));
+            (
+                [
+                    (header::CONTENT_TYPE, HeaderValue::from_static("text/html; charset=utf-8")),
+                    (header::CACHE_CONTROL, HeaderValue::from_static("no-cache")),
+                ],
+                page,
+            )
+                .into_response()
+        }
+    }
 }
 
 /// Off loopback, every request needs `token=<the token>` in its query.

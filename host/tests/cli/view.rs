@@ -503,6 +503,13 @@ fn view_needs_the_token_off_loopback() {
         let right = format!("{path}?token={token}");
         assert_eq!(http(&sv.addr, "GET", &right, None).0, 200, "{path} with the token");
     }
+    // The page asks for its stylesheet and script with the token (a browser does not pass the
+    // page's query on to them).
+    let page = http(&sv.addr, "GET", &format!("/?token={token}"), None).1;
+    let page = String::from_utf8_lossy(&page);
+    for asset in ["style.css", "app.js"] {
+        assert!(page.contains(&format!("{asset}?token={token}\"")), "{asset} in:\n{page}");
+    }
     let body = r#"{"pair":0,"u":3,"v":3}"#;
     assert_eq!(http(&sv.addr, "POST", "/api/locate", Some(body.as_bytes())).0, 403);
     json(&sv.addr, "POST", &format!("/api/locate?token={token}"), Some(body), 200);
