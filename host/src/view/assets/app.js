@@ -234,8 +234,12 @@ function cloudControls() {
 async function click(e) {
   const img = e.currentTarget;
   const left = $('left');
-  const u = Math.floor(e.offsetX * img.naturalWidth / img.clientWidth);
-  const v = Math.floor(e.offsetY * img.naturalWidth / img.clientWidth);
+  // From the image's box, not offsetX/Y: at a fractional page offset the browser paints the
+  // image from the next whole pixel, and offsetX then counts one pixel too many.
+  const box = img.getBoundingClientRect();
+  const scale = img.naturalWidth / box.width;
+  const u = Math.min(img.naturalWidth - 1, Math.max(0, Math.floor((e.clientX - box.left) * scale)));
+  const v = Math.max(0, Math.floor((e.clientY - box.top) * scale));
   if (v >= left.naturalHeight) return; // the depth image's legend
   $('at').textContent = `${u},${v}`;
   clicked = {u, v};
