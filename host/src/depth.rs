@@ -163,6 +163,14 @@ pub fn depth(
             warnings.push(format!("the {side} image {why}"));
         }
     }
+    // One image given twice: nothing to match (a textured one, a board's squares, would give
+    // confident matches at its period); not matched, as a blank image is not.
+    if warnings.is_empty() && left.as_raw() == right.as_raw() {
+        warnings.push(
+            "the right image is the left one again (the same pixels): a stereo pair needs the two cameras' views; not matched"
+                .to_string(),
+        );
+    }
     // A blank or saturated image is not matched: what the aggregation makes of a blank image's
     // noise, or carries across a clipped one, is not depth.
     let mut matches = if !warnings.is_empty() {

@@ -307,6 +307,8 @@ fn blank_and_saturated_images_give_no_depth_through_a_verged_model() {
         (&nearly, &textured, 1),
         (&saturated, &saturated, 2),
         (&textured, &saturated, 1),
+        // One textured image twice: nothing to match, said as a warning.
+        (&textured, &textured, 1),
     ] {
         let err =
             stderr_with_code(locate_args(&["depth"], &model, left, right, &["-o", s(&out)]), 0);
