@@ -64,6 +64,13 @@ pub fn parse(file: &str, bytes: &[u8]) -> Result<Vec<Placement>> {
         let mut xyz = [0.0; 3];
         for (k, col) in ["x", "y", "z"].iter().enumerate() {
             xyz[k] = number(file, line, col, rec[idx[k]].as_bytes())?;
+            let most = crate::data::validate::MAX_ABS_CM;
+            if xyz[k].abs() > most {
+                bail!(
+                    "{file}:{line}: column \"{col}\": {} cm is not a place a head's cameras see (|{col}| must be at most {most} cm, as in a training set)",
+                    xyz[k]
+                );
+            }
         }
         if xyz[2] <= 0.0 {
             bail!(
@@ -104,6 +111,8 @@ mod tests {
         assert!(err("x,y,zz\n0,0,1\n").contains("P.csv:1: column 3 \"zz\""));
         let e = err("x,y,z\n0,0,65\n0,nan,85\n");
         assert!(e.contains("P.csv:3") && e.contains("\"y\""), "{e}");
+        let e = err("x,y,z\n0,0,1e30\n");
+        assert!(e.contains("P.csv:2") && e.contains("\"z\"") && e.contains("at most"), "{e}");
         let e = err("x,y,z\n0,0,-5\n");
         assert!(e.contains("P.csv:2") && e.contains("\"z\""), "{e}");
         assert!(err("x,y,z\n").contains("no placements"));
