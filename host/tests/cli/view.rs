@@ -598,9 +598,15 @@ fn view_names_bad_inputs_and_stops_on_ctrl_c() {
     assert!(err.contains("scene.json") && err.contains("wall"), "{err}");
     let err = crate::common::stderr_with_code(sc, 1);
     assert!(err.contains("scene.json") && err.contains("wall"), "{err}");
-    // The QEMU head with a firmware that is not there: named, before QEMU is started.
+    // A scene whose cameras make images of another size than the model's: refused at the
+    // start (every click and depth would be), naming both.
     let dir = crate::common::Scratch::new();
-    let good = crate::common::small_scene(&dir, "");
+    let small = crate::common::small_scene(&dir, "");
+    let err = crate::common::stderr_with_code(with(view(&[]), &["--scene", &small]), 1);
+    assert!(err.contains("scene.json with") && err.contains("the images are 160x120"), "{err}");
+    // The QEMU head with a firmware that is not there: named, before QEMU is started.
+    let good = dir.p("case1.json");
+    std::fs::write(&good, r#"{"rig": {"case": 1}, "camera_fps": 30, "background": {"z_cm": 300, "texture_seed": 1}, "objects": []}"#).unwrap();
     let none = dir.p("none.elf");
     let qemu = with(view(&[]), &["--scene", &good, "--head", "qemu", "--firmware", &none]);
     let err = crate::common::stderr_with_code(qemu, 1);
