@@ -120,10 +120,11 @@ pub fn ply_bytes(points: &[[f32; 3]], grey: &[u8]) -> Vec<u8> {
 }
 
 /// The colour of `t` in `0..1` (near to far): a perceptual blue-green-yellow-red ramp
-/// (anchors of the "turbo" map), linear in between.
+/// (anchors of the "turbo" map), linear in between. It starts at turbo's bright blue, not at
+/// its near-black violet, so that the nearest depths are not mistaken for black, which
+/// [`colour_depth`] keeps for no depth.
 pub fn ramp(t: f32) -> Rgb<u8> {
-    const STOPS: [[f32; 3]; 7] = [
-        [48.0, 18.0, 59.0],
+    const STOPS: [[f32; 3]; 6] = [
         [70.0, 134.0, 251.0],
         [27.0, 229.0, 181.0],
         [164.0, 252.0, 60.0],
@@ -249,6 +250,11 @@ mod tests {
         assert_eq!(*img.get_pixel(3, 0), ramp(0.5));
         let (near, far) = (ramp(0.0), ramp(1.0));
         assert!(near[2] > near[0] && far[0] > far[2]);
+        // No depth is the only black: every colour of the ramp is far from it.
+        for k in 0..=100 {
+            let c = ramp(k as f32 / 100.0);
+            assert!(c.0.iter().map(|&v| u32::from(v)).sum::<u32>() >= 120, "{k}: {c:?}");
+        }
         // The legend bar runs from near to far.
         assert_eq!(*img.get_pixel(0, 5), ramp(0.0));
         assert_eq!(*img.get_pixel(3, 5), ramp(1.0));
