@@ -75,6 +75,9 @@ fn main() {
             // The reader went away (e.g. `hvs predict ... | head`): stop quietly, as `cat` does.
             std::process::exit(141);
         }
+        if cmd::is_interrupted(&e) {
+            std::process::exit(cmd::exit_code(&e));
+        }
         let msg = format!("{e:#}").replace('\n', " ");
         eprintln!("error: {msg}");
         std::process::exit(cmd::exit_code(&e));

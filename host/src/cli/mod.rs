@@ -328,11 +328,32 @@ pub fn usage(msg: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(Usage(msg.into()))
 }
 
-/// The exit code of a failed command: 2 for bad usage ([`Usage`] anywhere in the chain), 1
-/// otherwise.
+/// A run stopped by Ctrl-C (SIGINT) or SIGTERM after writing what it had (`hvs track`'s log):
+/// `hvs` exits with 130, as a shell reports a command killed by SIGINT, so that a script can
+/// tell it from a whole run, and prints nothing more (the command said so itself).
+#[derive(Debug)]
+pub struct Interrupted;
+
+impl std::fmt::Display for Interrupted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("interrupted")
+    }
+}
+
+impl std::error::Error for Interrupted {}
+
+/// Whether `e` is [`Interrupted`].
+pub fn is_interrupted(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<Interrupted>().is_some())
+}
+
+/// The exit code of a failed command: 2 for bad usage ([`Usage`] anywhere in the chain), 130
+/// for an [`Interrupted`] run, 1 otherwise.
 pub fn exit_code(e: &anyhow::Error) -> i32 {
     if e.chain().any(|c| c.downcast_ref::<Usage>().is_some()) {
         2
+    } else if is_interrupted(e) {
+        130
     } else {
         1
     }
@@ -387,5 +408,15 @@ mod tests {
         for bad in ["", "3", "a,b", "1,2,3", "inf,240", "NaN,3"] {
             assert!(parse_at(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn exit_codes_say_usage_interruption_or_failure() {
+        use anyhow::Context;
+        assert_eq!(exit_code(&usage("--x: bad")), 2);
+        let stopped: anyhow::Error = Interrupted.into();
+        assert_eq!(exit_code(&stopped), 130);
+        assert_eq!(exit_code(&Err::<(), _>(Interrupted).context("frame 3").unwrap_err()), 130);
+        assert_eq!(exit_code(&anyhow::anyhow!("cannot read")), 1);
     }
 }

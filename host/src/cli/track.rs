@@ -228,6 +228,7 @@ pub fn run(a: Args) -> Result<()> {
         write_bytes(&dir.join("CAPTURES.csv"), csv.as_bytes())?;
     }
     let tracked = rows.iter().filter(|r| r.status == "tracking").count();
+    let interrupted = stop.load(std::sync::atomic::Ordering::Relaxed);
     if let Some(line) = rate_line(&times) {
         eprintln!("{line}");
     }
@@ -236,7 +237,7 @@ pub fn run(a: Args) -> Result<()> {
         rows.len(),
         tracked,
         a.log.display(),
-        if stop.load(std::sync::atomic::Ordering::Relaxed) { " (interrupted)" } else { "" }
+        if interrupted { " (interrupted)" } else { "" }
     );
     if let (TargetMode::Pixel([u, v]), 0, false) = (target, tracked, rows.is_empty()) {
         eprintln!(
@@ -244,6 +245,10 @@ pub fn run(a: Args) -> Result<()> {
              unique match near it, or none the model gives a depth for: outside the depths and \
              the image region it was trained on at that posture)"
         );
+    }
+    if interrupted {
+        // The log is whole; the exit code says the run is not.
+        return Err(crate::cli::Interrupted.into());
     }
     Ok(())
 }
