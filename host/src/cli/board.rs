@@ -43,7 +43,7 @@ pub struct DetectArgs {
     #[arg(short = 'o', long, value_name = "POINTS.csv")]
     pub output: PathBuf,
     /// Write a PNG per image with the detected corners and their labels into this folder
-    /// (created if missing).
+    /// (created if missing, in a folder that exists).
     #[arg(long, value_name = "DIR")]
     pub overlays: Option<PathBuf>,
 }

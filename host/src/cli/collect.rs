@@ -54,7 +54,8 @@ pub struct Args {
     /// With --cameras: their image size [default: 640x480].
     #[arg(long, value_name = "WxH", requires = "cameras")]
     pub camera_size: Option<String>,
-    /// Output folder (created if missing): the images, CAPTURES.csv and board.json.
+    /// Output folder (created if missing, in a folder that exists): the images, CAPTURES.csv
+    /// and board.json.
     #[arg(short = 'o', long, value_name = "DIR")]
     pub output: PathBuf,
     #[command(flatten)]

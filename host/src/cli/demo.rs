@@ -26,7 +26,7 @@ use std::time::Instant;
     caseN_volume.hvsw) and REPORT.md into the output directory."
 )]
 pub struct Args {
-    /// Output directory (created if missing).
+    /// Output directory (created if missing, in a folder that exists).
     #[arg(short = 'o', long, value_name = "DIR", default_value = "hvs-demo")]
     output: PathBuf,
     /// Seed of the training restarts and of the random volume points.

@@ -20,9 +20,10 @@ pub struct Args {
     /// The cameras.
     #[command(flatten)]
     pub rig: RigArgs,
-    /// Output folder (created if missing): leftNN.png, rightNN.png, captures.csv
-    /// (left,right,z,x,y and the joints with --joints), truth.csv (the exact, unrounded corner
-    /// pixels) and board.json; with --scene: left.png, right.png, depth.pfm and matches.pfm.
+    /// Output folder (created if missing, in a folder that exists): leftNN.png, rightNN.png,
+    /// captures.csv (left,right,z,x,y and the joints with --joints), truth.csv (the exact,
+    /// unrounded corner pixels) and board.json; with --scene: left.png, right.png, depth.pfm
+    /// and matches.pfm.
     #[arg(short = 'o', long, value_name = "DIR")]
     pub output: PathBuf,
     /// Inner corners per row and column.
