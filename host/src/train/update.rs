@@ -170,7 +170,7 @@ pub fn update(
     };
     let new_error_pct = super::blob_error_pct(&blob, new);
     let old_error_pct = super::blob_error_pct(old, new);
-    if !(new_error_pct <= WORSE_FACTOR * old_error_pct + WORSE_SLACK_PCT) {
+    if new_error_pct.is_nan() || new_error_pct > WORSE_FACTOR * old_error_pct + WORSE_SLACK_PCT {
         bail!(
             "the update would fit the new points worse than the old model (e_ma {old_error_pct:.4} % before, {new_error_pct:.4} % after): the cameras it measured do not explain them; {}: check its pixels and x,y,z",
             farthest()
