@@ -103,7 +103,7 @@ pub fn read_pfm(bytes: &[u8], shown: &str) -> Result<FloatImage, String> {
 pub fn ply_bytes(points: &[[f32; 3]], grey: &[u8]) -> Vec<u8> {
     assert_eq!(points.len(), grey.len(), "one grey level per point");
     let mut out = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment hvs depth: X Y Z in cm\nelement vertex {}\n\
+        "ply\nformat binary_little_endian 1.0\ncomment hvs depth: X Y Z in cm, X right, Y down, Z forward (flip Y to view it upright)\nelement vertex {}\n\
          property float x\nproperty float y\nproperty float z\n\
          property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
         points.len()
@@ -227,7 +227,7 @@ mod tests {
     #[test]
     fn ply_golden_bytes() {
         let b = ply_bytes(&[[1.0, -2.0, 300.0]], &[7]);
-        let header = "ply\nformat binary_little_endian 1.0\ncomment hvs depth: X Y Z in cm\n\
+        let header = "ply\nformat binary_little_endian 1.0\ncomment hvs depth: X Y Z in cm, X right, Y down, Z forward (flip Y to view it upright)\n\
                       element vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
                       property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
         assert_eq!(&b[..header.len()], header.as_bytes());
