@@ -150,6 +150,12 @@ pub fn run(a: Args) -> Result<()> {
             }
             (None, None) => return Err(crate::cli::usage("give --scene or --cameras")),
         };
+    if (a.seconds * fps).floor() < 1.0 {
+        return Err(crate::cli::usage(format!(
+            "--seconds: {} s is less than one frame at {fps} frames/s",
+            a.seconds
+        )));
+    }
     // The model's depths hold for the images it was trained on (as `hvs depth` and `hvs
     // locate` refuse other sizes).
     let source = a.scene.as_ref().map_or("--cameras".to_string(), |s| s.display().to_string());

@@ -124,6 +124,13 @@ fn track_refuses_bad_input_with_one_clear_line() {
     .map(String::from)
     .collect();
     usage(v, "outside the 160x120 left image");
+    // Less than one frame: nothing would run.
+    let v: Vec<String> = ["track", "--model", &good, "--scene", &sc, "--seconds", "0.01", "--log"]
+        .into_iter()
+        .chain([log.as_str()])
+        .map(String::from)
+        .collect();
+    usage(v, "less than one frame at 30 frames/s");
     // A model trained on points of images of another size than the scene's cameras make: its
     // depths do not hold there (as `hvs depth` and `hvs locate` refuse), and no log is written.
     let text = fs::read_to_string(dir.p("train.csv")).unwrap();
