@@ -191,6 +191,9 @@ fn write_set(dir: &Path, plan: &Plan, captured: &[Stop]) -> Result<()> {
 /// postures read: what to collect.
 fn plan_of(a: &Args, scene: Option<&Path>) -> Result<Plan> {
     check_dir_output("-o", &a.output)?;
+    if let Some(w) = crate::data::output::leftover_files_warning("-o", &a.output) {
+        eprintln!("warning: {w}");
+    }
     let mut inputs: Vec<(&str, &Path)> = vec![("--board", &a.board), ("--positions", &a.positions)];
     inputs.extend(scene.map(|s| ("--scene", s)));
     if a.output.is_dir() {

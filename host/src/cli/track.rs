@@ -128,6 +128,9 @@ pub fn run(a: Args) -> Result<()> {
     crate::data::output::check_outputs(&[("--log", a.log.as_path())], &inputs)?;
     if let Some(dir) = &a.record {
         crate::data::output::check_dir_output("--record", dir)?;
+        if let Some(w) = crate::data::output::leftover_files_warning("--record", dir) {
+            eprintln!("warning: {w}");
+        }
         inputs.push(("--log", a.log.as_path()));
     }
     let model = crate::data::model::load(&a.model)?;

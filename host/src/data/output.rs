@@ -131,6 +131,19 @@ pub fn check_outputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Res
     Ok(())
 }
 
+/// A warning for an output folder `dir` (`flag`) that already holds files: a run writes its
+/// own files and list (`CAPTURES.csv`) but leaves the others as they were, so images of an
+/// earlier, longer run would stay beside this one's. `None` for a missing or empty folder.
+pub fn leftover_files_warning(flag: &str, dir: &Path) -> Option<String> {
+    let n = std::fs::read_dir(dir).ok()?.filter_map(|e| e.ok()).count();
+    (n > 0).then(|| {
+        format!(
+            "{flag} {}: the folder already holds {n} file(s); this run's files replace those of the same names, the others stay (its CAPTURES.csv lists only this run's)",
+            dir.display()
+        )
+    })
+}
+
 /// Refuses a folder output (`flag`, e.g. `--overlays`) that cannot be a folder to write in:
 /// an existing file or device, a read-only folder, or a new folder whose parent does not
 /// exist or is read-only. Checked before any work; the folder is created when written.
@@ -516,6 +529,18 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_folder_with_files_is_warned_about() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("new");
+        assert_eq!(leftover_files_warning("-o", &missing), None);
+        std::fs::create_dir(&missing).unwrap();
+        assert_eq!(leftover_files_warning("-o", &missing), None);
+        std::fs::write(missing.join("left0001.png"), b"x").unwrap();
+        let w = leftover_files_warning("--record", &missing).unwrap();
+        assert!(w.starts_with("--record ") && w.contains("holds 1 file(s)"), "{w}");
+    }
 
     #[test]
     fn temp_names_carry_the_pid() {
