@@ -78,12 +78,19 @@ pub struct Args {
 
 /// `hvs view`.
 pub fn run(a: Args) -> Result<()> {
-    let listen: SocketAddr = a.listen.parse().map_err(|_| {
-        crate::cli::usage(format!(
-            "--listen: {:?} is not ADDR:PORT (e.g. 127.0.0.1:8080, 0.0.0.0:0, [::1]:8080)",
-            a.listen
-        ))
-    })?;
+    // An address, or `localhost:PORT` (the name every system has; others would need a
+    // lookup whose answer could be any interface).
+    let listen: SocketAddr = a
+        .listen
+        .strip_prefix("localhost:")
+        .map_or_else(|| a.listen.clone(), |port| format!("127.0.0.1:{port}"))
+        .parse()
+        .map_err(|_| {
+            crate::cli::usage(format!(
+                "--listen: {:?} is not ADDR:PORT (e.g. 127.0.0.1:8080, localhost:8080, 0.0.0.0:0, [::1]:8080)",
+                a.listen
+            ))
+        })?;
     if a.restarts == Some(0) {
         bail!("--restarts must be at least 1");
     }

@@ -58,6 +58,26 @@ impl<S: Send + Sync, T: serde::de::DeserializeOwned> axum::extract::FromRequest<
     }
 }
 
+/// The path's parameters (a pair number, a view), whose refusal (`/api/frame/-1/left`) is an
+/// [`ApiError`] like every other, not axum's plain-text one.
+struct Segments<T>(T);
+
+impl<S: Send + Sync, T: serde::de::DeserializeOwned + Send> axum::extract::FromRequestParts<S>
+    for Segments<T>
+{
+    type Rejection = ApiError;
+
+    async fn from_request_parts(
+        parts: &mut axum::http::request::Parts,
+        state: &S,
+    ) -> Result<Self, ApiError> {
+        match Path::<T>::from_request_parts(parts, state).await {
+            Ok(Path(v)) => Ok(Segments(v)),
+            Err(r) => Err(ApiError(r.status(), r.body_text().replace('\n', " "))),
+        }
+    }
+}
+
 impl From<Refused> for ApiError {
     fn from(r: Refused) -> ApiError {
         match r {
@@ -133,6 +153,9 @@ fn router(app: Shared) -> Router {
         .route("/api/captures", get(captures))
         .route("/api/retrain", post(retrain))
         .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
+        .method_not_allowed_fallback(|| async {
+            ApiError(StatusCode::METHOD_NOT_ALLOWED, "this method is not served here".into())
+        })
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .layer(middleware::from_fn_with_state(app.clone(), check_token))
         .with_state(app)
@@ -228,7 +251,7 @@ fn frame_query(query: Option<&str>) -> Result<(Option<u64>, Option<u64>), ApiErr
 
 async fn frame(
     State(app): State<Shared>,
-    Path((pair, view)): Path<(usize, String)>,
+    Segments((pair, view)): Segments<(usize, String)>,
     RawQuery(query): RawQuery,
 ) -> Result<Response, ApiError> {
     let view = View::parse(&view).ok_or_else(|| {
@@ -303,14 +326,17 @@ async fn depth_of(app: &Shared, pair: usize) -> Result<Arc<DepthView>, ApiError>
         .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))??)
 }
 
-async fn depth(State(app): State<Shared>, Path(pair): Path<usize>) -> Result<Response, ApiError> {
+async fn depth(
+    State(app): State<Shared>,
+    Segments(pair): Segments<usize>,
+) -> Result<Response, ApiError> {
     let d = depth_of(&app, pair).await?;
     Ok(Json(api::depth(pair, &d)).into_response())
 }
 
 async fn depth_image(
     State(app): State<Shared>,
-    Path(pair): Path<usize>,
+    Segments(pair): Segments<usize>,
 ) -> Result<Response, ApiError> {
     Ok(png_response(&depth_of(&app, pair).await?.png))
 }
@@ -319,7 +345,7 @@ async fn depth_image(
 /// --thorough --ply`.
 async fn depth_cloud(
     State(app): State<Shared>,
-    Path(pair): Path<usize>,
+    Segments(pair): Segments<usize>,
 ) -> Result<Response, ApiError> {
     let d = depth_of(&app, pair).await?;
     let cloud = tokio::task::spawn_blocking(move || d.cloud())

@@ -487,6 +487,10 @@ fn view_refuses_bad_requests_and_stays_up() {
     )
     .unwrap();
     assert_eq!(raw_response(c).0, 415);
+    // A malformed path parameter and a method the path does not serve: JSON errors too.
+    let e = json(&sv.addr, "GET", "/api/frame/-1/left", None, 400);
+    assert!(e["error"].as_str().is_some_and(|m| m.contains("-1")), "{e}");
+    json(&sv.addr, "GET", "/api/locate", None, 405);
     json(&sv.addr, "GET", "/api/session", None, 200);
 }
 
