@@ -128,8 +128,9 @@ pub struct Args {
     /// Update this model with the points of --data instead of training from nothing: its
     /// weights, family, topology, inputs and scaling are kept (any of --hidden, --outputs,
     /// --arch, --frame, --algo given must match it); one board at one depth is enough.
-    /// --restarts, --threshold and the back-propagation options do not apply.
-    #[arg(long, value_name = "OLD.hvsw")]
+    /// --restarts, --threshold and the back-propagation options do not apply (given, they are
+    /// bad usage).
+    #[arg(long, value_name = "OLD.hvsw", conflicts_with_all = ["restarts", "threshold", "learning_rate", "e_max", "max_cycles"])]
     from: Option<PathBuf>,
     /// Model file to write (atomically).
     #[arg(short = 'o', long, value_name = "MODEL")]

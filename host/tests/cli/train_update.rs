@@ -148,6 +148,11 @@ fn an_update_keeps_the_old_model_or_says_why_not() {
     fails_line(&base("--outputs z"), "--outputs does not match");
     fails_line(&base("--algo bp"), "--algo bp does not match");
     fails_line(&base("--algo adam"), "--algo adam does not match");
+    // Options of training from nothing are bad usage with --from, not silently ignored.
+    for extra in ["--restarts 3", "--threshold 5", "--learning-rate 0.2", "--max-cycles 9"] {
+        let err = crate::common::stderr_with_code(base(extra).split_whitespace(), 2);
+        assert!(err.contains("cannot be used with"), "{extra}: {err}");
+    }
     // Same values as the old model are fine.
     ok_line(&base("--hidden 5 --arch inverse-depth-skip --algo lm"));
     // A posture-aware set for a stereo model.
