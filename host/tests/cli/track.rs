@@ -124,13 +124,14 @@ fn track_refuses_bad_input_with_one_clear_line() {
     .map(String::from)
     .collect();
     usage(v, "outside the 160x120 left image");
+    // `model` on the good scene for `seconds`.
+    let on_scene = |model: &str, seconds: &str| -> Vec<String> {
+        ["track", "--model", model, "--scene", &sc, "--seconds", seconds, "--log", &log]
+            .map(String::from)
+            .to_vec()
+    };
     // Less than one frame: nothing would run.
-    let v: Vec<String> = ["track", "--model", &good, "--scene", &sc, "--seconds", "0.01", "--log"]
-        .into_iter()
-        .chain([log.as_str()])
-        .map(String::from)
-        .collect();
-    usage(v, "less than one frame at 30 frames/s");
+    usage(on_scene(&good, "0.01"), "less than one frame at 30 frames/s");
     // A model trained on points of images of another size than the scene's cameras make: its
     // depths do not hold there (as `hvs depth` and `hvs locate` refuse), and no log is written.
     let text = fs::read_to_string(dir.p("train.csv")).unwrap();
@@ -142,12 +143,10 @@ fn track_refuses_bad_input_with_one_clear_line() {
     fs::write(dir.p("sized.csv"), sized).unwrap();
     let other = dir.p("other_size.hvsw");
     ok(&["train", "--data", &dir.p("sized.csv"), "-o", &other, "--restarts", "1"]);
-    let v: Vec<String> = ["track", "--model", &other, "--scene", &sc, "--seconds", "0.1", "--log"]
-        .into_iter()
-        .chain([log.as_str()])
-        .map(String::from)
-        .collect();
-    run(v, "the images are 160x120 px, the model was trained on 320x240 px images");
+    run(
+        on_scene(&other, "0.1"),
+        "the images are 160x120 px, the model was trained on 320x240 px images",
+    );
     assert!(!std::path::Path::new(&log).exists());
     // Heads and cameras: one head; real cameras need a head's port; a port that is not
     // there is named; a build without V4L2 says how to get one.
