@@ -117,8 +117,7 @@ pub fn run(a: Args) -> Result<()> {
     let session = Session::open(&a.model, &source, options)?;
     if matches!(source, Source::Scene { .. } | Source::Cameras { .. }) {
         // The live head turns its eyes: say so of a model for one posture.
-        let blob = crate::data::model::load(&a.model)?.blob;
-        if let Some(w) = crate::track::fixed_posture_warning(&blob) {
+        if let Some(w) = crate::track::fixed_posture_warning(&session.model.blob) {
             eprintln!("warning: {}: {w}", a.model.display());
         }
     }

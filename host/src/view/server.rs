@@ -161,13 +161,13 @@ fn router(app: Shared) -> Router {
         .with_state(app)
 }
 
-fn asset(kind: &'static str, text: &'static str) -> Response {
+fn asset(kind: &'static str, text: impl Into<Body>) -> Response {
     (
         [
             (header::CONTENT_TYPE, HeaderValue::from_static(kind)),
             (header::CACHE_CONTROL, HeaderValue::from_static("no-cache")),
         ],
-        text,
+        text.into(),
     )
         .into_response()
 }
@@ -182,14 +182,7 @@ async fn index(State(app): State<Shared>) -> Response {
             let page = assets::INDEX_HTML
                 .replace("href=\"style.css\"", &format!("href=\"style.css?token={t}\""))
                 .replace("src=\"app.js\"", &format!("src=\"app.js?token={t}\""));
-            (
-                [
-                    (header::CONTENT_TYPE, HeaderValue::from_static("text/html; charset=utf-8")),
-                    (header::CACHE_CONTROL, HeaderValue::from_static("no-cache")),
-                ],
-                page,
-            )
-                .into_response()
+            asset("text/html; charset=utf-8", page)
         }
     }
 }
