@@ -268,16 +268,17 @@ pub fn depth_files(
     Ok((d, l))
 }
 
-/// Refuses a pair of another size than the model's training images
-/// ([`crate::vision::check_image_size`]), naming the left image and the model.
+/// Refuses images of another size than the model's training images
+/// ([`crate::vision::check_image_size`]), naming where they come from (`source`: the left
+/// image, a scene file, the cameras) and the model.
 pub fn check_pair_size(
     model_path: &Path,
     blob: &ModelBlob,
-    left: &Path,
+    source: &Path,
     size: (u32, u32),
 ) -> Result<()> {
     crate::vision::check_image_size(blob, size)
-        .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))
+        .map_err(|e| anyhow!("{} with {}: {e:#}", source.display(), model_path.display()))
 }
 
 /// Where the left pixels `points` are seen in the right image, answered from the dense

@@ -161,9 +161,8 @@ pub fn run(a: Args) -> Result<()> {
     }
     // The model's depths hold for the images it was trained on (as `hvs depth` and `hvs
     // locate` refuse other sizes).
-    let source = a.scene.as_ref().map_or("--cameras".to_string(), |s| s.display().to_string());
-    crate::vision::check_image_size(&blob, (w, h))
-        .map_err(|e| anyhow!("{source} with {}: {e:#}", a.model.display()))?;
+    let source = a.scene.as_deref().unwrap_or(std::path::Path::new("--cameras"));
+    crate::depth::check_pair_size(&a.model, &blob, source, (w, h))?;
     if let TargetMode::Pixel([u, v]) = target {
         if !crate::depth::inside_image(u, v, (w, h)) {
             return Err(crate::cli::usage(format!(

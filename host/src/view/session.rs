@@ -174,9 +174,7 @@ impl Session {
             Source::Pair { left, right } => {
                 let (l, r) = vision::read_pair(left, right)?;
                 // Every click and the depth would be refused: say so at the start.
-                vision::check_image_size(&model.blob, l.dimensions()).map_err(|e| {
-                    anyhow!("{} with {}: {e:#}", left.display(), model_path.display())
-                })?;
+                crate::depth::check_pair_size(model_path, &model.blob, left, l.dimensions())?;
                 let name = format!("{} | {}", file_name(left), file_name(right));
                 (
                     Arc::new(StillFrames::new(vec![StillPair::new(Some([l, r]), None)])),
@@ -222,9 +220,7 @@ impl Session {
                     .map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
                 let cameras = loaded.cameras(*seed);
                 let size = loaded.image_size();
-                vision::check_image_size(&model.blob, size).map_err(|e| {
-                    anyhow!("{} with {}: {e:#}", scene.display(), model_path.display())
-                })?;
+                crate::depth::check_pair_size(model_path, &model.blob, scene, size)?;
                 let who = match head {
                     HeadChoice::Qemu(_) => "head firmware in QEMU",
                     _ => "virtual head",
