@@ -1230,7 +1230,6 @@ mod tests {
         eprintln!("worst miss of the sphere's centre: {worst:.2} px");
     }
 
-    /// The README's small posture-aware model of case III (see the fixture's README).
     /// A wall alone at 300 cm, beyond the training depths of the posture model (65-165 cm) by
     /// more than [`DEPTH_MARGIN`]: no target, frame after frame (the wall's texture matches,
     /// and before the margin the scan took it: the README's scene tracked the wall at seed
@@ -1240,13 +1239,7 @@ mod tests {
         let head = HeadRig::new(presets::case(3).unwrap());
         let est = small_posture_estimator();
         for wall in [1u64, 7] {
-            let text = format!(
-                r#"{{ "rig": {{"case": 3}}, "camera_fps": 30,
-                  "background": {{"z_cm": 300, "texture_seed": {wall}}}, "objects": [] }}"#
-            );
-            let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
-            let r =
-                render_scene(&head, &Joints::HOME, &scene, &RenderOptions::default(), 5).unwrap();
+            let r = scene_pair(&head, &Joints::HOME, wall, "");
             let mut f = Finder::new(TargetMode::Nearest);
             for frame in 0..3 {
                 let found = f.find(&r.left, &r.right, &Joints::HOME, &est);
@@ -1260,6 +1253,7 @@ mod tests {
         assert!((found.z - 95.0).abs() < 5.0, "the sphere at {} cm", found.z);
     }
 
+    /// The README's small posture-aware model of case III (see the fixture's README).
     fn small_posture_estimator() -> Estimator {
         let blob = crate::data::model::check(include_bytes!(
             "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
@@ -1277,11 +1271,18 @@ mod tests {
         centre: [f64; 3],
         (wall, sphere): (u64, u64),
     ) -> SceneRender {
+        let sphere = format!(
+            r#"{{"shape": "sphere", "radius_cm": 5, "centre_cm": {centre:?}, "texture_seed": {sphere}}}"#
+        );
+        scene_pair(head, joints, wall, &sphere)
+    }
+
+    /// Case III's pair at `joints` of `objects` (scene JSON, comma-separated) before a wall at
+    /// 300 cm with texture seed `wall`.
+    fn scene_pair(head: &HeadRig, joints: &Joints, wall: u64, objects: &str) -> SceneRender {
         let text = format!(
             r#"{{ "rig": {{"case": 3}}, "camera_fps": 30,
-              "background": {{"z_cm": 300, "texture_seed": {wall}}},
-              "objects": [ {{"shape": "sphere", "radius_cm": 5, "centre_cm": {centre:?},
-                             "texture_seed": {sphere}}} ] }}"#
+              "background": {{"z_cm": 300, "texture_seed": {wall}}}, "objects": [ {objects} ] }}"#
         );
         let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
         render_scene(head, joints, &scene, &RenderOptions::default(), 5).unwrap()
