@@ -36,9 +36,9 @@
 //!    edge; `post::edge_switch`).
 //! 7. Sub-pixel refinement on the grey levels: a 1-D Lucas-Kanade fit of a 7 x 7 window
 //!    (9 x 9 where warped) along the epipolar line (zero-mean, gain-matched), at most half a
-//!    pixel. For a rectified pair of cameras alike, two steps of the window shifted along its row, with the
-//!    left window's derivative (inverse-compositional), in `f32` with a window row per 8-lane
-//!    vector. Otherwise (verged or rolled cameras, another right scale) one step of the
+//!    pixel. For a rectified pair of cameras alike, two steps of the window shifted along its
+//!    row, with the left window's derivative (inverse-compositional), in `f32` with a window
+//!    row per 8-lane vector. Otherwise (verged or rolled cameras, another right scale) one step of the
 //!    window warped as the matches around the pixel say: the least-squares plane of `u_r`
 //!    over its 9 x 9 neighbourhood gives where each window pixel lies in the right image, on
 //!    its own epipolar line, sampled bicubically; a window of fixed shape misses the local
