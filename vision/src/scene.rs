@@ -1129,19 +1129,16 @@ mod tests {
 
     #[test]
     fn a_boards_errors_give_their_place_in_the_scene_file() {
-        let scene = |board: &str| {
+        // A scene with one board object, the board on line 3.
+        let read = |board: &str| {
             let text = format!(
                 "{{\"rig\": {{\"case\": 3}}, \"camera_fps\": 30,\n \"background\": {{\"z_cm\": 300}},\n \"objects\": [{{\"shape\": \"board\", \"centre_cm\": [0, 0, 100], \"board\": {board}}}]}}"
             );
-            SceneFile::parse(&text).and_then(|f| f.scene()).map(|_| ()).unwrap_err().to_string()
+            SceneFile::parse(&text).and_then(|f| f.scene()).map(|_| ())
         };
+        let scene = |board: &str| read(board).unwrap_err().to_string();
         let ok = r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 6}"#;
-        assert!(SceneFile::parse(&format!(
-            r#"{{"rig": {{"case": 3}}, "camera_fps": 30, "background": {{"z_cm": 300}}, "objects": [{{"shape": "board", "centre_cm": [0, 0, 100], "board": {ok}}}]}}"#
-        ))
-        .unwrap()
-        .scene()
-        .is_ok());
+        assert!(read(ok).is_ok());
         let e = scene(
             r#"{"pattern": "chessboard", "inner_corners": [9, 6], "square_cm": 6, "colour": 1}"#,
         );
