@@ -233,23 +233,24 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     assert!(okc >= 40, "{okc} of 54 returned");
     assert!(good * 10 >= okc * 9, "{good} of {okc} returned corners within 0.5 px");
     assert_eq!(rows[54][8], "outside");
+    // `hvs locate --points` of the pixels file as it now is.
+    let locate_points = || {
+        crate::common::hvs()
+            .args(locate_args(&["locate"], &model, &l, &r, &["--points", s(&pix)]))
+            .output()
+            .unwrap()
+    };
     // NaN is refused as infinities are (one rule with every CSV input), naming the line.
     for bad in ["NaN", "inf"] {
         std::fs::write(&pix, format!("u_l,v_l\n300,200\n{bad},10\n")).unwrap();
-        let o = crate::common::hvs()
-            .args(locate_args(&["locate"], &model, &l, &r, &["--points", s(&pix)]))
-            .output()
-            .unwrap();
+        let o = locate_points();
         assert_eq!(o.status.code(), Some(1));
         let e = String::from_utf8_lossy(&o.stderr).into_owned();
         assert!(e.contains(":3: column \"u_l\"") && e.contains("is not a finite number"), "{e}");
     }
     // Columns the output writes itself are replaced, and the user is told.
     std::fs::write(&pix, "u_l,v_l,z,tag\n300,200,95,a\n").unwrap();
-    let o = crate::common::hvs()
-        .args(locate_args(&["locate"], &model, &l, &r, &["--points", s(&pix)]))
-        .output()
-        .unwrap();
+    let o = locate_points();
     assert_eq!(o.status.code(), Some(0));
     let e = String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(e.contains("px.csv: its columns z are replaced by the located values"), "{e}");
