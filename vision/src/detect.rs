@@ -802,69 +802,136 @@ pub const SAME_IMAGE_PX: f64 = 0.5;
 /// cross, disparities are small and of either sign.
 pub const MIN_SIGN_DISPARITY_PX: f64 = 2.0;
 
-/// Why a pair's disparities cannot be right, per pair of a capture set: `disparity[k]` is pair
+/// The slope `b` of a fit `d = a + b / z` of the pairs' disparities against their board depths
+/// (the pairs with a finite disparity and a depth), `None` without two distinct depths. A board
+/// square-on at depth `z` has a disparity of about `a + b / z` with `b > 0` (the right camera
+/// sits to the right of the left one); with verged eyes the board's place across the image adds
+/// to it, so a few pairs can give any sign.
+fn depth_slope(disparity: &[f64], z: &[Option<f64>], idx: &[usize]) -> Option<(f64, f64)> {
+    let (sxy, sxx, mx, my) = depth_moments(disparity, z, idx)?;
+    let b = sxy / sxx;
+    Some((my - b * mx, b))
+}
+
+/// The centred sums `(sxy, sxx)` of [`depth_slope`]'s fit.
+fn depth_sums(disparity: &[f64], z: &[Option<f64>], idx: &[usize]) -> Option<(f64, f64)> {
+    depth_moments(disparity, z, idx).map(|(sxy, sxx, _, _)| (sxy, sxx))
+}
+
+/// `(sxy, sxx, mean 1/z, mean d)` of the pairs with a finite disparity and a depth, `None`
+/// without two distinct depths.
+fn depth_moments(
+    disparity: &[f64],
+    z: &[Option<f64>],
+    idx: &[usize],
+) -> Option<(f64, f64, f64, f64)> {
+    let pts: Vec<(f64, f64)> = idx
+        .iter()
+        .filter(|&&k| disparity[k].is_finite())
+        .filter_map(|&k| {
+            z[k].filter(|z| z.is_finite() && *z > 0.0).map(|z| (1.0 / z, disparity[k]))
+        })
+        .collect();
+    let m = pts.len() as f64;
+    if pts.len() < 2 {
+        return None;
+    }
+    let (sx, sy) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+    let (mx, my) = (sx / m, sy / m);
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    // Distinct depths: the spread of 1/z must be more than rounding.
+    if sxx <= 1e-12 * mx * mx * m {
+        return None;
+    }
+    Some((sxy, sxx, mx, my))
+}
+
+/// The slope `b` of `d = a_g + b / z` fitted to the pairs of every posture `g` at once (one
+/// intercept per posture, one slope; each posture's pairs `(disparity, depth)`, the postures
+/// with two or more distinct depths), `None` without any. A swapped set has `b <= 0`. One
+/// posture alone can come out either way when its boards lie off to the sides of verged eyes;
+/// over many postures their scatter averages out.
+pub fn pooled_depth_slope(groups: &[Vec<(f64, Option<f64>)>]) -> Option<f64> {
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for g in groups {
+        let d: Vec<f64> = g.iter().map(|p| p.0).collect();
+        let z: Vec<Option<f64>> = g.iter().map(|p| p.1).collect();
+        let idx: Vec<usize> = (0..g.len()).collect();
+        if let Some((gxy, gxx)) = depth_sums(&d, &z, &idx) {
+            sxy += gxy;
+            sxx += gxx;
+        }
+    }
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+/// Why one pair's disparities cannot be right ([`disparity_faults`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum DisparityFault {
+    /// Every corner at the same pixel in both images.
+    SameImage,
+    /// The disparities of the whole set grow with the board depth: left and right swapped for
+    /// all of it.
+    GrowsWithDepth {
+        /// The pair's median disparity (px).
+        disparity: f64,
+        /// The postures with two or more depths the slope was fitted over, for a set of
+        /// several postures.
+        postures: Option<usize>,
+    },
+    /// The pair's median disparity has the opposite sign of what the other pairs give at its
+    /// depth.
+    OppositeSign {
+        /// The pair's median disparity (px).
+        disparity: f64,
+        /// What the other pairs give at its depth (px).
+        expected: f64,
+    },
+}
+
+impl std::fmt::Display for DisparityFault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DisparityFault::SameImage => f.write_str(
+                "every corner is at the same pixel in both images (zero disparity): the same image given as left and right?",
+            ),
+            DisparityFault::GrowsWithDepth { disparity, postures } => {
+                write!(f, "the disparities grow with the board depth (this pair: {disparity:.1} px")?;
+                if let Some(n) = postures {
+                    write!(f, "; over {n} postures")?;
+                }
+                f.write_str("): left and right swapped, or the images mirrored or turned 180 degrees")
+            }
+            DisparityFault::OppositeSign { disparity, expected } => write!(
+                f,
+                "its disparity is {disparity:.1} px where the other pairs give {expected:+.1} px: left and right swapped, or both images mirrored or turned 180 degrees"
+            ),
+        }
+    }
+}
+
+/// Why a pair's disparities cannot be right, per pair of one posture: `disparity[k]` is pair
 /// `k`'s median `u_l - u_r` ([`StereoCorners::median_disparity`]), `same[k]` whether it shows
 /// the same image twice, `z[k]` its board depth when known.
 ///
 /// - Same image twice (every corner at the same place): refused.
-/// - The disparity of a board square-on at depth `z` is about `a + b / z` with `b > 0` (the
-///   right camera sits to the right of the left one). With depths of at least two distinct
-///   values, a fit over all pairs with `b <= 0` means the whole set has left and right
-///   swapped (or mirrored, or turned 180 degrees): every pair is refused.
 /// - A pair whose disparity has the opposite sign of what the other pairs give at its depth
-///   (their `a + b / z` fit, or with fewer than two other depths the sign most of them have),
-///   both at least [`MIN_SIGN_DISPARITY_PX`], is refused: that pair is swapped, mirrored or
-///   turned.
+///   (their `a + b / z` fit, [`depth_slope`], or with fewer than two other depths the sign most
+///   of them have), both at least [`MIN_SIGN_DISPARITY_PX`]: suspected swapped, mirrored or
+///   turned. [`pair_faults`] asks the epipolar geometry before refusing it.
+///
+/// A whole set swapped is [`set_faults`]' to find ([`pooled_depth_slope`]).
 pub fn disparity_faults(
     disparity: &[f64],
     same: &[bool],
     z: &[Option<f64>],
-) -> Vec<Option<String>> {
+) -> Vec<Option<DisparityFault>> {
     let n = disparity.len();
-    let mut out: Vec<Option<String>> = (0..n)
-        .map(|k| {
-            same[k].then(|| {
-                "every corner is at the same pixel in both images (zero disparity): the same image given as left and right?".to_string()
-            })
-        })
-        .collect();
+    let mut out: Vec<Option<DisparityFault>> =
+        (0..n).map(|k| same[k].then_some(DisparityFault::SameImage)).collect();
     let usable: Vec<usize> =
         (0..n).filter(|&k| out[k].is_none() && disparity[k].is_finite()).collect();
-    let fit = |idx: &[usize]| -> Option<(f64, f64)> {
-        let pts: Vec<(f64, f64)> = idx
-            .iter()
-            .filter_map(|&k| {
-                z[k].filter(|z| z.is_finite() && *z > 0.0).map(|z| (1.0 / z, disparity[k]))
-            })
-            .collect();
-        let m = pts.len() as f64;
-        if pts.len() < 2 {
-            return None;
-        }
-        let (sx, sy) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
-        let (mx, my) = (sx / m, sy / m);
-        let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
-        let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-        // Distinct depths: the spread of 1/z must be more than rounding.
-        if sxx <= 1e-12 * mx * mx * m {
-            return None;
-        }
-        let b = sxy / sxx;
-        Some((my - b * mx, b))
-    };
-    if let Some((_, b)) = fit(&usable) {
-        let all_same_sign = usable.iter().all(|&k| disparity[k] < 0.0)
-            || usable.iter().all(|&k| disparity[k] > 0.0);
-        if b <= 0.0 && all_same_sign {
-            for &k in &usable {
-                out[k] = Some(format!(
-                    "the disparities grow with the board depth (this pair: {:.1} px): left and right swapped, or the images mirrored or turned 180 degrees",
-                    disparity[k]
-                ));
-            }
-            return out;
-        }
-    }
     // The worst pair against the others' expectation is refused, then the rest checked
     // again without it (one bad pair drags the others' fit off).
     let mut usable = usable;
@@ -882,7 +949,7 @@ pub fn disparity_faults(
         let mut worst: Option<(usize, f64)> = None;
         for &k in &usable {
             let others: Vec<usize> = usable.iter().copied().filter(|&m| m != k).collect();
-            let expected = match (fit(&others), z[k]) {
+            let expected = match (depth_slope(disparity, z, &others), z[k]) {
                 (Some((a, b)), Some(zk)) if zk > 0.0 && b > 0.0 => Some(a + b / zk),
                 _ => {
                     let pos =
@@ -918,13 +985,134 @@ pub fn disparity_faults(
         wrong.push((k, e));
         usable.retain(|&m| m != k);
     }
-    for (k, e) in wrong {
-        out[k] = Some(format!(
-            "its disparity is {:.1} px where the other pairs give {e:+.1} px: left and right swapped, or both images mirrored or turned 180 degrees",
-            disparity[k]
-        ));
+    for (k, expected) in wrong {
+        out[k] = Some(DisparityFault::OppositeSign { disparity: disparity[k], expected });
     }
     out
+}
+
+/// A pair whose disparity's sign is suspect is kept when the epipolar geometry says it is not
+/// swapped: its right corners lie at most this far (px, median) from the epipolar lines of
+/// the posture's other pairs, and at least [`SWAP_EVIDENCE_RATIO`] times as far with its two
+/// images exchanged. Eyes nearly parallel cannot tell (the fundamental matrix of a pure sideways
+/// shift fits a swapped pair as well), and there the sign decides.
+pub const FITS_GIVEN_PX: f64 = 1.0;
+
+/// See [`FITS_GIVEN_PX`].
+pub const SWAP_EVIDENCE_RATIO: f64 = 10.0;
+
+/// Median distances (px) of `pair`'s right corners from the epipolar lines of a fundamental
+/// matrix fitted to `others`: `[as given, with its two images exchanged]`; `None` when the
+/// others do not determine one (fewer than two board poses).
+pub fn epipolar_medians(others: &[&StereoCorners], pair: &StereoCorners) -> Option<[f64; 2]> {
+    if others.len() < 2 {
+        return None;
+    }
+    let all: Vec<([f64; 2], [f64; 2])> = others.iter().flat_map(|p| p.pairs()).collect();
+    let f = geometry::fit_fundamental(&all).ok()?;
+    let median = |swap: bool| {
+        let mut d: Vec<f64> = pair
+            .pairs()
+            .iter()
+            .map(|&(l, r)| if swap { f.distance_in_right(r, l) } else { f.distance_in_right(l, r) })
+            .collect();
+        d.sort_by(f64::total_cmp);
+        d.get(d.len() / 2).copied()
+    };
+    Some([median(false)?, median(true)?])
+}
+
+/// Whether the epipolar geometry of `others` (with `pair`, when `others` alone do not determine
+/// one) says `pair` is as given and not swapped against them ([`FITS_GIVEN_PX`]).
+fn epipolar_says_unswapped(others: &[&StereoCorners], pair: &StereoCorners) -> bool {
+    let medians = epipolar_medians(others, pair).or_else(|| {
+        // One other pair: the two together, as given and with this one exchanged.
+        let [other] = others else { return None };
+        let joint = |p: &StereoCorners| -> Option<f64> {
+            let all: Vec<_> = other.pairs().into_iter().chain(p.pairs()).collect();
+            geometry::fit_fundamental_report(&all).ok().map(|f| f.median_distance_in_right)
+        };
+        let swapped = StereoCorners {
+            left: pair.right.clone(),
+            right: pair.left.clone(),
+            lr_homography_rms: pair.lr_homography_rms,
+        };
+        Some([joint(pair)?, joint(&swapped)?])
+    });
+    medians.is_some_and(|[given, swapped]| {
+        given <= FITS_GIVEN_PX && swapped >= SWAP_EVIDENCE_RATIO * given.max(1e-3)
+    })
+}
+
+/// The disparity checks of one posture's pairs ([`disparity_faults`]), a suspect sign kept when
+/// the epipolar geometry of the other pairs says the pair is not swapped (verged eyes: a board
+/// off to one side has a disparity of another sign than one straight ahead at the same depth).
+pub fn pair_faults(pairs: &[&StereoCorners], z: &[Option<f64>]) -> Vec<Option<DisparityFault>> {
+    let disparity: Vec<f64> = pairs.iter().map(|p| p.median_disparity()).collect();
+    let same: Vec<bool> = pairs.iter().map(|p| p.same_in_both()).collect();
+    let mut faults = disparity_faults(&disparity, &same, z);
+    let clean: Vec<usize> = (0..pairs.len()).filter(|&k| faults[k].is_none()).collect();
+    for (k, fault) in faults.iter_mut().enumerate() {
+        if matches!(fault, Some(DisparityFault::OppositeSign { .. })) {
+            let others: Vec<&StereoCorners> =
+                clean.iter().filter(|&&m| m != k).map(|&m| pairs[m]).collect();
+            if epipolar_says_unswapped(&others, pairs[k]) {
+                *fault = None;
+            }
+        }
+    }
+    faults
+}
+
+/// The disparity checks of a whole capture set, `groups` its postures (each posture's pairs and
+/// their board depths; a set without joints is one posture), the faults per posture and pair.
+///
+/// A set whose disparities grow with depth ([`pooled_depth_slope`] `<= 0`) is swapped as a
+/// whole (cameras or columns exchanged): every pair is refused. Otherwise each posture's pairs go through [`pair_faults`]; one
+/// posture's few boards, off to the sides of verged eyes, can look swapped alone.
+pub fn set_faults(
+    groups: &[(Vec<&StereoCorners>, Vec<Option<f64>>)],
+) -> Vec<Vec<Option<DisparityFault>>> {
+    let points: Vec<Vec<(f64, Option<f64>)>> = groups
+        .iter()
+        .map(|(pairs, z)| {
+            pairs
+                .iter()
+                .zip(z)
+                .filter(|(p, _)| !p.same_in_both())
+                .map(|(p, z)| (p.median_disparity(), *z))
+                .collect()
+        })
+        .collect();
+    if pooled_depth_slope(&points).is_some_and(|b| b <= 0.0) {
+        let judged = points
+            .iter()
+            .filter(|g| {
+                let (d, z): (Vec<f64>, Vec<Option<f64>>) = g.iter().copied().unzip();
+                depth_sums(&d, &z, &(0..g.len()).collect::<Vec<_>>()).is_some()
+            })
+            .count();
+        let postures = (groups.len() > 1).then_some(judged);
+        return groups
+            .iter()
+            .map(|(pairs, _)| {
+                pairs
+                    .iter()
+                    .map(|p| {
+                        Some(if p.same_in_both() {
+                            DisparityFault::SameImage
+                        } else {
+                            DisparityFault::GrowsWithDepth {
+                                disparity: p.median_disparity(),
+                                postures,
+                            }
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+    }
+    groups.iter().map(|(pairs, z)| pair_faults(pairs, z)).collect()
 }
 
 /// One fundamental matrix over a whole capture set, with each pair's residuals.
@@ -1134,6 +1322,7 @@ mod tests {
     #[test]
     fn wrong_or_zero_disparities_are_refused() {
         let z = |v: &[f64]| v.iter().map(|&z| Some(z)).collect::<Vec<_>>();
+        let text = |f: &Option<DisparityFault>| f.as_ref().map(|f| f.to_string());
         // d = 5 + 2000 / z at 65, 85, 105, 125 cm.
         let depths = [65.0, 85.0, 105.0, 125.0];
         let good: Vec<f64> = depths.iter().map(|z| 5.0 + 2000.0 / z).collect();
@@ -1143,19 +1332,21 @@ mod tests {
         let mut one = good.clone();
         one[2] = -one[2];
         let f = disparity_faults(&one, &none, &z(&depths));
-        assert!(f[2].as_ref().unwrap().contains("swapped"), "{f:?}");
+        assert!(text(&f[2]).unwrap().contains("swapped"), "{f:?}");
         assert!(f[0].is_none() && f[1].is_none() && f[3].is_none(), "{f:?}");
         // Three pairs, the middle one turned: the odd sign out, not an end of the line.
         let three = [good[0], -good[2], good[3]];
         let f = disparity_faults(&three, &[false; 3], &z(&[65.0, 105.0, 125.0]));
         assert!(f[1].is_some() && f[0].is_none() && f[2].is_none(), "{f:?}");
-        // The whole set swapped: every pair refused.
+        // The whole set swapped: its slope is negative, the set's to refuse.
         let all: Vec<f64> = good.iter().map(|d| -d).collect();
-        let f = disparity_faults(&all, &none, &z(&depths));
-        assert!(f.iter().all(|m| m.as_ref().is_some_and(|m| m.contains("grow with"))), "{f:?}");
+        let pts = |d: &[f64]| vec![d.iter().zip(z(&depths)).map(|(d, z)| (*d, z)).collect()];
+        assert!(pooled_depth_slope(&pts(&all)).unwrap() < 0.0);
+        assert!((pooled_depth_slope(&pts(&good)).unwrap() - 2000.0).abs() < 1e-9);
+        assert_eq!(pooled_depth_slope(&[vec![(3.0, Some(80.0)), (4.0, Some(80.0))]]), None);
         // The same image twice.
         let f = disparity_faults(&good, &[false, true, false, false], &z(&depths));
-        assert!(f[1].as_ref().unwrap().contains("same image"), "{f:?}");
+        assert!(text(&f[1]).unwrap().contains("same image"), "{f:?}");
         // Verged eyes: disparities cross zero with depth (a < 0), and that is fine.
         let verged: Vec<f64> = depths.iter().map(|z| -20.0 + 2000.0 / z).collect();
         assert!(verged.iter().any(|d| *d < 0.0) && verged.iter().any(|d| *d > 0.0));
@@ -1163,6 +1354,120 @@ mod tests {
         // Without depths: the sign most other pairs agree on.
         let f = disparity_faults(&one, &none, &[None; 4]);
         assert!(f[2].is_some() && f.iter().filter(|m| m.is_some()).count() == 1, "{f:?}");
+    }
+
+    /// A 9 x 6 board of 6 cm squares, upright and square-on, centred at `centre` (head frame,
+    /// cm), seen by case III's cameras on the head at `joints`.
+    fn seen_board(joints: [f32; 5], centre: [f64; 3]) -> StereoCorners {
+        use hvs_shared::runtime::gaze::Joints;
+        use hvs_shared::sim::posture::HeadRig;
+        let board = Board::new(9, 6, 6.0).unwrap();
+        let head = HeadRig::new(hvs_shared::sim::presets::case(3).unwrap());
+        let mut pts = [Vec::new(), Vec::new()];
+        for j in 0..6 {
+            for i in 0..9 {
+                let p = [
+                    centre[0] + (i as f64 - 4.0) * 6.0,
+                    centre[1] + (j as f64 - 2.5) * 6.0,
+                    centre[2],
+                ];
+                let px = head.project(&Joints(joints), &p.into()).unwrap();
+                pts[0].push([px[0], px[1]]);
+                pts[1].push([px[2], px[3]]);
+            }
+        }
+        let corners = |points: Vec<[f64; 2]>| Corners {
+            board,
+            width: 640,
+            height: 480,
+            points,
+            homography_rms: 0.0,
+            homography_max: 0.0,
+            square_px: 25.0,
+            dropped: 0,
+            filled: 0,
+            roll_deg: 0.0,
+        };
+        let [l, r] = pts;
+        StereoCorners { left: corners(l), right: corners(r), lr_homography_rms: 0.0 }
+    }
+
+    #[test]
+    fn boards_off_to_the_side_of_verged_eyes_are_not_called_swapped() {
+        // A posture of a collected set (neck turned and tilted, eyes verged) and boards placed
+        // where that set had them: the near one, far off to the side, has a disparity of the
+        // other sign than the two far ones give at its depth.
+        let joints = [19.8, 19.08, 7.2, -8.1, -2.52];
+        let places = [[-25.0, 4.0, 75.0], [-35.0, -4.0, 135.0], [7.0, 2.0, 155.0]];
+        let pairs: Vec<StereoCorners> = places.iter().map(|&c| seen_board(joints, c)).collect();
+        let z: Vec<Option<f64>> = places.iter().map(|c| Some(c[2])).collect();
+        let refs: Vec<&StereoCorners> = pairs.iter().collect();
+        let d: Vec<f64> = pairs.iter().map(StereoCorners::median_disparity).collect();
+        let by_sign = disparity_faults(&d, &[false; 3], &z);
+        assert!(by_sign[0].is_some(), "the sign alone suspects the near one: {d:?}");
+        // The other pairs' epipolar geometry says it is as given.
+        assert!(pair_faults(&refs, &z).iter().all(Option::is_none), "{:?}", pair_faults(&refs, &z));
+        // Two pairs on either side of where the eyes' lines of sight cross: the sign suspects one;
+        // the two fitted together, as given and with one exchanged, say neither is swapped.
+        let near = seen_board(joints, [-10.0, 0.0, 45.0]);
+        let two = [&near, refs[2]];
+        let dz = [Some(45.0), z[2]];
+        let d2 = [near.median_disparity(), d[2]];
+        assert!(disparity_faults(&d2, &[false; 2], &dz).iter().any(Option::is_some), "{d2:?}");
+        assert!(pair_faults(&two, &dz).iter().all(Option::is_none), "{:?}", pair_faults(&two, &dz));
+        // A pair truly swapped is refused, by its sign and its epipolar lines.
+        let swap = |p: &StereoCorners| StereoCorners {
+            left: p.right.clone(),
+            right: p.left.clone(),
+            lr_homography_rms: 0.0,
+        };
+        for k in 0..3 {
+            let mut one = pairs.clone();
+            one[k] = swap(&one[k]);
+            let refs: Vec<&StereoCorners> = one.iter().collect();
+            let f = pair_faults(&refs, &z);
+            if f[k].is_none() {
+                // Disparities too small for a sign: the epipolar check after this one finds it.
+                assert!(d[k].abs() < 2.0 * MIN_SIGN_DISPARITY_PX, "pair {k}: {f:?} {d:?}");
+            }
+            assert!(f.iter().enumerate().all(|(m, f)| m == k || f.is_none()), "pair {k}: {f:?}");
+            let [given, swapped] = epipolar_medians(
+                &refs
+                    .iter()
+                    .enumerate()
+                    .filter(|(m, _)| *m != k)
+                    .map(|(_, p)| *p)
+                    .collect::<Vec<_>>(),
+                refs[k],
+            )
+            .unwrap();
+            assert!(given > 1.0 && swapped < 0.01, "pair {k}: {given} {swapped}");
+        }
+        // The set of three such postures: nothing refused; all of it swapped: every pair.
+        let postures = [joints, [-10.0, 5.0, -3.0, 2.0, 6.0], [25.0, -8.0, 0.0, -4.0, 1.5]];
+        let sets: Vec<Vec<StereoCorners>> =
+            postures.iter().map(|&j| places.iter().map(|&c| seen_board(j, c)).collect()).collect();
+        let groups = |swapped: bool| -> Vec<Vec<StereoCorners>> {
+            sets.iter()
+                .map(|g| g.iter().map(|p| if swapped { swap(p) } else { p.clone() }).collect())
+                .collect()
+        };
+        for swapped in [false, true] {
+            let g = groups(swapped);
+            let input: Vec<(Vec<&StereoCorners>, Vec<Option<f64>>)> =
+                g.iter().map(|g| (g.iter().collect(), z.clone())).collect();
+            let f = set_faults(&input);
+            let refused = f.iter().flatten().filter(|f| f.is_some()).count();
+            assert_eq!(refused, if swapped { 9 } else { 0 }, "{f:?}");
+            if swapped {
+                assert!(f[0][0]
+                    .as_ref()
+                    .unwrap()
+                    .to_string()
+                    .contains("grow with the board depth (this pair"));
+                assert!(f[0][0].as_ref().unwrap().to_string().contains("over 3 postures"));
+            }
+        }
     }
 
     #[test]

@@ -173,9 +173,41 @@ fn detect_all(
         outcomes.push(outcome);
     }
     let mut epipolar = vec![None; outcomes.len()];
+    let postures = posture_groups(set);
+    // Disparities that cannot be right (the same image twice; a pair or the whole set swapped,
+    // mirrored or turned): one fundamental matrix fits those too, so they are looked at first.
+    let usable: Vec<Vec<usize>> = postures
+        .iter()
+        .map(|m| {
+            m.iter().copied().filter(|&k| matches!(outcomes[k], PairOutcome::Found(_))).collect()
+        })
+        .collect();
+    let faults = {
+        let groups: Vec<(Vec<&StereoCorners>, Vec<Option<f64>>)> = usable
+            .iter()
+            .map(|g| {
+                let pairs = g
+                    .iter()
+                    .filter_map(|&k| match &outcomes[k] {
+                        PairOutcome::Found(p) => Some(&**p),
+                        PairOutcome::Skipped(_) => None,
+                    })
+                    .collect();
+                (pairs, g.iter().map(|&k| set.captures[k].z).collect())
+            })
+            .collect();
+        detect::set_faults(&groups)
+    };
+    for (g, faults) in usable.iter().zip(faults) {
+        for (&k, fault) in g.iter().zip(faults) {
+            if let Some(why) = fault {
+                outcomes[k] = PairOutcome::Skipped(why.to_string());
+            }
+        }
+    }
     let mut groups = Vec::new();
-    for members in posture_groups(set) {
-        if let Some(fit) = check_group(set, &members, &mut outcomes, &mut epipolar) {
+    for members in postures {
+        if let Some(fit) = check_group(&members, &mut outcomes, &mut epipolar) {
             groups.push(fit);
         }
     }
@@ -183,10 +215,10 @@ fn detect_all(
     Ok((det, images))
 }
 
-/// The checks of one posture group (capture indices `members`): skips the pairs that fail
-/// and fills their epipolar residuals; the group's fit if it has two usable pairs.
+/// The epipolar checks of one posture group (capture indices `members`), after the disparity
+/// checks: skips the pairs labelled unlike the others and fills their epipolar residuals; the
+/// group's fit if it has two usable pairs.
 fn check_group(
-    set: &CaptureSet,
     members: &[usize],
     outcomes: &mut [PairOutcome],
     epipolar: &mut [Option<[f64; 2]>],
@@ -194,22 +226,6 @@ fn check_group(
     let found = |outcomes: &[PairOutcome]| -> Vec<usize> {
         members.iter().copied().filter(|&k| matches!(outcomes[k], PairOutcome::Found(_))).collect()
     };
-    // Disparities that cannot be right (the same image twice; a pair swapped, mirrored or
-    // turned): one fundamental matrix fits those too, so they are looked at first.
-    let usable = found(outcomes);
-    let (mut disparity, mut same, mut depth) = (Vec::new(), Vec::new(), Vec::new());
-    for &k in &usable {
-        if let PairOutcome::Found(p) = &outcomes[k] {
-            disparity.push(p.median_disparity());
-            same.push(p.same_in_both());
-            depth.push(set.captures[k].z);
-        }
-    }
-    for (&k, fault) in usable.iter().zip(detect::disparity_faults(&disparity, &same, &depth)) {
-        if let Some(why) = fault {
-            outcomes[k] = PairOutcome::Skipped(why);
-        }
-    }
     let fit = |outcomes: &[PairOutcome]| -> Option<(Vec<usize>, SetCheck)> {
         let usable = found(outcomes);
         let pairs: Vec<StereoCorners> = usable
