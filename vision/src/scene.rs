@@ -246,20 +246,81 @@ pub struct Scene {
     pub objects: Vec<Object>,
 }
 
-/// Why a scene was refused: the field and the reason.
+/// Why a scene was refused: the field (a path such as `objects[1].radius_cm`, none for JSON
+/// that does not parse) and the reason.
 #[derive(Debug, Clone, PartialEq)]
-pub struct SceneError(pub String);
+pub struct SceneError {
+    /// The field, when a value was refused.
+    pub field: Option<String>,
+    /// Why.
+    pub reason: String,
+}
+
+impl SceneError {
+    /// The line (from 1) of the refused field's value in the scene file's `text`
+    /// ([`field_line`]).
+    pub fn line(&self, text: &str) -> Option<usize> {
+        self.field.as_deref().and_then(|f| field_line(text, f))
+    }
+}
 
 impl fmt::Display for SceneError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
+        match &self.field {
+            Some(field) => write!(f, "{field}: {}", self.reason),
+            None => f.write_str(&self.reason),
+        }
     }
 }
 
 impl std::error::Error for SceneError {}
 
 fn err(field: impl fmt::Display, reason: impl fmt::Display) -> SceneError {
-    SceneError(format!("{field}: {reason}"))
+    SceneError { field: Some(field.to_string()), reason: reason.to_string() }
+}
+
+/// The line (from 1) where the value of `field` (a path such as `objects[1].path[0].t_s`,
+/// `size_cm[2]` or `background.z_cm`) starts in the JSON `text`; where part of the path is
+/// missing (a field a shape needs), the line of the deepest value that is there. `None` when
+/// the text is not JSON or the path's first step is not in it.
+pub fn field_line(text: &str, field: &str) -> Option<usize> {
+    use serde_json::value::RawValue;
+    let mut steps: Vec<Result<&str, usize>> = Vec::new();
+    for part in field.split('.') {
+        let (name, rest) = part.split_once('[').map_or((part, ""), |(n, r)| (n, r));
+        if !name.is_empty() {
+            steps.push(Ok(name));
+        }
+        for index in rest.split('[') {
+            if let Some(i) = index.strip_suffix(']').and_then(|i| i.parse().ok()) {
+                steps.push(Err(i));
+            }
+        }
+    }
+    let mut value: &RawValue = serde_json::from_str(text).ok()?;
+    let mut found = false;
+    for step in steps {
+        let next = match step {
+            Ok(name) => {
+                serde_json::from_str::<std::collections::BTreeMap<String, &RawValue>>(value.get())
+                    .ok()
+                    .and_then(|m| m.get(name).copied())
+            }
+            Err(i) => serde_json::from_str::<Vec<&RawValue>>(value.get())
+                .ok()
+                .and_then(|v| v.get(i).copied()),
+        };
+        match next {
+            Some(v) => {
+                value = v;
+                found = true;
+            }
+            None => break,
+        }
+    }
+    // The borrowed values are slices of `text`.
+    let offset = (value.get().as_ptr() as usize).checked_sub(text.as_ptr() as usize)?;
+    (found && offset <= text.len()).then(|| text[..offset].matches('\n').count() + 1)
 }
 
 fn check_vec(field: &str, v: &Vec3, bound: f64) -> Result<(), SceneError> {
@@ -296,7 +357,8 @@ fn plane_frame(pitch_deg: f64, yaw_deg: f64) -> ([Vec3; 2], Vec3) {
 impl SceneFile {
     /// Reads a scene file's text strictly (unknown or duplicate fields, wrong types).
     pub fn parse(text: &str) -> Result<SceneFile, SceneError> {
-        serde_json::from_str(text).map_err(|e| SceneError(format!("invalid scene JSON: {e}")))
+        serde_json::from_str(text)
+            .map_err(|e| SceneError { field: None, reason: format!("invalid scene JSON: {e}") })
     }
 
     /// Checks every value (the field named, e.g. `objects[1].radius_cm`).

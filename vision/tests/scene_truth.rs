@@ -7,7 +7,7 @@ use hvs_shared::sim::camera::Rig;
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
 use hvs_vision::render::RenderOptions;
-use hvs_vision::scene::{render_scene, SceneFile, SceneRender, BACKGROUND, NONE};
+use hvs_vision::scene::{field_line, render_scene, SceneFile, SceneRender, BACKGROUND, NONE};
 
 const SCENE: &str = r#"{ "rig": {"case": 3}, "camera_fps": 30,
   "background": {"z_cm": 300, "texture_seed": 1},
@@ -200,4 +200,34 @@ fn strict_scene_json() {
         "camera_fps",
     );
     refused(&base.replace("OBJ", "").replace("\"rig\": {\"case\": 3},", ""), "missing field `rig`");
+}
+
+#[test]
+fn a_refused_value_is_found_on_its_line() {
+    let text = r#"{"rig": {"case": 3},
+ "camera_fps": 30,
+ "background": {"z_cm": 300},
+ "objects": [
+  {"shape": "sphere", "radius_cm": 5, "centre_cm": [0, 0, 90]},
+  {"shape": "box",
+   "size_cm": [4,
+               0,
+               4],
+   "centre_cm": [0, 0, 90]},
+  {"shape": "sphere", "path": [{"t_s": 0, "centre_cm": [0, 0, 90]},
+    {"t_s": 0, "centre_cm": [0, 0, 90]}]}
+ ]}"#;
+    let e = SceneFile::parse(text).unwrap().scene().unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("objects[1].size_cm[1]"), "{e}");
+    assert_eq!(e.line(text), Some(8));
+    assert_eq!(field_line(text, "background.z_cm"), Some(3));
+    assert_eq!(field_line(text, "objects[2].path[1].t_s"), Some(12));
+    // A field that is not there (a sphere without its radius): the line of its object.
+    assert_eq!(field_line(text, "objects[2].radius_cm"), Some(11));
+    assert_eq!(field_line(text, "objects[7]"), Some(4), "the array that lacks it");
+    assert_eq!(field_line(text, "nothing"), None);
+    assert_eq!(field_line("{not json", "objects"), None);
+    // JSON that does not parse names no field; serde's message has the line.
+    let e = SceneFile::parse("{\n\"camera_fps\": \"x\"}").unwrap_err();
+    assert!(e.field.is_none() && e.to_string().contains("line 2"), "{e}");
 }

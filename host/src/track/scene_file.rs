@@ -52,17 +52,28 @@ pub fn rig_of(v: &serde_json::Value) -> Result<Rig> {
     crate::data::rig::parse(&v.to_string(), None).map_err(|e| anyhow!("rig: {e:#}"))
 }
 
-/// Parses a scene file's text (errors name the field).
+/// Parses a scene file's text (errors name the field and its line).
 pub fn parse(text: &str) -> Result<LoadedScene> {
-    let file = SceneFile::parse(text).map_err(|e| anyhow!("{e}"))?;
-    let rig = rig_of(&file.rig)?;
-    let scene = file.scene().map_err(|e| anyhow!("{e}"))?;
+    parse_lined(text).map_err(|(line, e)| match line {
+        Some(n) => anyhow!("line {n}: {e:#}"),
+        None => e,
+    })
+}
+
+/// [`parse`], the refused field's line apart.
+fn parse_lined(text: &str) -> Result<LoadedScene, (Option<usize>, anyhow::Error)> {
+    let file = SceneFile::parse(text).map_err(|e| (None, anyhow!("{e}")))?;
+    let rig = rig_of(&file.rig).map_err(|e| (hvs_vision::scene::field_line(text, "rig"), e))?;
+    let scene = file.scene().map_err(|e| (e.line(text), anyhow!("{e}")))?;
     Ok(LoadedScene { rig, scene })
 }
 
-/// Reads a scene file; the error names the file.
+/// Reads a scene file; the error names the file and the line (`scene.json:7: objects[1]...`).
 pub fn load(path: &Path) -> Result<LoadedScene> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("{}: cannot read", path.display()))?;
-    parse(&text).map_err(|e| anyhow!("{}: {e:#}", path.display()))
+    parse_lined(&text).map_err(|(line, e)| match line {
+        Some(n) => anyhow!("{}:{n}: {e:#}", path.display()),
+        None => anyhow!("{}: {e:#}", path.display()),
+    })
 }
