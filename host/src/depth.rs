@@ -262,7 +262,8 @@ pub fn depth_files(
         matcher_geometry(&m.blob).map_err(|e| anyhow!("{}: {e:#}", model_path.display()))?;
     }
     let (l, r) = crate::vision::read_pair(left, right)?;
-    check_pair_size(model_path, &m.blob, left, l.dimensions())?;
+    // `depth` refuses images of another size than the model's first, named as
+    // `check_pair_size` names them.
     let d = depth(&m.blob, &l, &r, params)
         .map_err(|e| anyhow!("{} with {}: {e:#}", left.display(), model_path.display()))?;
     Ok((d, l))
@@ -402,9 +403,21 @@ pub fn locate_files(
     points: &[[f64; 2]],
 ) -> Result<LocatedFiles> {
     let m = crate::vision::load_stereo_model(model_path)?;
+    locate_files_with(model_path, &m.blob, left, right, points)
+}
+
+/// [`locate_files`] with the model already loaded (by
+/// [`crate::vision::load_stereo_model`]) from `model_path`.
+pub fn locate_files_with(
+    model_path: &Path,
+    blob: &ModelBlob,
+    left: &Path,
+    right: &Path,
+    points: &[[f64; 2]],
+) -> Result<LocatedFiles> {
     let (l, r) = crate::vision::read_pair(left, right)?;
-    check_pair_size(model_path, &m.blob, left, l.dimensions())?;
-    let (found, warnings) = locate_with(model_path, &m.blob, &l, &r, points)?;
+    check_pair_size(model_path, blob, left, l.dimensions())?;
+    let (found, warnings) = locate_with(model_path, blob, &l, &r, points)?;
     Ok(LocatedFiles { found, warnings, left: l, right: r })
 }
 

@@ -4,7 +4,7 @@
 use super::StereoArgs;
 use crate::data::output::{check_outputs, write_bytes, write_output};
 use crate::data::pixels::{read_pixels, Pixels};
-use crate::depth::{locate_files, LocatedFiles};
+use crate::depth::{locate_files_with, LocatedFiles};
 use crate::vision::{locate_overlay, png_bytes};
 use anyhow::{bail, Result};
 use std::path::{Path, PathBuf};
@@ -80,8 +80,8 @@ pub fn run(a: Args) -> Result<()> {
     // The one point asked for with --at must lie in the image (its header says; a file that
     // cannot be read is left to the full read below, which names the problem), once the
     // image is known to be of the model's size.
+    let m = crate::vision::load_stereo_model(&a.pair.model)?;
     if let (Some(_), Ok((_, w, h))) = (&a.at, hvs_vision::image_file::probe(&a.pair.left)) {
-        let m = crate::data::model::load(&a.pair.model)?;
         crate::depth::check_pair_size(&a.pair.model, &m.blob, &a.pair.left, (w, h))?;
         let [u, v] = pixels.points[0];
         if !crate::depth::inside_image(u, v, (w, h)) {
@@ -89,7 +89,7 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     let LocatedFiles { found, warnings, left: l, right: r } =
-        locate_files(&a.pair.model, &a.pair.left, &a.pair.right, &pixels.points)?;
+        locate_files_with(&a.pair.model, &m.blob, &a.pair.left, &a.pair.right, &pixels.points)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
