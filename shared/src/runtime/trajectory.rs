@@ -200,15 +200,33 @@ impl GazeController {
     /// acceleration). `to` is clamped to the limits; a NaN joint keeps its current goal.
     pub fn start(&mut self, to: &Joints) {
         let t = self.ticks as f32 / self.hz;
+        let half = 0.5 * crate::runtime::gaze::STEP_DEG;
         for axis in Axis::ALL {
             let i = axis.index();
-            let x0 = from_steps(self.steps[i]);
             let goal = if to[axis].is_nan() {
                 self.refs[i].goal
             } else {
                 self.limits.clamp_axis(axis, to[axis])
             };
-            let (_, v0, a0) = self.refs[i].eval(t);
+            let (x, v0, a0) = self.refs[i].eval(t);
+            // From where the reference is, within half a step of the setpoint and within the
+            // steps' range: restarted from the setpoint itself, a move re-sent before it had
+            // gone half a step lost what it had gone, and goals re-sent that often left the
+            // head short of them for ever.
+            let xs = from_steps(self.steps[i]);
+            let lo = if self.steps[i] > self.lo[i] { xs - half } else { xs };
+            let hi = if self.steps[i] < self.hi[i] { xs + half } else { xs };
+            // Comparisons, not `max`/`min` (their NaN handling costs flash on the head); a
+            // NaN reference fails all three and starts from the setpoint.
+            let x0 = if x > hi {
+                hi
+            } else if x < lo {
+                lo
+            } else if x <= hi {
+                x
+            } else {
+                xs
+            };
             let plan_speed = PLAN_SPEED_SHARE * self.limits.axis(axis).max_vel_deg_s;
             let dur = self.times[i].max(MIN_JERK_PEAK * (goal - x0).abs() / plan_speed);
             self.refs[i] = Quintic::new(x0, v0, a0, goal, dur);
@@ -416,6 +434,43 @@ mod tests {
         }
         assert_eq!(c.setpoint()[Axis::LeftEyePan], quantize(10.0));
         assert!(!c.is_moving());
+    }
+
+    #[test]
+    fn goals_re_sent_every_tick_are_reached() {
+        // A goal re-sent (or moved a little) before the move has gone half a step: the move
+        // goes on from where its reference is, and the head arrives.
+        for period in [1u32, 2, 3, 5] {
+            for (from, to) in [(28.08f32, 25.02f32), (0.0, 0.9), (-10.0, 12.0), (3.0, 2.82)] {
+                let mut c = ctl();
+                c.start(&Joints([from, 0.0, 0.0, from, 0.0]));
+                for _ in 0..600 {
+                    c.tick();
+                }
+                for t in 0..1500u32 {
+                    if t % period == 0 {
+                        c.start(&Joints([to, 0.0, 0.0, to, 0.0]));
+                    }
+                    c.tick();
+                }
+                let j = c.setpoint();
+                for axis in [Axis::NeckPan, Axis::LeftEyePan] {
+                    assert_eq!(j[axis], quantize(to), "{period} ticks, {from} -> {to}: {j:?}");
+                }
+            }
+        }
+        // A goal moving slowly, re-sent every tick, is followed, then reached where it stops.
+        let mut c = ctl();
+        for t in 0..1000u32 {
+            let goal = (t.min(500) as f32) * 0.5 / 100.0; // 0.5 degrees/s for 5 s
+            c.start(&Joints([goal, 0.0, 0.0, 0.0, 0.0]));
+            c.tick();
+            if t == 300 {
+                assert!(c.setpoint()[Axis::NeckPan] > 1.0, "following: {:?}", c.setpoint());
+            }
+        }
+        assert_eq!(c.setpoint()[Axis::NeckPan], quantize(2.5));
+        assert!(!c.is_moving() || c.goal()[Axis::NeckPan] == 2.5);
     }
 
     #[test]
