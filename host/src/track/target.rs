@@ -305,6 +305,23 @@ fn search(
     rows: [i32; 2],
     rad: i32,
 ) -> Option<(f64, f64, f32)> {
+    search_with(l, r, cl, rl, cols, rows, rad, true)
+}
+
+/// [`search`], the [`UNIQUENESS`] test only when `unique`: where the question is only whether
+/// the best window lies at a given disparity, a second peak nearly as good elsewhere (a
+/// smooth texture alike at two offsets for a 7 x 7 window) does not move the best one.
+#[allow(clippy::too_many_arguments)]
+fn search_with(
+    l: &Plane,
+    r: &Plane,
+    cl: i32,
+    rl: i32,
+    cols: [i32; 2],
+    rows: [i32; 2],
+    rad: i32,
+    unique: bool,
+) -> Option<(f64, f64, f32)> {
     if !l.inside(cl, rl, rad) {
         return None;
     }
@@ -350,7 +367,7 @@ fn search(
         .iter()
         .chain(per_col.get(k + 3..).unwrap_or(&[]))
         .fold(-2.0f32, |a, b| a.max(*b));
-    if second > s - UNIQUENESS {
+    if unique && second > s - UNIQUENESS {
         return None;
     }
     let sub = |a: f32, b: f32, c: f32| {
@@ -659,7 +676,10 @@ fn confirmed(l: &Plane, r: &Plane, f: &Found) -> bool {
 /// resolution with the scan's refinement window over the scan's whole disparity range, land within
 /// [`DISPARITY_BAND_PX`] of the offset `d` (left minus right, px). An object's pixels do; the
 /// wall's chance matches at a near disparity (its texture alike at two offsets for a small
-/// window) mostly do not.
+/// window) mostly do not: their best window is the wall's own. The best window counts whether
+/// or not a second one elsewhere comes close ([`search_with`]): on a 24 px sphere before some
+/// wall textures every point's best lay at the sphere's disparity with a second peak within
+/// [`UNIQUENESS`], and the sphere was never taken.
 fn wide_matches_at(l: &Plane, r: &Plane, at: &[[i32; 2]], d: [f64; 2]) -> usize {
     let every = at.len().div_ceil(9).max(1);
     let (reach, rows) = (2 * HALF_DISPARITY, 2 * HALF_ROWS);
@@ -667,7 +687,8 @@ fn wide_matches_at(l: &Plane, r: &Plane, at: &[[i32; 2]], d: [f64; 2]) -> usize 
         .step_by(every)
         .filter_map(|&[x, y]| {
             let vr = (f64::from(y) - d[1]).round() as i32;
-            search(l, r, x, y, [x - reach, x + reach], [vr - rows, vr + rows], FINE_RADIUS)
+            let (cols, rows) = ([x - reach, x + reach], [vr - rows, vr + rows]);
+            search_with(l, r, x, y, cols, rows, FINE_RADIUS, false)
                 .map(|(u, _, _)| f64::from(x) - u)
         })
         .filter(|dq| (dq - d[0]).abs() <= DISPARITY_BAND_PX)
