@@ -10,7 +10,7 @@ use crate::infer::Predictor;
 use crate::vision::{matcher_geometry, model_xyz, training_disparities, Located};
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
-use hvs_vision::dense::{check_inputs, dense_match, DenseMap, DenseParams};
+use hvs_vision::dense::{check_inputs, dense_match, DenseError, DenseMap, DenseParams};
 use hvs_vision::geometry::Fundamental;
 use hvs_vision::matching::model_disparity_interval_in_image;
 use image::GrayImage;
@@ -173,11 +173,21 @@ pub fn depth(
     }
     // A blank or saturated image is not matched: what the aggregation makes of a blank image's
     // noise, or carries across a clipped one, is not depth.
+    // Too many disparities for the cost volume: say where they come from.
+    let why = |e: DenseError| {
+        match e {
+        DenseError::TooLarge(..) => anyhow!(
+            "{e}: the model's depths, {:.0} to {:.0} cm, map to disparities {} to {} px over this image (a model trained on boards at more places across the image and more depths bounds them tighter)",
+            g.out_min[2], g.out_max[2], d_range[0], d_range[1]
+        ),
+        e => anyhow!("{e}"),
+    }
+    };
     let mut matches = if !warnings.is_empty() {
-        check_inputs(left, right, &f, d_range, &params).map_err(|e| anyhow!("{e}"))?;
+        check_inputs(left, right, &f, d_range, &params).map_err(why)?;
         DenseMap::none(w, h)
     } else {
-        dense_match(left, right, &f, d_range, &params).map_err(|e| anyhow!("{e}"))?
+        dense_match(left, right, &f, d_range, &params).map_err(why)?
     };
     let (xyz, no_estimate) = model_over_matches(blob, w as usize, &mut matches)?;
     if no_estimate > 0 {

@@ -112,3 +112,8 @@ mod tests {
         assert!(mean(&[]).is_nan());
     }
 }
+
+/// `n` and `noun` (`"restart"`), `s` added unless `n` is 1: `1 restart`, `10 restarts`.
+pub fn count(n: usize, noun: &str) -> String {
+    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
+}

@@ -185,8 +185,8 @@ pub fn run(a: Args) -> Result<()> {
     write_capture_set(&a.output, &set, joints.as_ref())?;
     let hidden = set.truth_rows().iter().filter(|r| !r.corner.in_image).count();
     eprintln!(
-        "rendered {} stereo pairs of a {cols}x{rows} board ({} cm squares) into {}{}",
-        set.captures.len(),
+        "rendered {} of a {cols}x{rows} board ({} cm squares) into {}{}",
+        crate::fmt::count(set.captures.len(), "stereo pair"),
         a.square_cm,
         a.output.display(),
         if hidden > 0 {

@@ -83,10 +83,10 @@ pub fn describe(path: &Path, f: &ModelFile) -> String {
     let m = &b.meta;
     let _ = writeln!(
         o,
-        "training:    {}, seed {}, {} restarts, {} points (set hash {:#018x}), train e_ma {} %",
+        "training:    {}, seed {}, {}, {} points (set hash {:#018x}), train e_ma {} %",
         super::algo_name(m.algorithm),
         m.seed,
-        m.restarts,
+        crate::fmt::count(m.restarts as usize, "restart"),
         m.train_points,
         m.train_hash,
         m.train_error_pct

@@ -88,9 +88,9 @@ pub fn summary(data: &str, t: &Trained) -> String {
     );
     let _ = writeln!(
         o,
-        "training e_ma {:.4} % (f32 model), best of {} restarts, {enrolled} enrolled",
+        "training e_ma {:.4} % (f32 model), best of {}, {enrolled} enrolled",
         oc.train_error_pct,
-        oc.restarts.len()
+        crate::fmt::count(oc.restarts.len(), "restart")
     );
     if let Some(n) = oc.synthetic_points {
         let (pixels, cameras) = if oc.synthetic_lenses {

@@ -200,7 +200,7 @@ impl std::fmt::Display for DenseError {
             DenseError::Invalid(e) => write!(f, "{e}"),
             DenseError::TooLarge(w, h, d) => write!(
                 f,
-                "{w}x{h} pixels x {d} disparities is {} cells, more than the {MAX_CELLS} the cost volume may have (scale the images down or narrow the depth range)",
+                "{w}x{h} pixels x {d} disparities is {} cells, more than the {MAX_CELLS} the cost volume may have (scale the images down, or narrow the disparities searched)",
                 u64::from(*w) * u64::from(*h) * *d as u64
             ),
         }
