@@ -77,7 +77,7 @@ def main():
              "--posture-levels", "2,2,2,2,2", "--seed", "1", "-o", data] + extra)
         run([hvs, "train", "--data", data, "-o", model, "--hidden", "12", "--restarts", "1"])
         models[name] = model
-    print("static (2 s, after 1 s: err median/worst left, right px; median z vs surface; frames tracking of 60)")
+    print("static (2 s, after 1 s: err median/worst left, right px; median z vs surface; frames tracking of 120)")
     print("| sphere centre (cm) | " + " | ".join(models) + " |")
     print("|---|" + "---|" * len(models))
     for c in STATIC:
@@ -98,9 +98,9 @@ def main():
             if el:
                 cells.append(
                     f"{statistics.median(el):.2f}/{max(el):.2f}, {statistics.median(er):.2f}/{max(er):.2f}; "
-                    f"z {statistics.median(zs):.1f} vs {c[2] - 5}; {tracking}/60")
+                    f"z {statistics.median(zs):.1f} vs {c[2] - 5}; {tracking}/120")
             else:
-                cells.append(f"not on the sphere; {tracking}/60 tracking")
+                cells.append(f"not on the sphere; {tracking}/120 tracking")
         print(f"| {c} | " + " | ".join(cells) + " |")
     print()
     print("moving (3 s, t >= 0.5 s: err median left/right, 95th percentile left/right px; frames tracking of 90)")

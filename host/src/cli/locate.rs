@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
     about = "Find left-image points in the right image and give their X, Y, Z",
     long_about = "Find points of the left image in the right one and give the model's X, Y, Z \
     of each trustworthy match. The points are answered from the dense matches of the pair, \
-    those of `hvs depth` (census and semi-global matching along the model's epipolar lines, \
+    those of `hvs depth --thorough` (census and semi-global matching along the model's epipolar lines, \
     inside the disparities its depth box allows, with uniqueness, left-right and speckle \
     checks, sub-pixel), interpolated between pixels. The model carries the geometry the search \
     needs, learned from its training pixels (`hvs train` stores it); no camera parameter is \

@@ -36,7 +36,7 @@ pub struct Args {
     /// scene's `camera_fps`). With `--head emulate` that is the simulated time; a head in
     /// QEMU or on a port keeps its own clock, so its log's `t_s` runs longer when a frame
     /// takes longer than one frame period to make and match.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub seconds: f64,
     /// The log: one row per frame.
     #[arg(long, value_name = "LOG.csv")]
@@ -51,17 +51,17 @@ pub struct Args {
     pub firmware: Option<PathBuf>,
     /// `nearest` (the nearest object in the front region) or `U,V` (the object under this left
     /// pixel at the start, then followed).
-    #[arg(long, value_name = "nearest|U,V", default_value = "nearest")]
+    #[arg(long, value_name = "nearest|U,V", default_value = "nearest", allow_hyphen_values = true)]
     pub target: String,
     /// Writes every frame (leftNNNN.png, rightNNNN.png) and CAPTURES.csv with the joint columns.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
     /// Share of the kinematics' measured miss taken into the correction per frame (0 = the
     /// kinematics alone, no image correction).
-    #[arg(long, value_name = "G", default_value_t = track::DEFAULT_CORRECTION_GAIN)]
+    #[arg(long, value_name = "G", default_value_t = track::DEFAULT_CORRECTION_GAIN, allow_negative_numbers = true)]
     pub correction_gain: f32,
     /// Frames of a moving target's motion the fixation leads it by (0: aim where it is seen).
-    #[arg(long, value_name = "F", default_value_t = track::DEFAULT_LEAD_FRAMES)]
+    #[arg(long, value_name = "F", default_value_t = track::DEFAULT_LEAD_FRAMES, allow_negative_numbers = true)]
     pub lead_frames: f32,
     /// Frames in a row without a target after which the head turns home (straight ahead,
     /// the widest view) to look for one again; 0: hold the last command.
