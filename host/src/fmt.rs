@@ -75,6 +75,11 @@ pub fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
 
+/// `n` and `noun` (`"restart"`), `s` added unless `n` is 1: `1 restart`, `10 restarts`.
+pub fn count(n: usize, noun: &str) -> String {
+    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -111,9 +116,4 @@ mod tests {
         assert_eq!(mean(&[1.0, 2.0, 6.0]), 3.0);
         assert!(mean(&[]).is_nan());
     }
-}
-
-/// `n` and `noun` (`"restart"`), `s` added unless `n` is 1: `1 restart`, `10 restarts`.
-pub fn count(n: usize, noun: &str) -> String {
-    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
 }

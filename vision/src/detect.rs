@@ -917,7 +917,7 @@ impl std::fmt::Display for DisparityFault {
 ///
 /// - Same image twice (every corner at the same place): refused.
 /// - A pair whose disparity has the opposite sign of what the other pairs give at its depth
-///   (their `a + b / z` fit, [`depth_slope`], or with fewer than two other depths the sign most
+///   (their `a + b / z` fit, `depth_slope`, or with fewer than two other depths the sign most
 ///   of them have), both at least [`MIN_SIGN_DISPARITY_PX`]: suspected swapped, mirrored or
 ///   turned. [`pair_faults`] asks the epipolar geometry before refusing it.
 ///
@@ -1371,7 +1371,7 @@ mod tests {
                     centre[1] + (j as f64 - 2.5) * 6.0,
                     centre[2],
                 ];
-                let px = head.project(&Joints(joints), &p.into()).unwrap();
+                let px = head.project(&Joints(joints), &p).unwrap();
                 pts[0].push([px[0], px[1]]);
                 pts[1].push([px[2], px[3]]);
             }
