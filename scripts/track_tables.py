@@ -13,9 +13,10 @@ Scenes (case III, a 5 cm sphere of texture seed 2 before a wall at 300 cm; the s
 written here, so anyone can re-run them):
 - static: the sphere at each centre, wall texture seeds 1 and 11, `--seconds 2 --seed 1`; the
   error after 1 s (median / worst over the frames and the two walls, px), the estimate (median
-  z) against the sphere's surface (centre z minus 5 cm), and the frames tracking.
+  z) against the sphere's surface (centre z minus 5 cm), and the frames whose target is the
+  sphere (the log's error columns filled) and those whose target is something else.
 - moving: 20 cm/s and the like, wall texture seed 1, `--seconds 3 --seed 1`; over t >= 0.5 s the
-  median and 95th percentile error (px) and the frames tracking.
+  median and 95th percentile error (px) and the frames on the sphere and off it.
 
 Usage: python3 scripts/track_tables.py [--hvs target/release/hvs] [--keep DIR]
 """
@@ -77,33 +78,34 @@ def main():
              "--posture-levels", "2,2,2,2,2", "--seed", "1", "-o", data] + extra)
         run([hvs, "train", "--data", data, "-o", model, "--hidden", "12", "--restarts", "1"])
         models[name] = model
-    print("static (2 s, after 1 s: err median/worst left, right px; median z vs surface; frames tracking of 120)")
+    print("static (2 s, after 1 s: err median/worst left, right px; median z vs surface; of 120 frames, those tracking the sphere and those tracking something else)")
     print("| sphere centre (cm) | " + " | ".join(models) + " |")
     print("|---|" + "---|" * len(models))
     for c in STATIC:
         cells = []
         for name, model in models.items():
-            el, er, zs, tracking = [], [], [], 0
+            el, er, zs, on, off = [], [], [], 0, 0
             for wall in (1, 11):
                 p = os.path.join(d, "s.json")
                 scene(p, c, (0, 0, 0), wall)
                 rows = log(hvs, model, p, 2, os.path.join(d, "s.csv"))
-                tracking += sum(r["status"] == "tracking" for r in rows)
+                on += sum(r["status"] == "tracking" and r["err_l_px"] != "" for r in rows)
+                off += sum(r["status"] == "tracking" and r["err_l_px"] == "" for r in rows)
                 for r in rows:
                     if float(r["t_s"]) >= 1.0 and r["err_l_px"]:
                         el.append(float(r["err_l_px"]))
                         er.append(float(r["err_r_px"]))
-                    if float(r["t_s"]) >= 1.0 and r["status"] == "tracking" and r["z"]:
+                    if float(r["t_s"]) >= 1.0 and r["err_l_px"] and r["z"]:
                         zs.append(float(r["z"]))
             if el:
                 cells.append(
                     f"{statistics.median(el):.2f}/{max(el):.2f}, {statistics.median(er):.2f}/{max(er):.2f}; "
-                    f"z {statistics.median(zs):.1f} vs {c[2] - 5}; {tracking}/120")
+                    f"z {statistics.median(zs):.1f} vs {c[2] - 5}; {on} on it, {off} off")
             else:
-                cells.append(f"not on the sphere; {tracking}/120 tracking")
+                cells.append(f"never on the sphere; {off} frames on something else")
         print(f"| {c} | " + " | ".join(cells) + " |")
     print()
-    print("moving (3 s, t >= 0.5 s: err median left/right, 95th percentile left/right px; frames tracking of 90)")
+    print("moving (3 s, t >= 0.5 s: err median left/right, 95th percentile left/right px; of 90 frames, those tracking the sphere and those tracking something else)")
     print("| sphere centre at t = 0, velocity (cm, cm/s) | " + " | ".join(models) + " |")
     print("|---|" + "---|" * len(models))
     for c, v in MOVING:
@@ -112,14 +114,15 @@ def main():
             p = os.path.join(d, "m.json")
             scene(p, c, v, 1)
             rows = log(hvs, model, p, 3, os.path.join(d, "m.csv"))
-            tracking = sum(r["status"] == "tracking" for r in rows)
+            on = sum(r["status"] == "tracking" and r["err_l_px"] != "" for r in rows)
+            off = sum(r["status"] == "tracking" and r["err_l_px"] == "" for r in rows)
             el = [float(r["err_l_px"]) for r in rows if float(r["t_s"]) >= 0.5 and r["err_l_px"]]
             er = [float(r["err_r_px"]) for r in rows if float(r["t_s"]) >= 0.5 and r["err_r_px"]]
             if el:
                 cells.append(f"{statistics.median(el):.2f}/{statistics.median(er):.2f}, "
-                             f"{pct(el, 0.95):.2f}/{pct(er, 0.95):.2f}; {tracking}/90")
+                             f"{pct(el, 0.95):.2f}/{pct(er, 0.95):.2f}; {on} on it, {off} off")
             else:
-                cells.append(f"not on the sphere; {tracking}/90 tracking")
+                cells.append(f"never on the sphere; {off} frames on something else")
         print(f"| {c}, {v} | " + " | ".join(cells) + " |")
 
 
