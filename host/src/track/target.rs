@@ -293,9 +293,22 @@ fn products_in<const W: usize>(lc: &Centred, r: &Plane, rr: i32, c0: i32, out: &
     }
 }
 
+/// Which best window [`search`] takes.
+#[derive(Clone, Copy, PartialEq)]
+enum Peak {
+    /// The best, and only with no second peak (more than 2 px from it) within
+    /// [`UNIQUENESS`] of it.
+    Unique,
+    /// The best, whatever the others: where the question is only whether the best window
+    /// lies at a given disparity, a second peak nearly as good elsewhere (a smooth texture
+    /// alike at two offsets for a 7 x 7 window) does not move the best one.
+    Best,
+}
+
 /// The best right window for the left window at `(cl, rl)` over columns `cols` and rows
 /// `rows` (inclusive), with a parabola's sub-pixel offset on each axis: `(u, v, score)`;
-/// `None` below [`MIN_SCORE`] or without [`UNIQUENESS`].
+/// `None` below [`MIN_SCORE`], or without [`UNIQUENESS`] for [`Peak::Unique`].
+#[allow(clippy::too_many_arguments)]
 fn search(
     l: &Plane,
     r: &Plane,
@@ -304,23 +317,7 @@ fn search(
     cols: [i32; 2],
     rows: [i32; 2],
     rad: i32,
-) -> Option<(f64, f64, f32)> {
-    search_with(l, r, cl, rl, cols, rows, rad, true)
-}
-
-/// [`search`], the [`UNIQUENESS`] test only when `unique`: where the question is only whether
-/// the best window lies at a given disparity, a second peak nearly as good elsewhere (a
-/// smooth texture alike at two offsets for a 7 x 7 window) does not move the best one.
-#[allow(clippy::too_many_arguments)]
-fn search_with(
-    l: &Plane,
-    r: &Plane,
-    cl: i32,
-    rl: i32,
-    cols: [i32; 2],
-    rows: [i32; 2],
-    rad: i32,
-    unique: bool,
+    peak: Peak,
 ) -> Option<(f64, f64, f32)> {
     if !l.inside(cl, rl, rad) {
         return None;
@@ -367,7 +364,7 @@ fn search_with(
         .iter()
         .chain(per_col.get(k + 3..).unwrap_or(&[]))
         .fold(-2.0f32, |a, b| a.max(*b));
-    if unique && second > s - UNIQUENESS {
+    if peak == Peak::Unique && second > s - UNIQUENESS {
         return None;
     }
     let sub = |a: f32, b: f32, c: f32| {
@@ -652,6 +649,7 @@ fn coarse_match_in(
         [ch - HALF_DISPARITY, ch + HALF_DISPARITY],
         [rw - HALF_ROWS, rw + HALF_ROWS],
         COARSE_RADIUS,
+        Peak::Unique,
     )?;
     // A best match at the end of the searched range is a peak cut off by the range (the true
     // one lies outside it, or there is none): the wall's texture there looks like a nearer
@@ -660,7 +658,8 @@ fn coarse_match_in(
         return None;
     }
     let (u2, v2) = ((2.0 * u).round() as i32, (2.0 * v).round() as i32);
-    let (ur, vr, _) = search(l, r, c[0], c[1], [u2 - 2, u2 + 2], [v2 - 2, v2 + 2], FINE_RADIUS)?;
+    let (ur, vr, _) =
+        search(l, r, c[0], c[1], [u2 - 2, u2 + 2], [v2 - 2, v2 + 2], FINE_RADIUS, Peak::Unique)?;
     let z = depth_of(est, joints, [f64::from(c[0]), f64::from(c[1])], [ur, vr])?;
     Some(Pt { l: c, r: [ur, vr], z })
 }
@@ -681,7 +680,7 @@ fn confirmed(l: &Plane, r: &Plane, f: &Found) -> bool {
 /// [`DISPARITY_BAND_PX`] of the offset `d` (left minus right, px). An object's pixels do; the
 /// wall's chance matches at a near disparity (its texture alike at two offsets for a small
 /// window) mostly do not: their best window is the wall's own. The best window counts whether
-/// or not a second one elsewhere comes close ([`search_with`]): on a 24 px sphere before some
+/// or not a second one elsewhere comes close ([`Peak::Best`]): on a 24 px sphere before some
 /// wall textures every point's best lay at the sphere's disparity with a second peak within
 /// [`UNIQUENESS`], and the sphere was never taken.
 fn wide_matches_at(l: &Plane, r: &Plane, at: &[[i32; 2]], d: [f64; 2]) -> usize {
@@ -692,7 +691,7 @@ fn wide_matches_at(l: &Plane, r: &Plane, at: &[[i32; 2]], d: [f64; 2]) -> usize 
         .filter_map(|&[x, y]| {
             let vr = (f64::from(y) - d[1]).round() as i32;
             let (cols, rows) = ([x - reach, x + reach], [vr - rows, vr + rows]);
-            search_with(l, r, x, y, cols, rows, FINE_RADIUS, false)
+            search(l, r, x, y, cols, rows, FINE_RADIUS, Peak::Best)
                 .map(|(u, _, _)| f64::from(x) - u)
         })
         .filter(|dq| (dq - d[0]).abs() <= DISPARITY_BAND_PX)
@@ -801,7 +800,8 @@ fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Op
                 let ur = f64::from(x) - s.offset[0];
                 let vr = f64::from(y) - s.offset[1];
                 let (uc, vc) = (ur.round() as i32, vr.round() as i32);
-                let (u, v, _) = search(l, r, x, y, [uc - 5, uc + 5], [vc - 2, vc + 2], 4)?;
+                let (u, v, _) =
+                    search(l, r, x, y, [uc - 5, uc + 5], [vc - 2, vc + 2], 4, Peak::Unique)?;
                 let pl = [f64::from(x), f64::from(y)];
                 let z = depth_of(est, joints, pl, [u, v])?;
                 let cell = [(x - c0) / DENSE_STEP, (y - r0) / DENSE_STEP];
@@ -840,7 +840,8 @@ fn dense(l: &Plane, r: &Plane, s: &Last, joints: &Joints, est: &Estimator) -> Op
                 let (cl, rl) = (a[0].round() as i32, a[1].round() as i32);
                 let guess = to_r.at([f64::from(cl), f64::from(rl)]);
                 let (gu, gv) = (guess[0].round() as i32, guess[1].round() as i32);
-                if let Some((u, v, _)) = search(l, r, cl, rl, [gu - 2, gu + 2], [gv - 2, gv + 2], 4)
+                if let Some((u, v, _)) =
+                    search(l, r, cl, rl, [gu - 2, gu + 2], [gv - 2, gv + 2], 4, Peak::Unique)
                 {
                     surface = [f64::from(cl), f64::from(rl), u, v];
                 }
