@@ -413,7 +413,9 @@ fn track_setup() -> (crate::common::Scratch, String, String) {
     let dir = crate::common::Scratch::new();
     let (rig, data, m) = (dir.p("rig.json"), dir.p("posture.csv"), dir.p("posture.hvsw"));
     std::fs::write(&rig, crate::common::SMALL_RIG).unwrap();
-    run(&["simulate", "--rig", &rig, "--set", "train", "--postures", "grid"]
+    // The 9 x 6 board: the loop takes depths only from pixels inside a model's training box,
+    // and the thesis' 4 x 3 board covers the middle of the view only.
+    run(&["simulate", "--rig", &rig, "--set", "train", "--board", "9x6:6", "--postures", "grid"]
         .into_iter()
         .chain(["--posture-levels", "2,2,2,2,2", "--seed", "1", "-o", &data])
         .collect::<Vec<_>>());

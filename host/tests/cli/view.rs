@@ -1029,7 +1029,7 @@ fn browser_click_and_retrain_in_chromium() {
 fn fps_live_page_in_chromium() {
     let dir = crate::common::Scratch::new();
     let (train, m, scene) = (dir.p("train.csv"), dir.p("small.hvsw"), dir.p("static.json"));
-    ok(&["simulate", "--case", "3", "--set", "train", "--postures", "grid"]
+    ok(&["simulate", "--case", "3", "--set", "train", "--board", "9x6:6", "--postures", "grid"]
         .into_iter()
         .chain(["--posture-levels", "2,2,2,2,2", "--seed", "1", "-o", &train])
         .collect::<Vec<_>>());
