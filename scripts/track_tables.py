@@ -1,13 +1,13 @@
 #!/usr/bin/env python3
 """The README's `hvs track` tables, re-measured: static and moving spheres, two models.
 
-Models (made here, as the README makes them):
-- `small`: the README's small posture-aware model, `hvs simulate --case 3 --set train --postures
-  grid --posture-levels 2,2,2,2,2 --seed 1`, then `hvs train --hidden 12 --restarts 1`. The
-  thesis' 4 x 3 board in front of where the head looks: at every posture its pixels lie in the
-  middle of the images (about u 291-346, v 228-247 of 640 x 480).
-- `board`: the same postures with the 9 x 6 board at 6 cm (`--board 9x6:6`, 10,368 rows), the
-  same training: its pixels span about u 201-439, v 167-306.
+Models (made here):
+- `thesis-board`: `hvs simulate --case 3 --set train --postures grid --posture-levels
+  2,2,2,2,2 --seed 1`, then `hvs train --hidden 12 --restarts 1` (the README's small model until
+  2026-12-07). The thesis' 4 x 3 board in front of where the head looks: at every posture its
+  pixels lie in the middle of the images (about u 291-346, v 228-247 of 640 x 480).
+- `9x6-board`: the same postures with the 9 x 6 board at 6 cm (`--board 9x6:6`, 10,368 rows),
+  the same training (the README's small model): its pixels span about u 201-439, v 167-306.
 
 Scenes (case III, a 5 cm sphere of texture seed 2 before a wall at 300 cm; the scene files are
 written here, so anyone can re-run them):
@@ -72,7 +72,7 @@ def main():
     d = a.keep or tempfile.mkdtemp()
     os.makedirs(d, exist_ok=True)
     models = {}
-    for name, extra in [("small", []), ("board", ["--board", "9x6:6"])]:
+    for name, extra in [("thesis-board", []), ("9x6-board", ["--board", "9x6:6"])]:
         data, model = os.path.join(d, f"{name}.csv"), os.path.join(d, f"{name}.hvsw")
         run([hvs, "simulate", "--case", "3", "--set", "train", "--postures", "grid",
              "--posture-levels", "2,2,2,2,2", "--seed", "1", "-o", data] + extra)
