@@ -482,10 +482,10 @@ mod loop_tests {
     }
 
     /// The whole loop on the README's scene (case III, 640 x 480, a 5 cm sphere at (20, -8,
-    /// 100) before a textured wall) with the fixture's small posture-aware model (the thesis' board): after 1 s
-    /// both eyes hold the sphere near the rig's floor (2.5 px: `fixation_floor_px`), and the
-    /// estimate is its surface's depth (95 cm) within 2 %. Before the target's pixels were
-    /// the centres of its grown regions the loop settled at 4.8/4.4 px.
+    /// 100) before a textured wall) with the README's small posture-aware model (the 9 x 6
+    /// board): after 1 s both eyes hold the sphere near the rig's floor (2.5 px:
+    /// `fixation_floor_px`), and the estimate is its surface's depth (95 cm) within 2 %. Before
+    /// the target's pixels were the centres of its grown regions the loop settled at 4.8/4.4 px.
     #[test]
     fn the_loop_holds_a_static_sphere_near_the_rigs_floor() {
         let (loaded, est) = readme_scene();

@@ -1215,7 +1215,7 @@ mod tests {
     /// it, near the head, off it and far).
     #[test]
     fn the_target_is_the_objects_centre_in_both_images() {
-        // The fixture's small posture-aware model: its depth box rejects the wall's chance
+        // The README's small posture-aware model: its depth box rejects the wall's chance
         // matches at a near object's disparity.
         let est = small_posture_estimator();
         let head = HeadRig::new(presets::case(3).unwrap());
@@ -1279,7 +1279,8 @@ mod tests {
         assert!((found.z - 95.0).abs() < 5.0, "the sphere at {} cm", found.z);
     }
 
-    /// A small posture-aware model of case III on the thesis' board (see the fixture's README).
+    /// The README's small posture-aware model of case III, on the 9 x 6 board (see the
+    /// fixture's README).
     fn small_posture_estimator() -> Estimator {
         let blob = crate::data::model::check(include_bytes!(
             "../../tests/fixtures/models/case3-posture-9-12-3.hvsw"
