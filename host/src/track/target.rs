@@ -449,6 +449,12 @@ fn depth_of(est: &Estimator, joints: &Joints, l: [f64; 2], r: [f64; 2]) -> Optio
     // trained on a 9 x 6 board's posture set took the wall at 300 cm, seen at pixels left or
     // right of any it was trained on, for an object at 80-250 cm, and left a moving sphere
     // for it.
+    // The pixels first: a refused one is not worth the net's evaluation.
+    if let Estimator::Network(n) = est {
+        if !crate::vision::model_trusted(&n.blob)(p.to_array()) {
+            return None;
+        }
+    }
     let e = est.estimate(&p, joints).ok()?;
     let plausible = match est {
         Estimator::Network(n) => {
@@ -457,8 +463,7 @@ fn depth_of(est: &Estimator, joints: &Joints, l: [f64; 2], r: [f64; 2]) -> Optio
             x[4..].copy_from_slice(&joints.0);
             let k = n.blob.n_inputs().min(9);
             let y = [e.x, e.y, e.z];
-            crate::vision::model_trusted(&n.blob)(p.to_array())
-                && hvs_shared::runtime::head::outputs_in_range(&n.blob, &x[..k], &y)
+            hvs_shared::runtime::head::outputs_in_range(&n.blob, &x[..k], &y)
                 && within_training_depths(&n.blob, &x[..k], &y)
         }
         Estimator::Fallback(_) => true,
