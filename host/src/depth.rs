@@ -171,18 +171,21 @@ pub fn depth(
                 .to_string(),
         );
     }
-    // A blank or saturated image is not matched: what the aggregation makes of a blank image's
-    // noise, or carries across a clipped one, is not depth.
     // Too many disparities for the cost volume: say where they come from.
     let why = |e: DenseError| {
-        match e {
-        DenseError::TooLarge(..) => anyhow!(
+        if !matches!(e, DenseError::TooLarge(..)) {
+            return anyhow!("{e}");
+        }
+        anyhow!(
             "{e}: the model's depths, {:.0} to {:.0} cm, map to disparities {} to {} px over this image (a model trained on boards at more places across the image and more depths bounds them tighter)",
-            g.out_min[2], g.out_max[2], d_range[0], d_range[1]
-        ),
-        e => anyhow!("{e}"),
-    }
+            g.out_min[2],
+            g.out_max[2],
+            d_range[0],
+            d_range[1]
+        )
     };
+    // A blank or saturated image is not matched: what the aggregation makes of a blank image's
+    // noise, or carries across a clipped one, is not depth.
     let mut matches = if !warnings.is_empty() {
         check_inputs(left, right, &f, d_range, &params).map_err(why)?;
         DenseMap::none(w, h)

@@ -396,8 +396,8 @@ fn farthest_row(
 ) -> String {
     let mut worst: Option<(f64, usize, usize)> = None;
     for (n, t) in new.targets.iter().enumerate() {
+        let x = new.row(n);
         for (c, (cam, h)) in cams.iter().enumerate() {
-            let x = new.row(n);
             let off = project(cam, t)
                 .and_then(|p| apply(*h, p))
                 .map_or(f64::INFINITY, |p| (p[0] - x[2 * c]).hypot(p[1] - x[2 * c + 1]));
