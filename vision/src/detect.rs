@@ -849,21 +849,21 @@ fn depth_moments(
 
 /// The slope `b` of `d = a_g + b / z` fitted to the pairs of every posture `g` at once (one
 /// intercept per posture, one slope; each posture's pairs `(disparity, depth)`, the postures
-/// with two or more distinct depths), `None` without any. A swapped set has `b <= 0`. One
-/// posture alone can come out either way when its boards lie off to the sides of verged eyes;
-/// over many postures their scatter averages out.
-pub fn pooled_depth_slope(groups: &[Vec<(f64, Option<f64>)>]) -> Option<f64> {
-    let (mut sxy, mut sxx) = (0.0, 0.0);
+/// with two or more distinct depths), and how many postures that is; `None` without any. A
+/// swapped set has `b <= 0`. One posture alone can come out either way when its boards lie off
+/// to the sides of verged eyes; over many postures their scatter averages out.
+pub fn pooled_depth_slope(groups: &[Vec<(f64, Option<f64>)>]) -> Option<(f64, usize)> {
+    let (mut sxy, mut sxx, mut fitted) = (0.0, 0.0, 0);
     for g in groups {
-        let d: Vec<f64> = g.iter().map(|p| p.0).collect();
-        let z: Vec<Option<f64>> = g.iter().map(|p| p.1).collect();
+        let (d, z): (Vec<f64>, Vec<Option<f64>>) = g.iter().copied().unzip();
         let idx: Vec<usize> = (0..g.len()).collect();
         if let Some((gxy, gxx)) = depth_sums(&d, &z, &idx) {
             sxy += gxy;
             sxx += gxx;
+            fitted += 1;
         }
     }
-    (sxx > 0.0).then(|| sxy / sxx)
+    (sxx > 0.0).then(|| (sxy / sxx, fitted))
 }
 
 /// Why one pair's disparities cannot be right ([`disparity_faults`]).
@@ -1084,15 +1084,8 @@ pub fn set_faults(
                 .collect()
         })
         .collect();
-    if pooled_depth_slope(&points).is_some_and(|b| b <= 0.0) {
-        let judged = points
-            .iter()
-            .filter(|g| {
-                let (d, z): (Vec<f64>, Vec<Option<f64>>) = g.iter().copied().unzip();
-                depth_sums(&d, &z, &(0..g.len()).collect::<Vec<_>>()).is_some()
-            })
-            .count();
-        let postures = (groups.len() > 1).then_some(judged);
+    if let Some((_, fitted)) = pooled_depth_slope(&points).filter(|(b, _)| *b <= 0.0) {
+        let postures = (groups.len() > 1).then_some(fitted);
         return groups
             .iter()
             .map(|(pairs, _)| {
@@ -1341,8 +1334,9 @@ mod tests {
         // The whole set swapped: its slope is negative, the set's to refuse.
         let all: Vec<f64> = good.iter().map(|d| -d).collect();
         let pts = |d: &[f64]| vec![d.iter().zip(z(&depths)).map(|(d, z)| (*d, z)).collect()];
-        assert!(pooled_depth_slope(&pts(&all)).unwrap() < 0.0);
-        assert!((pooled_depth_slope(&pts(&good)).unwrap() - 2000.0).abs() < 1e-9);
+        assert!(pooled_depth_slope(&pts(&all)).unwrap().0 < 0.0);
+        assert_eq!(pooled_depth_slope(&pts(&good)).unwrap().1, 1);
+        assert!((pooled_depth_slope(&pts(&good)).unwrap().0 - 2000.0).abs() < 1e-9);
         assert_eq!(pooled_depth_slope(&[vec![(3.0, Some(80.0)), (4.0, Some(80.0))]]), None);
         // The same image twice.
         let f = disparity_faults(&good, &[false, true, false, false], &z(&depths));
