@@ -2,7 +2,7 @@
 //! (sub-pixel corners found in both images), through [`crate::vision`] and `hvs-vision`.
 
 use crate::data::captures;
-use crate::data::output::write_bytes;
+use crate::data::output::Batch;
 use crate::data::output::{check_dir_output, check_outputs};
 use crate::vision::{detect_set, detect_set_with_images, png_bytes, points_csv, PairOutcome};
 use anyhow::{bail, Context, Result};
@@ -135,7 +135,9 @@ fn detect(a: &DetectArgs) -> Result<()> {
     let check = det.fundamental_check();
     let check = if det.groups.is_empty() { format!(" ({check})") } else { format!("; {check}") };
     eprintln!("{usable} of {} pairs, {} corners{check}", set.captures.len(), usable * n);
-    // Overlays first, the points last: a failure leaves the old points file as it was.
+    // The overlays and the points replaced together: a failure or a signal leaves them all
+    // as they were.
+    let batch = Batch::new();
     if let Some(dir) = &a.overlays {
         let mut pngs = Vec::new();
         for ((out, pair), names) in det.outcomes.iter().zip(&images).zip(overlay_names.chunks(2)) {
@@ -152,11 +154,11 @@ fn detect(a: &DetectArgs) -> Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--overlays {}: cannot create the folder", dir.display()))?;
         for (path, bytes) in &pngs {
-            write_bytes(path, bytes)?;
+            batch.add(path, bytes)?;
         }
     }
-    write_bytes(&a.output, points_csv(&board, &set, &det).as_bytes())?;
-    Ok(())
+    batch.add(&a.output, points_csv(&board, &set, &det).as_bytes())?;
+    batch.commit()
 }
 
 /// `DIR/NN-SIDE-<image stem>.overlay.png`: the capture's number (from 1) and side keep two

@@ -2,7 +2,7 @@
 
 use super::{usage, PostureArgs, RenderArgs};
 use crate::collect::{self, Plan, Shot, Stop};
-use crate::data::output::{check_dir_output, check_not_input, write_bytes};
+use crate::data::output::{check_dir_output, check_not_input, Batch};
 use crate::track::head_sim::VirtualHead;
 use crate::vision::png_bytes;
 use anyhow::{anyhow, bail, Result};
@@ -103,7 +103,11 @@ pub fn run(a: Args) -> Result<()> {
     });
     let captured_count = AtomicU64::new(0);
     let created = create_output(&a.output)?;
-    // Render and write in parallel; the outcomes come back in visit order.
+    // Render and write in parallel, each image to its temporary file; the outcomes come back
+    // in visit order. The set replaces what the folder held only when complete ([`Batch`]):
+    // a run stopped or failed half-way leaves the last set as it was, not its CAPTURES.csv
+    // over this run's images.
+    let batch = Batch::new();
     let outcomes: Vec<Result<Outcome>> = stops
         .par_iter()
         .map(|stop| {
@@ -113,8 +117,8 @@ pub fn run(a: Args) -> Result<()> {
                 Shot::Hidden => Outcome::Hidden,
                 Shot::Pair(pair) => {
                     let [l, r] = collect::image_names(stop);
-                    write_bytes(&a.output.join(l), &png_bytes(&pair[0])?)?;
-                    write_bytes(&a.output.join(r), &png_bytes(&pair[1])?)?;
+                    batch.add(&a.output.join(l), &png_bytes(&pair[0])?)?;
+                    batch.add(&a.output.join(r), &png_bytes(&pair[1])?)?;
                     let n = captured_count.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(b) = &bar {
                         b.set_message(format!("{n} pairs"));
@@ -152,7 +156,7 @@ pub fn run(a: Args) -> Result<()> {
             }
         );
     }
-    write_set(&a.output, &plan, &captured)?;
+    write_set(batch, &a.output, &plan, &captured)?;
     eprintln!(
         "collected {} pairs into {} ({} placements x {} postures; skipped {out_of_view} where the board was not fully in both images, {hidden} where the scene hid part of it; {:.1} s of head time)",
         captured.len(),
@@ -181,10 +185,12 @@ fn remove_if_created(dir: &Path, created: bool) {
     }
 }
 
-/// `board.json` and `CAPTURES.csv` of the captured stops, into `dir` (after the images).
-fn write_set(dir: &Path, plan: &Plan, captured: &[Stop]) -> Result<()> {
-    write_bytes(&dir.join("board.json"), plan.board.to_json().as_bytes())?;
-    write_bytes(&dir.join("CAPTURES.csv"), collect::captures_csv(plan, captured).as_bytes())
+/// `board.json` and `CAPTURES.csv` of the captured stops into `dir`, the set's images staged
+/// in `batch` before them: the whole set replaces the folder's files together.
+fn write_set(batch: Batch, dir: &Path, plan: &Plan, captured: &[Stop]) -> Result<()> {
+    batch.add(&dir.join("board.json"), plan.board.to_json().as_bytes())?;
+    batch.add(&dir.join("CAPTURES.csv"), collect::captures_csv(plan, captured).as_bytes())?;
+    batch.commit()
 }
 
 /// The output folder checked against the inputs (and `scene`), the board, placements and
@@ -221,7 +227,8 @@ fn plan_of(a: &Args, scene: Option<&Path>) -> Result<Plan> {
 /// `hvs collect --port PATH --cameras v4l:A,B`: a real head. At each placement the user is
 /// asked to place the board (the corners both cameras see are counted live) and to press
 /// Enter; the head then visits the postures and every pair in which both cameras find the
-/// whole board is written at once.
+/// whole board is written at once to a temporary file; the set replaces the folder's files
+/// when the last placement is done ([`Batch`]).
 fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
     use crate::track::servo_head::{self, HeadChoice};
     let endpoint = crate::cli::port_arg(port)?;
@@ -234,12 +241,13 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
     let mut head = servo_head::open(&HeadChoice::Port(endpoint), Path::new(""))?;
     let created = create_output(&a.output)?;
     let (mut captured, mut skipped) = (Vec::<Stop>::new(), 0usize);
+    let batch = Batch::new();
     for (k, p) in plan.placements.iter().enumerate() {
         wait_for_board(&mut *cams, &*head, &plan.board, p.xyz, k + 1, plan.placements.len())?;
         skipped += collect::visit_with_cameras(&mut *head, &mut *cams, &plan, k, |stop, pair| {
             let [l, r] = collect::image_names(stop);
-            write_bytes(&a.output.join(l), &png_bytes(&pair[0])?)?;
-            write_bytes(&a.output.join(r), &png_bytes(&pair[1])?)?;
+            batch.add(&a.output.join(l), &png_bytes(&pair[0])?)?;
+            batch.add(&a.output.join(r), &png_bytes(&pair[1])?)?;
             captured.push(*stop);
             eprint!("\r  {} pairs", captured.len());
             Ok(())
@@ -250,7 +258,7 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
         remove_if_created(&a.output, created);
         bail!("no posture saw the whole board with both cameras ({skipped} postures skipped)");
     }
-    write_set(&a.output, &plan, &captured)?;
+    write_set(batch, &a.output, &plan, &captured)?;
     eprintln!(
         "collected {} pairs into {} ({} placements x {} postures; skipped {skipped} where a camera did not find the whole board)",
         captured.len(),

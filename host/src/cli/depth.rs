@@ -3,7 +3,7 @@
 
 use super::StereoArgs;
 use crate::data::output::check_outputs;
-use crate::data::output::write_bytes;
+use crate::data::output::Batch;
 use crate::depth::{depth_files, Depth};
 use crate::vision::png_bytes;
 use anyhow::{anyhow, Result};
@@ -72,7 +72,8 @@ pub fn run(a: Args) -> Result<()> {
         }
         None => None,
     };
-    // Every output in memory first, then each written atomically.
+    // Every output in memory first, then all replaced together (a run stopped half-way or an
+    // output that cannot be written leaves every output as it was).
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     let z: Vec<f32> = d.xyz.iter().map(|p| p[2]).collect();
     files.push((&a.output, pfm_bytes(&image(&d, 1, z.clone()))));
@@ -91,9 +92,11 @@ pub fn run(a: Args) -> Result<()> {
     if let (Some(p), Some(cloud)) = (&a.ply, cloud) {
         files.push((p, cloud));
     }
+    let batch = Batch::new();
     for (p, bytes) in &files {
-        write_bytes(p, bytes)?;
+        batch.add(p, bytes)?;
     }
+    batch.commit()?;
     for w in &d.warnings {
         eprintln!("warning: {w}");
     }

@@ -2,7 +2,7 @@
 //! model, with nothing but the model and the two images ([`crate::depth::locate()`]).
 
 use super::StereoArgs;
-use crate::data::output::{check_outputs, write_bytes, write_output};
+use crate::data::output::{check_outputs, write_output, Batch};
 use crate::data::pixels::{read_pixels, Pixels};
 use crate::depth::{locate_files_with, LocatedFiles};
 use crate::vision::{locate_overlay, png_bytes};
@@ -93,10 +93,13 @@ pub fn run(a: Args) -> Result<()> {
     for w in &warnings {
         eprintln!("warning: {w}");
     }
+    // The overlay and the points file replaced together ([`Batch`]).
+    let batch = Batch::new();
     if let Some(p) = &a.overlay {
-        write_bytes(p, &png_bytes(&locate_overlay(&l, &r, &found))?)?;
+        batch.add(p, &png_bytes(&locate_overlay(&l, &r, &found))?)?;
     }
     if a.points.is_none() {
+        batch.commit()?;
         let text = found[0].line();
         return crate::cli::say(format_args!("{text}"));
     }
@@ -105,17 +108,25 @@ pub fn run(a: Args) -> Result<()> {
         header.push(',');
         header.push_str(n);
     }
-    write_output(a.output.as_deref(), |w| {
-        writeln!(w, "{header}")?;
-        for (l, extra) in found.iter().zip(&pixels.extra) {
-            write!(w, "{}", l.csv_row())?;
-            for e in extra {
-                write!(w, ",{e}")?;
-            }
-            writeln!(w)?;
+    let mut text = format!("{header}\n");
+    for (l, extra) in found.iter().zip(&pixels.extra) {
+        text.push_str(&l.csv_row());
+        for e in extra {
+            text.push(',');
+            text.push_str(e);
         }
-        Ok(())
-    })?;
+        text.push('\n');
+    }
+    match a.output.as_deref() {
+        Some(p) => {
+            batch.add(p, text.as_bytes())?;
+            batch.commit()?;
+        }
+        None => {
+            batch.commit()?;
+            write_output(None, |w| Ok(w.write_all(text.as_bytes())?))?;
+        }
+    }
     let ok = found.iter().filter(|f| f.status == "ok").count();
     eprintln!("{ok} of {} points located", found.len());
     Ok(())

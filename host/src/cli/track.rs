@@ -3,7 +3,7 @@
 //! virtual cameras or real ones; the head emulated, the firmware in QEMU, or on a port.
 
 use crate::data::captures::{captures_csv, CaptureRow};
-use crate::data::output::{write_atomically, write_bytes};
+use crate::data::output::{write_atomically, Batch};
 use crate::track::frames::FrameSource;
 use crate::track::servo_head::{self, HeadChoice};
 use crate::track::{self, target::TargetMode};
@@ -222,9 +222,10 @@ pub fn run(a: Args) -> Result<()> {
             .map(|k| [format!("left{k:04}.png"), format!("right{k:04}.png")])
             .collect();
         let mut rows = Vec::with_capacity(recorded.len());
+        let batch = Batch::new();
         for ((l, r, joints, centre), [ln, rn]) in recorded.iter().zip(&names) {
-            write_bytes(&dir.join(ln), l)?;
-            write_bytes(&dir.join(rn), r)?;
+            batch.add(&dir.join(ln), l)?;
+            batch.add(&dir.join(rn), r)?;
             rows.push(CaptureRow {
                 left: ln,
                 right: rn,
@@ -233,7 +234,8 @@ pub fn run(a: Args) -> Result<()> {
             });
         }
         let csv = captures_csv(&rows, true);
-        write_bytes(&dir.join("CAPTURES.csv"), csv.as_bytes())?;
+        batch.add(&dir.join("CAPTURES.csv"), csv.as_bytes())?;
+        batch.commit()?;
     }
     let tracked = rows.iter().filter(|r| r.status == "tracking").count();
     let interrupted = stop.load(std::sync::atomic::Ordering::Relaxed);

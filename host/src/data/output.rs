@@ -1,5 +1,6 @@
 //! Where an output goes, and what is left behind when a run stops: [`write_atomically`] (and
-//! [`write_output`], [`write_bytes`] over it), the one writer of every file the commands make.
+//! [`write_output`], [`write_bytes`] over it), the one writer of every file the commands make,
+//! and [`Batch`] for a command's several outputs replaced together (all or none).
 //!
 //! - [`Target`]: a regular file (or a name not yet taken) is written through a temporary file
 //!   renamed into place; anything else that exists (a FIFO, a character device such as
@@ -18,7 +19,8 @@ use anyhow::{anyhow, bail, Context, Result};
 use std::ffi::CString;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicPtr, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicPtr, Ordering};
+use std::sync::Mutex;
 
 /// How an output path is written.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -324,17 +326,40 @@ fn owned_by_me(_: &std::fs::Metadata) -> bool {
 }
 
 /// Temporary files being written, for the signal handler: each slot holds a `CString`
-/// pointer or null. Whoever swaps a pointer out owns it (the handler only unlinks and dies).
-const SLOTS: usize = 64;
+/// pointer, null (free) or [`tomb`] (visited by the handler: never taken again). Whoever swaps
+/// a pointer out owns it (the handler only unlinks and dies).
+const SLOTS: usize = 8192;
 #[allow(clippy::declare_interior_mutable_const)]
 const EMPTY: AtomicPtr<libc::c_char> = AtomicPtr::new(std::ptr::null_mut());
 static PENDING: [AtomicPtr<libc::c_char>; SLOTS] = [EMPTY; SLOTS];
+/// Set by the signal handler before it removes the temporary files: no new one is made.
+static DYING: AtomicBool = AtomicBool::new(false);
+static TOMB: u8 = 0;
+
+/// The marker of a slot the handler has visited. A thread that registers a file while the
+/// handler sweeps the slots can then only take a slot the sweep has still to reach (one the
+/// sweep had emptied could be taken behind it, and the file was left: two of a parallel
+/// `hvs collect`'s images in one Ctrl-C in two).
+fn tomb() -> *mut libc::c_char {
+    std::ptr::addr_of!(TOMB).cast_mut().cast()
+}
+
+/// Waits for the signal that set [`DYING`] to end the process.
+fn wait_for_death() -> ! {
+    loop {
+        std::thread::park();
+    }
+}
 
 /// A temporary file registered for removal on SIGINT/SIGTERM/SIGHUP; unregisters on drop.
 #[derive(Debug)]
 pub struct Pending {
     slot: Option<(usize, *mut libc::c_char)>,
 }
+
+// SAFETY: the pointer is a `CString` this value owns alone (taken back only by whoever swaps
+// it out of its slot); nothing reads through it but `unlink` and the drop, from any thread.
+unsafe impl Send for Pending {}
 
 impl Pending {
     /// Registers `path` (installs the signal handlers on first use).
@@ -348,8 +373,15 @@ impl Pending {
             if s.compare_exchange(std::ptr::null_mut(), p, Ordering::SeqCst, Ordering::SeqCst)
                 .is_ok()
             {
+                if DYING.load(Ordering::SeqCst) {
+                    // The handler is removing the files: make no more.
+                    wait_for_death();
+                }
                 return Pending { slot: Some((i, p)) };
             }
+        }
+        if DYING.load(Ordering::SeqCst) {
+            wait_for_death();
         }
         // All slots taken: the file is still removed by the next write after the process
         // is gone (remove_stale).
@@ -375,9 +407,15 @@ impl Drop for Pending {
 
 #[cfg(unix)]
 extern "C" fn on_signal(sig: libc::c_int) {
+    if HOLDING.load(Ordering::SeqCst) {
+        // A batch is being renamed into place: finish it first (HeldSignals' drop).
+        DEFERRED.store(sig, Ordering::SeqCst);
+        return;
+    }
+    DYING.store(true, Ordering::SeqCst);
     for s in &PENDING {
-        let p = s.swap(std::ptr::null_mut(), Ordering::SeqCst);
-        if !p.is_null() {
+        let p = s.swap(tomb(), Ordering::SeqCst);
+        if !p.is_null() && p != tomb() {
             // SAFETY: p is a NUL-terminated path; unlink is async-signal-safe.
             unsafe { libc::unlink(p) };
         }
@@ -432,7 +470,29 @@ where
         Target::InPlace(p) => return write_in_place(&p, body),
         Target::Atomic(p) => p,
     };
-    let path = path.as_path();
+    stage(&path, body)?.persist()
+}
+
+/// A complete temporary file, synced, waiting to be renamed over its output.
+struct Staged {
+    tmp: tempfile::TempPath,
+    path: PathBuf,
+    _pending: Option<Pending>,
+}
+
+impl Staged {
+    fn persist(self) -> Result<()> {
+        let Staged { tmp, path, _pending } = self;
+        tmp.persist(&path).map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))
+    }
+}
+
+/// Writes `body` into a temporary file beside `path` (a [`Target::Atomic`] path), synced to
+/// the disk and registered for removal on a signal; dropped, the file is removed.
+fn stage<F>(path: &Path, body: F) -> Result<Staged>
+where
+    F: FnOnce(&mut dyn Write) -> Result<()>,
+{
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -441,8 +501,11 @@ where
     let prefix = temp_prefix(&fname.to_string_lossy());
     let mut builder = tempfile::Builder::new();
     builder.prefix(&prefix).suffix(".tmp");
-    if !dir.is_dir() {
+    if !dir.exists() {
         bail!("{}: the directory {} does not exist", path.display(), dir.display());
+    }
+    if !dir.is_dir() {
+        bail!("{}: {} is not a directory", path.display(), dir.display());
     }
     remove_stale(&dir);
     // Registered for removal by SIGINT/SIGTERM/SIGHUP *before* it is created (a signal
@@ -456,7 +519,14 @@ where
             o.write(true).create_new(true);
             #[cfg(unix)]
             std::os::unix::fs::OpenOptionsExt::mode(&mut o, 0o666);
-            o.open(p)
+            let f = o.open(p);
+            if DYING.load(Ordering::SeqCst) {
+                // The handler began after the registration: it may have swept this slot
+                // before the file existed. Remove it here (removing it twice is harmless).
+                let _ = std::fs::remove_file(p);
+                wait_for_death();
+            }
+            f
         })
         // The error names the output and its directory, not the temporary file's random
         // name (tempfile's message would).
@@ -468,14 +538,106 @@ where
                 std::io::Error::from(e.kind())
             )
         })?;
-    let _pending = pending;
     let mut w = BufWriter::new(tmp);
     body(&mut w)?;
     let tmp =
         w.into_inner().map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error()))?;
     tmp.as_file().sync_all().with_context(|| format!("{}: cannot write", path.display()))?;
-    tmp.persist(path).map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))?;
-    Ok(())
+    Ok(Staged { tmp: tmp.into_temp_path(), path: path.to_path_buf(), _pending: pending })
+}
+
+/// The outputs of one command, replaced all together or not at all: each file is written to
+/// its temporary file as it is added ([`Batch::add`]), and [`Batch::commit`] renames them all
+/// over their outputs, with SIGINT, SIGTERM and SIGHUP held back until the last rename (the
+/// process then dies of the signal). A batch dropped uncommitted (an error, a panic) or a
+/// signal before the commit leaves every output as it was: a rerun stopped half-way never
+/// mixes new files with the last run's (a capture set's images with the last `board.json`).
+/// Outputs that are not regular files (a device, standard output) are kept in memory and
+/// written at the commit, before the renames.
+/// Files may be added from several threads at once.
+#[derive(Default)]
+pub struct Batch {
+    staged: Mutex<Vec<Staged>>,
+    direct: Mutex<Vec<(Option<PathBuf>, Vec<u8>)>>,
+}
+
+impl Batch {
+    /// An empty batch.
+    pub fn new() -> Batch {
+        Batch::default()
+    }
+
+    /// Writes `bytes` for `path` (to its temporary file; see [`Batch`]).
+    pub fn add(&self, path: &Path, bytes: &[u8]) -> Result<()> {
+        match target(path)? {
+            Target::Atomic(p) => {
+                let st = stage(&p, |w| {
+                    w.write_all(bytes).with_context(|| format!("{}: cannot write", p.display()))
+                })?;
+                lock(&self.staged).push(st);
+            }
+            Target::InPlace(p) => lock(&self.direct).push((Some(p), bytes.to_vec())),
+            Target::Stdout => lock(&self.direct).push((None, bytes.to_vec())),
+        }
+        Ok(())
+    }
+
+    /// Writes the outputs that are not regular files, then renames every temporary file
+    /// over its output (see [`Batch`]).
+    pub fn commit(self) -> Result<()> {
+        let (staged, direct) = (into_inner(self.staged), into_inner(self.direct));
+        for (path, bytes) in &direct {
+            match path {
+                Some(p) => write_in_place(p, |w| Ok(w.write_all(bytes)?))?,
+                None => write_output(None, |w| Ok(w.write_all(bytes)?))?,
+            }
+        }
+        let _held = HeldSignals::hold();
+        for st in staged {
+            st.persist()?;
+        }
+        Ok(())
+    }
+}
+
+/// The guarded value, also after a panic on another thread while it held the lock (a file
+/// list stays a valid list).
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+fn into_inner<T>(m: Mutex<T>) -> T {
+    m.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// The signal that arrived while [`HeldSignals`] held them back (0: none).
+static DEFERRED: AtomicI32 = AtomicI32::new(0);
+/// Whether signals are held back ([`HeldSignals`]).
+static HOLDING: AtomicBool = AtomicBool::new(false);
+
+/// While alive, SIGINT, SIGTERM and SIGHUP are noted instead of handled; dropped, a noted
+/// signal is handled (the pending temporary files removed, the process dies of it).
+struct HeldSignals;
+
+impl HeldSignals {
+    fn hold() -> HeldSignals {
+        install_handlers();
+        HOLDING.store(true, Ordering::SeqCst);
+        HeldSignals
+    }
+}
+
+impl Drop for HeldSignals {
+    fn drop(&mut self) {
+        HOLDING.store(false, Ordering::SeqCst);
+        let sig = DEFERRED.swap(0, Ordering::SeqCst);
+        #[cfg(unix)]
+        if sig != 0 {
+            on_signal(sig);
+        }
+        #[cfg(not(unix))]
+        let _ = sig;
+    }
 }
 
 /// Writes into an existing file that is not a regular file (FIFO, device), without
@@ -622,5 +784,58 @@ mod tests {
         check_not_input("-o", &dir.path().join("new.csv"), &[("--points", &a)]).unwrap();
         check_not_input("-o", Path::new("/dev/null"), &[("--points", Path::new("/dev/null"))])
             .unwrap();
+    }
+
+    /// The files of `dir`, sorted, temporary files included.
+    fn listing(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn a_batch_replaces_all_its_outputs_or_none() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.pfm"), dir.path().join("b.png"));
+        std::fs::write(&a, "old a").unwrap();
+        std::fs::write(&b, "old b").unwrap();
+        // A later output that cannot be written: the earlier one is not replaced either.
+        let batch = Batch::new();
+        batch.add(&a, b"new a").unwrap();
+        let e = batch.add(&dir.path().join("missing/c.ply"), b"c").unwrap_err().to_string();
+        assert!(e.contains("does not exist"), "{e}");
+        drop(batch);
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        assert_eq!(listing(dir.path()), ["a.pfm", "b.png"]);
+        // A directory where one is expected is named as not one.
+        let e = Batch::new().add(&a.join("x.pfm"), b"x").unwrap_err().to_string();
+        assert!(e.contains("is not a directory"), "{e}");
+        // Staged but not committed: nothing is replaced until the commit.
+        let batch = Batch::new();
+        batch.add(&a, b"new a").unwrap();
+        batch.add(&b, b"new b").unwrap();
+        assert_eq!(std::fs::read(&b).unwrap(), b"old b");
+        batch.commit().unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"new a");
+        assert_eq!(std::fs::read(&b).unwrap(), b"new b");
+        assert_eq!(listing(dir.path()), ["a.pfm", "b.png"]);
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_batch_whose_device_output_fails_replaces_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.pfm");
+        std::fs::write(&a, "old a").unwrap();
+        let batch = Batch::new();
+        batch.add(&a, b"new a").unwrap();
+        batch.add(Path::new("/dev/full"), b"colour").unwrap();
+        let e = format!("{:#}", batch.commit().unwrap_err());
+        assert!(e.contains("/dev/full"), "{e}");
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        assert_eq!(listing(dir.path()), ["a.pfm"]);
     }
 }

@@ -2,7 +2,7 @@
 //! and a rendered capture set written as the files `hvs board detect` reads.
 
 use crate::data::captures::{captures_csv, CaptureRow};
-use crate::data::output::write_bytes;
+use crate::data::output::Batch;
 use anyhow::{anyhow, bail, Context, Result};
 use hvs_shared::runtime::gaze::Joints;
 use hvs_vision::render;
@@ -86,7 +86,7 @@ where
 
 /// One rendered scene pair into `dir` (created if missing): left.png, right.png and its truth
 /// in the formats `hvs depth` writes (`SceneRender::truth_images`: depth.pfm, matches.pfm),
-/// each file atomically. Returns how many left pixels the right camera sees.
+/// replaced all together ([`Batch`]). Returns how many left pixels the right camera sees.
 pub fn write_scene_pair(dir: &Path, r: &hvs_vision::scene::SceneRender) -> Result<usize> {
     let (depth, matches) = r.truth_images();
     std::fs::create_dir_all(dir)
@@ -97,16 +97,20 @@ pub fn write_scene_pair(dir: &Path, r: &hvs_vision::scene::SceneRender) -> Resul
         hvs_vision::pfm::pfm_bytes(&depth),
         hvs_vision::pfm::pfm_bytes(&matches),
     ];
+    let batch = Batch::new();
     for (name, b) in SCENE_PAIR_FILES.iter().zip(&bytes) {
-        write_bytes(&dir.join(name), b)?;
+        batch.add(&dir.join(name), b)?;
     }
+    batch.commit()?;
     Ok(matches.data.chunks_exact(3).filter(|m| m[2] > 0.0).count())
 }
 
 /// The files [`write_scene_pair`] writes, in its order.
 pub const SCENE_PAIR_FILES: [&str; 4] = ["left.png", "right.png", "depth.pfm", "matches.pfm"];
 
-/// Writes a rendered capture set into `dir` (created if missing), each file atomically: the
+/// Writes a rendered capture set into `dir` (created if missing), replaced all together
+/// ([`Batch`]: a rerun stopped half-way never leaves new images beside the last run's
+/// `board.json`): the
 /// PNG pairs, `captures.csv` ([`captures_csv`], with the joint columns when `joints` is
 /// given), `truth.csv` and `board.json`, which is
 /// what `hvs board detect` reads.
@@ -117,9 +121,10 @@ pub fn write_capture_set(
 ) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+    let batch = Batch::new();
     for c in &set.captures {
-        write_bytes(&dir.join(&c.left_name), &png_bytes(&c.render.left)?)?;
-        write_bytes(&dir.join(&c.right_name), &png_bytes(&c.render.right)?)?;
+        batch.add(&dir.join(&c.left_name), &png_bytes(&c.render.left)?)?;
+        batch.add(&dir.join(&c.right_name), &png_bytes(&c.render.right)?)?;
     }
     let rows: Vec<CaptureRow<'_>> = set
         .captures
@@ -136,9 +141,9 @@ pub fn write_capture_set(
         ("truth.csv", set.truth_csv()),
         ("board.json", set.board_json()),
     ] {
-        write_bytes(&dir.join(name), text.as_bytes())?;
+        batch.add(&dir.join(name), text.as_bytes())?;
     }
-    Ok(())
+    batch.commit()
 }
 
 #[cfg(test)]

@@ -193,14 +193,22 @@ fn interrupt_a_write(
     signal: libc::c_int,
     ignored: &'static [libc::c_int],
 ) -> (std::process::ExitStatus, Vec<String>) {
+    let args = ["simulate", "--case", "1", "--set", "volume", "--points", "1000000", "-o", s(out)];
+    interrupt_when(&args, out.parent().unwrap(), 1, signal, ignored)
+}
+
+/// Runs `hvs args`, waits until at least `temps` temporary files are in `dir`, sends
+/// `signal` (see [`interrupt_a_write`]); returns the exit status and the temporary files seen.
+fn interrupt_when(
+    args: &[&str],
+    dir: &Path,
+    temps: usize,
+    signal: libc::c_int,
+    ignored: &'static [libc::c_int],
+) -> (std::process::ExitStatus, Vec<String>) {
     use std::os::unix::process::CommandExt;
-    let dir = out.parent().unwrap();
     let mut cmd = std::process::Command::new(assert_cmd::cargo::cargo_bin("hvs"));
-    cmd.args(["simulate", "--case", "1", "--set", "volume", "--points", "1000000"])
-        .arg("-o")
-        .arg(out)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null());
+    cmd.args(args).stdout(std::process::Stdio::null()).stderr(std::process::Stdio::null());
     // SAFETY: signal(2) is async-signal-safe, so it may run between fork and exec.
     unsafe {
         cmd.pre_exec(|| {
@@ -214,20 +222,105 @@ fn interrupt_a_write(
         });
     }
     let mut child = cmd.spawn().unwrap();
-    // Not a timing assertion: the loop only waits for the write to begin.
+    // Not a timing assertion: the loop only waits for the writes to begin.
     let seen = loop {
         let t = temp_files(dir);
-        if !t.is_empty() {
+        if t.len() >= temps {
             break t;
         }
         if let Some(st) = child.try_wait().unwrap() {
-            panic!("hvs simulate ended ({st}) before its temporary file was seen");
+            panic!("hvs {args:?} ended ({st}) before {temps} temporary files were seen");
         }
-        std::thread::sleep(std::time::Duration::from_millis(5));
+        std::thread::sleep(std::time::Duration::from_millis(2));
     };
     // SAFETY: kill(2) on our own child.
     assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, signal) }, 0);
     (child.wait().unwrap(), seen)
+}
+
+/// Every file of `dir` (a flat folder) with its bytes, sorted by name.
+fn folder(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (e.file_name().to_string_lossy().into_owned(), std::fs::read(e.path()).unwrap())
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+// A rerun of `hvs render` or `hvs collect` into the last run's folder, stopped by a signal
+// while it writes its images: the folder is as the last run left it (not this run's images
+// beside the last `board.json` or `CAPTURES.csv`), and no temporary file is left. `collect`
+// writes its images from several threads at once.
+#[test]
+fn an_interrupted_rerun_leaves_the_last_set_as_it_was() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = TempDir::new().unwrap();
+    let set = dir.path().join("set");
+    let depths = "65,75,85,95,105,115,125,135,145,155,165";
+    let render = |square: &'static str| -> Vec<&'static str> {
+        let v = vec!["render", "--case", "1", "--depths", depths, "--square-cm", square];
+        v
+    };
+    let mut first = render("6");
+    first.extend(["-o", s(&set)]);
+    ok(&first);
+    let before = folder(&set);
+    assert_eq!(before.len(), 2 * 11 + 3, "{:?}", before.iter().map(|f| &f.0).collect::<Vec<_>>());
+    for (sig, temps) in [(libc::SIGINT, 1), (libc::SIGTERM, 9)] {
+        let mut again = render("4");
+        again.extend(["-o", s(&set)]);
+        let (st, seen) = interrupt_when(&again, &set, temps, sig, &[]);
+        assert_eq!(st.signal(), Some(sig), "{st}");
+        assert!(seen.len() >= temps, "{seen:?}");
+        assert_eq!(folder(&set), before, "signal {sig} after {} temporary files", seen.len());
+    }
+
+    let b = dir.path().join("board.json");
+    let p = dir.path().join("positions.csv");
+    let scene = dir.path().join("scene.json");
+    std::fs::write(&b, r#"{"pattern": "chessboard", "inner_corners": [7, 5], "square_cm": 4.0}"#)
+        .unwrap();
+    std::fs::write(&p, "x,y,z\n0,0,85\n").unwrap();
+    std::fs::write(
+        &scene,
+        r#"{"rig": {"case": 3}, "camera_fps": 30, "background": {"z_cm": 300, "texture_seed": 1}}"#,
+    )
+    .unwrap();
+    let collected = dir.path().join("collected");
+    let collect = |seed: &'static str| {
+        let v = [
+            "collect",
+            "--board",
+            s(&b),
+            "--positions",
+            s(&p),
+            "--postures",
+            "random",
+            "--posture-count",
+            "60",
+            "--scene",
+            s(&scene),
+            "--supersample",
+            "2",
+            "--seed",
+            seed,
+            "-o",
+            s(&collected),
+        ];
+        v.to_vec()
+    };
+    ok(&collect("1"));
+    let before = folder(&collected);
+    assert!(before.len() > 20, "{} files", before.len());
+    for (sig, temps) in [(libc::SIGINT, 2), (libc::SIGINT, 20), (libc::SIGTERM, 40)] {
+        let (st, seen) = interrupt_when(&collect("2"), &collected, temps, sig, &[]);
+        assert_eq!(st.signal(), Some(sig), "{st}");
+        assert_eq!(folder(&collected), before, "signal {sig} after {} temporary files", seen.len());
+    }
 }
 
 // Item 3: SIGINT and SIGTERM remove the temporary file; the process dies of the signal.
