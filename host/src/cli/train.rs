@@ -177,18 +177,45 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = BpParams::default().max_cycles, allow_negative_numbers = true, value_parser = crate::cli::whole_usize)]
     max_cycles: usize,
     /// Half baseline d (cm) stored with the fallback calibration.
-    #[arg(long, value_name = "CM", default_value_t = Calibration::BUILT_IN.half_baseline as f64)]
-    half_baseline: f64,
+    #[arg(long, value_name = "CM", help = fallback_help("Half baseline d (cm)", Calibration::BUILT_IN.half_baseline))]
+    half_baseline: Option<f64>,
     /// Principal point u0 (px) stored with the fallback calibration.
-    #[arg(long, value_name = "PX", default_value_t = Calibration::BUILT_IN.u0 as f64)]
-    u0: f64,
+    #[arg(long, value_name = "PX", help = fallback_help("Principal point u0 (px)", Calibration::BUILT_IN.u0))]
+    u0: Option<f64>,
     /// Principal point v0 (px) stored with the fallback calibration.
-    #[arg(long, value_name = "PX", default_value_t = Calibration::BUILT_IN.v0 as f64)]
-    v0: f64,
+    #[arg(long, value_name = "PX", help = fallback_help("Principal point v0 (px)", Calibration::BUILT_IN.v0))]
+    v0: Option<f64>,
+}
+
+/// The help line of a fallback calibration value, with its default.
+fn fallback_help(what: &str, default: f32) -> String {
+    format!("{what} stored with the fallback calibration [default: {}]", f64::from(default))
+}
+
+impl Args {
+    /// `--half-baseline`, `--u0`, `--v0` with their defaults, checked.
+    fn fallback_values(&self) -> Result<(f64, f64, f64)> {
+        let c = Calibration::BUILT_IN;
+        let hb = self.half_baseline.unwrap_or(f64::from(c.half_baseline));
+        let (u0, v0) = (self.u0.unwrap_or(f64::from(c.u0)), self.v0.unwrap_or(f64::from(c.v0)));
+        if !(hb.is_finite() && hb > 0.0) {
+            bail!("--half-baseline must be a positive number, got {hb}");
+        }
+        if !(u0.is_finite() && v0.is_finite()) {
+            bail!("--u0 and --v0 must be finite");
+        }
+        Ok((hb, u0, v0))
+    }
+
+    /// Whether any of `--half-baseline`, `--u0`, `--v0` was given.
+    fn fallback_given(&self) -> bool {
+        self.half_baseline.is_some() || self.u0.is_some() || self.v0.is_some()
+    }
 }
 
 /// Runs `hvs train`.
 pub fn run(a: Args) -> Result<()> {
+    let (half_baseline, u0, v0) = a.fallback_values()?;
     if let Some(from) = &a.from {
         return run_update(&a, from);
     }
@@ -205,17 +232,12 @@ pub fn run(a: Args) -> Result<()> {
             bail!("--threshold must be a positive percentage, got {t}");
         }
     }
-    for (name, v) in [("--half-baseline", a.half_baseline), ("--learning-rate", a.learning_rate)] {
-        if !(v.is_finite() && v > 0.0) {
-            bail!("{name} must be a positive number, got {v}");
-        }
+    if !(a.learning_rate.is_finite() && a.learning_rate > 0.0) {
+        bail!("--learning-rate must be a positive number, got {}", a.learning_rate);
     }
     // As `BpParams::check` has it: 0 runs every cycle up to --max-cycles.
     if !(a.e_max.is_finite() && a.e_max >= 0.0) {
         bail!("--e-max must be a finite number >= 0, got {}", a.e_max);
-    }
-    if !(a.u0.is_finite() && a.v0.is_finite()) {
-        bail!("--u0 and --v0 must be finite");
     }
     check_not_input("-o", &a.output, &data_inputs(&a.data))?;
     let table = read_data(&a.data)?;
@@ -248,7 +270,7 @@ pub fn run(a: Args) -> Result<()> {
             );
         }
     }
-    let plan = Plan { config, half_baseline: a.half_baseline, u0: a.u0, v0: a.v0 };
+    let plan = Plan { config, half_baseline, u0, v0 };
     let t = train_table(&table, &plan)?;
     let n = model::save(&a.output, &t.blob)?;
     print_summary(&table.name(), &a.output, n, &t).with_context(|| {
@@ -360,7 +382,8 @@ fn run_update(a: &Args, from_path: &Path) -> Result<()> {
         &up,
         &table.data,
         table.image_size,
-        (a.half_baseline, a.u0, a.v0),
+        a.fallback_values()?,
+        a.fallback_given(),
     );
     let n = model::save(&a.output, &blob)?;
     let print = || -> Result<()> {

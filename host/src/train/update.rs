@@ -421,7 +421,7 @@ fn farthest_row(
 /// (else `new_image_size`, that of the new points' images); the matcher geometry refitted to
 /// the samples the update learned (else the old one); and the traditional method's
 /// calibration refitted to the new points (`new`, with `half_baseline`, `u0`, `v0`) when a
-/// camera moved, else the old one.
+/// camera moved or `refit_fallback` (those values given on the command line), else the old one.
 pub fn next_generation(
     old: &ModelBlob,
     old_crc: u32,
@@ -429,6 +429,7 @@ pub fn next_generation(
     new: &Dataset,
     new_image_size: Option<(u16, u16)>,
     (half_baseline, u0, v0): (f64, f64, f64),
+    refit_fallback: bool,
 ) -> ModelBlob {
     let mut blob = up.blob.clone();
     blob.generation = old.generation.saturating_add(1);
@@ -438,7 +439,7 @@ pub fn next_generation(
     }));
     blob.set_image_size(old.image_size().or(new_image_size));
     blob.matcher = super::matcher::matcher_geometry(&up.learned).or(old.matcher);
-    if up.cameras.iter().any(|c| c.moved) {
+    if refit_fallback || up.cameras.iter().any(|c| c.moved) {
         blob.fallback = super::fallback::fit(new, half_baseline, u0, v0)
             .map(|f| f.calibration)
             .or(old.fallback);

@@ -129,6 +129,45 @@ fn ten_updates_of_an_unchanged_rig_do_not_forget() {
             "update {i} (z = {z}): {after} % vs {before} % before the first (floor {floor} %)"
         );
     }
+    // The fallback calibration's values, given, are applied though no camera moved (they
+    // were dropped); not given, the old fallback stays.
+    let fallback = |m: &str| -> String {
+        let info = ok_line(&format!("info {m}"));
+        info.lines().find(|l| l.contains("fallback")).unwrap_or_else(|| panic!("{info}")).into()
+    };
+    let out = ok(&[
+        "train",
+        "--data",
+        &d.p("c1.csv"),
+        "--from",
+        &d.p("m10.hvsw"),
+        "-o",
+        &d.p("hb.hvsw"),
+        "--half-baseline",
+        "9",
+        "--u0",
+        "100",
+    ]);
+    assert!(out.contains("left camera: held") && out.contains("right camera: held"), "{out}");
+    let (given, kept) = (fallback(&d.p("hb.hvsw")), fallback(&d.p("m10.hvsw")));
+    assert!(given.contains("d = 9 cm") && given.contains("(100, 240)"), "{given}");
+    assert!(kept.contains("d = 5.25 cm") && kept.contains("(320, 240)"), "{kept}");
+    ok(&["train", "--data", &d.p("c1.csv"), "--from", &d.p("m10.hvsw"), "-o", &d.p("same.hvsw")]);
+    assert_eq!(fallback(&d.p("same.hvsw")), kept);
+    fails(
+        &[
+            "train",
+            "--data",
+            &d.p("c1.csv"),
+            "--from",
+            &d.p("m10.hvsw"),
+            "-o",
+            &d.p("x.hvsw"),
+            "--half-baseline",
+            "0",
+        ],
+        "--half-baseline must be a positive number",
+    );
 }
 
 #[test]
