@@ -180,18 +180,36 @@ pub fn check_dir_output(flag: &str, dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Whether this process may write into the directory `dir` (`access(2)`).
 #[cfg(unix)]
 fn writable(dir: &Path) -> bool {
+    may(dir, libc::W_OK | libc::X_OK)
+}
+
+/// Whether this process may write the existing file `path` (`access(2)`, as the shell's
+/// `test -w`; root may).
+#[cfg(unix)]
+fn file_writable(path: &Path) -> bool {
+    may(path, libc::W_OK)
+}
+
+#[cfg(unix)]
+fn may(path: &Path, mode: libc::c_int) -> bool {
     use std::os::unix::ffi::OsStrExt;
-    let Ok(c) = std::ffi::CString::new(dir.as_os_str().as_bytes()) else {
+    let Ok(c) = std::ffi::CString::new(path.as_os_str().as_bytes()) else {
         return false;
     };
     // SAFETY: access only reads the NUL-terminated path.
-    unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) == 0 }
+    unsafe { libc::access(c.as_ptr(), mode) == 0 }
 }
 
 #[cfg(not(unix))]
 fn writable(_: &Path) -> bool {
+    true
+}
+
+#[cfg(not(unix))]
+fn file_writable(_: &Path) -> bool {
     true
 }
 
@@ -507,6 +525,16 @@ where
     if !dir.is_dir() {
         bail!("{}: {} is not a directory", path.display(), dir.display());
     }
+    // A file replaced keeps its permissions, and one this user may not write is not replaced
+    // (as the shell's `>` refuses it), though the directory would allow the rename.
+    let existing = std::fs::metadata(path).ok().filter(std::fs::Metadata::is_file);
+    if existing.is_some() && !file_writable(path) {
+        bail!(
+            "{}: cannot replace it: {} (a file this user may not write)",
+            path.display(),
+            std::io::Error::last_os_error()
+        );
+    }
     remove_stale(&dir);
     // Registered for removal by SIGINT/SIGTERM/SIGHUP *before* it is created (a signal
     // between creating and registering would leave it behind); unregistered after the
@@ -538,6 +566,11 @@ where
                 std::io::Error::from(e.kind())
             )
         })?;
+    if let Some(m) = &existing {
+        tmp.as_file()
+            .set_permissions(m.permissions())
+            .with_context(|| format!("{}: cannot keep its permissions", path.display()))?;
+    }
     let mut w = BufWriter::new(tmp);
     body(&mut w)?;
     let tmp =
@@ -822,6 +855,33 @@ mod tests {
         assert_eq!(std::fs::read(&a).unwrap(), b"new a");
         assert_eq!(std::fs::read(&b).unwrap(), b"new b");
         assert_eq!(listing(dir.path()), ["a.pfm", "b.png"]);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_replaced_file_keeps_its_permissions() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("private.csv");
+        for mode in [0o600, 0o640, 0o755] {
+            std::fs::write(&p, "old").unwrap();
+            std::fs::set_permissions(&p, std::fs::Permissions::from_mode(mode)).unwrap();
+            write_bytes(&p, b"new").unwrap();
+            assert_eq!(std::fs::read(&p).unwrap(), b"new");
+            let got = std::fs::metadata(&p).unwrap().permissions().mode() & 0o777;
+            assert_eq!(got, mode, "{got:o} for {mode:o}");
+        }
+        // A read-only file: refused unless this user may write it anyway (root may).
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o444)).unwrap();
+        let r = write_bytes(&p, b"newer");
+        if file_writable(&p) {
+            r.unwrap();
+            assert_eq!(std::fs::metadata(&p).unwrap().permissions().mode() & 0o777, 0o444);
+        } else {
+            let e = r.unwrap_err().to_string();
+            assert!(e.contains("cannot replace it"), "{e}");
+            assert_eq!(std::fs::read(&p).unwrap(), b"new");
+        }
     }
 
     #[cfg(target_os = "linux")]
