@@ -75,6 +75,16 @@ pub fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
 
+/// A value as given in a message: shortest round-trip digits, in exponent form when very
+/// large or small (`1e30`, not thirty-one digits).
+pub fn given(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e7).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 /// `n` and `noun` (`"restart"`), `s` added unless `n` is 1: `1 restart`, `10 restarts`.
 pub fn count(n: usize, noun: &str) -> String {
     format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
@@ -83,6 +93,15 @@ pub fn count(n: usize, noun: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn given_values() {
+        assert_eq!(given(1e30), "1e30");
+        assert_eq!(given(-2.5e-9), "-2.5e-9");
+        assert_eq!(given(356.25), "356.25");
+        assert_eq!(given(200000.0), "200000");
+        assert_eq!(given(0.0), "0");
+    }
 
     #[test]
     fn csv_numbers() {

@@ -134,7 +134,8 @@ fn detect(a: &DetectArgs) -> Result<()> {
     }
     let check = det.fundamental_check();
     let check = if det.groups.is_empty() { format!(" ({check})") } else { format!("; {check}") };
-    eprintln!("{usable} of {} pairs, {} corners{check}", set.captures.len(), usable * n);
+    let pairs = crate::fmt::count(set.captures.len(), "pair");
+    eprintln!("{usable} of {pairs}, {} corners{check}", usable * n);
     // The overlays and the points replaced together: a failure or a signal leaves them all
     // as they were.
     let batch = Batch::new();

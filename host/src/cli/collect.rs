@@ -3,6 +3,7 @@
 use super::{usage, PostureArgs, RenderArgs};
 use crate::collect::{self, Plan, Shot, Stop};
 use crate::data::output::{check_dir_output, check_not_input, Batch};
+use crate::fmt::count;
 use crate::track::head_sim::VirtualHead;
 use crate::vision::png_bytes;
 use anyhow::{anyhow, bail, Result};
@@ -146,9 +147,9 @@ pub fn run(a: Args) -> Result<()> {
     if captured.is_empty() {
         remove_if_created(&a.output, created);
         bail!(
-            "no posture saw the whole board with both cameras ({} postures x {} placements; {out_of_view} out of view, {hidden} hidden): {}",
-            plan.postures.len(),
-            plan.placements.len(),
+            "no posture saw the whole board with both cameras ({} x {}; {out_of_view} out of view, {hidden} hidden): {}",
+            count(plan.postures.len(), "posture"),
+            count(plan.placements.len(), "placement"),
             match (out_of_view, hidden) {
                 (_, 0) => "place the board nearer the middle of the working range",
                 (0, _) => "the scene's objects hide the board: move them or the board",
@@ -158,11 +159,11 @@ pub fn run(a: Args) -> Result<()> {
     }
     write_set(batch, &a.output, &plan, &captured)?;
     eprintln!(
-        "collected {} pairs into {} ({} placements x {} postures; skipped {out_of_view} where the board was not fully in both images, {hidden} where the scene hid part of it; {:.1} s of head time)",
-        captured.len(),
+        "collected {} into {} ({} x {}; skipped {out_of_view} where the board was not fully in both images, {hidden} where the scene hid part of it; {:.1} s of head time)",
+        count(captured.len(), "pair"),
         a.output.display(),
-        plan.placements.len(),
-        plan.postures.len(),
+        count(plan.placements.len(), "placement"),
+        count(plan.postures.len(), "posture"),
         head.time_s()
     );
     Ok(())
@@ -256,15 +257,18 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
     }
     if captured.is_empty() {
         remove_if_created(&a.output, created);
-        bail!("no posture saw the whole board with both cameras ({skipped} postures skipped)");
+        bail!(
+            "no posture saw the whole board with both cameras ({} skipped)",
+            count(skipped, "posture")
+        );
     }
     write_set(batch, &a.output, &plan, &captured)?;
     eprintln!(
-        "collected {} pairs into {} ({} placements x {} postures; skipped {skipped} where a camera did not find the whole board)",
-        captured.len(),
+        "collected {} into {} ({} x {}; skipped {skipped} where a camera did not find the whole board)",
+        count(captured.len(), "pair"),
         a.output.display(),
-        plan.placements.len(),
-        plan.postures.len()
+        count(plan.placements.len(), "placement"),
+        count(plan.postures.len(), "posture")
     );
     Ok(())
 }

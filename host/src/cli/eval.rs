@@ -74,6 +74,7 @@ pub fn run(a: Args) -> Result<()> {
     let m = model::load(&a.model)?;
     let blob = &m.blob;
     let table = read_set(&a.data, blob.topology.inputs.into(), true)?;
+    crate::data::validate::plausible_values(&table)?;
     let floor = a.floor.rig()?;
     let lens = a.lens.lens()?;
     if floor.is_none() && a.lens.given() {

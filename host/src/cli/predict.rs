@@ -41,6 +41,7 @@ pub fn run(a: Args) -> Result<()> {
     let m = model::load(&a.model)?;
     let blob = &m.blob;
     let table = read_set(&a.points, blob.topology.inputs.into(), false)?;
+    crate::data::validate::plausible_values(&table)?;
     let (x, y) = infer_table(blob, &table)?;
     let outside = x.chunks_exact(blob.n_inputs()).filter(|p| !blob.in_range(p)).count();
     if outside > 0 {

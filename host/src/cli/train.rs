@@ -8,7 +8,7 @@ use crate::train::model::{train_table, Plan, Trained};
 use crate::train::update::{next_generation, update, CameraCheck};
 use crate::train::{self, Algo, BpParams, TrainConfig};
 use anyhow::{bail, Context, Result};
-use hvs_shared::runtime::blob::{Family, OutputFrame, OutputKind, MAX_HIDDEN};
+use hvs_shared::runtime::blob::{Family, InputKind, OutputFrame, OutputKind, MAX_HIDDEN};
 use hvs_shared::runtime::mlp::Activation;
 use hvs_shared::runtime::traditional::Calibration;
 use std::io::{IsTerminal, Write};
@@ -273,6 +273,13 @@ pub fn run(a: Args) -> Result<()> {
     let plan = Plan { config, half_baseline, u0, v0 };
     let t = train_table(&table, &plan)?;
     let n = model::save(&a.output, &t.blob)?;
+    if t.blob.matcher.is_none() && t.blob.topology.inputs == InputKind::Stereo {
+        eprintln!(
+            "warning: {} has no matcher geometry (the image commands and `hvs train --from` need it): {}",
+            a.output.display(),
+            crate::train::matcher::NO_MATCHER_WHY
+        );
+    }
     print_summary(&table.name(), &a.output, n, &t).with_context(|| {
         format!("wrote {} ({n} bytes), but cannot print the summary to stdout", a.output.display())
     })

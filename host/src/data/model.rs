@@ -66,11 +66,14 @@ fn explain(bytes: &[u8], e: BlobError) -> String {
         BlobError::BufferTooSmall => "size check failed",
     };
     let detail = match e {
-        BlobError::BadMagic => format!(
-            ": first bytes {:02x?}, expected {:02x?} (\"HVSW\")",
-            &bytes[..bytes.len().min(4)],
-            blob::MAGIC
-        ),
+        BlobError::BadMagic => {
+            let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02x}")).collect::<Vec<_>>().join(" ");
+            format!(
+                ": first bytes {} (hex), expected {} (\"HVSW\")",
+                hex(&bytes[..bytes.len().min(4)]),
+                hex(&blob::MAGIC)
+            )
+        }
         BlobError::Truncated => match blob::framed_len(bytes) {
             Ok(n) => format!(": the header announces {n} bytes, the file has {}", bytes.len()),
             Err(_) => format!(": only {} bytes", bytes.len()),

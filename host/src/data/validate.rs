@@ -1,6 +1,7 @@
 //! Checks a training set before any training: refuses sets that cannot determine the net
 //! (fewer equations, rows x outputs, than the net has parameters), sets that hold a single
-//! depth, and values no camera or head produces, naming the row and column.
+//! depth, and values no camera or head produces, naming the row and column ([`plausible_values`],
+//! which also guards the points of `hvs predict` and `hvs eval`).
 
 use crate::data::csv::Table;
 use crate::data::dataset::{JOINT_COLUMNS, PIXEL_COLUMNS, TARGET_COLUMNS};
@@ -27,9 +28,9 @@ pub fn training_set(table: &Table, hidden: usize, outputs: usize) -> Result<()> 
     let equations = d.len() * outputs;
     if equations < params {
         bail!(
-            "{file}: {} rows x {outputs} outputs = {equations} equations cannot determine the \
+            "{file}: {} x {outputs} outputs = {equations} equations cannot determine the \
              {ni}-{hidden}-{outputs} net's {params} parameters; give at least {} rows (or fewer --hidden units)",
-            d.len(),
+            crate::fmt::count(d.len(), "row"),
             params.div_ceil(outputs)
         );
     }
@@ -62,8 +63,9 @@ pub fn plausible_values(table: &Table) -> Result<()> {
             };
             if v.abs() > limit {
                 bail!(
-                    "{}: column \"{name}\": {v} {unit} is not a value a camera head produces (|{name}| must be at most {limit})",
-                    table.at(r)
+                    "{}: column \"{name}\": {} {unit} is not a value a camera head produces (|{name}| must be at most {limit})",
+                    table.at(r),
+                    crate::fmt::given(v)
                 );
             }
             if let (Some((w, h)), true) = (table.image_size, c < PIXEL_COLUMNS.len()) {
@@ -82,9 +84,10 @@ pub fn plausible_values(table: &Table) -> Result<()> {
             for (k, &v) in t.iter().enumerate() {
                 if v.abs() > MAX_ABS_CM {
                     bail!(
-                        "{}: column \"{}\": {v} cm is not a position a camera sees (|{}| must be at most {MAX_ABS_CM} cm)",
+                        "{}: column \"{}\": {} cm is not a position a camera sees (|{}| must be at most {MAX_ABS_CM} cm)",
                         table.at(r),
                         TARGET_COLUMNS[k],
+                        crate::fmt::given(v),
                         TARGET_COLUMNS[k]
                     );
                 }

@@ -5,6 +5,13 @@
 use crate::data::dataset::Dataset;
 use hvs_shared::runtime::blob::MatcherGeometry;
 
+/// Why a model has no matcher geometry, and what to do: the tail of every message that needs
+/// one (the image commands, `hvs train --from`).
+pub const NO_MATCHER_WHY: &str = "its training set could not give one (fewer than 8 rows, \
+    joint columns, or no fundamental matrix fits its pixels, e.g. all on one board plane or \
+    one pixel far off the others), or it was written before blob format v2: retrain it with \
+    `hvs train` on board points seen at one head posture, at two or more depths";
+
 /// What the run-time matcher (`hvs locate`) needs, learned from a training set's pixels alone:
 /// one fundamental matrix fitted to the training correspondences (normalised 8-point, then
 /// Levenberg-Marquardt on the Sampson error) and the box of the training targets (the depth

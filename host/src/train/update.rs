@@ -122,8 +122,8 @@ pub fn update(
     check(old, new, at)?;
     let Some(matcher) = old.matcher else {
         bail!(
-            "the old model has no stereo geometry (matcher) to sample its volume from; \
-             train it again with this version of hvs"
+            "the old model has no matcher geometry to sample its volume from: {}",
+            super::matcher::NO_MATCHER_WHY
         );
     };
     let samples = sample_volume(old, &matcher, seed)?;
@@ -211,11 +211,20 @@ fn check(old: &ModelBlob, new: &Dataset, at: &dyn Fn(usize) -> String) -> Result
     if old.topology.outputs != OutputKind::Xyz {
         bail!("updating a Z-only model is not supported (the update needs X, Y, Z outputs)");
     }
+    if old.generation == u32::MAX {
+        bail!(
+            "the old model is at the last generation a blob can hold ({}): train it again",
+            u32::MAX
+        );
+    }
     if !new.has_targets() {
         bail!("the new set has no ground truth for every row: an update needs x,y,z");
     }
     if new.len() < MIN_POINTS {
-        bail!("the new set has {} rows; an update needs at least {MIN_POINTS}", new.len());
+        bail!(
+            "the new set has {}; an update needs at least {MIN_POINTS}",
+            crate::fmt::count(new.len(), "row")
+        );
     }
     for (n, t) in new.targets.iter().enumerate() {
         if !(t.iter().all(|v| v.is_finite()) && t[2] > 0.0) {
@@ -432,7 +441,7 @@ pub fn next_generation(
     refit_fallback: bool,
 ) -> ModelBlob {
     let mut blob = up.blob.clone();
-    blob.generation = old.generation.saturating_add(1);
+    blob.generation = old.generation.saturating_add(1); // `check` refused u32::MAX
     blob.set_parent(Some(hvs_shared::runtime::blob::Parent {
         crc: old_crc,
         generation: old.generation,

@@ -133,12 +133,7 @@ pub const DISPARITY_SLACK: f64 = 0.1;
 /// The model's matcher geometry, or the error every image command gives without it.
 pub fn matcher_geometry(blob: &ModelBlob) -> Result<MatcherGeometry> {
     blob.matcher.ok_or_else(|| {
-        anyhow!(
-            "the model has no matcher geometry: its training set could not give one (fewer \
-             than 8 rows, joint columns, or no fundamental matrix fits its pixels, e.g. all \
-             on one board plane), or it was written before blob format v2: retrain it with \
-             `hvs train` on board points seen at one head posture, at two or more depths"
-        )
+        anyhow!("the model has no matcher geometry: {}", crate::train::matcher::NO_MATCHER_WHY)
     })
 }
 

@@ -411,7 +411,7 @@ fn degenerate_and_absurd_training_sets_are_refused() {
         e
     };
     let one = csv(d, "one.csv", h, &rows[..1]);
-    let e = train(&one, "1 rows x 3 outputs = 3 equations cannot determine");
+    let e = train(&one, "1 row x 3 outputs = 3 equations cannot determine");
     assert!(e.contains("43 parameters"), "{e}");
     let flat = csv(d, "flat.csv", h, &rows[..12]);
     train(&flat, "12 rows x 3 outputs = 36 equations");
@@ -426,7 +426,14 @@ fn degenerate_and_absurd_training_sets_are_refused() {
     bad[3] = bad[3].replacen("356", "1e30", 1);
     assert!(bad[3].contains("1e30"), "{}", bad[3]);
     let p = csv(d, "pixel.csv", h, &bad);
-    train(&p, "pixel.csv:5: column \"u_l\": 1000000000000000000000000000000 px is not a value");
+    let want = "pixel.csv:5: column \"u_l\": 1e30 px is not a value";
+    train(&p, want);
+    // `hvs predict` and `hvs eval` refuse it too (they answered for it).
+    let two = csv(d, "two.csv", h, &rows[..24]);
+    ok(&["train", "--data", s(&two), "-o", s(&m), "--restarts", "1"]);
+    fails(&["predict", "--model", s(&m), "--points", s(&p)], want);
+    fails(&["eval", "--model", s(&m), "--data", s(&p)], want);
+    std::fs::remove_file(&m).unwrap();
     let mut bad = rows.clone();
     bad[7] = bad[7].replacen(",65.0000", ",1e30", 1);
     let p = csv(d, "z.csv", h, &bad);

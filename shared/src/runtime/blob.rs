@@ -119,7 +119,7 @@ impl core::fmt::Display for BlobError {
             BlobError::BadMagic => f.write_str("not an hvs weights blob (bad magic)"),
             BlobError::UnsupportedVersion(v) => write!(
                 f,
-                "unsupported blob format version {v} (this build reads {VERSION_1} and {VERSION})"
+                "unsupported blob format version {v} (this build reads versions {VERSION_1} to {VERSION})"
             ),
             BlobError::Truncated => f.write_str("blob is truncated"),
             BlobError::TooLarge => f.write_str("blob payload length exceeds the maximum"),
