@@ -145,7 +145,10 @@ pub fn depth(
     params: &DenseParams,
 ) -> Result<Depth> {
     if blob.n_inputs() != 4 {
-        bail!("a posture-aware model (9 inputs) cannot give depth from images alone: its epipolar geometry moves with the eyes");
+        bail!(
+            "a posture-aware model (9 inputs) cannot give depth from images alone: its epipolar geometry moves with the eyes; {}",
+            crate::vision::locate::PIXELS_ONLY_HOW
+        );
     }
     let g = matcher_geometry(blob)?;
     crate::vision::check_same_size(left, right)?;

@@ -35,6 +35,9 @@ pub enum ImageFileError {
     Empty(String, u32, u32),
     /// The image data are damaged or truncated (path, decoder message).
     Decode(String, String),
+    /// A 16-bit image whose levels all lie below 256 (path, the largest level): 8-bit values
+    /// stored in 16 bits, black once read as 8 bits.
+    LowSixteen(String, u16),
 }
 
 impl core::fmt::Display for ImageFileError {
@@ -58,6 +61,10 @@ impl core::fmt::Display for ImageFileError {
             ImageFileError::Decode(p, e) => {
                 write!(f, "{p}: damaged or truncated image data ({e})")
             }
+            ImageFileError::LowSixteen(p, max) => write!(
+                f,
+                "{p}: a 16-bit image whose levels all lie at or below {max} of 65535: 8-bit values stored in 16 bits? Read as 8 bits it is black; save it with 8 bits per channel (or its full 16-bit range)"
+            ),
         }
     }
 }
@@ -146,7 +153,25 @@ pub fn read_grey(path: &Path) -> Result<GrayImage, ImageFileError> {
     limits.max_alloc = Some(MAX_ALLOC);
     r.limits(limits);
     let img = r.decode().map_err(|e| ImageFileError::Decode(shown.clone(), plain(&e)))?;
+    if let Some(max) = sixteen_bit_max(&img).filter(|m| (1..256).contains(m)) {
+        return Err(ImageFileError::LowSixteen(shown, max));
+    }
     Ok(img.to_luma8())
+}
+
+/// The largest channel level of a 16-bit image (alpha left out), `None` for other depths.
+fn sixteen_bit_max(img: &image::DynamicImage) -> Option<u16> {
+    use image::DynamicImage as D;
+    let max = |v: &[u16], step: usize, colour: usize| {
+        v.chunks_exact(step).flat_map(|p| p[..colour].iter().copied()).max().unwrap_or(0)
+    };
+    match img {
+        D::ImageLuma16(i) => Some(max(i.as_raw(), 1, 1)),
+        D::ImageLumaA16(i) => Some(max(i.as_raw(), 2, 1)),
+        D::ImageRgb16(i) => Some(max(i.as_raw(), 3, 3)),
+        D::ImageRgba16(i) => Some(max(i.as_raw(), 4, 3)),
+        _ => None,
+    }
 }
 
 #[cfg(test)]
@@ -174,6 +199,29 @@ mod tests {
 
     fn crc32(data: &[u8]) -> u32 {
         crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(data)
+    }
+
+    #[test]
+    fn eight_bit_levels_in_a_sixteen_bit_image_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let low = dir.path().join("low.png");
+        let img = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(8, 8, |x, y| {
+            image::Luma([(x * 30 + y) as u16])
+        });
+        img.save(&low).unwrap();
+        let e = read_grey(&low).unwrap_err().to_string();
+        assert!(e.contains("low.png: a 16-bit image") && e.contains("at or below 217"), "{e}");
+        // The full 16-bit range is read (and so is an all-black one, which is simply black).
+        let full = dir.path().join("full.png");
+        image::ImageBuffer::<image::Luma<u16>, _>::from_fn(8, 8, |x, _| {
+            image::Luma([x as u16 * 9000])
+        })
+        .save(&full)
+        .unwrap();
+        assert_eq!(read_grey(&full).unwrap()[(7, 0)][0], (63000.0f64 / 257.0).round() as u8);
+        let black = dir.path().join("black.png");
+        image::ImageBuffer::<image::Luma<u16>, _>::new(8, 8).save(&black).unwrap();
+        assert_eq!(read_grey(&black).unwrap()[(0, 0)][0], 0);
     }
 
     #[test]

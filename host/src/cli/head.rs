@@ -62,16 +62,16 @@ pub enum HeadCommand {
     /// and sends the matched pair.
     Look {
         /// Left image column (px).
-        #[arg(allow_negative_numbers = true, required_unless_present = "at")]
+        #[arg(allow_negative_numbers = true, required_unless_present_any = ["at", "model"])]
         u_l: Option<f32>,
         /// Left image row (px).
-        #[arg(allow_negative_numbers = true, required_unless_present = "at")]
+        #[arg(allow_negative_numbers = true, required_unless_present_any = ["at", "model"])]
         v_l: Option<f32>,
         /// Right image column (px).
-        #[arg(allow_negative_numbers = true, required_unless_present = "at")]
+        #[arg(allow_negative_numbers = true, required_unless_present_any = ["at", "model"])]
         u_r: Option<f32>,
         /// Right image row (px).
-        #[arg(allow_negative_numbers = true, required_unless_present = "at")]
+        #[arg(allow_negative_numbers = true, required_unless_present_any = ["at", "model"])]
         v_r: Option<f32>,
         /// The model the head runs (its matcher geometry finds the point in the right image).
         #[arg(long, value_name = "M.hvsw", requires_all = ["left", "right", "at"])]

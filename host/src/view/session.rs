@@ -415,7 +415,11 @@ fn check_pixel(u: f64, v: f64, (w, h): (u32, u32)) -> Result<(), Refused> {
     if crate::depth::inside_image(u, v, (w, h)) {
         Ok(())
     } else {
-        Err(Refused::Bad(format!("pixel ({u}, {v}) is outside the {w}x{h} left image")))
+        Err(Refused::Bad(format!(
+            "pixel ({}, {}) is outside the {w}x{h} left image",
+            crate::fmt::given(u),
+            crate::fmt::given(v)
+        )))
     }
 }
 

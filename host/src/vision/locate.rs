@@ -147,12 +147,17 @@ pub fn training_disparities(g: &MatcherGeometry) -> [f64; 2] {
     ]
 }
 
+/// What to do with a posture-aware model where an image command needs a pixels-only one.
+pub const PIXELS_ONLY_HOW: &str = "train a pixels-only model for these images: board pairs \
+    taken at one head posture, `hvs board detect` on a captures file without joint columns, \
+    then `hvs train`";
+
 /// Loads a model that can locate from an image pair alone (4 inputs: u_l, v_l, u_r, v_r).
 pub fn load_stereo_model(model_path: &Path) -> Result<crate::data::model::ModelFile> {
     let m = crate::data::model::load(model_path)?;
     if m.blob.n_inputs() != 4 {
         bail!(
-            "{}: a posture-aware model (9 inputs) cannot locate from images alone: its epipolar geometry moves with the eyes",
+            "{}: a posture-aware model (9 inputs) cannot locate from images alone: its epipolar geometry moves with the eyes; {PIXELS_ONLY_HOW}",
             model_path.display()
         );
     }
