@@ -787,7 +787,8 @@ const ROW_BAND_PX: f64 = 5.0;
 /// The right image's row of each left pixel's match as the scan's matches agree on it: an
 /// affine map of the left pixel (the two cameras' tilt and scale, one posture), fitted to the
 /// matches within 4 px of their median row offset, then three times to those within 3 px of
-/// the last fit; `None` with fewer than [`ROW_FIT_MIN`] such matches. A window of the wall's
+/// the last fit; `None` unless at least [`ROW_FIT_MIN`] matches and more than half of them
+/// lie within 3 px of it in the end. A window of the wall's
 /// texture matched some rows off (its texture alike there) can line up with others into a
 /// candidate nearer than the true target: on the README's first moving scene such a group,
 /// 10 rows off, was taken at 1.0 s and held to the end.
@@ -809,7 +810,10 @@ fn row_map(pts: &[Pt]) -> Option<Affine> {
         inliers = (0..pts.len()).map(|k| (pts[k].r[1] - a.at(lefts[k])[1]).abs() <= 3.0).collect();
         fit = Some(a);
     }
-    fit
+    // A fit most matches do not follow is no agreement (few and scattered matches: case IV's
+    // right camera, 0.8 times the left's scale, matches few windows).
+    let agreeing = inliers.iter().filter(|&&i| i).count();
+    fit.filter(|_| agreeing >= ROW_FIT_MIN && 2 * agreeing > pts.len())
 }
 
 /// Whether a candidate's matches (`members`, mean row offset `d_v`, left minus right) lie on
