@@ -132,6 +132,15 @@ pub fn run(a: Args) -> Result<()> {
             eprintln!("warning: {w}");
         }
         inputs.push(("--log", a.log.as_path()));
+        for (flag, p) in &inputs {
+            if record_file_in(dir, p) {
+                return Err(crate::cli::usage(format!(
+                    "--record {}: the record's files would replace the {flag} file {}",
+                    dir.display(),
+                    p.display()
+                )));
+            }
+        }
     }
     let model = crate::data::model::load(&a.model)?;
     let blob = model.blob.clone();
@@ -186,19 +195,28 @@ pub fn run(a: Args) -> Result<()> {
         eprintln!("warning: {}: {w}", a.model.display());
     }
     let stop = track::stop_on_interrupt();
+    // Recorded frames go to temporary files in the folder as they are taken (memory stays
+    // flat however long the run), and replace the folder's files together at the end.
+    let batch = Batch::new();
+    if let Some(dir) = &a.record {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
+    }
     let mut recorded = Vec::new();
     let mut times = Vec::new();
-    let record = a.record.is_some();
     // The rows as they come: a head or cameras that stop mid-run end the command with an
     // error, and the log still gets the frames before.
     let mut rows = Vec::new();
     let result = track::run(&mut *cameras, &mut *head, &estimator, &cfg, stop, |frame, row, t| {
         rows.push(row.clone());
         times.push(t);
-        if record {
+        if let Some(dir) = &a.record {
+            let k = recorded.len();
+            let names = [format!("left{k:04}.png"), format!("right{k:04}.png")];
+            batch.add(&dir.join(&names[0]), &crate::vision::png_bytes(&frame.left)?)?;
+            batch.add(&dir.join(&names[1]), &crate::vision::png_bytes(&frame.right)?)?;
             recorded.push((
-                crate::vision::png_bytes(&frame.left)?,
-                crate::vision::png_bytes(&frame.right)?,
+                names,
                 row.joints,
                 frame.truth.as_ref().and_then(|t| t.scene.objects.first().map(|o| o.centre)),
             ));
@@ -216,16 +234,8 @@ pub fn run(a: Args) -> Result<()> {
         )));
     }
     if let Some(dir) = &a.record {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
-        let names: Vec<[String; 2]> = (0..recorded.len())
-            .map(|k| [format!("left{k:04}.png"), format!("right{k:04}.png")])
-            .collect();
         let mut rows = Vec::with_capacity(recorded.len());
-        let batch = Batch::new();
-        for ((l, r, joints, centre), [ln, rn]) in recorded.iter().zip(&names) {
-            batch.add(&dir.join(ln), l)?;
-            batch.add(&dir.join(rn), r)?;
+        for ([ln, rn], joints, centre) in &recorded {
             rows.push(CaptureRow {
                 left: ln,
                 right: rn,
@@ -283,4 +293,27 @@ fn rate_line(times: &[track::FrameTimes]) -> Option<String> {
             at(&g, 0.5)
         )
     })
+}
+
+/// Whether `path` names one of the files `hvs track --record DIR` writes into `dir`
+/// (`CAPTURES.csv`, `leftNNNN.png`, `rightNNNN.png`).
+fn record_file_in(dir: &std::path::Path, path: &std::path::Path) -> bool {
+    let Some(name) = path.file_name().and_then(|n| n.to_str()) else { return false };
+    let numbered = |prefix: &str| {
+        name.strip_prefix(prefix)
+            .and_then(|r| r.strip_suffix(".png"))
+            .is_some_and(|n| n.len() >= 4 && n.bytes().all(|b| b.is_ascii_digit()))
+    };
+    if !(name == "CAPTURES.csv" || numbered("left") || numbered("right")) {
+        return false;
+    }
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => std::path::Path::new("."),
+    };
+    match (std::fs::canonicalize(parent), std::fs::canonicalize(dir)) {
+        (Ok(p), Ok(d)) => p == d,
+        // A folder not made yet holds nothing; a name under it is the record's own.
+        _ => parent.components().eq(dir.components()),
+    }
 }

@@ -452,11 +452,13 @@ fn install_handlers() {
     ONCE.call_once(|| {
         for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
             // SAFETY: plain sigaction calls; a signal ignored at start (nohup, background
-            // jobs) stays ignored.
+            // jobs) stays ignored, and one the command handles itself (`hvs track`'s loop
+            // ends on it and then writes its log and record) stays its own: the files then
+            // land whole.
             unsafe {
                 let mut old: libc::sigaction = std::mem::zeroed();
                 if libc::sigaction(sig, std::ptr::null(), &mut old) != 0
-                    || old.sa_sigaction == libc::SIG_IGN
+                    || old.sa_sigaction != libc::SIG_DFL
                 {
                     continue;
                 }

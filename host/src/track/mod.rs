@@ -315,17 +315,24 @@ extern "C" fn on_interrupt(_: libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
-/// A flag set by SIGINT and SIGTERM (installed on the first call): the loop checks it every
-/// frame and ends, so the log of the frames so far is still written in full. Output writers
-/// installed later (`data::output`) take the signals over while they write.
+/// A flag set by SIGINT, SIGTERM and SIGHUP (installed on the first call): the loop checks it
+/// every frame and ends, so the log (and the record) of the frames so far is still written in
+/// full. The output writers (`data::output`) leave these signals to it.
 pub fn stop_on_interrupt() -> &'static AtomicBool {
     #[cfg(unix)]
     {
         static ONCE: std::sync::Once = std::sync::Once::new();
         ONCE.call_once(|| {
-            for sig in [libc::SIGINT, libc::SIGTERM] {
-                // SAFETY: plain sigaction calls; the handler only stores to an atomic.
+            for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                // SAFETY: plain sigaction calls; the handler only stores to an atomic. A signal
+                // ignored at start (`nohup`'s SIGHUP) stays ignored.
                 unsafe {
+                    let mut old: libc::sigaction = std::mem::zeroed();
+                    if libc::sigaction(sig, std::ptr::null(), &mut old) != 0
+                        || old.sa_sigaction == libc::SIG_IGN
+                    {
+                        continue;
+                    }
                     let mut act: libc::sigaction = std::mem::zeroed();
                     act.sa_sigaction = on_interrupt as extern "C" fn(libc::c_int) as usize;
                     libc::sigemptyset(&mut act.sa_mask);

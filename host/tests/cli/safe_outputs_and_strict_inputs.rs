@@ -323,6 +323,70 @@ fn an_interrupted_rerun_leaves_the_last_set_as_it_was() {
     }
 }
 
+// `hvs track --record` stopped by SIGINT, SIGTERM or SIGHUP (a closed terminal) while it
+// records: the loop ends, and the log and the record of the frames so far are written whole
+// (the frames wait in temporary files in the folder as they are taken, not in memory); its
+// files may not replace an input or the log.
+#[test]
+fn an_interrupted_recording_is_whole() {
+    use crate::common::{small_model, small_scene, Scratch};
+    let dir = Scratch::new();
+    let (m, sc) = (small_model(&dir), small_scene(&dir, ""));
+    for (k, sig) in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP].into_iter().enumerate() {
+        let (log, rec) = (dir.p(&format!("log{k}.csv")), dir.p(&format!("rec{k}")));
+        std::fs::create_dir(&rec).unwrap();
+        let args = [
+            "track",
+            "--model",
+            &m,
+            "--scene",
+            &sc,
+            "--seconds",
+            "60",
+            "--log",
+            &log,
+            "--record",
+            &rec,
+        ];
+        let (st, seen) = interrupt_when(&args, Path::new(&rec), 6, sig, &[]);
+        assert_eq!(st.code(), Some(130), "signal {sig}: {st}");
+        assert!(seen.len() >= 6, "{seen:?}");
+        let frames = std::fs::read_to_string(&log).unwrap().lines().count() - 1;
+        let files = folder(Path::new(&rec));
+        let names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
+        assert_eq!(files.len(), 2 * frames + 1, "signal {sig}: {frames} frames, {names:?}");
+        let captures =
+            String::from_utf8(files.iter().find(|f| f.0 == "CAPTURES.csv").unwrap().1.clone())
+                .unwrap();
+        assert_eq!(captures.lines().count(), frames + 1, "{captures}");
+        assert!(names.contains(&format!("right{:04}.png", frames - 1).as_str()), "{names:?}");
+    }
+    // The record's files would replace the scene: refused before the run.
+    let rec = dir.p("rec0");
+    let inside = Path::new(&rec).join("CAPTURES.csv");
+    std::fs::copy(&sc, &inside).unwrap();
+    let before = std::fs::read(&inside).unwrap();
+    let log = dir.p("log.csv");
+    let e = stderr_with_code(
+        [
+            "track",
+            "--model",
+            &m,
+            "--scene",
+            s(&inside),
+            "--seconds",
+            "0.1",
+            "--log",
+            &log,
+            "--record",
+            &rec,
+        ],
+        2,
+    );
+    assert!(e.contains("the record's files would replace the --scene file"), "{e}");
+    assert_eq!(std::fs::read(&inside).unwrap(), before);
+}
+
 // Item 3: SIGINT and SIGTERM remove the temporary file; the process dies of the signal.
 #[test]
 fn interrupted_writes_leave_nothing() {
