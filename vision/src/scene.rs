@@ -355,10 +355,19 @@ fn plane_frame(pitch_deg: f64, yaw_deg: f64) -> ([Vec3; 2], Vec3) {
 }
 
 impl SceneFile {
-    /// Reads a scene file's text strictly (unknown or duplicate fields, wrong types).
+    /// Reads a scene file's text strictly (unknown or duplicate fields, wrong types), the field
+    /// of a wrong type named (`serde_path_to_error`); a leading byte-order mark is skipped.
     pub fn parse(text: &str) -> Result<SceneFile, SceneError> {
-        serde_json::from_str(text)
-            .map_err(|e| SceneError { field: None, reason: format!("invalid scene JSON: {e}") })
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let invalid = |e: serde_json::Error| format!("invalid scene JSON: {e}");
+        let mut de = serde_json::Deserializer::from_str(text);
+        let file: SceneFile = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+            let path = e.path().to_string();
+            let field = (!path.is_empty() && path != ".").then_some(path);
+            SceneError { field, reason: invalid(e.into_inner()) }
+        })?;
+        de.end().map_err(|e| SceneError { field: None, reason: invalid(e) })?;
+        Ok(file)
     }
 
     /// Checks every value (the field named, e.g. `objects[1].radius_cm`).
@@ -373,7 +382,7 @@ impl SceneFile {
         if !(b.z_cm.is_finite() && b.z_cm > 0.0 && b.z_cm <= MAX_CM) {
             return Err(err(
                 "background.z_cm",
-                format!("must be > 0 and at most {MAX_CM}, got {}", b.z_cm),
+                format!("must be > 0 and at most {MAX_CM}, got {}", shown(b.z_cm)),
             ));
         }
         if self.objects.len() > MAX_OBJECTS {
@@ -389,6 +398,16 @@ impl SceneFile {
             .map(|(k, o)| o.check(&format!("objects[{k}]")))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Scene { camera_fps: self.camera_fps, background: b, objects })
+    }
+}
+
+/// A value as given, for a message: in exponent form when very large or small (`1e300`, not
+/// 301 digits).
+fn shown(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e7).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
     }
 }
 
@@ -419,7 +438,7 @@ impl ObjectSpec {
             if x.is_finite() && x > 0.0 && x <= MAX_CM {
                 Ok(())
             } else {
-                Err(err(field(f), format!("must be > 0 and finite, got {x}")))
+                Err(err(field(f), format!("must be > 0 and at most {MAX_CM}, got {}", shown(x))))
             }
         };
         let shape = match self.shape {
@@ -1209,6 +1228,29 @@ mod tests {
         assert!(e.contains("expected 2 numbers in brackets, got 3 at line 3"), "{e}");
         let e = scene(r#"{"pattern": "chessboard", "inner_corners": [1, 6], "square_cm": 6}"#);
         assert!(e.contains("objects[0].board") && e.contains("cols"), "{e}");
+    }
+
+    #[test]
+    fn a_value_of_the_wrong_type_is_named_and_a_byte_order_mark_is_skipped() {
+        let text = |radius: &str, seed: &str| {
+            format!(
+                "{{\"rig\": {{\"case\": 3}}, \"camera_fps\": 30,\n \"background\": {{\"z_cm\": 300}},\n \"objects\": [{{\"shape\": \"sphere\", \"radius_cm\": {radius}, \"centre_cm\": [0, 0, 100], \"texture_seed\": {seed}}}]}}"
+            )
+        };
+        let e = SceneFile::parse(&text("\"5\"", "2")).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("objects[0].radius_cm"), "{e}");
+        assert!(
+            e.to_string().contains("invalid type: string \"5\", expected f64 at line 3"),
+            "{e}"
+        );
+        let e = SceneFile::parse(&text("5", "-1")).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("objects[0].texture_seed"), "{e}");
+        let e = SceneFile::parse(&text("1e300", "2")).unwrap().scene().unwrap_err().to_string();
+        assert!(e.contains("must be > 0 and at most 100000, got 1e300"), "{e}");
+        let with_bom = format!("\u{feff}{}", text("5", "2"));
+        assert!(SceneFile::parse(&with_bom).unwrap().scene().is_ok());
+        // Text after the scene is refused, as before.
+        assert!(SceneFile::parse(&format!("{} x", text("5", "2"))).is_err());
     }
 
     #[test]
