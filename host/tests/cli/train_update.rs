@@ -135,39 +135,22 @@ fn ten_updates_of_an_unchanged_rig_do_not_forget() {
         let info = ok_line(&format!("info {m}"));
         info.lines().find(|l| l.contains("fallback")).unwrap_or_else(|| panic!("{info}")).into()
     };
-    let out = ok(&[
-        "train",
-        "--data",
-        &d.p("c1.csv"),
-        "--from",
-        &d.p("m10.hvsw"),
-        "-o",
-        &d.p("hb.hvsw"),
-        "--half-baseline",
-        "9",
-        "--u0",
-        "100",
-    ]);
+    let update = |out: &str, extra: &[&str]| -> Vec<String> {
+        let (data, from, out) = (d.p("c1.csv"), d.p("m10.hvsw"), d.p(out));
+        let mut v: Vec<String> =
+            ["train", "--data", &data, "--from", &from, "-o", &out].map(String::from).to_vec();
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    let out = ok(&args(&update("hb.hvsw", &["--half-baseline", "9", "--u0", "100"])));
     assert!(out.contains("left camera: held") && out.contains("right camera: held"), "{out}");
     let (given, kept) = (fallback(&d.p("hb.hvsw")), fallback(&d.p("m10.hvsw")));
     assert!(given.contains("d = 9 cm") && given.contains("(100, 240)"), "{given}");
     assert!(kept.contains("d = 5.25 cm") && kept.contains("(320, 240)"), "{kept}");
-    ok(&["train", "--data", &d.p("c1.csv"), "--from", &d.p("m10.hvsw"), "-o", &d.p("same.hvsw")]);
+    ok(&args(&update("same.hvsw", &[])));
     assert_eq!(fallback(&d.p("same.hvsw")), kept);
-    fails(
-        &[
-            "train",
-            "--data",
-            &d.p("c1.csv"),
-            "--from",
-            &d.p("m10.hvsw"),
-            "-o",
-            &d.p("x.hvsw"),
-            "--half-baseline",
-            "0",
-        ],
-        "--half-baseline must be a positive number",
-    );
+    let zero = update("x.hvsw", &["--half-baseline", "0"]);
+    fails(&args(&zero), "--half-baseline must be a positive number");
 }
 
 #[test]
@@ -256,4 +239,9 @@ fn an_update_keeps_the_old_model_or_says_why_not() {
         ),
         "broken.hvsw",
     );
+}
+
+/// The `&str`s of `v`, for [`ok`] and [`fails`].
+fn args(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
 }
