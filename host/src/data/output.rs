@@ -490,7 +490,7 @@ where
         Target::InPlace(p) => return write_in_place(&p, body),
         Target::Atomic(p) => p,
     };
-    stage(&path, body)?.persist()
+    stage(&path, body, &mut |_| true)?.persist()
 }
 
 /// A complete temporary file, synced, waiting to be renamed over its output.
@@ -509,7 +509,10 @@ impl Staged {
 
 /// Writes `body` into a temporary file beside `path` (a [`Target::Atomic`] path), synced to
 /// the disk and registered for removal on a signal; dropped, the file is removed.
-fn stage<F>(path: &Path, body: F) -> Result<Staged>
+///
+/// `clean(dir)` says whether to remove what killed runs left in the directory first
+/// ([`remove_stale`]): once per directory is enough for a batch of many files.
+fn stage<F>(path: &Path, body: F, clean: &mut dyn FnMut(&Path) -> bool) -> Result<Staged>
 where
     F: FnOnce(&mut dyn Write) -> Result<()>,
 {
@@ -537,7 +540,9 @@ where
             std::io::Error::last_os_error()
         );
     }
-    remove_stale(&dir);
+    if clean(&dir) {
+        remove_stale(&dir);
+    }
     // Registered for removal by SIGINT/SIGTERM/SIGHUP *before* it is created (a signal
     // between creating and registering would leave it behind); unregistered after the
     // rename. Created like any new file (0666 less the umask), not tempfile's private 0600.
@@ -594,6 +599,8 @@ where
 pub struct Batch {
     staged: Mutex<Vec<Staged>>,
     direct: Mutex<Vec<(Option<PathBuf>, Vec<u8>)>>,
+    /// The directories [`remove_stale`] has cleaned for this batch.
+    cleaned: Mutex<Vec<PathBuf>>,
 }
 
 impl Batch {
@@ -606,9 +613,21 @@ impl Batch {
     pub fn add(&self, path: &Path, bytes: &[u8]) -> Result<()> {
         match target(path)? {
             Target::Atomic(p) => {
-                let st = stage(&p, |w| {
-                    w.write_all(bytes).with_context(|| format!("{}: cannot write", p.display()))
-                })?;
+                let mut first_time = |dir: &Path| {
+                    let mut cleaned = lock(&self.cleaned);
+                    let new = !cleaned.iter().any(|d| d == dir);
+                    if new {
+                        cleaned.push(dir.to_path_buf());
+                    }
+                    new
+                };
+                let st = stage(
+                    &p,
+                    |w| {
+                        w.write_all(bytes).with_context(|| format!("{}: cannot write", p.display()))
+                    },
+                    &mut first_time,
+                )?;
                 lock(&self.staged).push(st);
             }
             Target::InPlace(p) => lock(&self.direct).push((Some(p), bytes.to_vec())),
