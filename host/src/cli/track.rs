@@ -198,6 +198,7 @@ pub fn run(a: Args) -> Result<()> {
     // Recorded frames go to temporary files in the folder as they are taken (memory stays
     // flat however long the run), and replace the folder's files together at the end.
     let batch = Batch::new();
+    let made_record = a.record.as_ref().is_some_and(|d| !d.exists());
     if let Some(dir) = &a.record {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
@@ -227,6 +228,12 @@ pub fn run(a: Args) -> Result<()> {
     let text = track::log_csv(&rows);
     write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
     if let Err(e) = result {
+        // No record of a failed run: its temporary files go with the batch, and a folder this
+        // run made goes too (left alone unless empty).
+        drop(batch);
+        if let (true, Some(dir)) = (made_record, &a.record) {
+            let _ = std::fs::remove_dir(dir);
+        }
         let n = rows.len();
         return Err(e.context(format!(
             "frame {n}: the run stopped; {} has the {n} frames before",
