@@ -363,8 +363,11 @@ impl SceneFile {
         let mut de = serde_json::Deserializer::from_str(text);
         let file: SceneFile = serde_path_to_error::deserialize(&mut de).map_err(|e| {
             let path = e.path().to_string();
-            let field = (!path.is_empty() && path != ".").then_some(path);
-            SceneError { field, reason: invalid(e.into_inner()) }
+            let inner = e.into_inner();
+            // A value of the wrong type has a field; text that is not JSON has none.
+            let data = inner.classify() == serde_json::error::Category::Data;
+            let field = (data && !path.is_empty() && path != ".").then_some(path);
+            SceneError { field, reason: invalid(inner) }
         })?;
         de.end().map_err(|e| SceneError { field: None, reason: invalid(e) })?;
         Ok(file)

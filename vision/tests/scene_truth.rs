@@ -227,7 +227,10 @@ fn a_refused_value_is_found_on_its_line() {
     assert_eq!(field_line(text, "objects[7]"), Some(4), "the array that lacks it");
     assert_eq!(field_line(text, "nothing"), None);
     assert_eq!(field_line("{not json", "objects"), None);
-    // JSON that does not parse names no field; serde's message has the line.
+    // A value of the wrong type: its field named, and serde's line; JSON that does not parse
+    // names no field.
     let e = SceneFile::parse("{\n\"camera_fps\": \"x\"}").unwrap_err();
+    assert!(e.field.as_deref() == Some("camera_fps") && e.to_string().contains("line 2"), "{e}");
+    let e = SceneFile::parse("{\n\"camera_fps\": 30,,}").unwrap_err();
     assert!(e.field.is_none() && e.to_string().contains("line 2"), "{e}");
 }
