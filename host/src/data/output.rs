@@ -8,8 +8,10 @@
 //!   `cp`, `sed -i` and `sponge` do. A symbolic link is followed, so the link stays a link,
 //!   also a dangling one (the file it names is created).
 //! - Temporary files are named `.<name>.hvs-<pid>.<random>.tmp`. SIGINT, SIGTERM and SIGHUP
-//!   remove the ones being written before the process dies of the signal; after a SIGKILL the
-//!   next write into the same directory removes the ones whose process is gone.
+//!   remove the ones being written before the process dies of the signal (unless the command
+//!   handles the signal itself, as `hvs track` does: it then finishes its files); after a
+//!   SIGKILL the next write into the same directory removes the ones whose process is gone.
+//! - A replaced file keeps its permissions; one this user may not write is refused.
 //! - [`check_not_input`]: an output that is one of the inputs (same device and inode) is
 //!   refused before any work; [`check_distinct`]: two outputs of one command on one file (the
 //!   same name through links, `sub/../` or `./`, or the same inode) are refused too. Every
