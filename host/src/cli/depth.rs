@@ -72,29 +72,25 @@ pub fn run(a: Args) -> Result<()> {
         }
         None => None,
     };
-    // Every output in memory first, then all replaced together (a run stopped half-way or an
-    // output that cannot be written leaves every output as it was).
-    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
+    // Every output staged, then all replaced together (a run stopped half-way or an output
+    // that cannot be written leaves every output as it was).
+    let batch = Batch::new();
     let z: Vec<f32> = d.xyz.iter().map(|p| p[2]).collect();
-    files.push((&a.output, pfm_bytes(&image(&d, 1, z.clone()))));
+    batch.add(&a.output, &pfm_bytes(&image(&d, 1, z)))?;
     if let Some(p) = &a.matches {
         let m = &d.matches;
         let data = (0..m.ur.len()).flat_map(|k| [m.ur[k], m.vr[k], m.conf[k]]).collect();
-        files.push((p, pfm_bytes(&image(&d, 3, data))));
+        batch.add(p, &pfm_bytes(&image(&d, 3, data)))?;
     }
     if let Some(p) = &a.xyz {
         let data = d.xyz.iter().flatten().copied().collect();
-        files.push((p, pfm_bytes(&image(&d, 3, data))));
+        batch.add(p, &pfm_bytes(&image(&d, 3, data)))?;
     }
     if let Some(p) = &a.colour {
-        files.push((p, png_bytes(&d.colour())?));
+        batch.add(p, &png_bytes(&d.colour())?)?;
     }
     if let (Some(p), Some(cloud)) = (&a.ply, cloud) {
-        files.push((p, cloud));
-    }
-    let batch = Batch::new();
-    for (p, bytes) in &files {
-        batch.add(p, bytes)?;
+        batch.add(p, &cloud)?;
     }
     batch.commit()?;
     for w in &d.warnings {
