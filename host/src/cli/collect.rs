@@ -2,7 +2,9 @@
 
 use super::{usage, PostureArgs, RenderArgs};
 use crate::collect::{self, Plan, Shot, Stop};
-use crate::data::output::{check_dir_output, check_not_input, Batch};
+use crate::data::output::{
+    check_dir_output, check_not_input, create_folder, remove_if_created, Batch,
+};
 use crate::fmt::count;
 use crate::track::head_sim::VirtualHead;
 use crate::vision::png_bytes;
@@ -103,7 +105,7 @@ pub fn run(a: Args) -> Result<()> {
         b
     });
     let captured_count = AtomicU64::new(0);
-    let created = create_output(&a.output)?;
+    let created = create_folder("-o", &a.output)?;
     // Render and write in parallel, each image to its temporary file; the outcomes come back
     // in visit order. The set replaces what the folder held only when complete ([`Batch`]):
     // a run stopped or failed half-way leaves the last set as it was, not its CAPTURES.csv
@@ -169,23 +171,6 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-/// Creates the output folder `dir` if missing; whether it did.
-fn create_output(dir: &Path) -> Result<bool> {
-    let created = !dir.exists();
-    std::fs::create_dir_all(dir)
-        .map_err(|e| anyhow!("-o {}: cannot create the folder: {e}", dir.display()))?;
-    Ok(created)
-}
-
-/// Removes the output folder `dir` when this run `created` it and wrote nothing into it (no
-/// posture saw the board): nothing is left behind. A folder that holds anything stays.
-fn remove_if_created(dir: &Path, created: bool) {
-    if created {
-        // Fails (and is left alone) unless empty.
-        let _ = std::fs::remove_dir(dir);
-    }
-}
-
 /// `board.json` and `CAPTURES.csv` of the captured stops into `dir`, the set's images staged
 /// in `batch` before them: the whole set replaces the folder's files together.
 fn write_set(batch: Batch, dir: &Path, plan: &Plan, captured: &[Stop]) -> Result<()> {
@@ -240,7 +225,7 @@ fn run_real_head(a: &Args, port: &str, cameras: &str) -> Result<()> {
     let plan = plan_of(a, None)?;
     let mut cams = crate::track::cameras::open(&spec, size)?;
     let mut head = servo_head::open(&HeadChoice::Port(endpoint), Path::new(""))?;
-    let created = create_output(&a.output)?;
+    let created = create_folder("-o", &a.output)?;
     let (mut captured, mut skipped) = (Vec::<Stop>::new(), 0usize);
     let batch = Batch::new();
     for (k, p) in plan.placements.iter().enumerate() {

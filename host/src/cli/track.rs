@@ -3,7 +3,7 @@
 //! virtual cameras or real ones; the head emulated, the firmware in QEMU, or on a port.
 
 use crate::data::captures::{captures_csv, CaptureRow};
-use crate::data::output::{write_atomically, Batch};
+use crate::data::output::{create_folder, remove_if_created, write_atomically, Batch};
 use crate::track::frames::FrameSource;
 use crate::track::servo_head::{self, HeadChoice};
 use crate::track::{self, target::TargetMode};
@@ -198,11 +198,10 @@ pub fn run(a: Args) -> Result<()> {
     // Recorded frames go to temporary files in the folder as they are taken (memory stays
     // flat however long the run), and replace the folder's files together at the end.
     let batch = Batch::new();
-    let made_record = a.record.as_ref().is_some_and(|d| !d.exists());
-    if let Some(dir) = &a.record {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
-    }
+    let made_record = match &a.record {
+        Some(dir) => create_folder("--record", dir)?,
+        None => false,
+    };
     let mut recorded = Vec::new();
     let mut times = Vec::new();
     // The rows as they come: a head or cameras that stop mid-run end the command with an
@@ -231,8 +230,8 @@ pub fn run(a: Args) -> Result<()> {
         // No record of a failed run: its temporary files go with the batch, and a folder this
         // run made goes too (left alone unless empty).
         drop(batch);
-        if let (true, Some(dir)) = (made_record, &a.record) {
-            let _ = std::fs::remove_dir(dir);
+        if let Some(dir) = &a.record {
+            remove_if_created(dir, made_record);
         }
         let n = rows.len();
         return Err(e.context(format!(

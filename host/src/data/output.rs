@@ -215,6 +215,25 @@ fn file_writable(_: &Path) -> bool {
     true
 }
 
+/// Creates the output folder `dir` (given as `flag`) if missing; whether it did (for
+/// [`remove_if_created`]).
+pub fn create_folder(flag: &str, dir: &Path) -> Result<bool> {
+    let created = !dir.exists();
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow!("{flag} {}: cannot create the folder: {e}", dir.display()))?;
+    Ok(created)
+}
+
+/// Removes the output folder `dir` when this run `created` it ([`create_folder`]) and it is
+/// empty (nothing was written, or a [`Batch`] was dropped): nothing is left behind. A folder
+/// that holds anything stays.
+pub fn remove_if_created(dir: &Path, created: bool) {
+    if created {
+        // Fails (and is left alone) unless empty.
+        let _ = std::fs::remove_dir(dir);
+    }
+}
+
 /// Fails unless the directory `path` would be written in exists, so that a command can
 /// refuse a bad `-o` before any work (the same message as the writer's).
 pub fn check_dir(path: &Path) -> Result<()> {
