@@ -226,19 +226,22 @@ pub fn run(a: Args) -> Result<()> {
     drop(head);
     let text = track::log_csv(&rows);
     write_atomically(&a.log, |w| Ok(w.write_all(text.as_bytes())?))?;
-    if let Err(e) = result {
-        // No record of a failed run: its temporary files go with the batch, and a folder this
-        // run made goes too (left alone unless empty).
-        drop(batch);
-        if let Some(dir) = &a.record {
-            remove_if_created(dir, made_record);
+    let run = match result {
+        Ok(run) => run,
+        Err(e) => {
+            // No record of a failed run: its temporary files go with the batch, and a folder this
+            // run made goes too (left alone unless empty).
+            drop(batch);
+            if let Some(dir) = &a.record {
+                remove_if_created(dir, made_record);
+            }
+            let n = rows.len();
+            return Err(e.context(format!(
+                "frame {n}: the run stopped; {} has the {n} frames before",
+                a.log.display()
+            )));
         }
-        let n = rows.len();
-        return Err(e.context(format!(
-            "frame {n}: the run stopped; {} has the {n} frames before",
-            a.log.display()
-        )));
-    }
+    };
     if let Some(dir) = &a.record {
         let mut rows = Vec::with_capacity(recorded.len());
         for ([ln, rn], joints, centre) in &recorded {
@@ -254,6 +257,12 @@ pub fn run(a: Args) -> Result<()> {
         batch.commit()?;
     }
     let tracked = rows.iter().filter(|r| r.status == "tracking").count();
+    if let Some(s) = run.right_scale.filter(|s| *s != 1.0) {
+        eprintln!(
+            "the right camera sees at {s:.3} times the left one's scale (measured from the \
+             images); its image was matched resampled by that"
+        );
+    }
     let interrupted = stop.load(std::sync::atomic::Ordering::Relaxed);
     if let Some(line) = rate_line(&times) {
         eprintln!("{line}");

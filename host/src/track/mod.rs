@@ -157,6 +157,12 @@ impl Tracker {
         self.times
     }
 
+    /// The right camera's scale against the left one's, once the finder has measured it
+    /// from the images (see [`Finder::right_scale`]).
+    pub fn right_scale(&self) -> Option<f64> {
+        self.finder.right_scale()
+    }
+
     /// One frame at time `t_s`: the servos run up to `t_s`, the pair is grabbed at their
     /// posture, the target found, [`fixation::step`] gives the joint targets and the servos
     /// are commanded there. Returns the frame and its log row.
@@ -209,6 +215,15 @@ impl Tracker {
     }
 }
 
+/// What a run of the loop gives.
+pub struct Run {
+    /// The log's rows.
+    pub rows: Vec<LogRow>,
+    /// The right camera's scale against the left one's as the finder measured it
+    /// ([`Tracker::right_scale`]).
+    pub right_scale: Option<f64>,
+}
+
 /// Runs the loop for `cfg.seconds` (or until `stop` is set): the rows of the log. Frame
 /// errors end the run with the error (the rows so far are lost only to the caller that
 /// drops them: `on_row` sees each row as it is made, with its frame's wall times).
@@ -219,7 +234,7 @@ pub fn run(
     cfg: &TrackConfig,
     stop: &AtomicBool,
     mut on_row: impl FnMut(&Frame, &LogRow, FrameTimes) -> Result<()>,
-) -> Result<Vec<LogRow>> {
+) -> Result<Run> {
     let frames = (cfg.seconds * cfg.fps).floor() as u64;
     let mut tracker = Tracker::new(cfg.target, cfg.loop_cfg);
     let mut rows = Vec::with_capacity(frames as usize);
@@ -231,7 +246,7 @@ pub fn run(
         on_row(&frame, &row, tracker.last_times())?;
         rows.push(row);
     }
-    Ok(rows)
+    Ok(Run { rows, right_scale: tracker.right_scale() })
 }
 
 /// The head's estimator for a model: its network (a stereo or posture-aware net giving X,
@@ -470,7 +485,8 @@ mod loop_tests {
         let mut dark = DarkAfter { cams, dark_from_s: 0.3 };
         let mut head = VirtualHead::new(&ControllerConfig::DEFAULT).unwrap();
         let rows = run(&mut dark, &mut head, &est, &cfg, &AtomicBool::new(false), |_, _, _| Ok(()))
-            .unwrap();
+            .unwrap()
+            .rows;
         let off_home =
             |r: &LogRow| Axis::ALL.iter().map(|a| r.joints[*a].abs()).fold(0.0, f32::max);
         // Frames 0-8 see the sphere (20 cm to the side): the head turns towards it.
@@ -506,7 +522,8 @@ mod loop_tests {
             VirtualCameras::new(HeadRig::new(loaded.rig), loaded.scene, loop_render_options(), 2);
         let mut head = VirtualHead::new(&ControllerConfig::DEFAULT).unwrap();
         let rows = run(&mut cams, &mut head, &est, &cfg, &AtomicBool::new(false), |_, _, _| Ok(()))
-            .unwrap();
+            .unwrap()
+            .rows;
         let late: Vec<&LogRow> = rows.iter().filter(|r| r.t_s >= 1.0).collect();
         assert!(!late.is_empty());
         for r in late {
