@@ -77,12 +77,14 @@ pub struct CaptureRow<'a> {
 }
 
 /// `CAPTURES.csv` as [`read`] reads it, one row per pair: `left,right,z,x,y` (the board
-/// centre, cm) and, `with_joints`, the [`JOINT_COLUMNS`] of each pair's posture; numbers in
-/// their shortest round-trip form. The one writer of the format (`hvs render`, `hvs
-/// collect`, `hvs track --record`).
+/// centre, cm; left out when some row has none, a non-finite centre: a `hvs track --record`
+/// of a scene without objects) and, `with_joints`, the [`JOINT_COLUMNS`] of each pair's
+/// posture; numbers in their shortest round-trip form. The one writer of the format (`hvs
+/// render`, `hvs collect`, `hvs track --record`).
 pub fn captures_csv(rows: &[CaptureRow<'_>], with_joints: bool) -> String {
     let mut s = String::with_capacity(96 * (rows.len() + 1));
-    s.push_str("left,right,z,x,y");
+    let centres = rows.iter().all(|r| r.centre.iter().all(|v| v.is_finite()));
+    s.push_str(if centres { "left,right,z,x,y" } else { "left,right" });
     if with_joints {
         s.push(',');
         s.push_str(&JOINT_COLUMNS.join(","));
@@ -90,7 +92,10 @@ pub fn captures_csv(rows: &[CaptureRow<'_>], with_joints: bool) -> String {
     s.push('\n');
     for r in rows {
         let [x, y, z] = r.centre;
-        let _ = write!(s, "{},{},{z},{x},{y}", r.left, r.right);
+        let _ = write!(s, "{},{}", r.left, r.right);
+        if centres {
+            let _ = write!(s, ",{z},{x},{y}");
+        }
         if with_joints {
             for v in r.joints.0 {
                 let _ = write!(s, ",{v}");
@@ -239,6 +244,29 @@ mod tests {
         assert!(e.contains(":1:") && e.contains("neck_tilt"), "{e}");
         let e = read_text(&format!("left,right,{h}\na,b,1,2,x,4,5\n")).unwrap_err().to_string();
         assert!(e.contains(":2:") && e.contains("eye_tilt"), "{e}");
+    }
+
+    /// What the writer writes the reader reads: with centres, and without (a `hvs track
+    /// --record` of a scene without objects: before, `NaN` depths the reader refused).
+    #[test]
+    fn written_sets_read_back_with_and_without_centres() {
+        let row = |centre: [f64; 3]| CaptureRow {
+            left: "l.png",
+            right: "r.png",
+            centre,
+            joints: Joints([1.5, 0.0, -2.0, 0.25, 3.0]),
+        };
+        let with = captures_csv(&[row([1.0, -2.0, 65.0])], true);
+        let s = read_text(&with).unwrap();
+        assert!(s.has_z);
+        assert_eq!((s.captures[0].z, s.captures[0].xy), (Some(65.0), [1.0, -2.0]));
+        assert_eq!(s.captures[0].extra, ["1.5", "0", "-2", "0.25", "3"]);
+        let without = captures_csv(&[row([1.0, -2.0, 65.0]), row([f64::NAN; 3])], true);
+        assert!(without.starts_with("left,right,neck_pan,"), "{without}");
+        let s = read_text(&without).unwrap();
+        assert!(!s.has_z);
+        assert_eq!(s.captures.len(), 2);
+        assert_eq!(s.captures[1].extra, ["1.5", "0", "-2", "0.25", "3"]);
     }
 
     #[test]
