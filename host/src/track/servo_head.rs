@@ -58,6 +58,17 @@ impl ServoHead for VirtualHead {
 /// The longest a head's clock may stand still while the loop waits for it.
 pub const CLOCK_TIMEOUT: Duration = Duration::from_secs(3);
 
+/// How long the loop waits for the answer to one request to a [`RemoteHead`]: a `State` or
+/// `Posture` exchange takes milliseconds, so a head that has not answered by then is stopped or
+/// gone, and the loop says so (`hvs view` shows the error and goes on asking).
+pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// How far (s) a head's clock, running again, may lag the loop's time before the lag is taken
+/// as time the head lost ([`RemoteHead`]'s `advance_to`): a head that stood still (QEMU
+/// stopped and continued, a paused controller) comes back with its clock behind by as long as
+/// it stood, and waiting for it to catch up would hold every later frame back as long.
+pub const CLOCK_RESYNC_S: f64 = 0.5;
+
 /// A head controller on a link (the firmware in QEMU or a real head), protocol 3 or later.
 pub struct RemoteHead {
     link: Link,
@@ -75,7 +86,9 @@ impl RemoteHead {
     /// Takes over the head on `link`: checks that it speaks protocol 3 or later (`Posture`,
     /// `State`), then starts the loop's clock at the head's current tick. `control_hz` is the
     /// head's control rate (the firmware's: [`hvs_shared::runtime::trajectory::ControllerConfig`]).
+    /// Requests from then on wait [`REQUEST_TIMEOUT`] for their answer.
     pub fn new(mut link: Link, control_hz: u32) -> Result<RemoteHead> {
+        link.timeout = REQUEST_TIMEOUT;
         let info = client::expect(link.request(RequestBody::Info)?, "Info", |b| match b {
             ResponseBody::Info(i) => Some(i),
             _ => None,
@@ -144,13 +157,23 @@ impl RemoteHead {
 
 impl ServoHead for RemoteHead {
     fn advance_to(&mut self, t_s: f64) -> Result<()> {
+        let before = self.state.ticks;
         let mut last = (self.state.ticks, Instant::now());
+        let mut first = true;
         loop {
             self.state = client::state(&mut self.link)?;
             let now = self.elapsed_s(&self.state);
             if now + 1e-9 >= t_s {
                 return Ok(());
             }
+            // A clock that runs again far behind: the head lost that time ([`CLOCK_RESYNC_S`]).
+            // Its clock is taken to be at `t_s` now. One that stands still is waited for.
+            if first && t_s - now > CLOCK_RESYNC_S && self.state.ticks != before {
+                let lag = ((t_s - now) * f64::from(self.hz)).round() as u64;
+                self.t0_ticks = self.t0_ticks.wrapping_sub(lag as u32);
+                return Ok(());
+            }
+            first = false;
             if self.state.ticks != last.0 {
                 last = (self.state.ticks, Instant::now());
             } else if last.1.elapsed() > CLOCK_TIMEOUT {
@@ -233,4 +256,94 @@ pub fn open(choice: &HeadChoice, model: &std::path::Path) -> Result<Box<dyn Serv
             Box::new(RemoteHead::new(link, control.control_hz)?)
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::device::link::Endpoint;
+    use hvs_shared::runtime::gaze::GazeConfig;
+    use hvs_shared::runtime::head::{boot, Head};
+    use hvs_shared::runtime::protocol::{
+        decode_request, encode_response, FirmwareVersion, FrameAccumulator, MAX_FRAME_LEN,
+    };
+    use hvs_shared::runtime::trajectory::ControllerConfig;
+    use std::io::{Read, Write};
+    use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+    use std::sync::Arc;
+
+    /// A head on a TCP socket (the host-side head logic) whose clock is `ticks` and which,
+    /// while `stopped`, answers nothing (QEMU under SIGSTOP), then answers what it was asked
+    /// meanwhile, in order.
+    fn head_on_tcp(ticks: Arc<AtomicU32>, stopped: Arc<AtomicBool>) -> String {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = l.local_addr().unwrap().to_string();
+        std::thread::spawn(move || {
+            let (mut s, _) = l.accept().unwrap();
+            let control = ControllerConfig::DEFAULT;
+            let mut head = Head::new(boot(&[], &[]), GazeConfig::DEFAULT, &control).unwrap();
+            let version = FirmwareVersion { major: 0, minor: 1, patch: 0 };
+            let (mut acc, mut buf) = (FrameAccumulator::<MAX_FRAME_LEN>::new(), [0u8; 64]);
+            let mut out = [0u8; MAX_FRAME_LEN];
+            loop {
+                let n = match s.read(&mut buf) {
+                    Ok(0) | Err(_) => return,
+                    Ok(n) => n,
+                };
+                for &b in &buf[..n] {
+                    let Some(Ok(f)) = acc.push(b) else { continue };
+                    while stopped.load(Ordering::SeqCst) {
+                        std::thread::sleep(Duration::from_millis(5));
+                    }
+                    head.ticks = ticks.load(Ordering::SeqCst);
+                    let r = head.respond(&decode_request(f).unwrap(), version);
+                    if s.write_all(encode_response(&r, &mut out).unwrap()).is_err() {
+                        return;
+                    }
+                }
+            }
+        });
+        addr
+    }
+
+    /// A head that stood still (QEMU stopped, then continued) comes back with its clock
+    /// behind the loop's by as long as it stood: the loop takes that time as lost and goes on
+    /// at once. Before, every later frame waited as long again for the clock to catch up (`hvs
+    /// view --head qemu`'s frames stopped after a SIGSTOP and SIGCONT of QEMU), and a request
+    /// waited 20 s (the boot's connect timeout) before the head's silence was reported. A
+    /// clock that stands still is still an error.
+    #[test]
+    fn a_head_that_stood_still_is_taken_up_where_it_is() {
+        let (ticks, stopped) = (Arc::new(AtomicU32::new(1000)), Arc::new(AtomicBool::new(false)));
+        let addr = head_on_tcp(ticks.clone(), stopped.clone());
+        let mut link = Link::open(&Endpoint::Tcp(addr), Duration::from_secs(5)).unwrap();
+        // As `boot_qemu` hands it over: its requests had waited as long as the boot may take.
+        link.timeout = Duration::from_secs(20);
+        let hz = ControllerConfig::DEFAULT.control_hz;
+        let mut head = RemoteHead::new(link, hz).unwrap();
+        let at = |s: f64| 1000 + (s * f64::from(hz)) as u32;
+        ticks.store(at(0.2), Ordering::SeqCst);
+        head.advance_to(0.1).unwrap();
+        assert!((head.time_s() - 0.2).abs() < 1e-9, "{}", head.time_s());
+        // Stopped: the request's answer does not come within REQUEST_TIMEOUT.
+        stopped.store(true, Ordering::SeqCst);
+        let t0 = Instant::now();
+        let e = head.advance_to(0.3).unwrap_err().to_string();
+        assert!(e.contains("no response"), "{e}");
+        assert!(t0.elapsed() < REQUEST_TIMEOUT + Duration::from_secs(1), "{:?}", t0.elapsed());
+        // Continued, its clock 0.1 s on from where it stood, the loop 10 s on.
+        ticks.store(at(0.3), Ordering::SeqCst);
+        stopped.store(false, Ordering::SeqCst);
+        let t0 = Instant::now();
+        head.advance_to(10.0).unwrap();
+        assert!(t0.elapsed() < Duration::from_secs(1), "{:?}", t0.elapsed());
+        assert!((head.time_s() - 10.0).abs() < 1.5 / f64::from(hz), "{}", head.time_s());
+        // From there on its clock runs as before.
+        ticks.fetch_add(hz / 10, Ordering::SeqCst);
+        head.advance_to(10.05).unwrap();
+        assert!((head.time_s() - 10.1).abs() < 1.5 / f64::from(hz), "{}", head.time_s());
+        // A clock that stands still is waited for, then reported.
+        let e = head.advance_to(12.0).unwrap_err().to_string();
+        assert!(e.contains("stood still"), "{e}");
+    }
 }
