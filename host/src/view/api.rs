@@ -145,6 +145,7 @@ pub fn head(s: &HeadState) -> Value {
         "xyz": s.xyz.map(|p| p.map(f32_json)),
         "err_px": s.err_px,
         "fps": s.fps,
+        "right_scale": s.right_scale,
         "error": s.error,
     })
 }

@@ -57,6 +57,9 @@ pub struct HeadState {
     pub err_px: Option<[f64; 2]>,
     /// Frames per second over the last second or so.
     pub fps: f64,
+    /// The right camera's scale against the left one's, once the loop has measured it
+    /// ([`Tracker::right_scale`]; from the first frame of a look).
+    pub right_scale: Option<f64>,
     /// The latest frame error (the cameras could not render), if any.
     pub error: Option<String>,
 }
@@ -290,6 +293,7 @@ fn run(
                         xyz,
                         err_px,
                         fps,
+                        right_scale: tracker.as_ref().and_then(Tracker::right_scale),
                         error: None,
                     },
                 }

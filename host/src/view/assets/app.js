@@ -326,7 +326,8 @@ async function pollHead() {
     const j = h.joints;
     $('head-status').textContent = `(${h.frames} frames, ${h.fps.toFixed(1)} frames/s, t = ${h.t_s.toFixed(1)} s)`;
     $('head-goal').textContent = h.goal.target === 'pixel' ? `the object under ${h.goal.u},${h.goal.v}` : h.goal.target;
-    $('head-loop').textContent = h.status + (h.moving ? ', moving' : '') + (h.error ? '; ' + h.error : '');
+    const scale = h.right_scale != null && h.right_scale !== 1 ? `, the right camera at ${h.right_scale.toFixed(3)} times the left one's scale` : '';
+    $('head-loop').textContent = h.status + (h.moving ? ', moving' : '') + scale + (h.error ? '; ' + h.error : '');
     $('head-joints').textContent = ['neck_pan', 'neck_tilt', 'eye_tilt', 'left_eye_pan', 'right_eye_pan'].map((k) => `${k} ${j[k]}`).join(', ');
     $('head-target').textContent = h.target_px ? `${fmt(h.target_px[0], 1)},${fmt(h.target_px[1], 1)} | ${fmt(h.target_px[2], 1)},${fmt(h.target_px[3], 1)}` : '—';
     $('head-xyz').textContent = h.xyz ? h.xyz.join(', ') : '—';
