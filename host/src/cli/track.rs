@@ -58,11 +58,11 @@ pub struct Args {
     pub record: Option<PathBuf>,
     /// Share of the kinematics' measured miss taken into the correction per frame (0 = the
     /// kinematics alone, no image correction).
-    #[arg(long, value_name = "G", default_value_t = track::DEFAULT_CORRECTION_GAIN, allow_negative_numbers = true)]
-    pub correction_gain: f32,
+    #[arg(long, value_name = "G", default_value_t = f64::from(track::DEFAULT_CORRECTION_GAIN), allow_negative_numbers = true)]
+    pub correction_gain: f64,
     /// Frames of a moving target's motion the fixation leads it by (0: aim where it is seen).
-    #[arg(long, value_name = "F", default_value_t = track::DEFAULT_LEAD_FRAMES, allow_negative_numbers = true)]
-    pub lead_frames: f32,
+    #[arg(long, value_name = "F", default_value_t = f64::from(track::DEFAULT_LEAD_FRAMES), allow_negative_numbers = true)]
+    pub lead_frames: f64,
     /// Frames in a row without a target after which the head turns home (straight ahead,
     /// the widest view) to look for one again; 0: hold the last command.
     #[arg(long, value_name = "FRAMES", default_value_t = LoopConfig::DEFAULT.home_after_frames)]
@@ -96,16 +96,18 @@ pub fn run(a: Args) -> Result<()> {
     if !(a.correction_gain.is_finite() && (0.0..=1.0).contains(&a.correction_gain)) {
         return Err(crate::cli::usage(format!(
             "--correction-gain: must be from 0 to 1, got {}",
-            a.correction_gain
+            crate::fmt::given(a.correction_gain)
         )));
     }
     let most = hvs_shared::runtime::fixation::MAX_LEAD_FRAMES;
-    if !(a.lead_frames.is_finite() && (0.0..=most).contains(&a.lead_frames)) {
+    if !(a.lead_frames.is_finite() && (0.0..=f64::from(most)).contains(&a.lead_frames)) {
         return Err(crate::cli::usage(format!(
             "--lead-frames: must be from 0 to {most}, got {}",
-            a.lead_frames
+            crate::fmt::given(a.lead_frames)
         )));
     }
+    // Within their ranges: the loop's `f32` settings.
+    let (correction_gain, lead_frames) = (a.correction_gain as f32, a.lead_frames as f32);
     let target = parse_target(&a.target)?;
     let choice = match (&a.port, a.head) {
         (Some(_), super::HeadKind::Qemu) => {
@@ -151,13 +153,13 @@ pub fn run(a: Args) -> Result<()> {
         match (&a.scene, &spec) {
             (Some(scene), _) => {
                 let loaded = track::scene_file::load(scene)?;
-                let loop_cfg = track::loop_config(&loaded.rig, a.correction_gain);
+                let loop_cfg = track::loop_config(&loaded.rig, correction_gain);
                 let cams = loaded.cameras(a.seed);
                 (Box::new(cams), loaded.image_size(), loaded.scene.camera_fps, loop_cfg)
             }
             (None, Some(spec)) => {
                 let size = track::cameras::size_for(camera_size, Some(&blob));
-                let loop_cfg = track::loop_config_for_cameras(&blob, size, a.correction_gain);
+                let loop_cfg = track::loop_config_for_cameras(&blob, size, correction_gain);
                 (track::cameras::open(spec, size)?, size, REAL_CAMERA_FPS, loop_cfg)
             }
             (None, None) => return Err(crate::cli::usage("give --scene or --cameras")),
@@ -183,11 +185,7 @@ pub fn run(a: Args) -> Result<()> {
         seconds: a.seconds,
         fps,
         target,
-        loop_cfg: LoopConfig {
-            lead_frames: a.lead_frames,
-            home_after_frames: a.home_after,
-            ..loop_cfg
-        },
+        loop_cfg: LoopConfig { lead_frames, home_after_frames: a.home_after, ..loop_cfg },
     };
     let mut head = servo_head::open(&choice, &a.model)?;
     // Every input checked: the run starts.

@@ -98,6 +98,9 @@ fn track_refuses_bad_input_with_one_clear_line() {
     run(base(&bad, &[]), "m.hvsw");
     usage(base(&bad, &["--seconds", "0"]), "--seconds");
     usage(base(&bad, &["--target", "1,x"]), "--target");
+    // The value as given, not as an `f32` rounds it (4294967300).
+    usage(base(&bad, &["--lead-frames", "4294967296"]), "got 4.294967296e9");
+    usage(base(&bad, &["--correction-gain", "1.1"]), "got 1.1");
     // With a valid model the scene's unknown field is named.
     let good = model(&dir);
     let v: Vec<String> =
