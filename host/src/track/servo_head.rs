@@ -31,6 +31,14 @@ pub trait ServoHead {
     fn frame_time(&self, t_s: f64) -> f64 {
         t_s
     }
+    /// Whether the head keeps its own time (a head controller on a link), so that a loop on
+    /// the wall clock (`hvs view`) takes its frames at the head's time instead of waiting for
+    /// the head's clock to reach the wall clock's: QEMU's clock runs slower than the wall clock
+    /// on a busy machine, and `hvs view --head qemu` had sunk from 17 to 2 frames/s within 90 s,
+    /// every frame waiting out the lag.
+    fn own_clock(&self) -> bool {
+        false
+    }
 }
 
 impl ServoHead for VirtualHead {
@@ -77,9 +85,9 @@ pub struct RemoteHead {
     t0_ticks: u32,
     state: StateData,
     goal: Option<Joints>,
-    /// With [`RemoteHead::boot_qemu`]: QEMU and its servo log's folder, kept as long as the
-    /// head (dropped after the link).
-    _qemu: Option<(crate::device::qemu::Emulator, tempfile::TempDir)>,
+    /// With [`RemoteHead::boot_qemu`]: QEMU, kept as long as the head (dropped after the
+    /// link).
+    _qemu: Option<crate::device::qemu::Emulator>,
 }
 
 impl RemoteHead {
@@ -125,14 +133,15 @@ impl RemoteHead {
         use crate::device::qemu::{
             find_firmware, free_port, preflight, Emulator, EmulatorConfig, DEFAULT_QEMU,
         };
-        let dir = tempfile::tempdir()
-            .map_err(|e| anyhow::anyhow!("a temporary folder for QEMU's servo log: {e}"))?;
+        // Nothing reads the servo log of this QEMU: it goes nowhere (a temporary folder for
+        // it was left behind when `hvs view` ended on SIGINT with the head's thread still
+        // running).
         let cfg = EmulatorConfig {
             firmware: find_firmware(firmware),
             slot_a: Some(model.to_path_buf()),
             slot_b: None,
             listen: format!("127.0.0.1:{}", free_port()?),
-            servo_log: dir.path().join("servo.log"),
+            servo_log: std::path::PathBuf::from("/dev/null"),
             qemu: DEFAULT_QEMU.into(),
             extra: Vec::new(),
         };
@@ -147,7 +156,7 @@ impl RemoteHead {
                 cfg.firmware.display()
             )
         })?;
-        Ok(RemoteHead { _qemu: Some((emu, dir)), ..RemoteHead::new(link, control_hz)? })
+        Ok(RemoteHead { _qemu: Some(emu), ..RemoteHead::new(link, control_hz)? })
     }
 
     fn elapsed_s(&self, s: &StateData) -> f64 {
@@ -215,6 +224,10 @@ impl ServoHead for RemoteHead {
 
     fn frame_time(&self, _t_s: f64) -> f64 {
         self.time_s()
+    }
+
+    fn own_clock(&self) -> bool {
+        true
     }
 }
 

@@ -249,7 +249,13 @@ fn run(
                 }
             }
         }
-        let t = start.elapsed().as_secs_f64();
+        // The frame's time: the wall clock's, or the head's own where it keeps one (it is
+        // not waited for: see `ServoHead::own_clock`).
+        let wall = start.elapsed().as_secs_f64();
+        let t = match lp.head.as_ref() {
+            Some((h, _)) if h.own_clock() => h.time_s(),
+            _ => wall,
+        };
         let grabbed = match (failed, tracker.as_mut(), lp.head.as_mut().map(|(h, _)| h)) {
             (Some(e), _, _) => Err(e),
             (None, Some(tr), Some(head)) => tr
@@ -268,12 +274,12 @@ fn run(
         let previous = me.latest();
         let next = match grabbed {
             Ok((frame, status, joints, target_px, xyz, err_px)) => {
-                times.push_back(t);
-                while times.len() > 2 && t - times[0] > 1.0 {
+                times.push_back(wall);
+                while times.len() > 2 && wall - times[0] > 1.0 {
                     times.pop_front();
                 }
                 let fps = if times.len() > 1 {
-                    (times.len() - 1) as f64 / (t - times[0]).max(1e-6)
+                    (times.len() - 1) as f64 / (wall - times[0]).max(1e-6)
                 } else {
                     0.0
                 };
@@ -306,7 +312,9 @@ fn run(
                 }
                 let Some(p) = previous else { return };
                 let mut state = p.state.clone();
-                state.error = Some(msg);
+                // No frame since: none a second.
+                (state.error, state.fps) = (Some(msg), 0.0);
+                times.clear();
                 Latest { seq: p.seq, grey: p.grey.clone(), png: Default::default(), state }
             }
         };
@@ -316,7 +324,7 @@ fn run(
         }
         drop(me);
         // The next frame at the next multiple of the period (none skipped when behind).
-        let next_t = ((t / period).floor() + 1.0) * period;
+        let next_t = ((wall / period).floor() + 1.0) * period;
         let wait = next_t - start.elapsed().as_secs_f64();
         if wait > 0.0 {
             std::thread::sleep(Duration::from_secs_f64(wait));
@@ -395,6 +403,60 @@ mod tests {
         let after = grabs.load(Ordering::SeqCst);
         std::thread::sleep(Duration::from_millis(100));
         assert_eq!(grabs.load(Ordering::SeqCst), after);
+    }
+
+    /// A head on its own clock, which runs a second behind the wall clock (QEMU's on a busy
+    /// machine), and is waited for like a real head's.
+    struct LateHead {
+        start: Instant,
+    }
+
+    impl ServoHead for LateHead {
+        fn advance_to(&mut self, t_s: f64) -> anyhow::Result<()> {
+            while self.time_s() < t_s {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            Ok(())
+        }
+        fn command(&mut self, _goal: &Joints) -> anyhow::Result<()> {
+            Ok(())
+        }
+        fn joints(&self) -> Joints {
+            Joints::HOME
+        }
+        fn is_moving(&self) -> bool {
+            false
+        }
+        fn time_s(&self) -> f64 {
+            (self.start.elapsed().as_secs_f64() - 1.0).max(0.0)
+        }
+        fn control_hz(&self) -> u32 {
+            1000
+        }
+        fn frame_time(&self, _t_s: f64) -> f64 {
+            self.time_s()
+        }
+        fn own_clock(&self) -> bool {
+            true
+        }
+    }
+
+    /// A head whose clock lags the wall clock is not waited for: frames come at the scene's
+    /// rate. Before, every frame waited out the lag (a frame a second here; `hvs view --head
+    /// qemu` sank to 2 frames/s).
+    #[test]
+    fn a_head_on_a_late_clock_is_not_waited_for() {
+        let (grabs, broken) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicBool::new(false)));
+        let fake = Fake { grabs: grabs.clone(), broken };
+        let blob = crate::infer::tests::blob(5, OutputKind::Xyz, InputKind::Stereo);
+        let estimator = crate::track::estimator_of(blob).unwrap();
+        let head: Box<dyn ServoHead + Send> = Box::new(LateHead { start: Instant::now() });
+        let cfg = LoopConfig::DEFAULT;
+        let live =
+            LiveHead::start(Box::new(fake), (32, 24), estimator, Some((head, cfg)), 60.0).unwrap();
+        let t0 = Instant::now();
+        wait_for("twenty frames", || live.state().is_some_and(|s| s.frames >= 20));
+        assert!(t0.elapsed() < Duration::from_secs(3), "{:?}", t0.elapsed());
     }
 
     /// The first pixel of a frame's PNG (the fake camera's frame number).
