@@ -255,11 +255,17 @@ pub fn run(a: Args) -> Result<()> {
         batch.commit()?;
     }
     let tracked = rows.iter().filter(|r| r.status == "tracking").count();
-    if let Some(s) = run.right_scale.filter(|s| *s != 1.0) {
-        eprintln!(
+    match run.right_scale {
+        Some(s) if s != 1.0 => eprintln!(
             "the right camera sees at {s:.3} times the left one's scale (measured from the \
              images); its image was matched resampled by that"
-        );
+        ),
+        None if !rows.is_empty() => eprintln!(
+            "note: the right camera's scale against the left one's was not measured (too few \
+             windows of the front region matched at any scale from 0.65 to 1.54, or the best \
+             lay at an end of that range); its image was matched as it is"
+        ),
+        _ => {}
     }
     let interrupted = stop.load(std::sync::atomic::Ordering::Relaxed);
     if let Some(line) = rate_line(&times) {

@@ -505,8 +505,10 @@ pub struct Finder {
     /// The right camera's scale against the left one's, once measured ([`right_scale`]):
     /// the right image is matched resampled by it ([`Plane::zoomed`]) unless it is 1.
     zoom: Option<f64>,
-    /// Frames until the scale is measured again while it is not known.
+    /// Frames until the scale is measured again while it is not known, and the wait after
+    /// the next try that fails ([`ZOOM_RETRY_FRAMES`]).
     zoom_wait: u32,
+    zoom_backoff: u32,
 }
 
 impl Last {
@@ -600,7 +602,16 @@ impl Finder {
     /// (`[phi_u_left, phi_v_left, phi_u_right, phi_v_right]`, px): where the target is looked
     /// for in a frame follows the head's own turn since the last one.
     pub fn with_focal(mode: TargetMode, focal_px: [f32; 4]) -> Finder {
-        Finder { mode, last: None, followed: 0, seen_at: None, focal_px, zoom: None, zoom_wait: 0 }
+        Finder {
+            mode,
+            last: None,
+            followed: 0,
+            seen_at: None,
+            focal_px,
+            zoom: None,
+            zoom_wait: 0,
+            zoom_backoff: ZOOM_RETRY_FRAMES,
+        }
     }
 
     /// Moves the remembered target by the image motion the head's turn from `before` to
@@ -652,7 +663,8 @@ impl Finder {
         if self.zoom.is_none() {
             if self.zoom_wait == 0 {
                 self.zoom = right_scale(&l, right);
-                self.zoom_wait = ZOOM_RETRY_FRAMES;
+                self.zoom_wait = self.zoom_backoff;
+                self.zoom_backoff = (2 * self.zoom_backoff).min(ZOOM_RETRY_MAX_FRAMES);
             } else {
                 self.zoom_wait -= 1;
             }
@@ -701,16 +713,22 @@ impl Finder {
     }
 }
 
-/// Frames between two tries at the right camera's scale while it is not known (a blank or
-/// untextured view gives too few matches to tell).
+/// Frames before the second try at the right camera's scale while it is not known (a blank
+/// or untextured view, or a near surface filling it, gives too few matches to tell); each
+/// later try waits twice as long as the one before, up to [`ZOOM_RETRY_MAX_FRAMES`] (a view
+/// that never tells would otherwise cost a measurement every half second).
 const ZOOM_RETRY_FRAMES: u32 = 15;
-/// Fewest windows matched (ZNCC at least [`MIN_SCORE`]) at the best scale that tell the right
-/// camera's scale ([`right_scale`]).
+/// Longest wait between two tries at the right camera's scale (frames; 8 s at 30 frames/s).
+const ZOOM_RETRY_MAX_FRAMES: u32 = 240;
+/// Fewest windows matched uniquely (the scan's rule) at the best scale that tell the right
+/// camera's scale ([`right_scale`]), and no fewer than a quarter of those with texture enough.
 const ZOOM_MIN_MATCHES: usize = 24;
 /// The scales tried first ([`right_scale`]): `2^(k/8)`, k = -4, -2, .., 4, 0.71 to 1.41, then
 /// the steps either side of the best (0.65 to 1.54 in all; the thesis' case II right camera is
 /// 1.42 times the left, case IV's 0.80 times).
 const ZOOM_STEPS: i32 = 4;
+/// Farthest `k` the scale's search moves to ([`right_scale`]): `2^(+-8/8)`, 0.5 to 2.
+const ZOOM_FARTHEST: f64 = 8.0;
 
 /// The right camera's scale against the left one's (the ratio of their focal lengths), from
 /// the images alone: the scale at which the windows of the front region (every other point
@@ -718,8 +736,9 @@ const ZOOM_STEPS: i32 = 4;
 /// right image, resampled by it ([`Plane::zoomed`]), best: the largest sum of their best
 /// ZNCC scores. Tried at `2^(k/8)` for every other `k`, then at the steps and half steps
 /// either side of the best, and taken at the vertex of the least-squares parabola through
-/// those five; 1 (no resampling) when `k = 0` is the best. `None` with fewer than [`ZOOM_MIN_MATCHES`] windows
-/// matched at the best scale (a blank or untextured view).
+/// those five; 1 (no resampling) when `k = 0` is the best. `None` when too few windows match
+/// one place alone at the best scale ([`ZOOM_MIN_MATCHES`]: a blank or untextured view, or a
+/// near surface filling it), or when the best lies past `2^(+-1)`.
 ///
 /// The scan's 5 x 5 windows at half resolution match few windows across a 20 % difference of
 /// scale (a right camera of 0.8 times the left's focal length: about ten a scan), and its rows
@@ -737,8 +756,8 @@ fn right_scale(l: &Plane, right: &GrayImage) -> Option<f64> {
     let ys: Vec<i32> = (my..(lh.h - my).max(my)).step_by(step).collect();
     let (iw, ih) = (right.width() as i32, right.height() as i32);
     let levels: Vec<f32> = right.as_raw().iter().map(|&x| f32::from(x)).collect();
-    // The sum of the best scores and the number of them at least `MIN_SCORE`, rows in
-    // parallel, summed in row order (the same on any number of threads).
+    // The sum of the best scores and the number of windows with texture enough to match,
+    // rows in parallel, summed in row order (the same on any number of threads).
     let fit = |zoom: f64| -> (f64, usize) {
         let rh = Plane::with(iw, ih, zoomed_levels(&levels, iw, ih, zoom));
         let rh = rh.half().with_stats(COARSE_RADIUS);
@@ -750,11 +769,10 @@ fn right_scale(l: &Plane, right: &GrayImage) -> Option<f64> {
                     let rows = [y - HALF_ROWS, y + HALF_ROWS];
                     search(&lh, &rh, x, y, cols, rows, COARSE_RADIUS, Peak::Any).map(|m| m.2)
                 });
-                scores
-                    .fold((0.0, 0), |(s, n), v| (s + f64::from(v), n + usize::from(v >= MIN_SCORE)))
+                scores.fold((0.0, 0), |(s, t), v| (s + f64::from(v), t + 1))
             })
             .collect();
-        rows.iter().fold((0.0, 0), |(s, n), r| (s + r.0, n + r.1))
+        rows.iter().fold((0.0, 0), |(s, t), r| (s + r.0, t + r.1))
     };
     let at = |k: f64| 2f64.powf(k / 8.0);
     let best = |tried: &[(f64, (f64, usize))]| -> (f64, (f64, usize)) {
@@ -772,8 +790,29 @@ fn right_scale(l: &Plane, right: &GrayImage) -> Option<f64> {
             tried.push((k, fit(at(k))));
         }
     }
-    let (k, (_, matched)) = best(&tried);
-    if matched < ZOOM_MIN_MATCHES {
+    let (k, (_, textured)) = best(&tried);
+    // Too few windows at the best scale match one place alone: a view without texture enough,
+    // or a surface nearer than the disparities searched filling it (at 15-25 cm a wall's
+    // magnified texture matched at 0.85 nearly everywhere along the rows, and read 1.05-1.4
+    // for cameras alike; 13-28 of its 221-316 windows matched uniquely, against 216-278 of 391
+    // on 12 scenes of spheres before a wall at 300 cm).
+    let unique: usize = {
+        let rh = Plane::with(iw, ih, zoomed_levels(&levels, iw, ih, at(k)));
+        let rh = rh.half().with_stats(COARSE_RADIUS);
+        let rows: Vec<usize> = ys
+            .par_iter()
+            .map(|&y| {
+                let unique = |&&x: &&i32| {
+                    let cols = [x - HALF_DISPARITY, x + HALF_DISPARITY];
+                    let rows = [y - HALF_ROWS, y + HALF_ROWS];
+                    search(&lh, &rh, x, y, cols, rows, COARSE_RADIUS, Peak::Unique).is_some()
+                };
+                xs.iter().filter(unique).count()
+            })
+            .collect();
+        rows.iter().sum()
+    };
+    if unique < ZOOM_MIN_MATCHES || 4 * unique < textured {
         return None;
     }
     if k == 0.0 {
@@ -781,12 +820,36 @@ fn right_scale(l: &Plane, right: &GrayImage) -> Option<f64> {
     }
     // Half steps either side, then the vertex of the least-squares parabola through the five
     // (the top is flat within a few percent: the best of the five alone wandered by a half
-    // step).
-    let known = |k: f64| tried.iter().find(|t| t.0 == k).map(|t| t.1 .0);
-    let fine: Vec<f64> = [-1.0, -0.5, 0.0, 0.5, 1.0]
-        .into_iter()
-        .map(|d| known(k + d).unwrap_or_else(|| fit(at(k + d)).0))
-        .collect();
+    // step). While the best of the five lies at an end, the five move a step that way (a
+    // scale past the ones tried first), up to [`ZOOM_FARTHEST`].
+    let mut sums: Vec<(f64, f64)> = tried.iter().map(|t| (t.0, t.1 .0)).collect();
+    let mut sum_at = |k: f64| match sums.iter().find(|t| t.0 == k) {
+        Some(t) => t.1,
+        None => {
+            let v = fit(at(k)).0;
+            sums.push((k, v));
+            v
+        }
+    };
+    let mut k = k;
+    let fine = loop {
+        let fine: Vec<f64> =
+            [-1.0, -0.5, 0.0, 0.5, 1.0].into_iter().map(|d| sum_at(k + d)).collect();
+        let step = if fine[0] > fine[2] {
+            -1.0
+        } else if fine[4] > fine[2] {
+            1.0
+        } else {
+            break fine;
+        };
+        if (k + step).abs() > ZOOM_FARTHEST {
+            return None;
+        }
+        k += step;
+    };
+    if k == 0.0 {
+        return Some(1.0);
+    }
     // y = a x^2 + b x + c at x = -2..=2 (half steps): a = sum (x^2 - 2) y / 14, b = sum x y / 10.
     let xs = [-2.0, -1.0, 0.0, 1.0, 2.0];
     let a = xs.iter().zip(&fine).map(|(x, y)| (x * x - 2.0) * y).sum::<f64>() / 14.0;
@@ -1598,6 +1661,27 @@ mod tests {
                 assert_eq!(s, 1.0, "{rig:?}");
             } else {
                 assert!((s / want - 1.0).abs() < 0.03, "{rig:?}: {s} against {want}");
+            }
+        }
+    }
+
+    /// A textured surface nearer than the disparities searched, filling the view, tells no
+    /// scale (its magnified texture matches nearly everywhere along the rows): before, a wall
+    /// at 15-25 cm read 1.05-1.4 for cameras alike and the value was kept for the run.
+    #[test]
+    fn a_near_surface_filling_the_view_tells_no_scale() {
+        for (case, rig) in [(1, presets::CASE_1), (4, presets::CASE_4)] {
+            for z in [15, 25] {
+                let text = format!(
+                    r#"{{ "rig": {{"case": {case}}}, "camera_fps": 30,
+                      "background": {{"z_cm": {z}, "texture_seed": 3}}, "objects": [] }}"#
+                );
+                let scene = SceneFile::parse(&text).unwrap().scene().unwrap().at(0.0);
+                let head = HeadRig::new(rig);
+                let r = render_scene(&head, &Joints::HOME, &scene, &RenderOptions::default(), 3)
+                    .unwrap();
+                let s = right_scale(&Plane::new(&r.left), &r.right);
+                assert_eq!(s, None, "case {case}, wall at {z} cm");
             }
         }
     }
