@@ -28,8 +28,8 @@
 //!
 //! Cameras of unequal focal lengths (the thesis' cases II and IV) see an object at two sizes,
 //! which small windows do not match across: the first frame measures the ratio from the
-//! images ([`right_scale`]), and from then on the right image is matched resampled to the left
-//! one's scale ([`Plane::zoomed`]). The target's right pixels are given in the right image's
+//! images (`right_scale`), and from then on the right image is matched resampled to the left
+//! one's scale (`Plane::zoomed`). The target's right pixels are given in the right image's
 //! own pixels.
 
 use hvs_shared::runtime::blob::ModelBlob;
@@ -634,7 +634,7 @@ impl Finder {
     }
 
     /// The right camera's scale against the left one's (the ratio of their focal lengths),
-    /// once measured from the images ([`right_scale`]; 1 where the two are alike within a few
+    /// once measured from the images (`right_scale`; 1 where the two are alike within a few
     /// percent): the right image is matched resampled by it.
     pub fn right_scale(&self) -> Option<f64> {
         self.zoom
