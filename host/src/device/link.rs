@@ -240,6 +240,30 @@ impl Link {
     }
 }
 
+/// A test head's side of a TCP link: each request frame `stream` brings, to `answer` (with a
+/// second handle of the stream to write the answer to), until the stream ends or `answer`
+/// fails.
+#[cfg(test)]
+pub(crate) fn serve_frames(
+    stream: std::net::TcpStream,
+    mut answer: impl FnMut(&mut [u8], &mut std::net::TcpStream) -> std::io::Result<()>,
+) {
+    let (mut r, mut w) = (stream.try_clone().expect("a second handle"), stream);
+    let (mut acc, mut buf) = (FrameAccumulator::<MAX_FRAME_LEN>::new(), [0u8; 64]);
+    loop {
+        let n = match r.read(&mut buf) {
+            Ok(0) | Err(_) => return,
+            Ok(n) => n,
+        };
+        for &b in &buf[..n] {
+            let Some(Ok(f)) = acc.push(b) else { continue };
+            if answer(f, &mut w).is_err() {
+                return;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -278,35 +302,24 @@ mod tests {
                 body: ResponseBody::Ready { protocol: protocol::PROTOCOL_VERSION },
             };
             s.write_all(protocol::encode_response(&ready, &mut out).unwrap()).unwrap();
-            let mut acc = FrameAccumulator::<MAX_FRAME_LEN>::new();
-            let mut buf = [0u8; 64];
-            loop {
-                let n = match s.read(&mut buf) {
-                    Ok(0) | Err(_) => return,
-                    Ok(n) => n,
+            serve_frames(s, |f, s| {
+                let req = protocol::decode_request(f).unwrap();
+                let body = match req.body {
+                    RequestBody::Ping => ResponseBody::Pong,
+                    RequestBody::Estimate(p) => ResponseBody::Estimate(protocol::EstimateData {
+                        x: p.u_l,
+                        y: p.v_l,
+                        z: 100.0,
+                        source: protocol::Source::Network,
+                        in_range: true,
+                    }),
+                    _ => ResponseBody::Error(protocol::ErrorCode::Unsupported),
                 };
-                for &b in &buf[..n] {
-                    let Some(Ok(f)) = acc.push(b) else { continue };
-                    let req = protocol::decode_request(f).unwrap();
-                    let body = match req.body {
-                        RequestBody::Ping => ResponseBody::Pong,
-                        RequestBody::Estimate(p) => {
-                            ResponseBody::Estimate(protocol::EstimateData {
-                                x: p.u_l,
-                                y: p.v_l,
-                                z: 100.0,
-                                source: protocol::Source::Network,
-                                in_range: true,
-                            })
-                        }
-                        _ => ResponseBody::Error(protocol::ErrorCode::Unsupported),
-                    };
-                    s.write_all(&[0x07, 0x07, 0x00]).unwrap();
-                    let f = protocol::encode_response(&Response { id: req.id, body }, &mut out)
-                        .unwrap();
-                    s.write_all(f).unwrap();
-                }
-            }
+                s.write_all(&[0x07, 0x07, 0x00])?;
+                s.write_all(
+                    protocol::encode_response(&Response { id: req.id, body }, &mut out).unwrap(),
+                )
+            });
         });
         (addr, h)
     }

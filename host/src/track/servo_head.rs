@@ -278,10 +278,10 @@ mod tests {
     use hvs_shared::runtime::gaze::GazeConfig;
     use hvs_shared::runtime::head::{boot, Head};
     use hvs_shared::runtime::protocol::{
-        decode_request, encode_response, FirmwareVersion, FrameAccumulator, MAX_FRAME_LEN,
+        decode_request, encode_response, FirmwareVersion, MAX_FRAME_LEN,
     };
     use hvs_shared::runtime::trajectory::ControllerConfig;
-    use std::io::{Read, Write};
+    use std::io::Write;
     use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
     use std::sync::Arc;
 
@@ -292,29 +292,19 @@ mod tests {
         let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
         let addr = l.local_addr().unwrap().to_string();
         std::thread::spawn(move || {
-            let (mut s, _) = l.accept().unwrap();
+            let (s, _) = l.accept().unwrap();
             let control = ControllerConfig::DEFAULT;
             let mut head = Head::new(boot(&[], &[]), GazeConfig::DEFAULT, &control).unwrap();
             let version = FirmwareVersion { major: 0, minor: 1, patch: 0 };
-            let (mut acc, mut buf) = (FrameAccumulator::<MAX_FRAME_LEN>::new(), [0u8; 64]);
             let mut out = [0u8; MAX_FRAME_LEN];
-            loop {
-                let n = match s.read(&mut buf) {
-                    Ok(0) | Err(_) => return,
-                    Ok(n) => n,
-                };
-                for &b in &buf[..n] {
-                    let Some(Ok(f)) = acc.push(b) else { continue };
-                    while stopped.load(Ordering::SeqCst) {
-                        std::thread::sleep(Duration::from_millis(5));
-                    }
-                    head.ticks = ticks.load(Ordering::SeqCst);
-                    let r = head.respond(&decode_request(f).unwrap(), version);
-                    if s.write_all(encode_response(&r, &mut out).unwrap()).is_err() {
-                        return;
-                    }
+            crate::device::link::serve_frames(s, |f, s| {
+                while stopped.load(Ordering::SeqCst) {
+                    std::thread::sleep(Duration::from_millis(5));
                 }
-            }
+                head.ticks = ticks.load(Ordering::SeqCst);
+                let r = head.respond(&decode_request(f).unwrap(), version);
+                s.write_all(encode_response(&r, &mut out).unwrap())
+            });
         });
         addr
     }
