@@ -756,23 +756,28 @@ fn right_scale(l: &Plane, right: &GrayImage) -> Option<f64> {
     let ys: Vec<i32> = (my..(lh.h - my).max(my)).step_by(step).collect();
     let (iw, ih) = (right.width() as i32, right.height() as i32);
     let levels: Vec<f32> = right.as_raw().iter().map(|&x| f32::from(x)).collect();
-    // The sum of the best scores and the number of windows with texture enough to match,
-    // rows in parallel, summed in row order (the same on any number of threads).
-    let fit = |zoom: f64| -> (f64, usize) {
+    // The scores of the grid's windows matched (`peak`) in the right image resampled by
+    // `zoom`, row by row, rows in parallel (the same on any number of threads).
+    let scan = |zoom: f64, peak: Peak| -> Vec<Vec<f32>> {
         let rh = Plane::with(iw, ih, zoomed_levels(&levels, iw, ih, zoom));
         let rh = rh.half().with_stats(COARSE_RADIUS);
-        let rows: Vec<(f64, usize)> = ys
-            .par_iter()
+        ys.par_iter()
             .map(|&y| {
-                let scores = xs.iter().filter_map(|&x| {
+                let rows = [y - HALF_ROWS, y + HALF_ROWS];
+                let at = |&x: &i32| {
                     let cols = [x - HALF_DISPARITY, x + HALF_DISPARITY];
-                    let rows = [y - HALF_ROWS, y + HALF_ROWS];
-                    search(&lh, &rh, x, y, cols, rows, COARSE_RADIUS, Peak::Any).map(|m| m.2)
-                });
-                scores.fold((0.0, 0), |(s, t), v| (s + f64::from(v), t + 1))
+                    search(&lh, &rh, x, y, cols, rows, COARSE_RADIUS, peak).map(|m| m.2)
+                };
+                xs.iter().filter_map(at).collect()
             })
-            .collect();
-        rows.iter().fold((0.0, 0), |(s, t), r| (s + r.0, t + r.1))
+            .collect()
+    };
+    // The sum of the best scores (each row's, then the rows') and the number of windows with
+    // texture enough to match.
+    let fit = |zoom: f64| -> (f64, usize) {
+        let rows = scan(zoom, Peak::Any);
+        let row_sums = rows.iter().map(|r| r.iter().fold(0.0, |s, &v| s + f64::from(v)));
+        (row_sums.fold(0.0, |s, r| s + r), rows.iter().map(Vec::len).sum())
     };
     let at = |k: f64| 2f64.powf(k / 8.0);
     let best = |tried: &[(f64, (f64, usize))]| -> (f64, (f64, usize)) {
@@ -796,22 +801,7 @@ fn right_scale(l: &Plane, right: &GrayImage) -> Option<f64> {
     // magnified texture matched at 0.85 nearly everywhere along the rows, and read 1.05-1.4
     // for cameras alike; 13-28 of its 221-316 windows matched uniquely, against 216-278 of 391
     // on 12 scenes of spheres before a wall at 300 cm).
-    let unique: usize = {
-        let rh = Plane::with(iw, ih, zoomed_levels(&levels, iw, ih, at(k)));
-        let rh = rh.half().with_stats(COARSE_RADIUS);
-        let rows: Vec<usize> = ys
-            .par_iter()
-            .map(|&y| {
-                let unique = |&&x: &&i32| {
-                    let cols = [x - HALF_DISPARITY, x + HALF_DISPARITY];
-                    let rows = [y - HALF_ROWS, y + HALF_ROWS];
-                    search(&lh, &rh, x, y, cols, rows, COARSE_RADIUS, Peak::Unique).is_some()
-                };
-                xs.iter().filter(unique).count()
-            })
-            .collect();
-        rows.iter().sum()
-    };
+    let unique: usize = scan(at(k), Peak::Unique).iter().map(Vec::len).sum();
     if unique < ZOOM_MIN_MATCHES || 4 * unique < textured {
         return None;
     }
@@ -821,7 +811,8 @@ fn right_scale(l: &Plane, right: &GrayImage) -> Option<f64> {
     // Half steps either side, then the vertex of the least-squares parabola through the five
     // (the top is flat within a few percent: the best of the five alone wandered by a half
     // step). While the best of the five lies at an end, the five move a step that way (a
-    // scale past the ones tried first), up to [`ZOOM_FARTHEST`].
+    // scale past the ones tried first: only from `k = +-5`, whose neighbours were not all
+    // tried), up to [`ZOOM_FARTHEST`].
     let mut sums: Vec<(f64, f64)> = tried.iter().map(|t| (t.0, t.1 .0)).collect();
     let mut sum_at = |k: f64| match sums.iter().find(|t| t.0 == k) {
         Some(t) => t.1,
@@ -847,9 +838,6 @@ fn right_scale(l: &Plane, right: &GrayImage) -> Option<f64> {
         }
         k += step;
     };
-    if k == 0.0 {
-        return Some(1.0);
-    }
     // y = a x^2 + b x + c at x = -2..=2 (half steps): a = sum (x^2 - 2) y / 14, b = sum x y / 10.
     let xs = [-2.0, -1.0, 0.0, 1.0, 2.0];
     let a = xs.iter().zip(&fine).map(|(x, y)| (x * x - 2.0) * y).sum::<f64>() / 14.0;
