@@ -32,6 +32,76 @@ pub fn census(img: &GrayImage) -> Vec<u64> {
     out
 }
 
+/// [`census`] of a window scaled by `scale` (`[su, sv]`): the neighbour `(i, j)` of pixel
+/// `(x, y)` is the bilinear sample at `(x + i su, y + j sv)` (the border replicated), compared
+/// with the pixel itself. The right image's census words when the right camera sees at
+/// `scale` times the left one's scale: each word then covers the same patch of the scene as
+/// the left word it is compared with, as if the right image were resampled by `1 / scale`
+/// about each pixel (the matches stay in the right image's own pixels). Fixed point (8 bits
+/// of each weight), so that whole offsets give [`census`]'s words.
+pub fn census_scaled(img: &GrayImage, scale: [f64; 2]) -> Vec<u64> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    // Each neighbour's whole offset (floor) and fraction (of 256), per axis.
+    let split = |t: f64| {
+        let f = t.floor();
+        let frac = ((t - f) * 256.0).round() as i64;
+        // A fraction that rounds to 256 is the next whole pixel.
+        if frac == 256 {
+            (f as i64 + 1, 0u32)
+        } else {
+            (f as i64, frac as u32)
+        }
+    };
+    let xs: Vec<(i64, u32)> = (-HALF_W..=HALF_W).map(|i| split(f64::from(i) * scale[0])).collect();
+    let ys: Vec<(i64, u32)> = (-HALF_H..=HALF_H).map(|j| split(f64::from(j) * scale[1])).collect();
+    // Padding that holds every offset and the next pixel of its bilinear sample.
+    let px_pad = xs.iter().map(|&(o, _)| o.unsigned_abs() as usize + 1).max().unwrap_or(1);
+    let py_pad = ys.iter().map(|&(o, _)| o.unsigned_abs() as usize + 1).max().unwrap_or(1);
+    let pw = w + 2 * px_pad;
+    let src = img.as_raw();
+    let mut pad = vec![0u32; pw * (h + 2 * py_pad)];
+    for (py, row) in pad.chunks_exact_mut(pw).enumerate() {
+        let y = py.saturating_sub(py_pad).min(h - 1);
+        let line = &src[y * w..(y + 1) * w];
+        for (o, x) in row.iter_mut().zip((0..pw).map(|x| x.saturating_sub(px_pad).min(w - 1))) {
+            *o = u32::from(line[x]);
+        }
+    }
+    let mut out = vec![0u64; w * h];
+    out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+        super::fast(
+            #[inline(always)]
+            || {
+                let at = |dy: i64| (y + py_pad).wrapping_add_signed(dy as isize) * pw + px_pad;
+                let centre: Vec<u32> = pad[at(0)..at(0) + w].iter().map(|&c| c << 16).collect();
+                row.fill(0);
+                let mut sample = vec![0u32; w];
+                for (j, &(oy, fy)) in ys.iter().enumerate() {
+                    for (i, &(ox, fx)) in xs.iter().enumerate() {
+                        if j == HALF_H as usize && i == HALF_W as usize {
+                            continue;
+                        }
+                        let (r0, r1) = (at(oy), at(oy + 1));
+                        let s0 = r0.wrapping_add_signed(ox as isize);
+                        let s1 = r1.wrapping_add_signed(ox as isize);
+                        let (a, b) = (&pad[s0..s0 + w + 1], &pad[s1..s1 + w + 1]);
+                        let (gx, gy) = (256 - fx, 256 - fy);
+                        for (k, s) in sample.iter_mut().enumerate() {
+                            let top = a[k] * gx + a[k + 1] * fx;
+                            let bottom = b[k] * gx + b[k + 1] * fx;
+                            *s = top * gy + bottom * fy;
+                        }
+                        for ((word, &n), &c) in row.iter_mut().zip(&sample).zip(&centre) {
+                            *word = (*word << 1) | u64::from(n < c);
+                        }
+                    }
+                }
+            },
+        )
+    });
+    out
+}
+
 /// `img` padded by its border pixels (the window's half width and height on each side), so
 /// that the inner loops need no clamping, and the padded width.
 fn padded(img: &GrayImage) -> (Vec<u8>, usize) {
@@ -125,6 +195,25 @@ mod tests {
         edge.put_pixel(0, 0, image::Luma([255]));
         let flat = flat_windows(&edge);
         assert!(!flat[0] && !flat[3] && flat[4] && !flat[2 * 9] && flat[3 * 9]);
+    }
+
+    /// Unit steps give the plain census; a scaled window on an image scaled by the same
+    /// factor gives the plain census of the unscaled image (at whole-pixel samples).
+    #[test]
+    fn a_scaled_census_sees_the_scaled_window() {
+        let mut seed = 5u64;
+        let img = GrayImage::from_fn(40, 30, |_, _| {
+            image::Luma([(hvs_shared::test_support::splitmix64(&mut seed) >> 56) as u8])
+        });
+        assert_eq!(census_scaled(&img, [1.0, 1.0]), census(&img));
+        // Twice as large: every scene pixel twice (nearest), sampled at even pixels.
+        let big = GrayImage::from_fn(80, 60, |x, y| *img.get_pixel(x / 2, y / 2));
+        let (c, cb) = (census(&img), census_scaled(&big, [2.0, 2.0]));
+        for y in 3..27 {
+            for x in 4..36 {
+                assert_eq!(cb[2 * y * 80 + 2 * x], c[y * 40 + x], "({x}, {y})");
+            }
+        }
     }
 
     #[test]

@@ -533,9 +533,21 @@ pub fn dense_match(
 ) -> Result<DenseMap, DenseError> {
     let d = check_inputs(left, right, f, d_range, params)?;
     let (w, h) = (left.width() as usize, left.height() as usize);
+    // A scale within 0.5 % of 1 is 1 (across the 7-px window, under 0.02 px): the faster path.
+    let scale =
+        params.right_scale.map(|s| if (s - 1.0).abs() < 0.005 { 1.0 } else { f64::from(s) });
+    // The right image's census windows at its scale, so that they cover the same patch of
+    // the scene as the left ones (the candidates and matches stay in its own pixels).
     let ((cl, flat_l), (cr, flat_r)) = rayon::join(
         || (census::census(left), census::flat_windows(left)),
-        || (census::census(right), census::flat_windows(right)),
+        || {
+            let words = if scale == [1.0, 1.0] {
+                census::census(right)
+            } else {
+                census::census_scaled(right, scale)
+            };
+            (words, census::flat_windows(right))
+        },
     );
     let pen = penalties(params);
     let lgeo = Geo { m: f.m, sign: -1, d_min: d_range[0], d, w, h };
@@ -578,9 +590,6 @@ pub fn dense_match(
         params.lr_tolerance_px,
     );
     post::speckle_filter(w, h, &mut best, params.speckle_size, params.speckle_range_px);
-    // A scale within 0.5 % of 1 is 1 (across the 7-px window, under 0.02 px): the faster path.
-    let scale =
-        params.right_scale.map(|s| if (s - 1.0).abs() < 0.005 { 1.0 } else { f64::from(s) });
     if rectified && scale == [1.0, 1.0] {
         post::edge_switch(&lgeo, (left.as_raw(), right.as_raw()), &mut best);
     }
