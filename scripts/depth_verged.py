@@ -19,7 +19,11 @@ For case III and case IV (640 x 480; IV's right focal length is 0.8 times the le
 
 Nothing here is an oracle: the matcher gets the model and the images, as a user's head would.
 
+With `--scenes`, other scene files instead of the two (`scripts/verged-scenes/`: twenty
+scenes made for a check after the matcher's settings were chosen, see the README).
+
 Usage: python3 scripts/depth_verged.py [--hvs target/release/hvs] [--hidden N] [--keep DIR]
+       [--cases 3,4] [--scenes SCENE.json ...]
 Needs numpy.
 """
 import argparse
@@ -115,19 +119,27 @@ def main():
     ap.add_argument("--hvs", default="target/release/hvs")
     ap.add_argument("--hidden", type=int, help="hidden units of the model (hvs train's default)")
     ap.add_argument("--keep", help="work in this folder and keep it")
+    ap.add_argument("--cases", default="3,4", help="the cases, e.g. 4")
+    ap.add_argument("--scenes", nargs="+", metavar="SCENE.json",
+                    help="scene files instead of the tests' two (their rig set to each case), e.g. "
+                         "scripts/verged-scenes/*.json")
     a = ap.parse_args()
+    scenes = a.scenes or [os.path.join(SCENES, n + ".json")
+                          for n in ("spheres_and_boxes", "slanted_planes")]
     hvs = os.path.abspath(a.hvs)
     with tempfile.TemporaryDirectory() as tmp:
         work = a.keep or tmp
         os.makedirs(work, exist_ok=True)
-        for case in (3, 4):
+        for case in (int(c) for c in a.cases.split(",")):
             model, n, missed, topology = train(hvs, case, work, a.hidden)
             print(f"case {case}: a {topology} model trained on {n} board corners over the whole image "
                   f"({missed} of {len(DEPTHS) * len(XS) * len(YS)} board pairs not detected)")
-            for name in ("spheres_and_boxes", "slanted_planes"):
-                with open(os.path.join(SCENES, name + ".json")) as f:
+            for path in scenes:
+                name = os.path.splitext(os.path.basename(path))[0]
+                with open(path) as f:
                     text = json.load(f)
                 text["rig"] = {"case": case}
+                text.setdefault("camera_fps", 30)
                 tag = name.split("_")[0]
                 scene = os.path.join(work, f"{tag}{case}.json")
                 with open(scene, "w") as f:
