@@ -400,6 +400,22 @@ fn search(
     rad: i32,
     peak: Peak,
 ) -> Option<(f64, f64, f32)> {
+    search_best(l, r, cl, rl, cols, rows, rad, peak).map(|(m, _)| m)
+}
+
+/// [`search`], and whether the best has no second peak within [`UNIQUENESS`] of it (what
+/// [`Peak::Unique`] asks for; always `true` with it).
+#[allow(clippy::too_many_arguments)]
+fn search_best(
+    l: &Plane,
+    r: &Plane,
+    cl: i32,
+    rl: i32,
+    cols: [i32; 2],
+    rows: [i32; 2],
+    rad: i32,
+    peak: Peak,
+) -> Option<((f64, f64, f32), bool)> {
     if !l.inside(cl, rl, rad) {
         return None;
     }
@@ -450,7 +466,8 @@ fn search(
         .iter()
         .chain(per_col.get(k + 3..).unwrap_or(&[]))
         .fold(-2.0f32, |a, b| a.max(*b));
-    if peak == Peak::Unique && second > s - UNIQUENESS {
+    let unique = second <= s - UNIQUENESS;
+    if peak == Peak::Unique && !unique {
         return None;
     }
     let sub = |a: f32, b: f32, c: f32| {
@@ -473,7 +490,7 @@ fn search(
     };
     let sx = sub(at(x - 1, y), s, at(x + 1, y));
     let sy = sub(at(x, y - 1), s, at(x, y + 1));
-    Some((f64::from(x) + f64::from(sx), f64::from(y) + f64::from(sy), s))
+    Some(((f64::from(x) + f64::from(sx), f64::from(y) + f64::from(sy), s), unique))
 }
 
 /// One matched point: left pixel, right pixel (sub-pixel), depth.
@@ -897,8 +914,9 @@ fn pixel_seed(l: &Plane, r: &Plane, c: [i32; 2], joints: &Joints, est: &Estimato
     })
 }
 
+/// The scan's match of grid point `c`: [`coarse_at`], then [`fine_at`], both by `peak`.
 fn coarse_match_in(
-    (lh, rh): (&Plane, &Plane),
+    halves: (&Plane, &Plane),
     l: &Plane,
     r: &Plane,
     c: [i32; 2],
@@ -906,8 +924,16 @@ fn coarse_match_in(
     est: &Estimator,
     peak: Peak,
 ) -> Option<Pt> {
+    let (at, _, _) = coarse_at(halves, c, peak)?;
+    fine_at(l, r, c, at, joints, est, peak)
+}
+
+/// Grid point `c` matched at half resolution (`halves`, the right one with its window
+/// statistics) over the scan's disparities and rows by `peak`: the right pixel (half
+/// resolution), its score and whether the match is unique ([`search_best`]).
+fn coarse_at((lh, rh): (&Plane, &Plane), c: [i32; 2], peak: Peak) -> Option<([f64; 2], f32, bool)> {
     let (ch, rw) = (c[0] / 2, c[1] / 2);
-    let (u, v, _) = search(
+    let ((u, v, s), unique) = search_best(
         lh,
         rh,
         ch,
@@ -923,6 +949,20 @@ fn coarse_match_in(
     if (u - f64::from(ch)).abs() > f64::from(HALF_DISPARITY) - 1.0 {
         return None;
     }
+    Some(([u, v], s, unique))
+}
+
+/// Grid point `c`'s coarse match `at` (half resolution) refined at full resolution by `peak`
+/// within 2 px, and its depth.
+fn fine_at(
+    l: &Plane,
+    r: &Plane,
+    c: [i32; 2],
+    [u, v]: [f64; 2],
+    joints: &Joints,
+    est: &Estimator,
+    peak: Peak,
+) -> Option<Pt> {
     let (u2, v2) = ((2.0 * u).round() as i32, (2.0 * v).round() as i32);
     let (ur, vr, _) =
         search(l, r, c[0], c[1], [u2 - 2, u2 + 2], [v2 - 2, v2 + 2], FINE_RADIUS, peak)?;
@@ -984,35 +1024,53 @@ fn nearest_seed(
     loose: bool,
 ) -> Option<Last> {
     let halves = (&l.half(), &r.half().with_stats(COARSE_RADIUS));
-    nearest_by(l, r, halves, joints, est, Peak::Unique)
-        .or_else(|| loose.then(|| nearest_by(l, r, halves, joints, est, Peak::Loose)).flatten())
-}
-
-/// [`nearest_seed`] over the grid's matches taken by `peak` (`halves`: both images at half
-/// resolution, the right one with its window statistics).
-fn nearest_by(
-    l: &Plane,
-    r: &Plane,
-    (lh, rh): (&Plane, &Plane),
-    joints: &Joints,
-    est: &Estimator,
-    peak: Peak,
-) -> Option<Last> {
     let (w, h) = (f64::from(l.w), f64::from(l.h));
     let (mx, my) = ((0.5 * (1.0 - FRONT_SHARE) * w) as i32, (0.5 * (1.0 - FRONT_SHARE) * h) as i32);
-    // The grid's matches, rows in parallel, in row-major order (the same on any number of
-    // threads).
+    // The grid's coarse matches, and the unique ones refined, rows in parallel, in row-major
+    // order (the same on any number of threads). One search serves both tries: a match
+    // [`Peak::Loose`] takes with a score of at least [`MIN_SCORE`] and no second peak near it
+    // is the one [`Peak::Unique`] takes.
     let step = grid_step(l.w).max(1) as usize;
     let xs: Vec<i32> = (mx..(l.w - mx).max(mx)).step_by(step).collect();
-    let mut pts: Vec<Pt> = (my..(l.h - my).max(my))
+    let first = if loose { Peak::Loose } else { Peak::Unique };
+    let grid: Vec<([i32; 2], [f64; 2], Option<Pt>)> = (my..(l.h - my).max(my))
         .step_by(step)
         .collect::<Vec<i32>>()
         .par_iter()
         .flat_map_iter(|&y| {
-            xs.iter()
-                .filter_map(move |&x| coarse_match_in((lh, rh), l, r, [x, y], joints, est, peak))
+            xs.iter().filter_map(move |&x| {
+                let ((at, score, unique), c) = (coarse_at(halves, [x, y], first)?, [x, y]);
+                let strict = (unique && score >= MIN_SCORE)
+                    .then(|| fine_at(l, r, c, at, joints, est, Peak::Unique))
+                    .flatten();
+                Some((c, at, strict))
+            })
         })
         .collect();
+    let unique: Vec<Pt> = grid.iter().filter_map(|g| g.2).collect();
+    let at = (mx, my, step);
+    nearest_among(l, r, at, unique).or_else(|| {
+        if !loose {
+            return None;
+        }
+        let all = grid
+            .par_iter()
+            .filter_map(|&(c, at, strict)| {
+                strict.or_else(|| fine_at(l, r, c, at, joints, est, Peak::Loose))
+            })
+            .collect();
+        nearest_among(l, r, at, all)
+    })
+}
+
+/// The nearest candidate of the scan's matches `pts` (points of the grid whose first point is
+/// `(mx, my)` and whose spacing is `step`, in row-major order), or `None`.
+fn nearest_among(
+    l: &Plane,
+    r: &Plane,
+    (mx, my, step): (i32, i32, usize),
+    mut pts: Vec<Pt>,
+) -> Option<Last> {
     // Nearest first by disparity, not by the model's depth: along every left ray the right
     // image's match moves one way as the point recedes, whatever the cameras' deflections,
     // while a net's depth far outside its training box (the wall behind the objects) can be
@@ -1760,8 +1818,7 @@ mod tests {
         let centre = [5.876, -17.544, 132.293];
         let r = sphere_pair(&head, &Joints::HOME, centre, (47, 3));
         let (l, rr) = (Plane::new(&r.left), Plane::new(&r.right));
-        let halves = (&l.half(), &rr.half().with_stats(COARSE_RADIUS));
-        let unique = nearest_by(&l, &rr, halves, &Joints::HOME, &est, Peak::Unique);
+        let unique = nearest_seed(&l, &rr, &Joints::HOME, &est, false);
         assert!(unique.is_none(), "the unique matches alone found {unique:?}");
         let t = head.project(&Joints::HOME, &centre).unwrap();
         let seed =
