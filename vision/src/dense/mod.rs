@@ -3,7 +3,9 @@
 //!
 //! # Method
 //!
-//! 1. [`census`]: a 7 x 5 census word per pixel of both images.
+//! 1. [`census`]: a 7 x 5 census word per pixel of both images; the right image's from a
+//!    window scaled by [`DenseParams::right_scale`] where the cameras' focal lengths differ
+//!    ([`census::census_scaled`]), so that both words cover about the same patch.
 //! 2. Cost volume: for left pixel `(x, y)` and each whole disparity `d` of the range
 //!    (`d = u_l - u_r`, bounded by the caller, e.g. from the model's depth box), the candidate
 //!    is the right pixel on the epipolar line `F (x, y, 1)^T` at `u_r = x - d`, `v_r` rounded
@@ -104,9 +106,9 @@ pub struct DenseParams {
     /// Most disparity step (px) between neighbours of one speckle region.
     pub speckle_range_px: f32,
     /// The right image's scale against the left's along `u` and `v` (the right camera's
-    /// focal lengths over the left's; a model's matcher geometry carries it): the sub-pixel
-    /// refinement compares a left window with the right window of that scale. `[1, 1]` for
-    /// cameras alike.
+    /// focal lengths over the left's; a model's matcher geometry carries it): the right
+    /// image's census windows ([`census::census_scaled`]) and the sub-pixel refinement's
+    /// right windows are of that scale. `[1, 1]` for cameras alike.
     pub right_scale: [f32; 2],
     /// The left-right check's right-image disparities from an aggregation of their own, the
     /// right image as reference (Hirschmueller's check; `true`), instead of read off the
