@@ -116,6 +116,124 @@ pub fn disparity_range(
     [(lo.floor() as i32) - 1, (hi.ceil() as i32) + 1]
 }
 
+/// Left pixels across the image ([`scale_profile`]'s grid: columns, rows).
+pub const SCALE_GRID: [usize; 2] = [9, 3];
+
+/// Left-pixel step (px) of [`scale_profile`]'s finite differences (each side).
+pub const SCALE_STEP_PX: f64 = 8.0;
+
+/// The right image's scale against the left's across the right image as the model sees it:
+/// for [`SCALE_GRID`] left pixels over a `w x h` image, the right pixel on the epipolar line
+/// at which the model's Z is the middle depth of its box (the mean of the inverse depths),
+/// and the same for the left pixel [`SCALE_STEP_PX`] px to either side along u and v: the
+/// differences give `du_r / du_l` and `dv_r / dv_l` there. Each fitted as a line in the
+/// right column `u_r` (least squares): `[su, sv]` at the centre column `(w - 1) / 2` and
+/// their slopes per px ([`DenseParams::right_scale_slope`]). `None` when fewer than five
+/// pixels solve, they span under a third of the width, or a line leaves 0.25..4 inside the
+/// image. For a verged pair of unequal focal lengths the scale runs from well under the
+/// focal ratio at one edge to well over it at the other, nearly whatever the depth and row.
+pub fn scale_profile(
+    g: &MatcherGeometry,
+    predict: &dyn Fn([f32; 4]) -> Option<[f32; 3]>,
+    trusted: &dyn Fn([f32; 4]) -> bool,
+    w: u32,
+    h: u32,
+) -> Option<([f32; 2], [f32; 2])> {
+    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
+    let d_range = training_disparities(g);
+    let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
+    if !(z_range[0] > 0.0 && z_range[1] > z_range[0]) {
+        return None;
+    }
+    let z_mid = 2.0 / (1.0 / z_range[0] + 1.0 / z_range[1]);
+    // The right pixel of left pixel (ul, vl) at the middle depth: the first disparity of its
+    // interval where the model's Z crosses it (0.5 px scan), then bisection.
+    let solve = |ul: f64, vl: f64| -> Option<[f64; 2]> {
+        let line = f.line_in_right([ul, vl]);
+        let [a, b, c] = line;
+        let (lo, hi) =
+            model_disparity_interval_in_image(predict, trusted, ul, vl, line, z_range, d_range, w)?;
+        let at = |d: f64| {
+            let ur = ul - d;
+            let vr = -(a * ur + c) / b;
+            let x = [ul as f32, vl as f32, ur as f32, vr as f32];
+            let z = if trusted(x) { predict(x).map(|p| f64::from(p[2]) - z_mid) } else { None };
+            z.filter(|z| z.is_finite()).map(|z| (z, [ur, vr]))
+        };
+        let n = ((hi - lo) / 0.5).ceil().max(1.0) as usize;
+        let mut prev: Option<(f64, f64)> = None;
+        for k in 0..=n {
+            let d = (lo + k as f64 * 0.5).min(hi);
+            let Some((z, _)) = at(d) else {
+                prev = None;
+                continue;
+            };
+            if let Some((d0, z0)) = prev.filter(|&(_, z0)| (z0 <= 0.0) != (z <= 0.0)) {
+                let (mut d0, mut z0, mut d1) = (d0, z0, d);
+                for _ in 0..40 {
+                    let m = 0.5 * (d0 + d1);
+                    let (zm, _) = at(m)?;
+                    if (zm <= 0.0) == (z0 <= 0.0) {
+                        (d0, z0) = (m, zm);
+                    } else {
+                        d1 = m;
+                    }
+                }
+                return at(0.5 * (d0 + d1)).map(|(_, p)| p);
+            }
+            prev = Some((d, z));
+        }
+        None
+    };
+    let [nu, nv] = SCALE_GRID;
+    let step = SCALE_STEP_PX;
+    let (wf, hf) = (f64::from(w), f64::from(h));
+    if wf < 4.0 * step || hf < 4.0 * step {
+        return None;
+    }
+    // (u_r, su, sv) of every pixel that solves.
+    let mut points: Vec<(f64, f64, f64)> = Vec::new();
+    for i in 0..nu {
+        for j in 0..nv {
+            let ul = step + (wf - 1.0 - 2.0 * step) * i as f64 / (nu - 1) as f64;
+            let vl = step + (hf - 1.0 - 2.0 * step) * j as f64 / (nv - 1) as f64;
+            let got = (|| {
+                let centre = solve(ul, vl)?;
+                let (l, r) = (solve(ul - step, vl)?, solve(ul + step, vl)?);
+                let (t, bo) = (solve(ul, vl - step)?, solve(ul, vl + step)?);
+                let s = [(r[0] - l[0]) / (2.0 * step), (bo[1] - t[1]) / (2.0 * step)];
+                s.iter().all(|s| (0.25..=4.0).contains(s)).then_some((centre[0], s[0], s[1]))
+            })();
+            points.extend(got);
+        }
+    }
+    let n = points.len() as f64;
+    let (u_min, u_max) = points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
+    if points.len() < 5 || u_max - u_min < wf / 3.0 {
+        return None;
+    }
+    let centre = (wf - 1.0) / 2.0;
+    let mean_u = points.iter().map(|p| p.0 - centre).sum::<f64>() / n;
+    let var_u = points.iter().map(|p| (p.0 - centre - mean_u).powi(2)).sum::<f64>();
+    let fit = |s: fn(&(f64, f64, f64)) -> f64| {
+        let mean_s = points.iter().map(s).sum::<f64>() / n;
+        let cov = points.iter().map(|p| (p.0 - centre - mean_u) * (s(p) - mean_s)).sum::<f64>();
+        let slope = cov / var_u;
+        (mean_s - slope * mean_u, slope)
+    };
+    let ((au, bu), (av, bv)) = (fit(|p| p.1), fit(|p| p.2));
+    for (a, b) in [(au, bu), (av, bv)] {
+        for end in [a - b * centre, a + b * centre] {
+            if !(0.25..=4.0).contains(&end) {
+                return None;
+            }
+        }
+    }
+    Some(([au as f32, av as f32], [bu as f32, bv as f32]))
+}
+
 /// Why an image cannot give depth: blank (one grey level, or nearly) or saturated (over 90 %
 /// of its pixels black or white); `None` for an image with something to match. [`depth`]
 /// matches neither.
@@ -158,8 +276,15 @@ pub fn depth(
     let trusted = crate::vision::model_trusted(blob);
     let d_range = disparity_range(&g, &predict, &trusted, w, h);
     let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
-    // The refinement compares windows at the model's right/left image scale.
-    let params = DenseParams { right_scale: g.right_scale, ..*params };
+    // The right census windows at the model's right/left image scale; where it is not 1, the
+    // scale across the right image as the model sees it at a middle depth (the global scale
+    // when that does not solve).
+    let mut params = DenseParams { right_scale: g.right_scale, ..*params };
+    if g.right_scale.iter().any(|s| (s - 1.0).abs() >= 0.005) {
+        if let Some((scale, slope)) = scale_profile(&g, &predict, &trusted, w, h) {
+            (params.right_scale, params.right_scale_slope) = (scale, slope);
+        }
+    }
     let mut warnings = Vec::new();
     for (side, img) in [("left", left), ("right", right)] {
         if let Some(why) = image_warning(img) {
@@ -440,6 +565,37 @@ pub fn locate_files_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A model whose right scale along u grows across the image (du_r/du_l = 0.8 +
+    /// 2 q (u_l - c), 0.65 to 0.95) and is 0.8 along v: [`scale_profile`] fits those lines.
+    #[test]
+    fn the_scale_profile_follows_the_model_across_the_image() {
+        let (w, h, c, cy, q, k) = (640u32, 480u32, 319.5, 239.5, 0.15 / 640.0, 3000.0);
+        let g_u = |u: f64| c + 0.8 * (u - c) + q * (u - c).powi(2);
+        let predict = |x: [f32; 4]| {
+            let [ul, _, ur, _] = x.map(f64::from);
+            let gap = g_u(ul) - ur;
+            (gap > 0.0).then(|| [0.0, 0.0, (k / gap) as f32])
+        };
+        let trusted = |_: [f32; 4]| true;
+        // The right line of (ul, vl): v = 0.8 vl + 0.2 cy.
+        let g = MatcherGeometry {
+            fundamental: [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -0.8, -0.2 * cy as f32]],
+            out_min: [0.0, 0.0, 50.0],
+            out_max: [0.0, 0.0, 150.0],
+            disparity: [-100.0, 120.0],
+            right_scale: [0.8, 0.8],
+        };
+        let (scale, slope) = scale_profile(&g, &predict, &trusted, w, h).expect("solves");
+        assert!((scale[1] - 0.8).abs() < 1e-3 && slope[1].abs() < 1e-6, "{scale:?} {slope:?}");
+        let z_mid = 2.0 / (1.0 / 50.0 + 1.0 / 150.0);
+        for ul in [40.0, 320.0, 600.0] {
+            let ur = g_u(ul) - k / z_mid;
+            let fit = f64::from(scale[0]) + f64::from(slope[0]) * (ur - c);
+            let truth = 0.8 + 2.0 * q * (ul - c);
+            assert!((fit - truth).abs() < 0.01, "at u_l {ul}: {fit} against {truth}");
+        }
+    }
 
     /// [`model_over_matches`] in row chunks gives every match the model's point by point answer
     /// ([`model_xyz`], `ModelBlob::infer`) to the bit, and drops the matches it has none for.

@@ -110,6 +110,13 @@ pub struct DenseParams {
     /// image's census windows ([`census::census_scaled`]) and the sub-pixel refinement's
     /// right windows are of that scale. `[1, 1]` for cameras alike.
     pub right_scale: [f32; 2],
+    /// How `right_scale` changes across the right image (per px of its column `u_r`, about
+    /// its centre column `(w - 1) / 2`): the scale of column `u_r` is `right_scale +
+    /// right_scale_slope (u_r - (w - 1) / 2)`, quantised to steps of 1/128 (a verged pair of
+    /// unequal focal lengths sees nearer to the focal ratio in the middle than at the
+    /// edges; `hvs depth` fits it from the model). Used only where `right_scale` differs
+    /// from 1 (by 0.5 % or more along either axis); `[0, 0]` for one scale everywhere.
+    pub right_scale_slope: [f32; 2],
     /// The left-right check's right-image disparities from an aggregation of their own, the
     /// right image as reference (Hirschmueller's check; `true`), instead of read off the
     /// left image's aggregated volume (OpenCV's way, for a rectified pair: one aggregation
@@ -138,6 +145,7 @@ impl Default for DenseParams {
             speckle_size: 50,
             speckle_range_px: 1.0,
             right_scale: [1.0, 1.0],
+            right_scale_slope: [0.0, 0.0],
             aggregate_right: false,
             refuse_past_gaps: false,
         }
@@ -182,6 +190,14 @@ impl DenseParams {
                 return Err(InvalidField::new(field, format!("must be finite, got {v}")));
             }
             in_range(field, v, 0.25, 4.0)?;
+        }
+        for (field, v) in [
+            ("params.right_scale_slope[0]", self.right_scale_slope[0]),
+            ("params.right_scale_slope[1]", self.right_scale_slope[1]),
+        ] {
+            if !v.is_finite() {
+                return Err(InvalidField::new(field, format!("must be finite, got {v}")));
+            }
         }
         Ok(())
     }
@@ -538,15 +554,16 @@ pub fn dense_match(
     // A scale within 0.5 % of 1 is 1 (across the 7-px window, under 0.02 px): the faster path.
     let scale =
         params.right_scale.map(|s| if (s - 1.0).abs() < 0.005 { 1.0 } else { f64::from(s) });
-    // The right image's census windows at its scale, so that they cover the same patch of
-    // the scene as the left ones (the candidates and matches stay in its own pixels).
+    // The right image's census windows at its scale (per column when it has a slope), so that
+    // they cover the same patch of the scene as the left ones (the candidates and matches
+    // stay in its own pixels).
     let ((cl, flat_l), (cr, flat_r)) = rayon::join(
         || (census::census(left), census::flat_windows(left)),
         || {
             let words = if scale == [1.0, 1.0] {
                 census::census(right)
             } else {
-                census::census_scaled(right, scale)
+                census::census_scaled(right, scale, params.right_scale_slope.map(f64::from))
             };
             (words, census::flat_windows(right))
         },
