@@ -10,7 +10,9 @@ use crate::infer::Predictor;
 use crate::vision::{matcher_geometry, model_xyz, training_disparities, Located};
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
-use hvs_vision::dense::{check_inputs, dense_match, DenseError, DenseMap, DenseParams};
+use hvs_vision::dense::{
+    check_inputs, dense_match, matcher_scale, DenseError, DenseMap, DenseParams,
+};
 use hvs_vision::geometry::Fundamental;
 use hvs_vision::matching::model_disparity_interval_in_image;
 use image::GrayImage;
@@ -280,7 +282,7 @@ pub fn depth(
     // scale across the right image as the model sees it at a middle depth (the global scale
     // when that does not solve).
     let mut params = DenseParams { right_scale: g.right_scale, ..*params };
-    if g.right_scale.iter().any(|s| (s - 1.0).abs() >= 0.005) {
+    if matcher_scale(g.right_scale) != [1.0, 1.0] {
         if let Some((scale, slope)) = scale_profile(&g, &predict, &trusted, w, h) {
             (params.right_scale, params.right_scale_slope) = (scale, slope);
         }

@@ -891,9 +891,7 @@ fn pixel_seed(l: &Plane, r: &Plane, c: [i32; 2], joints: &Joints, est: &Estimato
     around.sort_by_key(|o| o[0] * o[0] + o[1] * o[1]);
     let pts: Vec<Pt> = around
         .iter()
-        .filter_map(|o| {
-            coarse_match_in((&lh, &rh), l, r, [c[0] + o[0], c[1] + o[1]], joints, est, Peak::Unique)
-        })
+        .filter_map(|o| coarse_match_in((&lh, &rh), l, r, [c[0] + o[0], c[1] + o[1]], joints, est))
         .collect();
     let offset = |q: &Pt| [f64::from(q.l[0]) - q.r[0], f64::from(q.l[1]) - q.r[1]];
     pts.iter().find_map(|p| {
@@ -914,7 +912,7 @@ fn pixel_seed(l: &Plane, r: &Plane, c: [i32; 2], joints: &Joints, est: &Estimato
     })
 }
 
-/// The scan's match of grid point `c`: [`coarse_at`], then [`fine_at`], both by `peak`.
+/// Grid point `c` matched uniquely: [`coarse_at`], then [`fine_at`], both by [`Peak::Unique`].
 fn coarse_match_in(
     halves: (&Plane, &Plane),
     l: &Plane,
@@ -922,10 +920,9 @@ fn coarse_match_in(
     c: [i32; 2],
     joints: &Joints,
     est: &Estimator,
-    peak: Peak,
 ) -> Option<Pt> {
-    let (at, _, _) = coarse_at(halves, c, peak)?;
-    fine_at(l, r, c, at, joints, est, peak)
+    let (at, _, _) = coarse_at(halves, c, Peak::Unique)?;
+    fine_at(l, r, c, at, joints, est, Peak::Unique)
 }
 
 /// Grid point `c` matched at half resolution (`halves`, the right one with its window
@@ -1644,9 +1641,7 @@ mod tests {
         let (mut n, mut bad) = (0, 0);
         for y in (100..380).step_by(40) {
             for x in (100..540).step_by(40) {
-                if let Some(p) =
-                    coarse_match_in((&lh, &rh), &l, &rr, [x, y], &Joints::HOME, &est, Peak::Unique)
-                {
+                if let Some(p) = coarse_match_in((&lh, &rh), &l, &rr, [x, y], &Joints::HOME, &est) {
                     n += 1;
                     if let Some(t) = r.true_match(x as u32, y as u32) {
                         if (t[0] - p.r[0]).abs() > 1.0 || (t[1] - p.r[1]).abs() > 1.0 {

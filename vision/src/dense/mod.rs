@@ -115,7 +115,7 @@ pub struct DenseParams {
     /// right_scale_slope (u_r - (w - 1) / 2)`, quantised to steps of 1/128 (a verged pair of
     /// unequal focal lengths sees nearer to the focal ratio in the middle than at the
     /// edges; `hvs depth` fits it from the model). Used only where `right_scale` differs
-    /// from 1 (by 0.5 % or more along either axis); `[0, 0]` for one scale everywhere.
+    /// from 1 ([`matcher_scale`]); `[0, 0]` for one scale everywhere.
     pub right_scale_slope: [f32; 2],
     /// The left-right check's right-image disparities from an aggregation of their own, the
     /// right image as reference (Hirschmueller's check; `true`), instead of read off the
@@ -539,6 +539,13 @@ pub fn check_inputs(
     Ok(d)
 }
 
+/// The right/left image scale as the matcher takes it: each axis within 0.5 % of 1 is 1
+/// (across the 7-px window, under 0.02 px), the faster path; `[1, 1]` means the plain census
+/// and refinement.
+pub fn matcher_scale(right_scale: [f32; 2]) -> [f64; 2] {
+    right_scale.map(|s| if (s - 1.0).abs() < 0.005 { 1.0 } else { f64::from(s) })
+}
+
 /// Matches every pixel of `left` in `right` (same size) with `f` (`r^T F l = 0`) over the
 /// whole disparities `d_range[0]..=d_range[1]` (`d = u_l - u_r`, px). See the module
 /// documentation for the method.
@@ -551,9 +558,7 @@ pub fn dense_match(
 ) -> Result<DenseMap, DenseError> {
     let d = check_inputs(left, right, f, d_range, params)?;
     let (w, h) = (left.width() as usize, left.height() as usize);
-    // A scale within 0.5 % of 1 is 1 (across the 7-px window, under 0.02 px): the faster path.
-    let scale =
-        params.right_scale.map(|s| if (s - 1.0).abs() < 0.005 { 1.0 } else { f64::from(s) });
+    let scale = matcher_scale(params.right_scale);
     // The right image's census windows at its scale (per column when it has a slope), so that
     // they cover the same patch of the scene as the left ones (the candidates and matches
     // stay in its own pixels).
