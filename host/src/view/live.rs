@@ -36,7 +36,7 @@ pub enum Goal {
 /// The head's state after the latest frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeadState {
-    /// Seconds since the head started.
+    /// Seconds since the head started, at the latest frame or failed attempt at one.
     pub t_s: f64,
     /// Frames grabbed so far.
     pub frames: u64,
@@ -46,7 +46,7 @@ pub struct HeadState {
     pub status: &'static str,
     /// The joints when the latest frame was taken (degrees).
     pub joints: Joints,
-    /// Whether the servos are still moving.
+    /// Whether the servos are still moving (as the head last told, also after a failed frame).
     pub moving: bool,
     /// The target's pixels in the latest frame (`u_l, v_l, u_r, v_r`).
     pub target_px: Option<[f64; 4]>,
@@ -117,8 +117,19 @@ impl LiveHead {
     }
 
     /// Asks the head to do `goal` from the next frame on.
-    pub fn set_goal(&self, goal: Goal) {
+    fn set_goal(&self, goal: Goal) {
         *self.goal.lock().unwrap_or_else(|e| e.into_inner()) = Some(goal);
+    }
+
+    /// Asks the head to do `goal` from the next frame on, and answers its state, unless its
+    /// latest frame failed (a stopped camera, a head link with no answer): then nothing is
+    /// asked, and the error is the answer. `Ok(None)`: no frame yet.
+    pub fn look(&self, goal: Goal) -> Result<Option<HeadState>, String> {
+        if let Some(e) = self.state().and_then(|s| s.error) {
+            return Err(e);
+        }
+        self.set_goal(goal);
+        Ok(self.state())
     }
 
     /// The head's state after the latest frame.
@@ -312,8 +323,13 @@ fn run(
                 }
                 let Some(p) = previous else { return };
                 let mut state = p.state.clone();
-                // No frame since: none a second.
-                (state.error, state.fps) = (Some(msg), 0.0);
+                // No frame since: none a second. The time and the servos' motion are the
+                // head's own (as of its last answer, for a head on a link), not the last
+                // frame's.
+                (state.error, state.fps, state.t_s) = (Some(msg), 0.0, t);
+                if let Some((h, _)) = lp.head.as_ref() {
+                    state.moving = h.is_moving();
+                }
                 times.clear();
                 Latest { seq: p.seq, grey: p.grey.clone(), png: Default::default(), state }
             }
@@ -457,6 +473,68 @@ mod tests {
         let t0 = Instant::now();
         wait_for("twenty frames", || live.state().is_some_and(|s| s.frames >= 20));
         assert!(t0.elapsed() < Duration::from_secs(3), "{:?}", t0.elapsed());
+    }
+
+    /// A head on the wall clock whose motion the test sets.
+    struct SwitchedHead {
+        start: Instant,
+        moving: Arc<AtomicBool>,
+    }
+
+    impl ServoHead for SwitchedHead {
+        fn advance_to(&mut self, _t_s: f64) -> anyhow::Result<()> {
+            Ok(())
+        }
+        fn command(&mut self, _goal: &Joints) -> anyhow::Result<()> {
+            Ok(())
+        }
+        fn joints(&self) -> Joints {
+            Joints::HOME
+        }
+        fn is_moving(&self) -> bool {
+            self.moving.load(Ordering::SeqCst)
+        }
+        fn time_s(&self) -> f64 {
+            self.start.elapsed().as_secs_f64()
+        }
+        fn control_hz(&self) -> u32 {
+            1000
+        }
+    }
+
+    /// While the cameras fail, the state's time and the servos' motion stay the head's, not
+    /// the last good frame's (they had stood still at its values).
+    #[test]
+    fn a_stopped_camera_keeps_the_heads_time_and_motion_current() {
+        let (grabs, broken) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicBool::new(false)));
+        let fake = Fake { grabs, broken: broken.clone() };
+        let blob = crate::infer::tests::blob(5, OutputKind::Xyz, InputKind::Stereo);
+        let estimator = crate::track::estimator_of(blob).unwrap();
+        let moving = Arc::new(AtomicBool::new(false));
+        let head = SwitchedHead { start: Instant::now(), moving: moving.clone() };
+        let head: Box<dyn ServoHead + Send> = Box::new(head);
+        let cfg = LoopConfig::DEFAULT;
+        let live =
+            LiveHead::start(Box::new(fake), (32, 24), estimator, Some((head, cfg)), 240.0).unwrap();
+        wait_for("three frames", || live.state().is_some_and(|s| s.frames >= 3));
+        broken.store(true, Ordering::SeqCst);
+        wait_for("the error", || live.state().is_some_and(|s| s.error.is_some()));
+        let first = live.state().unwrap();
+        assert!(!first.moving, "{first:?}");
+        moving.store(true, Ordering::SeqCst);
+        wait_for("the motion and a later time", || {
+            live.state().is_some_and(|s| s.moving && s.t_s > first.t_s + 0.02)
+        });
+        let s = live.state().unwrap();
+        assert_eq!((s.frames, s.error.is_some(), s.fps), (first.frames, true, 0.0), "{s:?}");
+        // Nothing is asked of a head whose frames fail; once they come again, it is.
+        let refused = live.look(Goal::Home).unwrap_err();
+        assert!(refused.contains("/dev/video9"), "{refused}");
+        assert!(live.goal.lock().unwrap().is_none());
+        broken.store(false, Ordering::SeqCst);
+        wait_for("a frame", || live.state().is_some_and(|s| s.error.is_none()));
+        assert!(live.look(Goal::Nearest).unwrap().is_some());
+        wait_for("the goal", || live.state().is_some_and(|s| s.goal == Goal::Nearest));
     }
 
     /// The first pixel of a frame's PNG (the fake camera's frame number).

@@ -83,6 +83,7 @@ impl From<Refused> for ApiError {
         match r {
             Refused::Bad(m) => ApiError(StatusCode::BAD_REQUEST, m),
             Refused::Unprocessable(m) => ApiError(StatusCode::UNPROCESSABLE_ENTITY, m),
+            Refused::Unavailable(m) => ApiError(StatusCode::SERVICE_UNAVAILABLE, m),
         }
     }
 }

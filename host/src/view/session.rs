@@ -159,6 +159,8 @@ pub enum Refused {
     Bad(String),
     /// The request is well formed but cannot be done with these inputs.
     Unprocessable(String),
+    /// The live head cannot take it now (its latest frame failed).
+    Unavailable(String),
 }
 
 impl Session {
@@ -360,8 +362,13 @@ impl Session {
         if let Goal::Pixel([u, v]) = goal {
             check_pixel(u, v, head.size())?;
         }
-        head.set_goal(goal);
-        head.state().ok_or_else(|| Refused::Unprocessable("the head has no frame yet".into()))
+        head.look(goal)
+            .map_err(|e| {
+                Refused::Unavailable(format!(
+                    "the head's latest frame failed ({e}): nothing was asked of it; try again once it answers"
+                ))
+            })?
+            .ok_or_else(|| Refused::Unprocessable("the head has no frame yet".into()))
     }
 
     /// `hvs board detect` + `hvs train` (its defaults, [`RetrainOptions`]) on the pairs of the
