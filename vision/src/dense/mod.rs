@@ -24,11 +24,13 @@
 //!    round to their own rows) read off the same aggregated volume unless
 //!    [`DenseParams::aggregate_right`] asks for its own, otherwise a second aggregation. A
 //!    left match whose right pixel disagrees by more than
-//!    [`DenseParams::lr_tolerance_px`] is dropped, and so is one whose census window, or
-//!    its right pixel's, is one grey level ([`census::flat_windows`]: blank, or clipped to
-//!    black or white): the aggregation carries an answer into such a window from its
-//!    neighbours or the image border, with no evidence of its own (a quarter of such matches
-//!    lay 2 px or more off in over-exposed copies of the Motorcycle pair). So an image of one
+//!    [`DenseParams::lr_tolerance_px`] is dropped (where the right image's scale is not 1:
+//!    the round trip's miss at that scale, in the pixels of the coarser image), and so is
+//!    one whose census window, or its right pixel's, is one grey level
+//!    ([`census::flat_windows`]: blank, or clipped to black or white): the aggregation
+//!    carries an answer into such a window from its neighbours or the image border, with no
+//!    evidence of its own (a quarter of such matches lay 2 px or more off in over-exposed
+//!    copies of the Motorcycle pair). So an image of one
 //!    grey level, every window of it flat, gets no match at all.
 //! 6. Speckle filter: connected regions of similar disparity smaller than
 //!    [`DenseParams::speckle_size`] pixels are dropped. Then, for a rectified pair of
@@ -606,12 +608,19 @@ pub fn dense_match(
         drop(costs);
         right_disp = rows.into_iter().flatten().map(|b| b.map(|b| b.disparity)).collect();
     }
+    // The left-right check's round trip at the right image's scale along u where it is not 1.
+    let lr_scale = (scale != [1.0, 1.0]).then(|| post::ColumnScale {
+        scale: scale[0],
+        slope: f64::from(params.right_scale_slope[0]),
+        centre: (w as f64 - 1.0) / 2.0,
+    });
     post::left_right_check(
         &lgeo,
         &mut best,
         &right_disp,
         (&flat_l, &flat_r),
         params.lr_tolerance_px,
+        lr_scale,
     );
     post::speckle_filter(w, h, &mut best, params.speckle_size, params.speckle_range_px);
     if rectified && scale == [1.0, 1.0] {

@@ -201,16 +201,36 @@ fn right_from_left_row_body(geo: &Geo, sums: &[i16]) -> Vec<Option<f32>> {
         .collect()
 }
 
+/// The right image's scale along `u` against the left's at each right column, for the
+/// left-right check of a pair whose cameras' scales differ ([`super::DenseParams::right_scale`]
+/// and its slope): `scale + slope (u_r - centre)`, clipped to 0.25..4 as the census's.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ColumnScale {
+    pub scale: f64,
+    pub slope: f64,
+    pub centre: f64,
+}
+
+impl ColumnScale {
+    #[inline(always)]
+    fn at(&self, ur: f64) -> f64 {
+        (self.scale + self.slope * (ur - self.centre)).clamp(0.25, 4.0)
+    }
+}
+
 /// Drops every left winner whose right pixel's disparity (`right`, indexed by right pixel)
-/// differs by more than `tol` px or is missing, and every one whose census window or whose
+/// disagrees by more than `tol` px or is missing, and every one whose census window or whose
 /// right pixel's is flat ([`super::census::flat_windows`] of each image); records the
-/// disagreement of the others.
+/// disagreement of the others. With `scale` (the right image at another scale than the
+/// left), the disagreement is the round trip's miss in the pixels of the coarser image
+/// ([`right_agreement`]); without, `|d - d_r|`.
 pub(crate) fn left_right_check(
     geo: &Geo,
     best: &mut [Option<Best>],
     right: &[Option<f32>],
     (flat_left, flat_right): (&[bool], &[bool]),
     tol: f32,
+    scale: Option<ColumnScale>,
 ) {
     let w = geo.w;
     // Compiled for AVX2 where the CPU has it: `round` is then inlined instead of a libm call
@@ -226,7 +246,8 @@ pub(crate) fn left_right_check(
                             *slot = None;
                             continue;
                         }
-                        match right_agreement(geo, (right, flat_right), x, y, b.disparity, tol) {
+                        let right = (right, flat_right);
+                        match right_agreement(geo, right, x, y, b.disparity, tol, scale) {
                             Some(diff) => b.lr = diff,
                             None => *slot = None,
                         }
@@ -239,6 +260,16 @@ pub(crate) fn left_right_check(
 
 /// How far the right image's disparity at the match of left pixel `(x, y)` (disparity `d`)
 /// lies from `d`, if it has one within `tol` and the right pixel's window is not flat.
+///
+/// Where the right image's scale `s` (`du_r / du_l`, [`ColumnScale`] at the match) is not 1,
+/// `|d - d_r|` is not the round trip's miss: the match `u_r = x - d` is read at the right
+/// pixel `u = round(u_r)`, whose own match `u + d_r` should lie at `x + (u - u_r) / s`, not
+/// at `x + (u - u_r)`; and the miss, in left pixels, adds the left match's error in right
+/// pixels divided by `s` to the right match's in left pixels. So the miss is
+/// `u + d_r - x - (u - u_r) / s` (left pixels), and it is measured in the pixels of the
+/// coarser of the two images (times `min(s, 1)`): both matches locate the patch to about
+/// a pixel of the image that resolves it less finely, as `tol` does for cameras alike. At
+/// `s = 1` both are `|d - d_r|`.
 #[inline(always)]
 fn right_agreement(
     geo: &Geo,
@@ -247,6 +278,7 @@ fn right_agreement(
     y: usize,
     d: f32,
     tol: f32,
+    scale: Option<ColumnScale>,
 ) -> Option<f32> {
     let (alpha, beta) = geo.line(x, y)?;
     let w = geo.w;
@@ -261,7 +293,14 @@ fn right_agreement(
         return None;
     }
     let dr = right[at]?;
-    let diff = (d - dr).abs();
+    let diff = match scale {
+        None => (d - dr).abs(),
+        Some(scale) => {
+            let s = scale.at(ur);
+            let miss = u + f64::from(dr) - x as f64 - (u - ur) / s;
+            (miss.abs() * s.min(1.0)) as f32
+        }
+    };
     (diff <= tol).then_some(diff)
 }
 
@@ -2313,6 +2352,52 @@ mod tests {
         assert!(b[1].is_some());
         speckle_filter(w, h, &mut b, 27, 1.0);
         assert!(b.iter().all(|x| x.is_none()));
+    }
+
+    /// The left-right check of a right image at another scale `s` (`du_r / du_l`): the round
+    /// trip's miss, in the coarser image's pixels. Left pixel 40 at disparity 15.3 lands at
+    /// `u_r = 24.7`, read at right pixel 25, whose consistent match lies at `40 + 0.3 / s`.
+    /// At `s = 0.6` a right match 2 left px past it (1.2 right px) is kept with its miss
+    /// (`|d - d_r|` = 2.2 px would drop it), 3 left px (1.8) is dropped; at `s = 1.25` (the
+    /// left image the coarser) 2 left px is dropped; the scale is the one at the match's
+    /// column (1 at the centre, 0.6 there); without a scale the disagreement is `|d - d_r|`.
+    #[test]
+    fn the_left_right_check_measures_the_round_trip_at_the_right_scale() {
+        let w = 60usize;
+        let m = [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]];
+        let geo = Geo { m, sign: -1, d_min: 0, d: 40, w, h: 1 };
+        let (x, d, ur) = (40usize, 15.3f32, 24.7f64);
+        let centre = (w as f64 - 1.0) / 2.0;
+        let at = |scale: f64, slope: f64| ColumnScale { scale, slope, centre };
+        let slope_to_06 = (0.6 - 1.0) / (ur - centre);
+        // (scale, left px past the consistent match, kept with this miss).
+        let cases: [(Option<ColumnScale>, f64, Option<f32>); 6] = [
+            (Some(at(0.6, 0.0)), 2.0, Some(1.2)),
+            (Some(at(0.6, 0.0)), 3.0, None),
+            (Some(at(0.6, 0.0)), 0.0, Some(0.0)),
+            (Some(at(1.25, 0.0)), 2.0, None),
+            (Some(at(1.0, slope_to_06)), 2.0, Some(1.2)),
+            (None, 0.2, Some(0.2)),
+        ];
+        let flat = vec![false; w];
+        let check = |scale: Option<ColumnScale>, dr: f32| {
+            let mut right = vec![None; w];
+            right[25] = Some(dr);
+            let mut best = vec![None; w];
+            best[x] = Some(Best { disparity: d, s1: 10, s2: 100, lr: 0.0 });
+            left_right_check(&geo, &mut best, &right, (&flat, &flat), 1.5, scale);
+            best[x].map(|b| b.lr)
+        };
+        for (scale, past, want) in cases {
+            let s = scale.map_or(1.0, |c| c.at(ur));
+            let dr = (x as f64 + (25.0 - ur) / s + past - 25.0) as f32;
+            match (check(scale, dr), want) {
+                (Some(g), Some(e)) => assert!((g - e).abs() < 1e-4, "{scale:?} {past}: {g}"),
+                (got, _) => assert_eq!(got, want, "{scale:?} {past}"),
+            }
+        }
+        // Without a scale, exactly |d - d_r| (the bits of cameras alike).
+        assert_eq!(check(None, 16.1), Some((d - 16.1f32).abs()));
     }
 
     #[test]
