@@ -1,7 +1,7 @@
 //! `hvs simulate`: point sets from the thesis camera model (board protocol or random volume).
 
 use super::value_enum;
-use crate::cli::RigArgs;
+use crate::cli::{usage, RigArgs};
 use crate::data::output::check_not_input;
 use crate::data::output::write_output;
 use crate::sim::board::{Pixels, TrainingBoard};
@@ -31,7 +31,7 @@ value_enum! {
 }
 
 use crate::cli::{LensArgs, PostureArgs};
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{Context, Result};
 use hvs_shared::sim::posture::HeadRig;
 use std::path::PathBuf;
 
@@ -109,10 +109,11 @@ pub fn run(a: Args) -> Result<()> {
         let rig: Vec<_> = a.rig.rig.iter().map(|r| ("--rig", r.as_path())).collect();
         check_not_input("-o", out, &rig)?;
     }
-    let rig =
-        a.rig.rig()?.ok_or_else(|| anyhow!("choose a rig with --case N or --rig FILE.json"))?;
+    let rig = a.rig.rig()?.ok_or_else(|| usage("choose a rig with --case N or --rig FILE.json"))?;
     if a.points.is_some() && SetKind::from(a.set) != SetKind::Volume {
-        bail!("--points applies to --set volume only (the board sets have a fixed size)");
+        return Err(usage(
+            "--points applies to --set volume only (the board sets have a fixed size)",
+        ));
     }
     // Before the simulation, whose errors name the rig: the noise is the problem.
     crate::sim::sets::check_noise_px(a.noise_px, &rig)?;
