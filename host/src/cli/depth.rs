@@ -63,6 +63,9 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     check_outputs(&outputs, &inputs)?;
+    if let Some(p) = &a.colour {
+        crate::cli::check_png_name("--colour", p)?;
+    }
     let params = if a.thorough { DenseParams::thorough() } else { DenseParams::default() };
     let (d, left) = depth_files(&a.pair.model, &a.pair.left, &a.pair.right, &params)?;
     // The cloud first: a Z-only model has none, and nothing is written then.

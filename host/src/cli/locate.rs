@@ -55,6 +55,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     if let Some(o) = &a.overlay {
         outputs.push(("--overlay", o));
+        crate::cli::check_png_name("--overlay", o)?;
     }
     check_outputs(&outputs, &inputs)?;
     let pixels = match (&a.points, &a.at) {

@@ -26,7 +26,7 @@ use crate::sim::posture::Sampling;
 use anyhow::{bail, Result};
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::camera::Rig;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Choice of a camera rig: a built-in thesis case or a rig file.
 #[derive(Debug, Clone, clap::Args)]
@@ -326,6 +326,21 @@ impl std::error::Error for Usage {}
 /// A [`Usage`] error with `msg`.
 pub fn usage(msg: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(Usage(msg.into()))
+}
+
+/// Refuses (bad usage) a PNG output `path` (`flag`) named as another image format: `hvs`
+/// writes PNG bytes whatever the name, so `d.jpg` would hold a PNG that some viewers refuse.
+/// Other names (no extension, `.png`, anything not an image format) are left to the user.
+pub fn check_png_name(flag: &str, path: &Path) -> Result<()> {
+    const OTHER: [&str; 9] = ["jpg", "jpeg", "bmp", "gif", "tif", "tiff", "webp", "pgm", "ppm"];
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext {
+        Some(e) if OTHER.contains(&e.as_str()) => Err(usage(format!(
+            "{flag} {}: hvs writes PNG images only, and this name says .{e}; name it .png",
+            path.display()
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// A run stopped by Ctrl-C (SIGINT) or SIGTERM after writing what it had (`hvs track`'s log):
