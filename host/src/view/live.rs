@@ -421,13 +421,22 @@ mod tests {
         assert_eq!(grabs.load(Ordering::SeqCst), after);
     }
 
-    /// A head on its own clock, which runs a second behind the wall clock (QEMU's on a busy
-    /// machine), and is waited for like a real head's.
-    struct LateHead {
+    /// A head for the tests: its clock `lag_s` behind the wall clock, its own (`own`: a head
+    /// on a link, waited for like a real one) or the loop's, and its motion set by the test.
+    struct TestHead {
         start: Instant,
+        lag_s: f64,
+        own: bool,
+        moving: Arc<AtomicBool>,
     }
 
-    impl ServoHead for LateHead {
+    impl TestHead {
+        fn boxed(lag_s: f64, own: bool, moving: Arc<AtomicBool>) -> Box<dyn ServoHead + Send> {
+            Box::new(TestHead { start: Instant::now(), lag_s, own, moving })
+        }
+    }
+
+    impl ServoHead for TestHead {
         fn advance_to(&mut self, t_s: f64) -> anyhow::Result<()> {
             while self.time_s() < t_s {
                 std::thread::sleep(Duration::from_millis(1));
@@ -441,19 +450,23 @@ mod tests {
             Joints::HOME
         }
         fn is_moving(&self) -> bool {
-            false
+            self.moving.load(Ordering::SeqCst)
         }
         fn time_s(&self) -> f64 {
-            (self.start.elapsed().as_secs_f64() - 1.0).max(0.0)
+            (self.start.elapsed().as_secs_f64() - self.lag_s).max(0.0)
         }
         fn control_hz(&self) -> u32 {
             1000
         }
-        fn frame_time(&self, _t_s: f64) -> f64 {
-            self.time_s()
+        fn frame_time(&self, t_s: f64) -> f64 {
+            if self.own {
+                self.time_s()
+            } else {
+                t_s
+            }
         }
         fn own_clock(&self) -> bool {
-            true
+            self.own
         }
     }
 
@@ -466,40 +479,14 @@ mod tests {
         let fake = Fake { grabs: grabs.clone(), broken };
         let blob = crate::infer::tests::blob(5, OutputKind::Xyz, InputKind::Stereo);
         let estimator = crate::track::estimator_of(blob).unwrap();
-        let head: Box<dyn ServoHead + Send> = Box::new(LateHead { start: Instant::now() });
+        // A second behind the wall clock, as QEMU's on a busy machine.
+        let head = TestHead::boxed(1.0, true, Arc::new(AtomicBool::new(false)));
         let cfg = LoopConfig::DEFAULT;
         let live =
             LiveHead::start(Box::new(fake), (32, 24), estimator, Some((head, cfg)), 60.0).unwrap();
         let t0 = Instant::now();
         wait_for("twenty frames", || live.state().is_some_and(|s| s.frames >= 20));
         assert!(t0.elapsed() < Duration::from_secs(3), "{:?}", t0.elapsed());
-    }
-
-    /// A head on the wall clock whose motion the test sets.
-    struct SwitchedHead {
-        start: Instant,
-        moving: Arc<AtomicBool>,
-    }
-
-    impl ServoHead for SwitchedHead {
-        fn advance_to(&mut self, _t_s: f64) -> anyhow::Result<()> {
-            Ok(())
-        }
-        fn command(&mut self, _goal: &Joints) -> anyhow::Result<()> {
-            Ok(())
-        }
-        fn joints(&self) -> Joints {
-            Joints::HOME
-        }
-        fn is_moving(&self) -> bool {
-            self.moving.load(Ordering::SeqCst)
-        }
-        fn time_s(&self) -> f64 {
-            self.start.elapsed().as_secs_f64()
-        }
-        fn control_hz(&self) -> u32 {
-            1000
-        }
     }
 
     /// While the cameras fail, the state's time and the servos' motion stay the head's, not
@@ -511,8 +498,7 @@ mod tests {
         let blob = crate::infer::tests::blob(5, OutputKind::Xyz, InputKind::Stereo);
         let estimator = crate::track::estimator_of(blob).unwrap();
         let moving = Arc::new(AtomicBool::new(false));
-        let head = SwitchedHead { start: Instant::now(), moving: moving.clone() };
-        let head: Box<dyn ServoHead + Send> = Box::new(head);
+        let head = TestHead::boxed(0.0, false, moving.clone());
         let cfg = LoopConfig::DEFAULT;
         let live =
             LiveHead::start(Box::new(fake), (32, 24), estimator, Some((head, cfg)), 240.0).unwrap();
