@@ -6,7 +6,7 @@ use crate::data::output::{check_outputs, write_output, Batch};
 use crate::data::pixels::{read_pixels, Pixels};
 use crate::depth::{locate_files_with, LocatedFiles};
 use crate::vision::{locate_overlay, png_bytes};
-use anyhow::{bail, Result};
+use anyhow::Result;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `hvs locate`.
@@ -76,7 +76,7 @@ pub fn run(a: Args) -> Result<()> {
             extra: vec![Vec::new()],
             replaced: Vec::new(),
         },
-        (None, None) => bail!("give --points PIXELS.csv or --at U,V"),
+        (None, None) => return Err(crate::cli::usage("give --points PIXELS.csv or --at U,V")),
     };
     // The one point asked for with --at must lie in the image (its header says; a file that
     // cannot be read is left to the full read below, which names the problem), once the
@@ -86,7 +86,10 @@ pub fn run(a: Args) -> Result<()> {
         crate::depth::check_pair_size(&a.pair.model, &m.blob, &a.pair.left, (w, h))?;
         let [u, v] = pixels.points[0];
         if !crate::depth::inside_image(u, v, (w, h)) {
-            bail!("--at {u},{v}: outside the {w}x{h} left image {}", a.pair.left.display());
+            return Err(crate::cli::usage(format!(
+                "--at {u},{v}: outside the {w}x{h} left image {}",
+                a.pair.left.display()
+            )));
         }
     }
     let LocatedFiles { found, warnings, left: l, right: r } =
