@@ -322,16 +322,6 @@ pub fn depth(
     } else {
         dense_match(left, right, &f, d_range, &params).map_err(why)?
     };
-    if warnings.is_empty() {
-        let matched = matches.ur.iter().filter(|u| u.is_finite()).count();
-        let share = 100.0 * matched as f64 / matches.ur.len().max(1) as f64;
-        if share < FEW_MATCHES_PCT {
-            warnings.push(format!(
-                "only {share:.1} % of the left image's pixels found a match: are the left and right images swapped, not of one scene at one time, or is most of the scene outside the model's depths ({:.0} to {:.0} cm, what is searched)?",
-                g.out_min[2], g.out_max[2]
-            ));
-        }
-    }
     let (xyz, no_estimate) = model_over_matches(blob, w as usize, &mut matches)?;
     if no_estimate > 0 {
         warnings.push(format!(
@@ -340,13 +330,6 @@ pub fn depth(
     }
     Ok(Depth { matches, xyz, d_range, z_box: [g.out_min[2], g.out_max[2]], warnings })
 }
-
-/// Under this share of matched pixels (%), [`depth`] warns. Swapped images match almost
-/// nothing where the scene has little texture outside what the model's depths reach (0.9 %
-/// of a rendered case I board pair), but not everywhere (18 % of the CLI test's textured wall
-/// and box, 93 % the right way round); a board before a plain background, the right way
-/// round, matches 15 % (the README's `hvs render` pair), which must not be warned about.
-const FEW_MATCHES_PCT: f64 = 5.0;
 
 /// The dense matcher's settings every answer about single points comes from (`hvs locate`,
 /// `hvs head look`, `hvs view`'s depth and clicks): [`DenseParams::thorough`], whose
