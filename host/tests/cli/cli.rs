@@ -97,6 +97,14 @@ fn simulate_volume_and_noise_are_seeded() {
     };
     let a = run("5", "0");
     assert_eq!(rows(&a).len(), 201);
+    // No rig, or --points with a board set: bad usage (exit 2, as `hvs render`'s).
+    for (args, want) in [
+        (&["simulate", "--set", "train"][..], "choose a rig"),
+        (&["simulate", "--case", "1", "--set", "train", "--points", "9"][..], "--set volume only"),
+    ] {
+        let e = crate::common::stderr_with_code(args, 2);
+        assert!(e.starts_with("error: ") && e.contains(want) && e.lines().count() == 1, "{e}");
+    }
     assert_eq!(a, run("5", "0"));
     assert_ne!(a, run("6", "0"));
     let noisy = run("5", "0.7");

@@ -209,12 +209,18 @@ fn depth_of_a_wall_and_a_box_and_its_files() {
     assert!(bz.data.iter().all(|v| *v == f32::INFINITY));
 
     // A colour image named as another format than the PNG it would hold: bad usage.
-    let (jpg, sw) = (d.join("c.jpg"), d.join("sw.pfm"));
+    // So is `hvs locate --overlay`'s.
+    let (jpg, out) = (d.join("c.jpg"), d.join("c.pfm"));
     let err = stderr_with_code(
-        locate_args(&["depth"], &model, &l, &r, &["-o", s(&sw), "--colour", s(&jpg)]),
+        locate_args(&["depth"], &model, &l, &r, &["-o", s(&out), "--colour", s(&jpg)]),
         2,
     );
-    assert!(err.contains("writes PNG images only") && !jpg.exists(), "{err}");
+    assert!(err.contains("writes PNG images only") && !jpg.exists() && !out.exists(), "{err}");
+    let err = stderr_with_code(
+        locate_args(&["locate"], &model, &l, &r, &["--at", "100,80", "--overlay", s(&jpg)]),
+        2,
+    );
+    assert!(err.contains("--overlay") && err.contains("writes PNG images only"), "{err}");
     // Another size than the other image, than the model's.
     let small = d.join("small.png");
     GrayImage::from_pixel(100, 80, image::Luma([9])).save(&small).unwrap();
