@@ -128,7 +128,7 @@ pub enum DetectError {
     /// The board's `i` axis (its `cols` corners) runs down the image: its labels cannot
     /// follow the convention ((0, 0) top left, `i` to the right); the description has
     /// `cols` and `rows` swapped, or the board is held turned by a quarter.
-    #[error("the labels cannot follow the board convention: the board's {cols}-corner side (inner_corners[0]) runs down the image ({roll_deg:.0} degrees from +u), so (0, 0) could not be the top-left corner with i to the right; if the board shows {rows} corners across and {cols} down, describe it as \"inner_corners\": [{rows}, {cols}] (else hold it with its {cols}-corner side across)")]
+    #[error("the labels cannot follow the board convention: the board's {cols}-corner side (inner_corners[0]) runs up or down the image ({roll_deg:.0} degrees from +u, one way or the other as the detector orders the corners), so (0, 0) could not be the top-left corner with i to the right; if the board shows {rows} corners across and {cols} down, describe it as \"inner_corners\": [{rows}, {cols}] (else hold it with its {cols}-corner side across)")]
     Turned {
         /// The description's `cols`.
         cols: u32,
