@@ -7,14 +7,15 @@
 //! same matches ([`locate`]).
 
 use crate::infer::Predictor;
-use crate::vision::{matcher_geometry, model_xyz, training_disparities, Located};
+use crate::vision::{
+    matcher_geometry, model_fundamental, model_xyz, training_disparities, Located,
+};
 use anyhow::{anyhow, bail, Result};
 use hvs_shared::runtime::blob::{MatcherGeometry, ModelBlob};
 use hvs_vision::dense::{
     check_inputs, dense_match, matcher_scale, DenseError, DenseMap, DenseParams,
 };
-use hvs_vision::geometry::Fundamental;
-use hvs_vision::matching::model_disparity_interval_in_image;
+use hvs_vision::matching::{line_point, model_disparity_interval_in_image};
 use image::GrayImage;
 use std::path::Path;
 
@@ -93,7 +94,7 @@ pub fn disparity_range(
     w: u32,
     h: u32,
 ) -> [i32; 2] {
-    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
+    let f = model_fundamental(g);
     let d_range = training_disparities(g);
     let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
     let mut lo = f64::INFINITY;
@@ -141,7 +142,7 @@ pub fn scale_profile(
     w: u32,
     h: u32,
 ) -> Option<([f32; 2], [f32; 2])> {
-    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
+    let f = model_fundamental(g);
     let d_range = training_disparities(g);
     let z_range = [f64::from(g.out_min[2]), f64::from(g.out_max[2])];
     if !(z_range[0] > 0.0 && z_range[1] > z_range[0]) {
@@ -152,12 +153,10 @@ pub fn scale_profile(
     // interval where the model's Z crosses it (0.5 px scan), then bisection.
     let solve = |ul: f64, vl: f64| -> Option<[f64; 2]> {
         let line = f.line_in_right([ul, vl]);
-        let [a, b, c] = line;
         let (lo, hi) =
             model_disparity_interval_in_image(predict, trusted, ul, vl, line, z_range, d_range, w)?;
         let at = |d: f64| {
-            let ur = ul - d;
-            let vr = -(a * ur + c) / b;
+            let [ur, vr] = line_point(ul, line, d);
             let x = [ul as f32, vl as f32, ur as f32, vr as f32];
             let z = if trusted(x) { predict(x).map(|p| f64::from(p[2]) - z_mid) } else { None };
             z.filter(|z| z.is_finite()).map(|z| (z, [ur, vr]))
@@ -277,7 +276,7 @@ pub fn depth(
     let (w, h) = left.dimensions();
     let trusted = crate::vision::model_trusted(blob);
     let d_range = disparity_range(&g, &predict, &trusted, w, h);
-    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
+    let f = model_fundamental(&g);
     // The right census windows at the model's right/left image scale; where it is not 1, the
     // scale across the right image as the model sees it at a middle depth (the global scale
     // when that does not solve).
@@ -434,7 +433,7 @@ pub fn check_pair_size(
 /// refused (`out_of_depth_range`), as is a pixel without one (`no_match`).
 pub fn locate_in(d: &Depth, blob: &ModelBlob, points: &[[f64; 2]]) -> Result<Vec<Located>> {
     let g = matcher_geometry(blob)?;
-    let f = Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
+    let f = model_fundamental(&g);
     let (d_range, z_range) =
         (training_disparities(&g), [f64::from(g.out_min[2]), f64::from(g.out_max[2])]);
     let predict = model_xyz(blob);

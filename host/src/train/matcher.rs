@@ -100,7 +100,7 @@ mod tests {
         }
         assert!(g.disparity[0] > 0.0 && g.disparity[0] < g.disparity[1]);
         // Points the fit never saw lie on their epipolar lines (rounded pixels: within ~1 px).
-        let f = hvs_vision::geometry::Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) };
+        let f = crate::vision::model_fundamental(&g);
         let test = simulate(&rig, SetKind::Test, &SimOptions::default()).unwrap();
         for s in &test {
             let d = f.distance_in_right([s.px[0], s.px[1]], [s.px[2], s.px[3]]);

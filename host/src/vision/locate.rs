@@ -137,6 +137,11 @@ pub fn matcher_geometry(blob: &ModelBlob) -> Result<MatcherGeometry> {
     })
 }
 
+/// The model's fundamental matrix (fitted to its training points, kept in `f32`) in `f64`.
+pub fn model_fundamental(g: &MatcherGeometry) -> hvs_vision::geometry::Fundamental {
+    hvs_vision::geometry::Fundamental { m: g.fundamental.map(|r| r.map(f64::from)) }
+}
+
 /// The training set's disparities (`u_l - u_r`, px) widened by [`DISPARITY_SLACK`] of their
 /// span on each side.
 pub fn training_disparities(g: &MatcherGeometry) -> [f64; 2] {

@@ -17,6 +17,7 @@ pub use files::{
     write_scene_pair, SCENE_PAIR_FILES,
 };
 pub use locate::{
-    check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_trusted,
-    model_xyz, training_disparities, Located, DISPARITY_SLACK, STATUSES, TRUSTED_INPUT_MARGIN,
+    check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_fundamental,
+    model_trusted, model_xyz, training_disparities, Located, DISPARITY_SLACK, STATUSES,
+    TRUSTED_INPUT_MARGIN,
 };

@@ -60,18 +60,26 @@ pub fn model_disparity_interval(
     })
 }
 
+/// The right pixel `[u_r, v_r]` that left column `ul` matches at disparity `d` (`ul - u_r`)
+/// on the right line `line` (`a u + b v + c = 0`, `b` not zero): how the model's disparity
+/// scans walk an epipolar line.
+#[inline]
+pub fn line_point(ul: f64, [a, b, c]: [f64; 3], d: f64) -> [f64; 2] {
+    let ur = ul - d;
+    [ur, -(a * ur + c) / b]
+}
+
 /// The model's `Z` of left pixel `(ul, vl)` matched at disparity `d` on the right line
-/// `line` (`a u + b v + c = 0`, `b` not zero), `None` where the model has no answer.
+/// `line` ([`line_point`]), `None` where the model has no answer.
 #[inline]
 fn model_z_at(
     predict: impl Fn([f32; 4]) -> Option<[f32; 3]>,
     ul: f64,
     vl: f64,
-    [a, b, c]: [f64; 3],
+    line: [f64; 3],
     d: f64,
 ) -> Option<f64> {
-    let ur = ul - d;
-    let vr = -(a * ur + c) / b;
+    let [ur, vr] = line_point(ul, line, d);
     predict([ul as f32, vl as f32, ur as f32, vr as f32]).map(|p| f64::from(p[2]))
 }
 

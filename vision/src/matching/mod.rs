@@ -76,7 +76,7 @@ mod window;
 mod zncc;
 
 pub use interval::{
-    model_disparity_interval, model_disparity_interval_in_image, pinhole_right_scale,
+    line_point, model_disparity_interval, model_disparity_interval_in_image, pinhole_right_scale,
     MODEL_SCAN_STEP_PX, MODEL_Z_MARGIN,
 };
 pub use params::{MatchError, MatchParams};
