@@ -49,6 +49,7 @@ enum Command {
 }
 
 fn main() {
+    cmd::keep_freed_memory();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(a) => cmd::simulate::run(a),
