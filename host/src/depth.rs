@@ -38,6 +38,9 @@ pub struct Depth {
     /// Things a user should know (a blank or saturated image, matches the model has no
     /// estimate for), one line each.
     pub warnings: Vec<String>,
+    /// Pixels with a depth whose `(u_l, v_l, u_r, v_r)` lies outside the model's input box:
+    /// their X, Y, Z are the net's extrapolations.
+    pub outside_box: usize,
 }
 
 impl Depth {
@@ -321,13 +324,13 @@ pub fn depth(
     } else {
         dense_match(left, right, &f, d_range, &params).map_err(why)?
     };
-    let (xyz, no_estimate) = model_over_matches(blob, w as usize, &mut matches)?;
+    let (xyz, no_estimate, outside_box) = model_over_matches(blob, w as usize, &mut matches)?;
     if no_estimate > 0 {
         warnings.push(format!(
             "{no_estimate} matched pixels have no estimate from the model (left +inf)"
         ));
     }
-    Ok(Depth { matches, xyz, d_range, z_box: [g.out_min[2], g.out_max[2]], warnings })
+    Ok(Depth { matches, xyz, d_range, z_box: [g.out_min[2], g.out_max[2]], warnings, outside_box })
 }
 
 /// The dense matcher's settings every answer about single points comes from (`hvs locate`,
@@ -350,13 +353,13 @@ fn model_over_matches(
     blob: &ModelBlob,
     w: usize,
     m: &mut DenseMap,
-) -> Result<(Vec<[f32; 3]>, usize)> {
+) -> Result<(Vec<[f32; 3]>, usize, usize)> {
     use rayon::prelude::*;
     let predictor = Predictor::new(blob);
     let mut xyz = vec![[f32::INFINITY; 3]; m.ur.len()];
     let no = blob.n_outputs().min(3);
     let chunk = w.max(1) * MODEL_ROWS;
-    let counts: Vec<Result<usize>> = xyz
+    let counts: Vec<Result<[usize; 2]>> = xyz
         .par_chunks_mut(chunk)
         .zip(m.ur.par_chunks_mut(chunk))
         .zip(m.vr.par_chunks_mut(chunk))
@@ -374,19 +377,25 @@ fn model_over_matches(
             let mut out = vec![0.0f32; idx.len() * no];
             // A point without an estimate gets +inf (counted below); the others go on.
             predictor.run_each(&inputs, &mut out).map_err(|e| anyhow!("{e:?}"))?;
-            let mut failed = 0;
-            for (&k, o) in idx.iter().zip(out.chunks_exact(no)) {
+            let (mut failed, mut outside) = (0, 0);
+            for ((&k, o), x) in idx.iter().zip(out.chunks_exact(no)).zip(inputs.chunks_exact(4)) {
                 if o.iter().all(|v| v.is_finite()) {
                     xyz[k] = if no == 3 { [o[0], o[1], o[2]] } else { [f32::NAN, f32::NAN, o[0]] };
+                    outside += usize::from(!blob.in_range(x));
                 } else {
                     failed += 1;
                     (ur[k], vr[k], conf[k]) = (f32::INFINITY, f32::INFINITY, 0.0);
                 }
             }
-            Ok(failed)
+            Ok([failed, outside])
         })
         .collect();
-    Ok((xyz, counts.into_iter().sum::<Result<usize>>()?))
+    let (mut failed, mut outside) = (0, 0);
+    for c in counts {
+        let [f, o] = c?;
+        (failed, outside) = (failed + f, outside + o);
+    }
+    Ok((xyz, failed, outside))
 }
 
 /// Loads the model and both images (PNG or JPEG, checked by [`hvs_vision::image_file`]),
@@ -636,14 +645,17 @@ mod tests {
             m.conf[p] = 0.5 + 0.5 * next();
         }
         let before = m.clone();
-        let (xyz, dropped) = model_over_matches(&blob, w, &mut m).unwrap();
+        let (xyz, dropped, outside) = model_over_matches(&blob, w, &mut m).unwrap();
         assert_eq!(dropped, refused);
+        let mut want_outside = 0;
         for (p, got) in xyz.iter().enumerate() {
             let want = before.ur[p]
                 .is_finite()
                 .then(|| point([(p % w) as f32, (p / w) as f32, before.ur[p], before.vr[p]]));
             match want.flatten() {
                 Some(q) => {
+                    let x = [(p % w) as f32, (p / w) as f32, before.ur[p], before.vr[p]];
+                    want_outside += usize::from(!blob.in_range(&x));
                     assert_eq!(got.map(f32::to_bits), q.map(f32::to_bits), "pixel {p}");
                     assert_eq!(
                         (m.ur[p], m.vr[p], m.conf[p]),
@@ -658,5 +670,8 @@ mod tests {
                 }
             }
         }
+        // The golden model's box is the thesis' middle pixels, far from these 37 x 21 (the
+        // mixed case: `vision::locate`'s test).
+        assert_eq!(outside, want_outside);
     }
 }

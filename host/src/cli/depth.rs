@@ -100,5 +100,10 @@ pub fn run(a: Args) -> Result<()> {
         eprintln!("warning: {w}");
     }
     eprintln!("{}; {} warning(s)", d.summary(), d.warnings.len());
+    if let Some(note) =
+        crate::infer::extrapolation_note(d.outside_box, d.returned(), "pixels with a depth")
+    {
+        eprintln!("{note}");
+    }
     Ok(())
 }

@@ -97,6 +97,11 @@ pub fn run(a: Args) -> Result<()> {
     for w in &warnings {
         eprintln!("warning: {w}");
     }
+    let answered = found.iter().filter(|f| f.xyz.is_some()).count();
+    let outside = crate::vision::outside_box(&m.blob, &found);
+    if let Some(note) = crate::infer::extrapolation_note(outside, answered, "located points") {
+        eprintln!("{note}");
+    }
     // The overlay and the points file replaced together ([`Batch`]).
     let batch = Batch::new();
     if let Some(p) = &a.overlay {

@@ -44,11 +44,8 @@ pub fn run(a: Args) -> Result<()> {
     crate::data::validate::plausible_values(&table)?;
     let (x, y) = infer_table(blob, &table)?;
     let outside = x.chunks_exact(blob.n_inputs()).filter(|p| !blob.in_range(p)).count();
-    if outside > 0 {
-        eprintln!(
-            "note: {outside} of {} points lie outside the input box the model was trained on; their estimates are extrapolations",
-            table.data.len()
-        );
+    if let Some(note) = crate::infer::extrapolation_note(outside, table.data.len(), "points") {
+        eprintln!("{note}");
     }
     let no = blob.n_outputs();
     let mut far = y

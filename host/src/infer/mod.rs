@@ -20,6 +20,18 @@ use rayon::prelude::*;
 
 mod lanes;
 
+/// The note `hvs predict`, `hvs depth` and `hvs locate` print when `outside` of the `total`
+/// points they answered lie outside the model's input box (its training pixels, or joints):
+/// the net's answers there are extrapolations (a net of the thesis' 72 middle points gives
+/// depths 10-20 % off near the image's edges). `None` when none do.
+pub fn extrapolation_note(outside: usize, total: usize, what: &str) -> Option<String> {
+    (outside > 0).then(|| {
+        format!(
+            "note: {outside} of {total} {what} lie outside the input box the model was trained on; their estimates are extrapolations"
+        )
+    })
+}
+
 /// Points per parallel chunk.
 const CHUNK: usize = 16 * 1024;
 

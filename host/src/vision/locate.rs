@@ -40,6 +40,17 @@ pub fn model_trusted(blob: &ModelBlob) -> impl Fn([f32; 4]) -> bool + Sync + '_ 
     }
 }
 
+/// How many of `found` have an estimate from a quadruple `(u_l, v_l, u_r, v_r)` outside
+/// `blob`'s input box: the net extrapolated them.
+pub fn outside_box(blob: &ModelBlob, found: &[Located]) -> usize {
+    found
+        .iter()
+        .filter(|f| f.xyz.is_some())
+        .filter_map(|f| f.right.map(|r| [f.left[0], f.left[1], r[0], r[1]].map(|v| v as f32)))
+        .filter(|x| !blob.in_range(x))
+        .count()
+}
+
 /// Refuses images of another size than the model's training images (when the model records
 /// it: `hvs train` on `hvs board detect`'s points): its geometry and depths are for that size.
 pub fn check_image_size(blob: &ModelBlob, (w, h): (u32, u32)) -> Result<()> {
@@ -235,6 +246,30 @@ mod tests {
             score: 1.0,
             status: if right.is_some() { "ok" } else { "no_match" },
         }
+    }
+
+    /// Only answered points count, and only those whose quadruple leaves the input box (0 to
+    /// 640 on every input for the test blob); the note names the count.
+    #[test]
+    fn answers_outside_the_input_box_are_counted_as_extrapolations() {
+        use hvs_shared::runtime::blob::{InputKind, OutputKind};
+        let blob = crate::infer::tests::blob(5, OutputKind::Xyz, InputKind::Stereo);
+        let with = |left: [f64; 2], right: Option<[f64; 2]>, xyz: bool| Located {
+            xyz: xyz.then_some([0.0, 0.0, 100.0]),
+            ..at(left, right)
+        };
+        let found = [
+            with([300.0, 200.0], Some([280.0, 200.0]), true),
+            with([630.0, 200.0], Some([650.0, 200.0]), true),
+            with([-0.4, 10.0], Some([-20.0, 10.0]), true),
+            with([630.0, 200.0], Some([650.0, 200.0]), false),
+            with([700.0, 200.0], None, false),
+        ];
+        assert_eq!(outside_box(&blob, &found), 2);
+        assert_eq!(outside_box(&blob, &found[..1]), 0);
+        let note = crate::infer::extrapolation_note(2, 3, "located points").unwrap();
+        assert!(note.starts_with("note: 2 of 3 located points lie outside the input box"));
+        assert!(crate::infer::extrapolation_note(0, 3, "located points").is_none());
     }
 
     /// Every cross is drawn over the numbers, however close the points (a grid 12 px apart, as

@@ -18,6 +18,6 @@ pub use files::{
 };
 pub use locate::{
     check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_fundamental,
-    model_trusted, model_xyz, training_disparities, Located, DISPARITY_SLACK, STATUSES,
-    TRUSTED_INPUT_MARGIN,
+    model_trusted, model_xyz, outside_box, training_disparities, Located, DISPARITY_SLACK,
+    STATUSES, TRUSTED_INPUT_MARGIN,
 };
