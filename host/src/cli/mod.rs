@@ -357,7 +357,6 @@ impl std::fmt::Display for Interrupted {
 
 impl std::error::Error for Interrupted {}
 
-/// Whether `e` is [`Interrupted`].
 /// glibc's allocator told to keep freed memory for the next allocation instead of handing it
 /// back to the kernel: called once, first thing in `main`.
 ///
@@ -385,6 +384,7 @@ pub fn keep_freed_memory() {
     }
 }
 
+/// Whether `e` is [`Interrupted`].
 pub fn is_interrupted(e: &anyhow::Error) -> bool {
     e.chain().any(|c| c.downcast_ref::<Interrupted>().is_some())
 }
