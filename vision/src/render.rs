@@ -469,6 +469,12 @@ pub(crate) fn quantise(
     GrayImage::from_raw(w, h, data).expect("buffer has w * h pixels")
 }
 
+/// The image file names of pair `k` (from 0) of a capture set: `leftNN.png`, `rightNN.png`
+/// (NN from 01).
+pub fn capture_names(k: usize) -> [String; 2] {
+    [format!("left{:02}.png", k + 1), format!("right{:02}.png", k + 1)]
+}
+
 /// One pair of a capture set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Capture {
@@ -568,12 +574,8 @@ pub fn render_capture_set(
         let s: u64 = seeds.random();
         let centre = [xy[0], xy[1], z];
         let render = render_pair(head, joints, board, centre, opt, s)?;
-        captures.push(Capture {
-            left_name: format!("left{:02}.png", k + 1),
-            right_name: format!("right{:02}.png", k + 1),
-            centre,
-            render,
-        });
+        let [left_name, right_name] = capture_names(k);
+        captures.push(Capture { left_name, right_name, centre, render });
     }
     Ok(RenderedSet { board: *board, captures })
 }

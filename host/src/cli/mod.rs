@@ -53,6 +53,11 @@ impl RigArgs {
         }
     }
 
+    /// The rig file, if given, as an input an output must not overwrite.
+    pub fn inputs(&self) -> Vec<(&'static str, &Path)> {
+        self.rig.iter().map(|r| ("--rig", r.as_path())).collect()
+    }
+
     /// A short name of the choice for messages.
     pub fn label(&self) -> String {
         match (&self.rig, self.case) {

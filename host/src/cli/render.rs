@@ -12,7 +12,7 @@ use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
 use hvs_vision::render;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `hvs render`.
 #[derive(Debug, clap::Args)]
@@ -84,16 +84,26 @@ fn joints_arg(j: Option<&[f32]>) -> Result<Option<Joints>> {
     }
 }
 
-/// `hvs render --scene`: one pair of the scene and its truth images.
-fn run_scene(a: &Args, path: &std::path::Path) -> Result<()> {
-    crate::data::output::check_dir_output("-o", &a.output)?;
-    // The scene file cannot be one of the files written (a new folder holds no input).
-    if a.output.is_dir() {
-        let written = crate::vision::SCENE_PAIR_FILES.map(|n| a.output.join(n));
-        let outputs: Vec<(&str, &std::path::Path)> =
-            written.iter().map(|p| ("-o", p.as_path())).collect();
-        crate::data::output::check_outputs(&outputs, &[("--scene", path)])?;
+/// Refuses an input (`(flag, path)`) that is one of the files `names` this run writes into
+/// the folder `dir` ([`crate::data::output::check_outputs`]), before any work: a new folder
+/// holds no input.
+fn check_inputs_not_written(
+    dir: &Path,
+    names: &[impl AsRef<str>],
+    inputs: &[(&str, &Path)],
+) -> Result<()> {
+    if !dir.is_dir() {
+        return Ok(());
     }
+    let written: Vec<PathBuf> = names.iter().map(|n| dir.join(n.as_ref())).collect();
+    let outputs: Vec<(&str, &Path)> = written.iter().map(|p| ("-o", p.as_path())).collect();
+    crate::data::output::check_outputs(&outputs, inputs)
+}
+
+/// `hvs render --scene`: one pair of the scene and its truth images.
+fn run_scene(a: &Args, path: &Path) -> Result<()> {
+    crate::data::output::check_dir_output("-o", &a.output)?;
+    check_inputs_not_written(&a.output, &crate::vision::SCENE_PAIR_FILES, &[("--scene", path)])?;
     let loaded = crate::track::scene_file::load(path)?;
     let t = a.time.unwrap_or(0.0);
     if !t.is_finite() {
@@ -138,11 +148,14 @@ pub fn run(a: Args) -> Result<()> {
     if a.time.is_some() {
         return Err(crate::cli::usage("--time goes with --scene (boards stand still)"));
     }
+    crate::data::output::check_dir_output("-o", &a.output)?;
+    let depths = a.depths.clone().unwrap_or_else(|| presets::TRAIN_DEPTHS.to_vec());
+    let written = crate::vision::capture_set_files(depths.len());
+    check_inputs_not_written(&a.output, &written, &a.rig.inputs())?;
     let rig = a
         .rig
         .rig()?
         .ok_or_else(|| crate::cli::usage("choose a rig with --case N or --rig FILE.json"))?;
-    crate::data::output::check_dir_output("-o", &a.output)?;
     let (cols, rows) = parse_size(&a.inner_corners)?;
     let board =
         hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| anyhow!("{e}"))?;
@@ -161,7 +174,6 @@ pub fn run(a: Args) -> Result<()> {
         [x, y] if x.is_finite() && y.is_finite() => [*x, *y],
         _ => return Err(crate::cli::usage("--centre takes X,Y (cm)")),
     };
-    let depths = a.depths.clone().unwrap_or_else(|| presets::TRAIN_DEPTHS.to_vec());
     let head = HeadRig::new(rig).with_distortion(distortion);
     let bar = std::io::stderr().is_terminal().then(|| {
         let b = indicatif::ProgressBar::new_spinner();
