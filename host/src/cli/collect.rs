@@ -194,6 +194,14 @@ fn plan_of(a: &Args, scene: Option<&Path>) -> Result<Plan> {
             check_not_input("-o", &a.output.join(name), &inputs)?;
         }
     }
+    // Nor may an input have the name of one of the set's images there.
+    crate::cli::check_inputs_not_written_in(
+        "-o",
+        &a.output,
+        "the set's",
+        &inputs,
+        collect::is_image_name,
+    )?;
     let board = Board::from_path(&a.board).map_err(|e| anyhow!("{e}"))?;
     let placements = crate::data::positions::read(&a.positions)?;
     let postures = a

@@ -333,6 +333,29 @@ pub fn usage(msg: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(Usage(msg.into()))
 }
 
+/// Refuses (bad usage) an input that one of the files a command writes into the folder `dir`
+/// (`out_flag`) would replace: `written` says which names it writes there
+/// ([`crate::data::output::names_file_in`]); `whose` names them in the message ("the
+/// record's"). Checked before any work.
+pub fn check_inputs_not_written_in(
+    out_flag: &str,
+    dir: &Path,
+    whose: &str,
+    inputs: &[(&str, &Path)],
+    written: impl Fn(&str) -> bool,
+) -> Result<()> {
+    for (flag, p) in inputs {
+        if crate::data::output::names_file_in(dir, p, &written) {
+            return Err(usage(format!(
+                "{out_flag} {}: {whose} files would replace the {flag} file {}",
+                dir.display(),
+                p.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Refuses (bad usage) a PNG output `path` (`flag`) named as another image format: `hvs`
 /// writes PNG bytes whatever the name, so `d.jpg` would hold a PNG that some viewers refuse.
 /// Other names (no extension, `.png`, anything not an image format) are left to the user.

@@ -134,6 +134,48 @@ fn collect_refuses_bad_input_naming_it() {
     assert!(!std::path::Path::new(&out).exists(), "{out} left behind");
 }
 
+#[test]
+fn collect_refuses_an_input_among_the_files_it_writes() {
+    let dir = Scratch::new();
+    let (b, p, s) = inputs(&dir, "x,y,z\n0,0,45\n");
+    let out = dir.p("set");
+    fs::create_dir(&out).unwrap();
+    // The scene and the placements named as images the set writes: refused before the run,
+    // kept as they were.
+    let (scene_in, positions_in) =
+        (format!("{out}/left_001_0002.png"), format!("{out}/right_001_0002.png"));
+    fs::copy(&s, &scene_in).unwrap();
+    fs::copy(&p, &positions_in).unwrap();
+    for (flag, file, pp, ss) in
+        [("--scene", &scene_in, &p, &scene_in), ("--positions", &positions_in, &positions_in, &s)]
+    {
+        let before = fs::read(file).unwrap();
+        let e = stderr_with_code(
+            [
+                "collect",
+                "--board",
+                &b,
+                "--positions",
+                pp,
+                "--postures",
+                "lattice",
+                "--posture-levels",
+                "3,1,1,1,1",
+                "--scene",
+                ss,
+                "--supersample",
+                "2",
+                "-o",
+                &out,
+            ],
+            2,
+        );
+        assert!(e.contains(&format!("the set's files would replace the {flag} file")), "{e}");
+        assert_eq!(fs::read(file).unwrap(), before, "{flag}");
+        assert!(!std::path::Path::new(&out).join("CAPTURES.csv").exists());
+    }
+}
+
 /// Issue 27's goal through the CLI, as the README's worked example runs it: the case III
 /// virtual head collects the 9 x 6 board at the thesis' six depths at grid postures, `hvs
 /// board detect` and `hvs train` (its defaults) make a posture-aware model, and on test
