@@ -6,7 +6,7 @@
 use super::{RenderArgs, RigArgs};
 use crate::vision::write_capture_set;
 use anyhow::{anyhow, Result};
-use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::runtime::gaze::{Axis, GazeConfig, Joints};
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
@@ -73,15 +73,28 @@ pub struct Args {
     pub time: Option<f64>,
 }
 
-/// The five angles of `--joints`, checked.
+/// The five angles of `--joints`, checked: finite, and each within the head's limits (the
+/// ones its firmware and `hvs_shared::runtime::gaze` hold every joint to: the head never
+/// takes another posture).
 fn joints_arg(j: Option<&[f32]>) -> Result<Option<Joints>> {
-    match j {
-        None => Ok(None),
+    let joints = match j {
+        None => return Ok(None),
         Some(j) if j.len() == 5 && j.iter().all(|v| v.is_finite()) => {
-            Ok(Some(Joints([j[0], j[1], j[2], j[3], j[4]])))
+            Joints([j[0], j[1], j[2], j[3], j[4]])
         }
-        Some(_) => Err(crate::cli::usage("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")),
+        Some(_) => return Err(crate::cli::usage("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")),
+    };
+    let limits = GazeConfig::DEFAULT.limits;
+    for (axis, name) in Axis::ALL.into_iter().zip(crate::data::dataset::JOINT_COLUMNS) {
+        let (v, l) = (joints[axis], limits.axis(axis));
+        if !(l.min_deg..=l.max_deg).contains(&v) {
+            return Err(crate::cli::usage(format!(
+                "--joints: {name} {v} degrees is outside its limits, {} to {} (the head's)",
+                l.min_deg, l.max_deg
+            )));
+        }
     }
+    Ok(Some(joints))
 }
 
 /// Refuses an input (`(flag, path)`) that is one of the files `names` this run writes into
@@ -228,6 +241,33 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn joints_outside_the_heads_limits_are_bad_usage_naming_the_joint() {
+        let home = joints_arg(Some(&[0.0; 5])).unwrap();
+        assert_eq!(home, Some(Joints::HOME));
+        let edge = [60.0, -35.0, 30.0, -35.0, 35.0];
+        assert_eq!(joints_arg(Some(&edge)).unwrap(), Some(Joints(edge)));
+        for (j, want) in [
+            ([360.0, 0.0, 0.0, 0.0, 0.0], "neck_pan 360 degrees is outside its limits, -60 to 60"),
+            (
+                [0.0, 0.0, 0.0, 720.0, 0.0],
+                "left_eye_pan 720 degrees is outside its limits, -35 to 35",
+            ),
+            ([100.0, 0.0, 0.0, 0.0, 0.0], "neck_pan 100 degrees"),
+            (
+                [0.0, 0.0, -30.5, 0.0, 0.0],
+                "eye_tilt -30.5 degrees is outside its limits, -30 to 30",
+            ),
+        ] {
+            let e = joints_arg(Some(&j)).unwrap_err();
+            assert_eq!(crate::cli::exit_code(&e), 2, "{e}");
+            let e = e.to_string();
+            assert!(e.starts_with("--joints: ") && e.contains(want), "{j:?}: {e}");
+        }
+        let e = joints_arg(Some(&[f32::NAN, 0.0, 0.0, 0.0, 0.0])).unwrap_err();
+        assert_eq!(crate::cli::exit_code(&e), 2, "{e}");
+    }
 
     #[test]
     fn board_sizes() {
