@@ -81,6 +81,14 @@ pub fn visit(head: &mut dyn ServoHead, plan: &Plan) -> Result<Vec<Stop>> {
     Ok(stops)
 }
 
+/// Checks a settle time ([`Plan::settle_s`]): 0 to 60 s.
+pub fn check_settle(settle_s: f64) -> Result<()> {
+    if !(settle_s.is_finite() && (0.0..=60.0).contains(&settle_s)) {
+        bail!("the settle time must be 0 to 60 s, got {settle_s}");
+    }
+    Ok(())
+}
+
 /// Moves `head` to posture `posture` of `plan`, waits until the move has ended and
 /// [`Plan::settle_s`] more, and reads its joints.
 pub fn stop_at(
@@ -89,9 +97,7 @@ pub fn stop_at(
     placement: usize,
     posture: usize,
 ) -> Result<Stop> {
-    if !(plan.settle_s.is_finite() && (0.0..=60.0).contains(&plan.settle_s)) {
-        bail!("the settle time must be 0 to 60 s, got {}", plan.settle_s);
-    }
+    check_settle(plan.settle_s)?;
     let goal = &plan.postures[posture];
     let dt = 1.0 / f64::from(head.control_hz().max(1));
     head.command(goal)?;

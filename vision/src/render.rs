@@ -549,6 +549,18 @@ impl RenderedSet {
     }
 }
 
+/// Checks the board depths of [`render_capture_set`] (cm): 1 to 99 of them (two-digit file
+/// names), each finite and > 0.
+pub fn check_depths(depths: &[f64]) -> Result<(), RenderError> {
+    if depths.is_empty() || depths.len() > 99 {
+        return Err(invalid("depths", format!("need 1..=99 depths, got {}", depths.len())));
+    }
+    if let Some(z) = depths.iter().find(|z| !(z.is_finite() && **z > 0.0)) {
+        return Err(invalid("depths", format!("must be finite and > 0, got {z}")));
+    }
+    Ok(())
+}
+
 /// Renders one pair per depth of `depths` (cm), the board centred at `(xy[0], xy[1], z)`,
 /// through `head` at `joints`. Pair `k` is named `left{k+1:02}.png` / `right{k+1:02}.png` and
 /// gets its own noise seed, drawn in order from a ChaCha8 stream seeded with `seed`: the same
@@ -562,12 +574,7 @@ pub fn render_capture_set(
     opt: &RenderOptions,
     seed: u64,
 ) -> Result<RenderedSet, RenderError> {
-    if depths.is_empty() || depths.len() > 99 {
-        return Err(invalid("depths", format!("need 1..=99 depths, got {}", depths.len())));
-    }
-    if let Some(z) = depths.iter().find(|z| !(z.is_finite() && **z > 0.0)) {
-        return Err(invalid("depths", format!("must be finite and > 0, got {z}")));
-    }
+    check_depths(depths)?;
     let mut seeds = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
     let mut captures = Vec::with_capacity(depths.len());
     for (k, &z) in depths.iter().enumerate() {

@@ -163,6 +163,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     crate::data::output::check_dir_output("-o", &a.output)?;
     let depths = a.depths.clone().unwrap_or_else(|| presets::TRAIN_DEPTHS.to_vec());
+    render::check_depths(&depths).map_err(crate::cli::render_error)?;
     let written = crate::vision::capture_set_files(depths.len());
     check_inputs_not_written(&a.output, &written, &a.rig.inputs())?;
     let rig = a
@@ -170,8 +171,13 @@ pub fn run(a: Args) -> Result<()> {
         .rig()?
         .ok_or_else(|| crate::cli::usage("choose a rig with --case N or --rig FILE.json"))?;
     let (cols, rows) = parse_size(&a.inner_corners)?;
-    let board =
-        hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| anyhow!("{e}"))?;
+    // The corner counts are checked by `parse_size`: what is left is the square.
+    let board = hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| match e {
+        hvs_vision::board::BoardError::Value(_, why) => {
+            crate::cli::usage(format!("--square-cm: {why}"))
+        }
+        other => anyhow!("{other}"),
+    })?;
     let opt = a.camera.options(a.square_cm, render::RenderOptions::default().supersample)?;
     let distortion = match a.distortion.as_deref() {
         None => Distortion::NONE,

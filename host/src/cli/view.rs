@@ -92,7 +92,7 @@ pub fn run(a: Args) -> Result<()> {
             ))
         })?;
     if a.restarts == Some(0) {
-        bail!("--restarts must be at least 1");
+        return Err(crate::cli::usage("--restarts must be at least 1"));
     }
     let source = match (a.left, a.right, a.board, a.captures, a.scene, a.cameras) {
         (Some(left), Some(right), None, None, None, None) => Source::Pair { left, right },

@@ -464,6 +464,29 @@ fn bad_settings_are_refused_before_anything_is_written() {
     fails(&["simulate", "--case", "7", "--set", "test"], "--case must be 1-4");
 }
 
+/// Values the arguments alone show to be wrong are bad usage (exit 2), named, before any
+/// work: nothing rendered, no server started, no set read.
+#[test]
+fn out_of_range_values_are_bad_usage_before_any_work() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("out");
+    let none = dir.path().join("none");
+    let (model, l, r) = (none.join("m.hvsw"), none.join("l.png"), none.join("r.png"));
+    let view = ["view", "--model", s(&model), "--left", s(&l), "--right", s(&r)];
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["render", "--case", "1", "--depths", "0", "-o", s(&out)], "--depths"),
+        (vec!["render", "--case", "1", "--depths", "65,-1", "-o", s(&out)], "--depths"),
+        (vec!["render", "--case", "1", "--square-cm", "0", "-o", s(&out)], "--square-cm"),
+        (vec!["render", "--case", "1", "--joints", "360,0,0,0,0", "-o", s(&out)], "--joints"),
+        ([&view[..], &["--restarts", "0"]].concat(), "--restarts must be"),
+    ];
+    for (args, want) in cases {
+        let e = crate::common::stderr_with_code(&args, 2);
+        assert!(e.starts_with("error: ") && e.contains(want), "{args:?}: {e}");
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    }
+}
+
 /// The README's `--algo bp` and `--threshold` lines: back-propagation without `--arch` trains
 /// the thesis' net (the one family it can), and a threshold is judged against the training
 /// e_ma `hvs train` reports (the default family's restarts are fitted to synthetic points

@@ -123,7 +123,12 @@ fn collect_refuses_bad_input_naming_it() {
     );
     assert!(!std::path::Path::new(&out).join("CAPTURES.csv").exists());
     usage(&["--scene", &s], "--postures");
-    run(&["--postures", "grid", "--posture-levels", "3,3", "--scene", &s], "five counts");
+    usage(&["--postures", "grid", "--posture-levels", "3,3", "--scene", &s], "five counts");
+    usage(&["--postures", "random", "--posture-count", "0", "--scene", &s], "--posture-count");
+    usage(
+        &["--postures", "grid", "--settle-ms", "99999999999", "--scene", &s],
+        "--settle-ms 99999999999: the settle time must be 0 to 60 s",
+    );
     // A board far out to the side: no posture sees it, and nothing is written.
     fs::write(&p, "x,y,z\n500,0,70\n").unwrap();
     run(
