@@ -268,6 +268,16 @@ pub fn parse_pixel(flag: &str, s: &str) -> Result<[f64; 2]> {
     Ok([u, v])
 }
 
+/// Refuses (bad usage) a `--restarts` outside 1 to [`crate::train::MAX_RESTARTS`] (`hvs
+/// train`, `hvs demo`, `hvs view`'s retrain), before any work.
+pub fn check_restarts(restarts: usize) -> Result<()> {
+    let most = crate::train::MAX_RESTARTS;
+    if !(1..=most).contains(&restarts) {
+        return Err(usage(format!("--restarts must be from 1 to {most}, got {restarts}")));
+    }
+    Ok(())
+}
+
 /// Refuses (bad usage) an `--at` pixel `at` outside the left image `left` (`hvs locate --at`,
 /// `hvs head look --at`), before any matching: the image's size read from its header, checked
 /// first to be the one the model `blob` (read from `model`) was trained on. A file whose header
