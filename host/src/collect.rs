@@ -81,6 +81,14 @@ pub fn visit(head: &mut dyn ServoHead, plan: &Plan) -> Result<Vec<Stop>> {
     Ok(stops)
 }
 
+/// Checks a settle time ([`Plan::settle_s`]): 0 to 60 s.
+pub fn check_settle(settle_s: f64) -> Result<()> {
+    if !(settle_s.is_finite() && (0.0..=60.0).contains(&settle_s)) {
+        bail!("the settle time must be 0 to 60 s, got {settle_s}");
+    }
+    Ok(())
+}
+
 /// Moves `head` to posture `posture` of `plan`, waits until the move has ended and
 /// [`Plan::settle_s`] more, and reads its joints.
 pub fn stop_at(
@@ -89,9 +97,7 @@ pub fn stop_at(
     placement: usize,
     posture: usize,
 ) -> Result<Stop> {
-    if !(plan.settle_s.is_finite() && (0.0..=60.0).contains(&plan.settle_s)) {
-        bail!("the settle time must be 0 to 60 s, got {}", plan.settle_s);
-    }
+    check_settle(plan.settle_s)?;
     let goal = &plan.postures[posture];
     let dt = 1.0 / f64::from(head.control_hz().max(1));
     head.command(goal)?;
@@ -226,6 +232,19 @@ pub fn image_names(stop: &Stop) -> [String; 2] {
     [format!("left_{tag}.png"), format!("right_{tag}.png")]
 }
 
+/// Whether `name` has the form of [`image_names`] (`left_PPP_KKKK.png`, `right_PPP_KKKK.png`,
+/// more digits for larger numbers): one of the images `hvs collect` may write, whatever the
+/// postures seen.
+pub fn is_image_name(name: &str) -> bool {
+    let digits = |s: &str, n: usize| s.len() >= n && s.bytes().all(|b| b.is_ascii_digit());
+    ["left_", "right_"].iter().any(|side| {
+        name.strip_prefix(side)
+            .and_then(|r| r.strip_suffix(".png"))
+            .and_then(|r| r.split_once('_'))
+            .is_some_and(|(p, k)| digits(p, 3) && digits(k, 4))
+    })
+}
+
 /// `CAPTURES.csv` of the captured stops ([`crate::data::captures::captures_csv`]):
 /// `left,right,z,x,y` and the five joint columns the head reported, one row per pair.
 pub fn captures_csv(plan: &Plan, captured: &[Stop]) -> String {
@@ -249,6 +268,29 @@ mod tests {
     use crate::track::head_sim::VirtualHead;
     use hvs_shared::runtime::trajectory::ControllerConfig;
     use hvs_shared::sim::presets;
+
+    #[test]
+    fn the_images_written_are_known_by_their_names() {
+        for (placement, posture) in [(0, 1), (11, 344), (1000, 10000)] {
+            let stop = Stop { placement, posture, t_s: 0.0, joints: Joints::HOME };
+            for name in image_names(&stop) {
+                assert!(is_image_name(&name), "{name}");
+            }
+        }
+        for other in [
+            "left01.png",
+            "left_01_0002.png",
+            "left_001_002.png",
+            "left_001_0002.jpg",
+            "left_001_0002.png.bak",
+            "up_001_0002.png",
+            "left_a01_0002.png",
+            "CAPTURES.csv",
+            "board.json",
+        ] {
+            assert!(!is_image_name(other), "{other}");
+        }
+    }
 
     fn plan(postures: Vec<Joints>) -> Plan {
         Plan {

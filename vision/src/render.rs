@@ -469,6 +469,12 @@ pub(crate) fn quantise(
     GrayImage::from_raw(w, h, data).expect("buffer has w * h pixels")
 }
 
+/// The image file names of pair `k` (from 0) of a capture set: `leftNN.png`, `rightNN.png`
+/// (NN from 01).
+pub fn capture_names(k: usize) -> [String; 2] {
+    [format!("left{:02}.png", k + 1), format!("right{:02}.png", k + 1)]
+}
+
 /// One pair of a capture set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Capture {
@@ -543,6 +549,18 @@ impl RenderedSet {
     }
 }
 
+/// Checks the board depths of [`render_capture_set`] (cm): 1 to 99 of them (two-digit file
+/// names), each finite and > 0.
+pub fn check_depths(depths: &[f64]) -> Result<(), RenderError> {
+    if depths.is_empty() || depths.len() > 99 {
+        return Err(invalid("depths", format!("need 1..=99 depths, got {}", depths.len())));
+    }
+    if let Some(z) = depths.iter().find(|z| !(z.is_finite() && **z > 0.0)) {
+        return Err(invalid("depths", format!("must be finite and > 0, got {z}")));
+    }
+    Ok(())
+}
+
 /// Renders one pair per depth of `depths` (cm), the board centred at `(xy[0], xy[1], z)`,
 /// through `head` at `joints`. Pair `k` is named `left{k+1:02}.png` / `right{k+1:02}.png` and
 /// gets its own noise seed, drawn in order from a ChaCha8 stream seeded with `seed`: the same
@@ -556,24 +574,15 @@ pub fn render_capture_set(
     opt: &RenderOptions,
     seed: u64,
 ) -> Result<RenderedSet, RenderError> {
-    if depths.is_empty() || depths.len() > 99 {
-        return Err(invalid("depths", format!("need 1..=99 depths, got {}", depths.len())));
-    }
-    if let Some(z) = depths.iter().find(|z| !(z.is_finite() && **z > 0.0)) {
-        return Err(invalid("depths", format!("must be finite and > 0, got {z}")));
-    }
+    check_depths(depths)?;
     let mut seeds = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
     let mut captures = Vec::with_capacity(depths.len());
     for (k, &z) in depths.iter().enumerate() {
         let s: u64 = seeds.random();
         let centre = [xy[0], xy[1], z];
         let render = render_pair(head, joints, board, centre, opt, s)?;
-        captures.push(Capture {
-            left_name: format!("left{:02}.png", k + 1),
-            right_name: format!("right{:02}.png", k + 1),
-            centre,
-            render,
-        });
+        let [left_name, right_name] = capture_names(k);
+        captures.push(Capture { left_name, right_name, centre, render });
     }
     Ok(RenderedSet { board: *board, captures })
 }

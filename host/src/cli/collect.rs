@@ -182,6 +182,9 @@ fn write_set(batch: Batch, dir: &Path, plan: &Plan, captured: &[Stop]) -> Result
 /// The output folder checked against the inputs (and `scene`), the board, placements and
 /// postures read: what to collect.
 fn plan_of(a: &Args, scene: Option<&Path>) -> Result<Plan> {
+    let settle_s = a.settle_ms as f64 / 1000.0;
+    collect::check_settle(settle_s)
+        .map_err(|e| usage(format!("--settle-ms {}: {e}", a.settle_ms)))?;
     check_dir_output("-o", &a.output)?;
     if let Some(w) = crate::data::output::leftover_files_warning("-o", &a.output) {
         eprintln!("warning: {w}");
@@ -194,6 +197,14 @@ fn plan_of(a: &Args, scene: Option<&Path>) -> Result<Plan> {
             check_not_input("-o", &a.output.join(name), &inputs)?;
         }
     }
+    // Nor may an input have the name of one of the set's images there.
+    crate::cli::check_inputs_not_written_in(
+        "-o",
+        &a.output,
+        "the set's",
+        &inputs,
+        collect::is_image_name,
+    )?;
     let board = Board::from_path(&a.board).map_err(|e| anyhow!("{e}"))?;
     let placements = crate::data::positions::read(&a.positions)?;
     let postures = a
@@ -206,7 +217,7 @@ fn plan_of(a: &Args, scene: Option<&Path>) -> Result<Plan> {
         placements,
         postures,
         seed: a.seed,
-        settle_s: a.settle_ms as f64 / 1000.0,
+        settle_s,
     })
 }
 

@@ -47,13 +47,7 @@ pub fn run(a: Args) -> Result<()> {
     let start = Instant::now();
     // Every argument is checked before any work (a bad one found after case I would leave a
     // partial folder).
-    if a.restarts == 0 || a.restarts > usize::from(u16::MAX) {
-        return Err(crate::cli::usage(format!(
-            "--restarts must be from 1 to {}, got {}",
-            u16::MAX,
-            a.restarts
-        )));
-    }
+    crate::cli::check_restarts(a.restarts)?;
     crate::data::output::check_dir_output("-o", &a.output)?;
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create the directory", a.output.display()))?;

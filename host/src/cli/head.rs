@@ -150,7 +150,9 @@ pub fn run(args: &Args) -> Result<()> {
             model: Some(m), left: Some(l), right: Some(r), at: Some(at), ..
         } => {
             let p = crate::cli::parse_at(at)?;
-            let located = crate::depth::locate_files(m, l, r, &[p])?;
+            let model = crate::vision::load_stereo_model(m)?;
+            crate::cli::check_at(m, &model.blob, l, p)?;
+            let located = crate::depth::locate_files_with(m, &model.blob, l, r, &[p])?;
             let f = located.found[0];
             let Some(rp) = f.right else {
                 let why = located.warnings.iter().map(|w| format!(" ({w})")).collect::<String>();

@@ -78,19 +78,10 @@ pub fn run(a: Args) -> Result<()> {
         },
         (None, None) => return Err(crate::cli::usage("give --points PIXELS.csv or --at U,V")),
     };
-    // The one point asked for with --at must lie in the image (its header says; a file that
-    // cannot be read is left to the full read below, which names the problem), once the
-    // image is known to be of the model's size.
+    // The one point asked for with --at must lie in the image.
     let m = crate::vision::load_stereo_model(&a.pair.model)?;
-    if let (Some(_), Ok((_, w, h))) = (&a.at, hvs_vision::image_file::probe(&a.pair.left)) {
-        crate::depth::check_pair_size(&a.pair.model, &m.blob, &a.pair.left, (w, h))?;
-        let [u, v] = pixels.points[0];
-        if !crate::depth::inside_image(u, v, (w, h)) {
-            return Err(crate::cli::usage(format!(
-                "--at {u},{v}: outside the {w}x{h} left image {}",
-                a.pair.left.display()
-            )));
-        }
+    if a.at.is_some() {
+        crate::cli::check_at(&a.pair.model, &m.blob, &a.pair.left, pixels.points[0])?;
     }
     let LocatedFiles { found, warnings, left: l, right: r } =
         locate_files_with(&a.pair.model, &m.blob, &a.pair.left, &a.pair.right, &pixels.points)?;

@@ -53,6 +53,11 @@ impl RigArgs {
         }
     }
 
+    /// The rig file, if given, as an input an output must not overwrite.
+    pub fn inputs(&self) -> Vec<(&'static str, &Path)> {
+        self.rig.iter().map(|r| ("--rig", r.as_path())).collect()
+    }
+
     /// A short name of the choice for messages.
     pub fn label(&self) -> String {
         match (&self.rig, self.case) {
@@ -153,12 +158,12 @@ pub struct PostureArgs {
 impl PostureArgs {
     /// The postures asked for (drawn with `seed ^` [`crate::sim::posture::POSTURE_SEED_MIX`]), `None` without
     /// `--postures`; `--posture-levels`/`--posture-count` without it, or with the wrong
-    /// sampling, are errors.
+    /// sampling, or out of range, are bad usage.
     pub fn postures(&self, seed: u64) -> Result<Option<Vec<hvs_shared::runtime::gaze::Joints>>> {
         use crate::sim::posture::{postures, PostureOptions};
         let Some(sampling) = self.postures else {
             if self.posture_levels.is_some() || self.posture_count.is_some() {
-                bail!("--posture-levels and --posture-count need --postures");
+                return Err(usage("--posture-levels and --posture-count need --postures"));
             }
             return Ok(None);
         };
@@ -166,22 +171,25 @@ impl PostureArgs {
         let mut p = PostureOptions { sampling, ..PostureOptions::default() };
         if let Some(l) = &self.posture_levels {
             if sampling == Sampling::Random {
-                bail!("--posture-levels applies to --postures grid or lattice");
+                return Err(usage("--posture-levels applies to --postures grid or lattice"));
             }
             p.levels = l.as_slice().try_into().map_err(|_| {
-                anyhow::anyhow!(
+                usage(format!(
                     "--posture-levels takes five counts (neck pan, neck tilt, eye tilt, version, vergence), got {}",
                     l.len()
-                )
+                ))
             })?;
         }
         if let Some(n) = self.posture_count {
             if sampling != Sampling::Random {
-                bail!("--posture-count applies to --postures random");
+                return Err(usage("--posture-count applies to --postures random"));
             }
             p.count = n;
         }
-        Ok(Some(postures(&p, seed ^ crate::sim::posture::POSTURE_SEED_MIX)?))
+        // Only the flags' values can be wrong here (the range is the working range).
+        let drawn = postures(&p, seed ^ crate::sim::posture::POSTURE_SEED_MIX)
+            .map_err(|e| usage(format!("{e:#}")))?;
+        Ok(Some(drawn))
     }
 }
 
@@ -208,7 +216,7 @@ impl RenderArgs {
         margin_cm: f64,
         supersample: u32,
     ) -> Result<hvs_vision::render::RenderOptions> {
-        use hvs_vision::render::{RenderError, RenderOptions};
+        use hvs_vision::render::RenderOptions;
         let opt = RenderOptions {
             margin_cm,
             supersample: self.supersample.unwrap_or(supersample),
@@ -216,20 +224,28 @@ impl RenderArgs {
             noise_sigma: self.noise,
             ..RenderOptions::default()
         };
-        opt.validate().map_err(|e| match e {
-            RenderError::Invalid(f) => {
-                let flag = match f.field {
-                    "supersample" => "--supersample",
-                    "blur_sigma_px" => "--blur",
-                    "noise_sigma" => "--noise",
-                    "margin_cm" => "--square-cm",
-                    other => other,
-                };
-                usage(format!("{flag}: {}", f.reason))
-            }
-            other => anyhow::anyhow!("{other}"),
-        })?;
+        opt.validate().map_err(render_error)?;
         Ok(opt)
+    }
+}
+
+/// A renderer's error as `hvs` reports it: a parameter out of range is bad usage naming its
+/// flag (`hvs render`, `hvs collect`); anything else is an error.
+pub fn render_error(e: hvs_vision::render::RenderError) -> anyhow::Error {
+    use hvs_vision::render::RenderError;
+    match e {
+        RenderError::Invalid(f) => {
+            let flag = match f.field {
+                "supersample" => "--supersample",
+                "blur_sigma_px" => "--blur",
+                "noise_sigma" => "--noise",
+                "margin_cm" => "--square-cm",
+                "depths" => "--depths",
+                other => other,
+            };
+            usage(format!("{flag}: {}", f.reason))
+        }
+        other => anyhow::anyhow!("{other}"),
     }
 }
 
@@ -250,6 +266,38 @@ pub fn parse_pixel(flag: &str, s: &str) -> Result<[f64; 2]> {
         return Err(bad());
     }
     Ok([u, v])
+}
+
+/// Refuses (bad usage) a `--restarts` outside 1 to [`crate::train::MAX_RESTARTS`] (`hvs
+/// train`, `hvs demo`, `hvs view`'s retrain), before any work.
+pub fn check_restarts(restarts: usize) -> Result<()> {
+    let most = crate::train::MAX_RESTARTS;
+    if !(1..=most).contains(&restarts) {
+        return Err(usage(format!("--restarts must be from 1 to {most}, got {restarts}")));
+    }
+    Ok(())
+}
+
+/// Refuses (bad usage) an `--at` pixel `at` outside the left image `left` (`hvs locate --at`,
+/// `hvs head look --at`), before any matching: the image's size read from its header, checked
+/// first to be the one the model `blob` (read from `model`) was trained on. A file whose header
+/// cannot be read is left to the full read, which names the problem.
+pub fn check_at(
+    model: &Path,
+    blob: &hvs_shared::runtime::blob::ModelBlob,
+    left: &Path,
+    [u, v]: [f64; 2],
+) -> Result<()> {
+    if let Ok((_, w, h)) = hvs_vision::image_file::probe(left) {
+        crate::depth::check_pair_size(model, blob, left, (w, h))?;
+        if !crate::depth::inside_image(u, v, (w, h)) {
+            return Err(usage(format!(
+                "--at {u},{v}: outside the {w}x{h} left image {}",
+                left.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// clap value parsers of whole numbers: `-5` or `1e99` gets the accepted range, not clap's
@@ -326,6 +374,29 @@ impl std::error::Error for Usage {}
 /// A [`Usage`] error with `msg`.
 pub fn usage(msg: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(Usage(msg.into()))
+}
+
+/// Refuses (bad usage) an input that one of the files a command writes into the folder `dir`
+/// (`out_flag`) would replace: `written` says which names it writes there
+/// ([`crate::data::output::names_file_in`]); `whose` names them in the message ("the
+/// record's"). Checked before any work.
+pub fn check_inputs_not_written_in(
+    out_flag: &str,
+    dir: &Path,
+    whose: &str,
+    inputs: &[(&str, &Path)],
+    written: impl Fn(&str) -> bool,
+) -> Result<()> {
+    for (flag, p) in inputs {
+        if crate::data::output::names_file_in(dir, p, &written) {
+            return Err(usage(format!(
+                "{out_flag} {}: {whose} files would replace the {flag} file {}",
+                dir.display(),
+                p.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Refuses (bad usage) a PNG output `path` (`flag`) named as another image format: `hvs`

@@ -6,13 +6,13 @@
 use super::{RenderArgs, RigArgs};
 use crate::vision::write_capture_set;
 use anyhow::{anyhow, Result};
-use hvs_shared::runtime::gaze::Joints;
+use hvs_shared::runtime::gaze::{Axis, GazeConfig, Joints};
 use hvs_shared::sim::camera::Distortion;
 use hvs_shared::sim::posture::HeadRig;
 use hvs_shared::sim::presets;
 use hvs_vision::render;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `hvs render`.
 #[derive(Debug, clap::Args)]
@@ -73,27 +73,50 @@ pub struct Args {
     pub time: Option<f64>,
 }
 
-/// The five angles of `--joints`, checked.
+/// The five angles of `--joints`, checked: finite, and each within the head's limits (the
+/// ones its firmware and `hvs_shared::runtime::gaze` hold every joint to: the head never
+/// takes another posture).
 fn joints_arg(j: Option<&[f32]>) -> Result<Option<Joints>> {
-    match j {
-        None => Ok(None),
+    let joints = match j {
+        None => return Ok(None),
         Some(j) if j.len() == 5 && j.iter().all(|v| v.is_finite()) => {
-            Ok(Some(Joints([j[0], j[1], j[2], j[3], j[4]])))
+            Joints([j[0], j[1], j[2], j[3], j[4]])
         }
-        Some(_) => Err(crate::cli::usage("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")),
+        Some(_) => return Err(crate::cli::usage("--joints takes five finite angles (degrees): neck_pan,neck_tilt,eye_tilt,left_eye_pan,right_eye_pan")),
+    };
+    let limits = GazeConfig::DEFAULT.limits;
+    for (axis, name) in Axis::ALL.into_iter().zip(crate::data::dataset::JOINT_COLUMNS) {
+        let (v, l) = (joints[axis], limits.axis(axis));
+        if !(l.min_deg..=l.max_deg).contains(&v) {
+            return Err(crate::cli::usage(format!(
+                "--joints: {name} {v} degrees is outside its limits, {} to {} (the head's)",
+                l.min_deg, l.max_deg
+            )));
+        }
     }
+    Ok(Some(joints))
+}
+
+/// Refuses an input (`(flag, path)`) that is one of the files `names` this run writes into
+/// the folder `dir` ([`crate::data::output::check_outputs`]), before any work: a new folder
+/// holds no input.
+fn check_inputs_not_written(
+    dir: &Path,
+    names: &[impl AsRef<str>],
+    inputs: &[(&str, &Path)],
+) -> Result<()> {
+    if !dir.is_dir() {
+        return Ok(());
+    }
+    let written: Vec<PathBuf> = names.iter().map(|n| dir.join(n.as_ref())).collect();
+    let outputs: Vec<(&str, &Path)> = written.iter().map(|p| ("-o", p.as_path())).collect();
+    crate::data::output::check_outputs(&outputs, inputs)
 }
 
 /// `hvs render --scene`: one pair of the scene and its truth images.
-fn run_scene(a: &Args, path: &std::path::Path) -> Result<()> {
+fn run_scene(a: &Args, path: &Path) -> Result<()> {
     crate::data::output::check_dir_output("-o", &a.output)?;
-    // The scene file cannot be one of the files written (a new folder holds no input).
-    if a.output.is_dir() {
-        let written = crate::vision::SCENE_PAIR_FILES.map(|n| a.output.join(n));
-        let outputs: Vec<(&str, &std::path::Path)> =
-            written.iter().map(|p| ("-o", p.as_path())).collect();
-        crate::data::output::check_outputs(&outputs, &[("--scene", path)])?;
-    }
+    check_inputs_not_written(&a.output, &crate::vision::SCENE_PAIR_FILES, &[("--scene", path)])?;
     let loaded = crate::track::scene_file::load(path)?;
     let t = a.time.unwrap_or(0.0);
     if !t.is_finite() {
@@ -138,14 +161,23 @@ pub fn run(a: Args) -> Result<()> {
     if a.time.is_some() {
         return Err(crate::cli::usage("--time goes with --scene (boards stand still)"));
     }
+    crate::data::output::check_dir_output("-o", &a.output)?;
+    let depths = a.depths.clone().unwrap_or_else(|| presets::TRAIN_DEPTHS.to_vec());
+    render::check_depths(&depths).map_err(crate::cli::render_error)?;
+    let written = crate::vision::capture_set_files(depths.len());
+    check_inputs_not_written(&a.output, &written, &a.rig.inputs())?;
     let rig = a
         .rig
         .rig()?
         .ok_or_else(|| crate::cli::usage("choose a rig with --case N or --rig FILE.json"))?;
-    crate::data::output::check_dir_output("-o", &a.output)?;
     let (cols, rows) = parse_size(&a.inner_corners)?;
-    let board =
-        hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| anyhow!("{e}"))?;
+    // The corner counts are checked by `parse_size`: what is left is the square.
+    let board = hvs_vision::board::Board::new(cols, rows, a.square_cm).map_err(|e| match e {
+        hvs_vision::board::BoardError::Value(_, why) => {
+            crate::cli::usage(format!("--square-cm: {why}"))
+        }
+        other => anyhow!("{other}"),
+    })?;
     let opt = a.camera.options(a.square_cm, render::RenderOptions::default().supersample)?;
     let distortion = match a.distortion.as_deref() {
         None => Distortion::NONE,
@@ -161,7 +193,6 @@ pub fn run(a: Args) -> Result<()> {
         [x, y] if x.is_finite() && y.is_finite() => [*x, *y],
         _ => return Err(crate::cli::usage("--centre takes X,Y (cm)")),
     };
-    let depths = a.depths.clone().unwrap_or_else(|| presets::TRAIN_DEPTHS.to_vec());
     let head = HeadRig::new(rig).with_distortion(distortion);
     let bar = std::io::stderr().is_terminal().then(|| {
         let b = indicatif::ProgressBar::new_spinner();
@@ -216,6 +247,33 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn joints_outside_the_heads_limits_are_bad_usage_naming_the_joint() {
+        let home = joints_arg(Some(&[0.0; 5])).unwrap();
+        assert_eq!(home, Some(Joints::HOME));
+        let edge = [60.0, -35.0, 30.0, -35.0, 35.0];
+        assert_eq!(joints_arg(Some(&edge)).unwrap(), Some(Joints(edge)));
+        for (j, want) in [
+            ([360.0, 0.0, 0.0, 0.0, 0.0], "neck_pan 360 degrees is outside its limits, -60 to 60"),
+            (
+                [0.0, 0.0, 0.0, 720.0, 0.0],
+                "left_eye_pan 720 degrees is outside its limits, -35 to 35",
+            ),
+            ([100.0, 0.0, 0.0, 0.0, 0.0], "neck_pan 100 degrees"),
+            (
+                [0.0, 0.0, -30.5, 0.0, 0.0],
+                "eye_tilt -30.5 degrees is outside its limits, -30 to 30",
+            ),
+        ] {
+            let e = joints_arg(Some(&j)).unwrap_err();
+            assert_eq!(crate::cli::exit_code(&e), 2, "{e}");
+            let e = e.to_string();
+            assert!(e.starts_with("--joints: ") && e.contains(want), "{j:?}: {e}");
+        }
+        let e = joints_arg(Some(&[f32::NAN, 0.0, 0.0, 0.0, 0.0])).unwrap_err();
+        assert_eq!(crate::cli::exit_code(&e), 2, "{e}");
+    }
 
     #[test]
     fn board_sizes() {

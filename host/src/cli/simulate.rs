@@ -106,8 +106,7 @@ fn parse_board(s: &str) -> Result<TrainingBoard, String> {
 /// Runs `hvs simulate`.
 pub fn run(a: Args) -> Result<()> {
     if let Some(out) = &a.output {
-        let rig: Vec<_> = a.rig.rig.iter().map(|r| ("--rig", r.as_path())).collect();
-        check_not_input("-o", out, &rig)?;
+        check_not_input("-o", out, &a.rig.inputs())?;
     }
     let rig = a.rig.rig()?.ok_or_else(|| usage("choose a rig with --case N or --rig FILE.json"))?;
     if a.points.is_some() && SetKind::from(a.set) != SetKind::Volume {

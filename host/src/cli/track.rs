@@ -134,15 +134,13 @@ pub fn run(a: Args) -> Result<()> {
             eprintln!("warning: {w}");
         }
         inputs.push(("--log", a.log.as_path()));
-        for (flag, p) in &inputs {
-            if record_file_in(dir, p) {
-                return Err(crate::cli::usage(format!(
-                    "--record {}: the record's files would replace the {flag} file {}",
-                    dir.display(),
-                    p.display()
-                )));
-            }
-        }
+        crate::cli::check_inputs_not_written_in(
+            "--record",
+            dir,
+            "the record's",
+            &inputs,
+            record_file_name,
+        )?;
     }
     let model = crate::data::model::load(&a.model)?;
     let blob = model.blob.clone();
@@ -314,25 +312,13 @@ fn rate_line(times: &[track::FrameTimes]) -> Option<String> {
     })
 }
 
-/// Whether `path` names one of the files `hvs track --record DIR` writes into `dir`
+/// Whether `name` is one of the names `hvs track --record DIR` writes into `DIR`
 /// (`CAPTURES.csv`, `leftNNNN.png`, `rightNNNN.png`).
-fn record_file_in(dir: &std::path::Path, path: &std::path::Path) -> bool {
-    let Some(name) = path.file_name().and_then(|n| n.to_str()) else { return false };
+fn record_file_name(name: &str) -> bool {
     let numbered = |prefix: &str| {
         name.strip_prefix(prefix)
             .and_then(|r| r.strip_suffix(".png"))
             .is_some_and(|n| n.len() >= 4 && n.bytes().all(|b| b.is_ascii_digit()))
     };
-    if !(name == "CAPTURES.csv" || numbered("left") || numbered("right")) {
-        return false;
-    }
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => std::path::Path::new("."),
-    };
-    match (std::fs::canonicalize(parent), std::fs::canonicalize(dir)) {
-        (Ok(p), Ok(d)) => p == d,
-        // A folder not made yet holds nothing; a name under it is the record's own.
-        _ => parent.components().eq(dir.components()),
-    }
+    name == "CAPTURES.csv" || numbered("left") || numbered("right")
 }

@@ -224,9 +224,7 @@ pub fn run(a: Args) -> Result<()> {
             bail!("--hidden must be 1..={MAX_HIDDEN}, got {hidden}");
         }
     }
-    if a.restarts == Some(0) {
-        bail!("--restarts must be at least 1");
-    }
+    a.restarts.map(crate::cli::check_restarts).transpose()?;
     if let Some(t) = a.threshold {
         if !(t.is_finite() && t > 0.0) {
             bail!("--threshold must be a positive percentage, got {t}");

@@ -91,9 +91,8 @@ pub fn run(a: Args) -> Result<()> {
                 a.listen
             ))
         })?;
-    if a.restarts == Some(0) {
-        bail!("--restarts must be at least 1");
-    }
+    // A retrain's restarts, checked at the start (not at the first retrain).
+    a.restarts.map(crate::cli::check_restarts).transpose()?;
     let source = match (a.left, a.right, a.board, a.captures, a.scene, a.cameras) {
         (Some(left), Some(right), None, None, None, None) => Source::Pair { left, right },
         (None, None, Some(board), Some(captures), None, None) => {

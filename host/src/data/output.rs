@@ -277,6 +277,26 @@ pub fn check_not_input(out_flag: &str, output: &Path, inputs: &[(&str, &Path)]) 
     Ok(())
 }
 
+/// Whether `path` names a file in the folder `dir` whose name `written` says a command writes
+/// there (`hvs track --record`'s frames, `hvs collect`'s images): a command that writes a
+/// family of names, known by their pattern before the run, checks its inputs with it before
+/// any work. The folders are compared made canonical; a folder not made yet holds nothing,
+/// and a name under it is the command's own.
+pub fn names_file_in(dir: &Path, path: &Path, written: impl Fn(&str) -> bool) -> bool {
+    let Some(name) = path.file_name().and_then(|n| n.to_str()) else { return false };
+    if !written(name) {
+        return false;
+    }
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match (std::fs::canonicalize(parent), std::fs::canonicalize(dir)) {
+        (Ok(p), Ok(d)) => p == d,
+        _ => parent.components().eq(dir.components()),
+    }
+}
+
 /// Whether two files' metadata are of one file (the same device and inode).
 #[cfg(unix)]
 pub(crate) fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {

@@ -497,8 +497,8 @@ fn check(data: &Dataset, cfg: &TrainConfig) -> Result<()> {
             cfg.hidden
         );
     }
-    if cfg.restarts == 0 || cfg.restarts > u16::MAX as usize {
-        bail!("restarts must be 1..={}, got {}", u16::MAX, cfg.restarts);
+    if cfg.restarts == 0 || cfg.restarts > MAX_RESTARTS {
+        bail!("restarts must be 1..={MAX_RESTARTS}, got {}", cfg.restarts);
     }
     if cfg.frame != OutputFrame::Head
         && (data.input_kind() != Some(InputKind::StereoJoints) || cfg.outputs != OutputKind::Xyz)
@@ -583,6 +583,9 @@ pub fn default_frame(family: Family, kind: InputKind) -> OutputFrame {
         OutputFrame::Head
     }
 }
+
+/// The most restarts a training takes: the model records their number in 16 bits.
+pub const MAX_RESTARTS: usize = u16::MAX as usize;
 
 /// Hidden units and restarts of `hvs train` when not given: 9-32-3 with one restart for a
 /// posture-aware set of detected (sub-pixel) corners in a family with a skip term;

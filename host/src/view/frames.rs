@@ -65,12 +65,17 @@ pub trait PairStore: Send + Sync {
     /// The latest frame of `view` of pair `pair`, `None` if there is none (an unreadable
     /// image, corners of a pair where none were found).
     fn frame(&self, pair: usize, view: View) -> Option<Frame>;
-    /// The frame of `view` of pair `pair` grabbed as number `seq`, when the store still keeps
-    /// it (a live store keeps the last few, so that a page that got the left frame of `seq`
-    /// can ask for the right one of the same pair); else the latest, as [`Self::frame`].
+    /// The frame of `view` of pair `pair` grabbed as number `seq`, `None` when the store does
+    /// not keep it ([`Self::kept_seqs`]: a live store keeps the last few, so that a page that
+    /// got the left frame of `seq` can ask for the right one of the same pair) or has none
+    /// of that view. Never another frame: its image would pair with one of another time.
     fn frame_at(&self, pair: usize, view: View, seq: u64) -> Option<Frame> {
-        let _ = seq;
-        self.frame(pair, view)
+        self.frame(pair, view).filter(|f| f.seq == seq)
+    }
+    /// The numbers of the oldest and the newest frame kept, `None` before the first (a still
+    /// store keeps its one frame, number 0).
+    fn kept_seqs(&self) -> Option<(u64, u64)> {
+        Some((0, 0))
     }
     /// The sequence number of the latest frame (0 for a still store, which never changes).
     fn latest_seq(&self) -> u64 {
@@ -166,6 +171,10 @@ mod tests {
         assert!(f.frame(0, View::LeftCorners).is_none());
         assert!(f.frame(1, View::Left).is_none() && f.grey(1).is_none());
         assert!(f.frame(2, View::Left).is_none());
+        // Its one frame is number 0: no other number gives it.
+        assert_eq!(f.kept_seqs(), Some((0, 0)));
+        assert_eq!(f.frame_at(0, View::Right, 0).unwrap().png, png.png);
+        assert!(f.frame_at(0, View::Right, 1).is_none());
         assert_eq!(View::parse("right-corners"), Some(View::RightCorners));
         for bad in ["", "LEFT", "../left", "left/"] {
             assert_eq!(View::parse(bad), None, "{bad}");

@@ -151,9 +151,10 @@ impl LiveHead {
         self.latest.lock().unwrap_or_else(|e| e.into_inner()).back().cloned()
     }
 
+    /// Frame `seq`, if it is one of the [`KEPT`] latest.
     fn kept(&self, seq: u64) -> Option<Arc<Latest>> {
         let kept = self.latest.lock().unwrap_or_else(|e| e.into_inner());
-        kept.iter().rev().find(|l| l.seq == seq).or(kept.back()).cloned()
+        kept.iter().rev().find(|l| l.seq == seq).cloned()
     }
 
     fn push(&self, next: Latest) {
@@ -194,6 +195,11 @@ impl PairStore for LiveHead {
 
     fn latest_seq(&self) -> u64 {
         self.latest().map_or(0, |l| l.seq)
+    }
+
+    fn kept_seqs(&self) -> Option<(u64, u64)> {
+        let kept = self.latest.lock().unwrap_or_else(|e| e.into_inner());
+        Some((kept.front()?.seq, kept.back()?.seq))
     }
 
     fn grey(&self, pair: usize) -> Option<GreyPair> {
@@ -547,9 +553,11 @@ mod tests {
             assert_eq!((l.seq, r.seq), (seq, seq));
             assert_eq!(first_pixel(&l), ((seq - 1) % 256) as u8);
         }
-        // One long gone (or never grabbed): the latest instead.
-        for seq in [newest - KEPT as u64, newest + 1] {
-            assert_eq!(live.frame_at(0, View::Left, seq).unwrap().seq, newest);
+        assert_eq!(live.kept_seqs(), Some((newest + 1 - KEPT as u64, newest)));
+        // One long gone (or never grabbed): none, never another frame.
+        for seq in [0, newest - KEPT as u64, newest + 1] {
+            assert!(live.frame_at(0, View::Left, seq).is_none(), "{seq}");
+            assert!(live.frame_at(0, View::Right, seq).is_none(), "{seq}");
         }
         assert!(live.frame_at(0, View::LeftCorners, newest).is_none());
         assert!(live.frame_at(1, View::Left, newest).is_none());

@@ -82,6 +82,7 @@ impl From<Refused> for ApiError {
     fn from(r: Refused) -> ApiError {
         match r {
             Refused::Bad(m) => ApiError(StatusCode::BAD_REQUEST, m),
+            Refused::NotFound(m) => ApiError(StatusCode::NOT_FOUND, m),
             Refused::Unprocessable(m) => ApiError(StatusCode::UNPROCESSABLE_ENTITY, m),
             Refused::Unavailable(m) => ApiError(StatusCode::SERVICE_UNAVAILABLE, m),
         }
@@ -255,6 +256,7 @@ async fn frame(
         )
     })?;
     let (after, seq) = frame_query(query.as_deref())?;
+    app.session.check_pair(pair)?;
     let frames = app.session.frames.clone();
     if let Some(after) = after.filter(|_| frames.live()) {
         let t0 = Instant::now();
@@ -263,15 +265,33 @@ async fn frame(
         }
     }
     let f = tokio::task::spawn_blocking(move || match seq {
-        Some(seq) => frames.frame_at(pair, view, seq),
-        None => frames.frame(pair, view),
+        Some(seq) => frames.frame_at(pair, view, seq).ok_or_else(|| not_kept(&*frames, seq)),
+        None => frames.frame(pair, view).ok_or(None),
     })
     .await
     .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
-    .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("pair {pair}: no such frame")))?;
+    .map_err(|why| {
+        let why = why.unwrap_or_else(|| "no such frame".into());
+        ApiError(StatusCode::NOT_FOUND, format!("pair {pair}: {why}"))
+    })?;
     let mut r = png_response(&f.png);
     r.headers_mut().insert("x-frame-seq", HeaderValue::from(f.seq));
     Ok(r)
+}
+
+/// Why frame `seq` is not served: the frames the store keeps, when `seq` is not one of them
+/// (`None`: it is, but has no such view).
+fn not_kept(frames: &dyn super::frames::PairStore, seq: u64) -> Option<String> {
+    match frames.kept_seqs() {
+        Some((a, b)) if (a..=b).contains(&seq) => None,
+        Some((a, b)) if a == b => {
+            Some(format!("frame {seq} is not kept: the server keeps frame {a} only"))
+        }
+        Some((a, b)) => {
+            Some(format!("frame {seq} is not kept: the server keeps frames {a} to {b}"))
+        }
+        None => Some(format!("frame {seq} is not kept: the server keeps no frame yet")),
+    }
 }
 
 /// A PNG answer, never cached (frames change; a depth map is the page's to keep).
@@ -359,10 +379,11 @@ async fn captures(State(app): State<Shared>) -> Result<Response, ApiError> {
         .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, "not a capture set".into()))
 }
 
-async fn retrain(
-    State(app): State<Shared>,
-    JsonBody(q): JsonBody<RetrainRequest>,
-) -> Result<Response, ApiError> {
+async fn retrain(State(app): State<Shared>, req: Request) -> Result<Response, ApiError> {
+    use axum::extract::FromRequest;
+    // A session without a capture set refuses whatever the body holds.
+    app.session.capture_set()?;
+    let JsonBody(q) = JsonBody::<RetrainRequest>::from_request(req, &()).await?;
     if app.training.swap(true, Ordering::SeqCst) {
         return Err(ApiError(StatusCode::CONFLICT, "a retrain is already running".into()));
     }

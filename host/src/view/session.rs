@@ -152,11 +152,14 @@ pub struct Retrained {
     pub summary: String,
 }
 
-/// Why an action was refused: the request (`Bad`, 4xx) or the inputs (`Unprocessable`).
+/// Why an action was refused: the request (`Bad`, `NotFound`, 4xx) or the inputs
+/// (`Unprocessable`).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Refused {
-    /// No such pair, a bad pixel, a ticked list of the wrong length.
+    /// A bad pixel, a ticked list of the wrong length, not a capture set.
     Bad(String),
+    /// No such pair (404, as `/api/frame` of one).
+    NotFound(String),
     /// The request is well formed but cannot be done with these inputs.
     Unprocessable(String),
     /// The live head cannot take it now (its latest frame failed).
@@ -292,15 +295,30 @@ impl Session {
         })
     }
 
+    /// Refuses (`NotFound`) a pair number the session does not have.
+    pub fn check_pair(&self, pair: usize) -> Result<(), Refused> {
+        if pair < self.frames.len() {
+            Ok(())
+        } else {
+            Err(no_such_pair(pair))
+        }
+    }
+
+    /// The capture set a retrain trains on; a still pair or a live head has none (`Bad`).
+    pub fn capture_set(&self) -> Result<&CaptureData, Refused> {
+        self.captures.as_ref().ok_or_else(|| {
+            Refused::Bad("not a capture set: start hvs view with --board and --captures".into())
+        })
+    }
+
     /// `hvs locate --at U,V` on pair `pair`: the left pixel `(u, v)` found in the right image
     /// and turned into X, Y, Z by the model.
     pub fn locate(&self, pair: usize, u: f64, v: f64) -> Result<Located, Refused> {
         if let Some(why) = &self.locate_refused {
             return Err(Refused::Unprocessable(why.clone()));
         }
-        let (l, _) = self.frames.grey(pair).ok_or_else(|| {
-            Refused::Bad(format!("pair {pair}: no such pair, or its images are unreadable"))
-        })?;
+        self.check_pair(pair)?;
+        let (l, _) = self.frames.grey(pair).ok_or_else(|| unreadable(pair))?;
         check_pixel(u, v, l.dimensions())?;
         // The pair's dense matches (kept for a still pair), as `hvs locate` finds its points.
         let d = self.depth(pair)?;
@@ -316,15 +334,10 @@ impl Session {
         if let Some(why) = &self.locate_refused {
             return Err(Refused::Unprocessable(why.clone()));
         }
-        let cell = self
-            .depth
-            .get(pair)
-            .ok_or_else(|| Refused::Bad(format!("pair {pair}: no such pair")))?;
+        self.check_pair(pair)?;
+        let cell = self.depth.get(pair).ok_or_else(|| no_such_pair(pair))?;
         let compute = || {
-            let (l, r) = self
-                .frames
-                .grey(pair)
-                .ok_or_else(|| Refused::Bad(format!("pair {pair}: its images are unreadable")))?;
+            let (l, r) = self.frames.grey(pair).ok_or_else(|| unreadable(pair))?;
             let t0 = Instant::now();
             let d = crate::depth::depth(&self.model.blob, &l, &r, &crate::depth::locate_params())
                 .map_err(|e| {
@@ -375,9 +388,7 @@ impl Session {
     /// capture set whose `ticked` entry is true: the detection is the one made at start (its
     /// set-wide checks included); unticked pairs are left out of the points.
     pub fn retrain(&self, ticked: &[bool]) -> Result<Retrained, Refused> {
-        let c = self.captures.as_ref().ok_or_else(|| {
-            Refused::Bad("not a capture set: start hvs view with --board and --captures".into())
-        })?;
+        let c = self.capture_set()?;
         if ticked.len() != c.set.captures.len() {
             return Err(Refused::Bad(format!(
                 "{} ticks for {} pairs",
@@ -414,6 +425,16 @@ impl Session {
             summary: crate::train::model::summary(&name, &t),
         })
     }
+}
+
+/// Pair `pair` is not one of the session's.
+pub fn no_such_pair(pair: usize) -> Refused {
+    Refused::NotFound(format!("pair {pair}: no such pair"))
+}
+
+/// Pair `pair` has no images to match: unreadable files, or a live source with no frame yet.
+fn unreadable(pair: usize) -> Refused {
+    Refused::Bad(format!("pair {pair}: its images are unreadable, or there is no frame yet"))
 }
 
 /// Refuses a left pixel that is not finite or lies outside a `w x h` image (pixel-centre

@@ -136,14 +136,21 @@ pub fn write_capture_set(
             joints: joints.copied().unwrap_or(Joints::HOME),
         })
         .collect();
-    for (name, text) in [
-        ("captures.csv", captures_csv(&rows, joints.is_some())),
-        ("truth.csv", set.truth_csv()),
-        ("board.json", set.board_json()),
-    ] {
+    let texts = [captures_csv(&rows, joints.is_some()), set.truth_csv(), set.board_json()];
+    for (name, text) in CAPTURE_SET_TEXTS.iter().zip(texts) {
         batch.add(&dir.join(name), text.as_bytes())?;
     }
     batch.commit()
+}
+
+/// The text files [`write_capture_set`] writes beside the images, in its order.
+const CAPTURE_SET_TEXTS: [&str; 3] = ["captures.csv", "truth.csv", "board.json"];
+
+/// The names of the files [`write_capture_set`] writes for a set of `pairs` pairs: the
+/// images ([`render::capture_names`]) and [`CAPTURE_SET_TEXTS`], so that a command can
+/// check them against its inputs before rendering.
+pub fn capture_set_files(pairs: usize) -> Vec<String> {
+    (0..pairs).flat_map(render::capture_names).chain(CAPTURE_SET_TEXTS.map(String::from)).collect()
 }
 
 #[cfg(test)]
@@ -164,6 +171,21 @@ mod tests {
             0,
         )
         .unwrap()
+    }
+
+    #[test]
+    fn capture_set_files_are_the_files_written() {
+        let set = two_pairs();
+        let dir = tempfile::tempdir().unwrap();
+        write_capture_set(dir.path(), &set, None).unwrap();
+        let mut written: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        written.sort();
+        let mut listed = capture_set_files(2);
+        listed.sort();
+        assert_eq!(written, listed);
     }
 
     #[test]

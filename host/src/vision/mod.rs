@@ -13,8 +13,8 @@ pub use detection::{
     FoundCorner, GroupFit, PairImages, PairOutcome, MAX_HELD_OUT_EPIPOLAR_PX,
 };
 pub use files::{
-    check_same_size, png_bytes, png_bytes_fast, read_grey, read_pair, write_capture_set,
-    write_scene_pair, SCENE_PAIR_FILES,
+    capture_set_files, check_same_size, png_bytes, png_bytes_fast, read_grey, read_pair,
+    write_capture_set, write_scene_pair, SCENE_PAIR_FILES,
 };
 pub use locate::{
     check_image_size, load_stereo_model, locate_overlay, matcher_geometry, model_fundamental,

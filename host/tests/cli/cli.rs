@@ -453,7 +453,12 @@ fn bad_settings_are_refused_before_anything_is_written() {
     };
     run(&["--hidden", "0"], "--hidden must be 1..=32");
     run(&["--hidden", "33"], "--hidden must be 1..=32");
-    run(&["--restarts", "0"], "--restarts must be at least 1");
+    let e = crate::common::stderr_with_code(
+        base.iter().chain(&["--restarts", "0"]).copied().collect::<Vec<_>>(),
+        2,
+    );
+    assert!(e.contains("--restarts must be from 1 to 65535, got 0"), "{e}");
+    assert!(!m.exists());
     run(&["--threshold=-1"], "--threshold must be a positive percentage");
     run(&["--learning-rate", "0"], "--learning-rate must be a positive number");
     run(&["--threshold", "0.001"], "no restart enrolled");
@@ -462,6 +467,37 @@ fn bad_settings_are_refused_before_anything_is_written() {
         "--noise-px must be a finite number >= 0",
     );
     fails(&["simulate", "--case", "7", "--set", "test"], "--case must be 1-4");
+}
+
+/// Values the arguments alone show to be wrong are bad usage (exit 2), named, before any
+/// work: nothing rendered, no server started, no set read.
+#[test]
+fn out_of_range_values_are_bad_usage_before_any_work() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("out");
+    let none = dir.path().join("none");
+    let (model, l, r) = (none.join("m.hvsw"), none.join("l.png"), none.join("r.png"));
+    let view = ["view", "--model", s(&model), "--left", s(&l), "--right", s(&r)];
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["render", "--case", "1", "--depths", "0", "-o", s(&out)], "--depths"),
+        (vec!["render", "--case", "1", "--depths", "65,-1", "-o", s(&out)], "--depths"),
+        (vec!["render", "--case", "1", "--square-cm", "0", "-o", s(&out)], "--square-cm"),
+        (vec!["render", "--case", "1", "--joints", "360,0,0,0,0", "-o", s(&out)], "--joints"),
+        ([&view[..], &["--restarts", "0"]].concat(), "--restarts must be from 1 to 65535, got 0"),
+        (
+            [&view[..], &["--restarts", "1000000000", "--listen", "127.0.0.1:0"]].concat(),
+            "--restarts must be from 1 to 65535, got 1000000000",
+        ),
+        (
+            vec!["train", "--data", s(&l), "-o", s(&out), "--restarts", "1000000000"],
+            "--restarts must be from 1 to 65535",
+        ),
+    ];
+    for (args, want) in cases {
+        let e = crate::common::stderr_with_code(&args, 2);
+        assert!(e.starts_with("error: ") && e.contains(want), "{args:?}: {e}");
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    }
 }
 
 /// The README's `--algo bp` and `--threshold` lines: back-propagation without `--arch` trains

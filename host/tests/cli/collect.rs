@@ -123,7 +123,12 @@ fn collect_refuses_bad_input_naming_it() {
     );
     assert!(!std::path::Path::new(&out).join("CAPTURES.csv").exists());
     usage(&["--scene", &s], "--postures");
-    run(&["--postures", "grid", "--posture-levels", "3,3", "--scene", &s], "five counts");
+    usage(&["--postures", "grid", "--posture-levels", "3,3", "--scene", &s], "five counts");
+    usage(&["--postures", "random", "--posture-count", "0", "--scene", &s], "--posture-count");
+    usage(
+        &["--postures", "grid", "--settle-ms", "99999999999", "--scene", &s],
+        "--settle-ms 99999999999: the settle time must be 0 to 60 s",
+    );
     // A board far out to the side: no posture sees it, and nothing is written.
     fs::write(&p, "x,y,z\n500,0,70\n").unwrap();
     run(
@@ -132,6 +137,48 @@ fn collect_refuses_bad_input_naming_it() {
     );
     // Not even the folder, which this run would have made.
     assert!(!std::path::Path::new(&out).exists(), "{out} left behind");
+}
+
+#[test]
+fn collect_refuses_an_input_among_the_files_it_writes() {
+    let dir = Scratch::new();
+    let (b, p, s) = inputs(&dir, "x,y,z\n0,0,45\n");
+    let out = dir.p("set");
+    fs::create_dir(&out).unwrap();
+    // The scene and the placements named as images the set writes: refused before the run,
+    // kept as they were.
+    let (scene_in, positions_in) =
+        (format!("{out}/left_001_0002.png"), format!("{out}/right_001_0002.png"));
+    fs::copy(&s, &scene_in).unwrap();
+    fs::copy(&p, &positions_in).unwrap();
+    for (flag, file, pp, ss) in
+        [("--scene", &scene_in, &p, &scene_in), ("--positions", &positions_in, &positions_in, &s)]
+    {
+        let before = fs::read(file).unwrap();
+        let e = stderr_with_code(
+            [
+                "collect",
+                "--board",
+                &b,
+                "--positions",
+                pp,
+                "--postures",
+                "lattice",
+                "--posture-levels",
+                "3,1,1,1,1",
+                "--scene",
+                ss,
+                "--supersample",
+                "2",
+                "-o",
+                &out,
+            ],
+            2,
+        );
+        assert!(e.contains(&format!("the set's files would replace the {flag} file")), "{e}");
+        assert_eq!(fs::read(file).unwrap(), before, "{flag}");
+        assert!(!std::path::Path::new(&out).join("CAPTURES.csv").exists());
+    }
 }
 
 /// Issue 27's goal through the CLI, as the README's worked example runs it: the case III

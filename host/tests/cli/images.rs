@@ -262,11 +262,15 @@ fn locate_finds_board_corners_in_a_new_pair_and_names_what_it_refuses() {
     // A point outside the image asked for alone is bad usage (exit 2, as `hvs track
     // --target`'s), naming the image's size.
     let (w, h) = image::image_dimensions(&l).unwrap();
-    for at in [format!("{w},10"), "-0.6,3".to_string()] {
-        let args = locate_args(&["locate"], &model, &l, &r, &["--at", &at]);
-        let e = crate::common::stderr_with_code(&args, 2);
-        assert!(e.contains(&format!("outside the {w}x{h} left image")), "{e}");
-        assert!(e.contains("left01.png") && e.lines().count() == 1, "{e}");
+    // `hvs head look --at` the same, before any matching and before the head is asked.
+    let look = ["head", "--connect", "tcp:127.0.0.1:9", "look"];
+    for verb in [&["locate"][..], &look[..]] {
+        for at in [format!("{w},10"), "-0.6,3".to_string(), "9999,1".to_string()] {
+            let args = locate_args(verb, &model, &l, &r, &["--at", &at]);
+            let e = crate::common::stderr_with_code(&args, 2);
+            assert!(e.contains(&format!("outside the {w}x{h} left image")), "{verb:?}: {e}");
+            assert!(e.contains("left01.png") && e.lines().count() == 1, "{e}");
+        }
     }
     // Images of different sizes; a model without the matcher's geometry (a v1 blob).
     image::GrayImage::from_pixel(320, 240, image::Luma([90u8])).save(d.join("small.png")).unwrap();

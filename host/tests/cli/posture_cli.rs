@@ -35,15 +35,22 @@ fn bad_posture_flags_are_refused() {
     let with = |extra: &[&'static str]| -> Vec<&'static str> {
         base.iter().copied().chain(extra.iter().copied()).collect()
     };
-    let cases: [(&[&'static str], &str); 7] = [
+    // The posture flags are bad usage (exit 2), named.
+    let usage: [(&[&'static str], &str); 7] = [
         (&["--posture-count", "3"], "need --postures"),
         (&["--postures", "grid", "--posture-levels", "3,3"], "five counts"),
         (&["--postures", "grid", "--posture-levels", "3,0,3,3,3"], "at least 1"),
         (&["--postures", "random", "--posture-levels", "3,3,3,3,3"], "grid or lattice"),
         (&["--postures", "grid", "--posture-count", "4"], "random"),
-        (&["--distortion", "1,2,3"], "K1 or K1,K2"),
-        (&["--distortion", "nan"], "finite"),
+        (&["--postures", "random", "--posture-count", "0"], "--posture-count must be 1 to"),
+        (&["--postures", "grid", "--posture-levels", "99,99,99,99,99"], "--posture-levels give"),
     ];
+    for (extra, want) in usage {
+        let e = crate::common::stderr_with_code(with(extra), 2);
+        assert!(e.starts_with("error: ") && e.contains(want), "{extra:?}: {e}");
+    }
+    let cases: [(&[&'static str], &str); 2] =
+        [(&["--distortion", "1,2,3"], "K1 or K1,K2"), (&["--distortion", "nan"], "finite")];
     for (extra, want) in cases {
         fails(&with(extra), want);
     }

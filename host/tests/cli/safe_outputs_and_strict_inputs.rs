@@ -134,7 +134,14 @@ fn an_output_that_is_an_input_is_refused() {
     let hard = dir.path().join("hard.csv");
     std::fs::hard_link(&te, &hard).unwrap();
     let dotted = dir.path().join(".").join("test.csv");
-    let cases: Vec<(Vec<&str>, &str, &Path)> = vec![
+    // The rig file named as one of the files `hvs render` writes into its folder.
+    let set = dir.path().join("set");
+    std::fs::create_dir(&set).unwrap();
+    let in_set = ["truth.csv", "board.json", "right03.png", "captures.csv"].map(|n| set.join(n));
+    for p in &in_set {
+        std::fs::copy(&rig, p).unwrap();
+    }
+    let mut cases: Vec<(Vec<&str>, &str, &Path)> = vec![
         (predict_args(&m, &te, s(&te)), "--points", &te),
         (predict_args(&m, &te, s(&hard)), "--points", &te),
         (predict_args(&m, &te, s(&dotted)), "--points", &te),
@@ -161,6 +168,9 @@ fn an_output_that_is_an_input_is_refused() {
             &te,
         ),
     ];
+    for p in &in_set {
+        cases.push((vec!["render", "--rig", s(p), "--case", "1", "-o", s(&set)], "--rig", p));
+    }
     for (args, flag, input) in cases {
         let before = read(input);
         let e = fails(&args, &format!("is also the {flag} input"));

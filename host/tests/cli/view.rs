@@ -339,8 +339,9 @@ fn view_shows_the_depth_of_the_pair_as_hvs_depth_colours_it() {
     );
     // Asked again: the same map, kept.
     assert_eq!(json(&sv.addr, "GET", "/api/depth/0", None, 200)["returned"], returned);
+    // No such pair: not found, as its frames.
     for path in ["/api/depth/1", "/api/depth/1/image", "/api/depth/1/cloud.ply"] {
-        assert_eq!(http(&sv.addr, "GET", path, None).0, 400, "{path}");
+        assert_eq!(http(&sv.addr, "GET", path, None).0, 404, "{path}");
     }
     assert_eq!(http(&sv.addr, "GET", "/api/depth/x", None).0, 400);
 }
@@ -395,6 +396,16 @@ fn view_runs_the_virtual_head_live_and_looks_where_asked() {
     let (st, s2, right) = get_frame(&sv.addr, &format!("/api/frame/0/right?seq={s1}"));
     assert_eq!((st, s2), (200, Some(s1)));
     assert_ne!(left, right, "the left and the right image of the pair");
+    // A frame the head no longer keeps (0: none has that number) or has not taken yet is
+    // not another frame's image: 404, naming it and the frames kept.
+    for gone in [0, 999_999] {
+        let (st, seq, body) = get_frame(&sv.addr, &format!("/api/frame/0/right?seq={gone}"));
+        let text = String::from_utf8_lossy(&body).into_owned();
+        assert_eq!((st, seq), (404, None), "seq={gone}: {text}");
+        let v: Value = serde_json::from_str(&text).expect("a JSON error");
+        let e = v["error"].as_str().unwrap();
+        assert!(e.contains(&format!("frame {gone} ")) && e.contains("keeps frames"), "{e}");
+    }
     for q in ["after=-1", "after=x", "seq=1.5", "after="] {
         let (st, _, body) = get_frame(&sv.addr, &format!("/api/frame/0/left?{q}"));
         assert_eq!(st, 400, "{q}: {}", String::from_utf8_lossy(&body));
@@ -444,7 +455,7 @@ fn view_refuses_bad_requests_and_stays_up() {
         (r#"{"pair":0,"u":1e999,"v":2}"#, 400),
         (r#"{"pair":0,"u":-5,"v":2}"#, 400),
         (r#"{"pair":0,"u":100000,"v":2}"#, 400),
-        (r#"{"pair":3,"u":1,"v":2}"#, 400),
+        (r#"{"pair":3,"u":1,"v":2}"#, 404),
     ];
     let mut bad: Vec<(&str, &str, Option<&str>, u16)> =
         locates.iter().map(|&(body, code)| ("POST", "/api/locate", Some(body), code)).collect();
@@ -452,6 +463,8 @@ fn view_refuses_bad_requests_and_stays_up() {
         ("POST", "/api/locate", Some(big.as_str()), 413),
         ("GET", "/api/locate", None, 405),
         ("POST", "/api/retrain", Some(r#"{"use":[true]}"#), 400),
+        ("POST", "/api/retrain", Some("{}"), 400),
+        ("GET", "/api/depth/3", None, 404),
         ("GET", "/api/captures", None, 404),
         ("GET", "/api/frame/1/left", None, 404),
         ("GET", "/api/frame/0/top", None, 404),
@@ -474,6 +487,20 @@ fn view_refuses_bad_requests_and_stays_up() {
             assert!(!e.is_empty() && !e.contains('\n'), "{e}");
         }
         json(&sv.addr, "GET", "/api/session", None, 200);
+    }
+    // An unknown pair is not found wherever it is named; a still pair is no capture set,
+    // whatever the retrain's body.
+    for (method, path, body) in [
+        ("POST", "/api/locate", Some(r#"{"pair":3,"u":1,"v":2}"#)),
+        ("GET", "/api/depth/3", None),
+        ("GET", "/api/frame/3/left", None),
+    ] {
+        let e = json(&sv.addr, method, path, body, 404);
+        assert!(e["error"].as_str().is_some_and(|m| m.contains("pair 3: no such pair")), "{e}");
+    }
+    for body in ["{}", r#"{"use":[true]}"#, "[]"] {
+        let e = json(&sv.addr, "POST", "/api/retrain", Some(body), 400);
+        assert!(e["error"].as_str().is_some_and(|m| m.starts_with("not a capture set")), "{e}");
     }
     // Not HTTP at all.
     let mut c = TcpStream::connect(&sv.addr).unwrap();
