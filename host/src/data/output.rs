@@ -714,9 +714,10 @@ fn lock_dirs(staged: &[Staged]) -> Vec<std::fs::File> {
     dirs.dedup();
     dirs.iter()
         .filter_map(|d| {
+            use std::os::fd::AsRawFd;
             let f = std::fs::File::open(d).ok()?;
-            f.lock().ok()?;
-            Some(f)
+            // SAFETY: `flock` on a descriptor `f` owns; the lock goes with it when `f` closes.
+            (unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX) } == 0).then_some(f)
         })
         .collect()
 }
@@ -955,7 +956,9 @@ mod tests {
         batch.add(&a, b"new a").unwrap();
         batch.add(&b, b"new b").unwrap();
         let held = std::fs::File::open(dir.path()).unwrap();
-        held.lock().unwrap();
+        // SAFETY: as in `lock_dirs`.
+        let r = unsafe { libc::flock(std::os::fd::AsRawFd::as_raw_fd(&held), libc::LOCK_EX) };
+        assert_eq!(r, 0);
         let t = std::thread::spawn(move || batch.commit());
         std::thread::sleep(std::time::Duration::from_millis(200));
         assert!(!a.exists() && !b.exists(), "committed under another's lock");

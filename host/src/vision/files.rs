@@ -147,7 +147,7 @@ pub fn write_capture_set(
 const CAPTURE_SET_TEXTS: [&str; 3] = ["captures.csv", "truth.csv", "board.json"];
 
 /// The names of the files [`write_capture_set`] writes for a set of `pairs` pairs: the
-/// images ([`render::capture_names`]) and [`CAPTURE_SET_TEXTS`], so that a command can
+/// images ([`render::capture_names`]) and `captures.csv`, `truth.csv`, `board.json`, so that a command can
 /// check them against its inputs before rendering.
 pub fn capture_set_files(pairs: usize) -> Vec<String> {
     (0..pairs).flat_map(render::capture_names).chain(CAPTURE_SET_TEXTS.map(String::from)).collect()
