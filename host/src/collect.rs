@@ -182,6 +182,16 @@ pub fn with_board(scene: &Scene, board: &Board, centre: [f64; 3]) -> Result<Scen
     if scene.objects.len() >= MAX_OBJECTS {
         bail!("the scene has {MAX_OBJECTS} objects already: no room for the board");
     }
+    // The board faces the head upright, all of it at the centre's Z: at the wall's depth or
+    // behind it the wall hides it (at the same depth every ray meets both, and the render
+    // shows the wall; the occlusion test, which compares distances, passed such pairs).
+    let wall = scene.background.z_cm;
+    if centre[2] >= wall {
+        bail!(
+            "the board at z = {} cm is not in front of the scene's wall (background.z_cm = {wall}):              the wall would hide it; place the board nearer or the wall farther",
+            centre[2]
+        );
+    }
     let mut s = scene.clone();
     s.objects.push(Object {
         shape: Shape::Board { board: *board },
@@ -360,6 +370,13 @@ mod tests {
         // A box between the head and the board (at 105 cm) hides its middle.
         let boxed = wall(r#"{"shape": "box", "size_cm": [10, 10, 10], "centre_cm": [0, 0, 60]}"#);
         assert!(matches!(capture(&head, &boxed, &p, &stop).unwrap(), Shot::Hidden));
+        // A board at the wall's depth (300 cm here) or behind it is refused, not captured as
+        // wall (a QA pass: 3 pairs of wall "collected" at z = 300).
+        for z in [300.0, 350.0] {
+            let e = with_board(&boxed, &p.board, [0.0, 0.0, z]).unwrap_err().to_string();
+            assert!(e.contains("not in front of the scene's wall"), "{e}");
+        }
+        assert!(with_board(&boxed, &p.board, [0.0, 0.0, 299.0]).is_ok());
         // Turned away: refused before rendering.
         let away = Stop { joints: Joints([30.0, 0.0, 0.0, 0.0, 0.0]), ..stop };
         p.placements[0].xyz = [0.0, 0.0, 40.0];
