@@ -84,7 +84,7 @@ pub fn visit(head: &mut dyn ServoHead, plan: &Plan) -> Result<Vec<Stop>> {
 /// Checks a settle time ([`Plan::settle_s`]): 0 to 60 s.
 pub fn check_settle(settle_s: f64) -> Result<()> {
     if !(settle_s.is_finite() && (0.0..=60.0).contains(&settle_s)) {
-        bail!("the settle time must be 0 to 60 s, got {settle_s}");
+        bail!("the settle time must be 0 to 60 s, got {}", crate::fmt::given(settle_s));
     }
     Ok(())
 }

@@ -144,8 +144,9 @@ fn run_scene(a: &Args, path: &Path) -> Result<()> {
         eprintln!("warning: the right camera sees none of the points the left one sees");
     }
     eprintln!(
-        "rendered {} at t = {t} s into {}: {}x{}, {seen} left pixels seen by the right camera",
+        "rendered {} at t = {} s into {}: {}x{}, {seen} left pixels seen by the right camera",
         path.display(),
+        crate::fmt::given(t),
         a.output.display(),
         r.left.width(),
         r.left.height()

@@ -90,7 +90,7 @@ pub fn run(a: Args) -> Result<()> {
     if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
         return Err(crate::cli::usage(format!(
             "--seconds: must be > 0 and at most 3600, got {}",
-            a.seconds
+            crate::fmt::given(a.seconds)
         )));
     }
     if !(a.correction_gain.is_finite() && (0.0..=1.0).contains(&a.correction_gain)) {
@@ -165,7 +165,7 @@ pub fn run(a: Args) -> Result<()> {
     if (a.seconds * fps).floor() < 1.0 {
         return Err(crate::cli::usage(format!(
             "--seconds: {} s is less than one frame at {fps} frames/s",
-            a.seconds
+            crate::fmt::given(a.seconds)
         )));
     }
     // The model's depths hold for the images it was trained on (as `hvs depth` and `hvs

@@ -199,7 +199,7 @@ impl Args {
         let hb = self.half_baseline.unwrap_or(f64::from(c.half_baseline));
         let (u0, v0) = (self.u0.unwrap_or(f64::from(c.u0)), self.v0.unwrap_or(f64::from(c.v0)));
         if !(hb.is_finite() && hb > 0.0) {
-            bail!("--half-baseline must be a positive number, got {hb}");
+            bail!("--half-baseline must be a positive number, got {}", crate::fmt::given(hb));
         }
         if !(u0.is_finite() && v0.is_finite()) {
             bail!("--u0 and --v0 must be finite");
@@ -227,15 +227,18 @@ pub fn run(a: Args) -> Result<()> {
     a.restarts.map(crate::cli::check_restarts).transpose()?;
     if let Some(t) = a.threshold {
         if !(t.is_finite() && t > 0.0) {
-            bail!("--threshold must be a positive percentage, got {t}");
+            bail!("--threshold must be a positive percentage, got {}", crate::fmt::given(t));
         }
     }
     if !(a.learning_rate.is_finite() && a.learning_rate > 0.0) {
-        bail!("--learning-rate must be a positive number, got {}", a.learning_rate);
+        bail!(
+            "--learning-rate must be a positive number, got {}",
+            crate::fmt::given(a.learning_rate)
+        );
     }
     // As `BpParams::check` has it: 0 runs every cycle up to --max-cycles.
     if !(a.e_max.is_finite() && a.e_max >= 0.0) {
-        bail!("--e-max must be a finite number >= 0, got {}", a.e_max);
+        bail!("--e-max must be a finite number >= 0, got {}", crate::fmt::given(a.e_max));
     }
     check_not_input("-o", &a.output, &data_inputs(&a.data))?;
     let table = read_data(&a.data)?;

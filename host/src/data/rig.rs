@@ -186,7 +186,7 @@ fn rig_from(obj: &Map<String, Value>) -> Result<Rig> {
         if x > 0.0 {
             Ok(x)
         } else {
-            bail!("field \"{k}\": must be positive, got {x}")
+            bail!("field \"{k}\": must be positive, got {}", crate::fmt::given(x))
         }
     };
     let angle = |k: &str| -> Result<f64> {

@@ -170,7 +170,8 @@ pub fn check_noise_px(noise_px: f64, rig: &Rig) -> Result<()> {
     let image = rig.width.max(rig.height) as f64;
     if !(noise_px.is_finite() && (0.0..=image).contains(&noise_px)) {
         bail!(
-            "--noise-px must be a finite number >= 0 and at most the image size ({image} px), got {noise_px}"
+            "--noise-px must be a finite number >= 0 and at most the image size ({image} px), got {}",
+            crate::fmt::given(noise_px)
         );
     }
     Ok(())

@@ -48,10 +48,16 @@ impl BpParams {
     /// Rejects settings the algorithm cannot run with.
     pub fn check(&self) -> Result<()> {
         if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
-            bail!("the BP learning rate must be positive, got {}", self.learning_rate);
+            bail!(
+                "the BP learning rate must be positive, got {}",
+                crate::fmt::given(self.learning_rate)
+            );
         }
         if !(self.e_max.is_finite() && self.e_max >= 0.0) {
-            bail!("the BP E_max must be a non-negative number, got {}", self.e_max);
+            bail!(
+                "the BP E_max must be a non-negative number, got {}",
+                crate::fmt::given(self.e_max)
+            );
         }
         if self.max_cycles == 0 {
             bail!("the BP learning-cycle cap must be at least 1");

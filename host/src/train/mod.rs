@@ -510,7 +510,7 @@ fn check(data: &Dataset, cfg: &TrainConfig) -> Result<()> {
     }
     if let Some(t) = cfg.threshold_pct {
         if !(t.is_finite() && t > 0.0) {
-            bail!("the threshold must be a positive percentage, got {t}");
+            bail!("the threshold must be a positive percentage, got {}", crate::fmt::given(t));
         }
     }
     if cfg.algo == Algo::Bp {

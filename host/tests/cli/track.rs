@@ -135,6 +135,8 @@ fn track_refuses_bad_input_with_one_clear_line() {
     };
     // Less than one frame: nothing would run.
     usage(on_scene(&good, "0.01"), "less than one frame at 30 frames/s");
+    // A tiny value is quoted as given, not as 300 digits.
+    usage(on_scene(&good, "1e-300"), "--seconds: 1e-300 s is less than one frame");
     // A model trained on points of images of another size than the scene's cameras make: its
     // depths do not hold there (as `hvs depth` and `hvs locate` refuse), and no log is written.
     let text = fs::read_to_string(dir.p("train.csv")).unwrap();
