@@ -89,10 +89,17 @@ impl Board {
                 ));
             }
         }
+        use crate::invalid::{MAX_CM, MIN_SQUARE_CM};
         if !(square_cm.is_finite() && square_cm > 0.0) {
             return Err(BoardError::Value(
                 "square_cm",
                 format!("{square_cm} is not a positive finite length"),
+            ));
+        }
+        if !(MIN_SQUARE_CM..=MAX_CM).contains(&square_cm) {
+            return Err(BoardError::Value(
+                "square_cm",
+                format!("{square_cm:e} cm is outside {MIN_SQUARE_CM} to {MAX_CM} cm"),
             ));
         }
         Ok(Board { pattern: Pattern::Chessboard, cols, rows, square_cm })
@@ -214,6 +221,9 @@ mod tests {
             (chess("[9, 6]", "0.0"), "square_cm"),
             (chess("[9, 6]", "-1.0"), "square_cm"),
             (chess("[9, 6]", "1e400"), "number out of range"),
+            // Finite but absurd: named, not left to fail the geometry as "degenerate".
+            (chess("[9, 6]", "1e300"), "1e300 cm is outside 0.01 to 100000 cm"),
+            (chess("[9, 6]", "1e-300"), "1e-300 cm is outside 0.01 to 100000 cm"),
             (chess("[9, 6]", "\"6\""), "invalid type"),
             (String::new(), "EOF"),
         ];

@@ -4,6 +4,14 @@
 
 use std::fmt;
 
+/// Largest length or coordinate (cm) any description takes: a scene's positions and sizes, a
+/// board's square, a capture's placement (1 km). Past it a value is a typo or garbage, and the
+/// geometry downstream would fail with a message that hides the cause.
+pub const MAX_CM: f64 = 1.0e5;
+
+/// Smallest board square (cm): a tenth of a millimetre, finer than any printed board.
+pub const MIN_SQUARE_CM: f64 = 0.01;
+
 /// A parameter or input is out of its range: which one, and what is wrong with it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct InvalidField {

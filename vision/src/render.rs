@@ -555,8 +555,9 @@ pub fn check_depths(depths: &[f64]) -> Result<(), RenderError> {
     if depths.is_empty() || depths.len() > 99 {
         return Err(invalid("depths", format!("need 1..=99 depths, got {}", depths.len())));
     }
-    if let Some(z) = depths.iter().find(|z| !(z.is_finite() && **z > 0.0)) {
-        return Err(invalid("depths", format!("must be finite and > 0, got {z}")));
+    let most = crate::invalid::MAX_CM;
+    if let Some(z) = depths.iter().find(|z| !(z.is_finite() && **z > 0.0 && **z <= most)) {
+        return Err(invalid("depths", format!("must be > 0 and at most {most}, got {z}")));
     }
     Ok(())
 }

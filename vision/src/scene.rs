@@ -45,7 +45,7 @@
 //! point, or `None` when it is occluded or out of the image.
 
 use crate::board::Board;
-use crate::invalid::{numbers, InvalidField};
+use crate::invalid::{numbers, InvalidField, MAX_CM};
 use crate::pfm::FloatImage;
 use crate::render::{blur, class, quantise, Class, RayGrid, RenderError, RenderOptions};
 use hvs_shared::runtime::gaze::Joints;
@@ -330,9 +330,6 @@ fn check_vec(field: &str, v: &Vec3, bound: f64) -> Result<(), SceneError> {
         Err(err(field, format!("must be three finite numbers within +-{bound}, got {v:?}")))
     }
 }
-
-/// Largest coordinate anywhere (cm).
-const MAX_CM: f64 = 1.0e5;
 
 /// Largest slant of a plane (degrees): at 90 it would be seen edge on.
 pub const MAX_SLANT_DEG: f64 = 85.0;

@@ -179,6 +179,15 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
             }
         }
         let xy = [opt_num(xi, "x")?.unwrap_or(0.0), opt_num(yi, "y")?.unwrap_or(0.0)];
+        let most = crate::data::validate::MAX_ABS_CM;
+        for (v, col) in [xy[0], xy[1], z.unwrap_or(0.0)].into_iter().zip(["x", "y", "z"]) {
+            if v.abs() > most {
+                bail!(
+                    "{file}:{line}: column \"{col}\": {} cm is not a place a head's cameras see (|{col}| must be at most {most} cm, as in a training set)",
+                    crate::fmt::given(v)
+                );
+            }
+        }
         let mut extra = Vec::with_capacity(extra_idx.len());
         for (k, c) in extra_idx.iter().zip(&extra_columns) {
             if JOINT_COLUMNS.contains(&c.as_str()) {
@@ -277,6 +286,9 @@ mod tests {
             ("left,z\na,65\n", "missing column \"right\""),
             ("left,right,z\na,b,abc\n", ":2: column \"z\""),
             ("left,right,z\na,b,-5\n", ":2: column \"z\""),
+            // Finite but absurd (QA: z = 1e30 came out as "left and right swapped").
+            ("left,right,z\na,b,1e30\n", ":2: column \"z\": 1e30 cm is not a place"),
+            ("left,right,z,x,y\na,b,65,0,-2e5\n", ":2: column \"y\": -200000 cm"),
             ("left,right\n,b\n", ":2: column \"left\" is empty"),
             ("left,right,left\na,b,c\n", "appears twice"),
             ("left,right\na,b,c\n", ":2: row has 3 fields"),

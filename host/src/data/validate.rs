@@ -10,8 +10,9 @@ use hvs_shared::runtime::mlp::param_count;
 
 /// Largest |pixel| a camera reports (px): far beyond any sensor, far below f32 trouble.
 pub const MAX_ABS_PIXEL: f64 = 1e5;
-/// Largest |x|, |y| and z of a point (cm): a kilometre.
-pub const MAX_ABS_CM: f64 = 1e5;
+/// Largest |x|, |y| and z of a point (cm): a kilometre, the bound of every scene and board
+/// description too (one definition, in `hvs-vision`).
+pub const MAX_ABS_CM: f64 = hvs_vision::invalid::MAX_CM;
 /// How far (px) a pixel may lie beyond its image's border pixels' centres: the pixel's own
 /// half width and a little more for a corner found on the border.
 pub const EDGE_SLACK_PX: f64 = 1.0;

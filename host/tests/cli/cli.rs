@@ -482,6 +482,9 @@ fn out_of_range_values_are_bad_usage_before_any_work() {
         (vec!["render", "--case", "1", "--depths", "0", "-o", s(&out)], "--depths"),
         (vec!["render", "--case", "1", "--depths", "65,-1", "-o", s(&out)], "--depths"),
         (vec!["render", "--case", "1", "--square-cm", "0", "-o", s(&out)], "--square-cm"),
+        // Finite but absurd (QA): a board at 10 km, squares of 1e-9 cm.
+        (vec!["render", "--case", "1", "--depths", "1e9", "-o", s(&out)], "at most 100000"),
+        (vec!["render", "--case", "1", "--square-cm", "1e-9", "-o", s(&out)], "1e-9 cm is outside"),
         (vec!["render", "--case", "1", "--joints", "360,0,0,0,0", "-o", s(&out)], "--joints"),
         ([&view[..], &["--restarts", "0"]].concat(), "--restarts must be from 1 to 65535, got 0"),
         (
