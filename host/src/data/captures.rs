@@ -153,7 +153,7 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
         }
     }
     let extra_idx: Vec<usize> = extra_columns.iter().map(|c| find(c).unwrap_or(0)).collect();
-    let mut captures = Vec::new();
+    let mut captures: Vec<Capture> = Vec::new();
     let mut rec = csv::StringRecord::new();
     while rdr.read_record(&mut rec).map_err(|e| csv_error(&file, e))? {
         let line = lines_of.line_at(rec.position().map_or(0, |p| p.byte()));
@@ -194,6 +194,16 @@ pub fn read(path: &Path) -> Result<CaptureSet> {
                 number(&file, line, c, rec[*k].as_bytes())?;
             }
             extra.push(rec[*k].to_string());
+        }
+        // The same pair twice would give its corners twice, weighing that board double in
+        // training (a file given twice to `hvs train` is refused for the same reason).
+        if let Some(c) =
+            captures.iter().find(|c| (&c.left_name, &c.right_name) == (&left_name, &right_name))
+        {
+            bail!(
+                "{file}:{line}: the pair {left_name}, {right_name} is line {}'s again: each pair once",
+                c.line
+            );
         }
         captures.push(Capture {
             line,
@@ -260,7 +270,7 @@ mod tests {
     #[test]
     fn written_sets_read_back_with_and_without_centres() {
         let row = |centre: [f64; 3]| CaptureRow {
-            left: "l.png",
+            left: if centre[0].is_nan() { "l2.png" } else { "l.png" },
             right: "r.png",
             centre,
             joints: Joints([1.5, 0.0, -2.0, 0.25, 3.0]),
@@ -292,6 +302,7 @@ mod tests {
             ("left,right\n,b\n", ":2: column \"left\" is empty"),
             ("left,right,left\na,b,c\n", "appears twice"),
             ("left,right\na,b,c\n", ":2: row has 3 fields"),
+            ("left,right,z\na,b,65\nc,d,85\na,b,65\n", ":4: the pair a, b is line 2's again"),
         ] {
             let e = read_text(text).unwrap_err().to_string();
             assert!(e.contains(want), "{text:?}: {e}");
