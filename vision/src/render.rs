@@ -549,11 +549,17 @@ impl RenderedSet {
     }
 }
 
-/// Checks the board depths of [`render_capture_set`] (cm): 1 to 99 of them (two-digit file
-/// names), each finite and > 0.
+/// Most depths (pairs) of one capture set: its images are numbered with two digits.
+pub const MAX_DEPTHS: usize = 99;
+
+/// Checks the board depths of [`render_capture_set`] (cm): 1 to [`MAX_DEPTHS`] of them, each
+/// > 0 and within the one bound of every length ([`crate::invalid::MAX_CM`]).
 pub fn check_depths(depths: &[f64]) -> Result<(), RenderError> {
-    if depths.is_empty() || depths.len() > 99 {
-        return Err(invalid("depths", format!("need 1..=99 depths, got {}", depths.len())));
+    if depths.is_empty() || depths.len() > MAX_DEPTHS {
+        return Err(invalid(
+            "depths",
+            format!("need 1..={MAX_DEPTHS} depths, got {}", depths.len()),
+        ));
     }
     let most = crate::invalid::MAX_CM;
     if let Some(z) = depths.iter().find(|z| !(z.is_finite() && **z > 0.0 && **z <= most)) {

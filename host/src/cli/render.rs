@@ -155,6 +155,24 @@ fn run_scene(a: &Args, path: &Path) -> Result<()> {
 }
 
 /// `hvs render`.
+/// A warning when the folder `dir` holds images of pairs past this run's `pairs` (an earlier
+/// run of more depths): they stay beside this run's, and `captures.csv` lists only this run's
+/// (QA, 2026-12-08: `left02..06.png` of a six-depth set stayed under a one-depth render).
+fn later_pairs_warning(dir: &Path, pairs: usize) -> Option<String> {
+    let stale: Vec<String> = (pairs..render::MAX_DEPTHS)
+        .flat_map(render::capture_names)
+        .filter(|n| dir.join(n).is_file())
+        .collect();
+    (!stale.is_empty()).then(|| {
+        format!(
+            "-o {}: {} image(s) of an earlier set stay beside this one ({} ...): captures.csv lists only this run's {pairs} pair(s)",
+            dir.display(),
+            stale.len(),
+            stale[0]
+        )
+    })
+}
+
 pub fn run(a: Args) -> Result<()> {
     if let Some(path) = &a.scene {
         return run_scene(&a, path);
@@ -167,6 +185,9 @@ pub fn run(a: Args) -> Result<()> {
     render::check_depths(&depths).map_err(crate::cli::render_error)?;
     let written = crate::vision::capture_set_files(depths.len());
     check_inputs_not_written(&a.output, &written, &a.rig.inputs())?;
+    if let Some(w) = later_pairs_warning(&a.output, depths.len()) {
+        eprintln!("warning: {w}");
+    }
     let rig = a
         .rig
         .rig()?

@@ -288,6 +288,14 @@ fn an_interrupted_rerun_leaves_the_last_set_as_it_was() {
         assert!(seen.len() >= temps, "{seen:?}");
         assert_eq!(folder(&set), before, "signal {sig} after {} temporary files", seen.len());
     }
+    // A whole rerun of fewer depths says which of the last set's images stay beside it.
+    let o = crate::common::hvs()
+        .args(["render", "--case", "1", "--depths", "95", "-o", s(&set)])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("20 image(s) of an earlier set stay beside this one (left02.png"), "{e}");
 
     let b = dir.path().join("board.json");
     let p = dir.path().join("positions.csv");
