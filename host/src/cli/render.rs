@@ -154,7 +154,6 @@ fn run_scene(a: &Args, path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// `hvs render`.
 /// A warning when the folder `dir` holds images of pairs past this run's `pairs` (an earlier
 /// run of more depths): they stay beside this run's, and `captures.csv` lists only this run's
 /// (QA, 2026-12-08: `left02..06.png` of a six-depth set stayed under a one-depth render).
@@ -173,6 +172,7 @@ fn later_pairs_warning(dir: &Path, pairs: usize) -> Option<String> {
     })
 }
 
+/// `hvs render`.
 pub fn run(a: Args) -> Result<()> {
     if let Some(path) = &a.scene {
         return run_scene(&a, path);
@@ -185,9 +185,6 @@ pub fn run(a: Args) -> Result<()> {
     render::check_depths(&depths).map_err(crate::cli::render_error)?;
     let written = crate::vision::capture_set_files(depths.len());
     check_inputs_not_written(&a.output, &written, &a.rig.inputs())?;
-    if let Some(w) = later_pairs_warning(&a.output, depths.len()) {
-        eprintln!("warning: {w}");
-    }
     let rig = a
         .rig
         .rig()?
@@ -215,6 +212,9 @@ pub fn run(a: Args) -> Result<()> {
         [x, y] if x.is_finite() && y.is_finite() => [*x, *y],
         _ => return Err(crate::cli::usage("--centre takes X,Y (cm)")),
     };
+    if let Some(w) = later_pairs_warning(&a.output, depths.len()) {
+        eprintln!("warning: {w}");
+    }
     let head = HeadRig::new(rig).with_distortion(distortion);
     let bar = std::io::stderr().is_terminal().then(|| {
         let b = indicatif::ProgressBar::new_spinner();
