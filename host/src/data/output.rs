@@ -93,11 +93,7 @@ fn resolved(path: &Path) -> Option<PathBuf> {
         Target::InPlace(_) | Target::Stdout => return None,
     };
     let name = p.file_name()?;
-    let dir = match p.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    Some(std::fs::canonicalize(dir).ok()?.join(name))
+    Some(std::fs::canonicalize(folder_of(&p)).ok()?.join(name))
 }
 
 /// Refuses two outputs of one command that name one file: `(flag, path)` each. Compared by
@@ -161,10 +157,7 @@ pub fn check_dir_output(flag: &str, dir: &Path) -> Result<()> {
             }
         }
         Err(_) => {
-            let parent = match dir.parent() {
-                Some(p) if !p.as_os_str().is_empty() => p,
-                _ => Path::new("."),
-            };
+            let parent = folder_of(dir);
             if !parent.is_dir() {
                 bail!(
                     "{flag} {shown}: cannot create the folder: {} does not exist",
@@ -237,10 +230,7 @@ pub fn remove_if_created(dir: &Path, created: bool) {
 /// Fails unless the directory `path` would be written in exists, so that a command can
 /// refuse a bad `-o` before any work (the same message as the writer's).
 pub fn check_dir(path: &Path) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let dir = folder_of(path);
     if !dir.is_dir() {
         bail!("{}: the directory {} does not exist", path.display(), dir.display());
     }
@@ -277,6 +267,14 @@ pub fn check_not_input(out_flag: &str, output: &Path, inputs: &[(&str, &Path)]) 
     Ok(())
 }
 
+/// The folder `path` is in: its parent, or `.` for a bare file name.
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
 /// Whether `path` names a file in the folder `dir` whose name `written` says a command writes
 /// there (`hvs track --record`'s frames, `hvs collect`'s images): a command that writes a
 /// family of names, known by their pattern before the run, checks its inputs with it before
@@ -287,10 +285,7 @@ pub fn names_file_in(dir: &Path, path: &Path, written: impl Fn(&str) -> bool) ->
     if !written(name) {
         return false;
     }
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let parent = folder_of(path);
     match (std::fs::canonicalize(parent), std::fs::canonicalize(dir)) {
         (Ok(p), Ok(d)) => p == d,
         _ => parent.components().eq(dir.components()),
@@ -557,10 +552,7 @@ fn stage<F>(path: &Path, body: F, clean: &mut dyn FnMut(&Path) -> bool) -> Resul
 where
     F: FnOnce(&mut dyn Write) -> Result<()>,
 {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let dir = folder_of(path).to_path_buf();
     let fname = path.file_name().ok_or_else(|| anyhow!("{}: not a file name", path.display()))?;
     let prefix = temp_prefix(&fname.to_string_lossy());
     let mut builder = tempfile::Builder::new();
@@ -703,13 +695,8 @@ impl Batch {
 /// `hvs depth` runs started together mixed them). Best effort: a directory that cannot be
 /// opened or locked (a file system without `flock`) is committed unlocked, as before.
 fn lock_dirs(staged: &[Staged]) -> Vec<std::fs::File> {
-    let mut dirs: Vec<PathBuf> = staged
-        .iter()
-        .filter_map(|st| {
-            let dir = st.path.parent().filter(|d| !d.as_os_str().is_empty());
-            std::fs::canonicalize(dir.unwrap_or(Path::new("."))).ok()
-        })
-        .collect();
+    let mut dirs: Vec<PathBuf> =
+        staged.iter().filter_map(|st| std::fs::canonicalize(folder_of(&st.path)).ok()).collect();
     dirs.sort();
     dirs.dedup();
     dirs.iter()
